@@ -1,0 +1,33 @@
+"""Elementwise activations on vec4 blocks; torch twins in models/activations.py."""
+from __future__ import annotations
+
+from .glsl import PlanRow, blocks, flt
+from .registry import emitter
+from .values import declare
+
+_EXPR = {
+    "relu": lambda v, p: f"max({v}, 0.0)",
+    "leaky_relu": lambda v, p: f"max({v}, 0.0) + {flt(p['slope'])} * min({v}, 0.0)",
+    "sigmoid": lambda v, p: f"inshade_sigmoid({v})",
+    "tanh": lambda v, p: f"inshade_tanh({v})",
+    "softplus": lambda v, p: f"inshade_softplus({v})",
+    "sin": lambda v, p: f"sin({flt(p['omega0'])} * {v})",
+    "exp": lambda v, p: f"exp({v})",
+}
+_FLOPS = {"relu": 1, "leaky_relu": 3, "sigmoid": 4, "tanh": 6, "softplus": 6, "sin": 2, "exp": 1, "identity": 0}
+
+
+@emitter(*_EXPR, "identity")
+def emit_activation(ctx, node, src, bundle):
+    ctx.plan.append(PlanRow(node.id, node.type, f"{node.in_dim}", flops=_FLOPS[node.type] * node.in_dim))
+    if node.type == "identity":
+        return src
+    ctx.include("lib/activations")
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    if src.aligned:
+        for b in range(blocks(node.in_dim)):
+            ctx.body.append(f"{out.array}[{b}] = {_EXPR[node.type](f'{src.array}[{b}]', node.params)};")
+    else:
+        for i in range(node.in_dim):
+            ctx.body.append(f"{out.lane(i)} = {_EXPR[node.type](src.lane(i), node.params)};")
+    return out

@@ -1,0 +1,62 @@
+"""Input encodings; torch twins in models/encodings.py."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from inshade.sh import SH_TERMS, monomials
+
+from .glsl import PlanRow, flt
+from .registry import emitter
+from .values import declare
+
+
+@emitter("frequency")
+def emit_frequency(ctx, node, src, bundle):
+    d, n = node.in_dim, node.params["n_freqs"]
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    k = 0
+    if node.params["include_input"]:
+        for i in range(d):
+            ctx.body.append(f"{out.lane(k)} = {src.lane(i)};")
+            k += 1
+    for fn in ("sin", "cos"):
+        for f in range(n):
+            scale = flt(np.float32((2.0 ** f) * math.pi))
+            for i in range(d):
+                ctx.body.append(f"{out.lane(k)} = {fn}({src.lane(i)} * {scale});")
+                k += 1
+    ctx.plan.append(PlanRow(node.id, node.type, f"{d}->{node.out_dim}", flops=4 * d * n))
+    return out
+
+
+@emitter("triangle_wave")
+def emit_triangle_wave(ctx, node, src, bundle):
+    ctx.include("lib/activations")
+    d, n = node.in_dim, node.params["n_freqs"]
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    for f in range(n):
+        for i in range(d):
+            ctx.body.append(f"{out.lane(f * d + i)} = inshade_triangle({src.lane(i)} * {flt(2.0 ** f)});")
+    ctx.plan.append(PlanRow(node.id, node.type, f"{d}->{node.out_dim}", flops=5 * d * n))
+    return out
+
+
+@emitter("spherical_harmonics")
+def emit_spherical_harmonics(ctx, node, src, bundle):
+    deg = node.params["degree"]
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    x, y, z = (src.lane(i) for i in range(3))
+    names = {}
+    for a, b, e in monomials(deg):
+        if (a, b, e) == (0, 0, 0):
+            continue
+        factors = [x] * a + [y] * b + [z] * e
+        names[(a, b, e)] = nm = f"m_{node.id}_{a}{b}{e}"
+        ctx.body.append(f"float {nm} = {' * '.join(factors)};")
+    for idx, terms in enumerate(SH_TERMS[: deg * deg]):
+        expr = " + ".join(flt(c) if pw == (0, 0, 0) else f"{flt(c)} * {names[pw]}" for c, pw in terms)
+        ctx.body.append(f"{out.lane(idx)} = {expr};")
+    ctx.plan.append(PlanRow(node.id, node.type, f"3->{node.out_dim}", flops=3 * node.out_dim))
+    return out

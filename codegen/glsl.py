@@ -1,0 +1,101 @@
+"""GLSL literal formatting and the per-network emission context."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def flt(v) -> str:
+    """A float32 value as a GLSL float literal that round-trips (%.9g)."""
+    v = float(np.float32(v))
+    if not np.isfinite(v):
+        raise ValueError(f"non-finite value {v} cannot be written as GLSL")
+    s = "%.9g" % v
+    if not any(ch in s for ch in ".e"):
+        s += ".0"
+    return s
+
+
+def vec4(values) -> str:
+    return "vec4(" + ", ".join(flt(v) for v in values) + ")"
+
+
+def mat4(block: np.ndarray) -> str:
+    """A torch-layout [out=4, in=4] block as a column-major GLSL mat4 (block.T flattened)."""
+    return "mat4(" + ", ".join(flt(v) for v in np.asarray(block, np.float32).T.reshape(-1)) + ")"
+
+
+def blocks(dim: int) -> int:
+    return (dim + 3) // 4
+
+
+def lane(array: str, index: int) -> str:
+    return f"{array}[{index // 4}].{'xyzw'[index % 4]}"
+
+
+@dataclass
+class TextureResource:
+    """A texture the generated code samples: data [H, W, C] (2D) or [D, H, W, C] (3D),
+    moderngl dtype ('f4', 'f2', 'f1' = unorm8, 'nu2' = unorm16), filter 'nearest'|'linear'."""
+
+    name: str
+    data: np.ndarray
+    dtype: str
+    filter: str = "nearest"
+
+    @property
+    def dims(self) -> int:
+        return self.data.ndim - 1
+
+    @property
+    def nbytes(self) -> int:
+        return int(np.prod(self.data.shape)) * {"f4": 4, "f2": 2, "f1": 1, "nu2": 2}[self.dtype]
+
+
+@dataclass
+class UniformBlockResource:
+    """A std140 uniform block: the bytes to upload and the block's name in the program."""
+
+    name: str
+    data: bytes
+
+    @property
+    def nbytes(self) -> int:
+        return len(self.data)
+
+
+@dataclass
+class PlanRow:
+    node: str
+    type: str
+    shape: str
+    storage: str = "-"
+    why: str = ""
+    params: int = 0
+    flops: int = 0
+    fetches: int = 0
+    uniform_bytes: int = 0
+    texture_bytes: int = 0
+
+
+@dataclass
+class EmitContext:
+    prefix: str
+    target: str
+    lut_filter: str
+    texture_format: str
+    limits: dict
+    globals: list[str] = field(default_factory=list)
+    body: list[str] = field(default_factory=list)
+    includes: list[str] = field(default_factory=list)
+    resources: list = field(default_factory=list)
+    plan: list[PlanRow] = field(default_factory=list)
+    storage: dict = field(default_factory=dict)   # dense node id -> (mode, why)
+
+    def include(self, chunk: str) -> None:
+        if chunk not in self.includes:
+            self.includes.append(chunk)
+
+    def name(self, *parts: str) -> str:
+        return "_".join((self.prefix,) + parts)

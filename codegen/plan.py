@@ -1,0 +1,36 @@
+"""The plan report: what the generated code costs per pixel and where the weights live."""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+
+@dataclass
+class Plan:
+    network: str
+    target: str
+    rows: list
+    resources: list
+
+    def totals(self) -> dict:
+        keys = ("params", "flops", "fetches", "uniform_bytes", "texture_bytes")
+        return {k: sum(getattr(r, k) for r in self.rows) for k in keys}
+
+    def to_dict(self) -> dict:
+        return {"network": self.network, "target": self.target, "totals": self.totals(),
+                "nodes": [asdict(r) for r in self.rows]}
+
+    def report(self) -> str:
+        head = ("node", "type", "shape", "storage", "params", "FLOPs/px", "fetches/px", "UBO B", "tex B")
+        rows = [(r.node, r.type, r.shape, r.storage, r.params, r.flops, r.fetches,
+                 r.uniform_bytes, r.texture_bytes) for r in self.rows]
+        t = self.totals()
+        rows.append(("total", "", "", "", t["params"], t["flops"], t["fetches"], t["uniform_bytes"],
+                     t["texture_bytes"]))
+        widths = [max(len(str(x)) for x in col) for col in zip(head, *rows)]
+        fmt = "  ".join("{:<%d}" % w for w in widths)
+        out = [f"plan for '{self.network}' (GLSL {self.target})", fmt.format(*head)]
+        out += [fmt.format(*map(str, r)) for r in rows]
+        whys = [f"  {r.node}: {r.storage}: {r.why}" for r in self.rows if r.why]
+        if whys:
+            out += ["storage choices:"] + whys
+        return "\n".join(out)

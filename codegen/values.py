@@ -1,0 +1,62 @@
+"""Values in generated code: a graph value lives in lanes of a `vec4 name[blocks]` array."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .glsl import EmitContext, blocks, lane
+
+
+@dataclass(frozen=True)
+class Value:
+    array: str
+    offset: int   # first lane in the array
+    dim: int
+
+    def lane(self, i: int) -> str:
+        return lane(self.array, self.offset + i)
+
+    @property
+    def aligned(self) -> bool:
+        return self.offset == 0
+
+
+def gather(ctx: EmitContext, name: str, sources: list[Value]) -> Value:
+    """The concatenation of sources as one lane-0-aligned array; copies only when needed."""
+    if len(sources) == 1 and sources[0].aligned:
+        return sources[0]
+    dim = sum(s.dim for s in sources)
+    ctx.body.append(f"vec4 {name}[{blocks(dim)}];")
+    out = Value(name, 0, dim)
+    k = 0
+    for s in sources:
+        i = 0
+        while i < s.dim:
+            # whole vec4 copies when both sides are block-aligned, lanes otherwise
+            if (k % 4 == 0) and ((s.offset + i) % 4 == 0) and s.dim - i >= 4:
+                ctx.body.append(f"{name}[{k // 4}] = {s.array}[{(s.offset + i) // 4}];")
+                i += 4
+                k += 4
+            else:
+                ctx.body.append(f"{out.lane(k)} = {s.lane(i)};")
+                i += 1
+                k += 1
+    for j in range(k, blocks(dim) * 4):  # zero the padding lanes: dense layers read them
+        ctx.body.append(f"{out.lane(j)} = 0.0;")
+    return out
+
+
+def declare(ctx: EmitContext, name: str, dim: int) -> Value:
+    """A new array; a partly used last block starts at zero so padding lanes are defined."""
+    ctx.body.append(f"vec4 {name}[{blocks(dim)}];")
+    if dim % 4:
+        ctx.body.append(f"{name}[{blocks(dim) - 1}] = vec4(0.0);")
+    return Value(name, 0, dim)
+
+
+def swizzle_vec(v: Value, n: int) -> str:
+    """The first n lanes of v as a float/vecN expression (n <= 4)."""
+    if v.offset % 4 == 0:
+        b = v.offset // 4
+        return f"{v.array}[{b}]" if n == 4 else f"{v.array}[{b}].{'xyzw'[:n]}"
+    parts = ", ".join(v.lane(i) for i in range(n))
+    return parts if n == 1 else f"vec{n}({parts})"

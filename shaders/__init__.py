@@ -1,0 +1,26 @@
+"""GLSL chunk library: ``assemble()`` turns an entry chunk and its ``#include``s into one program.
+
+See ``library.py`` for the include, define and ``#line`` rules.
+"""
+
+from .library import (
+    HEADER,
+    LIBRARY_DIR,
+    LINE_STRIDE,
+    Assembled,
+    ShaderCompileError,
+    ShaderIncludeError,
+    assemble,
+    explain_compile_error,
+)
+
+__all__ = [
+    "HEADER",
+    "LIBRARY_DIR",
+    "LINE_STRIDE",
+    "Assembled",
+    "ShaderCompileError",
+    "ShaderIncludeError",
+    "assemble",
+    "explain_compile_error",
+]

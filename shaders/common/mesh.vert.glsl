@@ -1,0 +1,23 @@
+// Mesh vertex shader: object space -> world (u_model) -> camera (u_view) -> clip (u_proj).
+// Matrices are column-major GLSL mat4; right-handed, y up, the camera looks down -z.
+// Normals use the inverse-transpose of u_model, so non-uniform scales stay correct.
+
+uniform mat4 u_model;
+uniform mat4 u_view;
+uniform mat4 u_proj;
+
+in vec3 in_position;
+in vec3 in_normal;
+in vec2 in_uv;
+
+out vec3 v_world_position;
+out vec3 v_normal;
+out vec2 v_uv;
+
+void main() {
+    vec4 world = u_model * vec4(in_position, 1.0);
+    v_world_position = world.xyz;
+    v_normal = normalize(transpose(inverse(mat3(u_model))) * in_normal);
+    v_uv = in_uv;
+    gl_Position = u_proj * u_view * world;
+}

@@ -1,0 +1,40 @@
+// Evaluates the generated network chunk once per pixel: the parity harness and `inshade bench`.
+// Inputs: NET_IN_BLOCKS texels per sample, side by side in a float texture (data orientation).
+// Outputs: block b of the result goes to colour attachment b (RGBA32F).
+#include <network>
+
+uniform sampler2D u_inputs;
+layout(location = 0) out vec4 frag_out[NET_OUT_BLOCKS];
+
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    vec4 x[NET_IN_BLOCKS];
+    for (int b = 0; b < NET_IN_BLOCKS; ++b) {
+        x[b] = texelFetch(u_inputs, ivec2(p.x * NET_IN_BLOCKS + b, p.y), 0);
+    }
+    vec4 y[NET_OUT_BLOCKS];
+    net_eval(x, y);
+    // ES 3.00 indexes fragment outputs with constants only.
+    frag_out[0] = y[0];
+#if NET_OUT_BLOCKS > 1
+    frag_out[1] = y[1];
+#endif
+#if NET_OUT_BLOCKS > 2
+    frag_out[2] = y[2];
+#endif
+#if NET_OUT_BLOCKS > 3
+    frag_out[3] = y[3];
+#endif
+#if NET_OUT_BLOCKS > 4
+    frag_out[4] = y[4];
+#endif
+#if NET_OUT_BLOCKS > 5
+    frag_out[5] = y[5];
+#endif
+#if NET_OUT_BLOCKS > 6
+    frag_out[6] = y[6];
+#endif
+#if NET_OUT_BLOCKS > 7
+    frag_out[7] = y[7];
+#endif
+}

@@ -1,0 +1,151 @@
+"""GL side of a generated network: its textures and uniform blocks, bound to a program, and
+an evaluator that runs the network over a batch of inputs (parity tests, benchmarks)."""
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from inshade.codegen.glsl import TextureResource, UniformBlockResource
+
+from .programs import ProgramCache
+from .render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
+
+_COMPONENTS_DTYPE = {"f4": "f4", "f2": "f2", "f1": "f1", "nu2": "nu2"}
+
+
+class NetworkResources:
+    """GL objects for a Generated network's resources; `bind` uses units/bindings from `first_*`."""
+
+    def __init__(self, ctx: moderngl.Context, generated):
+        self.ctx = ctx
+        self.textures: dict[str, moderngl.Texture | moderngl.Texture3D] = {}
+        self.buffers: dict[str, moderngl.Buffer] = {}
+        self.upload(generated)
+
+    def upload(self, generated) -> None:
+        """Creates or refreshes every resource; same-shaped uniform blocks are rewritten in
+        place, so new weights need no recompile in `ubo` mode."""
+        for res in generated.resources:
+            if isinstance(res, UniformBlockResource):
+                buf = self.buffers.get(res.name)
+                if buf is not None and buf.size == len(res.data):
+                    buf.write(res.data)
+                else:
+                    self.buffers[res.name] = self.ctx.buffer(res.data)
+            elif isinstance(res, TextureResource):
+                old = self.textures.pop(res.name, None)
+                if old is not None:
+                    old.release()
+                self.textures[res.name] = _make_texture(self.ctx, res)
+
+    def bind(self, program: moderngl.Program, first_unit: int = 0, first_block: int = 0) -> int:
+        """Binds samplers to consecutive units and blocks to consecutive bindings.
+        Returns the next free texture unit. Resources the linker removed are skipped."""
+        unit = first_unit
+        for name, tex in self.textures.items():
+            if name in program:
+                tex.use(location=unit)
+                program[name].value = unit
+                unit += 1
+        for k, (name, buf) in enumerate(self.buffers.items()):
+            if name in program:
+                program[name].binding = first_block + k
+                buf.bind_to_uniform_block(first_block + k)
+        return unit
+
+    def release(self) -> None:
+        for obj in [*self.textures.values(), *self.buffers.values()]:
+            obj.release()
+        self.textures.clear()
+        self.buffers.clear()
+
+
+def _make_texture(ctx, res: TextureResource):
+    data = np.ascontiguousarray(res.data)
+    comps = data.shape[-1]
+    if res.dims == 2:
+        h, w = data.shape[:2]
+        tex = ctx.texture((w, h), comps, data.tobytes(), dtype=res.dtype, alignment=1)
+    else:
+        dpt, h, w = data.shape[:3]
+        tex = ctx.texture3d((w, h, dpt), comps, data.tobytes(), dtype=res.dtype, alignment=1)
+        tex.repeat_z = False
+    f = moderngl.LINEAR if res.filter == "linear" else moderngl.NEAREST
+    tex.filter = (f, f)
+    tex.repeat_x = tex.repeat_y = False
+    return tex
+
+
+class NetworkEvaluator:
+    """Runs `passes/evaluate.frag` over a batch: inputs [N, in_dim] -> outputs [N, out_dim]."""
+
+    def __init__(self, ctx: moderngl.Context, generated, *, version: str = "330",
+                 cache: ProgramCache | None = None, width: int = 256):
+        if generated.prefix != "net":
+            raise ValueError("the evaluate pass calls net_eval: generate with prefix='net'")
+        if generated.out_blocks > ctx.info["GL_MAX_DRAW_BUFFERS"]:
+            raise ValueError(f"{generated.out_dim} outputs need {generated.out_blocks} draw buffers; "
+                             f"this driver has {ctx.info['GL_MAX_DRAW_BUFFERS']}")
+        self.ctx, self.generated, self.width = ctx, generated, width
+        self.cache = cache or ProgramCache(ctx)
+        self.program = self.cache.get("common/fullscreen.vert", "passes/evaluate.frag",
+                                      version=version, chunks={"network": generated.chunk})
+        self.compile_seconds = self.cache.last_compile_seconds
+        self.resources = NetworkResources(ctx, generated)
+        self.pass_ = FullscreenPass(ctx, self.program)
+        self._fbo = None
+
+    def layout(self, n: int) -> tuple[int, int]:
+        w = min(n, self.width)
+        return w, math.ceil(n / w)
+
+    def prepare(self, inputs: np.ndarray):
+        """Uploads inputs and allocates the target; returns a callable that draws once."""
+        inputs = np.asarray(inputs, np.float32)
+        g = self.generated
+        if inputs.ndim != 2 or inputs.shape[1] != g.in_dim:
+            raise ValueError(f"inputs must be [N, {g.in_dim}], got {list(inputs.shape)}")
+        n = inputs.shape[0]
+        w, h = self.layout(n)
+        padded = np.zeros((w * h, g.in_blocks * 4), np.float32)
+        padded[:n, : g.in_dim] = inputs
+        tex = upload_float_texture(self.ctx, padded.reshape(h, w * g.in_blocks, 4))
+        if self._fbo is None or self._fbo.size != (w, h):
+            if self._fbo is not None:
+                for a in self._fbo.color_attachments:
+                    a.release()
+                self._fbo.release()
+            self._fbo = float_target(self.ctx, w, h, g.out_blocks)
+        fbo = self._fbo
+
+        def draw():
+            self.ctx.viewport = (0, 0, w, h)
+            unit = self.resources.bind(self.program, first_unit=1)
+            del unit
+            self.pass_.render(fbo, textures={"u_inputs": tex})
+
+        draw.release = tex.release
+        draw.n = n
+        return draw
+
+    def read(self, n: int) -> np.ndarray:
+        g = self.generated
+        outs = [read_rgba_raw(self._fbo, b).reshape(-1, 4) for b in range(g.out_blocks)]
+        return np.concatenate(outs, 1)[:n, : g.out_dim]
+
+    def __call__(self, inputs: np.ndarray) -> np.ndarray:
+        draw = self.prepare(inputs)
+        draw()
+        out = self.read(draw.n)
+        draw.release()
+        return out
+
+    def release(self) -> None:
+        self.resources.release()
+        if self._fbo is not None:
+            for a in self._fbo.color_attachments:
+                a.release()
+            self._fbo.release()
+        self.pass_.vao.release()
