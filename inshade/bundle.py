@@ -140,6 +140,7 @@ def load(path) -> Bundle:
                           parse_constant=lambda c: (_ for _ in ()).throw(ValueError(f"{c} is not JSON")))
     except (ValueError, UnicodeDecodeError) as e:
         raise BundleError(jpath, "", f"not valid JSON ({e})") from None
+    _parse_graph(meta, jpath)  # the graph's errors first: they explain the tensors' errors
     if not wpath.is_file():
         raise BundleError(wpath, "", "missing")
     tensors = _read_safetensors(wpath)

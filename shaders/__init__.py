@@ -12,6 +12,7 @@ from .library import (
     ShaderIncludeError,
     assemble,
     explain_compile_error,
+    flatten,
 )
 
 __all__ = [
@@ -23,4 +24,5 @@ __all__ = [
     "ShaderIncludeError",
     "assemble",
     "explain_compile_error",
+    "flatten",
 ]

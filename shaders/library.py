@@ -174,6 +174,12 @@ def assemble(entry: str, *, version: str = "330",
     )
 
 
+def flatten(entry: str, *, chunks: dict[str, str] | None = None) -> str:
+    """Chunk ``entry`` with its includes expanded, without a header or ``#line`` markers:
+    for pasting generated code into another engine's shader."""
+    return "\n".join(_Resolver(dict(chunks or {}), line_markers=False).emit(entry, parent=None)) + "\n"
+
+
 def explain_compile_error(assembled: Assembled, driver_log: str, *,
                           source_path: Path | None = None) -> ShaderCompileError:
     """Turn a driver log into a ShaderCompileError pointing at the first error's chunk and line."""
@@ -214,8 +220,9 @@ def _define_value(name: str, value: str | int | float | bool) -> str:
 class _Resolver:
     """Depth-first include expansion with include-once and cycle detection."""
 
-    def __init__(self, memory_chunks: dict[str, str]):
+    def __init__(self, memory_chunks: dict[str, str], line_markers: bool = True):
         self.memory = memory_chunks
+        self.line_markers = line_markers
         self.ids: dict[str, int] = {}
         self.hashes: dict[str, str] = {}
         self.paths: dict[str, Path | None] = {}
@@ -242,7 +249,8 @@ class _Resolver:
         if len(lines) >= LINE_STRIDE:
             raise ShaderIncludeError(f"chunk {name} is longer than {LINE_STRIDE - 1} lines")
         self.open.append(name)
-        out = [_line_marker(chunk_id, 1, name)]
+        marker = _line_marker if self.line_markers else lambda *_: f"// ---- <{name}>"
+        out = [marker(chunk_id, 1, name)]
         depth = 0
         for number, line in enumerate(lines, start=1):
             if _VERSION_LINE.match(line):
@@ -263,7 +271,7 @@ class _Resolver:
                 out.append(f"// #include <{child}>: already included")
                 continue
             out += self.emit(child, parent=(name, number))
-            out.append(_line_marker(chunk_id, number + 1, name))
+            out.append(marker(chunk_id, number + 1, name))
         self.open.pop()
         return out
 

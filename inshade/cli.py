@@ -1,0 +1,229 @@
+"""`inshade` command line: codegen, info, render, doctor, bench, train.
+
+Bad input (a malformed bundle, an unknown option value, a shader that does not compile, a
+missing GL capability) prints one `inshade: error: ...` line and exits with status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import logging
+import sys
+from pathlib import Path
+
+log = logging.getLogger("inshade")
+
+# Subcommands whose code needs the [train]/[bench] extras: imported only when used.
+# name -> (module, help)
+BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak")}
+TRAINERS = {"neural_image": ("inshade.models.neural_image", "fit a neural image to a skimage.data photo")}
+
+
+class UserError(Exception):
+    """Input the user can fix; reported in one line with exit status 2."""
+
+
+def _user_errors():
+    from inshade.bundle import BundleError
+    from inshade.components import ComponentError
+    from inshade.shaders import ShaderCompileError, ShaderIncludeError
+    from inshade.viewer.context import GLContextError
+    return (UserError, BundleError, ComponentError, ShaderCompileError, ShaderIncludeError,
+            GLContextError, FileNotFoundError, ValueError)
+
+
+# codegen ---------------------------------------------------------------------------------
+def cmd_codegen(args) -> int:
+    from safetensors.numpy import save_file
+
+    from inshade import bundle as bundle_mod
+    from inshade.codegen import generate
+    from inshade.codegen.glsl import TextureResource
+    from inshade.shaders import flatten
+
+    b = bundle_mod.load(args.bundle)
+    limits = {}
+    if args.storage == "auto" and not args.no_gl:
+        from inshade.viewer.context import gl_info, shared_context
+        limits = gl_info(shared_context())
+    gen = generate(b, storage=args.storage, target=args.target, prefix=args.prefix,
+                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits)
+    print(gen.plan.report())
+    if args.output is None:
+        return 0
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(flatten("network", chunks={"network": gen.chunk}))
+    manifest = {"bundle": str(b.path), "bundle_digest": b.digest(), "function": gen.function,
+                "in_dim": gen.in_dim, "out_dim": gen.out_dim, "target": args.target,
+                "plan": gen.plan.to_dict(), "resources": []}
+    tensors = {}
+    for res in gen.resources:
+        if isinstance(res, TextureResource):
+            manifest["resources"].append({"name": res.name, "kind": f"texture{res.dims}d", "dtype": res.dtype,
+                                          "filter": res.filter, "shape": list(res.data.shape)})
+            tensors[res.name] = res.data
+        else:
+            manifest["resources"].append({"name": res.name, "kind": "uniform_block_std140",
+                                          "bytes": res.nbytes})
+            tensors[res.name] = __import__("numpy").frombuffer(res.data, "uint8")
+    if tensors:
+        rpath = out.with_suffix(".resources.safetensors")
+        save_file(tensors, str(rpath))
+        manifest["resources_file"] = rpath.name
+    out.with_suffix(out.suffix + ".json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    print(f"wrote {out} ({len(gen.resources)} resources)", file=sys.stderr)
+    return 0
+
+
+# info -------------------------------------------------------------------------------------
+def cmd_info(args) -> int:
+    from inshade import bundle as bundle_mod
+
+    b = bundle_mod.load(args.bundle)
+    if args.json:
+        print(json.dumps({"meta": b.meta, "digest": b.digest(),
+                          "tensors": {k: [str(v.dtype), list(v.shape)] for k, v in sorted(b.tensors.items())}},
+                         indent=2, sort_keys=True))
+        return 0
+    print(f"{b.name}  (kind {b.kind}, format v{b.meta['version']})  sha256 {b.digest()[:16]}")
+    print("inputs:  " + ", ".join(f"{p.name}[{p.dim}] ({p.semantic})" for p in b.inputs))
+    print("outputs: " + ", ".join(f"{p.name}[{p.dim}] <- {p.node} ({p.semantic})" for p in b.outputs))
+    print("nodes:")
+    for n in b.nodes:
+        params = ", ".join(f"{k}={v}" for k, v in n.params.items())
+        print(f"  {n.id:<12} {n.type:<20} {n.in_dim:>4} -> {n.out_dim:<4} {params}")
+    total = sum(v.nbytes for v in b.tensors.values())
+    print(f"tensors: {len(b.tensors)}, {sum(v.size for v in b.tensors.values())} values, {total} bytes")
+    for key in ("metrics", "provenance"):
+        if b.meta.get(key):
+            print(f"{key}:")
+            for k, v in sorted(b.meta[key].items()):
+                print(f"  {k}: {v}")
+    return 0
+
+
+# render -----------------------------------------------------------------------------------
+def cmd_render(args) -> int:
+    from inshade.viewer.headless import render_bundle, save_render
+
+    image, info = render_bundle(args.bundle, width=args.width, height=args.height,
+                                storage=args.storage, lut_filter=args.lut_filter)
+    paths = save_render(image, info, args.output)
+    for p in paths if isinstance(paths, (list, tuple)) else [paths]:
+        print(f"wrote {p}", file=sys.stderr)
+    return 0
+
+
+# doctor -----------------------------------------------------------------------------------
+def cmd_doctor(args) -> int:
+    from inshade.viewer.context import egl_devices, gl_info, shared_context
+
+    info = gl_info(shared_context())
+    info["egl_devices"] = egl_devices()
+    if args.json:
+        print(json.dumps(info, indent=2, sort_keys=True))
+        return 0
+    width = max(len(k) for k in info)
+    for k, v in info.items():
+        print(f"{k:<{width}}  {v}")
+    if info.get("software"):
+        print("note: this is a software rasteriser (CPU); timings are not GPU timings")
+    return 0
+
+
+# bench / train mount modules that bring their own arguments -------------------------------
+def _mount(sub, name: str, table: dict, help_: str) -> None:
+    p = sub.add_parser(name, help=help_, description=help_)
+    inner = p.add_subparsers(dest="target", metavar="NAME", required=True)
+    for key, (module, text) in table.items():
+        q = inner.add_parser(key, help=text, description=text)
+        q.set_defaults(module=module)
+        # arguments are parsed by the module itself (its deps are optional extras)
+        q.add_argument("rest", nargs=argparse.REMAINDER, help="options of this command (try --help)")
+    p.set_defaults(func=_run_module)
+
+
+def _run_module(args) -> int:
+    try:
+        mod = importlib.import_module(args.module)
+    except ImportError as e:
+        if (e.name or "").startswith("inshade"):
+            raise
+        raise UserError(f"{args.module} needs an optional dependency ({e.name}); "
+                        "install it with: pip install -e '.[train,bench]'") from None
+    return mod.main(args.rest)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from inshade.codegen import FILTERS, STORAGE_MODES, TARGETS
+
+    ap = argparse.ArgumentParser(prog="inshade", description="Run PyTorch-trained networks in OpenGL shaders.")
+    ap.add_argument("-q", "--quiet", action="store_true", help="only errors on stderr")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser("codegen", help="bundle -> GLSL (prints the plan report)",
+                       description="Generate the GLSL function of a bundle; prints the plan report. With -o, "
+                                   "writes the flattened GLSL, a .json manifest and the resources "
+                                   "(.resources.safetensors) the code binds.")
+    p.add_argument("bundle", help="bundle folder (bundle.json + weights.safetensors)")
+    p.add_argument("-o", "--output", help="GLSL file to write")
+    p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
+    p.add_argument("--target", choices=TARGETS, default="330", help="GLSL target")
+    p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
+    p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")
+    p.add_argument("--prefix", default="net", help="name prefix of the generated symbols")
+    p.add_argument("--no-gl", action="store_true", help="'auto' uses default limits instead of a live context")
+    p.set_defaults(func=cmd_codegen)
+
+    p = sub.add_parser("info", help="describe a bundle", description="Validate and describe a bundle.")
+    p.add_argument("bundle")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("render", help="render a bundle headless to PNG/EXR + JSON sidecar",
+                       description="Render a bundle headless (EGL). .png is tonemapped sRGB, .exr linear; "
+                                   "a JSON sidecar records the settings, bundle digest and GL renderer.")
+    p.add_argument("bundle")
+    p.add_argument("-o", "--output", required=True, help="image path (.png or .exr)")
+    p.add_argument("--width", type=int)
+    p.add_argument("--height", type=int)
+    p.add_argument("--storage", choices=STORAGE_MODES, default="auto")
+    p.add_argument("--lut-filter", choices=FILTERS, default="exact")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("doctor", help="GL vendor/renderer/version and the limits codegen uses",
+                       description="Report the OpenGL context inshade gets here: vendor, renderer, version, "
+                                   "limits that matter for codegen, EGL devices, software or not.")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_doctor)
+
+    _mount(sub, "bench", BENCHES, "benchmarks (write JSON + markdown + plot)")
+    _mount(sub, "train", TRAINERS, "build trained/ assets")
+    return ap
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = build_parser()
+    # `inshade bench mlp ...` / `inshade train X ...`: the module parses its own options
+    # (so its --help is its own), after the global ones.
+    quiet = bool(argv) and argv[0] in ("-q", "--quiet")
+    rest = argv[1:] if quiet else argv
+    if len(rest) >= 2 and (rest[0], rest[1]) in {("bench", k) for k in BENCHES} | {("train", k) for k in TRAINERS}:
+        table = BENCHES if rest[0] == "bench" else TRAINERS
+        args = argparse.Namespace(quiet=quiet, module=table[rest[1]][0], rest=rest[2:], func=_run_module)
+    else:
+        args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
+                        format="inshade: %(message)s", stream=sys.stderr)
+    try:
+        return int(args.func(args) or 0)
+    except _user_errors() as e:
+        print(f"inshade: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
