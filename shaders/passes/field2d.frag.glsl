@@ -1,0 +1,49 @@
+// 2D field pass: evaluates the generated network (one 2-wide input, the uv) once per pixel and
+// writes its colour output, in linear light, to a float target (RGBA32F).
+//
+// Orientation, decided once for every 2D field (models/neural_image.py follows it): uv (0,0) is
+// the bottom-left corner of the picture and (1,1) the top-right, the GL texture convention
+// (y up). Each pixel is evaluated at its centre, uv = gl_FragCoord.xy / u_size, which is what
+// fullscreen.vert's v_uv interpolates to; it is computed from gl_FragCoord rather than read from
+// v_uv because the interpolated value may be an ulp off, and a high-frequency network turns that
+// into visible disagreement with torch. render.read_rgba flips rows, so image row 0 (top) holds
+// v = (H - 0.5) / H.
+//
+// Defines (set by viewer/headless.py from the bundle's `render` field):
+//   FIELD_OUT_OFFSET  first lane of the shown output in the network's concatenated outputs
+//   FIELD_OUT_DIM     its width: 1 (grey), 3 (rgb, alpha = 1) or 4 (rgba)
+#include <network>
+
+#ifndef FIELD_OUT_OFFSET
+#define FIELD_OUT_OFFSET 0
+#endif
+#ifndef FIELD_OUT_DIM
+#define FIELD_OUT_DIM 3
+#endif
+#if NET_IN_DIM != 2
+#error "passes/field2d.frag needs a network with one 2-wide input (uv)"
+#endif
+
+uniform vec2 u_size;  // target size in pixels
+layout(location = 0) out vec4 frag_color;
+
+float field_lane(in vec4 y[NET_OUT_BLOCKS], int lane) {
+    return y[lane / 4][lane % 4];
+}
+
+void main() {
+    vec2 uv = gl_FragCoord.xy / u_size;
+    vec4 x[NET_IN_BLOCKS];
+    x[0] = vec4(uv, 0.0, 0.0);
+    vec4 y[NET_OUT_BLOCKS];
+    net_eval(x, y);
+#if FIELD_OUT_DIM == 1
+    frag_color = vec4(vec3(field_lane(y, FIELD_OUT_OFFSET)), 1.0);
+#elif FIELD_OUT_DIM == 3
+    frag_color = vec4(field_lane(y, FIELD_OUT_OFFSET), field_lane(y, FIELD_OUT_OFFSET + 1),
+                      field_lane(y, FIELD_OUT_OFFSET + 2), 1.0);
+#else
+    frag_color = vec4(field_lane(y, FIELD_OUT_OFFSET), field_lane(y, FIELD_OUT_OFFSET + 1),
+                      field_lane(y, FIELD_OUT_OFFSET + 2), field_lane(y, FIELD_OUT_OFFSET + 3));
+#endif
+}
