@@ -1,4 +1,4 @@
-"""`inshade` command line: codegen, info, render, doctor, bench, train.
+"""`inshade` command line: codegen, info, render, view, doctor, bench, train.
 
 Bad input (a malformed bundle, an unknown option value, a shader that does not compile, a
 missing GL capability) prints one `inshade: error: ...` line and exits with status 2.
@@ -106,13 +106,54 @@ def cmd_info(args) -> int:
 
 # render -----------------------------------------------------------------------------------
 def cmd_render(args) -> int:
-    from inshade.viewer.headless import render_bundle, save_render
+    from inshade.viewer.headless import render_bundle, render_from_sidecar, render_scene, save_render
 
-    image, info = render_bundle(args.bundle, width=args.width, height=args.height,
-                                storage=args.storage, lut_filter=args.lut_filter)
-    paths = save_render(image, info, args.output)
+    if args.from_ is not None:
+        if args.bundle is not None:
+            raise UserError("render: give either an ASSET or --from SIDECAR, not both")
+        image, info, record = render_from_sidecar(args.from_)
+        out = args.output
+        if out is None:  # shot.png.json -> shot.from.png
+            image_path = Path(str(args.from_)[:-5] if str(args.from_).endswith(".json") else args.from_)
+            out = image_path.with_name(image_path.stem + ".from" + (image_path.suffix or ".png"))
+        paths = save_render(image, info, out)
+    else:
+        if args.bundle is None or args.output is None:
+            raise UserError("render: needs an ASSET and -o IMAGE (or --from SIDECAR)")
+        src = Path(args.bundle)
+        if (src / "scene.json").is_file() or src.suffix == ".json" and src.name != "bundle.json":
+            settings = {"storage": args.storage, "lut_filter": args.lut_filter}
+            image, info = render_scene(src, width=args.width, height=args.height, settings=settings)
+        else:
+            image, info = render_bundle(args.bundle, width=args.width, height=args.height,
+                                        storage=args.storage, lut_filter=args.lut_filter)
+        paths = save_render(image, info, args.output)
     for p in paths if isinstance(paths, (list, tuple)) else [paths]:
         print(f"wrote {p}", file=sys.stderr)
+    return 0
+
+
+# view -------------------------------------------------------------------------------------
+def cmd_view(args) -> int:
+    try:
+        from inshade.viewer.app import NoDisplayError, ViewerApp
+    except ImportError as e:
+        raise UserError(f"inshade view needs the [view] extra ({e.name}); install it with: "
+                        "pip install -e '.[view]'") from None
+    size = (args.width, args.height)
+    settings = {"storage": args.storage} if args.storage else None
+    try:
+        app = ViewerApp(args.asset, size=size, settings=settings, trained_root=args.trained)
+    except NoDisplayError as e:
+        raise UserError(str(e)) from None
+    if args.frames:
+        app.step(args.frames)
+        if args.screenshot:
+            for k, p in app.screenshot(args.screenshot).items():
+                print(f"wrote {p}", file=sys.stderr)
+        app.close()
+        return 0
+    app.run()
     return 0
 
 
@@ -185,13 +226,30 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a bundle headless to PNG/EXR + JSON sidecar",
                        description="Render a bundle headless (EGL). .png is tonemapped sRGB, .exr linear; "
                                    "a JSON sidecar records the settings, bundle digest and GL renderer.")
-    p.add_argument("bundle")
-    p.add_argument("-o", "--output", required=True, help="image path (.png or .exr)")
+    p.add_argument("bundle", nargs="?", metavar="ASSET",
+                   help="asset folder (scene.json, or a bundle with a 'render' field), scene.json or bundle")
+    p.add_argument("-o", "--output", help="image path (.png or .exr); with --from defaults to <shot>.from.png")
+    p.add_argument("--from", dest="from_", metavar="SIDECAR",
+                   help="re-render exactly what a screenshot's JSON sidecar (shot.png.json) describes")
     p.add_argument("--width", type=int)
     p.add_argument("--height", type=int)
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact")
     p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("view", help="interactive viewer window (glfw + imgui-bundle)",
+                       description="Open ASSET (a trained/ folder, scene.json or bundle) in a window, with a "
+                                   "scene picker listing trained/. Needs a display: on a headless machine use "
+                                   "xvfb-run. Keys: 1-5 display modes, T neural/reference, F frame, Home reset, "
+                                   "F12 screenshot, Esc quit.")
+    p.add_argument("asset", nargs="?", help="default: the first scene in trained/")
+    p.add_argument("--width", type=int, default=1280)
+    p.add_argument("--height", type=int, default=800)
+    p.add_argument("--storage", choices=STORAGE_MODES, help="override the scene's weight storage")
+    p.add_argument("--trained", help="folder the scene picker lists (default: the shipped trained/)")
+    p.add_argument("--frames", type=int, help="run N frames and exit (scripts, smoke tests)")
+    p.add_argument("--screenshot", help="with --frames: write this screenshot (PNG + EXR + sidecar) at the end")
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("doctor", help="GL vendor/renderer/version and the limits codegen uses",
                        description="Report the OpenGL context inshade gets here: vendor, renderer, version, "

@@ -1,4 +1,8 @@
-"""Render a bundle without a window: `inshade render trained/neural_image -o shot.png`.
+"""Render a scene or a bundle without a window: `inshade render trained/neural_image -o shot.png`.
+
+A folder with a ``scene.json`` is rendered as that scene says (viewer/scene.py); a bundle without
+one is rendered as its ``render`` field says (the format before scenes). Both go through
+``renderer.SceneRenderer``, the same per-frame render function the window app uses.
 
 The bundle says how it is shown in its optional top-level ``render`` field, e.g.
 
@@ -10,19 +14,23 @@ bundle ports the program feeds and shows. No torch here: codegen + moderngl + nu
 """
 from __future__ import annotations
 
+import json
+import logging
 import time
 from pathlib import Path
 
 import numpy as np
 
 from inshade.bundle import Bundle, load
-from inshade.codegen.network import generate
 
-from .context import gl_info, make_current, shared_context
+from .camera import camera_from_dict
+from .context import make_current, shared_context
 from .image_io import write_exr, write_png, write_sidecar
-from .network import NetworkResources
 from .programs import ProgramCache
-from .render import FullscreenPass, float_target, read_rgba
+from .renderer import SceneRenderer
+from .scene import Scene, load_scene, scene_from_bundle
+
+log = logging.getLogger("inshade")
 
 PROGRAMS = {"passes/field2d.frag": {"input_dim": 2}}  # programs a `render` field may name
 MAX_SIZE = 16384
@@ -83,65 +91,76 @@ def render_bundle(bundle, *, width: int | None = None, height: int | None = None
     Returns ``(image, info)``: ``image`` is linear RGBA float32 ``[H, W, 4]`` in image orientation
     (row 0 = top, as ``render.read_rgba``); ``info`` records the GL driver, the bundle digest, the
     storage plan, the size and timings (for the sidecar JSON). ``ctx`` defaults to the shared
-    headless context.
+    headless context. The scene is the one ``scene.scene_from_bundle`` derives from the bundle.
     """
     t0 = time.perf_counter()
     if not isinstance(bundle, Bundle):
         bundle = load(bundle)
-    spec = render_spec(bundle)
-    width = spec["width"] if width is None else int(width)
-    height = spec["height"] if height is None else int(height)
+    scene = scene_from_bundle(bundle)
+    return render_scene(scene, width=width, height=height, settings={"storage": storage, "lut_filter": lut_filter},
+                        ctx=ctx, cache=cache, bundles=[bundle], _t0=t0)
+
+
+def render_scene(scene, *, width: int | None = None, height: int | None = None, camera=None, mode=None,
+                 split: float | None = None, settings: dict | None = None, ctx=None,
+                 cache: ProgramCache | None = None, bundles=None, _t0: float | None = None):
+    """Render a scene (``Scene`` or anything ``load_scene`` takes) headless, once, through the same
+    ``SceneRenderer`` the window app draws with. ``camera`` (a camera object or its dict) defaults to
+    the scene's; ``mode``/``split`` to the scene's display settings. Returns ``(image, info)`` as
+    ``render_bundle``."""
+    t0 = time.perf_counter() if _t0 is None else _t0
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    width = scene.size[0] if width is None else int(width)
+    height = scene.size[1] if height is None else int(height)
     if not (1 <= width <= MAX_SIZE and 1 <= height <= MAX_SIZE):
         raise ValueError(f"render size {width}x{height} out of range 1..{MAX_SIZE}")
+    if camera is None:
+        camera = scene.make_camera()
+    elif isinstance(camera, dict):
+        camera = camera_from_dict(camera)
     ctx = shared_context() if ctx is None else make_current(ctx)
-    gl = gl_info(ctx)
     t_load = time.perf_counter()
-
-    generated = generate(bundle, storage=storage, lut_filter=lut_filter, prefix="net",
-                         limits={k: v for k, v in gl.items() if k.startswith("GL_MAX_")})
-    t_gen = time.perf_counter()
-    cache = cache or ProgramCache(ctx)
-    program = cache.get("common/fullscreen.vert", spec["program"], chunks={"network": generated.chunk},
-                        defines={"FIELD_OUT_OFFSET": spec["out_offset"], "FIELD_OUT_DIM": spec["out_dim"]})
-    compile_seconds = cache.last_compile_seconds
-    resources = NetworkResources(ctx, generated)
-    pass_ = FullscreenPass(ctx, program)
-    fbo = float_target(ctx, width, height)
+    renderer = SceneRenderer(scene, ctx, cache=cache, settings=settings, bundles=bundles)
     try:
-        t_draw = time.perf_counter()
-        ctx.viewport = (0, 0, width, height)
-        resources.bind(program, first_unit=0)
-        uniforms = {"u_size": (float(width), float(height))} if "u_size" in program else {}
-        pass_.render(fbo, uniforms=uniforms)
+        t_gen = time.perf_counter()
+        renderer.render(camera, width, height, mode=mode, split=split)
         ctx.finish()
         t_read = time.perf_counter()
-        image = read_rgba(fbo)
+        image = renderer.read()
         t_end = time.perf_counter()
+        info = renderer.info(camera, width, height, mode=mode, split=split)
     finally:
-        for a in fbo.color_attachments:
-            a.release()
-        fbo.release()
-        pass_.vao.release()
-        resources.release()
-
-    storages = {}
-    for row in generated.plan.rows:
-        if row.storage and row.storage != "-":
-            storages[row.storage] = storages.get(row.storage, 0) + 1
-    info = {
-        "bundle": {"name": bundle.name, "kind": bundle.kind, "path": str(bundle.path) if bundle.path else None,
-                   "digest": bundle.digest()},
-        "gl": {"vendor": gl["vendor"], "renderer": gl["renderer"], "version": gl["version"],
-               "glsl_version": gl["glsl_version"], "software": gl["software"]},
-        "render": {"program": spec["program"], "width": width, "height": height, "input": spec["input"],
-                   "output": spec["output"], "storage": storage, "lut_filter": lut_filter,
-                   "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
-        "plan": {"storage": storages, "totals": generated.plan.totals()},
-        "timing_s": {"load": round(t_load - t0, 6), "generate": round(t_gen - t_load, 6),
-                     "compile": round(compile_seconds, 6), "draw": round(t_read - t_draw, 6),
-                     "read": round(t_end - t_read, 6), "total": round(t_end - t0, 6)},
-    }
+        renderer.release()
+    info["timing_s"] = {"load": round(t_load - t0, 6), "generate": round(t_gen - t_load, 6),
+                        "compile": round(renderer.compile_seconds, 6), "draw": round(t_read - t_gen, 6),
+                        "read": round(t_end - t_read, 6), "total": round(t_end - t0, 6)}
     return image, info
+
+
+def render_from_sidecar(sidecar, *, ctx=None, cache: ProgramCache | None = None):
+    """Re-render the image a screenshot's JSON sidecar describes: same scene, camera, mode, split,
+    settings and size. Returns ``(image, info, record)``; warns (log) if a bundle changed since."""
+    sidecar = Path(sidecar)
+    try:
+        record = json.loads(sidecar.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{sidecar}: not a readable JSON sidecar ({exc})") from None
+    scene_path = (record.get("scene") or {}).get("path")
+    view = record.get("view")
+    if not scene_path or not isinstance(view, dict):
+        raise ValueError(f"{sidecar}: no 'scene.path'/'view' fields; only sidecars written by inshade "
+                         "(render or view screenshots) can be re-rendered")
+    scene = load_scene(scene_path)
+    size = record.get("render", {})
+    image, info = render_scene(scene, width=size.get("width"), height=size.get("height"), camera=view["camera"],
+                               mode=view.get("mode"), split=view.get("split"), settings=view.get("settings"),
+                               ctx=ctx, cache=cache)
+    old = {b["name"]: b["digest"] for b in record.get("bundles", [])}
+    for b in info["bundles"]:
+        if b["name"] in old and old[b["name"]] != b["digest"]:
+            log.warning("bundle %s changed since %s was taken: the image will differ", b["name"], sidecar)
+    return image, info, record
 
 
 def save_render(image: np.ndarray, info: dict, out_path, *, exposure: float = 1.0,

@@ -59,6 +59,24 @@ class ProgramCache:
         program, self.last_compile_seconds = self._programs[key]
         return program
 
+    def discard(self, program: moderngl.Program) -> None:
+        """Drop ``program`` from the cache and release it (a hot-reloaded program replaced it)."""
+        for key, (cached, _) in list(self._programs.items()):
+            if cached is program:
+                del self._programs[key]
+                program.release()
+
+    def release(self) -> None:
+        """Release every cached program (the owner of a window context, at close)."""
+        for program, _ in self._programs.values():
+            program.release()
+        self._programs.clear()
+
+    @property
+    def size(self) -> int:
+        """How many programs are cached (not ``__len__``: callers write ``cache or ProgramCache()``)."""
+        return len(self._programs)
+
     def _explain(self, log: str, vertex: Assembled, fragment: Assembled) -> ShaderCompileError:
         paths = {"vertex_shader": vertex.write(self.dump_dir, "vert"),
                  "fragment_shader": fragment.write(self.dump_dir, "frag")}

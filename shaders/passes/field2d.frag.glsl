@@ -9,6 +9,11 @@
 // into visible disagreement with torch. render.read_rgba flips rows, so image row 0 (top) holds
 // v = (H - 0.5) / H.
 //
+// Camera (viewer/camera.py, `plane2d`): uv = u_view.xy + gl_FragCoord.xy / u_size * u_view.zw. The
+// default view is u_view = (0, 0, 1, 1), which adds 0 and multiplies by 1 (exact), so the pixels
+// are the same as without a camera. Outside the unit square the network is not evaluated and the
+// pixel is transparent (alpha 0 = no coverage; the display pass draws a background there).
+//
 // Defines (set by viewer/headless.py from the bundle's `render` field):
 //   FIELD_OUT_OFFSET  first lane of the shown output in the network's concatenated outputs
 //   FIELD_OUT_DIM     its width: 1 (grey), 3 (rgb, alpha = 1) or 4 (rgba)
@@ -25,6 +30,7 @@
 #endif
 
 uniform vec2 u_size;  // target size in pixels
+uniform vec4 u_view;  // camera: uv offset (xy) and uv extent of the target (zw)
 layout(location = 0) out vec4 frag_color;
 
 float field_lane(in vec4 y[NET_OUT_BLOCKS], int lane) {
@@ -32,7 +38,11 @@ float field_lane(in vec4 y[NET_OUT_BLOCKS], int lane) {
 }
 
 void main() {
-    vec2 uv = gl_FragCoord.xy / u_size;
+    vec2 uv = u_view.xy + (gl_FragCoord.xy / u_size) * u_view.zw;
+    if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) {
+        frag_color = vec4(0.0);
+        return;
+    }
     vec4 x[NET_IN_BLOCKS];
     x[0] = vec4(uv, 0.0, 0.0);
     vec4 y[NET_OUT_BLOCKS];

@@ -1,0 +1,474 @@
+"""`inshade view`: the interactive window, a thin shell over ``renderer.SceneRenderer``.
+
+It adds a glfw window (OpenGL 3.3 core), input -> camera (``navigation``), panels (``ui``), the
+present blit (linear float -> sRGB window pixels), timing, screenshots and hot reload. Rendering
+itself is ``SceneRenderer.render``, the function ``inshade render`` calls headless.
+
+Scripting / test hook: everything the UI does is a method (``open``, ``set_mode``, ``set_setting``,
+``drag``, ``scroll``, ``go_to_bookmark``, ``screenshot``, ``check_reload``) and ``step(n)`` runs n
+frames, so a script drives the app exactly as a user would, without synthetic OS events.
+
+Keys: 1..5 display modes, T neural/reference toggle, F frame, Home reset, F12 or P screenshot,
+W A S D Q E move (fly) / pan, Esc quit. Mouse: see ``navigation``.
+"""
+from __future__ import annotations
+
+import collections
+import datetime
+import logging
+import os
+import time
+import warnings
+from pathlib import Path
+
+import glfw
+import moderngl
+import numpy as np
+
+from inshade.shaders.library import LIBRARY_DIR
+
+from . import navigation
+from .display import DisplayMode, parse_mode
+from .headless import save_render
+from .programs import ProgramCache
+from .render import FullscreenPass
+from .renderer import SceneRenderer
+from .scene import list_scenes, load_scene
+from .watch import FileWatcher
+
+log = logging.getLogger("inshade")
+
+PANEL_MAX = 300           # side panel width (window units), at most 45% of the window
+HISTORY = 240             # frames in the timing plots
+PSNR_INTERVAL = 0.25      # seconds between live PSNR updates (only when the view changed)
+
+
+class NoDisplayError(RuntimeError):
+    """No window can be opened here (no display server / no GL 3.3 window context)."""
+
+
+def default_trained_root() -> Path:
+    here = Path(__file__).resolve().parents[1] / "trained"
+    return here if here.is_dir() else Path.cwd() / "trained"
+
+
+class ViewerApp:
+    def __init__(self, source=None, *, size=(1280, 800), visible: bool = True, trained_root=None,
+                 settings: dict | None = None, vsync: bool = True, screenshot_dir=None,
+                 title: str = "inshade view"):
+        with warnings.catch_warnings():  # glfw warns, then returns False; the error below says it all
+            warnings.simplefilter("ignore")
+            ok = glfw.init()
+        if not ok:
+            raise NoDisplayError(_no_display_text())
+        glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
+        glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
+        glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+        glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+        glfw.window_hint(glfw.VISIBLE, bool(visible))
+        glfw.window_hint(glfw.SCALE_TO_MONITOR, True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)
+        if not self.window:
+            glfw.terminate()
+            raise NoDisplayError(_no_display_text())
+        glfw.make_context_current(self.window)
+        glfw.swap_interval(1 if vsync else 0)
+        self.ctx = moderngl.create_context(require=330)
+        log.info("window OpenGL: GL_RENDERER=%s GL_VERSION=%s", self.ctx.info["GL_RENDERER"],
+                 self.ctx.info["GL_VERSION"])
+
+        from imgui_bundle import imgui, implot
+        from imgui_bundle.python_backends.glfw_backend import GlfwRenderer
+
+        self._imgui, self._implot = imgui, implot
+        self.imgui_context = imgui.create_context()
+        self.implot_context = implot.create_context()
+        imgui.get_io().set_ini_filename("")
+        self.impl = GlfwRenderer(self.window, attach_callbacks=False)
+        glfw.set_key_callback(self.window, self._on_key)
+        glfw.set_char_callback(self.window, self.impl.char_callback)
+        glfw.set_cursor_pos_callback(self.window, self._on_cursor)
+        glfw.set_mouse_button_callback(self.window, self._on_button)
+        glfw.set_scroll_callback(self.window, self._on_scroll)
+        glfw.set_window_size_callback(self.window, self.impl.resize_callback)
+
+        self.cache = ProgramCache(self.ctx)
+        self.present_program = self.cache.get("common/fullscreen.vert", "passes/present.frag")
+        self.present = FullscreenPass(self.ctx, self.present_program)
+        self.timer = self.ctx.query(time=True)
+        self.frame_ms: collections.deque = collections.deque(maxlen=HISTORY)
+        self.gpu_ms: collections.deque = collections.deque(maxlen=HISTORY)
+        self.messages: list[str] = []
+        self.trained_root = Path(trained_root) if trained_root is not None else default_trained_root()
+        self.scene_paths = list_scenes(self.trained_root)
+        self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else Path.cwd() / "screenshots"
+        self.overrides = dict(settings or {})
+        self.scene = self.renderer = self.camera = self.watcher = None
+        self.mode, self.split, self.psnr = DisplayMode.FINAL, 0.5, None
+        self.compiling = False
+        self.frames = 0
+        self._psnr_key = None
+        self._psnr_time = 0.0
+        self._last_frame = time.perf_counter()
+        self._cursor = None
+        self._buttons = set()
+        self._held = set()
+        self._closed = False
+        self.last_window = None
+        if source is None and self.scene_paths:
+            source = self.scene_paths[0]
+        if source is not None:
+            self.open(source)
+
+    # scenes -------------------------------------------------------------------------------------
+    def _current(self) -> None:
+        """Make the window's context current and clear stale GL errors. Other code in this process
+        (e.g. a headless render on the shared EGL context) may have switched contexts, and PyOpenGL
+        (used by the imgui backend) would blame a later call for an error left pending."""
+        glfw.make_context_current(self.window)
+        from OpenGL import GL
+        for _ in range(16):
+            err = GL.glGetError()
+            if err == GL.GL_NO_ERROR:
+                break
+            log.debug("stale GL error 0x%x cleared", err)
+
+    def open(self, source) -> bool:
+        """Load a scene (folder, scene.json, bundle); on failure keep the window and show why."""
+        self._current()
+        try:
+            scene = load_scene(source)
+            settings = {k: v for k, v in self.overrides.items() if k in scene.settings}
+            renderer = SceneRenderer(scene, self.ctx, cache=self.cache, settings=settings, owns_programs=True)
+        except Exception as exc:  # a bad scene or a missing capability is a message, not a crash
+            self.messages.append(f"cannot open {source}: {exc}")
+            log.warning("cannot open %s: %s", source, exc)
+            return False
+        self._release_scene(keep=(renderer.program, renderer.display_program))
+        self.scene, self.renderer = scene, renderer
+        self.camera = scene.make_camera()
+        self.mode, self.split, self.psnr, self._psnr_key = scene.display_mode, scene.split, None, None
+        self.compiling = False
+        paths = [Path(n.bundle) / f for n in scene.networks for f in ("weights.safetensors", "bundle.json")]
+        paths += sorted(LIBRARY_DIR.rglob("*.glsl"))
+        self.watcher = FileWatcher(paths)
+        return True
+
+    def scene_index(self) -> int | None:
+        if self.scene is None:
+            return None
+        root = self.scene.root.resolve() if self.scene.root else None
+        for i, p in enumerate(self.scene_paths):
+            if p.resolve() == root:
+                return i
+        return None
+
+    def _release_scene(self, keep=()) -> None:
+        if self.renderer is not None:
+            self.renderer.release(keep=keep)   # programs the next scene shares stay in the cache
+        self.renderer = None
+
+    # state changes (UI and scripts) -------------------------------------------------------------
+    def set_mode(self, mode) -> None:
+        self.mode = parse_mode(mode)
+
+    def toggle_reference(self) -> None:
+        self.mode = DisplayMode.REFERENCE if self.mode is not DisplayMode.REFERENCE else DisplayMode.FINAL
+
+    def set_setting(self, name: str, value) -> str:
+        self._current()
+        try:
+            outcome = self.renderer.set_setting(name, value)
+        except Exception as exc:
+            self.messages.append(f"{name} = {value!r} failed: {exc}")
+            return "failed"
+        return outcome
+
+    def reset_camera(self) -> None:
+        self.camera = self.scene.make_camera()
+
+    def go_to_bookmark(self, name: str) -> None:
+        self.camera = self.scene.make_camera(name)
+
+    def add_bookmark(self) -> str:
+        name = f"view {len(self.scene.bookmarks) + 1}"
+        self.scene.bookmarks[name] = self.camera.to_dict()
+        return name
+
+    def drag(self, dx: float, dy: float, button: int = 0) -> None:
+        _, _, w, h = self.scene_rect_window()
+        navigation.drag(self.camera, dx, dy, w, h, button)
+
+    def scroll(self, notches: float, x: float | None = None, y: float | None = None) -> None:
+        """Wheel at window point (x, y) (default: the scene centre)."""
+        sx, sy, w, h = self.scene_rect_window()
+        x = sx + w / 2 if x is None else x
+        y = sy + h / 2 if y is None else y
+        navigation.scroll(self.camera, notches, x - sx, y - sy, w, h)
+
+    # geometry -----------------------------------------------------------------------------------
+    @property
+    def window_size(self) -> tuple[int, int]:
+        return glfw.get_window_size(self.window)
+
+    @property
+    def framebuffer_size(self) -> tuple[int, int]:
+        return glfw.get_framebuffer_size(self.window)
+
+    @property
+    def panel_width(self) -> int:
+        return int(min(PANEL_MAX, 0.45 * self.window_size[0]))
+
+    def scene_rect_window(self) -> tuple[int, int, int, int]:
+        """Scene viewport in window units: x, y (from the top), width, height."""
+        w, h = self.window_size
+        return self.panel_width, 0, max(w - self.panel_width, 0), h
+
+    def scene_rect(self) -> tuple[int, int, int, int]:
+        """Scene viewport in framebuffer pixels, GL convention: x, y (from the bottom), width, height
+        (HiDPI: framebuffer pixels = window units x content scale)."""
+        (w, h), (fw, fh) = self.window_size, self.framebuffer_size
+        scale = fw / w if w else 1.0
+        x0 = int(round(self.panel_width * scale))
+        return x0, 0, max(fw - x0, 0), fh
+
+    # frames -------------------------------------------------------------------------------------
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.frame()
+
+    def run(self) -> None:
+        while not glfw.window_should_close(self.window):
+            self.frame()
+        self.close()
+
+    def frame(self, capture: bool = False) -> None:
+        """One frame: input, hot-reload poll, scene render + present, panels, swap. ``capture``
+        keeps the finished frame in ``last_window`` (see ``read_window``)."""
+        imgui = self._imgui
+        now = time.perf_counter()
+        dt, self._last_frame = now - self._last_frame, now
+        self.frame_ms.append(dt * 1000.0)
+        self._current()
+        glfw.poll_events()
+        self.impl.process_inputs()
+        self.check_reload()
+        x, y, w, h = self.scene_rect()
+        if self.camera is not None:
+            fwd = (glfw.KEY_W in self._held) - (glfw.KEY_S in self._held)
+            right = (glfw.KEY_D in self._held) - (glfw.KEY_A in self._held)
+            up = (glfw.KEY_E in self._held) - (glfw.KEY_Q in self._held)
+            navigation.keys(self.camera, fwd, right, up, dt, *self.scene_rect_window()[2:])
+
+        # scene: GL state reset (imgui leaves blend/scissor/programs around), then one render call
+        self.ctx.scissor = None
+        self.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        self.ctx.screen.use()
+        self.ctx.viewport = (0, 0, *self.framebuffer_size)
+        self.ctx.clear(0.08, 0.08, 0.09, 1.0)
+        draw_scene = self.renderer is not None and w > 0 and h > 0
+        if draw_scene and self.renderer.first_draw_pending:
+            # llvmpipe JIT-compiles the network program at its first draw (seconds): show a
+            # "compiling..." frame first, then block on the draw in the next frame.
+            if not self.compiling:
+                self.compiling, draw_scene = True, False
+        if draw_scene:
+            self.compiling = False
+        if draw_scene:
+            with self.timer:
+                out = self.renderer.render(self.camera, w, h, mode=self.mode, split=self.split)
+            self.gpu_ms.append(self.timer.elapsed / 1e6)
+            self._update_psnr(w, h)
+            self.ctx.scissor = None
+            self.ctx.disable(moderngl.BLEND)
+            self.ctx.screen.use()
+            self.ctx.viewport = (x, y, w, h)
+            self.present.render(self.ctx.screen, uniforms={"u_origin": (float(x), float(y))},
+                                textures={"u_source": out.color_attachments[0]})
+            self.ctx.viewport = (0, 0, *self.framebuffer_size)
+
+        from . import ui
+        self._current()   # clear errors before PyOpenGL's checked calls in the imgui backend
+        imgui.new_frame()
+        ui.draw(self)
+        imgui.render()
+        self.impl.render(imgui.get_draw_data())
+        if capture:
+            self.last_window = self._read_back_buffer()
+        glfw.swap_buffers(self.window)
+        self.frames += 1
+
+    def _update_psnr(self, w: int, h: int) -> None:
+        key = (repr(self.camera.to_dict()), w, h, self.renderer.weights_version, id(self.renderer.program))
+        now = time.perf_counter()
+        if key != self._psnr_key and now - self._psnr_time >= PSNR_INTERVAL:
+            self.psnr = self.renderer.psnr(self.camera, w, h)
+            self._psnr_key, self._psnr_time = key, now
+
+    # hot reload ---------------------------------------------------------------------------------
+    def check_reload(self, force: bool = False) -> str | None:
+        """Poll watched files; weights -> re-upload (recompile only if the code changed), .glsl ->
+        recompile, keeping the last good program on failure. Returns what happened, or None."""
+        if self.watcher is None or self.renderer is None:
+            return None
+        self._current()
+        changed = self.watcher.poll(force=force)
+        if not changed:
+            return None
+        try:
+            if any(p.suffix == ".glsl" for p in changed):
+                outcome = f"shaders {self.renderer.reload_shaders()}"
+            else:
+                outcome = f"weights {self.renderer.reload_weights()}"
+        except Exception as exc:
+            log.warning("reload failed: %s", exc)
+            return f"failed: {exc}"
+        self.messages.append(f"hot reload: {outcome}")
+        return outcome
+
+    # screenshots and pixels ---------------------------------------------------------------------
+    def read_window(self) -> np.ndarray:
+        """Draw one frame and return it as the window shows it (read before the swap, since the back
+        buffer is undefined after one): uint8 RGB [H, W, 3], row 0 = top."""
+        self.frame(capture=True)
+        return self.last_window
+
+    def _read_back_buffer(self) -> np.ndarray:
+        from OpenGL import GL
+        w, h = self.framebuffer_size
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)
+        GL.glReadBuffer(GL.GL_BACK)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        data = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+        return np.frombuffer(data, np.uint8).reshape(h, w, 3)[::-1].copy()
+
+    def screenshot(self, path=None) -> dict:
+        """Write the scene view (PNG + EXR + JSON sidecar, reproducible with ``inshade render --from``)
+        and the whole window with panels (``.window.png``). Returns the paths."""
+        if path is None:
+            stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S-%f")
+            path = self.screenshot_dir / f"{self.scene.name if self.scene else 'empty'}-{stamp}.png"
+        path = Path(path).with_suffix(".png")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self._current()
+        out = {}
+        window = self.read_window()
+        out["window"] = path.with_name(path.stem + ".window.png")
+        from PIL import Image
+        Image.fromarray(window).save(out["window"])
+        if self.renderer is not None:
+            _, _, w, h = self.scene_rect()
+            self.renderer.render(self.camera, w, h, mode=self.mode, split=self.split)
+            image = self.renderer.read()
+            info = self.renderer.info(self.camera, w, h, mode=self.mode, split=self.split)
+            info["viewer"] = {"window": list(self.window_size), "framebuffer": list(self.framebuffer_size),
+                              "scene_rect": list(self.scene_rect()), "psnr_db": self.psnr,
+                              "window_png": out["window"].name}
+            out["png"], out["sidecar"] = save_render(image, info, path)
+            out["exr"], out["exr_sidecar"] = save_render(image, info, path.with_suffix(".exr"))
+        self.messages.append(f"screenshot: {path}")
+        return out
+
+    def gl_object_counts(self, upto: int = 4096) -> dict:
+        """Live GL names per object type (glIs* over 1..upto), for leak checks."""
+        glfw.make_context_current(self.window)
+        return count_gl_objects(upto)
+
+    # input callbacks ----------------------------------------------------------------------------
+    def _on_key(self, window, key, scancode, action, mods) -> None:
+        self.impl.keyboard_callback(window, key, scancode, action, mods)
+        if action == glfw.RELEASE:
+            self._held.discard(key)
+            return
+        if self._imgui.get_io().want_capture_keyboard or action != glfw.PRESS:
+            return
+        self._held.add(key)
+        if glfw.KEY_1 <= key <= glfw.KEY_9 and self.scene is not None:
+            modes = self.scene.display_modes
+            if key - glfw.KEY_1 < len(modes):
+                self.set_mode(modes[key - glfw.KEY_1])
+        elif key == glfw.KEY_T:
+            self.toggle_reference()
+        elif key == glfw.KEY_F and self.camera is not None:
+            navigation.frame(self.camera)
+        elif key == glfw.KEY_HOME and self.scene is not None:
+            self.reset_camera()
+        elif key in (glfw.KEY_F12, glfw.KEY_P) and self.renderer is not None:
+            self.screenshot()
+        elif key == glfw.KEY_ESCAPE:
+            glfw.set_window_should_close(window, True)
+
+    def _on_cursor(self, window, x, y) -> None:
+        self.impl.mouse_callback(window, x, y)
+        if self._cursor is not None and self._buttons and self.camera is not None:
+            self.drag(x - self._cursor[0], y - self._cursor[1], button=min(self._buttons))
+        self._cursor = (x, y)
+
+    def _on_button(self, window, button, action, mods) -> None:
+        self.impl.mouse_button_callback(window, button, action, mods)
+        if action == glfw.PRESS:
+            x, _ = glfw.get_cursor_pos(window)
+            if not self._imgui.get_io().want_capture_mouse and x >= self.panel_width:
+                self._buttons.add(button)
+                self._cursor = glfw.get_cursor_pos(window)
+        else:
+            self._buttons.discard(button)
+
+    def _on_scroll(self, window, dx, dy) -> None:
+        self.impl.scroll_callback(window, dx, dy)
+        if self._imgui.get_io().want_capture_mouse or self.camera is None:
+            return
+        x, y = glfw.get_cursor_pos(window)
+        if x >= self.panel_width:
+            self.scroll(dy, x, y)
+
+    # teardown -----------------------------------------------------------------------------------
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._current()
+        self._release_scene()
+        self.present.vao.release()
+        self.timer.release() if hasattr(self.timer, "release") else None
+        self.cache.release()
+        self.impl.shutdown()
+        self._implot.destroy_context(self.implot_context)
+        self._imgui.destroy_context(self.imgui_context)
+        self.ctx.release()
+        glfw.destroy_window(self.window)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+GL_IS = ("glIsTexture", "glIsBuffer", "glIsFramebuffer", "glIsRenderbuffer", "glIsVertexArray",
+         "glIsProgram", "glIsShader", "glIsQuery", "glIsSampler")
+
+
+def count_gl_objects(upto: int = 4096) -> dict:
+    """Count live GL object names of each type in 1..upto in the current context (libGL glIs*)."""
+    from OpenGL import GL
+    pending = []
+    while (err := GL.glGetError()) != GL.GL_NO_ERROR and len(pending) < 16:  # PyOpenGL would blame glIs*
+        pending.append(int(err))
+    if pending:
+        log.debug("GL errors pending before counting objects: %s", pending)
+    counts = {}
+    for name in GL_IS:
+        fn = getattr(GL, name)
+        counts[name[4:].lower()] = sum(1 for i in range(1, upto + 1) if fn(i))
+    return counts
+
+
+def _no_display_text() -> str:
+    display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    why = f"cannot open a window on display {display!r}" if display else "no display (DISPLAY is not set)"
+    return (f"{why}; inshade view needs a desktop with OpenGL 3.3. On a headless machine run it under "
+            "a virtual display: xvfb-run -s '-screen 0 1280x800x24' inshade view ... "
+            "(or render without a window: inshade render ASSET -o shot.png)")

@@ -1,0 +1,355 @@
+"""SceneRenderer: the one per-frame render function shared by ``inshade render`` and ``inshade view``.
+
+It owns the GL side of a scene: the generated network(s) and their resources, the scene program
+(the network pass), the display pass (modes, compare, heat map), the reference texture and the
+float targets. ``render(camera, w, h, mode)`` draws into a linear RGBA32F target; the headless path
+reads it back and writes files, the window app blits it to the screen. There is no render code in
+the window app.
+
+Cost model (matters on llvmpipe, where the first draw of a network program JIT-compiles for seconds):
+the network pass is redrawn only when its inputs change (camera, size, weights, program, network
+uniforms); mode, split, exposure and error scale only redraw the cheap display pass.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import moderngl
+import numpy as np
+from PIL import Image
+
+from inshade.bundle import Bundle, load
+from inshade.codegen.network import generate
+
+from .context import GLContextError, gl_info, make_current, shared_context
+from .display import DisplayMode, glsl_chunk, parse_mode
+from .image_io import read_exr
+from .network import NetworkResources
+from .programs import ProgramCache
+from .render import FullscreenPass, float_target, read_rgba, read_rgba_raw
+from .scene import Scene, SceneError
+
+VERTEX = "common/fullscreen.vert"
+
+
+class CapabilityError(GLContextError):
+    """The context lacks something the scene needs (GL version, extension, limit)."""
+
+
+def check_capabilities(ctx: moderngl.Context, scene: Scene) -> None:
+    need = scene.requires
+    gl = int(need.get("gl", 330))
+    if ctx.version_code < gl:
+        raise CapabilityError(f"scene '{scene.name}' needs OpenGL {gl // 100}.{gl % 100 // 10}; "
+                              f"this context is {ctx.version_code // 100}.{ctx.version_code % 100 // 10} "
+                              f"({ctx.info['GL_RENDERER']})")
+    missing = [e for e in need.get("extensions", []) if e not in ctx.extensions]
+    if missing:
+        raise CapabilityError(f"scene '{scene.name}' needs {', '.join(missing)}, which "
+                              f"{ctx.info['GL_RENDERER']} does not offer")
+    for name, low in need.get("limits", {}).items():
+        have = ctx.info.get(name)
+        if have is None or int(have) < int(low):
+            raise CapabilityError(f"scene '{scene.name}' needs {name} >= {low}; this context has {have}")
+
+
+def load_reference(path: Path, colour: str = "srgb") -> np.ndarray:
+    """Reference image as linear float32 RGB [H, W, 3], image orientation (row 0 = top)."""
+    if colour == "linear":
+        return np.asarray(read_exr(path), np.float32)[..., :3]
+    encoded = np.asarray(Image.open(path).convert("RGB"), np.float64) / 255.0
+    linear = np.where(encoded <= 0.04045, encoded / 12.92, ((encoded + 0.055) / 1.055) ** 2.4)
+    return linear.astype(np.float32)
+
+
+class SceneRenderer:
+    """GL objects and state to draw one scene; call ``release()`` when done (no GL leaks).
+
+    ``settings`` overrides the scene's defaults (checked against their ranges/choices).
+    ``bundles`` gives already-loaded bundles (else each network's bundle is loaded from disk).
+    ``owns_programs``: discard replaced programs from ``cache`` on rebuild (a window app with its
+    own cache); leave False when the cache is shared with other code.
+    """
+
+    def __init__(self, scene: Scene, ctx: moderngl.Context | None = None, *, cache: ProgramCache | None = None,
+                 settings: dict | None = None, bundles: list[Bundle] | None = None,
+                 owns_programs: bool = False):
+        self.ctx = shared_context() if ctx is None else make_current(ctx)
+        self.scene = scene
+        self.gl = gl_info(self.ctx)
+        check_capabilities(self.ctx, scene)
+        self.cache = cache if cache is not None else ProgramCache(self.ctx)
+        self.owns_programs = owns_programs
+        self.values = scene.check_settings(settings or {})
+        self.bundles = bundles or [load(n.bundle) for n in scene.networks]
+        self.error = None              # the last failed rebuild (ShaderCompileError ...), cleared on success
+        self.weights_version = 0
+        self.compile_seconds = 0.0
+        self.first_draw_seconds = None  # wall time of the first network draw (llvmpipe JITs there)
+        self.first_draw_pending = True
+        self.program = None
+        self.generated = []
+        self.resources: list[NetworkResources] = []
+        self._net_pass = None
+        self._net_key = None
+        self._targets: dict[str, moderngl.Framebuffer] = {}
+        self._build()
+        self.display_program = self.cache.get(VERTEX, "passes/display.frag",
+                                              chunks={"display_modes": glsl_chunk()})
+        self._display_pass = FullscreenPass(self.ctx, self.display_program)
+        self.reference_image = None
+        if scene.reference is not None:
+            self.reference_image = load_reference(scene.reference.image, scene.reference.colour)
+            self._reference_tex = self.ctx.texture(
+                self.reference_image.shape[1::-1], 3,
+                np.ascontiguousarray(self.reference_image[::-1]).tobytes(), dtype="f4")  # uv (0,0) = bottom-left
+            self._reference_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        else:
+            self._reference_tex = self.ctx.texture((1, 1), 3, np.zeros(3, "f4").tobytes(), dtype="f4")
+        self._reference_tex.repeat_x = self._reference_tex.repeat_y = False
+
+    # building ---------------------------------------------------------------------------------------
+    def _generate(self, bundles):
+        limits = {k: v for k, v in self.gl.items() if k.startswith("GL_MAX_")}
+        options = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "codegen"}
+        return [generate(b, prefix=n.prefix, limits=limits, **options) for b, n in zip(bundles, self.scene.networks)]
+
+    def _defines(self, bundles) -> dict:
+        defines = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "define"}
+        primary, ref = bundles[0], self.scene.networks[0]
+        name = ref.output or primary.outputs[0].name
+        offset = 0
+        for port in primary.outputs:
+            if port.name == name:
+                break
+            offset += port.dim
+        else:
+            raise SceneError(f"scene '{self.scene.name}': network {primary.name!r} has no output {name!r} "
+                             f"(outputs: {', '.join(p.name for p in primary.outputs)})")
+        defines.update(FIELD_OUT_OFFSET=offset, FIELD_OUT_DIM=port.dim)
+        return defines
+
+    def _build(self, bundles=None) -> str:
+        """(Re)generate and compile. On failure nothing changes (the last good program keeps
+        drawing), ``self.error`` is set and the error is raised. Returns "unchanged",
+        "reuploaded" or "recompiled"."""
+        bundles = bundles or self.bundles
+        try:
+            generated = self._generate(bundles)
+            program = self.cache.get(VERTEX, self.scene.program, defines=self._defines(bundles),
+                                     chunks={n.chunk: g.chunk for n, g in zip(self.scene.networks, generated)})
+        except Exception as exc:
+            self.error = exc
+            raise
+        self.error = None
+        self.compile_seconds = self.cache.last_compile_seconds
+        same_code = [g.chunk for g in generated] == [g.chunk for g in self.generated]
+        if self.resources and same_code:
+            for res, g in zip(self.resources, generated):
+                res.upload(g)   # ubo: rewritten in place; textures: replaced; no recompile
+        else:
+            for res in self.resources:
+                res.release()
+            self.resources = [NetworkResources(self.ctx, g) for g in generated]
+        outcome = "unchanged" if program is self.program else "recompiled"
+        if program is not self.program:
+            if self._net_pass is not None:
+                self._net_pass.vao.release()
+            if self.program is not None and self.owns_programs:
+                self.cache.discard(self.program)
+            self.program = program
+            self._net_pass = FullscreenPass(self.ctx, program)
+            self.first_draw_pending = True
+        elif self.bundles is not bundles:
+            outcome = "reuploaded"
+        self.generated, self.bundles = generated, bundles
+        self._net_key = None
+        return outcome
+
+    def set_setting(self, name: str, value) -> str:
+        """Change one setting: "uniform" (takes effect next frame) or what a rebuild did."""
+        if name not in self.scene.settings:
+            raise SceneError(f"unknown setting {name!r} (this scene has: {', '.join(self.scene.settings)})")
+        setting = self.scene.settings[name]
+        value = setting.check(value)
+        if setting.binding == "uniform":
+            self.values[name] = value
+            return "uniform"
+        old = self.values[name]
+        if old == value:
+            return "unchanged"
+        self.values[name] = value
+        try:
+            return self._build()
+        except Exception:
+            self.values[name] = old
+            raise
+
+    def reload_weights(self) -> str:
+        """Re-read every bundle from disk; re-upload without recompiling when the code is unchanged
+        (ubo/texture storage), else recompile (inline storage bakes weights into the code)."""
+        outcome = self._build([load(n.bundle) for n in self.scene.networks])
+        self.weights_version += 1
+        return outcome
+
+    def reload_shaders(self) -> str:
+        """Re-assemble the programs from the chunk files (after a .glsl edit)."""
+        outcome = self._build(self.bundles)
+        try:
+            display = self.cache.get(VERTEX, "passes/display.frag", chunks={"display_modes": glsl_chunk()})
+        except Exception as exc:
+            self.error = exc
+            raise
+        if display is not self.display_program:
+            self._display_pass.vao.release()
+            if self.owns_programs:
+                self.cache.discard(self.display_program)
+            self.display_program = display
+            self._display_pass = FullscreenPass(self.ctx, display)
+            outcome = "recompiled"
+        self._net_key = None
+        return outcome
+
+    # drawing ----------------------------------------------------------------------------------------
+    def _target(self, name: str, width: int, height: int) -> moderngl.Framebuffer:
+        fbo = self._targets.get(name)
+        if fbo is not None and fbo.size == (width, height):
+            return fbo
+        if fbo is not None:
+            _release_fbo(fbo)
+        fbo = self._targets[name] = float_target(self.ctx, width, height)
+        return fbo
+
+    def _uniforms(self, program, camera, width, height) -> dict:
+        out = {"u_size": (float(width), float(height))}
+        out.update(camera.uniforms(width, height))
+        for name, s in self.scene.settings.items():
+            if s.binding == "uniform":
+                v = self.values[name]
+                out[s.target] = int(v) if isinstance(v, bool) else v
+        return {k: v for k, v in out.items() if k in program}
+
+    def render_network(self, camera, width: int, height: int) -> moderngl.Framebuffer:
+        """The scene pass alone (linear float, alpha = coverage); redrawn only when its inputs change."""
+        make_current(self.ctx)
+        fbo = self._target("network", width, height)
+        uniforms = self._uniforms(self.program, camera, width, height)
+        key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())))
+        if key != self._net_key:
+            self.ctx.scissor = None
+            self.ctx.viewport = (0, 0, width, height)
+            unit = 0
+            for block, res in enumerate(self.resources):
+                unit = res.bind(self.program, first_unit=unit, first_block=block * 16)
+            start = time.perf_counter()
+            self._net_pass.render(fbo, uniforms=uniforms)
+            if self.first_draw_pending:
+                self.ctx.finish()
+                self.first_draw_seconds = time.perf_counter() - start
+                self.first_draw_pending = False
+            self._net_key = key
+        return fbo
+
+    def render(self, camera, width: int, height: int, *, mode=None, split: float | None = None,
+               target: str = "output") -> moderngl.Framebuffer:
+        """Network pass (if stale) + display pass into a linear RGBA32F target; returns it."""
+        mode = self.scene.display_mode if mode is None else parse_mode(mode)
+        split = self.scene.split if split is None else float(split)
+        net = self.render_network(camera, width, height)
+        out = self._target(target, width, height)
+        ref_view = (0.0, 0.0, 1.0, 1.0)
+        if self.scene.reference is not None and self.scene.reference.space == "field":
+            ref_view = camera.uniforms(width, height).get("u_view", ref_view)
+        uniforms = self._uniforms(self.display_program, camera, width, height)
+        uniforms.update({k: v for k, v in {"u_mode": int(mode), "u_split": split, "u_ref_view": tuple(ref_view),
+                                           "u_has_reference": int(self.scene.reference is not None)}.items()
+                         if k in self.display_program})
+        for name, default in (("u_exposure", 1.0), ("u_error_scale", 4.0)):
+            if name in self.display_program and name not in uniforms:
+                uniforms[name] = default
+        self.ctx.scissor = None
+        self.ctx.viewport = (0, 0, width, height)
+        self._display_pass.render(out, uniforms=uniforms,
+                                  textures={"u_network": net.color_attachments[0], "u_reference": self._reference_tex})
+        return out
+
+    def read(self, target: str = "output") -> np.ndarray:
+        """The last render as linear float32 RGBA [H, W, 4], image orientation."""
+        return read_rgba(self._targets[target])
+
+    def psnr(self, camera, width: int, height: int) -> float | None:
+        """PSNR (dB, linear RGB, peak 1) of the network vs the reference over the covered pixels
+        of this view; None without a reference or coverage."""
+        if self.scene.reference is None:
+            return None
+        fbo = self.render(camera, width, height, mode=DisplayMode.SQUARED_ERROR, target="stats")
+        data = read_rgba_raw(fbo)
+        mask = data[..., 3] > 0
+        if not mask.any():
+            return None
+        mse = float(data[mask][:, :3].mean())
+        return math.inf if mse == 0 else 10.0 * math.log10(1.0 / mse)
+
+    def info(self, camera, width: int, height: int, *, mode=None, split=None) -> dict:
+        """What a sidecar records: enough to re-render the same pixels (``inshade render --from``)."""
+        mode = self.scene.display_mode if mode is None else parse_mode(mode)
+        primary = self.bundles[0]
+        storages = {}
+        for g in self.generated:
+            for row in g.plan.rows:
+                if row.storage and row.storage != "-":
+                    storages[row.storage] = storages.get(row.storage, 0) + 1
+        totals = {}
+        for g in self.generated:
+            for k, v in g.plan.totals().items():
+                totals[k] = totals.get(k, 0) + v
+        ref = self.scene.networks[0]
+        return {
+            "bundle": {"name": primary.name, "kind": primary.kind,
+                       "path": str(primary.path) if primary.path else None, "digest": primary.digest()},
+            "bundles": [{"name": b.name, "digest": b.digest(), "prefix": n.prefix}
+                        for b, n in zip(self.bundles, self.scene.networks)],
+            "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
+            "render": {"program": self.scene.program, "width": width, "height": height,
+                       "input": primary.inputs[0].name, "output": ref.output or primary.outputs[0].name,
+                       "storage": self.values.get("storage", "auto"),
+                       "lut_filter": self.values.get("lut_filter", "exact"),
+                       "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
+            "scene": {"name": self.scene.name,
+                      "path": str(Path(self.scene.source).resolve()) if self.scene.source else None},
+            "view": {"camera": camera.to_dict(), "mode": mode.name.lower(),
+                     "split": self.scene.split if split is None else float(split),
+                     "settings": json.loads(json.dumps(self.values))},
+            "plan": {"storage": storages, "totals": totals},
+        }
+
+    def release(self, keep=()) -> None:
+        """Release every GL object this renderer created (programs stay with the cache unless owned;
+        ``keep``: programs another renderer on the same cache still uses)."""
+        for fbo in self._targets.values():
+            _release_fbo(fbo)
+        self._targets.clear()
+        for res in self.resources:
+            res.release()
+        self.resources = []
+        for p in (self._net_pass, self._display_pass):
+            if p is not None:
+                p.vao.release()
+        self._net_pass = self._display_pass = None
+        self._reference_tex.release()
+        if self.owns_programs:
+            for p in (self.program, self.display_program):
+                if p is not None and not any(p is k for k in keep):
+                    self.cache.discard(p)
+        self.program = None
+
+
+def _release_fbo(fbo: moderngl.Framebuffer) -> None:
+    for a in fbo.color_attachments:
+        a.release()
+    if fbo.depth_attachment is not None:
+        fbo.depth_attachment.release()
+    fbo.release()

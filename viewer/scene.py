@@ -1,0 +1,362 @@
+"""Scenes are data: what to draw (program, networks), how to look at it (camera, bookmarks), what to
+compare with (reference), the lights/environment, and the knobs a UI may turn (settings with ranges).
+
+One small ``scene.json`` per asset, read by both ``inshade render`` and ``inshade view``:
+
+    {"format": "inshade.scene", "version": 1, "name": "neural_image",
+     "program": "passes/field2d.frag", "size": [256, 256],
+     "networks": [{"bundle": ".", "prefix": "net", "output": "rgb"}],
+     "reference": {"image": "reference.png", "colour": "srgb", "space": "field"},
+     "camera": {"type": "plane2d"}, "bookmarks": {"eye": {"type": "plane2d", "center": [0.4, 0.6], "zoom": 4}},
+     "lights": [], "environment": null,
+     "display": {"mode": "final", "modes": ["final", "network", "reference", "error", "split"], "split": 0.5},
+     "settings": {"exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure"},
+                  "storage": {"type": "choice", "default": "auto", "choices": ["auto", "ubo"], "codegen": "storage"}}}
+
+A setting is bound to exactly one of: ``uniform`` (set each frame, no recompile), ``define``
+(a ``#define``, recompiles the program) or ``codegen`` (an option of ``codegen.generate``, e.g.
+weight storage or LUT filtering; regenerates and recompiles). A later 3D scene (SDF sphere tracing,
+meshes with materials) is new data here (another program, an orbit camera, lights, meshes), not a
+new code path in the renderer or the viewer.
+
+A folder with only a bundle (no scene.json) is still a scene: it is derived from the bundle's
+``render`` field (the format before scenes existed). Every problem is one ``SceneError`` naming the
+file and the field.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from inshade.codegen import FILTERS, STORAGE_MODES
+from inshade.shaders.library import LIBRARY_DIR
+
+from .camera import CameraError, camera_from_dict
+from .display import UI_MODES, DisplayMode, parse_mode
+
+SCENE_FILE = "scene.json"
+BUNDLE_FILE = "bundle.json"
+MAX_SIZE = 16384
+REFERENCE_SPACES = ("field", "screen")
+SETTING_TYPES = ("float", "int", "bool", "choice")
+BINDINGS = ("uniform", "define", "codegen")
+CODEGEN_OPTIONS = {"storage": STORAGE_MODES, "lut_filter": FILTERS}
+# Codegen options every scene has, even when its file does not expose them in the UI.
+BUILTIN_SETTINGS = {
+    "storage": {"type": "choice", "default": "auto", "choices": list(STORAGE_MODES), "codegen": "storage",
+                "label": "weight storage"},
+    "lut_filter": {"type": "choice", "default": "exact", "choices": list(FILTERS), "codegen": "lut_filter",
+                   "label": "LUT filtering"},
+}
+
+
+class SceneError(ValueError):
+    """A scene description that cannot be used; the message names the file and the field."""
+
+
+@dataclass
+class Setting:
+    name: str
+    type: str
+    default: object
+    binding: str              # "uniform" | "define" | "codegen"
+    target: str               # uniform name, define name, or generate() keyword
+    min: float | None = None
+    max: float | None = None
+    choices: tuple = ()
+    label: str = ""
+    exposed: bool = True      # shown in the UI (built-in codegen options are hidden unless declared)
+
+    def check(self, value, where: str = "setting"):
+        """Validate and normalise a value for this setting (SceneError if it does not fit)."""
+        w = f"{where} {self.name!r}"
+        if self.type == "choice":
+            if value not in self.choices:
+                raise SceneError(f"{w}: {value!r} is not one of {list(self.choices)}")
+            return value
+        if self.type == "bool":
+            if not isinstance(value, bool):
+                raise SceneError(f"{w}: must be true or false, got {value!r}")
+            return value
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise SceneError(f"{w}: must be a finite number, got {value!r}")
+        if self.type == "int":
+            if int(value) != value:
+                raise SceneError(f"{w}: must be an integer, got {value!r}")
+            value = int(value)
+        else:
+            value = float(value)
+        if (self.min is not None and value < self.min) or (self.max is not None and value > self.max):
+            raise SceneError(f"{w}: {value} is outside [{self.min}, {self.max}]")
+        return value
+
+
+@dataclass
+class NetworkRef:
+    bundle: Path              # bundle folder (or bundle.json)
+    prefix: str = "net"       # GLSL symbol prefix; the chunk is <network> for "net", <network_P> otherwise
+    output: str | None = None  # the output port the program shows (None: the first)
+
+    @property
+    def chunk(self) -> str:
+        return "network" if self.prefix == "net" else f"network_{self.prefix}"
+
+
+@dataclass
+class Reference:
+    image: Path
+    colour: str = "srgb"      # "srgb" (8-bit PNG, decoded to linear) or "linear" (EXR)
+    space: str = "field"      # "field": lives in the camera's uv plane; "screen": a render of the same view
+
+
+@dataclass
+class Scene:
+    name: str
+    root: Path | None         # folder relative paths resolve against (None: a bundle in memory)
+    path: Path | None         # the scene.json, or None if derived from a bundle
+    program: str
+    size: tuple[int, int]
+    networks: list[NetworkRef]
+    camera: dict
+    reference: Reference | None = None
+    title: str = ""
+    bookmarks: dict = field(default_factory=dict)
+    lights: list = field(default_factory=list)
+    environment: dict | None = None
+    display_mode: DisplayMode = DisplayMode.FINAL
+    display_modes: tuple = UI_MODES
+    split: float = 0.5
+    settings: dict = field(default_factory=dict)   # name -> Setting
+    requires: dict = field(default_factory=dict)   # {"gl": 330, "extensions": [...]}
+
+    @property
+    def source(self) -> Path:
+        """What to pass to ``load_scene`` to get this scene again."""
+        return self.path if self.path is not None else self.root
+
+    def make_camera(self, name: str | None = None):
+        data = self.camera if name is None else self.bookmarks[name]
+        return camera_from_dict(data)
+
+    def default_settings(self) -> dict:
+        return {name: s.default for name, s in self.settings.items()}
+
+    def check_settings(self, values: dict, where: str = "settings") -> dict:
+        out = self.default_settings()
+        for name, value in (values or {}).items():
+            if name not in self.settings:
+                raise SceneError(f"{where}: unknown setting {name!r} (this scene has: {', '.join(self.settings)})")
+            out[name] = self.settings[name].check(value, where)
+        return out
+
+
+def load_scene(path) -> Scene:
+    """A scene from a scene.json, a folder holding one, or a bundle (folder or bundle.json)."""
+    path = Path(path)
+    if path.is_dir():
+        if (path / SCENE_FILE).is_file():
+            return _parse_file(path / SCENE_FILE)
+        if (path / BUNDLE_FILE).is_file():
+            return scene_from_bundle(path)
+        raise SceneError(f"{path}: neither {SCENE_FILE} nor {BUNDLE_FILE} here")
+    if not path.exists():
+        raise SceneError(f"{path}: no such file or folder")
+    if path.name == BUNDLE_FILE:
+        return scene_from_bundle(path)
+    return _parse_file(path)
+
+
+def scene_from_bundle(bundle) -> Scene:
+    """The scene a bundle's ``render`` field describes (bundles made before scene.json existed)."""
+    from inshade.bundle import Bundle, load
+
+    from .headless import render_spec
+
+    if not isinstance(bundle, Bundle):
+        bundle = load(bundle)
+    spec = render_spec(bundle)   # RenderSpecError if there is no usable render field
+    reference, root = None, None
+    if bundle.path is not None:
+        root = Path(bundle.path).parent if Path(bundle.path).is_file() else Path(bundle.path)
+        if (root / "reference.png").is_file():  # what `inshade train` writes beside the bundle
+            reference = Reference(root / "reference.png")
+    return Scene(name=bundle.name, root=root, path=None, program=spec["program"],
+                 size=(spec["width"], spec["height"]),
+                 networks=[NetworkRef(Path(bundle.path) if bundle.path is not None else None, "net", spec["output"])],
+                 camera={"type": "plane2d", "aspect": spec["width"] / spec["height"]},
+                 reference=reference, title=bundle.name,
+                 settings=_settings({}, "render"))
+
+
+def list_scenes(root) -> list[Path]:
+    """Sub-folders of ``root`` (e.g. ``trained/``) that hold a scene.json or a bundle, sorted."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    return sorted(p for p in root.iterdir() if p.is_dir() and ((p / SCENE_FILE).is_file() or (p / BUNDLE_FILE).is_file()))
+
+
+# parsing ---------------------------------------------------------------------------------------------
+_KEYS = {"format", "version", "name", "title", "program", "size", "networks", "reference", "camera",
+         "bookmarks", "lights", "environment", "display", "settings", "requires", "notes"}
+
+
+def _parse_file(path: Path) -> Scene:
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SceneError(f"{path}: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+    try:
+        return parse_scene(data, root=path.parent, path=path)
+    except (SceneError, CameraError) as exc:
+        raise SceneError(f"{path}: {exc}") from None
+
+
+def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
+    """Check a scene's JSON object; errors name the field (the caller prefixes the file)."""
+    if not isinstance(data, dict):
+        raise SceneError("must be a JSON object")
+    if data.get("format") != "inshade.scene":
+        raise SceneError(f"format: expected \"inshade.scene\", got {data.get('format')!r}")
+    if data.get("version") != 1:
+        raise SceneError(f"version: this inshade reads version 1, got {data.get('version')!r}")
+    unknown = sorted(set(data) - _KEYS)
+    if unknown:
+        raise SceneError(f"{unknown[0]}: unknown field (known: {', '.join(sorted(_KEYS))})")
+    name = data.get("name")
+    if not isinstance(name, str) or not name:
+        raise SceneError("name: must be a non-empty string")
+    program = data.get("program")
+    if not isinstance(program, str) or not (LIBRARY_DIR / f"{program}.glsl").is_file():
+        raise SceneError(f"program: no shader chunk {program!r} (a path under shaders/ without .glsl, "
+                         "e.g. \"passes/field2d.frag\")")
+    size = data.get("size", [256, 256])
+    if not (isinstance(size, list) and len(size) == 2 and all(
+            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_SIZE for v in size)):
+        raise SceneError(f"size: must be [width, height], ints in 1..{MAX_SIZE}, got {size!r}")
+    networks = data.get("networks")
+    if not isinstance(networks, list) or not networks:
+        raise SceneError("networks: must be a non-empty list of {\"bundle\": ..., \"prefix\": ..., \"output\": ...}")
+    refs, prefixes = [], set()
+    for i, n in enumerate(networks):
+        w = f"networks[{i}]"
+        if not isinstance(n, dict) or not isinstance(n.get("bundle"), str):
+            raise SceneError(f"{w}.bundle: must name a bundle folder (relative to the scene file)")
+        extra = sorted(set(n) - {"bundle", "prefix", "output"})
+        if extra:
+            raise SceneError(f"{w}.{extra[0]}: unknown field (known: bundle, prefix, output)")
+        bpath = (root / n["bundle"]).resolve()
+        if not ((bpath / BUNDLE_FILE).is_file() or (bpath.name == BUNDLE_FILE and bpath.is_file())):
+            raise SceneError(f"{w}.bundle: no bundle at {bpath}")
+        prefix = n.get("prefix", "net")
+        if not isinstance(prefix, str) or not prefix.isidentifier() or prefix in prefixes:
+            raise SceneError(f"{w}.prefix: must be a unique GLSL identifier, got {prefix!r}")
+        prefixes.add(prefix)
+        output = n.get("output")
+        if output is not None and not isinstance(output, str):
+            raise SceneError(f"{w}.output: must be an output port name")
+        refs.append(NetworkRef(bpath, prefix, output))
+    reference = None
+    ref = data.get("reference")
+    if ref is not None:
+        if isinstance(ref, str):
+            ref = {"image": ref}
+        if not isinstance(ref, dict) or not isinstance(ref.get("image"), str):
+            raise SceneError("reference.image: must name an image file (relative to the scene file)")
+        image = (root / ref["image"]).resolve()
+        if not image.is_file():
+            raise SceneError(f"reference.image: no file {image}")
+        colour, space = ref.get("colour", "srgb"), ref.get("space", "field")
+        if colour not in ("srgb", "linear"):
+            raise SceneError(f"reference.colour: must be \"srgb\" or \"linear\", got {colour!r}")
+        if space not in REFERENCE_SPACES:
+            raise SceneError(f"reference.space: must be one of {list(REFERENCE_SPACES)}, got {space!r}")
+        reference = Reference(image, colour, space)
+    camera = data.get("camera", {"type": "plane2d"})
+    camera_from_dict(camera, "camera")  # validate now: one clear error at load time
+    bookmarks = data.get("bookmarks", {})
+    if not isinstance(bookmarks, dict):
+        raise SceneError("bookmarks: must be an object {name: camera}")
+    for k, v in bookmarks.items():
+        camera_from_dict(v, f"bookmarks.{k}")
+    lights = data.get("lights", [])
+    if not isinstance(lights, list) or not all(isinstance(x, dict) and "type" in x for x in lights):
+        raise SceneError("lights: must be a list of objects with a \"type\"")
+    environment = data.get("environment")
+    if environment is not None and not isinstance(environment, dict):
+        raise SceneError("environment: must be an object or null")
+    display = data.get("display", {})
+    if not isinstance(display, dict):
+        raise SceneError("display: must be an object")
+    try:
+        mode = parse_mode(display.get("mode", "final"))
+        modes = tuple(parse_mode(m) for m in display.get("modes", [m.name.lower() for m in UI_MODES]))
+    except ValueError as exc:
+        raise SceneError(f"display: {exc}") from None
+    split = display.get("split", 0.5)
+    if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0.0 <= split <= 1.0:
+        raise SceneError(f"display.split: must be a number in [0, 1], got {split!r}")
+    requires = data.get("requires", {})
+    if not isinstance(requires, dict):
+        raise SceneError("requires: must be an object, e.g. {\"gl\": 330, \"extensions\": []}")
+    title = data.get("title", name)
+    return Scene(name=name, root=root, path=path, program=program, size=tuple(size), networks=refs,
+                 camera=camera, reference=reference, title=str(title), bookmarks=bookmarks, lights=lights,
+                 environment=environment, display_mode=mode, display_modes=modes, split=float(split),
+                 settings=_settings(data.get("settings", {}), "settings"), requires=requires)
+
+
+def _settings(data, where: str) -> dict:
+    if not isinstance(data, dict):
+        raise SceneError(f"{where}: must be an object {{name: setting}}")
+    merged = {k: dict(v, exposed=False) for k, v in BUILTIN_SETTINGS.items()}
+    for k, v in data.items():
+        merged[k] = dict(v, exposed=True) if isinstance(v, dict) else v
+    out = {}
+    for name, s in merged.items():
+        w = f"{where}.{name}"
+        if not isinstance(s, dict):
+            raise SceneError(f"{w}: must be an object")
+        kind = s.get("type")
+        if kind not in SETTING_TYPES:
+            raise SceneError(f"{w}.type: must be one of {list(SETTING_TYPES)}, got {kind!r}")
+        bound = [b for b in BINDINGS if b in s]
+        if len(bound) != 1:
+            raise SceneError(f"{w}: needs exactly one of {list(BINDINGS)} (what the value drives)")
+        binding = bound[0]
+        target = s[binding]
+        if not isinstance(target, str) or not target.isidentifier():
+            raise SceneError(f"{w}.{binding}: must be an identifier, got {target!r}")
+        if binding == "codegen" and target not in CODEGEN_OPTIONS:
+            raise SceneError(f"{w}.codegen: unknown codegen option {target!r} (known: {', '.join(CODEGEN_OPTIONS)})")
+        extra = sorted(set(s) - {"type", "default", "min", "max", "choices", "label", "exposed", *BINDINGS})
+        if extra:
+            raise SceneError(f"{w}.{extra[0]}: unknown field")
+        lo, hi = s.get("min"), s.get("max")
+        for key, v in (("min", lo), ("max", hi)):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                raise SceneError(f"{w}.{key}: must be a number")
+        if kind in ("float", "int") and (lo is None or hi is None or lo > hi):
+            raise SceneError(f"{w}: a {kind} setting needs a range: \"min\" <= \"max\"")
+        choices = tuple(s.get("choices", ()))
+        if kind == "choice":
+            if not choices:
+                raise SceneError(f"{w}.choices: a choice setting needs a non-empty list")
+            if binding == "codegen":
+                bad = [c for c in choices if c not in CODEGEN_OPTIONS[target]]
+                if bad:
+                    raise SceneError(f"{w}.choices: {bad[0]!r} is not a {target} option "
+                                     f"({', '.join(CODEGEN_OPTIONS[target])})")
+        setting = Setting(name, kind, s.get("default"), binding, target, lo, hi, choices,
+                          str(s.get("label", name)), bool(s.get("exposed", True)))
+        if "default" not in s:
+            raise SceneError(f"{w}.default: missing")
+        setting.default = setting.check(s["default"], f"{w}.default:")
+        out[name] = setting
+    return out
