@@ -89,7 +89,7 @@ class NetworkEvaluator:
             raise ValueError(f"{generated.out_dim} outputs need {generated.out_blocks} draw buffers; "
                              f"this driver has {ctx.info['GL_MAX_DRAW_BUFFERS']}")
         self.ctx, self.generated, self.width = ctx, generated, width
-        self.cache = cache or ProgramCache(ctx)
+        self.cache = cache if cache is not None else ProgramCache(ctx)
         self.program = self.cache.get("common/fullscreen.vert", "passes/evaluate.frag",
                                       version=version, chunks={"network": generated.chunk})
         self.compile_seconds = self.cache.last_compile_seconds
