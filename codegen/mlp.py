@@ -3,22 +3,49 @@
 A layer [out, in] is zero-padded to multiples of 4 and cut into 4x4 blocks; block (o, i)
 multiplies input block i into output block o. Weight placement is a per-layer choice:
 
-- inline:  const mat4 literals (fastest to run on most drivers, slow to compile when big)
+- inline:  literals written straight into the expressions (fastest to run on every driver
+           measured, slowest to compile when big)
 - ubo:     one std140 uniform block per layer (weights swap without recompiling)
 - texture: rows of an RGBA32F/RGBA16F texture read with texelFetch (any width)
 All three give the same function signature and the same numbers (fp32 storage).
+
+How the code is shaped, and why (measured with `inshade bench mlp` on Mesa 22.3 llvmpipe,
+LLVM 15, 256-bit, 2 cores; see the bench report for numbers):
+
+- llvmpipe runs a fragment shader SoA, 8 pixels per AVX register: every GLSL float is one ymm
+  register, so a 64-wide layer holds 64 live inputs (16 registers exist) and spills whatever
+  form the source takes. What helps is short dependency chains (floats are not reassociated):
+  each output block sums into SPLIT partial accumulators, and each term is
+  `x[i].k * vec4(column)` with padding columns left out.
+- inline literals are constant-pool operands; `const mat4 W[]` arrays cost ~3x the GLSL
+  compile+link time for no runtime gain, so literals go straight into the expressions.
+- In llvmpipe fragment shaders every UBO load and texelFetch is a per-lane gather (lane 0 may
+  be inactive, so the scalar fast path is off): ubo and texture run 10-20x slower than inline
+  there, and unrolled UBO code takes minutes to JIT. Hence big layers loop (small code), and
+  on software renderers `auto` keeps literals up to a much larger size.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .glsl import PlanRow, TextureResource, UniformBlockResource, blocks, flt, mat4, vec4
+from .glsl import PlanRow, TextureResource, UniformBlockResource, blocks, mat4, vec4
 from .registry import emitter
 from .values import declare
 
 STORAGE_MODES = ("inline", "ubo", "texture", "auto")
-UNROLL_MAX_BLOCKS = 256      # larger layers loop instead of unrolling (compile time)
-INLINE_MAX_FLOATS = 4096     # auto: whole networks at most this big become literals
+SPLIT = 4                    # partial sums per output block (breaks the add dependency chain)
+UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
+                             # on unrolled UBO gathers: 32x3 took minutes); GPUs don't mind loops
+LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (measured best)
+UNROLL_MAX_BLOCKS = 4096     # inline layers beyond this loop over a const array instead
+# auto: whole networks at most this many floats become literals. On GPUs (4096, ~ 32 wide x 3)
+# UBOs are as fast as literals and compile in a fraction of the time. On software renderers
+# (llvmpipe) literals are 10-20x faster than UBO/texture gathers and their JIT (a few seconds
+# for 64x4, ~14k floats) is no slower than the UBO JIT, so literals go up to ~64x5; beyond
+# that the JIT grows superlinearly (128x3: over a minute) and texture loops win.
+INLINE_MAX_FLOATS = 4096
+INLINE_MAX_FLOATS_SOFTWARE = 20000
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
 UBO_RESERVED_BLOCKS = 2      # auto: blocks left for the host program's own uniforms
 
 
@@ -46,12 +73,19 @@ def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str,
     if requested != "auto":
         return {n.id: (requested, "requested") for n in dense}
     floats = sum(blocks(n.in_dim) * blocks(n.out_dim) * 16 + blocks(n.out_dim) * 4 for n in dense)
-    if floats <= INLINE_MAX_FLOATS:
-        why = f"network has {floats} floats <= {INLINE_MAX_FLOATS}: literals compile quickly"
+    renderer = str(limits.get("renderer", limits.get("GL_RENDERER", ""))).lower()
+    software = bool(limits.get("software", any(s in renderer for s in SOFTWARE_RENDERERS)))
+    inline_max = INLINE_MAX_FLOATS_SOFTWARE if software else INLINE_MAX_FLOATS
+    if floats <= inline_max:
+        why = (f"network has {floats} floats <= {inline_max}: literals compile quickly"
+               + (" and run 10x+ faster than gathers on a software renderer" if software else ""))
         return {n.id: ("inline", why) for n in dense}
     max_bytes = int(limits.get("GL_MAX_UNIFORM_BLOCK_SIZE", 16384))
     free_blocks = int(limits.get("GL_MAX_FRAGMENT_UNIFORM_BLOCKS", 12)) - UBO_RESERVED_BLOCKS
     out = {}
+    if software:  # UBO loads are per-lane gathers with a slow JIT there; texture loops are leaner
+        return {n.id: ("texture", f"network has {floats} floats > {inline_max}; software renderer: "
+                                  "texture loops JIT fastest") for n in dense}
     for n in dense:
         size = blocks(n.in_dim) * blocks(n.out_dim) * 64 + blocks(n.out_dim) * 16
         if size <= max_bytes and free_blocks > 0:
@@ -92,19 +126,48 @@ class WeightTexture:
         return TextureResource(self.name, data, fmt, "nearest")
 
 
-def _accumulate(ctx, out, ob, ib, bias_expr, w_expr, src, loop: bool):
-    if loop:
-        ctx.body += [
-            f"for (int o = 0; o < {ob}; ++o) {{",
-            f"    vec4 acc = {bias_expr('o')};",
-            f"    for (int i = 0; i < {ib}; ++i) acc += {w_expr('o', 'i')} * {src.array}[i];",
-            f"    {out.array}[o] = acc;",
-            "}",
-        ]
-        return
+def _column_terms(i: int, in_dim: int, x: str, column) -> list[str]:
+    """`x.k * column(k)` for the columns k of input block i that are not padding. Structural,
+    not value-based: a UBO's weights may change later, and 0 * inf must stay NaN as in torch."""
+    return [f"{x}.{'xyzw'[k]} * {column(k)}" for k in range(4) if 4 * i + k < in_dim]
+
+
+def _emit_unrolled(ctx, out, wb, bias_expr, terms):
+    """out[o] = bias + sum_i W(o, i) x[i], summed into SPLIT partial accumulators per output
+    block (input block i goes to partial i % SPLIT), one output block at a time so only the
+    block's accumulators and one input block need registers."""
+    ob, ib = wb.shape[:2]
     for o in range(ob):
-        terms = [bias_expr(str(o))] + [f"{w_expr(str(o), str(i))} * {src.array}[{i}]" for i in range(ib)]
-        ctx.body.append(f"{out.array}[{o}] = " + "\n        + ".join(terms) + ";")
+        accs, lines = {}, []
+        for i in range(ib):
+            ts = terms(o, i)
+            if not ts:
+                continue
+            p = i % SPLIT
+            acc = f"{out.array}_{o}_{p}"
+            if p not in accs:
+                init = [bias_expr(o)] if p == 0 else []
+                lines.append(f"vec4 {acc} = " + " + ".join(init + ts[:1]) + ";")
+                accs[p], ts = acc, ts[1:]
+            lines += [f"{acc} += {t};" for t in ts]
+        total = ([] if 0 in accs else [bias_expr(o)]) + [accs[p] for p in sorted(accs)]
+        lines.append(f"{out.array}[{o}] = " + " + ".join(total) + ";")
+        ctx.body.append("\n".join(lines))
+
+
+def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
+    """for o in chunks of output blocks: acc = bias; for i: acc += W(o, i) * x[i]."""
+    chunk = chunk if ob % chunk == 0 else 1
+    obase = "o" if ob > chunk else "0"
+    lines = [f"for (int o = 0; o < {ob}; o += {chunk}) {{" if ob > chunk else "{"]
+    lines += [f"    vec4 acc{c} = {bias_expr(f'{obase} + {c}')};" for c in range(chunk)]
+    lines.append(f"    for (int i = 0; i < {ib}; ++i) {{")
+    lines.append(f"        vec4 xi = {src.array}[i];")
+    lines += [f"        acc{c} += {w_expr(f'{obase} + {c}', 'i')} * xi;" for c in range(chunk)]
+    lines.append("    }")
+    lines += [f"    {out.array}[{obase} + {c}] = acc{c};" for c in range(chunk)]
+    lines.append("}")
+    ctx.body.append("\n".join(lines))
 
 
 @emitter("dense")
@@ -114,21 +177,23 @@ def emit_dense(ctx, node, src, bundle):
     wb, bb = pack(weight, bias)
     ob, ib = wb.shape[:2]
     mode, why = ctx.storage[node.id]
-    big = ob * ib > UNROLL_MAX_BLOCKS
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     ctx.body.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim} ({ob}x{ib} mat4 blocks, {mode})")
     row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
                   params=weight.size + (0 if bias is None else bias.size),
                   flops=2 * node.in_dim * node.out_dim + (node.out_dim if bias is not None else 0))
     name = ctx.name(node.id)
+    x = src.array
     if mode == "inline":
-        ctx.globals.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim}, weights as literals")
-        ctx.globals.append(f"const mat4 {name}_W[{ob * ib}] = mat4[](\n    "
-                           + ",\n    ".join(mat4(wb[o, i]) for o in range(ob) for i in range(ib)) + ");")
-        ctx.globals.append(f"const vec4 {name}_b[{ob}] = vec4[](" + ", ".join(vec4(b) for b in bb) + ");")
-        _accumulate(ctx, out, ob, ib, lambda o: f"{name}_b[{o}]",
-                    lambda o, i: f"{name}_W[{o} * {ib} + {i}]" if big else f"{name}_W[{int(o) * ib + int(i)}]",
-                    src, big)
+        if ob * ib <= UNROLL_MAX_BLOCKS:
+            _emit_unrolled(ctx, out, wb, lambda o: vec4(bb[o]),
+                           lambda o, i: _column_terms(i, node.in_dim, f"{x}[{i}]", lambda k: vec4(wb[o, i][:, k])))
+        else:
+            ctx.globals.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim}, weights as literals")
+            ctx.globals.append(f"const mat4 {name}_W[{ob * ib}] = mat4[](\n    "
+                               + ",\n    ".join(mat4(wb[o, i]) for o in range(ob) for i in range(ib)) + ");")
+            ctx.globals.append(f"const vec4 {name}_b[{ob}] = vec4[](" + ", ".join(vec4(b) for b in bb) + ");")
+            _emit_loop(ctx, out, ob, ib, 1, lambda o: f"{name}_b[{o}]", lambda o, i: f"{name}_W[({o}) * {ib} + {i}]", src)
     elif mode == "ubo":
         data = std140(wb, bb)
         ctx.globals.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim}, std140 block of {len(data)} B")
@@ -136,9 +201,13 @@ def emit_dense(ctx, node, src, bundle):
                            f"    vec4 b[{ob}];\n}} {name};")
         ctx.resources.append(UniformBlockResource(f"{name}_block", data))
         row.uniform_bytes = len(data)
-        _accumulate(ctx, out, ob, ib, lambda o: f"{name}.b[{o}]",
-                    lambda o, i: f"{name}.W[{o} * {ib} + {i}]" if big else f"{name}.W[{int(o) * ib + int(i)}]",
-                    src, big)
+        if ob * ib <= UBO_UNROLL_MAX_BLOCKS:
+            _emit_unrolled(ctx, out, wb, lambda o: f"{name}.b[{o}]",
+                           lambda o, i: _column_terms(i, node.in_dim, f"{x}[{i}]",
+                                                      lambda k: f"{name}.W[{o * ib + i}][{k}]"))
+        else:
+            _emit_loop(ctx, out, ob, ib, LOOP_CHUNK["ubo"], lambda o: f"{name}.b[{o}]",
+                       lambda o, i: f"{name}.W[({o}) * {ib} + {i}]", src)
     elif mode == "texture":
         tex = ctx.weight_texture
         row0 = tex.add(wb, bb)
@@ -147,7 +216,8 @@ def emit_dense(ctx, node, src, bundle):
         def fetch(o, i):
             r, c = f"{row0} + {o}", f"1 + 4 * {i}"
             return ("mat4(" + ", ".join(f"texelFetch({t}, ivec2({c} + {k}, {r}), 0)" for k in range(4)) + ")")
-        _accumulate(ctx, out, ob, ib, lambda o: f"texelFetch({t}, ivec2(0, {row0} + {o}), 0)", fetch, src, True)
+        _emit_loop(ctx, out, ob, ib, LOOP_CHUNK["texture"],
+                   lambda o: f"texelFetch({t}, ivec2(0, {row0} + {o}), 0)", fetch, src)
         row.fetches = ob * (1 + 4 * ib)
         row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.texture_format == "f2" else 1)
     else:

@@ -1,0 +1,44 @@
+"""`inshade bench mlp --quick`: it runs end to end, writes its three files, and the code it
+timed matches torch (speed itself is never asserted: machines are shared and noisy)."""
+import json
+
+import pytest
+
+pytest.importorskip("torch")
+pytest.importorskip("matplotlib")
+
+
+def test_bench_mlp_quick(tmp_path, gl):
+    from inshade.bench import mlp
+
+    out = tmp_path / "bench"
+    assert mlp.main(["--quick", "--out", str(out)]) == 0
+    for name in ("mlp.json", "mlp.md", "mlp.png"):
+        assert (out / name).stat().st_size > 0, name
+    assert (out / "mlp.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    result = json.loads((out / "mlp.json").read_text())
+    assert result["machine"]["gl_renderer"]
+    assert result["sgemm"]["gflops"] > 0
+    assert result["networks"], "no network was measured"
+    for net in result["networks"]:
+        assert net["torch_s"] > 0
+        assert set(net["modes"]) == {"inline", "ubo", "texture"}
+        for mode, r in net["modes"].items():
+            assert r["max_error"] < 1e-4, (net["name"], mode, r["max_error"])
+            assert r["seconds"] > 0 and r["compile_link_s"] >= 0 and r["first_draw_s"] > 0
+    assert result["max_error"] < 1e-4
+
+    md = (out / "mlp.md").read_text()
+    assert result["machine"]["gl_renderer"] in md
+    assert "## Targets" in md and "| inline |" in md
+
+
+def test_bench_mlp_arguments():
+    from inshade.bench import mlp
+
+    parser = mlp.build_parser()
+    args = parser.parse_args(["--widths", "16,64", "--storage", "inline,auto", "--out", "x"])
+    assert args.widths == [16, 64] and args.storage == ["inline", "auto"] and args.size == 512
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--storage", "nope"])
