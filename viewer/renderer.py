@@ -113,7 +113,7 @@ class SceneRenderer:
 
     # building ---------------------------------------------------------------------------------------
     def _generate(self, bundles):
-        limits = {k: v for k, v in self.gl.items() if k.startswith("GL_MAX_")}
+        limits = dict(self.gl)  # GL_MAX_* limits and whether the renderer is software (auto storage)
         options = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "codegen"}
         return [generate(b, prefix=n.prefix, limits=limits, **options) for b, n in zip(bundles, self.scene.networks)]
 
