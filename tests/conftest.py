@@ -13,3 +13,11 @@ def gl():
     from inshade.viewer.context import shared_context
 
     return shared_context()
+
+
+@pytest.fixture
+def gl_limits(gl):
+    """The driver's identity and limits (``gl_info``), as codegen's ``limits=`` expects them."""
+    from inshade.viewer.context import gl_info
+
+    return gl_info(gl)

@@ -25,14 +25,18 @@ def _bind(program: moderngl.Program, uniforms: Mapping | None, textures: Mapping
     matrices are column-major, so a numpy matrix used as ``M @ v`` is passed transposed);
     anything else goes through moderngl's ``Uniform.value``.
     """
+    # Names the linker removed (e.g. the inputs of a network that ignores them) are skipped.
     for name, value in (uniforms or {}).items():
+        if name not in program:
+            continue
         if isinstance(value, bytes):
             program[name].write(value)
         else:
             program[name].value = value
     for unit, (name, texture) in enumerate((textures or {}).items()):
-        texture.use(location=unit)
-        program[name].value = unit
+        if name in program:
+            texture.use(location=unit)
+            program[name].value = unit
 
 
 class FullscreenPass:
