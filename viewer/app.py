@@ -28,6 +28,7 @@ import numpy as np
 from inshade.shaders.library import LIBRARY_DIR
 
 from . import navigation
+from .context import release_shared
 from .display import DisplayMode, parse_mode
 from .headless import save_render
 from .programs import ProgramCache
@@ -67,6 +68,7 @@ class ViewerApp:
         glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
         glfw.window_hint(glfw.VISIBLE, bool(visible))
         glfw.window_hint(glfw.SCALE_TO_MONITOR, True)
+        release_shared()  # an EGL context current on this thread makes GLX window creation fail
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             self.window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)

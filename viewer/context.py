@@ -70,6 +70,16 @@ def _shared() -> moderngl.Context:
     return create_context(330)
 
 
+def release_shared() -> None:
+    """Leave the shared headless context not current on this thread.
+
+    Mesa's GLX refuses to make a new window context current (X error BadAccess, which kills the
+    process) on a thread where an EGL context is current: call this before creating a window.
+    """
+    if _shared.cache_info().currsize:
+        _shared().__exit__(None, None, None)
+
+
 def make_current(ctx: moderngl.Context) -> moderngl.Context:
     """Make ``ctx`` current on this thread and leave it current.
 
