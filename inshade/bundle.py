@@ -85,6 +85,15 @@ class Bundle:
     def out_dim(self) -> int:
         return sum(p.dim for p in self.outputs)
 
+    def output_lanes(self, name: str) -> tuple[int, int] | None:
+        """(offset, width) of output `name` in the concatenated outputs, or None if absent."""
+        offset = 0
+        for p in self.outputs:
+            if p.name == name:
+                return offset, p.dim
+            offset += p.dim
+        return None
+
     def node(self, node_id: str) -> Node:
         return next(n for n in self.nodes if n.id == node_id)
 

@@ -70,17 +70,14 @@ def render_spec(bundle: Bundle) -> dict:
         raise RenderSpecError(f"{where}: render.input: {program} needs the bundle's only input to be "
                               f"{in_name!r} of width {need}; the bundle has {have}")
     out_name = spec.get("output", bundle.outputs[0].name)
-    offset = 0
-    for p in bundle.outputs:
-        if p.name == out_name:
-            break
-        offset += p.dim
-    else:
+    lanes = bundle.output_lanes(out_name)
+    if lanes is None:
         raise RenderSpecError(f"{where}: render.output: no output named {out_name!r} "
                               f"(outputs: {', '.join(p.name for p in bundle.outputs)})")
-    if p.dim not in (1, 3, 4):
-        raise RenderSpecError(f"{where}: render.output: {out_name!r} is {p.dim} wide; 1, 3 or 4 can be shown")
-    out.update(program=program, input=in_name, output=out_name, out_offset=offset, out_dim=p.dim)
+    offset, dim = lanes
+    if dim not in (1, 3, 4):
+        raise RenderSpecError(f"{where}: render.output: {out_name!r} is {dim} wide; 1, 3 or 4 can be shown")
+    out.update(program=program, input=in_name, output=out_name, out_offset=offset, out_dim=dim)
     return out
 
 

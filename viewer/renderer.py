@@ -121,15 +121,11 @@ class SceneRenderer:
         defines = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "define"}
         primary, ref = bundles[0], self.scene.networks[0]
         name = ref.output or primary.outputs[0].name
-        offset = 0
-        for port in primary.outputs:
-            if port.name == name:
-                break
-            offset += port.dim
-        else:
+        lanes = primary.output_lanes(name)
+        if lanes is None:
             raise SceneError(f"scene '{self.scene.name}': network {primary.name!r} has no output {name!r} "
                              f"(outputs: {', '.join(p.name for p in primary.outputs)})")
-        defines.update(FIELD_OUT_OFFSET=offset, FIELD_OUT_DIM=port.dim)
+        defines.update(FIELD_OUT_OFFSET=lanes[0], FIELD_OUT_DIM=lanes[1])
         return defines
 
     def _build(self, bundles=None) -> str:
