@@ -12,6 +12,7 @@ uniforms); mode, split, exposure and error scale only redraw the cheap display p
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
@@ -23,6 +24,8 @@ from PIL import Image
 
 from inshade.bundle import Bundle, load
 from inshade.codegen.network import generate
+from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunks
+from inshade.codegen.spherical_harmonics import sh_chunks
 
 from .context import GLContextError, gl_info, make_current, shared_context
 from .display import DisplayMode, glsl_chunk, parse_mode
@@ -119,6 +122,8 @@ class SceneRenderer:
 
     def _defines(self, bundles) -> dict:
         defines = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "define"}
+        if not bundles:
+            return defines
         primary, ref = bundles[0], self.scene.networks[0]
         name = ref.output or primary.outputs[0].name
         lanes = primary.output_lanes(name)
@@ -135,8 +140,11 @@ class SceneRenderer:
         bundles = bundles or self.bundles
         try:
             generated = self._generate(bundles)
-            program = self.cache.get(VERTEX, self.scene.program, defines=self._defines(bundles),
-                                     chunks={n.chunk: g.chunk for n, g in zip(self.scene.networks, generated)})
+            chunks = {n.chunk: g.chunk for n, g in zip(self.scene.networks, generated)}
+            if self.scene.sdf is not None:
+                chunks.update(sdf_chunks(self.scene.sdf))
+                chunks.update(sh_chunks(int(self.scene.environment["degree"])))
+            program = self.cache.get(VERTEX, self.scene.program, defines=self._defines(bundles), chunks=chunks)
         except Exception as exc:
             self.error = exc
             raise
@@ -171,7 +179,7 @@ class SceneRenderer:
             raise SceneError(f"unknown setting {name!r} (this scene has: {', '.join(self.scene.settings)})")
         setting = self.scene.settings[name]
         value = setting.check(value)
-        if setting.binding == "uniform":
+        if setting.binding in ("uniform", "environment"):
             self.values[name] = value
             return "uniform"
         old = self.values[name]
@@ -226,7 +234,17 @@ class SceneRenderer:
             if s.binding == "uniform":
                 v = self.values[name]
                 out[s.target] = int(v) if isinstance(v, bool) else v
+        if self.scene.sdf is not None:
+            out["u_sh"] = self.environment_sh().tobytes()
         return {k: v for k, v in out.items() if k in program}
+
+    def environment_sh(self) -> np.ndarray:
+        """SDF scenes: the radiance SH [K, 3] float32 of the environment (scene + settings)."""
+        env = dict(self.scene.environment)
+        for name, s in self.scene.settings.items():
+            if s.binding == "environment":
+                env[s.target] = self.values[name]
+        return environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
 
     def render_network(self, camera, width: int, height: int) -> moderngl.Framebuffer:
         """The scene pass alone (linear float, alpha = coverage); redrawn only when its inputs change."""
@@ -292,6 +310,8 @@ class SceneRenderer:
     def info(self, camera, width: int, height: int, *, mode=None, split=None) -> dict:
         """What a sidecar records: enough to re-render the same pixels (``inshade render --from``)."""
         mode = self.scene.display_mode if mode is None else parse_mode(mode)
+        if not self.bundles:
+            return self._sdf_info(camera, width, height, mode, split)
         primary = self.bundles[0]
         storages = {}
         for g in self.generated:
@@ -320,6 +340,27 @@ class SceneRenderer:
                      "split": self.scene.split if split is None else float(split),
                      "settings": json.loads(json.dumps(self.values))},
             "plan": {"storage": storages, "totals": totals},
+        }
+
+    def _sdf_info(self, camera, width, height, mode, split) -> dict:
+        sdf = self.scene.sdf
+        env = dict(self.scene.environment)
+        for name, s in self.scene.settings.items():
+            if s.binding == "environment":
+                env[s.target] = self.values[name]
+        return {
+            "bundle": None, "bundles": [],
+            "sdf": {"path": str(sdf.path) if sdf.path else None, "name": sdf.name, **sdf.to_dict(),
+                    "chunk_sha256": hashlib.sha256(sdf_chunks(sdf)[SDF_CHUNK].encode()).hexdigest()},
+            "environment": env,
+            "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
+            "render": {"program": self.scene.program, "width": width, "height": height,
+                       "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
+            "scene": {"name": self.scene.name,
+                      "path": str(Path(self.scene.source).resolve()) if self.scene.source else None},
+            "view": {"camera": camera.to_dict(), "mode": mode.name.lower(),
+                     "split": self.scene.split if split is None else float(split),
+                     "settings": json.loads(json.dumps(self.values))},
         }
 
     def release(self, keep=()) -> None:

@@ -19,6 +19,11 @@ weight storage or LUT filtering; regenerates and recompiles). A later 3D scene (
 meshes with materials) is new data here (another program, an orbit camera, lights, meshes), not a
 new code path in the renderer or the viewer.
 
+An analytic SDF scene (inshade/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
+have ``"networks": []``, and lights the scene with ``"environment": {"sky": preset, "rotation":
+degrees, "degree": 4}`` (a procedural sky of inshade.sh, projected to SH); settings bound to
+``"environment": "sky" | "rotation"`` override those two at run time.
+
 A folder with only a bundle (no scene.json) is still a scene: it is derived from the bundle's
 ``render`` field (the format before scenes existed). Every problem is one ``SceneError`` naming the
 file and the field.
@@ -41,7 +46,10 @@ BUNDLE_FILE = "bundle.json"
 MAX_SIZE = 16384
 REFERENCE_SPACES = ("field", "screen")
 SETTING_TYPES = ("float", "int", "bool", "choice")
-BINDINGS = ("uniform", "define", "codegen")
+BINDINGS = ("uniform", "define", "codegen", "environment")
+# "environment" settings drive the lighting the renderer computes on the CPU (SDF scenes: the
+# radiance SH uniform u_sh); a change re-uploads a uniform, no recompile.
+ENVIRONMENT_TARGETS = ("sky", "rotation")
 CODEGEN_OPTIONS = {"storage": STORAGE_MODES, "lut_filter": FILTERS}
 # Codegen options every scene has, even when its file does not expose them in the UI.
 BUILTIN_SETTINGS = {
@@ -130,6 +138,7 @@ class Scene:
     split: float = 0.5
     settings: dict = field(default_factory=dict)   # name -> Setting
     requires: dict = field(default_factory=dict)   # {"gl": 330, "extensions": [...]}
+    sdf: object = None        # inshade.sdf.SdfScene for analytic SDF scenes, else None
 
     @property
     def source(self) -> Path:
@@ -200,7 +209,7 @@ def list_scenes(root) -> list[Path]:
 
 # parsing ---------------------------------------------------------------------------------------------
 _KEYS = {"format", "version", "name", "title", "program", "size", "networks", "reference", "camera",
-         "bookmarks", "lights", "environment", "display", "settings", "requires", "notes"}
+         "bookmarks", "lights", "environment", "display", "settings", "requires", "notes", "sdf"}
 
 
 def _parse_file(path: Path) -> Scene:
@@ -240,8 +249,17 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     if not (isinstance(size, list) and len(size) == 2 and all(
             isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_SIZE for v in size)):
         raise SceneError(f"size: must be [width, height], ints in 1..{MAX_SIZE}, got {size!r}")
+    sdf = None
+    if data.get("sdf") is not None:
+        from inshade.sdf import SdfError, load_sdf
+        if not isinstance(data["sdf"], str):
+            raise SceneError("sdf: must name an SDF description file (relative to the scene file)")
+        try:
+            sdf = load_sdf((root / data["sdf"]).resolve())
+        except SdfError as exc:
+            raise SceneError(f"sdf: {exc}") from None
     networks = data.get("networks")
-    if not isinstance(networks, list) or not networks:
+    if not isinstance(networks, list) or (not networks and sdf is None):
         raise SceneError("networks: must be a non-empty list of {\"bundle\": ..., \"prefix\": ..., \"output\": ...}")
     refs, prefixes = [], set()
     for i, n in enumerate(networks):
@@ -291,6 +309,8 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     environment = data.get("environment")
     if environment is not None and not isinstance(environment, dict):
         raise SceneError("environment: must be an object or null")
+    if sdf is not None:
+        environment = _sdf_environment(environment)
     display = data.get("display", {})
     if not isinstance(display, dict):
         raise SceneError("display: must be an object")
@@ -309,7 +329,24 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     return Scene(name=name, root=root, path=path, program=program, size=tuple(size), networks=refs,
                  camera=camera, reference=reference, title=str(title), bookmarks=bookmarks, lights=lights,
                  environment=environment, display_mode=mode, display_modes=modes, split=float(split),
-                 settings=_settings(data.get("settings", {}), "settings"), requires=requires)
+                 settings=_settings(data.get("settings", {}), "settings"), requires=requires, sdf=sdf)
+
+
+def _sdf_environment(env) -> dict:
+    from inshade.sh import MAX_DEGREE, SKY_PRESETS
+
+    env = {"sky": "overcast", "rotation": 0.0, "degree": 4, **(env or {})}
+    extra = sorted(set(env) - {"sky", "rotation", "degree"})
+    if extra:
+        raise SceneError(f"environment.{extra[0]}: unknown field (known: degree, rotation, sky)")
+    if env["sky"] not in SKY_PRESETS:
+        raise SceneError(f"environment.sky: unknown sky {env['sky']!r} (known: {', '.join(SKY_PRESETS)})")
+    rot = env["rotation"]
+    if isinstance(rot, bool) or not isinstance(rot, (int, float)) or not math.isfinite(rot):
+        raise SceneError(f"environment.rotation: must be a finite number of degrees, got {rot!r}")
+    if env["degree"] not in range(1, MAX_DEGREE + 1):
+        raise SceneError(f"environment.degree: must be an int in 1..{MAX_DEGREE}, got {env['degree']!r}")
+    return env
 
 
 def _settings(data, where: str) -> dict:
@@ -333,6 +370,8 @@ def _settings(data, where: str) -> dict:
         target = s[binding]
         if not isinstance(target, str) or not target.isidentifier():
             raise SceneError(f"{w}.{binding}: must be an identifier, got {target!r}")
+        if binding == "environment" and target not in ENVIRONMENT_TARGETS:
+            raise SceneError(f"{w}.environment: must be one of {list(ENVIRONMENT_TARGETS)}, got {target!r}")
         if binding == "codegen" and target not in CODEGEN_OPTIONS:
             raise SceneError(f"{w}.codegen: unknown codegen option {target!r} (known: {', '.join(CODEGEN_OPTIONS)})")
         extra = sorted(set(s) - {"type", "default", "min", "max", "choices", "label", "exposed", *BINDINGS})

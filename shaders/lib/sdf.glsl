@@ -1,0 +1,57 @@
+// Analytic SDF scenes: camera rays, sphere tracing, normals. The scene itself is the generated
+// chunk <sdf_scene> (codegen/sdf.py: chunks=sdf_chunks(scene)): scene_sdf(p), scene_albedo(p) and
+// the constants SDF_MAX_STEPS, SDF_STEP_SCALE, SDF_HIT_EPS, SDF_NORMAL_EPS, SDF_BOUND_CENTER,
+// SDF_BOUND_RADIUS. Torch twins, step for step, in models/sdf.py (camera_rays, trace, normals).
+// World frame: right-handed, y up; the camera looks down -z (viewer/camera.py).
+#include <sdf_scene>
+
+uniform mat4 u_inv_view_proj;  // inverse of proj * view (viewer/camera.py)
+uniform vec3 u_eye;            // camera position
+
+// Ray through the pixel centre frag (gl_FragCoord.xy): the far-plane point (ndc z = 1)
+// unprojected, minus the eye, normalised (the far point keeps float32 cancellation small).
+void sdf_camera_ray(vec2 frag, vec2 size, out vec3 ro, out vec3 rd) {
+    vec2 ndc = frag * (2.0 / size) - 1.0;
+    vec4 w = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
+    vec3 far_point = w.xyz * (1.0 / w.w);
+    ro = u_eye;
+    vec3 d = far_point - u_eye;
+    rd = d * (1.0 / length(d));
+}
+
+// Sphere tracing inside the bound sphere: step d * SDF_STEP_SCALE (< 1: smooth booleans and
+// repetition give a bound, not an exact distance), hit when d < SDF_HIT_EPS, give up past the
+// sphere's exit or after SDF_MAX_STEPS. Returns hit; t is the ray parameter of the last point.
+bool sdf_trace(vec3 ro, vec3 rd, out float t) {
+    vec3 oc = ro - SDF_BOUND_CENTER;
+    float b = oc.x * rd.x + oc.y * rd.y + oc.z * rd.z;
+    float c = oc.x * oc.x + oc.y * oc.y + oc.z * oc.z - SDF_BOUND_RADIUS * SDF_BOUND_RADIUS;
+    float h = b * b - c;
+    float sq = sqrt(max(h, 0.0));
+    t = max(-b - sq, 0.0);
+    float t1 = -b + sq;
+    if (h < 0.0 || t1 < 0.0) {
+        return false;
+    }
+    for (int i = 0; i < SDF_MAX_STEPS; ++i) {
+        float d = scene_sdf(ro + rd * t);
+        if (d < SDF_HIT_EPS) {
+            return true;
+        }
+        t = t + d * SDF_STEP_SCALE;
+        if (t > t1) {
+            return false;
+        }
+    }
+    return false;
+}
+
+// Unit normal from the SDF gradient by central differences (step SDF_NORMAL_EPS).
+vec3 sdf_normal(vec3 p) {
+    vec3 ex = vec3(SDF_NORMAL_EPS, 0.0, 0.0);
+    vec3 ey = vec3(0.0, SDF_NORMAL_EPS, 0.0);
+    vec3 ez = vec3(0.0, 0.0, SDF_NORMAL_EPS);
+    vec3 g = vec3(scene_sdf(p + ex) - scene_sdf(p - ex), scene_sdf(p + ey) - scene_sdf(p - ey),
+                  scene_sdf(p + ez) - scene_sdf(p - ez));
+    return g * (1.0 / length(g));
+}
