@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from inshade.viewer.scene import list_scenes
 from inshade.viewer.camera import CameraError, FlyCamera, OrbitCamera, Plane2DCamera, camera_from_dict
 from inshade.viewer.display import DisplayMode, UI_MODES, glsl_chunk, parse_mode
 from inshade.viewer.scene import SceneError, load_scene
@@ -452,6 +453,20 @@ def test_soak_gl_objects_stay_flat(app):
     assert end == start
     glfw.set_window_size(app.window, *SIZE)
     app.step(2)
+
+
+@pytest.mark.parametrize("scene", [p.name for p in list_scenes(ROOT / "trained")])
+def test_every_shipped_scene_opens_and_draws(app, scene):
+    """Issue 5's promise: every asset in trained/ opens in the window and shows a picture."""
+    try:
+        assert app.open(ROOT / "trained" / scene), app.messages[-1:]
+        app.step(3)
+        assert app.renderer.error is None, app.renderer.error
+        pixels = _scene_pixels(app, app.read_window())
+        assert pixels.std() > 5, f"{scene}: the scene region is flat"
+    finally:
+        assert app.open(ASSET)
+        app.step(3)
 
 
 def test_view_without_display_exits_2():
