@@ -16,7 +16,8 @@ log = logging.getLogger("inshade")
 
 # Subcommands whose code needs the [train]/[bench] extras: imported only when used.
 # name -> (module, help)
-BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak")}
+BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak"),
+           "di": ("inshade.bench.di", "DI texture compression vs ASTC / BC1 / BC7: PSNR, FLIP, bits per pixel")}
 TRAINERS = {"neural_image": ("inshade.models.neural_image", "fit a neural image to a skimage.data photo")}
 
 
@@ -121,16 +122,38 @@ def cmd_render(args) -> int:
         if args.bundle is None or args.output is None:
             raise UserError("render: needs an ASSET and -o IMAGE (or --from SIDECAR)")
         src = Path(args.bundle)
+        settings = _settings(args)
         if (src / "scene.json").is_file() or src.suffix == ".json" and src.name != "bundle.json":
-            settings = {"storage": args.storage, "lut_filter": args.lut_filter}
             image, info = render_scene(src, width=args.width, height=args.height, settings=settings)
         else:
+            if set(settings) - {"storage", "lut_filter"}:
+                raise UserError("render: --set needs a scene (scene.json); a bare bundle has no settings")
             image, info = render_bundle(args.bundle, width=args.width, height=args.height,
-                                        storage=args.storage, lut_filter=args.lut_filter)
+                                        storage=settings.get("storage", "auto"),
+                                        lut_filter=settings.get("lut_filter", "exact"))
         paths = save_render(image, info, args.output)
     for p in paths if isinstance(paths, (list, tuple)) else [paths]:
         print(f"wrote {p}", file=sys.stderr)
     return 0
+
+
+def _settings(args) -> dict:
+    """Scene settings the user gave: --storage, --lut-filter and --set NAME=VALUE (VALUE parsed
+    as JSON when it is JSON, else kept as a string); the scene's defaults fill in the rest."""
+    settings = {}
+    if args.storage is not None:
+        settings["storage"] = args.storage
+    if args.lut_filter is not None:
+        settings["lut_filter"] = args.lut_filter
+    for item in args.set or []:
+        name, sep, text = item.partition("=")
+        if not sep or not name:
+            raise UserError(f"render: --set expects NAME=VALUE, got {item!r}")
+        try:
+            settings[name] = json.loads(text)
+        except ValueError:
+            settings[name] = text
+    return settings
 
 
 # view -------------------------------------------------------------------------------------
@@ -233,8 +256,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="re-render exactly what a screenshot's JSON sidecar (shot.png.json) describes")
     p.add_argument("--width", type=int)
     p.add_argument("--height", type=int)
-    p.add_argument("--storage", choices=STORAGE_MODES, default="auto")
-    p.add_argument("--lut-filter", choices=FILTERS, default="exact")
+    p.add_argument("--storage", choices=STORAGE_MODES, help="weight storage (default: the scene's, else auto)")
+    p.add_argument("--lut-filter", choices=FILTERS, help="lookup array path (default: the scene's, else exact)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="a scene setting, e.g. --set sky=sunset --set env_rotation=90 (repeatable)")
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("view", help="interactive viewer window (glfw + imgui-bundle)",
@@ -257,6 +282,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_doctor)
 
+    p = sub.add_parser("compress", help="compress an image into a DI texture asset (needs [train])",
+                       description="Differentiable Indirection texture compression: IMAGE (a file or "
+                                   "skimage:NAME) -> trained/<name> with bundle, scene.json, preview.png, "
+                                   "reference.png. Options: try `inshade compress x --help`.")
+    p.add_argument("rest", nargs=argparse.REMAINDER, help="IMAGE -o OUT [--ratio R] [--size N] ...")
+    p.set_defaults(func=_run_module, module="inshade.models.texture_compression")
+
     _mount(sub, "bench", BENCHES, "benchmarks (write JSON + markdown + plot)")
     _mount(sub, "train", TRAINERS, "build trained/ assets")
     return ap
@@ -269,7 +301,10 @@ def main(argv=None) -> int:
     # (so its --help is its own), after the global ones.
     quiet = bool(argv) and argv[0] in ("-q", "--quiet")
     rest = argv[1:] if quiet else argv
-    if len(rest) >= 2 and (rest[0], rest[1]) in {("bench", k) for k in BENCHES} | {("train", k) for k in TRAINERS}:
+    if rest and rest[0] == "compress":  # the module parses its own options (and --help)
+        args = argparse.Namespace(quiet=quiet, module="inshade.models.texture_compression", rest=rest[1:],
+                                  func=_run_module)
+    elif len(rest) >= 2 and (rest[0], rest[1]) in {("bench", k) for k in BENCHES} | {("train", k) for k in TRAINERS}:
         table = BENCHES if rest[0] == "bench" else TRAINERS
         args = argparse.Namespace(quiet=quiet, module=table[rest[1]][0], rest=rest[2:], func=_run_module)
     else:

@@ -106,3 +106,19 @@ def test_doctor_reports_renderer(capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["renderer"] and info["GL_MAX_UNIFORM_BLOCK_SIZE"] >= 16384
     assert isinstance(info["software"], bool)
+
+
+def test_render_scene_settings_from_the_command_line(tmp_path, capsys):
+    from pathlib import Path
+    asset = Path(__file__).resolve().parents[1] / "trained" / "sdf_creature"
+    a, b = tmp_path / "a.exr", tmp_path / "b.exr"
+    assert main(["-q", "render", str(asset), "--width", "32", "--height", "32", "-o", str(a)]) == 0
+    assert main(["-q", "render", str(asset), "--width", "32", "--height", "32", "--set", "sky=sunset",
+                 "--set", "env_rotation=90", "-o", str(b)]) == 0
+    from inshade.viewer.image_io import read_exr
+    assert np.abs(read_exr(a) - read_exr(b)).max() > 0.01  # the lighting changed
+    sidecar = json.loads(Path(str(b) + ".json").read_text())
+    assert "sunset" in json.dumps(sidecar)
+    capsys.readouterr()
+    assert main(["-q", "render", str(asset), "--set", "bogus=1", "-o", str(a)]) == 2
+    assert "unknown setting 'bogus'" in capsys.readouterr().err

@@ -6,6 +6,6 @@ Results are JSON + a markdown table + a plot in an output folder, with the GL_RE
 and ratios measured side by side in the same run.
 """
 
-BENCHMARKS = {"mlp": "inshade.bench.mlp"}
+BENCHMARKS = {"mlp": "inshade.bench.mlp", "di": "inshade.bench.di"}
 
 __all__ = ["BENCHMARKS"]

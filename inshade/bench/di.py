@@ -1,0 +1,296 @@
+"""`inshade bench di`: Differentiable Indirection texture compression vs ASTC and BC, same images.
+
+For each image (a ``skimage.data`` photograph, centre-cropped and resized to ``--size``):
+
+- DI: the compressed texture (the shipped ``trained/di_<image>`` asset when it matches, else
+  trained here at each ``--ratios`` value), decoded by its generated GLSL through the GL driver
+  on both LUT paths (``exact``: texelFetch + fp32 mix; ``fast``: hardware filtering), plus the
+  torch decode of the same quantised bundle; training seconds from the bundle.
+- ASTC (``astc-encoder-py``, ARM astcenc, LDR profile on the sRGB bytes, quality 60): blocks
+  4x4, 6x6, 8x8, 12x12 (128 bits a block).
+- BC1 and BC7 (``etcpak`` to encode; Pillow's ``bcn`` decoder to decode, because etcpak 0.9.15's
+  ``decompress_bc*`` crash here).
+
+Quality: PSNR in sRGB 8-bit space against the 8-bit original, and mean FLIP (LDR, default 67
+PPD) with ``flip-evaluator``. Size: bits per pixel and the ratio to RGB8 (24 bpp). A baseline
+whose package is missing or fails is listed as unavailable with the reason, never estimated.
+
+Writes ``di.json``, ``di.md`` and ``di.png`` (PSNR vs compression ratio) into ``--out``.
+``--quick``: one 32x32 image, DI trained 60 steps at 3x (for tests / smoke runs).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_OUT = "bench-out/di"
+ASTC_BLOCKS = (4, 6, 8, 12)
+ASTC_QUALITY = 60.0
+RGB8_BPP = 24.0
+
+
+def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
+    p.add_argument("--images", default="astronaut,chelsea", help="skimage.data names (default %(default)s)")
+    p.add_argument("--size", type=int, default=256, help="square size the images are cropped/resized to")
+    p.add_argument("--assets", default="trained", help="folder with di_<image> assets to reuse ('' = none)")
+    p.add_argument("--ratios", default="", help="extra DI ratios to train here, comma-separated (e.g. 12)")
+    p.add_argument("--steps", type=int, default=1500, help="training steps for DI trained here")
+    p.add_argument("--quick", action="store_true", help="tiny run: 32x32 astronaut, DI 150 steps at 3x")
+    return p
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="inshade bench di", description=__doc__.splitlines()[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+# ---------------------------------------------------------------------------------------------
+# metrics
+
+def psnr8(a8, b8) -> float:
+    mse = float(np.mean((np.asarray(a8, np.float64) - np.asarray(b8, np.float64)) ** 2))
+    return float("inf") if mse == 0 else 10.0 * math.log10(255.0 ** 2 / mse)
+
+
+def _flip():
+    try:
+        import flip_evaluator
+
+        return flip_evaluator, None
+    except Exception as e:  # noqa: BLE001 - report any failure as the reason
+        return None, f"flip-evaluator not usable: {e}"
+
+
+def quality(ref8: np.ndarray, test8: np.ndarray, flip) -> dict:
+    out = {"psnr": round(psnr8(test8, ref8), 4)}
+    if flip is not None:
+        _, mean, _ = flip.evaluate(ref8.astype(np.float32) / 255.0, test8.astype(np.float32) / 255.0, "LDR",
+                                   applyMagma=False)
+        out["flip"] = round(float(mean), 5)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# baselines
+
+def _rgba(img8):
+    return np.ascontiguousarray(np.concatenate([img8, np.full(img8.shape[:2] + (1,), 255, np.uint8)], -1))
+
+
+def astc_entries(img8: np.ndarray, flip) -> list[dict]:
+    h, w = img8.shape[:2]
+    try:
+        from astc_encoder import ASTCConfig, ASTCContext, ASTCImage, ASTCProfile, ASTCSwizzle, ASTCType
+    except Exception as e:  # noqa: BLE001
+        return [{"codec": f"ASTC {b}x{b}", "available": False,
+                 "reason": f"astc-encoder-py not usable ({e}); pip install astc-encoder-py"} for b in ASTC_BLOCKS]
+    out = []
+    for b in ASTC_BLOCKS:
+        name = f"ASTC {b}x{b}"
+        try:
+            ctx = ASTCContext(ASTCConfig(ASTCProfile.LDR, b, b, 1, ASTC_QUALITY))
+            sw = ASTCSwizzle.from_str("RGBA")
+            t = time.perf_counter()
+            comp = ctx.compress(ASTCImage(ASTCType.U8, w, h, data=_rgba(img8).tobytes()), sw)
+            secs = time.perf_counter() - t
+            dec = ctx.decompress(comp, ASTCImage(ASTCType.U8, w, h), sw)
+            test = np.frombuffer(dec.data, np.uint8).reshape(h, w, 4)[..., :3]
+        except Exception as e:  # noqa: BLE001
+            out.append({"codec": name, "available": False, "reason": f"astcenc failed: {e}"})
+            continue
+        bpp = 8.0 * len(comp) / (h * w)
+        out.append({"codec": name, "family": "ASTC", "available": True, "bytes": len(comp), "bpp": round(bpp, 4),
+                    "ratio": round(RGB8_BPP / bpp, 4), "encode_seconds": round(secs, 3),
+                    "settings": f"astcenc LDR profile, quality {ASTC_QUALITY:g}", **quality(img8, test, flip)})
+    return out
+
+
+def bc_entries(img8: np.ndarray, flip) -> list[dict]:
+    h, w = img8.shape[:2]
+    codecs = (("BC1", "compress_bc1", 1, ()), ("BC7", "compress_bc7", 7, (None,)))
+    try:
+        import etcpak
+        from PIL import Image
+    except Exception as e:  # noqa: BLE001
+        return [{"codec": c[0], "available": False, "reason": f"etcpak not usable ({e}); pip install etcpak"}
+                for c in codecs]
+    if h % 4 or w % 4:
+        return [{"codec": c[0], "available": False, "reason": f"{w}x{h} is not a multiple of the 4x4 block"}
+                for c in codecs]
+    out = []
+    for name, fn, n, extra in codecs:
+        try:
+            t = time.perf_counter()
+            comp = getattr(etcpak, fn)(_rgba(img8).tobytes(), w, h, *extra)
+            secs = time.perf_counter() - t
+            test = np.asarray(Image.frombytes("RGBA", (w, h), comp, "bcn", (n,)))[..., :3]
+        except Exception as e:  # noqa: BLE001
+            out.append({"codec": name, "available": False, "reason": f"etcpak/Pillow failed: {e}"})
+            continue
+        bpp = 8.0 * len(comp) / (h * w)
+        out.append({"codec": name, "family": "BC", "available": True, "bytes": len(comp), "bpp": round(bpp, 4),
+                    "ratio": round(RGB8_BPP / bpp, 4), "encode_seconds": round(secs, 3),
+                    "settings": "etcpak encoder, Pillow bcn decoder", **quality(img8, test, flip)})
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# DI
+
+def di_bundles(name: str, image: np.ndarray, args) -> list[tuple[object, str]]:
+    """(bundle, origin) for each DI texture of this image: the shipped asset if it matches the
+    size, and one trained here for each extra ratio."""
+    from inshade import bundle as bundle_mod
+    from inshade.models import texture_compression as tc
+
+    found = []
+    folder = Path(args.assets) / f"di_{name}" if args.assets else None
+    if folder is not None and (folder / "bundle.json").is_file():
+        b = bundle_mod.load(folder)
+        m = b.meta.get("metrics", {})
+        if (m.get("width"), m.get("height")) == image.shape[1::-1]:
+            found.append((b, str(folder)))
+    for r in args.ratio_list:
+        res = tc.compress(image, r, steps=args.steps, gl_metrics=False, name=f"di_{name}_{r:g}x",
+                          provenance={"command": f"inshade bench di (ratio {r:g}, {args.steps} steps)"})
+        found.append((res.bundle, f"trained in this run ({args.steps} steps)"))
+    return found
+
+
+def di_entries(name, image, img8, flip, args) -> list[dict]:
+    from inshade.models import texture_compression as tc
+
+    out = []
+    for b, origin in di_bundles(name, image, args):
+        m = b.meta["metrics"]
+        linear = bool(b.meta.get("render"))
+        torch_out = tc.torch_decode(b, image.shape[0])
+        for f in ("exact", "fast"):
+            dec = tc.glsl_decode(b, image.shape[0], f)
+            test = tc.to_srgb8(dec, linear)
+            if test.shape[-1] == 1:
+                test = np.repeat(test, 3, -1)
+            entry = {"codec": f"DI ({f})", "family": f"DI {f}", "available": True, "bytes": m["bytes"],
+                     "bpp": round(8.0 * m["bytes"] / (image.shape[0] * image.shape[1]), 4),
+                     "ratio": round(RGB8_BPP / (8.0 * m["bytes"] / (image.shape[0] * image.shape[1])), 4),
+                     "train_seconds": m.get("train_seconds"), "steps": m.get("steps"), "origin": origin,
+                     "n_primary": m.get("n_primary"), "n_cascaded": m.get("n_cascaded"),
+                     "max_abs_diff_vs_torch": float(np.max(np.abs(dec.astype(np.float64) - torch_out))),
+                     "psnr_torch": round(psnr8(tc.to_srgb8(torch_out, linear)[..., :3], img8[..., :torch_out.shape[-1]]), 4)
+                     if torch_out.shape[-1] == img8.shape[-1] else None,
+                     **quality(img8, test, flip)}
+            out.append(entry)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# run
+
+def run(args) -> int:
+    from inshade.models import texture_compression as tc
+    from inshade.viewer.context import gl_info, shared_context
+
+    if args.quick:
+        args.images, args.size, args.assets, args.ratios, args.steps = "astronaut", 32, "", "3", 60
+    try:
+        args.ratio_list = [float(v) for v in args.ratios.split(",") if v.strip()]
+    except ValueError:
+        raise SystemExit(f"--ratios: expected numbers, got {args.ratios!r}") from None
+    info = gl_info(shared_context())
+    flip, flip_reason = _flip()
+    result = {
+        "benchmark": "di", "quick": bool(args.quick),
+        "machine": {"gl_renderer": info["renderer"], "gl_version": info["version"], "gl_vendor": info["vendor"],
+                    "software_renderer": info["software"], "cpu_count": os.cpu_count(),
+                    "python": platform.python_version()},
+        "metric": "PSNR in sRGB 8-bit space vs the 8-bit original; FLIP mean (LDR, 67 PPD)",
+        "flip": "available" if flip else f"unavailable: {flip_reason}",
+        "images": [],
+    }
+    for name in [v.strip() for v in args.images.split(",") if v.strip()]:
+        image, notes, source = tc.load_image(f"skimage:{name}", args.size)
+        img8 = tc.to_srgb8(image, False)
+        if img8.shape[-1] == 1:
+            img8 = np.repeat(img8, 3, -1)
+            image = np.repeat(image, 3, -1)
+        entries = di_entries(name, image, img8, flip, args) + astc_entries(img8, flip) + bc_entries(img8, flip)
+        result["images"].append({"image": source, "size": args.size, "notes": notes, "entries": entries})
+        print(f"{name}: {len(entries)} entries", file=sys.stderr)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "di.json").write_text(json.dumps(result, indent=2) + "\n")
+    (out / "di.md").write_text(markdown(result))
+    plot(result, out / "di.png")
+    print(markdown(result))
+    print(f"wrote {out / 'di.json'}, {out / 'di.md'}, {out / 'di.png'}", file=sys.stderr)
+    return 0
+
+
+def _fmt(v, spec):
+    return "—" if v is None else format(v, spec)
+
+
+def markdown(result: dict) -> str:
+    m = result["machine"]
+    lines = ["# DI texture compression vs ASTC / BC", "",
+             f"- GL_RENDERER: `{m['gl_renderer']}`; GL_VERSION: `{m['gl_version']}`"
+             + (" (software rasteriser)" if m["software_renderer"] else ""),
+             f"- quality: {result['metric']}; FLIP: {result['flip']}",
+             "- DI rows: decoded by the generated GLSL through the GL driver (exact = texelFetch + fp32 "
+             "mix, fast = hardware filtering); ratio vs RGB8 (24 bpp)", ""]
+    for img in result["images"]:
+        lines += [f"## {img['image']} ({img['size']}x{img['size']})", "",
+                  "| codec | bpp | ratio | PSNR dB | FLIP | train s | notes |", "|---|---|---|---|---|---|---|"]
+        for e in img["entries"]:
+            if not e["available"]:
+                lines.append(f"| {e['codec']} | — | — | — | — | — | unavailable: {e['reason']} |")
+                continue
+            note = e.get("settings") or (f"N_p {e['n_primary']}, N_c {e['n_cascaded']}, {e['steps']} steps, "
+                                         f"max diff vs torch {e['max_abs_diff_vs_torch']:.2g}; {e['origin']}")
+            lines.append(f"| {e['codec']} | {e['bpp']:.3f} | {e['ratio']:.2f} | {e['psnr']:.2f} | "
+                         f"{_fmt(e.get('flip'), '.4f')} | {_fmt(e.get('train_seconds'), '.1f')} | {note} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def plot(result: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    markers = "osD^v<>"
+    styles = {"ASTC": "-", "BC": "--", "DI exact": ":", "DI fast": ":"}
+    for i, img in enumerate(result["images"]):
+        fams = {}
+        for e in img["entries"]:
+            if e["available"]:
+                fams.setdefault(e["family"], []).append((e["ratio"], e["psnr"]))
+        for fam, pts in sorted(fams.items()):
+            pts.sort()
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], styles.get(fam, "-"), marker=markers[i % 7],
+                    label=f"{fam} — {img['image'].split('.')[-1]}")
+    ax.set_xscale("log")
+    ax.set_xlabel("compression ratio vs RGB8")
+    ax.set_ylabel("PSNR (sRGB 8-bit), dB")
+    ax.set_title(f"DI vs ASTC/BC — {result['machine']['gl_renderer']}", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
