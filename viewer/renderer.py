@@ -310,8 +310,18 @@ class SceneRenderer:
     def info(self, camera, width: int, height: int, *, mode=None, split=None) -> dict:
         """What a sidecar records: enough to re-render the same pixels (``inshade render --from``)."""
         mode = self.scene.display_mode if mode is None else parse_mode(mode)
+        common = {
+            "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
+            "render": {"program": self.scene.program, "width": width, "height": height,
+                       "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
+            "scene": {"name": self.scene.name,
+                      "path": str(Path(self.scene.source).resolve()) if self.scene.source else None},
+            "view": {"camera": camera.to_dict(), "mode": mode.name.lower(),
+                     "split": self.scene.split if split is None else float(split),
+                     "settings": json.loads(json.dumps(self.values))},
+        }
         if not self.bundles:
-            return self._sdf_info(camera, width, height, mode, split)
+            return {**common, **self._sdf_info()}
         primary = self.bundles[0]
         storages = {}
         for g in self.generated:
@@ -328,21 +338,15 @@ class SceneRenderer:
                        "path": str(primary.path) if primary.path else None, "digest": primary.digest()},
             "bundles": [{"name": b.name, "digest": b.digest(), "prefix": n.prefix}
                         for b, n in zip(self.bundles, self.scene.networks)],
-            "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
-            "render": {"program": self.scene.program, "width": width, "height": height,
-                       "input": primary.inputs[0].name, "output": ref.output or primary.outputs[0].name,
+            **common,
+            "render": {**common["render"], "input": primary.inputs[0].name,
+                       "output": ref.output or primary.outputs[0].name,
                        "storage": self.values.get("storage", "auto"),
-                       "lut_filter": self.values.get("lut_filter", "exact"),
-                       "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
-            "scene": {"name": self.scene.name,
-                      "path": str(Path(self.scene.source).resolve()) if self.scene.source else None},
-            "view": {"camera": camera.to_dict(), "mode": mode.name.lower(),
-                     "split": self.scene.split if split is None else float(split),
-                     "settings": json.loads(json.dumps(self.values))},
+                       "lut_filter": self.values.get("lut_filter", "exact")},
             "plan": {"storage": storages, "totals": totals},
         }
 
-    def _sdf_info(self, camera, width, height, mode, split) -> dict:
+    def _sdf_info(self) -> dict:
         sdf = self.scene.sdf
         env = dict(self.scene.environment)
         for name, s in self.scene.settings.items():
@@ -353,14 +357,6 @@ class SceneRenderer:
             "sdf": {"path": str(sdf.path) if sdf.path else None, "name": sdf.name, **sdf.to_dict(),
                     "chunk_sha256": hashlib.sha256(sdf_chunks(sdf)[SDF_CHUNK].encode()).hexdigest()},
             "environment": env,
-            "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
-            "render": {"program": self.scene.program, "width": width, "height": height,
-                       "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
-            "scene": {"name": self.scene.name,
-                      "path": str(Path(self.scene.source).resolve()) if self.scene.source else None},
-            "view": {"camera": camera.to_dict(), "mode": mode.name.lower(),
-                     "split": self.scene.split if split is None else float(split),
-                     "settings": json.loads(json.dumps(self.values))},
         }
 
     def release(self, keep=()) -> None:
