@@ -108,11 +108,18 @@ def astc_entries(img8: np.ndarray, flip) -> list[dict]:
         except Exception as e:  # noqa: BLE001
             out.append({"codec": name, "available": False, "reason": f"astcenc failed: {e}"})
             continue
-        bpp = 8.0 * len(comp) / (h * w)
-        out.append({"codec": name, "family": "ASTC", "available": True, "bytes": len(comp), "bpp": round(bpp, 4),
-                    "ratio": round(RGB8_BPP / bpp, 4), "encode_seconds": round(secs, 3),
-                    "settings": f"astcenc LDR profile, quality {ASTC_QUALITY:g}", **quality(img8, test, flip)})
+        out.append(_baseline_entry(name, "ASTC", comp, secs, f"astcenc LDR profile, quality {ASTC_QUALITY:g}",
+                                   img8, test, flip))
     return out
+
+
+def _baseline_entry(codec, family, comp, secs, settings, img8, test, flip) -> dict:
+    """One table row for a fixed-rate codec: size, rate and quality of its decoded image."""
+    h, w = img8.shape[:2]
+    bpp = 8.0 * len(comp) / (h * w)
+    return {"codec": codec, "family": family, "available": True, "bytes": len(comp), "bpp": round(bpp, 4),
+            "ratio": round(RGB8_BPP / bpp, 4), "encode_seconds": round(secs, 3), "settings": settings,
+            **quality(img8, test, flip)}
 
 
 def bc_entries(img8: np.ndarray, flip) -> list[dict]:
@@ -137,10 +144,8 @@ def bc_entries(img8: np.ndarray, flip) -> list[dict]:
         except Exception as e:  # noqa: BLE001
             out.append({"codec": name, "available": False, "reason": f"etcpak/Pillow failed: {e}"})
             continue
-        bpp = 8.0 * len(comp) / (h * w)
-        out.append({"codec": name, "family": "BC", "available": True, "bytes": len(comp), "bpp": round(bpp, 4),
-                    "ratio": round(RGB8_BPP / bpp, 4), "encode_seconds": round(secs, 3),
-                    "settings": "etcpak encoder, Pillow bcn decoder", **quality(img8, test, flip)})
+        out.append(_baseline_entry(name, "BC", comp, secs, "etcpak encoder, Pillow bcn decoder",
+                                   img8, test, flip))
     return out
 
 
