@@ -5,10 +5,9 @@ import math
 
 import numpy as np
 
-from inshade.sh import SH_TERMS, monomials
-
 from .glsl import PlanRow, flt
 from .registry import emitter
+from .spherical_harmonics import basis_statements
 from .values import declare
 
 
@@ -47,16 +46,6 @@ def emit_triangle_wave(ctx, node, src, bundle):
 def emit_spherical_harmonics(ctx, node, src, bundle):
     deg = node.params["degree"]
     out = declare(ctx, f"v_{node.id}", node.out_dim)
-    x, y, z = (src.lane(i) for i in range(3))
-    names = {}
-    for a, b, e in monomials(deg):
-        if (a, b, e) == (0, 0, 0):
-            continue
-        factors = [x] * a + [y] * b + [z] * e
-        names[(a, b, e)] = nm = f"m_{node.id}_{a}{b}{e}"
-        ctx.body.append(f"float {nm} = {' * '.join(factors)};")
-    for idx, terms in enumerate(SH_TERMS[: deg * deg]):
-        expr = " + ".join(flt(c) if pw == (0, 0, 0) else f"{flt(c)} * {names[pw]}" for c, pw in terms)
-        ctx.body.append(f"{out.lane(idx)} = {expr};")
+    ctx.body += basis_statements(deg, [src.lane(i) for i in range(3)], out.lane, f"m_{node.id}_")
     ctx.plan.append(PlanRow(node.id, node.type, f"3->{node.out_dim}", flops=3 * node.out_dim))
     return out

@@ -29,21 +29,27 @@ def sh_chunk(degree: int = 4) -> str:
         f"const int SH_BAND[SH_COEFFS] = int[SH_COEFFS]({', '.join(str(int(b)) for b in band_of(degree))});",
         "",
         "void sh_basis(vec3 d, out float y[SH_COEFFS]) {",
-        "    float x = d.x;",
-        "    float y_ = d.y;",
-        "    float z = d.z;",
     ]
-    names = {}
+    lines += ["    " + s for s in basis_statements(degree, ("d.x", "d.y", "d.z"), lambda i: f"y[{i}]", "m")]
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+def basis_statements(degree: int, xyz, lane, prefix: str) -> list[str]:
+    """GLSL statements assigning the SH basis of the unit direction ``xyz`` (three GLSL
+    expressions) to ``lane(i)`` for i < degree**2: the monomials once, as ``float {prefix}ABC``,
+    then each basis function as the table's polynomial. The one emitter of the basis, shared by
+    the toolkit chunk and the ``spherical_harmonics`` encoding component."""
+    names, out = {}, []
     for a, b, e in monomials(degree):
         if (a, b, e) == (0, 0, 0):
             continue
-        names[(a, b, e)] = nm = f"m{a}{b}{e}"
-        lines.append(f"    float {nm} = {' * '.join(['x'] * a + ['y_'] * b + ['z'] * e)};")
-    for idx, terms in enumerate(SH_TERMS[:k]):
+        names[(a, b, e)] = nm = f"{prefix}{a}{b}{e}"
+        out.append(f"float {nm} = {' * '.join([xyz[0]] * a + [xyz[1]] * b + [xyz[2]] * e)};")
+    for idx, terms in enumerate(SH_TERMS[: degree * degree]):
         expr = " + ".join(flt(c) if pw == (0, 0, 0) else f"{flt(c)} * {names[pw]}" for c, pw in terms)
-        lines.append(f"    y[{idx}] = {expr};")
-    lines.append("}")
-    return "\n".join(lines) + "\n"
+        out.append(f"{lane(idx)} = {expr};")
+    return out
 
 
 def sh_chunks(degree: int = 4) -> dict[str, str]:
