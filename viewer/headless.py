@@ -54,6 +54,10 @@ def render_spec(bundle: Bundle) -> dict:
     if not isinstance(spec, dict):
         raise RenderSpecError(f"{where}: render: must be an object")
     program = spec.get("program")
+    if program is None and bundle.kind == "transfer":   # models/transfer_net.py: shading needs geometry
+        raise RenderSpecError(f"{where}: a transfer bundle is drawn by a PRT scene, not on its own: a scene.json "
+                              "with \"program\": \"passes/sdf_prt.frag\" (or mesh_prt.frag), the geometry "
+                              "(\"sdf\" or \"mesh\") and \"networks\": [{\"bundle\": ...}] naming this bundle")
     if program not in PROGRAMS:
         raise RenderSpecError(f"{where}: render.program: unknown program {program!r} "
                               f"(known: {', '.join(PROGRAMS)})")

@@ -24,6 +24,9 @@ from PIL import Image
 
 from inshade.bundle import Bundle, load
 from inshade.codegen.network import generate
+from inshade.codegen.network_sdf import network_sdf_chunks
+from inshade.codegen.prt import UNIFORM_DEFAULTS as PRT_UNIFORM_DEFAULTS
+from inshade.codegen.prt import TRANSFER_KIND, PrtError, light_matrix_uniform, prt_chunks
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunks
 from inshade.codegen.spherical_harmonics import sh_chunks
 
@@ -33,7 +36,7 @@ from .image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
 from .render import FullscreenPass, float_target, read_rgba, read_rgba_raw
-from .scene import Scene, SceneError
+from .scene import NetworkSdfRef, Scene, SceneError
 
 VERTEX = "common/fullscreen.vert"
 
@@ -88,6 +91,7 @@ class SceneRenderer:
         self.owns_programs = owns_programs
         self.values = scene.check_settings(settings or {})
         self.bundles = bundles or [load(n.bundle) for n in scene.networks]
+        self.sdf_bundle = load(scene.sdf.bundle) if isinstance(scene.sdf, NetworkSdfRef) else None
         self.error = None              # the last failed rebuild (ShaderCompileError ...), cleared on success
         self.weights_version = 0
         self.compile_seconds = 0.0
@@ -99,7 +103,11 @@ class SceneRenderer:
         self._net_pass = None
         self._net_key = None
         self._targets: dict[str, moderngl.Framebuffer] = {}
+        self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self._build()
+        if scene.mesh is not None:
+            from .geometry import MeshGBuffer
+            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache)
         self.display_program = self.cache.get(VERTEX, "passes/display.frag",
                                               chunks={"display_modes": glsl_chunk()})
         self._display_pass = FullscreenPass(self.ctx, self.display_program)
@@ -115,10 +123,40 @@ class SceneRenderer:
         self._reference_tex.repeat_x = self._reference_tex.repeat_y = False
 
     # building ---------------------------------------------------------------------------------------
-    def _generate(self, bundles):
-        limits = dict(self.gl)  # GL_MAX_* limits and whether the renderer is software (auto storage)
+    def _codegen_options(self) -> dict:
         options = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "codegen"}
-        return [generate(b, prefix=n.prefix, limits=limits, **options) for b, n in zip(bundles, self.scene.networks)]
+        return {"limits": dict(self.gl), **options}  # GL_MAX_* limits, software or not (auto storage)
+
+    def _generate(self, bundles):
+        options = self._codegen_options()
+        return [generate(b, prefix=n.prefix, **options) for b, n in zip(bundles, self.scene.networks)]
+
+    def _geometry_chunks(self, bundles) -> tuple[dict, list]:
+        """Chunks for the scene's geometry and shading besides the networks': the SDF (analytic, or
+        a network SDF with its Generated, returned to get GL resources), the SH basis, and for PRT
+        programs the transfer network's <prt_network>."""
+        chunks, extra = {}, []
+        sdf = self.scene.sdf
+        if isinstance(sdf, NetworkSdfRef):
+            sdf_ch, gen = network_sdf_chunks(self.sdf_bundle, prefix=sdf.prefix, **self._codegen_options())
+            chunks.update(sdf_ch)
+            extra.append(gen)
+        elif sdf is not None:
+            chunks.update(sdf_chunks(sdf))
+        if self.scene.lit:
+            chunks.update(sh_chunks(int(self.scene.environment["degree"])))
+        if self.scene.prt:
+            where = self.scene.source or self.scene.name
+            found = [(b, n) for b, n in zip(bundles, self.scene.networks) if b.kind == TRANSFER_KIND]
+            if not found:
+                kinds = ", ".join(f"{b.name} ({b.kind})" for b in bundles)
+                raise SceneError(f"{where}: networks: {self.scene.program} needs a transfer network "
+                                 f"(bundle kind \"{TRANSFER_KIND}\"); this scene has {kinds or 'none'}")
+            try:
+                chunks.update(prt_chunks(found[0][0], prefix=found[0][1].prefix))
+            except PrtError as exc:
+                raise SceneError(f"{where}: networks: {exc}") from None
+        return chunks, extra
 
     def _defines(self, bundles) -> dict:
         defines = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "define"}
@@ -141,9 +179,9 @@ class SceneRenderer:
         try:
             generated = self._generate(bundles)
             chunks = {n.chunk: g.chunk for n, g in zip(self.scene.networks, generated)}
-            if self.scene.sdf is not None:
-                chunks.update(sdf_chunks(self.scene.sdf))
-                chunks.update(sh_chunks(int(self.scene.environment["degree"])))
+            geometry, extra = self._geometry_chunks(bundles)
+            chunks.update(geometry)
+            generated = generated + extra   # GL resources of a network SDF bind like a network's
             program = self.cache.get(VERTEX, self.scene.program, defines=self._defines(bundles), chunks=chunks)
         except Exception as exc:
             self.error = exc
@@ -195,6 +233,8 @@ class SceneRenderer:
     def reload_weights(self) -> str:
         """Re-read every bundle from disk; re-upload without recompiling when the code is unchanged
         (ubo/texture storage), else recompile (inline storage bakes weights into the code)."""
+        if isinstance(self.scene.sdf, NetworkSdfRef):
+            self.sdf_bundle = load(self.scene.sdf.bundle)
         outcome = self._build([load(n.bundle) for n in self.scene.networks])
         self.weights_version += 1
         return outcome
@@ -229,13 +269,22 @@ class SceneRenderer:
 
     def _uniforms(self, program, camera, width, height) -> dict:
         out = {"u_size": (float(width), float(height))}
+        if self.scene.prt:
+            out.update(PRT_UNIFORM_DEFAULTS)
         out.update(camera.uniforms(width, height))
         for name, s in self.scene.settings.items():
             if s.binding == "uniform":
                 v = self.values[name]
-                out[s.target] = int(v) if isinstance(v, bool) else v
-        if self.scene.sdf is not None:
-            out["u_sh"] = self.environment_sh().tobytes()
+                if isinstance(v, bool):
+                    v = int(v)
+                elif s.type == "choice":   # a choice drives an int uniform: its index in the choices
+                    v = s.choices.index(v)
+                out[s.target] = v
+        if self.scene.lit:
+            sh = self.environment_sh()
+            out["u_sh"] = sh.tobytes()
+            if "u_prt_light" in program:   # PRT glossy: per lighting, cached (codegen/prt.py)
+                out["u_prt_light"] = light_matrix_uniform(sh)
         return {k: v for k, v in out.items() if k in program}
 
     def environment_sh(self) -> np.ndarray:
@@ -244,6 +293,8 @@ class SceneRenderer:
         for name, s in self.scene.settings.items():
             if s.binding == "environment":
                 env[s.target] = self.values[name]
+        if env["sky"] == "map":   # environment.map, projected at load time (viewer/scene.py)
+            return _rotated_map_sh(self.scene.environment_map, float(env["rotation"]))
         return environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
 
     def render_network(self, camera, width: int, height: int) -> moderngl.Framebuffer:
@@ -254,10 +305,17 @@ class SceneRenderer:
         key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())))
         if key != self._net_key:
             self.ctx.scissor = None
+            gbuffer = self.gbuffer.draw_camera(camera, width, height) if self.gbuffer is not None else None
             self.ctx.viewport = (0, 0, width, height)
             unit = 0
             for block, res in enumerate(self.resources):
                 unit = res.bind(self.program, first_unit=unit, first_block=block * 16)
+            if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
+                for name, tex in zip(("u_gbuffer_position", "u_gbuffer_normal"), gbuffer):
+                    if name in self.program:
+                        tex.use(location=unit)
+                        self.program[name].value = unit
+                        unit += 1
             start = time.perf_counter()
             self._net_pass.render(fbo, uniforms=uniforms)
             if self.first_draw_pending:
@@ -321,7 +379,7 @@ class SceneRenderer:
                      "settings": json.loads(json.dumps(self.values))},
         }
         if not self.bundles:
-            return {**common, **self._sdf_info()}
+            return {**common, "bundle": None, "bundles": [], **self._geometry_info()}
         primary = self.bundles[0]
         storages = {}
         for g in self.generated:
@@ -344,20 +402,27 @@ class SceneRenderer:
                        "storage": self.values.get("storage", "auto"),
                        "lut_filter": self.values.get("lut_filter", "exact")},
             "plan": {"storage": storages, "totals": totals},
+            **(self._geometry_info() if self.scene.lit else {}),
         }
 
-    def _sdf_info(self) -> dict:
+    def _geometry_info(self) -> dict:
+        """Sidecar record of the lit geometry (SDF or mesh) and its environment."""
         sdf = self.scene.sdf
         env = dict(self.scene.environment)
         for name, s in self.scene.settings.items():
             if s.binding == "environment":
                 env[s.target] = self.values[name]
-        return {
-            "bundle": None, "bundles": [],
-            "sdf": {"path": str(sdf.path) if sdf.path else None, "name": sdf.name, **sdf.to_dict(),
-                    "chunk_sha256": hashlib.sha256(sdf_chunks(sdf)[SDF_CHUNK].encode()).hexdigest()},
-            "environment": env,
-        }
+        if sdf is None:
+            mesh = self.scene.mesh
+            return {"mesh": {"path": str(mesh.path), "name": mesh.name, "vertices": int(len(mesh.data.vertices)),
+                             "faces": int(len(mesh.data.faces))}, "environment": env}
+        if isinstance(sdf, NetworkSdfRef):
+            record = {"path": str(sdf.path), "name": self.sdf_bundle.name, "network": True,
+                      "digest": self.sdf_bundle.digest()}
+        else:
+            record = {"path": str(sdf.path) if sdf.path else None, "name": sdf.name, **sdf.to_dict(),
+                      "chunk_sha256": hashlib.sha256(sdf_chunks(sdf)[SDF_CHUNK].encode()).hexdigest()}
+        return {"sdf": record, "environment": env}
 
     def release(self, keep=()) -> None:
         """Release every GL object this renderer created (programs stay with the cache unless owned;
@@ -368,16 +433,31 @@ class SceneRenderer:
         for res in self.resources:
             res.release()
         self.resources = []
+        programs = [self.program, self.display_program]
+        if self.gbuffer is not None:
+            programs.append(self.gbuffer.program)
+            self.gbuffer.release()
+            self.gbuffer = None
         for p in (self._net_pass, self._display_pass):
             if p is not None:
                 p.vao.release()
         self._net_pass = self._display_pass = None
         self._reference_tex.release()
         if self.owns_programs:
-            for p in (self.program, self.display_program):
+            for p in programs:
                 if p is not None and not any(p is k for k in keep):
                     self.cache.discard(p)
         self.program = None
+
+
+def _rotated_map_sh(coeffs: np.ndarray, rotation_deg: float) -> np.ndarray:
+    """An environment map's SH rotated about +y, float32, as codegen.sdf.environment_sh does for
+    the sky presets."""
+    from inshade.sh import rotate_sh, rotation_matrix
+
+    if rotation_deg:
+        coeffs = rotate_sh(coeffs, rotation_matrix([0.0, 1.0, 0.0], math.radians(rotation_deg)))
+    return np.asarray(coeffs, np.float32)
 
 
 def _release_fbo(fbo: moderngl.Framebuffer) -> None:

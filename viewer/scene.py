@@ -22,7 +22,23 @@ new code path in the renderer or the viewer.
 An analytic SDF scene (inshade/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
 have ``"networks": []``, and lights the scene with ``"environment": {"sky": preset, "rotation":
 degrees, "degree": 4}`` (a procedural sky of inshade.sh, projected to SH); settings bound to
-``"environment": "sky" | "rotation"`` override those two at run time.
+``"environment": "sky" | "rotation"`` override those two at run time. A network SDF (an MLP fitted
+to a mesh, codegen/network_sdf.py) is ``"sdf": {"network": "sdf_bundle"}`` instead: the bundle is
+compiled into the same ``sdf_scene`` chunk, so every SDF pass traces it unchanged.
+
+A PRT scene (seeds/002) is an SDF scene drawn by ``"program": "passes/sdf_prt.frag"`` with a
+``networks`` entry pointing at a transfer bundle (kind "transfer", models/transfer_net.py); its
+settings drive ``u_shading`` (a choice: "diffuse" | "glossy"), ``u_phong_exponent``, ``u_albedo``,
+``u_kd``, ``u_ks``; the light matrix follows the environment settings (no recompile).
+
+A mesh PRT scene has ``"mesh": "mesh.ply"`` (OBJ/PLY/GLB, inshade/mesh.py) instead of ``"sdf"`` and
+``"program": "passes/mesh_prt.frag"``: the renderer rasterises a G-buffer first
+(viewer/geometry.py MeshGBuffer), then the full-screen pass shades each covered pixel once.
+The environment of SDF and mesh scenes may also be an equirectangular map,
+``"environment": {"map": "env.exr", "rotation": 0}`` (projected to SH at load time; a bad map is one
+SceneError naming the file), selected by ``"sky": "map"``.
+
+A choice setting bound to a uniform sets the index of its value in ``choices``.
 
 A folder with only a bundle (no scene.json) is still a scene: it is derived from the bundle's
 ``render`` field (the format before scenes existed). Every problem is one ``SceneError`` naming the
@@ -47,6 +63,8 @@ MAX_SIZE = 16384
 REFERENCE_SPACES = ("field", "screen")
 SETTING_TYPES = ("float", "int", "bool", "choice")
 BINDINGS = ("uniform", "define", "codegen", "environment")
+# Programs that shade with a transfer network (lib/prt.glsl): they need a transfer bundle.
+PRT_PROGRAMS = ("passes/sdf_prt.frag", "passes/mesh_prt.frag")
 # "environment" settings drive the lighting the renderer computes on the CPU (SDF scenes: the
 # radiance SH uniform u_sh); a change re-uploads a uniform, no recompile.
 ENVIRONMENT_TARGETS = ("sky", "rotation")
@@ -113,6 +131,34 @@ class NetworkRef:
 
 
 @dataclass
+class NetworkSdfRef:
+    """``"sdf": {"network": "sdf_bundle"}``: a network SDF bundle traced as the scene's geometry
+    (codegen/network_sdf.py); ``prefix`` names its GLSL function (``<prefix>_eval``)."""
+    bundle: Path
+    prefix: str = "sdfnet"
+
+    @property
+    def path(self) -> Path:
+        return self.bundle
+
+    @property
+    def name(self) -> str:
+        return self.bundle.name
+
+
+@dataclass
+class MeshRef:
+    """``"mesh": "mesh.ply"``: a triangle mesh (inshade/mesh.py load_mesh), rasterised into a
+    G-buffer (viewer/geometry.py MeshGBuffer) that a deferred pass (mesh_prt) shades."""
+    path: Path
+    data: object = None       # the trimesh.Trimesh
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+
+@dataclass
 class Reference:
     image: Path
     colour: str = "srgb"      # "srgb" (8-bit PNG, decoded to linear) or "linear" (EXR)
@@ -138,7 +184,19 @@ class Scene:
     split: float = 0.5
     settings: dict = field(default_factory=dict)   # name -> Setting
     requires: dict = field(default_factory=dict)   # {"gl": 330, "extensions": [...]}
-    sdf: object = None        # inshade.sdf.SdfScene for analytic SDF scenes, else None
+    sdf: object = None        # inshade.sdf.SdfScene (analytic), NetworkSdfRef (network SDF) or None
+    environment_map: object = None  # radiance SH [K, 3] (float64) of environment.map, before rotation
+    mesh: object = None       # MeshRef for triangle-mesh scenes ("mesh": "mesh.ply"), else None
+
+    @property
+    def lit(self) -> bool:
+        """3D geometry lit by the SH environment (an SDF or a mesh): u_sh, the SH chunk."""
+        return self.sdf is not None or self.mesh is not None
+
+    @property
+    def prt(self) -> bool:
+        """Drawn by a PRT pass (needs a transfer network)."""
+        return self.program in PRT_PROGRAMS
 
     @property
     def source(self) -> Path:
@@ -209,7 +267,8 @@ def list_scenes(root) -> list[Path]:
 
 # parsing ---------------------------------------------------------------------------------------------
 _KEYS = {"format", "version", "name", "title", "program", "size", "networks", "reference", "camera",
-         "bookmarks", "lights", "environment", "display", "settings", "requires", "notes", "sdf"}
+         "bookmarks", "lights", "environment", "display", "settings", "requires", "notes", "sdf",
+         "mesh"}
 
 
 def _parse_file(path: Path) -> Scene:
@@ -249,16 +308,19 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     if not (isinstance(size, list) and len(size) == 2 and all(
             isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_SIZE for v in size)):
         raise SceneError(f"size: must be [width, height], ints in 1..{MAX_SIZE}, got {size!r}")
-    sdf = None
-    if data.get("sdf") is not None:
-        from inshade.sdf import SdfError, load_sdf
-        if not isinstance(data["sdf"], str):
-            raise SceneError("sdf: must name an SDF description file (relative to the scene file)")
-        try:
-            sdf = load_sdf((root / data["sdf"]).resolve())
-        except SdfError as exc:
-            raise SceneError(f"sdf: {exc}") from None
+    sdf = _parse_sdf(data.get("sdf"), root)
     networks = data.get("networks")
+    if program in PRT_PROGRAMS and not networks:
+        raise SceneError(f"networks: a PRT scene ({program}) needs a transfer network: "
+                         "[{\"bundle\": \"transfer\"}] naming a bundle of kind \"transfer\"")
+    mesh = _parse_mesh(data.get("mesh"), root)
+    if sdf is not None and mesh is not None:
+        raise SceneError("mesh: a scene has one geometry: \"sdf\" or \"mesh\", not both")
+    if program == "passes/sdf_prt.frag" and sdf is None:
+        raise SceneError(f"sdf: a PRT scene ({program}) needs geometry: \"sdf\": \"sdf.json\" or "
+                         "{\"network\": \"sdf_bundle\"}")
+    if program == "passes/mesh_prt.frag" and mesh is None:
+        raise SceneError(f"mesh: a mesh PRT scene ({program}) needs \"mesh\": \"mesh.ply\" (OBJ/PLY/GLB)")
     if not isinstance(networks, list) or (not networks and sdf is None):
         raise SceneError("networks: must be a non-empty list of {\"bundle\": ..., \"prefix\": ..., \"output\": ...}")
     refs, prefixes = [], set()
@@ -273,6 +335,8 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
         if not ((bpath / BUNDLE_FILE).is_file() or (bpath.name == BUNDLE_FILE and bpath.is_file())):
             raise SceneError(f"{w}.bundle: no bundle at {bpath}")
         prefix = n.get("prefix", "net")
+        if isinstance(sdf, NetworkSdfRef) and prefix == sdf.prefix:
+            raise SceneError(f"{w}.prefix: {prefix!r} is the network SDF's prefix (sdf.prefix)")
         if not isinstance(prefix, str) or not prefix.isidentifier() or prefix in prefixes:
             raise SceneError(f"{w}.prefix: must be a unique GLSL identifier, got {prefix!r}")
         prefixes.add(prefix)
@@ -309,8 +373,12 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     environment = data.get("environment")
     if environment is not None and not isinstance(environment, dict):
         raise SceneError("environment: must be an object or null")
-    if sdf is not None:
-        environment = _sdf_environment(environment)
+    environment_map = None
+    if sdf is not None or mesh is not None:
+        environment, environment_map = _lit_environment(environment, root)
+        if program in PRT_PROGRAMS and environment["degree"] != 4:
+            raise SceneError(f"environment.degree: a PRT scene uses 16 SH coefficients (degree 4), "
+                             f"got {environment['degree']}")
     display = data.get("display", {})
     if not isinstance(display, dict):
         raise SceneError("display: must be an object")
@@ -325,28 +393,112 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     requires = data.get("requires", {})
     if not isinstance(requires, dict):
         raise SceneError("requires: must be an object, e.g. {\"gl\": 330, \"extensions\": []}")
+    settings = _settings(data.get("settings", {}), "settings")
+    if sdf is not None or mesh is not None:
+        _check_sky_settings(settings, environment_map is not None)
+    if program in PRT_PROGRAMS:
+        _check_prt_settings(settings)
     title = data.get("title", name)
     return Scene(name=name, root=root, path=path, program=program, size=tuple(size), networks=refs,
                  camera=camera, reference=reference, title=str(title), bookmarks=bookmarks, lights=lights,
                  environment=environment, display_mode=mode, display_modes=modes, split=float(split),
-                 settings=_settings(data.get("settings", {}), "settings"), requires=requires, sdf=sdf)
+                 settings=settings, requires=requires, sdf=sdf, environment_map=environment_map,
+                 mesh=mesh)
 
 
-def _sdf_environment(env) -> dict:
-    from inshade.sh import MAX_DEGREE, SKY_PRESETS
+def _parse_sdf(value, root: Path):
+    """``"sdf"``: a description file (analytic, inshade/sdf.py) or {"network": bundle folder}."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        from inshade.sdf import SdfError, load_sdf
+        try:
+            return load_sdf((root / value).resolve())
+        except SdfError as exc:
+            raise SceneError(f"sdf: {exc}") from None
+    if isinstance(value, dict):
+        extra = sorted(set(value) - {"network", "prefix"})
+        if extra:
+            raise SceneError(f"sdf.{extra[0]}: unknown field (known: network, prefix)")
+        if not isinstance(value.get("network"), str):
+            raise SceneError("sdf.network: must name a network SDF bundle folder (relative to the scene file)")
+        bpath = (root / value["network"]).resolve()
+        if not ((bpath / BUNDLE_FILE).is_file() or (bpath.name == BUNDLE_FILE and bpath.is_file())):
+            raise SceneError(f"sdf.network: no bundle at {bpath}")
+        prefix = value.get("prefix", "sdfnet")
+        if not isinstance(prefix, str) or not prefix.isidentifier():
+            raise SceneError(f"sdf.prefix: must be a GLSL identifier, got {prefix!r}")
+        return NetworkSdfRef(bpath, prefix)
+    raise SceneError("sdf: must name an SDF description file or be {\"network\": \"bundle folder\"} "
+                     "(relative to the scene file)")
 
-    env = {"sky": "overcast", "rotation": 0.0, "degree": 4, **(env or {})}
-    extra = sorted(set(env) - {"sky", "rotation", "degree"})
+
+def _parse_mesh(value, root: Path):
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise SceneError("mesh: must name a mesh file (OBJ/PLY/GLB, relative to the scene file)")
+    from inshade.mesh import MeshError, load_mesh
+
+    path = (root / value).resolve()
+    try:
+        return MeshRef(path, load_mesh(path))
+    except MeshError as exc:
+        raise SceneError(f"mesh: {exc}") from None
+
+
+def _check_prt_settings(settings: dict) -> None:
+    """The u_shading choice must list the modes in lib/prt.glsl's order (its index is the uniform)."""
+    from inshade.codegen.prt import SHADING_MODES
+
+    for name, s in settings.items():
+        if s.binding == "uniform" and s.target == "u_shading":
+            if s.type != "choice" or tuple(s.choices) != SHADING_MODES[:len(s.choices)]:
+                raise SceneError(f"settings.{name}.choices: u_shading takes {list(SHADING_MODES)} "
+                                 f"(in that order), got {list(s.choices) or s.type}")
+
+
+def _lit_environment(env, root: Path) -> tuple[dict, object]:
+    """The lighting of an SDF or mesh scene: a procedural sky preset ("sky") or an equirectangular map
+    ("map": .exr/.png/.jpg relative to the scene file, projected to SH once here; "sky" is then
+    "map"), rotated about +y by "rotation" degrees. Returns (environment, map SH or None)."""
+    from inshade.sh import MAX_DEGREE, SKY_PRESETS, load_environment, project_environment
+
+    given = dict(env or {})
+    env = {"sky": "map" if "map" in given else "overcast", "rotation": 0.0, "degree": 4, **given}
+    extra = sorted(set(env) - {"sky", "rotation", "degree", "map"})
     if extra:
-        raise SceneError(f"environment.{extra[0]}: unknown field (known: degree, rotation, sky)")
-    if env["sky"] not in SKY_PRESETS:
-        raise SceneError(f"environment.sky: unknown sky {env['sky']!r} (known: {', '.join(SKY_PRESETS)})")
+        raise SceneError(f"environment.{extra[0]}: unknown field (known: degree, map, rotation, sky)")
     rot = env["rotation"]
     if isinstance(rot, bool) or not isinstance(rot, (int, float)) or not math.isfinite(rot):
         raise SceneError(f"environment.rotation: must be a finite number of degrees, got {rot!r}")
     if env["degree"] not in range(1, MAX_DEGREE + 1):
         raise SceneError(f"environment.degree: must be an int in 1..{MAX_DEGREE}, got {env['degree']!r}")
-    return env
+    sh = None
+    if "map" in env:
+        if not isinstance(env["map"], str):
+            raise SceneError("environment.map: must name an equirectangular image (.exr, .png, .jpg)")
+        path = (root / env["map"]).resolve()
+        try:
+            sh = project_environment(load_environment(path), env["degree"])
+        except ValueError as exc:   # load_environment names the file and what is wrong with it
+            raise SceneError(f"environment.map: {exc}") from None
+        env["map"] = str(path)
+    if env["sky"] not in SKY_PRESETS and not (env["sky"] == "map" and sh is not None):
+        known = ", ".join([*SKY_PRESETS, *(["map"] if sh is not None else [])])
+        raise SceneError(f"environment.sky: unknown sky {env['sky']!r} (known: {known})")
+    return env, sh
+
+
+def _check_sky_settings(settings: dict, has_map: bool) -> None:
+    from inshade.sh import SKY_PRESETS
+
+    for name, s in settings.items():
+        if s.binding == "environment" and s.target == "sky":
+            bad = [c for c in (s.choices or (s.default,)) if c not in SKY_PRESETS and not (c == "map" and has_map)]
+            if bad:
+                raise SceneError(f"settings.{name}.choices: unknown sky {bad[0]!r} (known: {', '.join(SKY_PRESETS)}"
+                                 f"{', map' if has_map else ''})")
 
 
 def _settings(data, where: str) -> dict:

@@ -1,0 +1,53 @@
+// Mesh PRT pass (seeds/002 4.1, deferred): the mesh was rasterised once with depth testing into a
+// G-buffer (viewer/geometry.py MeshGBuffer, passes/mesh_gbuffer.frag: world position with w = 1
+// where covered, unit normal), so this full-screen pass runs the transfer network exactly once per
+// visible pixel, then PRT shading (lib/prt) as the SDF pass does; uncovered pixels show the
+// band-limited environment max(L(rd), 0). Linear radiance, alpha 1.
+// Debug u_prt_debug as passes/sdf_prt.frag (1..4 transfer block, 5 position, 6 normal).
+// Torch reference: models/prt.py render_gbuffer() (fed the same G-buffer).
+#include <lib/prt>
+
+uniform vec2 u_size;
+uniform mat4 u_inv_view_proj;   // inverse of proj * view (viewer/camera.py)
+uniform vec3 u_eye;
+uniform vec3 u_sh[SH_COEFFS];
+uniform sampler2D u_gbuffer_position;
+uniform sampler2D u_gbuffer_normal;
+uniform int u_shading;          // PRT_DIFFUSE | PRT_GLOSSY
+uniform float u_phong_exponent;
+uniform float u_albedo;         // tint of the mesh's base colour
+uniform float u_kd;
+uniform float u_ks;
+uniform int u_prt_debug;
+layout(location = 0) out vec4 frag_color;
+
+const vec3 MESH_ALBEDO = vec3(0.8);  // the mesh's base colour (models/prt.py MESH_ALBEDO)
+
+// The view ray through the pixel centre, as lib/sdf.glsl sdf_camera_ray (the far-plane point
+// unprojected, minus the eye, normalised); repeated here because lib/sdf includes <sdf_scene>.
+vec3 mesh_view_ray(vec2 frag) {
+    vec2 ndc = frag * (2.0 / u_size) - 1.0;
+    vec4 w = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
+    vec3 d = w.xyz * (1.0 / w.w) - u_eye;
+    return d * (1.0 / length(d));
+}
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec4 position = texelFetch(u_gbuffer_position, px, 0);
+    vec3 rd = mesh_view_ray(gl_FragCoord.xy);
+    if (position.w == 0.0) {
+        frag_color = u_prt_debug > 0 ? vec4(0.0) : vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 1.0);
+        return;
+    }
+    vec3 p = position.xyz;
+    vec3 n = texelFetch(u_gbuffer_normal, px, 0).xyz;
+    vec4 tr[PRT_BLOCKS];
+    prt_transfer(p, n, tr);
+    if (u_prt_debug > 0) {
+        frag_color = prt_debug(u_prt_debug, tr, p, n);
+        return;
+    }
+    vec3 albedo = MESH_ALBEDO * u_albedo;
+    frag_color = vec4(prt_shade(tr, albedo, n, rd, u_sh, u_shading, u_phong_exponent, u_kd, u_ks), 1.0);
+}
