@@ -235,17 +235,27 @@ def render_ground_truth(sdf, uniforms: dict, width: int, height: int, sh_coeffs,
 
 
 # quality over an orbit ------------------------------------------------------------------------------
-def image_metrics(image: np.ndarray, reference: np.ndarray) -> dict:
-    """PSNR (dB), SSIM and MAE of linear RGB clipped to [0, 1] (peak 1), whole image."""
-    from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+def image_metrics(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> dict:
+    """Linear RGB clipped to [0, 1] (peak 1). ``psnr`` and ``mae`` over the surface pixels
+    (``mask``, the reference's hits; the environment background is identical in both renders and
+    would inflate them), ``psnr_image`` over the whole image, ``ssim`` over the whole image (it
+    needs spatial windows)."""
+    from skimage.metrics import structural_similarity
 
     a = np.clip(np.asarray(image, np.float64)[..., :3], 0.0, 1.0)
     b = np.clip(np.asarray(reference, np.float64)[..., :3], 0.0, 1.0)
-    mse = float(np.mean((a - b) ** 2))
-    psnr = math.inf if mse == 0 else float(peak_signal_noise_ratio(b, a, data_range=1.0))
+    sel = np.ones(a.shape[:2], bool) if mask is None else np.asarray(mask, bool)
+    if not sel.any():
+        sel = np.ones(a.shape[:2], bool)
+
+    def psnr(mse):
+        return math.inf if mse == 0 else 10.0 * math.log10(1.0 / mse)
+
     win = min(7, min(a.shape[:2]) // 2 * 2 - 1) if min(a.shape[:2]) < 7 else 7
     ssim = float(structural_similarity(b, a, data_range=1.0, channel_axis=-1, win_size=win))
-    return {"psnr": psnr, "ssim": ssim, "mae": float(np.mean(np.abs(a - b)))}
+    return {"psnr": psnr(float(np.mean((a[sel] - b[sel]) ** 2))), "ssim": ssim,
+            "mae": float(np.mean(np.abs(a[sel] - b[sel]))), "psnr_image": psnr(float(np.mean((a - b) ** 2))),
+            "surface_pixels": int(sel.sum())}
 
 
 def orbit_cameras(scene, n_views: int) -> list[dict]:
@@ -320,13 +330,13 @@ def quality_orbit(scene, bundle=None, n_views: int = 30, size: int = 128, *, set
                     gt_t = ground_truth_transfer(geometry, view, n_dirs, seed)
                 shading = PrtShading.from_settings(renderer.values, scene)
                 gt = compose(view, gt_t, sh, shading, m)
-                results[mode].append(image_metrics(image, gt["rgba"]))
+                results[mode].append(image_metrics(image, gt["rgba"], gt["hit"]))
         gl_renderer = renderer.gl["renderer"]
     finally:
         renderer.release()
     out = {"n_views": n_views, "size": size, "n_dirs": n_dirs, "gl_renderer": gl_renderer}
     for mode, rows in results.items():
-        out[mode] = {k: float(np.mean([r[k] for r in rows])) for k in ("psnr", "ssim", "mae")}
+        out[mode] = {k: float(np.mean([r[k] for r in rows])) for k in ("psnr", "ssim", "mae", "psnr_image")}
         out[mode]["views"] = rows
     return out
 

@@ -195,7 +195,7 @@ def gradient(sdf: SdfModule, p: torch.Tensor) -> torch.Tensor:
 # the reference renderer --------------------------------------------------------------------------
 def camera_rays(uniforms: dict, width: int, height: int):
     """Ray origins and unit directions [H*W, 3] in image orientation (row 0 = top), from the camera
-    uniforms (``camera.uniforms(w, h)``: u_inv_view_proj bytes, u_eye) exactly as ``sdf_camera_ray``:
+    uniforms (``camera.uniforms(w, h)``: u_inv_view_proj bytes, u_eye) exactly as ``camera_ray`` (lib/camera.glsl):
     the pixel centre's far-plane point (ndc z = 1) unprojected, minus the eye, normalised."""
     inv = torch.from_numpy(np.frombuffer(uniforms["u_inv_view_proj"], np.float32).reshape(4, 4).copy())
     eye = torch.tensor(uniforms["u_eye"], dtype=torch.float32)

@@ -1,23 +1,11 @@
-// Analytic SDF scenes: camera rays, sphere tracing, normals. The scene itself is the generated
+// SDF scenes: sphere tracing and normals (camera rays: lib/camera). The scene itself is the generated
 // chunk <sdf_scene> (codegen/sdf.py: chunks=sdf_chunks(scene)): scene_sdf(p), scene_albedo(p) and
 // the constants SDF_MAX_STEPS, SDF_STEP_SCALE, SDF_HIT_EPS, SDF_NORMAL_EPS, SDF_BOUND_CENTER,
-// SDF_BOUND_RADIUS. Torch twins, step for step, in models/sdf.py (camera_rays, trace, normals).
+// SDF_BOUND_RADIUS. Torch twins, step for step, in models/sdf.py (trace, normals).
 // World frame: right-handed, y up; the camera looks down -z (viewer/camera.py).
 #include <sdf_scene>
 
-uniform mat4 u_inv_view_proj;  // inverse of proj * view (viewer/camera.py)
-uniform vec3 u_eye;            // camera position
-
-// Ray through the pixel centre frag (gl_FragCoord.xy): the far-plane point (ndc z = 1)
-// unprojected, minus the eye, normalised (the far point keeps float32 cancellation small).
-void sdf_camera_ray(vec2 frag, vec2 size, out vec3 ro, out vec3 rd) {
-    vec2 ndc = frag * (2.0 / size) - 1.0;
-    vec4 w = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
-    vec3 far_point = w.xyz * (1.0 / w.w);
-    ro = u_eye;
-    vec3 d = far_point - u_eye;
-    rd = d * (1.0 / length(d));
-}
+#include <lib/camera>
 
 // Sphere tracing inside the bound sphere: step d * SDF_STEP_SCALE (< 1: smooth booleans and
 // repetition give a bound, not an exact distance), hit when d < SDF_HIT_EPS, give up past the

@@ -5,11 +5,10 @@
 // band-limited environment max(L(rd), 0). Linear radiance, alpha 1.
 // Debug u_prt_debug as passes/sdf_prt.frag (1..4 transfer block, 5 position, 6 normal).
 // Torch reference: models/prt.py render_gbuffer() (fed the same G-buffer).
+#include <lib/camera>
 #include <lib/prt>
 
 uniform vec2 u_size;
-uniform mat4 u_inv_view_proj;   // inverse of proj * view (viewer/camera.py)
-uniform vec3 u_eye;
 uniform vec3 u_sh[SH_COEFFS];
 uniform sampler2D u_gbuffer_position;
 uniform sampler2D u_gbuffer_normal;
@@ -23,19 +22,11 @@ layout(location = 0) out vec4 frag_color;
 
 const vec3 MESH_ALBEDO = vec3(0.8);  // the mesh's base colour (models/prt.py MESH_ALBEDO)
 
-// The view ray through the pixel centre, as lib/sdf.glsl sdf_camera_ray (the far-plane point
-// unprojected, minus the eye, normalised); repeated here because lib/sdf includes <sdf_scene>.
-vec3 mesh_view_ray(vec2 frag) {
-    vec2 ndc = frag * (2.0 / u_size) - 1.0;
-    vec4 w = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
-    vec3 d = w.xyz * (1.0 / w.w) - u_eye;
-    return d * (1.0 / length(d));
-}
-
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec4 position = texelFetch(u_gbuffer_position, px, 0);
-    vec3 rd = mesh_view_ray(gl_FragCoord.xy);
+    vec3 ro, rd;
+    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     if (position.w == 0.0) {
         frag_color = u_prt_debug > 0 ? vec4(0.0) : vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 1.0);
         return;

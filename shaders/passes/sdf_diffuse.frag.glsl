@@ -16,7 +16,7 @@ const float SDF_INV_PI = 0.318309873;  // float32(1 / pi), as models/sdf.py INV_
 
 void main() {
     vec3 ro, rd;
-    sdf_camera_ray(gl_FragCoord.xy, u_size, ro, rd);
+    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     float t;
     if (sdf_trace(ro, rd, t)) {
         vec3 p = ro + rd * t;

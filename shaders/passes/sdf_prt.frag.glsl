@@ -22,7 +22,7 @@ layout(location = 0) out vec4 frag_color;
 
 void main() {
     vec3 ro, rd;
-    sdf_camera_ray(gl_FragCoord.xy, u_size, ro, rd);
+    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     float t;
     if (sdf_trace(ro, rd, t)) {
         vec3 p = ro + rd * t;
