@@ -108,6 +108,7 @@ class SceneRenderer:
         if scene.mesh is not None:
             from .geometry import MeshGBuffer
             self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache)
+        self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
         self.display_program = self.cache.get(VERTEX, "passes/display.frag",
                                               chunks={"display_modes": glsl_chunk()})
         self._display_pass = FullscreenPass(self.ctx, self.display_program)
@@ -310,6 +311,11 @@ class SceneRenderer:
             unit = 0
             for block, res in enumerate(self.resources):
                 unit = res.bind(self.program, first_unit=unit, first_block=block * 16)
+            for name, tex in self.scene_textures.items():   # scene.json "textures"
+                if name in self.program:
+                    tex.use(location=unit)
+                    self.program[name].value = unit
+                    unit += 1
             if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
                 for name, tex in zip(("u_gbuffer_position", "u_gbuffer_normal"), gbuffer):
                     if name in self.program:
@@ -443,6 +449,9 @@ class SceneRenderer:
                 p.vao.release()
         self._net_pass = self._display_pass = None
         self._reference_tex.release()
+        for tex in self.scene_textures.values():
+            tex.release()
+        self.scene_textures = {}
         if self.owns_programs:
             for p in programs:
                 if p is not None and not any(p is k for k in keep):
@@ -458,6 +467,20 @@ def _rotated_map_sh(coeffs: np.ndarray, rotation_deg: float) -> np.ndarray:
     if rotation_deg:
         coeffs = rotate_sh(coeffs, rotation_matrix([0.0, 1.0, 0.0], math.radians(rotation_deg)))
     return np.asarray(coeffs, np.float32)
+
+
+def _scene_texture(ctx: moderngl.Context, t) -> moderngl.Texture:
+    """A scene.json texture: RGBA8 bytes as stored (no sRGB decode), uv (0,0) = bottom-left."""
+    data = np.asarray(Image.open(t.image).convert("RGBA"), np.uint8)[::-1]
+    tex = ctx.texture(data.shape[1::-1], 4, np.ascontiguousarray(data).tobytes(), alignment=1)
+    if t.mipmaps:
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.anisotropy = min(t.anisotropy, ctx.max_anisotropy)
+    else:
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = t.repeat
+    return tex
 
 
 def _release_fbo(fbo: moderngl.Framebuffer) -> None:

@@ -166,6 +166,17 @@ class Reference:
 
 
 @dataclass
+class SceneTexture:
+    """An 8-bit image bound to a sampler uniform as stored (no colour decode: the program decides),
+    image row 0 at v = 1 (uv (0,0) bottom-left), optionally with a GL-built mip chain."""
+    uniform: str
+    image: Path
+    mipmaps: bool = True
+    anisotropy: float = 1.0
+    repeat: bool = True
+
+
+@dataclass
 class Scene:
     name: str
     root: Path | None         # folder relative paths resolve against (None: a bundle in memory)
@@ -185,6 +196,7 @@ class Scene:
     settings: dict = field(default_factory=dict)   # name -> Setting
     requires: dict = field(default_factory=dict)   # {"gl": 330, "extensions": [...]}
     sdf: object = None        # inshade.sdf.SdfScene (analytic), NetworkSdfRef (network SDF) or None
+    textures: list = field(default_factory=list)   # SceneTexture: plain images the program samples
     environment_map: object = None  # radiance SH [K, 3] (float64) of environment.map, before rotation
     mesh: object = None       # MeshRef for triangle-mesh scenes ("mesh": "mesh.ply"), else None
 
@@ -268,7 +280,8 @@ def list_scenes(root) -> list[Path]:
 # parsing ---------------------------------------------------------------------------------------------
 _KEYS = {"format", "version", "name", "title", "program", "size", "networks", "reference", "camera",
          "bookmarks", "lights", "environment", "display", "settings", "requires", "notes", "sdf",
-         "mesh"}
+         "mesh", "textures"}
+TEXTURE_KEYS = {"uniform", "image", "mipmaps", "anisotropy", "repeat"}
 
 
 def _parse_file(path: Path) -> Scene:
@@ -398,8 +411,9 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
         _check_sky_settings(settings, environment_map is not None)
     if program in PRT_PROGRAMS:
         _check_prt_settings(settings)
+    textures = _textures(data.get("textures", []), root)
     title = data.get("title", name)
-    return Scene(name=name, root=root, path=path, program=program, size=tuple(size), networks=refs,
+    return Scene(textures=textures, name=name, root=root, path=path, program=program, size=tuple(size), networks=refs,
                  camera=camera, reference=reference, title=str(title), bookmarks=bookmarks, lights=lights,
                  environment=environment, display_mode=mode, display_modes=modes, split=float(split),
                  settings=settings, requires=requires, sdf=sdf, environment_map=environment_map,
@@ -499,6 +513,33 @@ def _check_sky_settings(settings: dict, has_map: bool) -> None:
             if bad:
                 raise SceneError(f"settings.{name}.choices: unknown sky {bad[0]!r} (known: {', '.join(SKY_PRESETS)}"
                                  f"{', map' if has_map else ''})")
+
+
+def _textures(data, root: Path) -> list:
+    if not isinstance(data, list):
+        raise SceneError("textures: must be a list of {\"uniform\": ..., \"image\": ...}")
+    out = []
+    for i, t in enumerate(data):
+        w = f"textures[{i}]"
+        if not isinstance(t, dict):
+            raise SceneError(f"{w}: must be an object")
+        extra = sorted(set(t) - TEXTURE_KEYS)
+        if extra:
+            raise SceneError(f"{w}.{extra[0]}: unknown field (known: {', '.join(sorted(TEXTURE_KEYS))})")
+        name = t.get("uniform")
+        if not isinstance(name, str) or not name.isidentifier():
+            raise SceneError(f"{w}.uniform: must be a GLSL identifier, got {name!r}")
+        if not isinstance(t.get("image"), str) or not (root / t["image"]).is_file():
+            raise SceneError(f"{w}.image: no image file {t.get('image')!r} (relative to the scene file)")
+        aniso = t.get("anisotropy", 1.0)
+        if isinstance(aniso, bool) or not isinstance(aniso, (int, float)) or not 1.0 <= aniso <= 16.0:
+            raise SceneError(f"{w}.anisotropy: must be a number in [1, 16], got {aniso!r}")
+        for key in ("mipmaps", "repeat"):
+            if not isinstance(t.get(key, True), bool):
+                raise SceneError(f"{w}.{key}: must be true or false")
+        out.append(SceneTexture(name, (root / t["image"]).resolve(), t.get("mipmaps", True), float(aniso),
+                                t.get("repeat", True)))
+    return out
 
 
 def _settings(data, where: str) -> dict:
