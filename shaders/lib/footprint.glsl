@@ -3,18 +3,7 @@
 // The plane is y = 0; its texture coordinate is the hit's (x, -z) / tile, so one tile of the
 // texture covers tile x tile world units, u to the right and v away from a camera at yaw 0.
 
-uniform mat4 u_inv_view_proj;  // inverse of proj * view (viewer/camera.py)
-uniform vec3 u_eye;            // camera position
-
-// Ray through the pixel centre frag: the far-plane point (ndc z = 1) unprojected, minus the eye
-// (the same construction as lib/sdf.glsl sdf_camera_ray).
-void footprint_camera_ray(vec2 frag, vec2 size, out vec3 ro, out vec3 rd) {
-    vec2 ndc = frag * (2.0 / size) - 1.0;
-    vec4 w = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
-    vec3 d = w.xyz * (1.0 / w.w) - u_eye;
-    ro = u_eye;
-    rd = d * (1.0 / length(d));
-}
+#include <lib/camera>
 
 // Tiled uv of the ray's hit with the plane y = 0, computed for every pixel (hit or not) so that
 // dFdx/dFdy see defined neighbours: derivatives are undefined in non-uniform control flow.

@@ -65,7 +65,7 @@ vec3 footprint_network(vec2 uv, float log2_fp) {
 
 void main() {
     vec3 ro, rd;
-    footprint_camera_ray(gl_FragCoord.xy, u_size, ro, rd);
+    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     bool hit;
     vec2 uv = footprint_plane_uv(ro, rd, u_tile, u_extent, hit);
     vec2 dx = dFdx(uv);
