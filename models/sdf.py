@@ -265,12 +265,13 @@ def sh_radiance_t(coeffs: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
     return acc
 
 
-def render(scene: SdfScene, uniforms: dict, width: int, height: int, sh_coeffs) -> dict:
-    """The sdf_diffuse pass in torch. ``uniforms``: the camera's (``camera.uniforms(w, h)``);
+def render(scene, uniforms: dict, width: int, height: int, sh_coeffs) -> dict:
+    """The sdf_diffuse pass in torch. ``scene``: an SdfScene, or an SDF module with ``.scene`` and
+    ``.albedo`` (models/network_sdf.py NetworkSdfModule); ``uniforms``: the camera's (``camera.uniforms(w, h)``);
     ``sh_coeffs``: float32 [K, 3] radiance SH (``codegen.sdf.environment_sh``). Returns
     {"rgba": [H, W, 4] linear float32 (alpha 1), "hit": [H, W] bool, "t": [H, W]}:
     hit -> albedo * sh_irradiance(n) / pi, miss -> max(sh_radiance(rd), 0) (the environment)."""
-    sdf = SdfModule(scene)
+    sdf = scene if isinstance(scene, torch.nn.Module) else SdfModule(scene)
     coeffs = torch.as_tensor(np.asarray(sh_coeffs, np.float32))
     ro, rd = camera_rays(uniforms, width, height)
     hit, t = trace(sdf, ro, rd)
