@@ -17,8 +17,18 @@ log = logging.getLogger("inshade")
 # Subcommands whose code needs the [train]/[bench] extras: imported only when used.
 # name -> (module, help)
 BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak"),
-           "di": ("inshade.bench.di", "DI texture compression vs ASTC / BC1 / BC7: PSNR, FLIP, bits per pixel")}
-TRAINERS = {"neural_image": ("inshade.models.neural_image", "fit a neural image to a skimage.data photo")}
+           "di": ("inshade.bench.di", "DI texture compression vs ASTC / BC1 / BC7: PSNR, FLIP, bits per pixel"),
+           "prt": ("inshade.bench.prt", "learnt-transfer PRT frame times (k, size, shading, geometry) vs torch"),
+           "brdf": ("inshade.bench.brdf", "learned (DI) vs analytic GGX / Disney BRDF shader speed, 1-4 lights"),
+           "footprint": ("inshade.bench.footprint", "DI footprint-aware sampler vs GL trilinear / anisotropic"),
+           "di_sdf": ("inshade.bench.di_sdf", "DI-SDF vs MLP SDF at equal bytes: surface error, IoU, speed")}
+TRAINERS = {"neural_image": ("inshade.models.neural_image", "fit a neural image to a skimage.data photo"),
+            "transfer": ("inshade.models.transfer_net", "ground-truth transfer + the learnt-transfer MLP (PRT)"),
+            "prt_asset": ("inshade.models.prt_asset", "a complete PRT asset: transfer, scene, previews, quality"),
+            "neural_sdf": ("inshade.models.neural_sdf", "fit an MLP SDF to a watertight mesh"),
+            "di_sdf": ("inshade.models.di_sdf", "fit a DI lookup-array cascade SDF to a watertight mesh"),
+            "di_footprint": ("inshade.models.footprint", "DI footprint-aware texture sampler (no mip chain)"),
+            "di_brdf": ("inshade.models.di_brdf", "DI approximations of the GGX and Disney BRDFs")}
 
 
 class UserError(Exception):

@@ -618,3 +618,20 @@ def test_viewer_opens_prt_scenes_and_switches_material(xvfb, prt_scene, mesh_sce
     proc = subprocess.run([sys.executable, "-c", _VIEWER_SCRIPT, str(prt_scene[0]), str(mesh_scene[0]), str(tmp_path)],
                           env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0 and proc.stdout.count("ok ") == 2, proc.stdout + proc.stderr
+
+
+def test_bench_prt_quick_writes_reports(tmp_path):
+    """`inshade bench prt --quick` on the shipped mesh asset: JSON + markdown + plot, renderer named."""
+    import json
+
+    from inshade.bench import prt as bench_prt
+
+    root = Path(__file__).resolve().parents[1]
+    assert bench_prt.main(["--quick", "--assets", str(root / "trained" / "prt_mesh"), "--out", str(tmp_path),
+                           "--mesh", str(root / "trained" / "prt_mesh" / "mesh.ply")]) == 0
+    result = json.loads((tmp_path / "prt.json").read_text())
+    assert {r["k"] for r in result["frames"]} == {16, 64}
+    assert all(r["seconds"] > 0 and r["storage"] for r in result["frames"])
+    assert result["rays"] and result["rays"][0]["rays_per_second"] > 0
+    assert result["machine"]["gl_renderer"] in (tmp_path / "prt.md").read_text()
+    assert (tmp_path / "prt.png").stat().st_size > 0
