@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import shutil
 import sys
 import time
@@ -107,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
     from inshade.viewer.scene import load_scene
 
     kind, src = _geometry(args)
+    command = shlex.join(["inshade", "train", "prt_asset"] + [f"--{k.replace('_', '-')}={v}" for k, v in sorted(vars(args).items())
+                                                             if v not in (None, False) and k not in ("func", "command")])
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     times = {}
@@ -147,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     for mode in ("diffuse", "glossy"):
         quality[mode].pop("views", None)
     bundle = load(out / "transfer")
-    metrics = {"asset": out.name, "geometry": kind, "transfer": bundle.meta.get("metrics", {}),
+    metrics = {"asset": out.name, "geometry": kind, "command": command, "transfer": bundle.meta.get("metrics", {}),
                "provenance": bundle.meta.get("provenance", {}), "quality": quality, **times}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1, sort_keys=True) + "\n")
     print(json.dumps({"quality": {m: quality[m] for m in ("diffuse", "glossy")}, **times}, indent=1))
