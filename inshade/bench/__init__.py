@@ -1,11 +1,7 @@
 """Benchmarks: `inshade bench <name>` (speed goes here, not in timed tests).
 
 Each benchmark module exposes ``add_arguments(parser)``, ``run(args) -> int`` and
-``main(argv=None) -> int`` so the CLI can mount it as a subcommand or run it standalone.
-Results are JSON + a markdown table + a plot in an output folder, with the GL_RENDERER string
-and ratios measured side by side in the same run.
+``main(argv=None) -> int`` so the CLI can mount it as a subcommand (``inshade.cli.BENCHES``) or
+run it standalone. Results are JSON + a markdown table + a plot in an output folder, with the
+GL_RENDERER string and ratios measured side by side in the same run.
 """
-
-BENCHMARKS = {"mlp": "inshade.bench.mlp", "di": "inshade.bench.di"}
-
-__all__ = ["BENCHMARKS"]
