@@ -116,7 +116,7 @@ def _settings(app) -> None:
             changed, new = imgui.checkbox(label, bool(value))
         else:
             choices = list(s.choices)
-            changed, index = imgui.combo(label, choices.index(value), choices)
+            changed, index = imgui.combo(label, choices.index(value), [str(c) for c in choices])
             new = choices[index]
         if changed:
             app.set_setting(s.name, new)
