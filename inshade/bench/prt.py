@@ -19,6 +19,7 @@ rays per second; SDF: batched sphere tracing in torch; mesh: trimesh + embree).
 
 Writes ``prt.json``, ``prt.md`` and ``prt.png`` into ``--out``. ``--quick``: one asset, k=64 and
 16, 64x64, diffuse only (for tests / smoke runs).
+``--sizes`` says which frame sizes each width k is drawn at.
 """
 from __future__ import annotations
 
@@ -38,20 +39,24 @@ DEFAULT_ASSETS = "trained/prt_creature,trained/prt_mechanical,trained/prt_neural
 PAPER_RTX3090_FPS_1024 = (173.6, 320.1)   # Table 2, k=64, analytic SDFs
 
 
-def _ints(text: str) -> list[int]:
+def _size_plan(text: str) -> dict[int, list[int]]:
+    """'64:512,1024;128:512' -> {64: [512, 1024], 128: [512]}."""
     try:
-        return [int(v) for v in text.split(",") if v.strip()]
+        plan = {}
+        for part in filter(None, (p.strip() for p in text.split(";"))):
+            k, sizes = part.split(":")
+            plan[int(k)] = [int(v) for v in sizes.split(",") if v.strip()]
+        return plan
     except ValueError:
-        raise SystemExit(f"expected comma-separated integers, got {text!r}") from None
+        raise SystemExit(f"--sizes: expected 'k:size,size;k:size', got {text!r}") from None
 
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
     p.add_argument("--assets", default=DEFAULT_ASSETS, help="PRT scene folders, comma-separated")
-    p.add_argument("--sizes", default="512,1024", help="square frame sizes for k <= 128 (default %(default)s)")
-    p.add_argument("--widths", default="64,128,256,512", help="transfer widths k (default %(default)s)")
-    p.add_argument("--wide-size", type=int, default=256,
-                   help="frame size for k > 128 (llvmpipe needs minutes per frame at 1024²)")
+    p.add_argument("--sizes", default="64:512,1024;128:512,1024;256:256;512:256",
+                   help="square frame sizes per transfer width k, 'k:s,s;k:s' (default %(default)s: the wide "
+                        "nets need seconds to minutes per frame on llvmpipe)")
     p.add_argument("--shading", default="diffuse,glossy", help="shading modes (default %(default)s)")
     p.add_argument("--repeats", type=int, default=3, help="timed redraws per configuration (median)")
     p.add_argument("--torch-size", type=int, default=128, help="frame size of the ours-vs-torch comparison")
@@ -160,11 +165,10 @@ def bench_asset(path: str, args, ctx, cache) -> list[dict]:
     ti = _transfer_index(scene, trained)
     camera = scene.make_camera()
     rows = []
-    for width in args.width_list:
+    for width, sizes in args.size_plan.items():
         bundle, origin = _bundle_of_width(trained[ti], width)
         bundles = list(trained)
         bundles[ti] = bundle
-        sizes = args.size_list if width <= 128 else [args.wide_size]
         for shading in args.shading_list:
             renderer = SceneRenderer(scene, ctx, cache=cache, settings={"shading": shading}, bundles=bundles)
             try:
@@ -261,10 +265,10 @@ def run(args) -> int:
 
     if args.quick:
         args.assets = args.assets.split(",")[0]
-        args.sizes, args.widths, args.shading, args.repeats, args.wide_size = "64", "16,64", "diffuse", 1, 64
+        args.sizes, args.shading, args.repeats = "16:64;64:64", "diffuse", 1
         args.torch_size, args.rays = 32, 64
     args.asset_list = [a.strip() for a in args.assets.split(",") if a.strip()]
-    args.size_list, args.width_list = _ints(args.sizes), _ints(args.widths)
+    args.size_plan = _size_plan(args.sizes)
     args.shading_list = [s.strip() for s in args.shading.split(",") if s.strip()]
     missing = [a for a in args.asset_list if not Path(a).is_dir()]
     if missing:
