@@ -416,7 +416,7 @@ def render_preview(bundle, size: int = 256, sky: str = "sunset", yaw: float = 35
     from inshade.viewer.context import shared_context
     from inshade.viewer.network import NetworkResources
     from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba
+    from inshade.viewer.render import FullscreenPass, float_target, read_rgba, release_target
 
     ctx = ctx or shared_context()
     scene = NetworkSdfScene.from_bundle(bundle)
@@ -436,9 +436,7 @@ def render_preview(bundle, size: int = 256, sky: str = "sunset", yaw: float = 35
     finally:
         pass_.vao.release()
         res.release()
-        for a in fbo.color_attachments:
-            a.release()
-        fbo.release()
+        release_target(fbo)
         prog.release()
     return image, {"gl_renderer": ctx.info["GL_RENDERER"], "seconds": seconds, "camera": cam.to_dict()}
 

@@ -21,7 +21,7 @@ from parity import parity_settings
 
 def _glsl_eval(gl, l, v, base, params, nh, alpha):
     from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
+    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
 
     n = l.shape[0]
     rows = np.zeros((n, 24), np.float32)
@@ -41,9 +41,7 @@ def _glsl_eval(gl, l, v, base, params, nh, alpha):
     out = read_rgba_raw(fbo).reshape(-1, 4)[:n]
     pass_.vao.release()
     tex.release()
-    for a in fbo.color_attachments:
-        a.release()
-    fbo.release()
+    release_target(fbo)
     cache.release()
     return out
 

@@ -32,7 +32,7 @@ SCENES = ["creature", "mechanical", "occlusion"]
 
 def _glsl_eval(gl, scene, points):
     from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
+    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
 
     n = points.shape[0]
     w = 32
@@ -47,9 +47,7 @@ def _glsl_eval(gl, scene, points):
     out = [read_rgba_raw(fbo, i).reshape(-1, 4)[:n] for i in range(3)]
     pass_.vao.release()
     tex.release()
-    for a in fbo.color_attachments:
-        a.release()
-    fbo.release()
+    release_target(fbo)
     prog.release()
     return out[0][:, 0], out[1][:, :3], out[2][:, :3]
 

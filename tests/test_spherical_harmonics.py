@@ -272,7 +272,7 @@ def test_chunk_is_generated_from_the_table():
 @pytest.mark.parametrize("degree", [4, 5])
 def test_glsl_lighting_parity(gl, degree):
     from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
+    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
 
     k = degree * degree
     rng = np.random.default_rng(degree)
@@ -294,9 +294,7 @@ def test_glsl_lighting_parity(gl, degree):
         out = [read_rgba_raw(fbo, a).reshape(-1, 4)[:, :3] for a in range(3)]
     finally:
         tex.release()
-        for a in fbo.color_attachments:
-            a.release()
-        fbo.release()
+        release_target(fbo)
         pass_.vao.release()
         cache.release()
     # the reference: numpy in float64 from the same float32 inputs

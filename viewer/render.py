@@ -103,6 +103,15 @@ def float_target(ctx: moderngl.Context, width: int, height: int, attachments: in
     return ctx.framebuffer(color_attachments=colours, depth_attachment=depth_attachment)
 
 
+def release_target(fbo: moderngl.Framebuffer) -> None:
+    """Release a framebuffer made by ``float_target`` with its attachments."""
+    for a in fbo.color_attachments:
+        a.release()
+    if fbo.depth_attachment is not None:
+        fbo.depth_attachment.release()
+    fbo.release()
+
+
 def read_rgba_raw(fbo: moderngl.Framebuffer, attachment: int = 0) -> np.ndarray:
     """Read a colour attachment as float32 ``[H, W, 4]`` in data orientation (row 0 = GL y 0)."""
     width, height = fbo.size

@@ -35,7 +35,7 @@ from .display import DisplayMode, glsl_chunk, parse_mode
 from .image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
-from .render import FullscreenPass, float_target, read_rgba, read_rgba_raw
+from .render import FullscreenPass, float_target, read_rgba, read_rgba_raw, release_target
 from .scene import NetworkSdfRef, Scene, SceneError
 
 VERTEX = "common/fullscreen.vert"
@@ -264,7 +264,7 @@ class SceneRenderer:
         if fbo is not None and fbo.size == (width, height):
             return fbo
         if fbo is not None:
-            _release_fbo(fbo)
+            release_target(fbo)
         fbo = self._targets[name] = float_target(self.ctx, width, height)
         return fbo
 
@@ -434,7 +434,7 @@ class SceneRenderer:
         """Release every GL object this renderer created (programs stay with the cache unless owned;
         ``keep``: programs another renderer on the same cache still uses)."""
         for fbo in self._targets.values():
-            _release_fbo(fbo)
+            release_target(fbo)
         self._targets.clear()
         for res in self.resources:
             res.release()
@@ -482,10 +482,3 @@ def _scene_texture(ctx: moderngl.Context, t) -> moderngl.Texture:
     tex.repeat_x = tex.repeat_y = t.repeat
     return tex
 
-
-def _release_fbo(fbo: moderngl.Framebuffer) -> None:
-    for a in fbo.color_attachments:
-        a.release()
-    if fbo.depth_attachment is not None:
-        fbo.depth_attachment.release()
-    fbo.release()

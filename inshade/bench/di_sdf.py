@@ -130,7 +130,7 @@ def glsl_render(ctx, bundle, uniforms: dict, size: int, sh: np.ndarray, frames: 
     from inshade.viewer.context import gl_info
     from inshade.viewer.network import NetworkResources
     from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba
+    from inshade.viewer.render import FullscreenPass, float_target, read_rgba, release_target
 
     chunks, gen = network_sdf_chunks(bundle, limits=gl_info(ctx), **generate_options)
     t = time.perf_counter()
@@ -152,9 +152,7 @@ def glsl_render(ctx, bundle, uniforms: dict, size: int, sh: np.ndarray, frames: 
     finally:
         pass_.vao.release()
         res.release()
-        for a in fbo.color_attachments:
-            a.release()
-        fbo.release()
+        release_target(fbo)
         prog.release()
     timed = times[1:] or times
     return {"image": image, "first_draw_s": round(times[0], 3), "compile_s": round(link, 3),

@@ -102,7 +102,7 @@ class PlaneRenderer:
 
     def render(self, mode: str, camera, width: int, height: int, tile: float, extent: float):
         from inshade.models.footprint import MODES
-        from inshade.viewer.render import FullscreenPass, float_target, read_rgba
+        from inshade.viewer.render import FullscreenPass, float_target, read_rgba, release_target
 
         program = self.cache.get("common/fullscreen.vert", "passes/footprint_plane.frag",
                                  defines={**self.defines, "FOOTPRINT_MODE": MODES[mode]},
@@ -123,9 +123,7 @@ class PlaneRenderer:
             return read_rgba(fbo, 0), read_rgba(fbo, 1)
         finally:
             pass_.vao.release()
-            for a in fbo.color_attachments:
-                a.release()
-            fbo.release()
+            release_target(fbo)
 
     def release(self):
         self.resources.release()

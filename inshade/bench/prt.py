@@ -32,8 +32,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 DEFAULT_OUT = "bench-out/prt"
 DEFAULT_ASSETS = "trained/prt_creature,trained/prt_mechanical,trained/prt_neural_bunny,trained/prt_mesh"
 PAPER_RTX3090_FPS_1024 = (173.6, 320.1)   # Table 2, k=64, analytic SDFs
@@ -188,7 +186,6 @@ def torch_comparison(path: str, args, ctx, cache) -> dict:
     """Same view, same size, k as shipped, diffuse: GL pass vs the torch reference renderer."""
     import torch
 
-    from inshade.bundle import load
     from inshade.models import prt
     from inshade.models.graph import GraphModule
     from inshade.models.transfer_net import TransferFrame
@@ -226,10 +223,10 @@ def rays_per_second(args) -> list[dict]:
     thread (what ``inshade train transfer`` uses: on 2 shared cores two threads ran ~10x slower)."""
     import torch
 
-    from inshade.models import prt, transfer
+    from inshade.models import transfer
+    from inshade.viewer.scene import load_scene
 
     torch.set_num_threads(1)
-    from inshade.viewer.scene import load_scene
 
     out = []
     for path in _sdf_assets(args.asset_list):
