@@ -44,6 +44,8 @@ PRT_SETTINGS = {
                "label": "albedo tint"},
     "kd": {"type": "float", "default": 1.0, "min": 0.0, "max": 1.0, "uniform": "u_kd", "label": "kd"},
     "ks": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0, "uniform": "u_ks", "label": "ks"},
+    "storage": {"type": "choice", "default": "auto", "choices": ["auto", "inline", "ubo", "texture"],
+                "codegen": "storage", "label": "weight storage"},
 }
 PROGRAMS = {"sdf": "passes/sdf_prt.frag", "neural_sdf": "passes/sdf_prt.frag", "mesh": "passes/mesh_prt.frag"}
 PREVIEW_SIZE = 256

@@ -56,6 +56,8 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="square frame sizes per transfer width k, 'k:s,s;k:s' (default %(default)s: the wide "
                         "nets need seconds to minutes per frame on llvmpipe)")
     p.add_argument("--shading", default="diffuse,glossy", help="shading modes (default %(default)s)")
+    p.add_argument("--storage", default="auto", choices=("auto", "inline", "ubo", "texture"),
+                   help="weight storage of the networks (default %(default)s: codegen's choice for this renderer)")
     p.add_argument("--repeats", type=int, default=3, help="timed redraws per configuration (median)")
     p.add_argument("--torch-size", type=int, default=128, help="frame size of the ours-vs-torch comparison")
     p.add_argument("--rays", type=int, default=2000, help="surface points for the rays/s measurement")
@@ -168,7 +170,8 @@ def bench_asset(path: str, args, ctx, cache) -> list[dict]:
         bundles = list(trained)
         bundles[ti] = bundle
         for shading in args.shading_list:
-            renderer = SceneRenderer(scene, ctx, cache=cache, settings={"shading": shading}, bundles=bundles)
+            renderer = SceneRenderer(scene, ctx, cache=cache, settings={"shading": shading, "storage": args.storage},
+                                     bundles=bundles)
             try:
                 for size in sizes:
                     t = _time_frames(renderer, camera, size, args.repeats)
