@@ -34,8 +34,8 @@ over the ball pixels in the display domain -- linear radiance clamped to [0, 1],
 peak 1; for Disney one row per artist parameter swept 0 -> 1 with the others at brdf.DEFAULTS, and
 the minimum over the row is reported. For GGX the row sweeps alpha_h.
 
-    inshade train di_ggx --out /tmp/di_assets/di_ggx        # python -m inshade.models.di_brdf ggx ...
-    inshade train di_disney --out /tmp/di_assets/di_disney
+    inshade train di_brdf ggx -o trained/di_ggx
+    inshade train di_brdf disney -o trained/di_disney --steps 300 --batch 2048
 """
 from __future__ import annotations
 

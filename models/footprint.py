@@ -528,7 +528,7 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
     p.add_argument("--image", default=d["image"], help="image file or skimage:NAME (default %(default)s)")
-    p.add_argument("-o", "--out", required=True, help="asset folder to write (e.g. /tmp/di_assets/di_footprint)")
+    p.add_argument("-o", "--out", required=True, help="asset folder to write (e.g. trained/di_footprint)")
     p.add_argument("--size", type=int, default=d["size"], help="centre-crop and resize to SIZE^2, a power of two")
     p.add_argument("--ratio", type=float, default=d["ratio"], help="compression vs the RGB8 base level")
     p.add_argument("--n-cascaded", type=int, default=d["n_cascaded"], help="N_c (multiple of 4)")

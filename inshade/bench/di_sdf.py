@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 DEFAULT_OUT = "bench-out/di_sdf"
-DEFAULT_MESH = "/tmp/inshade_mesh/bunny.ply"
+DEFAULT_MESH = "trained/prt_mesh/mesh.ply"
 SKY = "noon"
 VERTEX = "common/fullscreen.vert"
 PROGRAM = "passes/sdf_diffuse.frag"
@@ -51,7 +51,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--di-steps", type=int, default=1500, help="DI training steps (default %(default)s)")
     p.add_argument("--di-bundles", default="",
                    help="also compare these trained DI-SDF bundle folders (comma-separated; their bytes set "
-                        "the MLP's), e.g. /tmp/di_assets/di_sdf")
+                        "the MLP's), e.g. trained/di_sdf")
     p.add_argument("--mlp-steps", type=int, default=3000, help="MLP training steps (default %(default)s)")
     p.add_argument("--mlp-layers", type=int, default=3, help="MLP hidden layers (default %(default)s)")
     p.add_argument("--mlp-samples", type=int, default=300_000, help="MLP training samples (default %(default)s)")
@@ -236,8 +236,9 @@ def run(args) -> int:
         args.budget_list = [float(v) for v in args.budgets_kb.split(",") if v.strip()]
     except ValueError:
         raise SystemExit(f"--budgets-kb: expected numbers, got {args.budgets_kb!r}") from None
-    if args.mesh == DEFAULT_MESH and not Path(DEFAULT_MESH).is_file():
-        write_bunny(DEFAULT_MESH)
+    if args.mesh == DEFAULT_MESH and not Path(DEFAULT_MESH).is_file():   # not run from the repository root
+        from inshade.mesh import DEFAULT_OUT as generated
+        args.mesh = str(write_bunny(generated))
     mesh = di_sdf.load_mesh(args.mesh)
     ctx = shared_context()
     info = gl_info(ctx)

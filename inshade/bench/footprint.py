@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 DEFAULT_OUT = "bench-out/footprint"
-DEFAULT_ASSET = "/tmp/di_assets/di_footprint"
+DEFAULT_ASSET = "trained/di_footprint"
 GL_MODES = ("trilinear", "anisotropic", "bilinear", "explicit_lod")
 MAX_ANISOTROPY = 16.0
 
