@@ -110,8 +110,8 @@ def run(args: argparse.Namespace) -> int:
     from inshade.viewer.scene import load_scene
 
     kind, src = _geometry(args)
-    command = shlex.join(["inshade", "train", "prt_asset"] + [f"--{k.replace('_', '-')}={v}" for k, v in sorted(vars(args).items())
-                                                             if v not in (None, False) and k not in ("func", "command")])
+    command = shlex.join(["inshade", "train", "prt_asset"]
+                         + transfer_net.command_options(args, set(vars(args)) - {"func", "command"}))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     times = {}
@@ -119,8 +119,6 @@ def run(args: argparse.Namespace) -> int:
     setattr(args, kind, str(out / geometry_name))
     if args.cache is None:
         args.cache = str(Path.home() / ".cache" / "inshade" / "transfer")
-    if args.checkpoint is None:   # resumable, but not shipped
-        args.checkpoint = str(Path(args.cache) / f"{out.name}.checkpoint.safetensors")
     final_out = args.out
     args.out = str(out / "transfer")
     if not args.skip_train:

@@ -146,9 +146,12 @@ def split(n: int, holdout: float, seed: int):
     return perm[: n - k], perm[n - k:]
 
 
-def _config(width, layers, pos_freqs, normal_freqs, output, steps, batch, lr, seed) -> dict:
-    return {"width": width, "layers": layers, "pos_freqs": pos_freqs, "normal_freqs": normal_freqs,
-            "output": output, "steps": steps, "batch": batch, "lr": lr, "seed": seed}
+def _config(width, layers, pos_freqs, normal_freqs, output, steps, batch, lr, seed, drop_enclosed=False) -> dict:
+    config = {"width": width, "layers": layers, "pos_freqs": pos_freqs, "normal_freqs": normal_freqs,
+              "output": output, "steps": steps, "batch": batch, "lr": lr, "seed": seed}
+    if drop_enclosed:
+        config["drop_enclosed"] = True
+    return config
 
 
 def _save_checkpoint(path: Path, net, opt, step: int, config: dict) -> None:
@@ -212,12 +215,26 @@ def _check_dataset(dataset) -> None:
         raise ValueError("dataset: center/radius: missing (the bound the positions are normalised by)")
 
 
+def _without_enclosed(dataset: dict) -> dict:
+    """Drop samples whose every visibility ray is blocked (band-0 transfer exactly 0): surfaces
+    enclosed inside the geometry, e.g. the internal shells an MLP SDF grows. No camera outside
+    can see them, and near a visible crease they teach the network a false black."""
+    out = dict(dataset)
+    for prefix in ("", "heldout_"):
+        if prefix + "transfer" not in dataset:
+            continue
+        keep = dataset[prefix + "transfer"][:, 0] > 0
+        for k in ("position", "normal", "transfer"):
+            out[prefix + k] = dataset[prefix + k][keep]
+    return out
+
+
 def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int = DEFAULTS["steps"],
                    batch: int = DEFAULTS["batch"], lr: float = DEFAULTS["lr"], seed: int = 0,
                    checkpoint=None, progress: bool | None = True, pos_freqs: int = DEFAULTS["pos_freqs"],
                    normal_freqs: int = DEFAULTS["normal_freqs"], output: str = DEFAULTS["output"],
                    holdout: float = DEFAULTS["holdout"], checkpoint_every: int | None = None,
-                   until: int | None = None):
+                   until: int | None = None, drop_enclosed: bool = False):
     """Fits ``transfer_graph`` to a dataset (models/transfer.py ``build_dataset``).
 
     L1 loss on transfer / scale, Adam at ``lr`` with a cosine decay to 5%, ``batch`` random
@@ -233,7 +250,9 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
     degree = int(round(math.sqrt(dataset["transfer"].shape[1])))
     scale = TANH_SCALE if output == "tanh" else 1.0
     frame = TransferFrame(tuple(float(c) for c in dataset["center"]), float(dataset["radius"]), scale, degree)
-    config = _config(width, layers, pos_freqs, normal_freqs, output, steps, batch, lr, seed)
+    config = _config(width, layers, pos_freqs, normal_freqs, output, steps, batch, lr, seed, drop_enclosed)
+    if drop_enclosed:
+        dataset = _without_enclosed(dataset)
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         net = transfer_graph(width, layers, pos_freqs, normal_freqs, degree, output)
@@ -309,6 +328,16 @@ def export_transfer(net: GraphModule, frame: TransferFrame, out_dir, metrics: di
 # ---------------------------------------------------------------------------------------------
 # command line: inshade train transfer
 
+def command_options(args: argparse.Namespace, names) -> list[str]:
+    """The options of ``args`` named in ``names`` as a re-runnable argv (flags only when set)."""
+    out = []
+    for k, v in sorted(vars(args).items()):
+        if k not in names or v is None or v is False:
+            continue
+        out.append(f"--{k.replace('_', '-')}" if v is True else f"--{k.replace('_', '-')}={v}")
+    return out
+
+
 def load_geometry(args: argparse.Namespace):
     """(geometry, description) from --sdf / --mesh / --neural-sdf; ValueError naming the file."""
     if args.sdf:
@@ -358,6 +387,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--normal-freqs", type=int, default=d["normal_freqs"], help="normal octaves (default: %(default)s)")
     parser.add_argument("--output", choices=("tanh", "identity"), default=d["output"],
                         help="output activation (tanh: targets scaled by 1/1.25) (default: %(default)s)")
+    parser.add_argument("--drop-enclosed", action="store_true",
+                        help="train without samples whose every visibility ray is blocked (enclosed shells)")
     parser.add_argument("--checkpoint", default=None,
                         help="resumable checkpoint (default: CACHE/checkpoint-HASH.safetensors, HASH of the "
                              "dataset and the training settings, so a rerun resumes or finds it done)")
@@ -370,7 +401,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def _run_hash(data: dict, args: argparse.Namespace) -> str:
     config = _config(args.width, args.layers, args.pos_freqs, args.normal_freqs, args.output, args.steps,
-                     args.batch, args.lr, args.seed)
+                     args.batch, args.lr, args.seed, args.drop_enclosed)
     return hashlib.sha256((data["key"] + json.dumps(config, sort_keys=True)).encode()).hexdigest()[:16]
 
 
@@ -392,12 +423,12 @@ def run(args: argparse.Namespace) -> int:
         data, width=args.width, layers=args.layers, steps=args.steps, batch=args.batch, lr=args.lr,
         seed=args.seed, checkpoint=args.checkpoint or (cache / f"checkpoint-{_run_hash(data, args)}.safetensors"),
         progress=None,
-        pos_freqs=args.pos_freqs, normal_freqs=args.normal_freqs, output=args.output)
+        pos_freqs=args.pos_freqs, normal_freqs=args.normal_freqs, output=args.output,
+        drop_enclosed=args.drop_enclosed)
     metrics.update({"data_seconds": data["seconds"], "rays_per_second": data["rays_per_second"],
                     "points": args.points, "dirs": args.dirs})
     own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {"help"}  # not a wrapper's options
-    argv = ["inshade", "train", "transfer"] + [f"--{k.replace('_', '-')}={v}" for k, v in sorted(vars(args).items())
-                                               if v is not None and k in own]
+    argv = ["inshade", "train", "transfer"] + command_options(args, own)
     provenance = {**source, "command": shlex.join(argv), "dataset_key": data["key"],
                   "estimator": "cosine-weighted Fibonacci lattice, per-point Cranley-Patterson shift",
                   "loss": "l1 on transfer / scale", "optimizer": "adam, cosine decay to 5%",

@@ -327,3 +327,20 @@ def test_neural_sdf_geometry_through_the_cli(tmp_path):
     assert main(["--neural-sdf", str(tmp_path / "plane"), "--out", str(out), "--points", "60", "--dirs", "8",
                  "--steps", "5", "--width", "8", "--layers", "1"]) == 0
     assert bundle_io.load(out).name == "plane_transfer"
+
+
+def test_drop_enclosed_removes_fully_occluded_samples():
+    """--drop-enclosed: samples whose every ray is blocked (band 0 exactly 0) leave training and
+    the held-out set; partly occluded ones stay."""
+    from inshade.models.transfer_net import _without_enclosed
+
+    t = torch.rand(6, 16) + 0.1
+    t[[1, 4], :] = 0.0
+    t[2, 0] = 1e-3                       # nearly but not fully occluded: kept
+    data = {"position": torch.randn(6, 3), "normal": torch.randn(6, 3), "transfer": t,
+            "heldout_position": torch.randn(2, 3), "heldout_normal": torch.randn(2, 3),
+            "heldout_transfer": torch.stack([torch.zeros(16), torch.ones(16)])}
+    out = _without_enclosed(data)
+    assert out["transfer"].shape[0] == 4 and bool((out["transfer"][:, 0] > 0).all())
+    assert torch.equal(out["position"], data["position"][[0, 2, 3, 5]])
+    assert out["heldout_transfer"].shape[0] == 1 and data["transfer"].shape[0] == 6   # input untouched
