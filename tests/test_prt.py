@@ -641,7 +641,7 @@ def test_bench_prt_quick_writes_reports(tmp_path):
 # ground-truth transfer render, surface pixels), re-measured on the shipped assets with a small
 # orbit (3 views, 48², 256 ground-truth rays: estimator noise ~51 dB diffuse) to keep CI fast; the
 # 30-view numbers are in each asset's metrics.json.
-@pytest.mark.parametrize("asset", ["prt_creature", "prt_mesh"])
+@pytest.mark.parametrize("asset", ["prt_creature", "prt_neural_bunny", "prt_mesh"])
 def test_shipped_prt_asset_meets_quality_targets(asset, cache):
     from inshade.models.prt import quality_orbit
 
