@@ -5,3 +5,12 @@ Each benchmark module exposes ``add_arguments(parser)``, ``run(args) -> int`` an
 run it standalone. Results are JSON + a markdown table + a plot in an output folder, with the
 GL_RENDERER string and ratios measured side by side in the same run.
 """
+
+import os
+import platform
+
+
+def machine(gl: dict) -> dict:
+    """The "machine" record of every benchmark's JSON, from ``viewer.context.gl_info``."""
+    return {"gl_renderer": gl["renderer"], "gl_version": gl["version"], "gl_vendor": gl["vendor"],
+            "software_renderer": gl["software"], "cpu_count": os.cpu_count(), "python": platform.python_version()}

@@ -23,13 +23,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from inshade.bench import machine
 
 DEFAULT_OUT = "bench-out/di"
 ASTC_BLOCKS = (4, 6, 8, 12)
@@ -215,9 +215,7 @@ def run(args) -> int:
     flip, flip_reason = _flip()
     result = {
         "benchmark": "di", "quick": bool(args.quick),
-        "machine": {"gl_renderer": info["renderer"], "gl_version": info["version"], "gl_vendor": info["vendor"],
-                    "software_renderer": info["software"], "cpu_count": os.cpu_count(),
-                    "python": platform.python_version()},
+        "machine": machine(info),
         "metric": "PSNR in sRGB 8-bit space vs the 8-bit original; FLIP mean (LDR, 67 PPD)",
         "flip": "available" if flip else f"unavailable: {flip_reason}",
         "images": [],

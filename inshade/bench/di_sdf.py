@@ -27,14 +27,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from inshade.bench import machine
 
 DEFAULT_OUT = "bench-out/di_sdf"
 DEFAULT_MESH = "trained/prt_mesh/mesh.ply"
@@ -255,9 +255,7 @@ def run(args) -> int:
     write_png(out / "ground_truth.png", gt["rgba"][..., :3])
     result = {
         "benchmark": "di_sdf", "quick": bool(args.quick),
-        "machine": {"gl_renderer": info["renderer"], "gl_version": info["version"], "gl_vendor": info["vendor"],
-                    "software_renderer": info["software"], "cpu_count": os.cpu_count(),
-                    "python": platform.python_version()},
+        "machine": machine(info),
         "mesh": {"path": str(args.mesh), "faces": int(len(mesh.faces)), "radius": float(mesh_radius)},
         "render": {"size": args.size, "sky": SKY, "camera": cam, "frames": args.frames,
                    "ground_truth": "embree first hits of the mesh, interpolated vertex normals, same shading"},

@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.bench import machine
+
 DEFAULT_OUT = "bench-out/footprint"
 DEFAULT_ASSET = "trained/di_footprint"
 GL_MODES = ("trilinear", "anisotropic", "bilinear", "explicit_lod")
@@ -330,9 +332,7 @@ def run(args) -> int:
                  "bytes": fp.texture_bytes(size, k, True), "draw_seconds": None})
     result = {
         "benchmark": "footprint", "origin": origin,
-        "machine": {"gl_renderer": gl["renderer"], "gl_version": gl["version"], "software_renderer": gl["software"],
-                    "max_anisotropy": float(ctx.max_anisotropy), "platform": platform.platform(),
-                    "python": platform.python_version()},
+        "machine": {**machine(gl), "max_anisotropy": float(ctx.max_anisotropy), "platform": platform.platform()},
         "view": {"width": w, "height": h, "camera": camera.to_dict(), "tile": tile, "extent": extent, "ss": args.ss,
                  "pixels_scored": int(mask.sum()), "ground_truth_seconds": round(truth_seconds, 2)},
         "texture": {"size": size, "channels": k, "source": bundle.meta["provenance"].get("image", "")},

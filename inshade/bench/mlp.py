@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.bench import machine
+
 DEFAULT_OUT = "bench-out/mlp"
 MODES = ("inline", "ubo", "texture")
 PARITY_TOL = 1e-4
@@ -184,9 +186,8 @@ def run(args) -> int:
     x = uv_grid(args.size)
     quiet = not sys.stderr.isatty()
 
-    machine = {
-        "gl_vendor": info["vendor"], "gl_renderer": info["renderer"], "gl_version": info["version"],
-        "software_renderer": info["software"], "cpu_count": os.cpu_count(),
+    host = {
+        **machine(info),
         "cpu": platform.processor() or platform.machine(), "torch": torch.__version__,
         "torch_threads": torch.get_num_threads(), "numpy": np.__version__,
         "python": platform.python_version(),
@@ -230,7 +231,7 @@ def run(args) -> int:
     targets = evaluate_targets(networks, peak)
     result = {"benchmark": "mlp", "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
               "batch": {"size": args.size, "pixels": int(x.shape[0])}, "repeats": args.repeats,
-              "machine": machine, "sgemm": peak, "parity_tolerance": PARITY_TOL,
+              "machine": host, "sgemm": peak, "parity_tolerance": PARITY_TOL,
               "networks": networks, "targets": targets,
               "max_error": max((m["max_error"] for n in networks for m in n["modes"].values()), default=0.0)}
     (out_dir / "mlp.json").write_text(json.dumps(result, indent=2) + "\n")

@@ -26,11 +26,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
 import sys
 import time
 from pathlib import Path
+
+from inshade.bench import machine
 
 DEFAULT_OUT = "bench-out/prt"
 DEFAULT_ASSETS = "trained/prt_creature,trained/prt_mechanical,trained/prt_neural_bunny,trained/prt_mesh"
@@ -278,9 +279,7 @@ def run(args) -> int:
     cache = ProgramCache(ctx)
     result = {
         "benchmark": "prt", "quick": bool(args.quick),
-        "machine": {"gl_renderer": info["renderer"], "gl_version": info["version"], "gl_vendor": info["vendor"],
-                    "software_renderer": info["software"], "cpu_count": os.cpu_count(),
-                    "python": platform.python_version()},
+        "machine": machine(info),
         "method": "median of --repeats forced redraws + glFinish, after a timed first draw (JIT)",
         "paper_rtx3090_fps_1024_k64": list(PAPER_RTX3090_FPS_1024),
         "frames": [], "torch": [], "rays": [],
