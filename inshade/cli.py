@@ -28,7 +28,8 @@ TRAINERS = {"neural_image": ("inshade.models.neural_image", "fit a neural image 
             "neural_sdf": ("inshade.models.neural_sdf", "fit an MLP SDF to a watertight mesh"),
             "di_sdf": ("inshade.models.di_sdf", "fit a DI lookup-array cascade SDF to a watertight mesh"),
             "di_footprint": ("inshade.models.footprint", "DI footprint-aware texture sampler (no mip chain)"),
-            "di_brdf": ("inshade.models.di_brdf", "DI approximations of the GGX and Disney BRDFs")}
+            "di_brdf": ("inshade.models.di_brdf", "DI approximations of the GGX and Disney BRDFs"),
+            "pbr_set": ("inshade.models.pbr_set", "a DI-compressed PBR texture set (8 lanes) on a lit mesh")}
 
 
 class UserError(Exception):

@@ -7,6 +7,12 @@
   ``require_watertight``, how many open (boundary) and non-manifold edges it has.
 - ``bounding_sphere(mesh)``: (centre of the bounding box, max vertex distance from it), the bound
   that sphere tracing and network normalisation use (deterministic, unlike a minimal ball).
+- Texture coordinates: a file's uv (OBJ ``vt``, PLY/GLB texture coordinates) survive loading
+  (vertices on a uv seam stay split); ``mesh_uv(mesh)`` returns them or None.
+  ``shading_normals(mesh)`` averages normals across such seams (welded by position), and
+  ``vertex_tangents(mesh, normals)`` gives per-vertex (tangent, handedness) for normal maps.
+- ``torus()`` / ``write_torus(out)``: a procedural uv-mapped torus (OBJ), the PBR-texture asset's
+  mesh; its uv tile the texture ``tiles`` times around each circle.
 - ``bunny(resolution)``: the shipped procedural mesh (no downloads exist here): marching cubes of
   a smooth-union rabbit with eye sockets and a fine fur ripple, Taubin-smoothed, watertight.
   ``python -m inshade.mesh [OUT.ply]`` writes it (binary PLY, byte-identical every run).
@@ -45,10 +51,20 @@ def load_mesh(path, require_watertight: bool = False) -> trimesh.Trimesh:
         raise MeshError(f"{path}: {exc}") from None
 
 
+def mesh_uv(mesh: trimesh.Trimesh) -> np.ndarray | None:
+    """Per-vertex texture coordinates [V, 2] float64, or None when the mesh has none."""
+    uv = getattr(mesh.visual, "uv", None)
+    if uv is None:
+        return None
+    uv = np.asarray(uv, np.float64)
+    return uv if uv.shape == (len(mesh.vertices), 2) else None
+
+
 def check_mesh(mesh: trimesh.Trimesh, require_watertight: bool = False) -> trimesh.Trimesh:
     """Validate and clean an in-memory mesh (MeshError without a file name)."""
     v = np.asarray(mesh.vertices)
     f = np.asarray(mesh.faces)
+    uv = mesh_uv(mesh)
     if len(f) == 0 or len(v) == 0:
         raise MeshError(f"empty mesh: {len(v)} vertices, {len(f)} faces")
     bad = ~np.isfinite(v).all(1)
@@ -57,7 +73,13 @@ def check_mesh(mesh: trimesh.Trimesh, require_watertight: bool = False) -> trime
                         f"(first: index {int(np.argmax(bad))})")
     if f.min() < 0 or f.max() >= len(v):
         raise MeshError(f"faces: vertex index out of range 0..{len(v) - 1}")
-    mesh = trimesh.Trimesh(v.astype(np.float64), f.astype(np.int64), process=True)  # merges vertices
+    visual = None
+    if uv is not None:
+        if not np.isfinite(uv).all():
+            raise MeshError(f"texture coordinates: {int((~np.isfinite(uv).all(1)).sum())} are NaN or infinite")
+        visual = trimesh.visual.TextureVisuals(uv=uv)
+    # merges vertices (not across uv seams: vertices with different uv stay apart)
+    mesh = trimesh.Trimesh(v.astype(np.float64), f.astype(np.int64), visual=visual, process=True)
     keep = mesh.area_faces > 1e-14 * max(1.0, float(np.ptp(mesh.vertices, 0).max()) ** 2)
     if not keep.any():
         raise MeshError(f"degenerate: all {len(keep)} faces have zero area")
@@ -85,7 +107,93 @@ def bounding_sphere(mesh: trimesh.Trimesh, margin: float = 0.0) -> tuple[np.ndar
     return center, float(np.linalg.norm(v - center, axis=1).max()) * (1.0 + margin)
 
 
-# the procedural asset ----------------------------------------------------------------------------
+def shading_normals(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Unit vertex normals [V, 3] float64, averaged over every face at a position: a uv seam
+    splits vertices, and trimesh's own vertex normals would then differ on its two sides (a
+    visible crease). Identical to ``mesh.vertex_normals`` for a mesh without seams."""
+    welded = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), process=False)
+    _, first, inverse = np.unique(welded.vertices, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    merged = trimesh.Trimesh(welded.vertices[first], inverse[welded.faces], process=False)
+    return np.asarray(merged.vertex_normals, np.float64)[inverse]
+
+
+def vertex_tangents(mesh: trimesh.Trimesh, normals: np.ndarray | None = None) -> np.ndarray:
+    """Per-vertex [V, 4] (unit tangent along +u, handedness w = +-1) for tangent-space normal maps:
+    per face the edge vectors solved against the uv edges, accumulated with the face's area, made
+    orthogonal to the normal (Gram-Schmidt); the bitangent is w * cross(n, t). Raises MeshError
+    without uv."""
+    uv = mesh_uv(mesh)
+    if uv is None:
+        raise MeshError("no texture coordinates: normal-mapped shading needs a uv-mapped mesh "
+                        "(OBJ vt, or PLY/GLB texture coordinates)")
+    n = shading_normals(mesh) if normals is None else np.asarray(normals, np.float64)
+    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
+    e1, e2 = v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]
+    d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    ok = np.abs(det) > 1e-20
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+    # the face's area weights it (the solved vectors are per unit uv, so rescale by |det| ...)
+    weight = np.abs(det)[:, None]
+    t_face = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * inv * weight
+    b_face = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * inv * weight
+    t = np.zeros_like(v)
+    b = np.zeros_like(v)
+    for corner in range(3):
+        np.add.at(t, f[:, corner], t_face)
+        np.add.at(b, f[:, corner], b_face)
+    t -= n * np.sum(n * t, 1, keepdims=True)
+    length = np.linalg.norm(t, axis=1, keepdims=True)
+    # vertices whose faces have no usable uv: any unit vector orthogonal to n
+    fallback = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
+    t = np.where(length > 1e-12, t / np.maximum(length, 1e-300), fallback / np.linalg.norm(fallback, axis=1, keepdims=True))
+    w = np.where(np.sum(np.cross(n, t) * b, 1) < 0.0, -1.0, 1.0)
+    return np.concatenate([t, w[:, None]], 1)
+
+
+# the procedural assets ---------------------------------------------------------------------------
+def torus(major: float = 1.0, minor: float = 0.42, segments: tuple[int, int] = (96, 48),
+          tiles: tuple[float, float] = (4.0, 2.0)) -> trimesh.Trimesh:
+    """A torus about +y, uv-mapped: u runs around the main ring (``tiles[0]`` texture repeats),
+    v around the tube (``tiles[1]``). The seam columns are duplicated so uv is continuous on each
+    face; shading normals weld them again."""
+    nu, nv = segments
+    a = np.linspace(0.0, 2.0 * np.pi, nu + 1)
+    b = np.linspace(0.0, 2.0 * np.pi, nv + 1)
+    aa, bb = np.meshgrid(a, b, indexing="ij")                       # [nu + 1, nv + 1]
+    ring = major + minor * np.cos(bb)
+    pos = np.stack([ring * np.cos(aa), minor * np.sin(bb), -ring * np.sin(aa)], -1).reshape(-1, 3)
+    uv = np.stack([aa / (2.0 * np.pi) * tiles[0], bb / (2.0 * np.pi) * tiles[1]], -1).reshape(-1, 2)
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    v00 = (i * (nv + 1) + j).reshape(-1)
+    v10, v01, v11 = v00 + nv + 1, v00 + 1, v00 + nv + 2
+    # counter-clockwise seen from outside (outward normals)
+    faces = np.concatenate([np.stack([v00, v10, v11], 1), np.stack([v00, v11, v01], 1)])
+    return trimesh.Trimesh(pos, faces, visual=trimesh.visual.TextureVisuals(uv=uv), process=False)
+
+
+def obj_text(mesh: trimesh.Trimesh) -> str:
+    """A minimal OBJ (v, vt, f v/vt), fixed 9-digit formatting: byte-identical every run."""
+    uv = mesh_uv(mesh)
+    lines = ["# inshade procedural mesh"]
+    lines += [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in np.asarray(mesh.vertices)]
+    if uv is not None:
+        lines += [f"vt {s:.9f} {t:.9f}" for s, t in uv]
+        lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in np.asarray(mesh.faces)]
+    else:
+        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(mesh.faces)]
+    return "\n".join(lines) + "\n"
+
+
+def write_torus(out, **kw) -> Path:
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(obj_text(torus(**kw)))
+    return out
+
+
+# the procedural bunny ----------------------------------------------------------------------------
 def _smin(a, b, k):
     h = np.clip(0.5 + 0.5 * (b - a) / k, 0.0, 1.0)
     return b + (a - b) * h - k * h * (1.0 - h)

@@ -325,7 +325,7 @@ def quality_orbit(scene, bundle=None, n_views: int = 30, size: int = 128, *, set
                 image = read_rgba(renderer.render_network(cam, size, size))
                 if view is None:
                     u = cam.uniforms(size, size)
-                    view = (gbuffer_view(*renderer.gbuffer.read(), u, size, size) if renderer.gbuffer is not None
+                    view = (gbuffer_view(*renderer.gbuffer.read()[:2], u, size, size) if renderer.gbuffer is not None
                             else trace_view(geometry, u, size, size))
                     gt_t = ground_truth_transfer(geometry, view, n_dirs, seed)
                 shading = PrtShading.from_settings(renderer.values, scene)

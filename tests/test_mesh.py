@@ -110,9 +110,9 @@ def test_gbuffer_on_surface_first_hit_and_normals(gl, small_bunny):
     cam = OrbitCamera(target=tuple(c), distance=2.6 * r, yaw=35.0, pitch=15.0)
     gb = MeshGBuffer(gl, small_bunny)
     try:
-        pos_tex, nrm_tex = gb.draw(cam.view_matrix(), cam.projection(size, size), model, size, size)
+        pos_tex, nrm_tex, *_ = gb.draw(cam.view_matrix(), cam.projection(size, size), model, size, size)
         assert pos_tex.size == (size, size) and nrm_tex.dtype == "f4"
-        pos, nrm = gb.read()
+        pos, nrm, *_ = gb.read()
     finally:
         gb.release()
     pos, nrm = pos[::-1].reshape(-1, 4), nrm[::-1].reshape(-1, 4)     # image orientation, as camera_rays
@@ -177,3 +177,83 @@ def test_gbuffer_resize_and_reuse(gl, small_bunny):
             gb.draw(np.eye(3), np.eye(4), None, 8, 8)
     finally:
         gb.release()
+
+
+# --- uv-mapped meshes: loading keeps uv, tangents, the torus, G-buffer uv/tangent ---------------
+
+def _torus_angles(p, major=1.0):
+    """Ring angle a and tube angle b of points on the torus (inshade.mesh.torus parametrisation)."""
+    a = np.arctan2(-p[:, 2], p[:, 0]) % (2 * np.pi)
+    ring = np.hypot(p[:, 0], p[:, 2]) - major
+    b = np.arctan2(p[:, 1], ring) % (2 * np.pi)
+    return a, b
+
+
+def test_torus_obj_roundtrip_keeps_uv_seams_and_tangents(tmp_path):
+    from inshade.mesh import mesh_uv, obj_text, shading_normals, torus, vertex_tangents, write_torus
+
+    path = write_torus(tmp_path / "t.obj", segments=(24, 12))
+    assert path.read_text() == obj_text(torus(segments=(24, 12))), "not deterministic"
+    m = load_mesh(path)
+    uv = mesh_uv(m)
+    assert uv is not None and uv.shape == (25 * 13, 2), "seam vertices must stay split by their uv"
+    a, b = _torus_angles(m.vertices)
+    # uv follow the parametrisation (4 and 2 tiles); the seam's duplicates sit at 0 and the full tile count
+    ua = (uv[:, 0] / 4.0 * 2 * np.pi) % (2 * np.pi)
+    assert np.abs(np.angle(np.exp(1j * (ua - a)))).max() < 1e-6
+    n = shading_normals(m)
+    radial = m.vertices.copy()
+    radial[:, 1] = 0
+    radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+    outward = m.vertices - radial
+    outward /= np.linalg.norm(outward, axis=1, keepdims=True)
+    # smooth across the seam: per-vertex normals on it match the analytic ones as well as elsewhere
+    assert np.einsum("ij,ij->i", n, outward).min() > 0.99
+    t = vertex_tangents(m, n)
+    along_u = np.stack([-np.sin(a), np.zeros_like(a), -np.cos(a)], 1)
+    assert np.einsum("ij,ij->i", t[:, :3], along_u).min() > 0.99
+    assert np.abs(np.einsum("ij,ij->i", t[:, :3], n)).max() < 1e-9
+    assert (t[:, 3] == 1.0).all()   # +v runs along cross(n, t) everywhere on this torus
+    # mirrored uv (v -> -v) flips the handedness
+    mirrored = trimesh.Trimesh(m.vertices, m.faces, process=False,
+                               visual=trimesh.visual.TextureVisuals(uv=uv * [1.0, -1.0]))
+    assert (vertex_tangents(mirrored)[:, 3] == -1.0).all()
+
+
+def test_uv_errors(tmp_path):
+    from inshade.mesh import vertex_tangents
+
+    with pytest.raises(MeshError, match="no texture coordinates"):
+        vertex_tangents(trimesh.creation.icosphere(subdivisions=1))
+    bad = tmp_path / "nan_uv.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt nan 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    with pytest.raises(MeshError, match="texture coordinates"):
+        load_mesh(bad)
+
+
+def test_gbuffer_uv_and_tangent_on_torus(gl, tmp_path):
+    from inshade.mesh import write_torus
+    from inshade.viewer.camera import OrbitCamera
+    from inshade.viewer.geometry import MeshGBuffer
+
+    size = 48
+    m = load_mesh(write_torus(tmp_path / "t.obj", segments=(64, 32)))
+    cam = OrbitCamera(target=(0.0, 0.0, 0.0), distance=3.6, yaw=20.0, pitch=-35.0)
+    gb = MeshGBuffer(gl, m)
+    try:
+        gb.draw_camera(cam, size, size)
+        pos, nrm, uv, tan = (x.reshape(-1, 4).astype(np.float64) for x in gb.read())
+    finally:
+        gb.release()
+    covered = pos[:, 3] == 1.0
+    assert 0.1 < covered.mean() < 0.9
+    assert (uv[~covered] == 0).all() and (tan[~covered] == 0).all()
+    a, b = _torus_angles(pos[covered, :3])
+    # interpolated uv agrees with the point's own parameters up to the faceting of the 64x32 grid
+    du = np.angle(np.exp(1j * (uv[covered, 0] / 4.0 * 2 * np.pi - a)))
+    dv = np.angle(np.exp(1j * (uv[covered, 1] / 2.0 * 2 * np.pi - b)))
+    assert np.abs(du).max() < 2 * np.pi / 64 and np.abs(dv).max() < 2 * np.pi / 32
+    t = tan[covered, :3] / np.linalg.norm(tan[covered, :3], axis=1, keepdims=True)
+    along_u = np.stack([-np.sin(a), np.zeros_like(a), -np.cos(a)], 1)
+    assert np.einsum("ij,ij->i", t, along_u).min() > 0.99
+    assert np.abs(tan[covered, 3] - 1.0).max() < 1e-5   # a constant, up to interpolation rounding

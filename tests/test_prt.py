@@ -531,7 +531,7 @@ def _gl_mesh(gl, cache, folder, settings_seq, size=SIZE):
             for k, v in settings.items():
                 r.set_setting(k, v)
             image = read_rgba(r.render_network(cam, size, size)).copy()
-            out.append((image, *[a.copy() for a in r.gbuffer.read()]))
+            out.append((image, *[a.copy() for a in r.gbuffer.read()[:2]]))
         sh = r.environment_sh()
     finally:
         r.release()

@@ -32,6 +32,7 @@ from inshade.codegen.spherical_harmonics import sh_chunks
 
 from .context import GLContextError, gl_info, make_current, shared_context
 from .display import DisplayMode, glsl_chunk, parse_mode
+from .geometry import GBUFFER, MeshGBuffer
 from .image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
@@ -106,7 +107,6 @@ class SceneRenderer:
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self._build()
         if scene.mesh is not None:
-            from .geometry import MeshGBuffer
             self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache)
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
         self.display_program = self.cache.get(VERTEX, "passes/display.frag",
@@ -317,7 +317,7 @@ class SceneRenderer:
                     self.program[name].value = unit
                     unit += 1
             if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
-                for name, tex in zip(("u_gbuffer_position", "u_gbuffer_normal"), gbuffer):
+                for name, tex in zip([f"u_gbuffer_{n}" for n in GBUFFER], gbuffer):
                     if name in self.program:
                         tex.use(location=unit)
                         self.program[name].value = unit

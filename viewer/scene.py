@@ -34,6 +34,8 @@ settings drive ``u_shading`` (a choice: "diffuse" | "glossy"), ``u_phong_exponen
 A mesh PRT scene has ``"mesh": "mesh.ply"`` (OBJ/PLY/GLB, inshade/mesh.py) instead of ``"sdf"`` and
 ``"program": "passes/mesh_prt.frag"``: the renderer rasterises a G-buffer first
 (viewer/geometry.py MeshGBuffer), then the full-screen pass shades each covered pixel once.
+``"passes/mesh_pbr_set.frag"`` (a compressed PBR texture set on a lit mesh, models/pbr_set.py)
+works the same way and needs a uv-mapped mesh.
 The environment of SDF and mesh scenes may also be an equirectangular map,
 ``"environment": {"map": "env.exr", "rotation": 0}`` (projected to SH at load time; a bad map is one
 SceneError naming the file), selected by ``"sky": "map"``.
@@ -52,6 +54,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from inshade.codegen import FILTERS, STORAGE_MODES
+from inshade.mesh import mesh_uv
 from inshade.shaders.library import LIBRARY_DIR
 
 from .camera import CameraError, camera_from_dict
@@ -65,6 +68,8 @@ SETTING_TYPES = ("float", "int", "bool", "choice")
 BINDINGS = ("uniform", "define", "codegen", "environment")
 # Programs that shade with a transfer network (lib/prt.glsl): they need a transfer bundle.
 PRT_PROGRAMS = ("passes/sdf_prt.frag", "passes/mesh_prt.frag")
+# Deferred mesh programs (they shade the G-buffer of "mesh") -> whether they read its uv/tangents.
+MESH_PROGRAMS = {"passes/mesh_prt.frag": False, "passes/mesh_pbr_set.frag": True}
 # "environment" settings drive the lighting the renderer computes on the CPU (SDF scenes: the
 # radiance SH uniform u_sh); a change re-uploads a uniform, no recompile.
 ENVIRONMENT_TARGETS = ("sky", "rotation")
@@ -332,8 +337,11 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     if program == "passes/sdf_prt.frag" and sdf is None:
         raise SceneError(f"sdf: a PRT scene ({program}) needs geometry: \"sdf\": \"sdf.json\" or "
                          "{\"network\": \"sdf_bundle\"}")
-    if program == "passes/mesh_prt.frag" and mesh is None:
-        raise SceneError(f"mesh: a mesh PRT scene ({program}) needs \"mesh\": \"mesh.ply\" (OBJ/PLY/GLB)")
+    if program in MESH_PROGRAMS and mesh is None:
+        raise SceneError(f"mesh: {program} shades a mesh: it needs \"mesh\": \"mesh.ply\" (OBJ/PLY/GLB)")
+    if MESH_PROGRAMS.get(program) and mesh_uv(mesh.data) is None:
+        raise SceneError(f"mesh: {mesh.path.name} has no texture coordinates; {program} maps textures "
+                         "by uv (an OBJ with vt, or PLY/GLB with texture coordinates)")
     if not isinstance(networks, list) or (not networks and sdf is None):
         raise SceneError("networks: must be a non-empty list of {\"bundle\": ..., \"prefix\": ..., \"output\": ...}")
     refs, prefixes = [], set()

@@ -87,38 +87,47 @@ def _rgba(img8):
     return np.ascontiguousarray(np.concatenate([img8, np.full(img8.shape[:2] + (1,), 255, np.uint8)], -1))
 
 
-def astc_entries(img8: np.ndarray, flip) -> list[dict]:
-    h, w = img8.shape[:2]
+def astc_roundtrip(rgba8: np.ndarray, block: int) -> tuple[np.ndarray, int]:
+    """(decoded RGBA8 [H, W, 4], compressed bytes) of astcenc (LDR profile, ASTC_QUALITY) at a
+    block x block footprint. RuntimeError with the reason when astc-encoder-py is unusable."""
     try:
         from astc_encoder import ASTCConfig, ASTCContext, ASTCImage, ASTCProfile, ASTCSwizzle, ASTCType
     except Exception as e:  # noqa: BLE001
-        return [{"codec": f"ASTC {b}x{b}", "available": False,
-                 "reason": f"astc-encoder-py not usable ({e}); pip install astc-encoder-py"} for b in ASTC_BLOCKS]
+        raise RuntimeError(f"astc-encoder-py not usable ({e}); pip install astc-encoder-py") from None
+    h, w = rgba8.shape[:2]
+    try:
+        ctx = ASTCContext(ASTCConfig(ASTCProfile.LDR, block, block, 1, ASTC_QUALITY))
+        sw = ASTCSwizzle.from_str("RGBA")
+        comp = ctx.compress(ASTCImage(ASTCType.U8, w, h, data=np.ascontiguousarray(rgba8).tobytes()), sw)
+        dec = ctx.decompress(comp, ASTCImage(ASTCType.U8, w, h), sw)
+    except Exception as e:  # noqa: BLE001
+        raise RuntimeError(f"astcenc failed: {e}") from None
+    return np.frombuffer(dec.data, np.uint8).reshape(h, w, 4), len(comp)
+
+
+def astc_entries(img8: np.ndarray, flip) -> list[dict]:
     out = []
     for b in ASTC_BLOCKS:
         name = f"ASTC {b}x{b}"
+        t = time.perf_counter()
         try:
-            ctx = ASTCContext(ASTCConfig(ASTCProfile.LDR, b, b, 1, ASTC_QUALITY))
-            sw = ASTCSwizzle.from_str("RGBA")
-            t = time.perf_counter()
-            comp = ctx.compress(ASTCImage(ASTCType.U8, w, h, data=_rgba(img8).tobytes()), sw)
-            secs = time.perf_counter() - t
-            dec = ctx.decompress(comp, ASTCImage(ASTCType.U8, w, h), sw)
-            test = np.frombuffer(dec.data, np.uint8).reshape(h, w, 4)[..., :3]
-        except Exception as e:  # noqa: BLE001
-            out.append({"codec": name, "available": False, "reason": f"astcenc failed: {e}"})
+            decoded, nbytes = astc_roundtrip(_rgba(img8), b)
+        except RuntimeError as e:
+            out.append({"codec": name, "available": False, "reason": str(e)})
             continue
-        out.append(_baseline_entry(name, "ASTC", comp, secs, f"astcenc LDR profile, quality {ASTC_QUALITY:g}",
-                                   img8, test, flip))
+        secs = time.perf_counter() - t
+        out.append(_baseline_entry(name, "ASTC", nbytes, secs, f"astcenc LDR profile, quality {ASTC_QUALITY:g}",
+                                   img8, decoded[..., :3], flip))
     return out
 
 
-def _baseline_entry(codec, family, comp, secs, settings, img8, test, flip) -> dict:
-    """One table row for a fixed-rate codec: size, rate and quality of its decoded image."""
+def _baseline_entry(codec, family, nbytes, secs, settings, img8, test, flip) -> dict:
+    """One table row for a fixed-rate codec: size, rate and quality of its decoded image
+    (``secs``: encode + decode time)."""
     h, w = img8.shape[:2]
-    bpp = 8.0 * len(comp) / (h * w)
-    return {"codec": codec, "family": family, "available": True, "bytes": len(comp), "bpp": round(bpp, 4),
-            "ratio": round(RGB8_BPP / bpp, 4), "encode_seconds": round(secs, 3), "settings": settings,
+    bpp = 8.0 * nbytes / (h * w)
+    return {"codec": codec, "family": family, "available": True, "bytes": nbytes, "bpp": round(bpp, 4),
+            "ratio": round(RGB8_BPP / bpp, 4), "codec_seconds": round(secs, 3), "settings": settings,
             **quality(img8, test, flip)}
 
 
@@ -139,12 +148,12 @@ def bc_entries(img8: np.ndarray, flip) -> list[dict]:
         try:
             t = time.perf_counter()
             comp = getattr(etcpak, fn)(_rgba(img8).tobytes(), w, h, *extra)
-            secs = time.perf_counter() - t
             test = np.asarray(Image.frombytes("RGBA", (w, h), comp, "bcn", (n,)))[..., :3]
+            secs = time.perf_counter() - t
         except Exception as e:  # noqa: BLE001
             out.append({"codec": name, "available": False, "reason": f"etcpak/Pillow failed: {e}"})
             continue
-        out.append(_baseline_entry(name, "BC", comp, secs, "etcpak encoder, Pillow bcn decoder",
+        out.append(_baseline_entry(name, "BC", len(comp), secs, "etcpak encoder, Pillow bcn decoder",
                                    img8, test, flip))
     return out
 

@@ -9,15 +9,18 @@ uniform mat4 u_proj;
 in vec3 in_position;
 in vec3 in_normal;
 in vec2 in_uv;
+in vec4 in_tangent;   // (tangent along +u, handedness); zero for meshes without uv
 
 out vec3 v_world_position;
 out vec3 v_normal;
 out vec2 v_uv;
+out vec4 v_tangent;
 
 void main() {
     vec4 world = u_model * vec4(in_position, 1.0);
     v_world_position = world.xyz;
     v_normal = normalize(transpose(inverse(mat3(u_model))) * in_normal);
     v_uv = in_uv;
+    v_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
     gl_Position = u_proj * u_view * world;
 }

@@ -1,19 +1,25 @@
 // Mesh G-buffer pass (deferred PRT on triangle meshes, seeds/002 §4.1): rasterise the mesh once
 // with depth testing (common/mesh.vert) so that a later full-screen pass runs the transfer
 // network once per pixel, on the visible surface only.
-// attachment 0: (world position, 1); attachment 1: (unit interpolated normal, 1). The clear
-// value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
+// attachment 0: (world position, 1); attachment 1: (unit interpolated normal, 1); 2: (uv, 0, 1);
+// 3: (interpolated tangent, handedness). The clear value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
 // consistently wound closed mesh), not flipped towards the viewer: transfer is a function of it.
 // Built and read by viewer/geometry.py MeshGBuffer.
 
 in vec3 v_world_position;
 in vec3 v_normal;
+in vec2 v_uv;
+in vec4 v_tangent;
 
 layout(location = 0) out vec4 out_position;
 layout(location = 1) out vec4 out_normal;
+layout(location = 2) out vec4 out_uv;
+layout(location = 3) out vec4 out_tangent;
 
 void main() {
     out_position = vec4(v_world_position, 1.0);
     // interpolation shortens the normal between vertices: renormalise per fragment
     out_normal = vec4(v_normal * (1.0 / length(v_normal)), 1.0);
+    out_uv = vec4(v_uv, 0.0, 1.0);
+    out_tangent = v_tangent;
 }
