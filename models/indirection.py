@@ -20,9 +20,11 @@ Pieces, each a table where there is a choice (no if-chains):
 - `INITS`: named initialisations (paper §1.3) giving the *table* values F(cells); `make_array`
   inverts F so that e.g. a constant 0.3 under a sinusoid F reads back as 0.3.
 - `size_cascade`: ρ = N_p / N_c sizing for a byte budget (paper §1.4).
-- `train_cascade`: L1 loss, Adam (lr 1e-3), `SCHEDULES`, per-eval PSNR history, primary-array
-  gradient clipping (`CLIPPERS`), the soft-monotonicity regulariser (`monotonicity_penalty`).
-- `image_sampler` / `image_eval_set` / `bilinear`: stratified uv sampling with bilinear targets.
+- `train_cascade`: L1 loss (the paper's; or `LOSSES["mse"]`), Adam (lr 1e-3), `SCHEDULES`,
+  per-eval PSNR history, primary-array gradient clipping (`CLIPPERS`), the soft-monotonicity
+  regulariser (`monotonicity_penalty`).
+- `image_sampler` / `image_eval_set` / `bilinear`: stratified uv sampling with bilinear targets;
+  `texel_sampler`: texel centres and their exact values (what a decoded texture is scored on).
 - `evaluate_quantised`: PSNR before and after the export's quantisation.
 """
 from __future__ import annotations
@@ -268,6 +270,19 @@ def image_eval_set(image):
     return uv, img.reshape(-1, img.shape[-1])
 
 
+def texel_sampler(image, batch: int, seed: int = 0):
+    """Endless (uv, target) batches of texel centres and their exact values, each epoch a random
+    permutation of the texels: the points where decoded textures are compared with the original
+    (and with block codecs), rather than the paper's jittered uv with bilinear targets."""
+    uv, values = image_eval_set(image)
+    gen = torch.Generator().manual_seed(seed)
+    while True:
+        order = torch.randperm(len(uv), generator=gen)
+        for start in range(0, len(uv), batch):
+            idx = order[start:start + batch]
+            yield uv[idx], values[idx]
+
+
 def image_sampler(image, batch: int, stratified: bool = True, seed: int = 0):
     """Endless (uv, target) batches. Stratified: one stratum per texel -- each epoch visits the
     texels in a random order, one uniformly jittered uv inside each -- and the target is the
@@ -397,6 +412,8 @@ def _constant_lr(opt, steps, patience):
 
 
 SCHEDULES = {"cosine": _cosine, "plateau": _plateau, "constant": _constant_lr}
+# Training losses: the paper's MAE, or the squared error that PSNR measures.
+LOSSES = {"l1": lambda d: torch.mean(torch.abs(d)), "mse": lambda d: torch.mean(d * d)}
 
 
 def psnr(pred: torch.Tensor, target: torch.Tensor, peak: float = 1.0) -> float:
@@ -406,8 +423,8 @@ def psnr(pred: torch.Tensor, target: torch.Tensor, peak: float = 1.0) -> float:
 
 @dataclass
 class History:
-    """One record per evaluation: step (steps done), loss (mean training L1 since the last
-    record; the first record, at step 0, has the eval set's L1), psnr (on the eval set, else
+    """One record per evaluation: step (steps done), loss (mean training loss since the last
+    record; the first record, at step 0, has the eval set's), psnr (on the eval set, else
     on the last batch), lr, seconds."""
 
     records: list[dict] = field(default_factory=list)
@@ -432,17 +449,22 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
                   schedule: str = "cosine", seed: int = 0, eval_set=None, eval_every: int | None = None,
                   clip_primary: float | str | None = None, clip_mode: str = "cell",
                   monotonicity: float = 0.0, monotonicity_args: dict | None = None,
-                  primaries: list[str] | None = None, peak: float = 1.0,
+                  primaries: list[str] | None = None, peak: float = 1.0, loss: str = "l1",
+                  finish: tuple[int, Iterable, str] | None = None,
                   progress: bool | None = None, desc: str = "cascade") -> History:
     """Fit `cascade` (any GraphModule of lookup arrays) to `sampler`'s (x, target) batches.
 
-    Loss: mean |cascade(x) - target| (L1, the paper's MAE) + `monotonicity` (κ) times
+    Loss: `LOSSES[loss]` of cascade(x) - target (default L1, the paper's MAE) + `monotonicity` (κ) times
     `monotonicity_penalty` of each primary array. Adam at `lr` (paper: 1e-3) with
     `SCHEDULES[schedule]`: "cosine" (default; decays to 5% over `steps`, which suits the short
     CPU budgets here), "plateau" (the authors' ReduceLROnPlateau, on the mean training loss at
     each eval) or "constant". `clip_primary` (a bound, or "auto" for the paper's half-cell
     bound) clips the primary arrays' gradients per cell (`clip_mode="cell"`) or as a whole
     ("global") before each step. Primaries default to the lookup arrays that feed another one.
+
+    `finish` = (step, sampler, loss): from that step on, batches come from the second sampler and
+    the loss is `LOSSES[loss]`, under the same optimiser and schedule (texture compression trains
+    the paper's way first, then finishes on texel centres with the squared error PSNR measures).
 
     Deterministic for a seed: global torch RNG is seeded (and restored afterwards); samplers
     should carry their own seeded generator, as `image_sampler` does. Progress bar on stderr
@@ -455,6 +477,10 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
         raise ValueError(f"unknown schedule {schedule!r}; known: {', '.join(SCHEDULES)}")
     if clip_mode not in CLIPPERS:
         raise ValueError(f"unknown clip mode {clip_mode!r}; known: {', '.join(CLIPPERS)}")
+    for name in (loss, finish[2] if finish else loss):
+        if name not in LOSSES:
+            raise ValueError(f"unknown loss {name!r}; known: {', '.join(LOSSES)}")
+    loss_fn = LOSSES[loss]
     prim = primaries if primaries is not None else primary_nodes(cascade)
     eval_every = eval_every or max(1, steps // 20)
     progress = sys.stderr.isatty() if progress is None else progress
@@ -471,7 +497,7 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
                 x, y = eval_set if eval_set is not None else last_batch
                 pred = cascade(x)
                 if interval_loss is None:
-                    interval_loss = float(torch.mean(torch.abs(pred - y)))
+                    interval_loss = float(loss_fn(pred - y))
                 rec = {"step": step, "loss": interval_loss, "psnr": psnr(pred, y, peak),
                        "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - start}
             history.records.append(rec)
@@ -484,10 +510,12 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
         acc, count = 0.0, 0
         bar = tqdm(range(1, steps + 1), desc=desc, disable=not progress, leave=False)
         for step in bar:
+            if finish is not None and step == finish[0] + 1:
+                batches, loss_fn, pending = iter(finish[1]), LOSSES[finish[2]], None
             x, y = pending if pending is not None else next(batches)
             pending = None
-            loss = torch.mean(torch.abs(cascade(x) - y))
-            total = loss
+            value = loss_fn(cascade(x) - y)
+            total = value
             if monotonicity:
                 for name in prim:
                     total = total + monotonicity_penalty(cascade.nodes[name], monotonicity,
@@ -498,7 +526,7 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
                 clip_primary_gradients(cascade, clip_primary, lr, clip_mode, prim)
             opt.step()
             on_step()
-            acc, count = acc + float(loss.detach()), count + 1
+            acc, count = acc + float(value.detach()), count + 1
             if step % eval_every == 0 or step == steps:
                 rec = evaluate(step, acc / count, (x, y), start)
                 on_eval(rec["loss"])

@@ -171,6 +171,42 @@ def test_bilinear_and_stratified_sampler():
     assert x2.shape == (16, 2) and (x2 >= 0).all() and (x2 < 1).all()
 
 
+def test_texel_sampler_visits_every_centre_with_its_value():
+    from inshade.models.indirection import texel_sampler
+
+    image = synthetic_image(8)[:6]
+    uv, rgb = image_eval_set(image)
+    x, y = next(texel_sampler(image, 48))
+    order = torch.argsort((x[:, 1] * 6).floor() * 8 + (x[:, 0] * 8).floor())
+    torch.testing.assert_close(x[order], uv, rtol=0, atol=0)
+    torch.testing.assert_close(y[order], rgb, rtol=0, atol=0)
+
+
+def test_finish_phase_switches_sampler_and_loss():
+    from inshade.models.indirection import LOSSES, texel_sampler
+
+    image = synthetic_image(16)
+    uv, rgb = image_eval_set(image)
+
+    def run(finish):
+        torch.manual_seed(0)
+        g = cascade(2, 3, 8, 4, cascaded_init="mean", cascaded_init_args={"target": image})
+        h = train_cascade(g, image_sampler(image, 128), 60, lr=1e-2, eval_every=20, eval_set=(uv, rgb),
+                          finish=finish)
+        return g, h
+
+    g0, h0 = run(None)
+    g1, h1 = run((40, texel_sampler(image, 128), "mse"))
+    # identical until the switch, different after it; the finish records the squared error
+    assert h0.records[2]["psnr"] == h1.records[2]["psnr"]
+    assert h1.records[3]["loss"] != h0.records[3]["loss"]
+    with torch.no_grad():
+        mse = float(LOSSES["mse"](g1(uv) - rgb))
+    assert h1.records[3]["loss"] == pytest.approx(mse, rel=0.5)
+    with pytest.raises(ValueError, match="unknown loss"):
+        train_cascade(g0, image_sampler(image, 16), 1, finish=(0, texel_sampler(image, 16), "huber"))
+
+
 # --- training ---------------------------------------------------------------------------------
 
 def test_fit_improves_over_init(trained):
