@@ -56,10 +56,13 @@ MAX_CHANNELS = 8
 MIN_SIZE = 8
 DECODE_TABLE_SIZE = 256
 RENDER_PROGRAM = "passes/field2d.frag"
+# Training lengths: "quick" runs in a couple of minutes on one CPU thread; "ship" is what the
+# trained/ assets use (12000 steps, ~10 min a 256^2 texture on one thread of the 2-core machine).
+PRESETS = {"quick": 1500, "ship": 12000}
 # Chosen by measurement on astronaut 256x256 at 6x on the shared 2-core CPU (see
 # docs in the report of `inshade bench di`): lr 1e-2 with cosine decay reaches in ~2 min what
 # 1e-3 does not reach in 10; batch 16384 stratified samples (4 batches an epoch at 256^2).
-DEFAULTS = dict(ratio=6.0, rho=None, steps=1500, lr=1e-2, batch=16384, schedule="cosine", seed=0,
+DEFAULTS = dict(ratio=6.0, rho=None, steps=PRESETS["quick"], lr=1e-2, batch=16384, schedule="cosine", seed=0,
                 clip_primary=None, finish=0.5)
 # rho = N_p / N_c. None: the largest primary that fits with the smallest cascaded array
 # (N_c = 4) -- at the small sizes trained here the primary is the one that carries detail
@@ -447,7 +450,10 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, help="centre-crop to a square and resize to SIZE x SIZE first")
     p.add_argument("--rho", type=float, default=None,
                    help="N_p / N_c (default: largest primary next to an N_c = 4 cascaded array)")
-    p.add_argument("--steps", type=int, default=d["steps"], help="training steps (default %(default)s)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
+                   help="training length: " + ", ".join(f"{k} = {v} steps" for k, v in PRESETS.items())
+                        + " (default %(default)s)")
+    p.add_argument("--steps", type=int, help="training steps (overrides --preset)")
     p.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default %(default)s)")
     p.add_argument("--batch", type=int, default=d["batch"], help="samples per step (default %(default)s)")
     p.add_argument("--schedule", choices=sorted(di.SCHEDULES), default=d["schedule"])
@@ -463,6 +469,8 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def run(args, argv=None) -> int:
+    if args.steps is None:
+        args.steps = PRESETS[args.preset]
     if args.steps < 0 or args.batch < 1:
         raise CompressionError("--steps must be >= 0 and --batch >= 1")
     image, notes, source = load_image(args.image, args.size)

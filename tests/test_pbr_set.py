@@ -128,8 +128,10 @@ def asset(tmp_path_factory):
 
 def test_asset_files_and_lane_metrics(asset):
     out, m = asset
-    for f in ("bundle.json", "weights.safetensors", "set0.png", "set1.png", "mesh.obj", "scene.json", "metrics.json"):
+    for f in ("bundle.json", "weights.safetensors", "set0.png", "set1.png", "mesh.obj", "scene.json", "metrics.json",
+              "report.md"):
         assert (out / f).is_file(), f
+    assert "| DI (torch) |" in (out / "report.md").read_text()
     assert json.loads((out / "metrics.json").read_text())["texture"]["channels"] == 8
     t = m["texture"]
     # the budget is met (sizing rounds the primary down to a multiple of 8: 7.5x at this tiny size)
@@ -209,3 +211,23 @@ def test_cli_help_and_bad_steps(capsys):
     assert e.value.code == 0 and "--ratio" in capsys.readouterr().out
     assert cli.main(["train", "pbr_set", "-o", "/tmp/never_written_pbr", "--steps", "-1"]) == 2
     assert "--steps" in capsys.readouterr().err
+
+
+def test_shipped_asset_renders_and_matches_torch(gl):
+    """trained/di_pbr_bricks from a clean clone: loads, renders (DI view, 40^2) like its torch twin,
+    and its recorded GLSL decode quality is what the bundle decodes to now."""
+    from inshade.bundle import load
+    from inshade.models.graph import GraphModule
+    from inshade.models.texture_compression import glsl_decode
+
+    folder = Path(__file__).resolve().parents[1] / "trained" / "di_pbr_bricks"
+    m = json.loads((folder / "metrics.json").read_text())
+    bundle = load(folder)
+    views = P.render_views(folder, views=("di",), size=40, ctx=gl)
+    ref = P.render_gbuffer(views["_gbuffer"], views["_uniforms"], 40, 40, views["_sh"],
+                           graph=GraphModule.from_bundle(bundle), view="di", light_count=P.DEFAULTS["lights"])
+    err = np.abs(views["di"] - ref) / np.maximum(1.0, np.abs(ref))
+    assert err.max() <= TOL
+    size = m["texture"]["width"]
+    q = P.lane_metrics(glsl_decode(bundle, size, "exact"), P.bricks(size))
+    assert q == pytest.approx(m["di_glsl_exact"], abs=1e-3)

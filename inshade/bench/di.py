@@ -2,8 +2,8 @@
 
 For each image (a ``skimage.data`` photograph, centre-cropped and resized to ``--size``):
 
-- DI: the compressed texture (the shipped ``trained/di_<image>`` asset when it matches, else
-  trained here at each ``--ratios`` value), decoded by its generated GLSL through the GL driver
+- DI: the compressed textures (the shipped ``trained/di_<image>`` and ``trained/di_<image>_*``
+  assets that match the size, and one trained here at each ``--ratios`` value), decoded by its generated GLSL through the GL driver
   on both LUT paths (``exact``: texelFetch + fp32 mix; ``fast``: hardware filtering), plus the
   torch decode of the same quantised bundle; training seconds from the bundle.
 - ASTC (``astc-encoder-py``, ARM astcenc, LDR profile on the sRGB bytes, quality 60): blocks
@@ -39,7 +39,7 @@ RGB8_BPP = 24.0
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--images", default="astronaut,chelsea", help="skimage.data names (default %(default)s)")
+    p.add_argument("--images", default="astronaut,chelsea,coffee", help="skimage.data names (default %(default)s)")
     p.add_argument("--size", type=int, default=256, help="square size the images are cropped/resized to")
     p.add_argument("--assets", default="trained", help="folder with di_<image> assets to reuse ('' = none)")
     p.add_argument("--ratios", default="", help="extra DI ratios to train here, comma-separated (e.g. 12)")
@@ -162,17 +162,21 @@ def bc_entries(img8: np.ndarray, flip) -> list[dict]:
 # DI
 
 def di_bundles(name: str, image: np.ndarray, args) -> list[tuple[object, str]]:
-    """(bundle, origin) for each DI texture of this image: the shipped asset if it matches the
-    size, and one trained here for each extra ratio."""
+    """(bundle, origin) for each DI texture of this image: the shipped assets (``di_<image>`` and
+    ``di_<image>_*``, e.g. ``di_astronaut_12x``) that match the size, and one trained here for
+    each extra ratio."""
     from inshade import bundle as bundle_mod
     from inshade.models import texture_compression as tc
 
     found = []
-    folder = Path(args.assets) / f"di_{name}" if args.assets else None
-    if folder is not None and (folder / "bundle.json").is_file():
+    root = Path(args.assets) if args.assets else None
+    folders = sorted([root / f"di_{name}", *root.glob(f"di_{name}_*")]) if root is not None else []
+    for folder in folders:
+        if not (folder / "bundle.json").is_file():
+            continue
         b = bundle_mod.load(folder)
         m = b.meta.get("metrics", {})
-        if (m.get("width"), m.get("height")) == image.shape[1::-1]:
+        if b.kind == tc.KIND and (m.get("width"), m.get("height")) == image.shape[1::-1]:
             found.append((b, str(folder)))
     for r in args.ratio_list:
         res = tc.compress(image, r, steps=args.steps, gl_metrics=False, name=f"di_{name}_{r:g}x",
