@@ -1,9 +1,16 @@
 """Differentiable Indirection BRDFs (seeds/000 §4.3, supp. 1.1-1.2; notes/000.md §2.4-2.5).
 
 GGX. A 16x16 primary (2 channels, identity uv ramp, triangle F, 8-bit) queried with (alpha_h, h_z)
--> an 8x8 cascaded array (1 channel, constant 0.5 init, no F, 8-bit) approximating
+-> an 8x8 cascaded array (1 channel, no F, 8-bit; initialised to D clamped at 2 rather than the
+paper's constant 0.5, see GGX_INIT_CAP) approximating
 D = a^4 / (pi (1 + (a^4 - 1) h_z^2)^2) (models/brdf.py `ggx_d`). Samples: h_z of a
-cosine-hemisphere direction, alpha_h exponential-like (biased to glossy); L1 on D; Adam.
+cosine-hemisphere direction, alpha_h exponential-like (biased to glossy) for the paper's L1 on D.
+Here the loss is in the domain the Fig. 6 balls are judged in (`ggx_loss`): MSE of the clamped,
+sRGB-encoded ball radiance on samples distributed like the ball pixels (alpha_h uniform over the
+ball row's range, points over the ball, the scene's lights), plus a small tone-mapped L1 on D
+over the paper's sampling; Adam, cosine schedule. L1 on raw D spends the 8x8 cells on peaks
+that saturate to white (pooled ball PSNR 39.3 dB, worst ball 34.1 at 1500 steps), the display
+loss on the dim highlights the balls show (47.5 / 41.7 dB at 8000 steps, ~75 s on one core).
 
 Disney. Albedo factored out (paper Eq. 3; exact, models/brdf.py `disney_pq`), then five runtime
 lookups (decoders) and ~70 FLOPs of glue (shaders/lib/di_brdf.glsl, torch `disney_glue`):
@@ -64,7 +71,20 @@ GGX_KIND, DISNEY_KIND = "di_ggx", "di_disney"
 # Fig. 6-style GGX balls: f = n.l (GGX_KD base / pi + GGX_KS D), alpha_h swept over the columns.
 GGX_KD, GGX_KS = 0.5, 0.25
 GGX_ALPHA_RANGE = (0.1, 1.0)
-GGX_DEFAULTS = dict(steps=1500, batch=4096, lr=1e-2, schedule="cosine", seed=0)
+# lr 2e-2 vs 1e-2 (clamped init, 8000 steps, seeds 0/1/2): pooled ball PSNR 49.1/48.9/47.6 vs
+# 47.2/50.9/47.8 dB, worst ball 44.2/46.4/42.2 vs 41.4/46.0/41.9; 16000 steps added ~0.5 dB.
+GGX_DEFAULTS = dict(steps=8000, batch=4096, lr=2e-2, schedule="cosine", seed=0)
+# Weight of the function-domain term of `ggx_loss` next to the display-domain ball MSE: enough to
+# keep D tracking the analytic one off the balls' domain (measured with the constant init, 8000
+# steps: tone-mapped function PSNR 35.9 dB, -3.9 dB without the term), small enough not to pull
+# the balls (1e-2 cost ~1.4 dB pooled).
+GGX_FUNCTION_WEIGHT = 1e-3
+# Cascaded init: D at the cells, clamped where the balls saturate (key light: radiance ~ 2 n.l x
+# GGX_KS D, white from D ~ 2). Versus the paper's constant 0.5 it starts the primary in the right
+# basin: pooled ball PSNR over seeds 0/1/2 47.2/50.9/47.8 dB vs 47.0/43.4/40.7 dB (8000 steps),
+# and the cap keeps the 8-bit cascaded range (and so its step) small; a cap of 4 or 8 did worse.
+GGX_INIT_CAP = 2.0
+GGX_CASCADED_INIT = "clamped_d"
 DISNEY_DEFAULTS = dict(steps=400, batch=4096, lr=3e-3, schedule="cosine", seed=0, samples=1 << 17)
 ENCODER_SIZE = 64
 DECODER_SIZE = 16
@@ -97,9 +117,19 @@ def ggx_eval_set(n: int = 1 << 15, seed: int = 1234):
     return torch.stack([a, hz], -1), brdf.ggx_d(hz, a)[:, None]
 
 
-def ggx_cascade() -> GraphModule:
-    return di.cascade(2, 1, 16, 8, primary_bits=8, cascaded_bits=8, cascaded_init="constant",
-                      cascaded_init_args={"value": 0.5}, input_name="x", input_semantic="alpha_h, n.h",
+def ggx_init_cells(x: torch.Tensor) -> torch.Tensor:
+    """Cascaded-array init at the cell points x = (alpha_h, n.h) [P, 2] (what the identity primary
+    reads there): D clamped to GGX_INIT_CAP (alpha_h floored so that D(0, 1) = 0/0 is the cap)."""
+    return analytic_d(x[:, 0].clamp_min(1e-2), x[:, 1]).clamp(max=GGX_INIT_CAP)[:, None]
+
+
+def ggx_cascade(cascaded_init: str = GGX_CASCADED_INIT) -> GraphModule:
+    """16x16x2 primary (identity ramp, triangle F) -> 8x8x1 cascaded, both 8-bit. `cascaded_init`
+    "clamped_d" (default, `ggx_init_cells`) or "constant" (the paper's 0.5)."""
+    init, args = {"clamped_d": ("downsample", {"target": ggx_init_cells}),
+                  "constant": ("constant", {"value": 0.5})}[cascaded_init]
+    return di.cascade(2, 1, 16, 8, primary_bits=8, cascaded_bits=8, cascaded_init=init,
+                      cascaded_init_args=args, input_name="x", input_semantic="alpha_h, n.h",
                       output_name="d", output_semantic="ggx_d")
 
 
@@ -151,13 +181,105 @@ def ggx_metrics(g: GraphModule, cols: int = SWEEP_COLUMNS, size: int = 64) -> di
             "psnr_function_raw_peak_max": di.psnr(p, y, float(y.max()))}
 
 
+def srgb_display(radiance: torch.Tensor) -> torch.Tensor:
+    """Torch twin of `material_balls.display`: clamp to [0, 1], sRGB-encode (differentiable)."""
+    x = radiance.clamp(0.0, 1.0)
+    return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(0.0031308) ** (1.0 / 2.4) - 0.055)
+
+
+def ggx_ball_terms(P: torch.Tensor, lights: int = mb.MAX_LIGHTS):
+    """Per ball point P [B, 3] (cell units, ball at the origin, viewer along +z as in
+    `material_balls.render`): n.h [B, lights] and the light weights w [B, lights] =
+    n.l * intensity / dist^2 (0 where n.l <= 0 or n.v <= 0), so that a ball pixel's linear radiance
+    is sum_k w_k (GGX_KD / (2 pi) + GGX_KS D(alpha_h, n.h_k)) -- `ggx_shade` summed over the lights."""
+    n = P / mb.BALL_RADIUS
+    lt = torch.tensor(mb.LIGHTS[:lights], dtype=torch.float32)
+    d = lt[None, :, :3] - P[:, None]
+    dist2 = (d * d).sum(-1)
+    l = d * torch.rsqrt(dist2)[..., None]
+    h = l + torch.tensor([0.0, 0.0, 1.0])
+    h = h * torch.rsqrt((h * h).sum(-1))[..., None]
+    nl = (n[:, None] * l).sum(-1)
+    lit = (nl > 0.0) & (n[:, None, 2] > 0.0)
+    w = torch.where(lit, nl * lt[None, :, 3] / dist2, torch.zeros_like(nl))
+    return (n[:, None] * h).sum(-1).clamp(0.0, 1.0), w
+
+
+def ggx_ball_sampler(batch: int, seed: int = 0):
+    """Endless (alpha_h [B], n.h [B, L], w [B, L]) batches distributed like the Fig. 6 ball pixels:
+    alpha_h uniform over GGX_ALPHA_RANGE (continuous, not just the 8 columns), a point uniform over
+    the ball's disk, the first 1..MAX_LIGHTS scene lights (the viewer's light-count setting)."""
+    gen = torch.Generator().manual_seed(seed)
+    lo, hi = GGX_ALPHA_RANGE
+    r2 = mb.BALL_RADIUS * mb.BALL_RADIUS
+    while True:
+        a = lo + (hi - lo) * torch.rand(batch, generator=gen)
+        rho = torch.sqrt(r2 * torch.rand(batch, generator=gen))
+        phi = 2.0 * math.pi * torch.rand(batch, generator=gen)
+        x, y = rho * torch.cos(phi), rho * torch.sin(phi)
+        P = torch.stack([x, y, torch.sqrt((r2 - x * x - y * y).clamp_min(0.0))], -1)
+        nh, w = ggx_ball_terms(P)
+        count = torch.randint(1, mb.MAX_LIGHTS + 1, (batch, 1), generator=gen)
+        yield a, nh, w * (torch.arange(mb.MAX_LIGHTS)[None] < count)
+
+
+def ggx_ball_display(d_fn, a, nh, w) -> torch.Tensor:
+    """Display-domain value (`srgb_display`) of ball samples, D given by `d_fn(alpha_h, n.h)`."""
+    d = d_fn(a[:, None].expand_as(nh), nh)
+    return srgb_display((w * (GGX_KD * 0.5 * brdf.INV_PI + GGX_KS * d)).sum(-1))
+
+
+def ggx_loss(g: GraphModule, ball, fn):
+    """MSE of the display-domain ball samples (what the ball PSNR measures: radiance clamped and
+    sRGB-encoded, so D's peaks above white cost nothing and dim highlights count) + GGX_FUNCTION_WEIGHT
+    x L1 of x / (1 + |x|) tone-mapped D on the paper's sampling (`ggx_sampler`), which keeps D sane
+    where no ball pixel looks (alpha_h < 0.1, n.h no light reaches)."""
+    with torch.no_grad():
+        ref = ggx_ball_display(analytic_d, *ball)
+    err = ggx_ball_display(learned_d(g), *ball) - ref
+    x, y = fn
+    return torch.mean(err * err) + GGX_FUNCTION_WEIGHT * torch.mean(torch.abs(_tonemap(g(x)) - _tonemap(y)))
+
+
 def train_ggx(steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=GGX_DEFAULTS["lr"],
               schedule=GGX_DEFAULTS["schedule"], seed=GGX_DEFAULTS["seed"], progress=None):
+    """Adam on `ggx_loss` (batch ball samples + batch / 4 function samples a step) with an
+    `indirection.SCHEDULES` schedule. History: step, loss (mean training loss since the last record),
+    psnr (display domain, float cascade, on 16384 fixed ball samples), lr, seconds."""
+    from tqdm import tqdm
+
     torch.manual_seed(seed)
     g = ggx_cascade()
+    balls, fns = ggx_ball_sampler(batch, seed), ggx_sampler(max(batch // 4, 1), seed + 1)
+    ev = next(ggx_ball_sampler(1 << 14, seed + 2))
+    with torch.no_grad():
+        ev_ref = ggx_ball_display(analytic_d, *ev)
+    opt = torch.optim.Adam(g.parameters(), lr=lr)
+    on_step, on_eval = di.SCHEDULES[schedule](opt, steps, 3)
+    hist, acc, count = di.History(), 0.0, 0
+    every = max(1, steps // 20)
     t0 = time.perf_counter()
-    hist = di.train_cascade(g, ggx_sampler(batch, seed), steps, lr=lr, schedule=schedule, seed=seed,
-                            eval_set=ggx_eval_set(4096), progress=progress, desc="di_ggx")
+
+    def record(step, loss=None):
+        with torch.no_grad():
+            got = ggx_ball_display(learned_d(g), *ev)
+        loss = float(torch.mean((got - ev_ref) ** 2)) if loss is None else loss  # step 0: the eval set's MSE
+        hist.records.append({"step": step, "loss": loss, "psnr": di.psnr(got, ev_ref),
+                             "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
+
+    record(0)
+    progress = sys.stderr.isatty() if progress is None else progress
+    for step in tqdm(range(1, steps + 1), desc="di_ggx", disable=not progress, leave=False):
+        loss = ggx_loss(g, next(balls), next(fns))
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        on_step()
+        acc, count = acc + float(loss.detach()), count + 1
+        if step % every == 0 or step == steps:
+            record(step, acc / count)
+            on_eval(acc / count)
+            acc, count = 0.0, 0
     return g, hist, time.perf_counter() - t0
 
 
@@ -489,6 +611,7 @@ def glsl_psnr(folder, model: str, lut_filter: str, ball_px: int) -> dict:
     else:
         out["per_ball"] = [round(v, 3) for v in per[0]]
         out["mean"], out["min"] = float(np.mean(per[0])), float(np.min(per[0]))
+        out["all_pixels"] = mb.ball_psnr(imgs["learned"], imgs["analytic"], inside)
     return out
 
 
@@ -548,9 +671,12 @@ def build_ggx(out, steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=
                            for r in hist.records]}
     prov = _provenance(command, {
         "technique": "Differentiable Indirection isotropic GGX (Datta et al. 2023): 16x16x2 primary "
-                     "(uv ramp, triangle F, 8-bit) -> 8x8x1 cascaded (const 0.5 init, no F, 8-bit)",
-        "training": f"alpha_h exponential-like, h_z cosine-hemisphere, L1 on D, Adam lr {lr:g} cosine, "
-                    f"batch {batch}, {steps} steps, seed {seed}",
+                     "(uv ramp, triangle F, 8-bit) -> 8x8x1 cascaded (init D clamped to "
+                     f"{GGX_INIT_CAP:g} at the cells, no F, 8-bit)",
+        "training": f"display-domain MSE on ball samples (alpha_h uniform {GGX_ALPHA_RANGE}, points over "
+                    f"the ball, 1-{mb.MAX_LIGHTS} scene lights) + {GGX_FUNCTION_WEIGHT:g} x L1 on x/(1+x) "
+                    f"tone-mapped D (alpha_h exponential-like, h_z cosine-hemisphere), Adam lr {lr:g} "
+                    f"cosine, batch {batch} (+{max(batch // 4, 1)} function samples), {steps} steps, seed {seed}",
         "psnr_domain": "Fig. 6 ball row: radiance clamped to [0,1], sRGB-encoded, over ball pixels, peak 1"})
     return write_ggx_asset(g, out, metrics, prov, ball_px, gl_metrics)
 
@@ -649,7 +775,8 @@ def run(args, argv=None) -> int:
     m = build(args.out, steps=steps, batch=batch, lr=lr, seed=args.seed, command=command,
               gl_metrics=not args.no_gl)
     if args.which == "ggx":
-        print(f"wrote {args.out}: GGX ball PSNR mean {m['psnr_balls_mean']:.2f} dB (min {m['psnr_balls_min']:.2f}), "
+        print(f"wrote {args.out}: GGX ball PSNR all pixels {m['psnr_balls_all_pixels']:.2f} dB, "
+              f"mean {m['psnr_balls_mean']:.2f} dB (min {m['psnr_balls_min']:.2f}), "
               f"function (tone-mapped) {m['psnr_function_tonemapped']:.2f} dB, {m['train_seconds']:.1f} s")
     else:
         rows = ", ".join(f"{k} {v['min']:.1f}" for k, v in m["sweep"].items())

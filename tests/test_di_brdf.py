@@ -63,14 +63,52 @@ def test_ggx_trains_and_quantises():
     from inshade.models import indirection as di
     x, y = D.ggx_eval_set(4096)
     before = _tonemapped_psnr(D.ggx_cascade(), x, y)
+    balls_before = D.ggx_metrics(D.ggx_cascade())["psnr_balls_all_pixels"]
     g, hist, _ = D.train_ggx(steps=80, batch=1024, lr=1e-2)
     after = _tonemapped_psnr(g, x, y)
     assert after > before + 5.0, (before, after)
+    # the display-domain loss is what moves the balls (quantised, all ball pixels)
+    balls_after = D.ggx_metrics(g)["psnr_balls_all_pixels"]
+    assert balls_after > balls_before + 5.0, (balls_before, balls_after)
+    assert hist.psnr[-1] > hist.psnr[0] + 5.0, hist.psnr
     prim, casc = g.nodes["primary"], g.nodes["cascaded"]
     assert prim.resolution == [16, 16] and prim.channels == 2 and prim.nonlinearity == "triangle"
     assert casc.resolution == [8, 8] and casc.channels == 1 and casc.nonlinearity == "none"
     q = di.quantised_copy(g, 8)
     assert after - _tonemapped_psnr(q, x, y) < 3.0
+
+
+@pytest.mark.parametrize("lights", [1, 2, 4])
+def test_ggx_ball_terms_reproduce_the_ball_render(lights):
+    """The training samples' geometry (`ggx_ball_terms`: n.h and n.l I / d^2 per light) gives the
+    radiance `material_balls.render` shades at the same ball points. Tolerance 2e-3 relative: the two
+    compute n.h in different orders, and GGX near its peak amplifies an ulp of n.h (see below)."""
+    cols, px = D.SWEEP_COLUMNS, 24
+    w, h = cols * px, px
+    sa = D.ggx_shade(D.analytic_d)
+    sa.cols = cols
+    ref = torch.from_numpy(mb.render(w, h, cols, 1, sa, lights))
+    geo = mb.ball_geometry(w, h, cols, 1)
+    m = geo["inside"]
+    lo, hi = D.GGX_ALPHA_RANGE
+    a = lo + (hi - lo) * geo["col"][m].float() / (cols - 1)
+    nh, wt = D.ggx_ball_terms(geo["P"][m], lights)
+    got = (wt * (D.GGX_KD * 0.5 * brdf.INV_PI + D.GGX_KS * D.analytic_d(a[:, None].expand_as(nh), nh))).sum(-1)
+    want = ref[m][:, 0]
+    assert float(((got - want).abs() / want.abs().clamp_min(1.0)).max()) < 2e-3
+    # and the display-domain twin agrees with material_balls.display
+    disp = D.srgb_display(got)
+    assert np.allclose(disp.numpy(), mb.display(got.numpy()), atol=1e-5)
+
+
+def test_ggx_ball_sampler_spans_the_ball_row():
+    a, nh, w = next(D.ggx_ball_sampler(4096, seed=3))
+    lo, hi = D.GGX_ALPHA_RANGE
+    assert a.min() >= lo and a.max() <= hi and a.max() - a.min() > 0.8 * (hi - lo)
+    assert nh.shape == w.shape == (4096, mb.MAX_LIGHTS) and (nh >= 0).all() and (nh <= 1).all()
+    assert (w >= 0).all()
+    on = (w > 0).float().mean(0)
+    assert on[-1] > 0.05 and on[-1] < on[0]  # the 1..MAX_LIGHTS light count: the last light is on less often
 
 
 def test_ggx_asset_glsl_matches_torch(gl, tmp_path):
