@@ -8,6 +8,7 @@
 // Torch twin: models/pbr_set.py render_gbuffer (fed the same G-buffer).
 #include <network>
 #include <lib/camera>
+#include <lib/gbuffer>
 #include <lib/pbr_set>
 
 #if NET_IN_DIM != 2 || NET_OUT_DIM < 8
@@ -19,10 +20,6 @@
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
-uniform sampler2D u_gbuffer_position;
-uniform sampler2D u_gbuffer_normal;
-uniform sampler2D u_gbuffer_uv;
-uniform sampler2D u_gbuffer_tangent;
 uniform sampler2D u_pbr_set0;   // lanes 0-3
 uniform sampler2D u_pbr_set1;   // lanes 4-7
 uniform int u_pbr_view;
@@ -31,10 +28,11 @@ layout(location = 0) out vec4 frag_color;
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    vec4 position = texelFetch(u_gbuffer_position, px, 0);
+    vec3 p, n;
+    bool covered = gbuffer_surface(px, p, n);
     vec3 ro, rd;
     camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (position.w == 0.0) {
+    if (!covered) {
         frag_color = vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 1.0);
         return;
     }
@@ -52,7 +50,6 @@ void main() {
         a = texture(u_pbr_set0, uv);
         b = texture(u_pbr_set1, uv);
     }
-    vec3 n = texelFetch(u_gbuffer_normal, px, 0).xyz;
     vec4 tangent = texelFetch(u_gbuffer_tangent, px, 0);
-    frag_color = vec4(pbr_set_shade(pbr_set_unpack(a, b), position.xyz, n, tangent, rd, u_sh, u_light_count), 1.0);
+    frag_color = vec4(pbr_set_shade(pbr_set_unpack(a, b), p, n, tangent, rd, u_sh, u_light_count), 1.0);
 }

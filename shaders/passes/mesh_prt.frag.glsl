@@ -6,12 +6,11 @@
 // Debug u_prt_debug as passes/sdf_prt.frag (1..4 transfer block, 5 position, 6 normal).
 // Torch reference: models/prt.py render_gbuffer() (fed the same G-buffer).
 #include <lib/camera>
+#include <lib/gbuffer>
 #include <lib/prt>
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
-uniform sampler2D u_gbuffer_position;
-uniform sampler2D u_gbuffer_normal;
 uniform int u_shading;          // PRT_DIFFUSE | PRT_GLOSSY
 uniform float u_phong_exponent;
 uniform float u_albedo;         // tint of the mesh's base colour
@@ -23,16 +22,14 @@ layout(location = 0) out vec4 frag_color;
 const vec3 MESH_ALBEDO = vec3(0.8);  // the mesh's base colour (models/prt.py MESH_ALBEDO)
 
 void main() {
-    ivec2 px = ivec2(gl_FragCoord.xy);
-    vec4 position = texelFetch(u_gbuffer_position, px, 0);
+    vec3 p, n;
+    bool covered = gbuffer_surface(ivec2(gl_FragCoord.xy), p, n);
     vec3 ro, rd;
     camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (position.w == 0.0) {
+    if (!covered) {
         frag_color = u_prt_debug > 0 ? vec4(0.0) : vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 1.0);
         return;
     }
-    vec3 p = position.xyz;
-    vec3 n = texelFetch(u_gbuffer_normal, px, 0).xyz;
     vec4 tr[PRT_BLOCKS];
     prt_transfer(p, n, tr);
     if (u_prt_debug > 0) {
