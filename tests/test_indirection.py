@@ -207,6 +207,36 @@ def test_finish_phase_switches_sampler_and_loss():
         train_cascade(g0, image_sampler(image, 16), 1, finish=(0, texel_sampler(image, 16), "huber"))
 
 
+def test_finish_lbfgs_beats_adam_finish_at_equal_samples():
+    """Full-batch L-BFGS on the texel-centre squared error goes further than the minibatch Adam
+    finish given the same number of samples, and records its progress after the Adam history."""
+    from inshade.models.indirection import LOSSES, finish_lbfgs, texel_sampler
+
+    image = synthetic_image(16)
+    uv, rgb = image_eval_set(image)
+
+    def start():
+        torch.manual_seed(0)
+        g = cascade(2, 3, 8, 4, cascaded_init="mean", cascaded_init_args={"target": image})
+        h = train_cascade(g, image_sampler(image, 64), 40, lr=1e-2, eval_every=20, eval_set=(uv, rgb))
+        return g, h
+
+    def mse(g):
+        with torch.no_grad():
+            return float(LOSSES["mse"](g(uv) - rgb))
+
+    adam, _ = start()
+    train_cascade(adam, texel_sampler(image, 64), 120, lr=1e-2, loss="mse")   # 120 * 64 samples = 30 * 256
+    lbfgs, h = start()
+    before = mse(lbfgs)
+    finish_lbfgs(lbfgs, (uv, rgb), 30, history=h, first_step=40, eval_every=10)
+    assert mse(lbfgs) < 0.9 * mse(adam) and mse(lbfgs) < before, (mse(lbfgs), mse(adam), before)
+    steps = [r["step"] for r in h.records]
+    assert steps[:3] == [0, 20, 40] and steps[-1] >= 40 + 30 and len(steps) > 4
+    assert h.records[-1]["psnr"] == pytest.approx(10 * np.log10(1 / mse(lbfgs)), abs=1e-6)
+    assert h.records[-1]["seconds"] >= h.records[2]["seconds"]
+
+
 # --- training ---------------------------------------------------------------------------------
 
 def test_fit_improves_over_init(trained):

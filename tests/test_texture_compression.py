@@ -50,6 +50,21 @@ def test_tiny_compression_improves_and_glsl_matches_torch(gl, tmp_path):
         assert (out / f).is_file()
 
 
+def test_finish_optimizer_lbfgs_and_paper_protocol():
+    """"lbfgs" finishes better than "adam" at the same budget; finish 0 (the paper's protocol)
+    ignores the finish optimiser; an unknown one is one clear error."""
+    img = _tiny_image()
+    run = lambda **kw: tc.compress(img, 3, steps=80, batch=512, gl_metrics=False, **kw).metrics
+    adam, lbfgs = run(finish_optimizer="adam"), run(finish_optimizer="lbfgs")
+    assert lbfgs["finish_optimizer"] == "lbfgs" and lbfgs["finish_steps"] == 40
+    assert lbfgs["psnr_float"] > adam["psnr_float"]
+    paper = [run(finish=0.0, finish_optimizer=o) for o in ("adam", "lbfgs")]
+    assert paper[0]["psnr_quantised"] == paper[1]["psnr_quantised"]
+    assert paper[0]["history"][-1]["step"] == 80
+    with pytest.raises(tc.CompressionError, match="unknown finish optimizer"):
+        tc.compress(img, 3, steps=1, finish_optimizer="sgd", gl_metrics=False)
+
+
 # bad input: handled with a note, or one clear error --------------------------------------
 
 def test_non_square_rejected_unless_size_given():
