@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from . import brdf
-from .neural_image import srgb_eotf, srgb_oetf
+from .neural_image import srgb_oetf
 
 PROGRAM = "passes/mesh_pbr_set.frag"
 # lane groups: name -> (first lane, width); order is the shader's (lib/pbr_set.glsl)

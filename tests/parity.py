@@ -112,6 +112,36 @@ def check_parity(ctx, bundle, x, *, tol: float = TOL, reference=None, what: str 
     return assert_parity(out, ref, tol, desc)
 
 
+def run_sample_pass(ctx, fragment: str, rows: np.ndarray, texels: int, *, uniforms=None, chunks=None,
+                    width: int = 64) -> np.ndarray:
+    """A test pass with one sample per pixel: `rows` [N, 4 * texels] are laid out as `texels` vec4
+    texels side by side per pixel in the float texture `u_inputs` (data orientation), `fragment`
+    runs over a ceil(N / width) x width grid; returns attachment 0 as [N, 4]. Releases every GL
+    object it made."""
+    from inshade.viewer.programs import ProgramCache
+    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
+
+    n = rows.shape[0]
+    w = min(n, width)
+    h = (n + w - 1) // w
+    grid = np.zeros((h * w, 4 * texels), np.float32)
+    grid[:n] = rows
+    cache = ProgramCache(ctx)
+    prog = cache.get("common/fullscreen.vert", fragment, chunks=chunks)
+    tex = upload_float_texture(ctx, grid.reshape(h, w * texels, 4))
+    fbo = float_target(ctx, w, h)
+    pass_ = FullscreenPass(ctx, prog)
+    ctx.viewport = (0, 0, w, h)
+    try:
+        pass_.render(fbo, uniforms=uniforms, textures={"u_inputs": tex})
+        return read_rgba_raw(fbo).reshape(-1, 4)[:n]
+    finally:
+        pass_.vao.release()
+        tex.release()
+        release_target(fbo)
+        cache.release()
+
+
 def uniform_inputs(seed: int, n: int, dim: int, lo: float = -1.0, hi: float = 1.0) -> np.ndarray:
     return np.random.default_rng(seed).uniform(lo, hi, (n, dim)).astype(np.float32)
 

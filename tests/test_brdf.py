@@ -16,34 +16,14 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.models import brdf
-from parity import parity_settings
+from parity import parity_settings, run_sample_pass
 
 
 def _glsl_eval(gl, l, v, base, params, nh, alpha):
-    from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
-
-    n = l.shape[0]
-    rows = np.zeros((n, 24), np.float32)
+    rows = np.zeros((l.shape[0], 24), np.float32)
     rows[:, 0:3], rows[:, 3:6], rows[:, 6:9], rows[:, 9:19] = l, v, base, params
     rows[:, 20], rows[:, 21] = nh, alpha
-    w = min(n, 64)
-    h = (n + w - 1) // w
-    grid = np.zeros((h * w, 24), np.float32)
-    grid[:n] = rows
-    cache = ProgramCache(gl)
-    prog = cache.get("common/fullscreen.vert", "passes/brdf_eval_test.frag")
-    tex = upload_float_texture(gl, grid.reshape(h, w * 6, 4))
-    fbo = float_target(gl, w, h)
-    pass_ = FullscreenPass(gl, prog)
-    gl.viewport = (0, 0, w, h)
-    pass_.render(fbo, textures={"u_inputs": tex})
-    out = read_rgba_raw(fbo).reshape(-1, 4)[:n]
-    pass_.vao.release()
-    tex.release()
-    release_target(fbo)
-    cache.release()
-    return out
+    return run_sample_pass(gl, "passes/brdf_eval_test.frag", rows, 6)
 
 
 def _random_inputs(seed: int, n: int):

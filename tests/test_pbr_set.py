@@ -27,36 +27,16 @@ from hypothesis import strategies as st
 from inshade.codegen.sdf import environment_sh
 from inshade.codegen.spherical_harmonics import sh_chunks
 from inshade.models import pbr_set as P
-from parity import TOL, parity_settings
+from parity import TOL, parity_settings, run_sample_pass
 
 SH_DEGREE = 3
 
 
 def _glsl_shade(gl, a, b, p, ng, tangent, rd, sh, lights):
-    from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
-
-    n = a.shape[0]
-    rows = np.zeros((n, 24), np.float32)
+    rows = np.zeros((a.shape[0], 24), np.float32)
     rows[:, 0:4], rows[:, 4:8], rows[:, 8:11], rows[:, 12:15], rows[:, 16:20], rows[:, 20:23] = a, b, p, ng, tangent, rd
-    w = min(n, 64)
-    h = (n + w - 1) // w
-    grid = np.zeros((h * w, 24), np.float32)
-    grid[:n] = rows
-    cache = ProgramCache(gl)
-    prog = cache.get("common/fullscreen.vert", "passes/pbr_set_eval_test.frag", chunks=sh_chunks(SH_DEGREE))
-    tex = upload_float_texture(gl, grid.reshape(h, w * 6, 4))
-    fbo = float_target(gl, w, h)
-    pass_ = FullscreenPass(gl, prog)
-    gl.viewport = (0, 0, w, h)
-    pass_.render(fbo, uniforms={"u_sh": np.asarray(sh, np.float32).tobytes(), "u_light_count": lights},
-                 textures={"u_inputs": tex})
-    out = read_rgba_raw(fbo).reshape(-1, 4)[:n, :3]
-    pass_.vao.release()
-    tex.release()
-    release_target(fbo)
-    cache.release()
-    return out
+    return run_sample_pass(gl, "passes/pbr_set_eval_test.frag", rows, 6, chunks=sh_chunks(SH_DEGREE),
+                           uniforms={"u_sh": np.asarray(sh, np.float32).tobytes(), "u_light_count": lights})[:, :3]
 
 
 def _unit(x):
