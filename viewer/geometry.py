@@ -1,4 +1,4 @@
-"""Triangle-mesh geometry on the GPU: the G-buffer pass that deferred mesh shading (PRT) reads.
+"""Triangle-mesh geometry on the GPU: the G-buffer pass that deferred mesh shading (PRT, PBR sets) reads.
 
 ``MeshGBuffer(ctx, mesh)`` uploads a trimesh mesh's positions, shading normals (inshade/mesh.py
 ``shading_normals``: welded across uv seams), uv and tangents once; ``draw(view, proj, model,
