@@ -72,8 +72,10 @@ DEFAULTS = dict(ratio=6.0, rho=None, steps=PRESETS["quick"], lr=1e-2, batch=1638
 # (finish steps * batch / texels evaluations of the whole texture), so it costs no more time.
 # Measured on astronaut 256^2 / 6x, 6000 steps, 1 thread (8-bit PSNR, seeds 0 / 1): Adam finish
 # 32.54 / 32.51 dB in 120 / 122 s, L-BFGS 32.62 / 33.02 dB in 110 / 116 s; 12000 steps, seed 0:
-# Adam 32.97 dB in 232 s, L-BFGS 33.33 dB in 208 s. Never worse and ~10% faster, but the gain
-# (+0.1 to +0.5 dB) follows the Adam phase's seed-dependent end point, so "adam" stays the default. (Full-batch Adam at lr 1e-2 matched L-BFGS: the gain is the full batch.)
+# Adam 32.97 dB in 232 s, L-BFGS 33.33 dB in 208 s; the shipped 12000-step RGB assets gained
+# 0.25-0.72 dB. Hence the default; the gain follows the Adam phase's (seed-dependent) end point,
+# and on the 8-lane PBR set (144^2 primary) L-BFGS was 0.17 dB *worse* (models/pbr_set.py keeps
+# "adam"). (Full-batch Adam at lr 1e-2 matched L-BFGS: the gain is the full batch.)
 FINISH_OPTIMIZERS = ("adam", "lbfgs")
 # rho = N_p / N_c. None: the largest primary that fits with the smallest cascaded array
 # (N_c = 4) -- at the small sizes trained here the primary is the one that carries detail
