@@ -236,8 +236,7 @@ def render_gbuffer(gbuffer, uniforms: dict, width: int, height: int, sh, *, grap
     if idx.numel():
         uv = uvs[idx, :2] - torch.floor(uvs[idx, :2])
         column = (idx % width).float() + 0.5
-        compressed = {"di": torch.ones_like(column, dtype=torch.bool), "uncompressed": torch.zeros_like(
-            column, dtype=torch.bool), "split": column >= 0.5 * width}[view]
+        compressed = {"di": column >= 0.0, "uncompressed": column < 0.0, "split": column >= 0.5 * width}[view]
         lanes = torch.zeros(len(idx), CHANNELS)
         if compressed.any():
             with torch.no_grad():
