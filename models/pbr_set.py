@@ -403,7 +403,7 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
     from inshade.mesh import write_torus
     from inshade.viewer.image_io import write_png
 
-    from .texture_compression import compress, glsl_decode
+    from .texture_compression import compress, glsl_decode, torch_decode
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -428,9 +428,7 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
                                                           "uncompressed_bytes", "n_primary", "n_cascaded",
                                                           "steps", "finish_steps", "finish_optimizer",
                                                           "train_seconds", "psnr_quantised")}}
-    metrics["texture"]["total_seconds"] = round(train_seconds, 2)
-    from .texture_compression import torch_decode
-
+    metrics["texture"]["total_seconds"] = round(train_seconds, 2)   # + export and the GL decode metrics
     metrics["di_torch"] = lane_metrics(torch_decode(bundle, size), lanes)
     if gl_metrics:
         for f in ("exact", "fast"):
