@@ -112,31 +112,38 @@ def check_parity(ctx, bundle, x, *, tol: float = TOL, reference=None, what: str 
     return assert_parity(out, ref, tol, desc)
 
 
-def run_sample_pass(ctx, fragment: str, rows: np.ndarray, texels: int, *, uniforms=None, chunks=None,
-                    width: int = 64) -> np.ndarray:
-    """A test pass with one sample per pixel: `rows` [N, 4 * texels] are laid out as `texels` vec4
-    texels side by side per pixel in the float texture `u_inputs` (data orientation), `fragment`
-    runs over a ceil(N / width) x width grid; returns attachment 0 as [N, 4]. Releases every GL
-    object it made."""
+def run_sample_pass(ctx, fragment: str, rows: np.ndarray, texels: int = 1, *, sampler: str = "u_inputs",
+                    attachments: int = 1, uniforms=None, chunks=None, generated=None, width: int = 64) -> list:
+    """A test pass with one sample per pixel: `rows` [N, 4 * texels] (or [N, 3] for one vec3
+    texel) are laid out as `texels` texels side by side per pixel in the float texture `sampler`
+    (data orientation); `fragment` runs over a ceil(N / width) x width grid, with the GL resources
+    of a `generated` network bound when given. Returns the `attachments` outputs, [N, 4] each.
+    Releases every GL object it made."""
+    from inshade.viewer.network import NetworkResources
     from inshade.viewer.programs import ProgramCache
     from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
 
-    n = rows.shape[0]
+    n, c = rows.shape[0], rows.shape[1] // texels
     w = min(n, width)
     h = (n + w - 1) // w
-    grid = np.zeros((h * w, 4 * texels), np.float32)
+    grid = np.zeros((h * w, c * texels), np.float32)
     grid[:n] = rows
     cache = ProgramCache(ctx)
     prog = cache.get("common/fullscreen.vert", fragment, chunks=chunks)
-    tex = upload_float_texture(ctx, grid.reshape(h, w * texels, 4))
-    fbo = float_target(ctx, w, h)
+    res = NetworkResources(ctx, generated) if generated is not None else None
+    tex = upload_float_texture(ctx, grid.reshape(h, w * texels, c))
+    fbo = float_target(ctx, w, h, attachments)
     pass_ = FullscreenPass(ctx, prog)
     ctx.viewport = (0, 0, w, h)
     try:
-        pass_.render(fbo, uniforms=uniforms, textures={"u_inputs": tex})
-        return read_rgba_raw(fbo).reshape(-1, 4)[:n]
+        if res is not None:
+            res.bind(prog, first_unit=1)
+        pass_.render(fbo, uniforms=uniforms, textures={sampler: tex})
+        return [read_rgba_raw(fbo, i).reshape(-1, 4)[:n] for i in range(attachments)]
     finally:
         pass_.vao.release()
+        if res is not None:
+            res.release()
         tex.release()
         release_target(fbo)
         cache.release()

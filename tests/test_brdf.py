@@ -23,7 +23,7 @@ def _glsl_eval(gl, l, v, base, params, nh, alpha):
     rows = np.zeros((l.shape[0], 24), np.float32)
     rows[:, 0:3], rows[:, 3:6], rows[:, 6:9], rows[:, 9:19] = l, v, base, params
     rows[:, 20], rows[:, 21] = nh, alpha
-    return run_sample_pass(gl, "passes/brdf_eval_test.frag", rows, 6)
+    return run_sample_pass(gl, "passes/brdf_eval_test.frag", rows, 6)[0]
 
 
 def _random_inputs(seed: int, n: int):

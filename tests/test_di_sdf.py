@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from inshade.codegen.network_sdf import network_sdf_chunks
 from inshade.models import di_sdf
 
-from parity import assert_parity, parity_settings
+from parity import assert_parity, parity_settings, run_sample_pass
 
 TINY = dict(rho=2.0, steps=80, batch=4096, samples=30000, lr=1e-2, seed=0)
 TINY_BUDGET = 3 * 16 ** 3 + 8 ** 3          # N_p = 16, N_c = 8: 12,800 bytes
@@ -114,36 +114,11 @@ def test_training_is_deterministic(capsule):
 
 # --- GLSL --------------------------------------------------------------------------------------
 
-def _release(*objs):
-    for o in objs:
-        for a in getattr(o, "color_attachments", ()):
-            a.release()
-        o.release()
-
-
 def _glsl_sdf(gl, bundle, points, lut_filter):
     """scene_sdf at points [N, 3] through passes/sdf_eval_test.frag."""
-    from inshade.viewer.network import NetworkResources
-    from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
-
     chunks, generated = network_sdf_chunks(bundle, lut_filter=lut_filter)
-    n, w = points.shape[0], 32
-    h = (n + w - 1) // w
-    grid = np.zeros((h * w, 3), np.float32)
-    grid[:n] = points
-    prog = ProgramCache(gl).get("common/fullscreen.vert", "passes/sdf_eval_test.frag", chunks=chunks)
-    res = NetworkResources(gl, generated)
-    tex = upload_float_texture(gl, grid.reshape(h, w, 3))
-    fbo = float_target(gl, w, h, 3)
-    pass_ = FullscreenPass(gl, prog)
-    res.bind(prog, first_unit=1)
-    pass_.render(fbo, textures={"u_points": tex})
-    out = read_rgba_raw(fbo, 0).reshape(-1, 4)[:n, 0]
-    pass_.vao.release()
-    res.release()
-    _release(tex, fbo, prog)
-    return out
+    return run_sample_pass(gl, "passes/sdf_eval_test.frag", points, sampler="u_points", attachments=3, width=32,
+                           chunks=chunks, generated=generated)[0][:, 0]
 
 
 @parity_settings(max_examples=4)

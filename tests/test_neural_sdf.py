@@ -21,7 +21,7 @@ from inshade.models.network_sdf import NetworkSdfModule
 from inshade.models.sdf import INV_PI, SdfModule, camera_rays, normals, sh_irradiance_t, sh_radiance_t, trace
 from inshade.sdf import parse_sdf
 
-from parity import assert_parity, parity_settings
+from parity import assert_parity, parity_settings, run_sample_pass
 
 TRACE = {"max_steps": 64, "step_scale": 0.8, "hit_eps": 1e-3, "normal_eps": 1e-3}
 
@@ -36,25 +36,8 @@ def _release(*objs):
 
 def _glsl_eval(gl, chunks, generated, points):
     """scene_sdf / sdf_normal at points [N, 3] through passes/sdf_eval_test.frag."""
-    from inshade.viewer.network import NetworkResources
-    from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
-
-    n, w = points.shape[0], 32
-    h = (n + w - 1) // w
-    grid = np.zeros((h * w, 3), np.float32)
-    grid[:n] = points
-    prog = ProgramCache(gl).get("common/fullscreen.vert", "passes/sdf_eval_test.frag", chunks=chunks)
-    res = NetworkResources(gl, generated)
-    tex = upload_float_texture(gl, grid.reshape(h, w, 3))
-    fbo = float_target(gl, w, h, 3)
-    pass_ = FullscreenPass(gl, prog)
-    res.bind(prog, first_unit=1)
-    pass_.render(fbo, textures={"u_points": tex})
-    out = [read_rgba_raw(fbo, i).reshape(-1, 4)[:n] for i in range(3)]
-    pass_.vao.release()
-    res.release()
-    _release(tex, fbo, prog)
+    out = run_sample_pass(gl, "passes/sdf_eval_test.frag", points, sampler="u_points", attachments=3, width=32,
+                          chunks=chunks, generated=generated)
     return out[0][:, 0], out[2][:, :3]
 
 

@@ -36,7 +36,7 @@ def _glsl_shade(gl, a, b, p, ng, tangent, rd, sh, lights):
     rows = np.zeros((a.shape[0], 24), np.float32)
     rows[:, 0:4], rows[:, 4:8], rows[:, 8:11], rows[:, 12:15], rows[:, 16:20], rows[:, 20:23] = a, b, p, ng, tangent, rd
     return run_sample_pass(gl, "passes/pbr_set_eval_test.frag", rows, 6, chunks=sh_chunks(SH_DEGREE),
-                           uniforms={"u_sh": np.asarray(sh, np.float32).tobytes(), "u_light_count": lights})[:, :3]
+                           uniforms={"u_sh": np.asarray(sh, np.float32).tobytes(), "u_light_count": lights})[0][:, :3]
 
 
 def _unit(x):

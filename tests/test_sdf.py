@@ -25,30 +25,15 @@ from hypothesis import strategies as st
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunk, sdf_chunks
 from inshade.models.sdf import SdfModule, camera_rays, gradient, normals, render, sh_radiance_t
 from inshade.sdf import SdfError, load_sdf, parse_sdf
+from parity import run_sample_pass
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ["creature", "mechanical", "occlusion"]
 
 
 def _glsl_eval(gl, scene, points):
-    from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
-
-    n = points.shape[0]
-    w = 32
-    h = (n + w - 1) // w
-    grid = np.zeros((h * w, 3), np.float32)
-    grid[:n] = points
-    prog = ProgramCache(gl).get("common/fullscreen.vert", "passes/sdf_eval_test.frag", chunks=sdf_chunks(scene))
-    tex = upload_float_texture(gl, grid.reshape(h, w, 3))
-    fbo = float_target(gl, w, h, 3)
-    pass_ = FullscreenPass(gl, prog)
-    pass_.render(fbo, textures={"u_points": tex})
-    out = [read_rgba_raw(fbo, i).reshape(-1, 4)[:n] for i in range(3)]
-    pass_.vao.release()
-    tex.release()
-    release_target(fbo)
-    prog.release()
+    out = run_sample_pass(gl, "passes/sdf_eval_test.frag", points, sampler="u_points", attachments=3, width=32,
+                          chunks=sdf_chunks(scene))
     return out[0][:, 0], out[1][:, :3], out[2][:, :3]
 
 
