@@ -53,6 +53,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.viewer.scene import lit_settings
+
 from . import indirection as di
 from .graph import GraphModule
 from .mlp import Dense
@@ -468,12 +470,7 @@ def scene_dict(name: str, title: str, frame: Frame, lut_filter: str = "exact", s
         "lights": [], "environment": {"sky": "noon", "rotation": 0.0, "degree": 4},
         "display": {"mode": "final", "modes": ["final", "network"], "split": 0.5},
         "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
-            "sky": {"type": "choice", "default": "noon", "choices": ["sunset", "overcast", "noon", "studio"],
-                    "environment": "sky", "label": "environment"},
-            "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0, "environment": "rotation",
-                             "label": "env rotation (deg)"},
+            **lit_settings(),
             "lut_filter": {"type": "choice", "default": lut_filter, "choices": ["exact", "fast"],
                            "codegen": "lut_filter", "label": "LUT filtering"},
         },

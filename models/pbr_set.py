@@ -35,6 +35,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.viewer.scene import lit_settings
+
 from . import brdf
 from .neural_image import srgb_oetf
 from .texture_compression import FINISH_OPTIMIZERS
@@ -311,16 +313,11 @@ def scene_dict(name: str, title: str, size: int, lights: int) -> dict:
         "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
         "display": {"mode": "final", "modes": ["final"], "split": 0.5},
         "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
+            **lit_settings("studio"),
             "view": {"type": "choice", "default": "split", "choices": list(VIEWS), "uniform": "u_pbr_view",
                      "label": "texture set (split: left uncompressed, right DI)"},
             "lights": {"type": "int", "default": lights, "min": 0, "max": len(LIGHTS), "uniform": "u_light_count",
                        "label": "point lights"},
-            "sky": {"type": "choice", "default": "studio", "choices": ["sunset", "overcast", "noon", "studio"],
-                    "environment": "sky", "label": "environment"},
-            "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0,
-                             "environment": "rotation", "label": "env rotation (deg)"},
             "lut_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
                            "codegen": "lut_filter", "label": "LUT filtering"},
         },

@@ -26,16 +26,13 @@ import sys
 import time
 from pathlib import Path
 
+from inshade.viewer.scene import lit_settings
+
 from . import transfer_net
 
 # The PRT scene's user-facing settings (uniforms of lib/prt.glsl, the environment of lib/sdf).
 PRT_SETTINGS = {
-    "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                 "label": "exposure"},
-    "sky": {"type": "choice", "default": "noon", "choices": ["sunset", "overcast", "noon", "studio"],
-            "environment": "sky", "label": "environment"},
-    "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0, "environment": "rotation",
-                     "label": "env rotation (deg)"},
+    **lit_settings(),
     "shading": {"type": "choice", "default": "diffuse", "choices": ["diffuse", "glossy"], "uniform": "u_shading",
                 "label": "material"},
     "phong_exponent": {"type": "float", "default": 16.0, "min": 0.0, "max": 256.0, "uniform": "u_phong_exponent",
