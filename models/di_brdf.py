@@ -244,42 +244,24 @@ def ggx_loss(g: GraphModule, ball, fn):
 def train_ggx(steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=GGX_DEFAULTS["lr"],
               schedule=GGX_DEFAULTS["schedule"], seed=GGX_DEFAULTS["seed"], progress=None):
     """Adam on `ggx_loss` (batch ball samples + batch / 4 function samples a step) with an
-    `indirection.SCHEDULES` schedule. History: step, loss (mean training loss since the last record),
-    psnr (display domain, float cascade, on 16384 fixed ball samples), lr, seconds."""
-    from tqdm import tqdm
-
+    `indirection.SCHEDULES` schedule (`indirection.train_cascade` with this objective). History:
+    step, loss (mean training loss since the last record), psnr (display domain, float cascade, on
+    16384 fixed ball samples), lr, seconds."""
     torch.manual_seed(seed)
     g = ggx_cascade()
-    balls, fns = ggx_ball_sampler(batch, seed), ggx_sampler(max(batch // 4, 1), seed + 1)
+    samples = zip(ggx_ball_sampler(batch, seed), ggx_sampler(max(batch // 4, 1), seed + 1))
     ev = next(ggx_ball_sampler(1 << 14, seed + 2))
     with torch.no_grad():
         ev_ref = ggx_ball_display(analytic_d, *ev)
-    opt = torch.optim.Adam(g.parameters(), lr=lr)
-    on_step, on_eval = di.SCHEDULES[schedule](opt, steps, 3)
-    hist, acc, count = di.History(), 0.0, 0
-    every = max(1, steps // 20)
+
+    def metric(cascade):
+        got = ggx_ball_display(learned_d(cascade), *ev)
+        return float(torch.mean((got - ev_ref) ** 2)), di.psnr(got, ev_ref)
+
     t0 = time.perf_counter()
-
-    def record(step, loss=None):
-        with torch.no_grad():
-            got = ggx_ball_display(learned_d(g), *ev)
-        loss = float(torch.mean((got - ev_ref) ** 2)) if loss is None else loss  # step 0: the eval set's MSE
-        hist.records.append({"step": step, "loss": loss, "psnr": di.psnr(got, ev_ref),
-                             "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
-
-    record(0)
-    progress = sys.stderr.isatty() if progress is None else progress
-    for step in tqdm(range(1, steps + 1), desc="di_ggx", disable=not progress, leave=False):
-        loss = ggx_loss(g, next(balls), next(fns))
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        on_step()
-        acc, count = acc + float(loss.detach()), count + 1
-        if step % every == 0 or step == steps:
-            record(step, acc / count)
-            on_eval(acc / count)
-            acc, count = 0.0, 0
+    hist = di.train_cascade(g, samples, steps, lr=lr, schedule=schedule, seed=seed,
+                            objective=lambda cascade, b: ggx_loss(cascade, *b), metric=metric,
+                            progress=progress, desc="di_ggx")
     return g, hist, time.perf_counter() - t0
 
 

@@ -453,6 +453,8 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
                   monotonicity: float = 0.0, monotonicity_args: dict | None = None,
                   primaries: list[str] | None = None, peak: float = 1.0, loss: str = "l1",
                   finish: tuple[int, Iterable, str] | None = None,
+                  objective: Callable[[GraphModule, object], torch.Tensor] | None = None,
+                  metric: Callable[[GraphModule], tuple[float, float]] | None = None,
                   progress: bool | None = None, desc: str = "cascade") -> History:
     """Fit `cascade` (any GraphModule of lookup arrays) to `sampler`'s (x, target) batches.
 
@@ -468,6 +470,10 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
     the loss is `LOSSES[loss]`, under the same optimiser and schedule (texture compression trains
     the paper's way first, then finishes on texel centres with the squared error PSNR measures).
 
+    For losses that are not a distance to targets (e.g. the GGX balls' display-space error):
+    `objective(cascade, batch)` returns the loss of a sampler batch, and `metric(cascade)` the
+    (loss, PSNR) each history record holds, in place of `eval_set`.
+
     Deterministic for a seed: global torch RNG is seeded (and restored afterwards); samplers
     should carry their own seeded generator, as `image_sampler` does. Progress bar on stderr
     only when it is a TTY (or `progress=True`). Evaluates every `eval_every` steps (default
@@ -479,6 +485,8 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
         raise ValueError(f"unknown schedule {schedule!r}; known: {', '.join(SCHEDULES)}")
     if clip_mode not in CLIPPERS:
         raise ValueError(f"unknown clip mode {clip_mode!r}; known: {', '.join(CLIPPERS)}")
+    if objective is not None and finish is not None:
+        raise ValueError("a custom objective has no finish phase")
     for name in (loss, finish[2] if finish else loss):
         if name not in LOSSES:
             raise ValueError(f"unknown loss {name!r}; known: {', '.join(LOSSES)}")
@@ -496,27 +504,30 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
 
         def evaluate(step, interval_loss, last_batch, start):
             with torch.no_grad():
-                x, y = eval_set if eval_set is not None else last_batch
-                pred = cascade(x)
-                if interval_loss is None:
-                    interval_loss = float(loss_fn(pred - y))
-                rec = {"step": step, "loss": interval_loss, "psnr": psnr(pred, y, peak),
-                       "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - start}
+                if metric is not None:
+                    eval_loss, eval_psnr = metric(cascade)
+                else:
+                    x, y = eval_set if eval_set is not None else last_batch
+                    pred = cascade(x)
+                    eval_loss, eval_psnr = float(loss_fn(pred - y)), psnr(pred, y, peak)
+                rec = {"step": step, "loss": eval_loss if interval_loss is None else interval_loss,
+                       "psnr": eval_psnr, "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - start}
             history.records.append(rec)
             return rec
 
         start = time.perf_counter()
-        first = eval_set if eval_set is not None else next(batches)
+        held_out = eval_set is not None or metric is not None
+        first = None if held_out else next(batches)
         evaluate(0, None, first, start)
-        pending = None if eval_set is not None else first
+        pending = first
         acc, count = 0.0, 0
         bar = tqdm(range(1, steps + 1), desc=desc, disable=not progress, leave=False)
         for step in bar:
             if finish is not None and step == finish[0] + 1:
                 batches, loss_fn, pending = iter(finish[1]), LOSSES[finish[2]], None
-            x, y = pending if pending is not None else next(batches)
+            batch = pending if pending is not None else next(batches)
             pending = None
-            value = loss_fn(cascade(x) - y)
+            value = objective(cascade, batch) if objective is not None else loss_fn(cascade(batch[0]) - batch[1])
             total = value
             if monotonicity:
                 for name in prim:
@@ -530,7 +541,7 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
             on_step()
             acc, count = acc + float(value.detach()), count + 1
             if step % eval_every == 0 or step == steps:
-                rec = evaluate(step, acc / count, (x, y), start)
+                rec = evaluate(step, acc / count, batch, start)
                 on_eval(rec["loss"])
                 bar.set_postfix(loss=f"{rec['loss']:.4f}", psnr=f"{rec['psnr']:.2f}")
                 acc, count = 0.0, 0
