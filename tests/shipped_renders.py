@@ -1,0 +1,70 @@
+"""Every shipped asset under the settings that change its shader, rendered small: the regression
+record that a refactor must reproduce pixel for pixel (linear float32 read-back, bit-identical).
+
+    python tests/shipped_renders.py            # (re)write tests/data/shipped_renders.npz
+    pytest tests/test_shipped_renders.py       # render again and compare, bit for bit
+
+The record was written on main before the technique plug-in refactor; rewrite it only when a
+change is meant to alter the pixels, and say so in the commit.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+RECORD = Path(__file__).resolve().parent / "data" / "shipped_renders.npz"
+
+# (asset, settings): each asset once at its defaults, plus the settings that select other shader paths.
+CASES = [
+    ("neural_image", {}),
+    ("sdf_creature", {}), ("sdf_mechanical", {}), ("sdf_occlusion", {"sky": "sunset", "env_rotation": 90.0}),
+    ("prt_creature", {}), ("prt_creature", {"shading": "glossy", "sky": "sunset", "env_rotation": 90.0}),
+    ("prt_mechanical", {}), ("prt_neural_bunny", {"shading": "glossy"}),
+    ("prt_mesh", {}), ("prt_mesh", {"shading": "glossy", "phong_exponent": 32.0}),
+    ("di_astronaut", {}), ("di_astronaut", {"lut_filter": "fast"}), ("di_astronaut_12x", {}),
+    ("di_chelsea", {}), ("di_coffee", {}),
+    ("di_pbr_bricks", {}), ("di_pbr_bricks", {"view": "split", "lights": 4}),
+    ("di_pbr_bricks", {"view": "uncompressed"}),
+    ("di_footprint", {}), ("di_footprint", {"mode": 1}), ("di_footprint", {"mode": 2}), ("di_footprint", {"mode": 3}),
+    ("di_ggx", {}), ("di_disney", {}), ("di_disney", {"lut_filter": "fast"}),
+    ("di_sdf", {}),
+]
+
+
+def key(asset: str, settings: dict) -> str:
+    return asset + "".join(f"|{k}={v}" for k, v in sorted(settings.items()))
+
+
+def size(scene_size) -> tuple[int, int]:
+    """A quarter of the scene's own size, at least 16 pixels a side (keeps aspect and runs fast)."""
+    return max(16, scene_size[0] // 4), max(16, scene_size[1] // 4)
+
+
+def render_case(asset: str, settings: dict) -> np.ndarray:
+    from inshade.viewer.headless import render_scene
+    from inshade.viewer.scene import load_scene
+
+    scene = load_scene(ROOT / "trained" / asset)
+    w, h = size(scene.size)
+    image, _ = render_scene(scene, width=w, height=h, settings=settings)
+    return np.asarray(image, np.float32)
+
+
+def main() -> int:
+    images = {}
+    for asset, settings in CASES:
+        images[key(asset, settings)] = render_case(asset, settings)
+        print(f"rendered {key(asset, settings)} {images[key(asset, settings)].shape}", file=sys.stderr)
+    RECORD.parent.mkdir(parents=True, exist_ok=True)
+    tmp = RECORD.with_name(RECORD.name + ".tmp.npz")
+    np.savez_compressed(tmp, **images)
+    tmp.replace(RECORD)
+    print(f"wrote {RECORD}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
