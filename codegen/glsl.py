@@ -83,8 +83,7 @@ class PlanRow:
 class EmitContext:
     prefix: str
     target: str
-    lut_filter: str
-    texture_format: str
+    options: dict              # component type -> option -> value (registry.resolve_options)
     limits: dict
     globals: list[str] = field(default_factory=list)
     body: list[str] = field(default_factory=list)
@@ -92,6 +91,9 @@ class EmitContext:
     resources: list = field(default_factory=list)
     plan: list[PlanRow] = field(default_factory=list)
     storage: dict = field(default_factory=dict)   # dense node id -> (mode, why)
+
+    def option(self, component_type: str, name: str):
+        return self.options[component_type][name]
 
     def include(self, chunk: str) -> None:
         if chunk not in self.includes:

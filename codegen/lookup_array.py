@@ -6,7 +6,7 @@ N0 x N1 x (N2 * N3) read with two fetches and a mix. Texel format follows the qu
 8 bits -> unorm8, 16 -> unorm16, 32 -> float32; quantised cells are rescaled after the lookup
 (offset + scale * t commutes with interpolation).
 
-`lut_filter`: "exact" = texelFetch + fp32 mix (matches torch to fp32 rounding);
+Option ``lookup_array.filter`` (``lut_filter`` for short): "exact" = texelFetch + fp32 mix (matches torch to fp32 rounding);
 "fast" = hardware linear filtering (fewer instructions; filter weights may have as few as
 8 fractional bits, see tests/test_lookup_array.py for the measured bound).
 """
@@ -34,15 +34,16 @@ def texture_groups(cells: np.ndarray):
     return [np.ascontiguousarray(cells[..., g:g + 4]) for g in range(0, cells.shape[-1], 4)]
 
 
-@emitter("lookup_array")
+@emitter("lookup_array", options={"filter": (FILTERS, "exact")})
 def emit_lookup_array(ctx, node, src, bundle):
     ctx.include("lib/lookup_array")
+    lut_filter = ctx.option("lookup_array", "filter")
     p = node.params
     res, d, bits = p["resolution"], len(p["resolution"]), p["bits"]
     cells = bundle.tensor(node, "cells")
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     sampler = "sampler3D" if d >= 3 else "sampler2D"
-    fn = f"inshade_lut{d}_{ctx.lut_filter}"
+    fn = f"inshade_lut{d}_{lut_filter}"
     n = ", ".join(str(v) for v in res)
     size = str(res[0]) if d == 1 else f"ivec{d}({n})"
     coord = swizzle_vec(src, d)
@@ -53,7 +54,7 @@ def emit_lookup_array(ctx, node, src, bundle):
         tname = ctx.name(node.id, f"t{g}")
         ctx.globals.append(f"uniform {sampler} {tname};  // {node.id}: {'x'.join(map(str, res))} cells, "
                            f"channels {4 * g}..{4 * g + data.shape[-1] - 1}, {bits}-bit")
-        filt = "linear" if ctx.lut_filter == "fast" else "nearest"
+        filt = "linear" if lut_filter == "fast" else "nearest"
         ctx.resources.append(TextureResource(tname, data, _DTYPE[bits], filt))
         tex_bytes += data.size * _BYTES[bits]
         expr = f"{fn}({tname}, {size}, {coord})"
@@ -64,9 +65,9 @@ def emit_lookup_array(ctx, node, src, bundle):
             sl[:k], ol[:k] = scale[4 * g:4 * g + k], offset[4 * g:4 * g + k]
             expr = f"{vec4(ol)} + {vec4(sl)} * {expr}"
         ctx.body.append(f"{out.array}[{g}] = {expr};")
-    fetches = {"exact": 1 << d, "fast": 2 if d == 4 else 1}[ctx.lut_filter] * len(texture_groups(cells))
+    fetches = {"exact": 1 << d, "fast": 2 if d == 4 else 1}[lut_filter] * len(texture_groups(cells))
     ctx.plan.append(PlanRow(node.id, "lookup_array", f"{'x'.join(map(str, res))}x{p['channels']} ({bits}-bit)",
-                            f"texture/{ctx.lut_filter}", f"{bits}-bit cells -> {_DTYPE[bits]} texels",
+                            f"texture/{lut_filter}", f"{bits}-bit cells -> {_DTYPE[bits]} texels",
                             params=int(cells.size), flops=(2 ** d) * 2 * node.out_dim,
                             fetches=fetches, texture_bytes=tex_bytes))
     return out

@@ -33,6 +33,7 @@ from .registry import emitter
 from .values import declare
 
 STORAGE_MODES = ("inline", "ubo", "texture", "auto")
+TEXTURE_FORMATS = ("f4", "f2")   # weight-texture texels: float32 or float16
 SPLIT = 4                    # partial sums per output block (breaks the add dependency chain)
 UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
                              # on unrolled UBO gathers: 32x3 took minutes); GPUs don't mind loops
@@ -120,7 +121,7 @@ class WeightTexture:
         data = np.zeros((len(self.rows), width, 4), np.float32)
         for y, r in enumerate(self.rows):
             data[y, : len(r)] = r
-        fmt = self.ctx.texture_format
+        fmt = self.ctx.option("dense", "texture_format")
         if fmt == "f2":
             data = data.astype(np.float16)
         return TextureResource(self.name, data, fmt, "nearest")
@@ -170,7 +171,7 @@ def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
     ctx.body.append("\n".join(lines))
 
 
-@emitter("dense")
+@emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4")})
 def emit_dense(ctx, node, src, bundle):
     weight = bundle.tensor(node, "weight")
     bias = bundle.tensor(node, "bias") if node.params["bias"] else None
@@ -219,7 +220,7 @@ def emit_dense(ctx, node, src, bundle):
         _emit_loop(ctx, out, ob, ib, LOOP_CHUNK["texture"],
                    lambda o: f"texelFetch({t}, ivec2(0, {row0} + {o}), 0)", fetch, src)
         row.fetches = ob * (1 + 4 * ib)
-        row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.texture_format == "f2" else 1)
+        row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.option("dense", "texture_format") == "f2" else 1)
     else:
         raise ValueError(f"unknown weight storage {mode!r} (choose from {', '.join(STORAGE_MODES)})")
     ctx.plan.append(row)

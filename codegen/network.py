@@ -16,13 +16,15 @@ from inshade.bundle import Bundle
 from . import activations, encodings, lookup_array, mlp  # noqa: F401  (register emitters)
 from .glsl import EmitContext, PlanRow, blocks
 from .lookup_array import FILTERS
-from .mlp import STORAGE_MODES, WeightTexture, choose_storage
+from .mlp import STORAGE_MODES, TEXTURE_FORMATS, WeightTexture, choose_storage
 from .plan import Plan
-from .registry import EMITTERS
+from .registry import EMITTERS, OPTIONS, resolve_options
 from .values import Value, gather
 
 TARGETS = ("330", "450", "es300")
-TEXTURE_FORMATS = ("f4", "f2")
+# Short names of the most used options (CLI flags, scene settings): name -> (component type, option).
+SHORTHANDS = {"storage": ("dense", "storage"), "lut_filter": ("lookup_array", "filter"),
+              "texture_format": ("dense", "texture_format")}
 
 
 @dataclass
@@ -44,15 +46,27 @@ class Generated:
         return blocks(self.out_dim)
 
 
-def generate(bundle: Bundle, *, storage: str = "auto", target: str = "330", prefix: str = "net",
-             lut_filter: str = "exact", texture_format: str = "f4", limits: dict | None = None) -> Generated:
-    for value, allowed, what in ((storage, STORAGE_MODES, "storage"), (target, TARGETS, "target"),
-                                 (lut_filter, FILTERS, "lut filter"),
-                                 (texture_format, TEXTURE_FORMATS, "texture format")):
-        if value not in allowed:
-            raise ValueError(f"unknown {what} {value!r} (choose from {', '.join(allowed)})")
+def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330", prefix: str = "net",
+             limits: dict | None = None, **shorthands) -> Generated:
+    """The bundle's GLSL function, resources and plan.
+
+    ``options``: per component type, e.g. ``{"dense": {"storage": "ubo"}, "lookup_array": {"filter":
+    "fast"}}`` (the types and options the emitters declare: ``codegen.registry.OPTIONS``).
+    ``storage=``, ``lut_filter=``, ``texture_format=`` are shorthands for the same (``SHORTHANDS``).
+    ``limits``: the context's queried GL limits (``auto`` storage chooses by them).
+    """
+    if target not in TARGETS:
+        raise ValueError(f"unknown target {target!r} (choose from {', '.join(TARGETS)})")
+    merged = {t: dict(v) for t, v in (options or {}).items()}
+    for name, value in shorthands.items():
+        if name not in SHORTHANDS:
+            raise TypeError(f"generate() got an unexpected keyword argument {name!r}")
+        component, option = SHORTHANDS[name]
+        merged.setdefault(component, {})[option] = value
+    options = resolve_options(merged)
+    storage, lut_filter = options["dense"]["storage"], options["lookup_array"]["filter"]
     limits = dict(limits or {})
-    ctx = EmitContext(prefix, target, lut_filter, texture_format, limits)
+    ctx = EmitContext(prefix, target, options, limits)
     ctx.storage = choose_storage(bundle, storage, limits)
     ctx.weight_texture = WeightTexture(ctx)
 
@@ -92,4 +106,5 @@ def generate(bundle: Bundle, *, storage: str = "auto", target: str = "330", pref
     return Generated("\n".join(lines) + "\n", fn, prefix, bundle.in_dim, bundle.out_dim, ctx.resources, plan)
 
 
-__all__ = ["generate", "Generated", "TARGETS", "STORAGE_MODES", "FILTERS", "PlanRow"]
+__all__ = ["generate", "Generated", "TARGETS", "STORAGE_MODES", "FILTERS", "TEXTURE_FORMATS", "OPTIONS", "SHORTHANDS",
+           "PlanRow"]

@@ -12,7 +12,7 @@ The contract (torch twin: models/network_sdf.py ``NetworkSdfModule``), stored in
   scene's;
 - ``trace`` takes the analytic scenes' fields (inshade/sdf.py TRACE_DEFAULTS: max_steps,
   step_scale, hit_eps, normal_eps); a network is not an exact distance, so its ``step_scale``
-  should come from a Lipschitz bound (models/neural_sdf.py picks ``min(0.9, 1 / L)``);
+  should come from a Lipschitz bound (the MLP SDF trainer picks ``min(0.9, 1 / L)``);
 - ``albedo`` is one constant colour (linear RGB).
 
 ``network_sdf_chunks`` returns two chunks: ``sdf_scene`` (the defines, ``scene_sdf``,

@@ -1,12 +1,43 @@
-"""GLSL emitters, registered under the bundle's component type names."""
+"""GLSL emitters, registered under the bundle's component type names, with the codegen options
+each component type takes.
+
+An option is declared by the emitter of its component type (``@emitter("dense", options=...)``)
+as ``name -> (choices, default)``. ``generate(bundle, options={"dense": {"storage": "ubo"},
+"lookup_array": {"filter": "fast"}})`` passes them; an emitter reads ``ctx.option(type, name)``.
+A new component type brings its own options without touching ``generate``'s signature.
+"""
 from __future__ import annotations
 
 EMITTERS: dict = {}
+OPTIONS: dict[str, dict[str, tuple[tuple, object]]] = {}   # type -> option -> (choices, default)
 
 
-def emitter(*types: str):
+def emitter(*types: str, options: dict | None = None):
     def deco(fn):
         for t in types:
             EMITTERS[t] = fn
+            if options:
+                OPTIONS.setdefault(t, {}).update(options)
         return fn
     return deco
+
+
+def resolve_options(options: dict | None) -> dict[str, dict]:
+    """Every declared option filled in: ``options`` checked (unknown type, option or value is a
+    ValueError naming it) over the declared defaults."""
+    out = {t: {name: default for name, (_, default) in opts.items()} for t, opts in OPTIONS.items()}
+    for t, given in (options or {}).items():
+        if t not in OPTIONS:
+            raise ValueError(f"codegen options: component type {t!r} takes no options "
+                             f"(types with options: {', '.join(sorted(OPTIONS))})")
+        if not isinstance(given, dict):
+            raise ValueError(f"codegen options: {t}: must be an object {{option: value}}")
+        for name, value in given.items():
+            if name not in OPTIONS[t]:
+                raise ValueError(f"codegen options: {t}.{name}: unknown option (known: {', '.join(OPTIONS[t])})")
+            choices = OPTIONS[t][name][0]
+            if value not in choices:
+                raise ValueError(f"codegen options: {t}.{name}: unknown value {value!r} "
+                                 f"(choose from {', '.join(map(str, choices))})")
+            out[t][name] = value
+    return out

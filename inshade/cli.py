@@ -14,22 +14,26 @@ from pathlib import Path
 
 log = logging.getLogger("inshade")
 
-# Subcommands whose code needs the [train]/[bench] extras: imported only when used.
-# name -> (module, help)
-BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak"),
-           "di": ("inshade.bench.di", "DI texture compression vs ASTC / BC1 / BC7: PSNR, FLIP, bits per pixel"),
-           "prt": ("inshade.bench.prt", "learnt-transfer PRT frame times (k, size, shading, geometry) vs torch"),
-           "brdf": ("inshade.bench.brdf", "learned (DI) vs analytic GGX / Disney BRDF shader speed, 1-4 lights"),
-           "footprint": ("inshade.bench.footprint", "DI footprint-aware sampler vs GL trilinear / anisotropic"),
-           "di_sdf": ("inshade.bench.di_sdf", "DI-SDF vs MLP SDF at equal bytes: surface error, IoU, speed")}
-TRAINERS = {"neural_image": ("inshade.models.neural_image", "fit a neural image to a skimage.data photo"),
-            "transfer": ("inshade.models.transfer_net", "ground-truth transfer + the learnt-transfer MLP (PRT)"),
-            "prt_asset": ("inshade.models.prt_asset", "a complete PRT asset: transfer, scene, previews, quality"),
-            "neural_sdf": ("inshade.models.neural_sdf", "fit an MLP SDF to a watertight mesh"),
-            "di_sdf": ("inshade.models.di_sdf", "fit a DI lookup-array cascade SDF to a watertight mesh"),
-            "di_footprint": ("inshade.models.footprint", "DI footprint-aware texture sampler (no mip chain)"),
-            "di_brdf": ("inshade.models.di_brdf", "DI approximations of the GGX and Disney BRDFs"),
-            "pbr_set": ("inshade.models.pbr_set", "a DI-compressed PBR texture set (8 lanes) on a lit mesh")}
+# Benchmarks of shared machinery (not of one technique); technique benches and trainers come
+# from the technique registry (inshade/technique.py). name -> (module, help)
+SHARED_BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak")}
+ALIASES = {"compress": ("train", "di_texture")}   # `inshade compress ...` = `inshade train di_texture ...`
+
+
+def trainers() -> dict:
+    """name -> (module, help) of every registered technique with a trainer."""
+    from inshade import technique
+
+    return {t.name: (t.train, t.train_help or t.summary) for t in technique.techniques() if t.train}
+
+
+def benches() -> dict:
+    """name -> (module, help): the shared benches, then every registered technique's bench."""
+    from inshade import technique
+
+    out = dict(SHARED_BENCHES)
+    out.update({t.name: (t.bench, t.bench_help or t.summary) for t in technique.techniques() if t.bench})
+    return out
 
 
 class UserError(Exception):
@@ -40,7 +44,7 @@ def _user_errors():
     from inshade.bundle import BundleError
     from inshade.components import ComponentError
     from inshade.shaders import ShaderCompileError, ShaderIncludeError
-    from inshade.viewer.context import GLContextError
+    from inshade.runtime.context import GLContextError
     return (UserError, BundleError, ComponentError, ShaderCompileError, ShaderIncludeError,
             GLContextError, FileNotFoundError, ValueError)
 
@@ -57,7 +61,7 @@ def cmd_codegen(args) -> int:
     b = bundle_mod.load(args.bundle)
     limits = {}
     if args.storage == "auto" and not args.no_gl:
-        from inshade.viewer.context import gl_info, shared_context
+        from inshade.runtime.context import gl_info, shared_context
         limits = gl_info(shared_context())
     gen = generate(b, storage=args.storage, target=args.target, prefix=args.prefix,
                    lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits)
@@ -118,7 +122,7 @@ def cmd_info(args) -> int:
 
 # render -----------------------------------------------------------------------------------
 def cmd_render(args) -> int:
-    from inshade.viewer.headless import render_bundle, render_from_sidecar, render_scene, save_render
+    from inshade.runtime.headless import render_bundle, render_from_sidecar, render_scene, save_render
 
     if args.from_ is not None:
         if args.bundle is not None:
@@ -193,7 +197,7 @@ def cmd_view(args) -> int:
 
 # doctor -----------------------------------------------------------------------------------
 def cmd_doctor(args) -> int:
-    from inshade.viewer.context import egl_devices, gl_info, shared_context
+    from inshade.runtime.context import egl_devices, gl_info, shared_context
 
     info = gl_info(shared_context())
     info["egl_devices"] = egl_devices()
@@ -293,15 +297,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_doctor)
 
-    p = sub.add_parser("compress", help="compress an image into a DI texture asset (needs [train])",
-                       description="Differentiable Indirection texture compression: IMAGE (a file or "
-                                   "skimage:NAME) -> trained/<name> with bundle, scene.json, preview.png, "
-                                   "reference.png. Options: try `inshade compress x --help`.")
-    p.add_argument("rest", nargs=argparse.REMAINDER, help="IMAGE -o OUT [--ratio R] [--size N] ...")
-    p.set_defaults(func=_run_module, module="inshade.models.texture_compression")
+    for alias, (command, name) in ALIASES.items():
+        p = sub.add_parser(alias, help=f"same as `inshade {command} {name}`",
+                           description=f"Same as `inshade {command} {name}`; try `inshade {command} {name} --help`.")
+        p.add_argument("rest", nargs=argparse.REMAINDER, help="its options")
+        p.set_defaults(func=_run_module, module=(trainers() if command == "train" else benches())[name][0])
 
-    _mount(sub, "bench", BENCHES, "benchmarks (write JSON + markdown + plot)")
-    _mount(sub, "train", TRAINERS, "build trained/ assets")
+    _mount(sub, "bench", benches(), "benchmarks (write JSON + markdown + plot)")
+    _mount(sub, "train", trainers(), "build trained/ assets")
     return ap
 
 
@@ -312,12 +315,12 @@ def main(argv=None) -> int:
     # (so its --help is its own), after the global ones.
     quiet = bool(argv) and argv[0] in ("-q", "--quiet")
     rest = argv[1:] if quiet else argv
-    if rest and rest[0] == "compress":  # the module parses its own options (and --help)
-        args = argparse.Namespace(quiet=quiet, module="inshade.models.texture_compression", rest=rest[1:],
-                                  func=_run_module)
-    elif len(rest) >= 2 and (rest[0], rest[1]) in {("bench", k) for k in BENCHES} | {("train", k) for k in TRAINERS}:
-        table = BENCHES if rest[0] == "bench" else TRAINERS
-        args = argparse.Namespace(quiet=quiet, module=table[rest[1]][0], rest=rest[2:], func=_run_module)
+    if rest and rest[0] in ALIASES:
+        rest = [*ALIASES[rest[0]], *rest[1:]]
+    tables = {"train": trainers, "bench": benches}
+    if len(rest) >= 2 and rest[0] in tables and rest[1] in tables[rest[0]]():
+        # the module parses its own options (and --help)
+        args = argparse.Namespace(quiet=quiet, module=tables[rest[0]]()[rest[1]][0], rest=rest[2:], func=_run_module)
     else:
         args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,

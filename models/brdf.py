@@ -1,4 +1,4 @@
-"""Analytic BRDFs, the torch twin of shaders/lib/brdf.glsl (seeds/000 §4.3, notes/000.md §2.4-2.5).
+"""Analytic BRDFs, the torch twin of shaders/lib/brdf.glsl (Differentiable Indirection, Datta et al. 2023 §4.3).
 
 - `ggx_d(nh, alpha_h)`: the isotropic GGX distribution exactly as the paper approximates it,
   D(h_z, a) = a^4 / (pi (1 + (a^4 - 1) h_z^2)^2), a = alpha_h in [0, 1) the artist roughness,

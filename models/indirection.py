@@ -1,4 +1,4 @@
-"""Training machinery for Differentiable Indirection cascades (seeds/000, notes/000.md §1, §4).
+"""Training machinery for Differentiable Indirection cascades (Datta et al. 2023).
 
 A cascade is a `GraphModule` of `LookupArray` nodes: one (or more) *primary* arrays looked up
 with the input coordinate, whose outputs (wrapped into [0, 1] by a periodic F) are the
@@ -39,6 +39,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 import torch
+
+from inshade import metrics
 
 from .graph import GraphModule
 from .lookup_array import LookupArray, multilinear
@@ -419,8 +421,8 @@ LOSSES = {"l1": lambda d: torch.mean(torch.abs(d)), "mse": lambda d: torch.mean(
 
 
 def psnr(pred: torch.Tensor, target: torch.Tensor, peak: float = 1.0) -> float:
-    mse = float(torch.mean((pred.double() - target.double()) ** 2))
-    return float("inf") if mse == 0 else 10.0 * math.log10(peak * peak / mse)
+    """`inshade.metrics.psnr` (float64 difference, torch mean) of two tensors."""
+    return metrics.psnr(pred, target, peak)
 
 
 @dataclass
@@ -573,7 +575,7 @@ def finish_lbfgs(cascade: GraphModule, data, evaluations: int, *, history: Histo
 
     def record(loss):
         history.records.append({"step": first_step + count[0], "loss": loss,
-                                "psnr": 10.0 * math.log10(peak * peak / max(loss, 1e-30)),
+                                "psnr": metrics.psnr_from_mse(max(loss, 1e-30), peak),
                                 "lr": 1.0, "seconds": offset + time.perf_counter() - start})
 
     def closure():

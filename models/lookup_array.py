@@ -1,4 +1,4 @@
-"""Differentiable Indirection arrays (seeds/000): multilinear lookups, differentiable in the
+"""Differentiable Indirection arrays (Datta et al. 2023): multilinear lookups, differentiable in the
 cells and in the coordinate.
 
 Texel convention (shared with codegen/lookup_array.py and shaders/lib/lookup_array.glsl):

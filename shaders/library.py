@@ -4,6 +4,10 @@ A program is a list of ``#include <name>`` lines (three.js ``ShaderChunk`` style
 is a relative path without the ``.glsl`` suffix: ``lib/colour`` is ``shaders/lib/colour.glsl``.
 Generated code (a network) arrives as an in-memory chunk that takes priority over files.
 
+Chunk files are looked up on a search path: this shared library first, then folders added with
+``add_search_path`` (e.g. test fixtures), then each registered technique's ``shaders/`` folder
+(inshade/technique.py). A name found in two folders is an error, never a silent shadow.
+
 Rules the resolver enforces, so that every program is assembled the same way on every driver:
 
 - The resolver writes the ``#version`` header (plus ES precisions and ``#define`` lines); chunks
@@ -32,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 LIBRARY_DIR = Path(__file__).resolve().parent
+_EXTRA_ROOTS: list[Path] = []
 HEADER = "<header>"
 LINE_STRIDE = 1_000_000
 
@@ -121,7 +126,8 @@ class Assembled:
         path = self.chunk_paths.get(chunk)
         if path is None:
             return chunk if chunk == HEADER else f"<{chunk}>"
-        return f"{LIBRARY_DIR.name}/{path.relative_to(LIBRARY_DIR).as_posix()}"
+        top = LIBRARY_DIR.parent
+        return path.relative_to(top).as_posix() if path.is_relative_to(top) else str(path)
 
     def write(self, directory: str | Path, stage: str | None = None) -> Path:
         """Write the assembled source to ``<dir>/<key[:16]>.<stage>.glsl`` and return the path.
@@ -172,6 +178,31 @@ def assemble(entry: str, *, version: str = "330",
         chunk_paths=dict(resolver.paths),
         key=hashlib.sha256(key_material.encode()).hexdigest(),
     )
+
+
+def add_search_path(folder) -> None:
+    """Let chunk names resolve in ``folder`` too (after the shared library, before techniques)."""
+    folder = Path(folder).resolve()
+    if not folder.is_dir():
+        raise ValueError(f"shader search path: {folder} is not a folder")
+    if folder not in _EXTRA_ROOTS:
+        _EXTRA_ROOTS.append(folder)
+
+
+def search_path() -> list[Path]:
+    """Folders chunk names resolve in: the shared library, added folders, technique folders."""
+    from inshade.technique import shader_roots
+
+    return [LIBRARY_DIR, *_EXTRA_ROOTS, *shader_roots()]
+
+
+def find_chunk(name: str) -> Path | None:
+    """The file of chunk ``name`` on the search path, None if there is none; a name found in
+    two folders is a ShaderIncludeError."""
+    found = [root / f"{name}.glsl" for root in search_path() if (root / f"{name}.glsl").is_file()]
+    if len(found) > 1:
+        raise ShaderIncludeError(f"chunk <{name}> is ambiguous: {found[0]} and {found[1]}")
+    return found[0] if found else None
 
 
 def flatten(entry: str, *, chunks: dict[str, str] | None = None) -> str:
@@ -235,9 +266,11 @@ class _Resolver:
             return self.memory[name]
         if not _CHUNK_NAME.match(name) or ".." in name.split("/"):
             raise ShaderIncludeError(f"invalid chunk name {name!r}{where}")
-        path = LIBRARY_DIR / f"{name}.glsl"
-        if not path.is_file():
-            raise ShaderIncludeError(f"unknown chunk <{name}>{where}: no in-memory chunk and no file {path}")
+        path = find_chunk(name)
+        if path is None:
+            roots = ", ".join(str(r) for r in search_path())
+            raise ShaderIncludeError(f"unknown chunk <{name}>{where}: no in-memory chunk and no {name}.glsl "
+                                     f"in {roots}")
         self.paths[name] = path
         return path.read_text()
 

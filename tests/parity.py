@@ -91,7 +91,7 @@ def torch_reference(bundle, x: np.ndarray) -> np.ndarray:
 def glsl_eval(ctx, bundle_or_generated, x: np.ndarray, *, version: str = "330", **gen) -> np.ndarray:
     """Generates (unless given a Generated) and runs `passes/evaluate.frag` over x [N, in_dim].
     Releases every GL object it made, the program included."""
-    from inshade.viewer.network import NetworkEvaluator
+    from inshade.runtime.network import NetworkEvaluator
 
     generated = bundle_or_generated
     if not hasattr(generated, "chunk"):
@@ -119,9 +119,9 @@ def run_sample_pass(ctx, fragment: str, rows: np.ndarray, texels: int = 1, *, sa
     (data orientation); `fragment` runs over a ceil(N / width) x width grid, with the GL resources
     of a `generated` network bound when given. Returns the `attachments` outputs, [N, 4] each.
     Releases every GL object it made."""
-    from inshade.viewer.network import NetworkResources
-    from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
+    from inshade.runtime.network import NetworkResources
+    from inshade.runtime.programs import ProgramCache
+    from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
 
     n, c = rows.shape[0], rows.shape[1] // texels
     w = min(n, width)

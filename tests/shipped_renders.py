@@ -24,12 +24,12 @@ CASES = [
     ("prt_creature", {}), ("prt_creature", {"shading": "glossy", "sky": "sunset", "env_rotation": 90.0}),
     ("prt_mechanical", {}), ("prt_neural_bunny", {"shading": "glossy"}),
     ("prt_mesh", {}), ("prt_mesh", {"shading": "glossy", "phong_exponent": 32.0}),
-    ("di_astronaut", {}), ("di_astronaut", {"lut_filter": "fast"}), ("di_astronaut_12x", {}),
-    ("di_chelsea", {}), ("di_coffee", {}),
-    ("di_pbr_bricks", {}), ("di_pbr_bricks", {"view": "split", "lights": 4}),
-    ("di_pbr_bricks", {"view": "uncompressed"}),
+    ("di_texture_astronaut", {}), ("di_texture_astronaut", {"lut_filter": "fast"}), ("di_texture_astronaut_12x", {}),
+    ("di_texture_chelsea", {}), ("di_texture_coffee", {}),
+    ("di_pbr_set_bricks", {}), ("di_pbr_set_bricks", {"view": "split", "lights": 4}),
+    ("di_pbr_set_bricks", {"view": "uncompressed"}),
     ("di_footprint", {}), ("di_footprint", {"mode": 1}), ("di_footprint", {"mode": 2}), ("di_footprint", {"mode": 3}),
-    ("di_ggx", {}), ("di_disney", {}), ("di_disney", {"lut_filter": "fast"}),
+    ("di_brdf_ggx", {}), ("di_brdf_disney", {}), ("di_brdf_disney", {"lut_filter": "fast"}),
     ("di_sdf", {}),
 ]
 
@@ -44,8 +44,8 @@ def size(scene_size) -> tuple[int, int]:
 
 
 def render_case(asset: str, settings: dict) -> np.ndarray:
-    from inshade.viewer.headless import render_scene
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.headless import render_scene
+    from inshade.runtime.scene import load_scene
 
     scene = load_scene(ROOT / "trained" / asset)
     w, h = size(scene.size)

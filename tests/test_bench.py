@@ -2,10 +2,9 @@
 timed matches torch (speed itself is never asserted: machines are shared and noisy)."""
 import json
 
+import matplotlib  # noqa: F401  (required by inshade[bench]; an ImportError here is a broken install)
 import pytest
-
-pytest.importorskip("torch")
-pytest.importorskip("matplotlib")
+import torch  # noqa: F401
 
 
 def test_bench_mlp_quick(tmp_path, gl):

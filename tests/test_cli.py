@@ -115,7 +115,7 @@ def test_render_scene_settings_from_the_command_line(tmp_path, capsys):
     assert main(["-q", "render", str(asset), "--width", "32", "--height", "32", "-o", str(a)]) == 0
     assert main(["-q", "render", str(asset), "--width", "32", "--height", "32", "--set", "sky=sunset",
                  "--set", "env_rotation=90", "-o", str(b)]) == 0
-    from inshade.viewer.image_io import read_exr
+    from inshade.runtime.image_io import read_exr
     assert np.abs(read_exr(a) - read_exr(b)).max() > 0.01  # the lighting changed
     sidecar = json.loads(Path(str(b) + ".json").read_text())
     assert "sunset" in json.dumps(sidecar)

@@ -1,12 +1,12 @@
-"""Learned BRDFs (models/di_brdf.py): GGX and Disney cascades train, export and render; the
+"""Learned BRDFs (techniques/di_brdf/train.py): GGX and Disney cascades train, export and render; the
 material-ball pass (shaders/passes/material_balls.frag.glsl) agrees with its torch twin
-(models/material_balls.py) for the analytic and the learned BRDF; the Disney factorisation keeps
+(techniques/di_brdf/material_balls.py) for the analytic and the learned BRDF; the Disney factorisation keeps
 the paper's quality bar at its exact initialisation.
 
 Tolerances. Renders, exact LUT path: |glsl - torch| <= 1e-5 max(1, |torch|) per pixel (tests/parity.py
 rule; both float32, same operations) on pixels both sides cover; the coverage masks may differ on
 at most 1% of pixels (a silhouette pixel whose x^2 + y^2 lands on the other side of R^2 after an
-FMA contraction). Quality: the Fig. 11 sweep min PSNR >= 35 dB (display domain, models/di_brdf.py).
+FMA contraction). Quality: the Fig. 11 sweep min PSNR >= 35 dB (display domain, techniques/di_brdf/train.py).
 """
 from __future__ import annotations
 
@@ -17,17 +17,17 @@ import pytest
 import torch
 
 from inshade.models import brdf
-from inshade.models import di_brdf as D
-from inshade.models import material_balls as mb
+from inshade.techniques.di_brdf import train as D
+from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
 from parity import assert_parity
 
 
 def _render_scene(folder, settings, width, height):
-    from inshade.viewer.camera import camera_from_dict
-    from inshade.viewer.render import read_rgba
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.camera import camera_from_dict
+    from inshade.runtime.render import read_rgba
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, settings=settings)
@@ -112,7 +112,7 @@ def test_ggx_ball_sampler_spans_the_ball_row():
 
 
 def test_ggx_asset_glsl_matches_torch(gl, tmp_path):
-    out = tmp_path / "di_ggx"
+    out = tmp_path / "di_brdf_ggx"
     m = D.build_ggx(out, steps=40, batch=512, ball_px=16, gl_metrics=False)
     assert {"psnr_balls_mean", "psnr_function_tonemapped", "train_seconds"} <= set(m)
     for f in ("bundle.json", "weights.safetensors", "scene.json", "preview.png"):
@@ -174,7 +174,7 @@ def test_disney_glue_matches_module():
 
 
 def test_disney_asset_glsl_matches_torch(gl, tmp_path):
-    out = tmp_path / "di_disney"
+    out = tmp_path / "di_brdf_disney"
     m = D.build_disney(out, steps=3, batch=256, samples=2048, ball_px=8, gl_metrics=False)
     assert m["sweep_min_psnr"] > 30.0
     for f in ("bundle.json", "weights.safetensors", "scene.json", "preview.png", "encoders.safetensors"):
@@ -213,9 +213,9 @@ def test_bad_settings_are_clear_errors(tmp_path):
 # --- command line and benchmark ------------------------------------------------------------------
 
 def test_cli_builds_an_asset_the_bench_times(gl, tmp_path, capsys):
-    from inshade.bench import brdf as bench
+    from inshade.techniques.di_brdf import bench
 
-    assert D.main(["ggx", "-o", str(tmp_path / "di_ggx"), "--steps", "5", "--batch", "64", "--no-gl"]) == 0
+    assert D.main(["ggx", "-o", str(tmp_path / "di_brdf_ggx"), "--steps", "5", "--batch", "64", "--no-gl"]) == 0
     assert "GGX ball PSNR" in capsys.readouterr().out
     out = tmp_path / "bench"
     assert bench.main(["--assets", str(tmp_path), "--out", str(out), "--size", "32", "--rounds", "1",

@@ -1,4 +1,4 @@
-"""DI-SDF (models/di_sdf.py): signed distances from a mesh vs closed forms, sizing, a tiny fit, the
+"""DI-SDF (techniques/di_sdf/train.py): signed distances from a mesh vs closed forms, sizing, a tiny fit, the
 generated ``scene_sdf`` (exact LUT path) vs torch under the parity rule, the hardware-filtered path
 within its documented bound, the sdf_diffuse render of the asset vs the torch reference renderer,
 and bad input.
@@ -21,7 +21,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.codegen.network_sdf import network_sdf_chunks
-from inshade.models import di_sdf
+from inshade.techniques.di_sdf import train as di_sdf
 
 from parity import assert_parity, parity_settings, run_sample_pass
 
@@ -149,9 +149,9 @@ def test_scene_sdf_fast_path_within_bound(gl, tiny):
 
 def test_asset_renders_like_torch(gl, tiny):
     """The asset's scene (SceneRenderer, sdf_diffuse + the DI-SDF's textures) vs models/sdf.py."""
-    from inshade.viewer.render import read_rgba
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.render import read_rgba
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
 
     result, out = tiny
     scene = load_scene(out)
@@ -212,8 +212,8 @@ def test_cli_reports_bad_input(tmp_path, capsys):
 # --- the benchmark's pieces (the run itself is `inshade bench di_sdf`, minutes) ---------------------
 
 def test_bench_equal_bytes_width():
-    from inshade.bench.di_sdf import mlp_params, mlp_width_for_bytes
-    from inshade.models import neural_sdf
+    from inshade.techniques.di_sdf.bench import mlp_params, mlp_width_for_bytes
+    from inshade.techniques.neural_sdf import train as neural_sdf
 
     for width, layers in ((7, 2), (38, 3), (71, 3)):
         g = neural_sdf.build(width, layers)
@@ -227,10 +227,10 @@ def test_bench_ground_truth_is_the_mesh():
     silhouette), normals close to the sphere's, shaded like the sdf pass."""
     import trimesh
 
-    from inshade.bench.di_sdf import mesh_ground_truth
+    from inshade.techniques.di_sdf.bench import mesh_ground_truth
     from inshade.codegen.sdf import environment_sh
     from inshade.models.sdf import camera_rays
-    from inshade.viewer.camera import camera_from_dict
+    from inshade.runtime.camera import camera_from_dict
 
     size = 32
     mesh = trimesh.creation.icosphere(4, radius=0.6)

@@ -1,5 +1,5 @@
 """Triangle meshes (inshade/mesh.py): loading OBJ/PLY/GLB, one clear MeshError per bad input, the
-procedural rabbit, and the G-buffer pass (viewer/geometry.py + passes/mesh_gbuffer.frag) checked
+procedural rabbit, and the G-buffer pass (runtime/geometry.py + passes/mesh_gbuffer.frag) checked
 against the mesh itself: covered pixels lie on the surface (exact signed distance), they are the
 first hit of the pixel-centre ray (embree), normals are unit and equal the interpolated vertex
 normals there, the background has w = 0.
@@ -97,10 +97,10 @@ def _model_matrix():
 
 
 def test_gbuffer_on_surface_first_hit_and_normals(gl, small_bunny):
-    from inshade.models.neural_sdf import signed_distance
+    from inshade.techniques.neural_sdf.train import signed_distance
     from inshade.models.sdf import camera_rays
-    from inshade.viewer.camera import OrbitCamera
-    from inshade.viewer.geometry import MeshGBuffer
+    from inshade.runtime.camera import OrbitCamera
+    from inshade.runtime.geometry import MeshGBuffer
 
     size = 48
     model = _model_matrix()
@@ -162,8 +162,8 @@ def _closest(mesh, points):
 
 
 def test_gbuffer_resize_and_reuse(gl, small_bunny):
-    from inshade.viewer.camera import OrbitCamera
-    from inshade.viewer.geometry import MeshGBuffer
+    from inshade.runtime.camera import OrbitCamera
+    from inshade.runtime.geometry import MeshGBuffer
 
     cam = OrbitCamera(distance=3.0)
     gb = MeshGBuffer(gl, small_bunny)
@@ -233,8 +233,8 @@ def test_uv_errors(tmp_path):
 
 def test_gbuffer_uv_and_tangent_on_torus(gl, tmp_path):
     from inshade.mesh import write_torus
-    from inshade.viewer.camera import OrbitCamera
-    from inshade.viewer.geometry import MeshGBuffer
+    from inshade.runtime.camera import OrbitCamera
+    from inshade.runtime.geometry import MeshGBuffer
 
     size = 48
     m = load_mesh(write_torus(tmp_path / "t.obj", segments=(64, 32)))

@@ -198,7 +198,9 @@ def test_weight_texture_rows():
     w2, b2 = rng.normal(size=(3, 6)).astype(np.float32), rng.normal(size=3).astype(np.float32)
 
     class Ctx:
-        texture_format = "f4"
+        def option(self, component, name):
+            assert (component, name) == ("dense", "texture_format")
+            return "f4"
 
         def name(self, *p):
             return "_".join(("net",) + p)

@@ -17,12 +17,12 @@ from PIL import Image
 
 from inshade.bundle import load
 from inshade.models.graph import GraphModule
-from inshade.models.neural_image import main as train_main
-from inshade.models.neural_image import pixel_uvs, predict
-from inshade.viewer.context import gl_info, shared_context
-from inshade.viewer.headless import RenderSpecError, render_bundle, save_render
-from inshade.viewer.image_io import read_exr, write_png
-from inshade.viewer.programs import ProgramCache
+from inshade.techniques.neural_image.train import main as train_main
+from inshade.techniques.neural_image.train import pixel_uvs, predict
+from inshade.runtime.context import gl_info, shared_context
+from inshade.runtime.headless import RenderSpecError, render_bundle, save_render
+from inshade.runtime.image_io import read_exr, write_png
+from inshade.runtime.programs import ProgramCache
 
 SHIPPED = Path(__file__).resolve().parents[1] / "trained" / "neural_image"
 ATOL = 1e-5

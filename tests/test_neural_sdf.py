@@ -1,5 +1,5 @@
 """Network SDFs (models/network_sdf.py, codegen/network_sdf.py) and the neural SDF fitted to a mesh
-(models/neural_sdf.py): GLSL ``scene_sdf`` vs torch at random points (parity rule, tests/parity.py),
+(techniques/neural_sdf/train.py): GLSL ``scene_sdf`` vs torch at random points (parity rule, tests/parity.py),
 the sdf_diffuse pass on a network SDF vs the torch reference renderer (>= 50 dB PSNR at 48x48),
 bad render metadata, the Lipschitz bound, and a tiny fit to a procedural mesh.
 """
@@ -43,9 +43,9 @@ def _glsl_eval(gl, chunks, generated, points):
 
 def _glsl_render(gl, chunks, generated, uniforms, size, sh):
     """passes/sdf_diffuse.frag with the network SDF; image orientation, linear RGBA."""
-    from inshade.viewer.network import NetworkResources
-    from inshade.viewer.programs import ProgramCache
-    from inshade.viewer.render import FullscreenPass, float_target, read_rgba
+    from inshade.runtime.network import NetworkResources
+    from inshade.runtime.programs import ProgramCache
+    from inshade.runtime.render import FullscreenPass, float_target, read_rgba
 
     from inshade.codegen.spherical_harmonics import sh_chunks
 
@@ -169,7 +169,7 @@ def test_scene_sdf_glsl_vs_torch_fitted_and_normals(gl, torus):
 
 
 def test_render_glsl_vs_torch(gl, torus):
-    from inshade.viewer.camera import OrbitCamera
+    from inshade.runtime.camera import OrbitCamera
 
     size = 48
     cam = OrbitCamera(target=(0.1, 0.0, 0.0), distance=3.2, yaw=25.0, pitch=20.0)
@@ -226,7 +226,7 @@ def test_lipschitz_bound_holds(widths, act, freqs, seed):
     """The bound from the weights is >= every observed |grad| (autograd at random points)."""
     from inshade.models import activations as A
     from inshade.models import encodings as E
-    from inshade.models.neural_sdf import lipschitz_bound
+    from inshade.techniques.neural_sdf.train import lipschitz_bound
 
     torch.manual_seed(seed)
     comp = {"relu": A.ReLU, "softplus": A.Softplus, "tanh": A.Tanh, "leaky_relu": lambda: A.LeakyReLU(0.2)}[act]
@@ -241,7 +241,7 @@ def test_lipschitz_bound_holds(widths, act, freqs, seed):
 
 def test_frequency_encoding_constant_is_tight():
     from inshade.models.encodings import Frequency
-    from inshade.models.neural_sdf import _activation_lipschitz
+    from inshade.techniques.neural_sdf.train import _activation_lipschitz
 
     enc = Frequency(3)
     x = torch.zeros(1, 3, requires_grad=True)
@@ -252,7 +252,7 @@ def test_frequency_encoding_constant_is_tight():
 
 def test_lipschitz_bound_unbounded_cases():
     from inshade.models.activations import Exp
-    from inshade.models.neural_sdf import lipschitz_bound
+    from inshade.techniques.neural_sdf.train import lipschitz_bound
 
     assert lipschitz_bound(mlp_graph(3, [8], 1, activation=Exp())) == math.inf
     g = GraphModule([("x", 3)])
@@ -264,7 +264,7 @@ def test_lipschitz_bound_unbounded_cases():
 
 
 def test_trace_settings_from_bound():
-    from inshade.models.neural_sdf import trace_settings
+    from inshade.techniques.neural_sdf.train import trace_settings
 
     t = trace_settings(2.5, radius=2.0, hit_eps=1e-3)
     assert t["step_scale"] == np.float32(0.4) and t["hit_eps"] == np.float32(2e-3) and 64 <= t["max_steps"] <= 512
@@ -276,7 +276,7 @@ def test_trace_settings_from_bound():
 def tiny_fit(tmp_path_factory):
     """A seconds-long fit to a coarse procedural rabbit: the pipeline, not the quality."""
     from inshade.mesh import bunny
-    from inshade.models.neural_sdf import train
+    from inshade.techniques.neural_sdf.train import train
 
     tmp = tmp_path_factory.mktemp("nsdf")
     mesh = bunny(voxel=0.08, smooth_iterations=1)
@@ -289,7 +289,7 @@ def tiny_fit(tmp_path_factory):
 
 def test_neural_sdf_fit_bundle_and_metrics(tiny_fit):
     from inshade import bundle as bundle_io
-    from inshade.models.neural_sdf import lipschitz_bound
+    from inshade.techniques.neural_sdf.train import lipschitz_bound
 
     bundle, _ = tiny_fit
     loaded = bundle_io.load(bundle.path)
@@ -320,7 +320,7 @@ def test_cli_rejects_open_mesh(tmp_path):
     import trimesh
 
     from inshade.mesh import MeshError
-    from inshade.models.neural_sdf import main
+    from inshade.techniques.neural_sdf.train import main
 
     s = trimesh.creation.icosphere(1)
     s.update_faces(np.arange(2, len(s.faces)))
@@ -331,7 +331,7 @@ def test_cli_rejects_open_mesh(tmp_path):
 
 @pytest.mark.parametrize("freqs", [0, 2])
 def test_fold_beta_is_the_same_function_in_plain_softplus(freqs):
-    from inshade.models.neural_sdf import SmoothReLU, build, fold_beta, lipschitz_bound
+    from inshade.techniques.neural_sdf.train import SmoothReLU, build, fold_beta, lipschitz_bound
 
     torch.manual_seed(1)
     g = build(16, 3, freqs=freqs)

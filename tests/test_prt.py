@@ -1,5 +1,5 @@
-"""PRT shading (seeds/002): lib/prt.glsl + passes/sdf_prt.frag vs the torch reference
-(models/prt.py), the light matrix vs the numpy triple product, the shading formulation vs the SH
+"""PRT shading (Learnt Transfer, Dhawal et al. 2022): lib/prt.glsl + passes/sdf_prt.frag vs the torch reference
+(techniques/prt/twin.py), the light matrix vs the numpy triple product, the shading formulation vs the SH
 toolkit, scene/renderer integration (settings, errors, network SDF geometry).
 
 Tolerances: the transfer network at the shader's own hit points and normals (debug views 5/6):
@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 import torch
 
-from inshade.codegen.prt import (SHADING_MODES, light_matrix, light_matrix_blocks, light_matrix_uniform,
+from inshade.techniques.prt.codegen import (SHADING_MODES, light_matrix, light_matrix_blocks, light_matrix_uniform,
                                  prt_chunk)
 from inshade.codegen.sdf import environment_sh
-from inshade.models.prt import (PrtShading, compose, image_metrics, light_matrix_t, phong_bands_f32, prt_glossy,
+from inshade.techniques.prt.twin import (PrtShading, compose, image_metrics, light_matrix_t, phong_bands_f32, prt_glossy,
                                 quality_orbit, render, trace_view)
-from inshade.models.transfer_net import TransferFrame, transfer_graph
+from inshade.techniques.prt.transfer_net import TransferFrame, transfer_graph
 from inshade.sh import (convolve_zonal, lambert_bands, phong_bands, sh_evaluate, sh_product, triple_product_tensor)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -87,8 +87,8 @@ def prt_scene(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def cache():
-    from inshade.viewer.context import shared_context
-    from inshade.viewer.programs import ProgramCache
+    from inshade.runtime.context import shared_context
+    from inshade.runtime.programs import ProgramCache
 
     return ProgramCache(shared_context())  # one compile of the PRT program for the whole module
 
@@ -97,9 +97,9 @@ def _gl_render(gl, cache, folder, settings_seq, size=SIZE):
     """Render the scene once per settings dict in ``settings_seq`` through one SceneRenderer
     (settings changes take the uniform path); returns the linear RGBA images and the renderer's
     environment SH of the last one."""
-    from inshade.viewer.render import read_rgba
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.render import read_rgba
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, gl, cache=cache)
@@ -179,7 +179,7 @@ def test_glossy_formulation_vs_sh_toolkit():
 def test_unoccluded_diffuse_is_irradiance():
     """Shading sanity: with the analytic unoccluded transfer (Lambert bands x basis of n), diffuse
     PRT is exactly the SH irradiance shading of models/sdf.py (sdf_diffuse)."""
-    from inshade.models.prt import prt_diffuse
+    from inshade.techniques.prt.twin import prt_diffuse
     from inshade.models.sdf import sh_irradiance_t
     from inshade.sh import band_of, sh_basis
 
@@ -193,7 +193,7 @@ def test_unoccluded_diffuse_is_irradiance():
 
 def test_prt_chunk_deterministic_and_checked(prt_scene):
     from inshade.bundle import load
-    from inshade.codegen.prt import PrtError
+    from inshade.techniques.prt.codegen import PrtError
 
     folder, graph, frame = prt_scene
     b = load(folder / "transfer")
@@ -216,14 +216,13 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
 
     from inshade.bundle import load
     from inshade.codegen.network import generate
-    from inshade.codegen.prt import prt_chunks
+    from inshade.techniques.prt.codegen import prt_chunks
     from inshade.codegen.sdf import sdf_chunks
     from inshade.codegen.spherical_harmonics import sh_chunks
     from inshade.sdf import parse_sdf
     from inshade.shaders import assemble
 
-    if shutil.which("glslangValidator") is None:
-        pytest.skip("glslangValidator not installed")
+    assert shutil.which("glslangValidator"), "glslangValidator not found on PATH: install glslang-tools"
     b = load(prt_scene[0] / "transfer")
     chunks = {"network_transfer": generate(b, prefix="transfer", target=version).chunk, **prt_chunks(b, "transfer"),
               **sdf_chunks(parse_sdf(SDF_SCENE)), **sh_chunks(4)}
@@ -238,7 +237,7 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
 def test_transfer_at_hit_points_glsl_vs_torch(gl, cache, prt_scene):
     """The network in the shader at the shader's own hit points and normals vs the torch network
     at those points: <= 1e-4 (issue target)."""
-    from inshade.models.transfer_net import evaluate_transfer
+    from inshade.techniques.prt.transfer_net import evaluate_transfer
 
     folder, graph, frame = prt_scene
     images, _, _, _, _ = _gl_render(gl, cache, folder, [{"debug": d} for d in (5, 6, 1, 2, 3, 4)])
@@ -284,8 +283,8 @@ def test_glossy_ks_and_settings_take_the_uniform_path(gl, cache, prt_scene):
 
 
 def test_light_matrix_follows_environment(gl, cache, prt_scene):
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
 
     folder, _, _ = prt_scene
     scene = load_scene(folder)
@@ -302,11 +301,11 @@ def test_light_matrix_follows_environment(gl, cache, prt_scene):
 
 
 def test_unbound_prt_uniforms_take_defaults(gl, cache, prt_scene, tmp_path):
-    """A scene without PRT settings gets codegen/prt.py UNIFORM_DEFAULTS (= PrtShading()) every
+    """A scene without PRT settings gets techniques/prt/codegen.py UNIFORM_DEFAULTS (= PrtShading()) every
     frame, even on a program another renderer left in a debug view."""
     import dataclasses
 
-    from inshade.codegen.prt import UNIFORM_DEFAULTS
+    from inshade.techniques.prt import UNIFORM_DEFAULTS
 
     d = PrtShading()
     assert (SHADING_MODES[UNIFORM_DEFAULTS["u_shading"]], UNIFORM_DEFAULTS["u_phong_exponent"],
@@ -365,8 +364,8 @@ def test_network_sdf_scene_glsl_vs_torch(gl, tmp_path):
 
 # scene errors -----------------------------------------------------------------------------------------
 def _scene_error(folder, match):
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import SceneError, load_scene
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import SceneError, load_scene
 
     with pytest.raises(SceneError, match=match) as info:
         SceneRenderer(load_scene(folder))
@@ -375,7 +374,7 @@ def _scene_error(folder, match):
 
 
 def test_missing_transfer_network_one_clear_error(tmp_path, prt_scene):
-    _scene_error(write_scene(tmp_path / "none", networks=[]), "networks: a PRT scene")
+    _scene_error(write_scene(tmp_path / "none", networks=[]), "networks: passes/sdf_prt.frag needs a network of kind 'prt'")
     _scene_error(write_scene(tmp_path / "missing"), r"networks\[0\]\.bundle: no bundle at")
     # a bundle that is not a transfer network
     folder = tmp_path / "wrong_kind"
@@ -388,7 +387,7 @@ def test_missing_transfer_network_one_clear_error(tmp_path, prt_scene):
     data = json.loads((folder / "scene.json").read_text())
     del data["sdf"]
     (folder / "scene.json").write_text(json.dumps(data))
-    _scene_error(folder, "sdf: a PRT scene")
+    _scene_error(folder, "sdf: passes/sdf_prt.frag traces an SDF")
     # the shading choice must list the modes in lib/prt.glsl's order
     bad = dict(PRT_SETTINGS, shading=dict(PRT_SETTINGS["shading"], choices=["glossy", "diffuse"]))
     shutil.copytree(prt_scene[0] / "transfer", tmp_path / "order" / "transfer")
@@ -396,7 +395,7 @@ def test_missing_transfer_network_one_clear_error(tmp_path, prt_scene):
 
 
 def test_bad_environment_one_clear_error(tmp_path, prt_scene):
-    from inshade.viewer.image_io import write_exr
+    from inshade.runtime.image_io import write_exr
 
     src, _, _ = prt_scene
 
@@ -421,9 +420,9 @@ def test_environment_map_lights_the_scene(gl, cache, tmp_path, prt_scene):
     """An equirectangular map (here the sunset preset written to EXR) lights the scene as the
     preset's own SH does, and rotates with the environment setting."""
     from inshade.sh import procedural_sky
-    from inshade.viewer.image_io import write_exr
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.image_io import write_exr
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
 
     src, _, _ = prt_scene
     folder = tmp_path / "map"
@@ -442,7 +441,7 @@ def test_environment_map_lights_the_scene(gl, cache, tmp_path, prt_scene):
 
 # headless + quality ---------------------------------------------------------------------------------
 def test_headless_render_and_sidecar(gl, cache, prt_scene, tmp_path):
-    from inshade.viewer.headless import render_scene, save_render
+    from inshade.runtime.headless import render_scene, save_render
 
     folder, _, _ = prt_scene
     image, info = render_scene(folder, width=24, height=24, settings={"shading": "glossy", "sky": "sunset"}, ctx=gl,
@@ -455,9 +454,9 @@ def test_headless_render_and_sidecar(gl, cache, prt_scene, tmp_path):
 
 
 def test_transfer_bundle_alone_is_one_clear_error(prt_scene):
-    from inshade.viewer.headless import RenderSpecError, render_bundle
+    from inshade.runtime.headless import RenderSpecError, render_bundle
 
-    with pytest.raises(RenderSpecError, match="transfer bundle is drawn by a PRT scene"):
+    with pytest.raises(RenderSpecError, match="a (prt|transfer) bundle is drawn by a scene, not on its own.*passes/sdf_prt.frag"):
         render_bundle(prt_scene[0] / "transfer")
 
 
@@ -478,9 +477,9 @@ def test_ground_truth_matches_reference_when_transfer_is_exact(prt_scene):
     """compose() is shared: a reference render whose transfer is replaced by the view's own
     ground truth is the ground-truth render (same pixels), so quality differences are the
     network's alone."""
-    from inshade.models.prt import ground_truth_transfer, render_ground_truth
-    from inshade.viewer.camera import camera_from_dict
-    from inshade.viewer.scene import load_scene
+    from inshade.techniques.prt.twin import ground_truth_transfer, render_ground_truth
+    from inshade.runtime.camera import camera_from_dict
+    from inshade.runtime.scene import load_scene
 
     folder, _, _ = prt_scene
     scene = load_scene(folder)
@@ -518,9 +517,9 @@ def mesh_scene(tmp_path_factory):
 
 
 def _gl_mesh(gl, cache, folder, settings_seq, size=SIZE):
-    from inshade.viewer.render import read_rgba
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.render import read_rgba
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, gl, cache=cache)
@@ -539,7 +538,7 @@ def _gl_mesh(gl, cache, folder, settings_seq, size=SIZE):
 
 
 def test_mesh_transfer_at_gbuffer_points_glsl_vs_torch(gl, cache, mesh_scene):
-    from inshade.models.transfer_net import evaluate_transfer
+    from inshade.techniques.prt.transfer_net import evaluate_transfer
 
     folder, graph, frame = mesh_scene
     out, _, _ = _gl_mesh(gl, cache, folder, [{"debug": d} for d in (1, 2, 3, 4)])
@@ -556,7 +555,7 @@ def test_mesh_transfer_at_gbuffer_points_glsl_vs_torch(gl, cache, mesh_scene):
 
 @pytest.mark.parametrize("mode", SHADING_MODES)
 def test_mesh_image_glsl_vs_torch_reference(gl, cache, mesh_scene, mode):
-    from inshade.models.prt import render_gbuffer
+    from inshade.techniques.prt.twin import render_gbuffer
 
     folder, graph, frame = mesh_scene
     out, sh, scene = _gl_mesh(gl, cache, folder, [{"shading": mode, "sky": "sunset", "env_rotation": 45.0}])
@@ -624,7 +623,7 @@ def test_bench_prt_quick_writes_reports(tmp_path):
     """`inshade bench prt --quick` on the shipped mesh asset: JSON + markdown + plot, renderer named."""
     import json
 
-    from inshade.bench import prt as bench_prt
+    from inshade.techniques.prt import bench as bench_prt
 
     root = Path(__file__).resolve().parents[1]
     assert bench_prt.main(["--quick", "--assets", str(root / "trained" / "prt_mesh"), "--out", str(tmp_path),
@@ -643,7 +642,7 @@ def test_bench_prt_quick_writes_reports(tmp_path):
 # 30-view numbers are in each asset's metrics.json.
 @pytest.mark.parametrize("asset", ["prt_creature", "prt_neural_bunny", "prt_mesh"])
 def test_shipped_prt_asset_meets_quality_targets(asset, cache):
-    from inshade.models.prt import quality_orbit
+    from inshade.techniques.prt.twin import quality_orbit
 
     root = Path(__file__).resolve().parents[1] / "trained" / asset
     q = quality_orbit(root, n_views=3, size=48, n_dirs=256, cache=cache, progress=False)

@@ -162,8 +162,8 @@ def test_primitives_closed_forms():
 # rendering -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", SCENES)
 def test_render_glsl_vs_torch(gl, name):
-    from inshade.viewer.renderer import SceneRenderer
-    from inshade.viewer.scene import load_scene
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
 
     scene = load_scene(ROOT / f"trained/sdf_{name}")
     size = 64
@@ -171,7 +171,7 @@ def test_render_glsl_vs_torch(gl, name):
     r = SceneRenderer(scene, gl)
     try:
         r.render_network(cam, size, size)
-        from inshade.viewer.render import read_rgba
+        from inshade.runtime.render import read_rgba
         image = read_rgba(r._targets["network"])
         sh = r.environment_sh()
     finally:
@@ -219,7 +219,7 @@ def test_bad_sdf_file_one_clear_error(tmp_path):
 
 
 def test_bad_scene_file_names_scene_and_sdf(tmp_path):
-    from inshade.viewer.scene import SceneError, load_scene
+    from inshade.runtime.scene import SceneError, load_scene
 
     scene = json.loads((ROOT / "trained/sdf_occlusion/scene.json").read_text())
     sdf = json.loads((ROOT / "trained/sdf_occlusion/sdf.json").read_text())

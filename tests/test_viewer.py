@@ -1,7 +1,7 @@
 """The interactive viewer (issue 5): camera math, scene files, and the window app under Xvfb.
 
-The window tests start their own Xvfb on a free display number (skipped, with the reason, only if
-Xvfb is not installed and cannot be installed). One app at 320x240 is shared by the module, with
+The window tests start their own Xvfb on a free display number (Xvfb is a test requirement:
+they fail, saying to install xvfb, where it is missing). One app at 320x240 is shared by the module, with
 `texture` weight storage (llvmpipe JIT-compiles a network program at its first draw: ~8 s for this
 storage vs ~35 s for `ubo`), so the network program is compiled once.
 """
@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from inshade.viewer.scene import list_scenes
-from inshade.viewer.camera import CameraError, FlyCamera, OrbitCamera, Plane2DCamera, camera_from_dict
-from inshade.viewer.display import DisplayMode, UI_MODES, glsl_chunk, parse_mode
-from inshade.viewer.scene import SceneError, load_scene
+from inshade.runtime.scene import list_scenes
+from inshade.runtime.camera import CameraError, FlyCamera, OrbitCamera, Plane2DCamera, camera_from_dict
+from inshade.runtime.display import DisplayMode, UI_MODES, glsl_chunk, parse_mode
+from inshade.runtime.scene import SceneError, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 ASSET = ROOT / "trained" / "neural_image"
@@ -168,7 +168,7 @@ def _edit(data, path, value):
     (["format"], "nope", r"format: expected \"inshade.scene\""),
     (["version"], 2, "version: this inshade reads version 1"),
     (["colour"], "red", "colour: unknown field"),
-    (["program"], "passes/nothing.frag", "program: no shader chunk 'passes/nothing.frag'"),
+    (["program"], "passes/nothing.frag", "program: no technique draws program 'passes/nothing.frag'"),
     (["size"], [256, 0], r"size: must be \[width, height\]"),
     (["networks"], [], "networks: must be a non-empty list"),
     (["networks", 0, "bundle"], "../missing", r"networks\[0\].bundle: no bundle at"),
@@ -205,19 +205,11 @@ def test_unreadable_scene_files(tmp_path):
 
 
 # the window app under Xvfb ---------------------------------------------------------------------------
-def _find_xvfb() -> str | None:
-    found = shutil.which("Xvfb")
-    if found or os.geteuid() != 0 or not shutil.which("apt-get"):
-        return found
-    subprocess.run(["apt-get", "install", "-y", "-q", "xvfb"], capture_output=True, timeout=300)
-    return shutil.which("Xvfb")
-
-
 @pytest.fixture(scope="module")
 def xvfb():
-    xvfb = _find_xvfb()
+    xvfb = shutil.which("Xvfb")
     if xvfb is None:
-        pytest.skip("Xvfb is not installed and could not be installed (apt-get install xvfb)")
+        pytest.fail("Xvfb not found on PATH: install xvfb (apt-get install xvfb), as .ci/run does", pytrace=False)
     for number in range(90, 190):
         if not Path(f"/tmp/.X{number}-lock").exists() and not Path(f"/tmp/.X11-unix/X{number}").exists():
             break
@@ -227,7 +219,7 @@ def xvfb():
     while not Path(f"/tmp/.X11-unix/X{number}").exists():
         if proc.poll() is not None or time.monotonic() > deadline:
             proc.kill()
-            pytest.skip(f"Xvfb :{number} did not start")
+            pytest.fail(f"Xvfb :{number} did not start within 20 s (exit code {proc.poll()})", pytrace=False)
         time.sleep(0.05)
     old = os.environ.get("DISPLAY")
     os.environ["DISPLAY"] = f":{number}"
@@ -255,7 +247,7 @@ def app(xvfb, tmp_path_factory):
 
 
 def _encode(linear: np.ndarray) -> np.ndarray:
-    from inshade.viewer.image_io import srgb_oetf
+    from inshade.runtime.image_io import srgb_oetf
     return np.rint(srgb_oetf(linear[..., :3]) * 255).astype(np.int16)
 
 
@@ -340,7 +332,7 @@ def test_uniform_settings_do_not_recompile(app):
 
 def test_screenshot_is_reproduced_by_render_from(app, tmp_path):
     from inshade.cli import main
-    from inshade.viewer.image_io import read_exr
+    from inshade.runtime.image_io import read_exr
 
     _reset(app, "split")
     app.scroll(3)
@@ -381,14 +373,12 @@ def test_hot_reload_weights_and_shaders(app, tmp_path, monkeypatch):
     from safetensors.numpy import load_file, save_file
 
     import inshade.shaders.library as library
-    import inshade.viewer.app as app_module
 
     asset = tmp_path / "asset"
     shutil.copytree(ASSET, asset, ignore=shutil.ignore_patterns("preview.png"))
     shaders = tmp_path / "shaders"
     shutil.copytree(library.LIBRARY_DIR, shaders, ignore=shutil.ignore_patterns("*.py", "__pycache__"))
     monkeypatch.setattr(library, "LIBRARY_DIR", shaders)
-    monkeypatch.setattr(app_module, "LIBRARY_DIR", shaders)
     assert app.open(asset)
     app.step(3)
     _reset(app)

@@ -25,16 +25,16 @@ import glfw
 import moderngl
 import numpy as np
 
-from inshade.shaders.library import LIBRARY_DIR
+from inshade.shaders import search_path
 
 from . import navigation
-from .context import release_shared
-from .display import DisplayMode, parse_mode
-from .headless import save_render
-from .programs import ProgramCache
-from .render import FullscreenPass
-from .renderer import SceneRenderer
-from .scene import list_scenes, load_scene
+from inshade.runtime.context import release_shared
+from inshade.runtime.display import DisplayMode, parse_mode
+from inshade.runtime.headless import save_render
+from inshade.runtime.programs import ProgramCache
+from inshade.runtime.render import FullscreenPass
+from inshade.runtime.renderer import SceneRenderer
+from inshade.runtime.scene import list_scenes, load_scene
 from .watch import FileWatcher
 
 log = logging.getLogger("inshade")
@@ -154,7 +154,7 @@ class ViewerApp:
         self.mode, self.split, self.psnr, self._psnr_key = scene.display_mode, scene.split, None, None
         self.compiling = False
         paths = [Path(n.bundle) / f for n in scene.networks for f in ("weights.safetensors", "bundle.json")]
-        paths += sorted(LIBRARY_DIR.rglob("*.glsl"))
+        paths += [p for root in search_path() for p in sorted(root.rglob("*.glsl"))]   # shared + technique chunks
         self.watcher = FileWatcher(paths)
         return True
 

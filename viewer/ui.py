@@ -7,7 +7,7 @@ import math
 import numpy as np
 from imgui_bundle import ImVec2, ImVec4, imgui, implot
 
-from .display import DisplayMode
+from inshade.runtime.display import DisplayMode
 
 RED = ImVec4(1.0, 0.35, 0.3, 1.0)
 YELLOW = ImVec4(1.0, 0.85, 0.3, 1.0)

@@ -5,29 +5,29 @@ size x size batch of pixel-centre uvs, in one run:
 
 - torch CPU time: median of ``with torch.inference_mode(): net(x)`` (torch's default threads);
 - per storage mode: GL compile+link time, the first draw (llvmpipe JIT-compiles the fragment
-  shader there), the median of ``draw(); ctx.finish()`` after that warm-up (read-back excluded,
-  timed separately), achieved GFLOP/s of the dense layers, and the max error against torch
+  shader there), the median of ``draw(); ctx.finish()`` wall time after that warm-up (``--clock``;
+  read-back excluded, timed separately), achieved GFLOP/s of the dense layers, and the max error against torch
   (a benchmark that measures wrong code is worthless: errors >= 1e-4 fail the run);
 - the machine's numpy float32 sgemm GFLOP/s as the practical peak.
 
-Writes ``mlp.json``, ``mlp.md`` and ``mlp.png`` into ``--out``. Timings are wall-clock on a
+Writes ``mlp.json``, ``mlp.md`` and ``mlp.png`` into ``--out`` (``inshade.bench.harness``: every
+timing keeps its min, max and quartiles and the clock it used). Timings are wall-clock on a
 possibly shared machine: compare the ratios measured side by side, and read absolute numbers
 with the GL_RENDERER string next to them.
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
-import statistics
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from inshade.bench import machine
+from inshade import command
+from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, machine,
+                                   machine_markdown, matplotlib_pyplot, measure, write_report)
 
 DEFAULT_OUT = "bench-out/mlp"
 MODES = ("inline", "ubo", "texture")
@@ -74,6 +74,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true",
                         help="tiny run for tests: 64x64 batch, one small network, 2 repeats")
     parser.add_argument("--strict", action="store_true", help="exit 2 when a target is missed")
+    # wall by default: the GLSL times are compared with torch's CPU wall time
+    add_clock_argument(parser, default="wall")
     return parser
 
 
@@ -84,27 +86,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    return run(build_parser().parse_args(argv))
+    return command.main("inshade bench mlp", __doc__, add_arguments, run, argv, errors=(BenchError,),
+                        formatter=argparse.ArgumentDefaultsHelpFormatter)
 
 
 # ---------------------------------------------------------------------------------------------
-def _median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(max(1, repeats)):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
 def sgemm_gflops(n: int = 2048, repeats: int = 5) -> dict:
     """numpy float32 n x n matmul: the practical peak of this machine's CPU (BLAS, all cores)."""
     rng = np.random.default_rng(0)
     a = rng.standard_normal((n, n), dtype=np.float32)
     b = rng.standard_normal((n, n), dtype=np.float32)
-    a @ b  # warm-up: thread pool, page faults
-    seconds = _median_time(lambda: a @ b, repeats)
-    return {"n": n, "seconds": seconds, "gflops": 2.0 * n ** 3 / seconds / 1e9}
+    timing = measure(lambda: a @ b, repeats=repeats, warmup=1)  # warm-up: thread pool, page faults
+    seconds = timing.median
+    return {"n": n, "seconds": seconds, "gflops": 2.0 * n ** 3 / seconds / 1e9, "timing": timing.to_dict()}
 
 
 def uv_grid(size: int) -> np.ndarray:
@@ -135,14 +129,14 @@ def _bench_torch(net, x: np.ndarray, repeats: int):
     xt = torch.from_numpy(x)
     with torch.inference_mode():
         y = net(xt)  # warm-up
-        seconds = _median_time(lambda: net(xt), repeats)
-    return seconds, y.numpy().astype(np.float32)
+        timing = measure(lambda: net(xt), repeats=repeats, warmup=0)
+    return timing, y.numpy().astype(np.float32)
 
 
 def _bench_glsl(ctx, bundle, mode: str, x: np.ndarray, ref: np.ndarray, size: int, repeats: int,
-                limits: dict) -> dict:
+                limits: dict, clock) -> dict:
     from inshade.codegen import generate
-    from inshade.viewer.network import NetworkEvaluator
+    from inshade.runtime.network import NetworkEvaluator
 
     gen = generate(bundle, storage=mode, limits=limits)
     ev = NetworkEvaluator(ctx, gen, width=size)
@@ -152,7 +146,8 @@ def _bench_glsl(ctx, bundle, mode: str, x: np.ndarray, ref: np.ndarray, size: in
         draw()
         ctx.finish()
         first_draw = time.perf_counter() - start
-        seconds = _median_time(lambda: (draw(), ctx.finish()), repeats)
+        timing = measure(draw, repeats=repeats, warmup=0, clock=clock)
+        seconds = timing.median
         start = time.perf_counter()
         y = ev.read(draw.n)
         read_s = time.perf_counter() - start
@@ -164,7 +159,7 @@ def _bench_glsl(ctx, bundle, mode: str, x: np.ndarray, ref: np.ndarray, size: in
     return {"storage": mode, "resolved": "+".join(storages), "seconds": seconds,
             "compile_link_s": float(ev.compile_seconds), "first_draw_s": first_draw,
             "read_s": read_s, "max_error": err, "finite": bool(np.all(np.isfinite(y))),
-            "chunk_bytes": len(gen.chunk)}
+            "chunk_bytes": len(gen.chunk), "timing": timing.to_dict()}
 
 
 def run(args) -> int:
@@ -174,11 +169,13 @@ def run(args) -> int:
     import torch
     from tqdm import tqdm
 
-    from inshade.viewer.context import gl_info, shared_context
+    from inshade.runtime.context import gl_info, shared_context
 
     if args.quick:
         args.size, args.repeats, args.widths, args.depths = 64, 2, [8], [1]
         args.sgemm_size = min(args.sgemm_size, 512)
+    if args.size < 1 or args.repeats < 1 or not args.widths or not args.depths:
+        raise BenchError("--size and --repeats must be >= 1, --widths and --depths not empty")
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     ctx = shared_context()
@@ -186,14 +183,8 @@ def run(args) -> int:
     x = uv_grid(args.size)
     quiet = not sys.stderr.isatty()
 
-    host = {
-        **machine(info),
-        "cpu": platform.processor() or platform.machine(), "torch": torch.__version__,
-        "torch_threads": torch.get_num_threads(), "numpy": np.__version__,
-        "python": platform.python_version(),
-        "LP_NUM_THREADS": os.environ.get("LP_NUM_THREADS"),
-        "MESA_SHADER_CACHE_DISABLE": os.environ.get("MESA_SHADER_CACHE_DISABLE"),
-    }
+    clock = clock_for(ctx, args.clock, software=info["software"])
+    host = machine(info, torch=torch.__version__, torch_threads=torch.get_num_threads(), numpy=np.__version__)
     with tqdm(total=1, desc="sgemm peak", disable=quiet, leave=False) as bar:
         peak = sgemm_gflops(args.sgemm_size, max(3, args.repeats))
         bar.update()
@@ -205,7 +196,8 @@ def run(args) -> int:
             name = f"{width}x{depth}"
             bar.set_postfix_str(f"{name} torch")
             net = _network(width, depth, args.encoding, args.freqs, args.seed)
-            torch_s, ref = _bench_torch(net, x, args.repeats)
+            torch_timing, ref = _bench_torch(net, x, args.repeats)
+            torch_s = torch_timing.median
             bar.update()
             bundle = net.export("mlp", name=f"bench-mlp-{name}")
             from inshade.codegen import generate
@@ -216,10 +208,11 @@ def run(args) -> int:
                      "in_dim": bundle.in_dim, "params": plan.totals()["params"],
                      "dense_flops_per_px": flops_px, "plan_flops_per_px": plan.totals()["flops"],
                      "pixels": int(x.shape[0]), "torch_s": torch_s,
-                     "torch_gflops": flops_px * x.shape[0] / torch_s / 1e9, "modes": {}}
+                     "torch_gflops": flops_px * x.shape[0] / torch_s / 1e9, "torch_timing": torch_timing.to_dict(),
+                     "modes": {}}
             for mode in args.storage:
                 bar.set_postfix_str(f"{name} {mode}")
-                r = _bench_glsl(ctx, bundle, mode, x, ref, args.size, args.repeats, info)
+                r = _bench_glsl(ctx, bundle, mode, x, ref, args.size, args.repeats, info, clock)
                 r["gflops"] = flops_px * x.shape[0] / r["seconds"] / 1e9
                 r["speedup_vs_torch"] = torch_s / r["seconds"]
                 r["fraction_of_sgemm"] = r["gflops"] / peak["gflops"]
@@ -231,14 +224,10 @@ def run(args) -> int:
     targets = evaluate_targets(networks, peak)
     result = {"benchmark": "mlp", "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
               "batch": {"size": args.size, "pixels": int(x.shape[0])}, "repeats": args.repeats,
-              "machine": host, "sgemm": peak, "parity_tolerance": PARITY_TOL,
+              "machine": host, **clock_record(clock), "sgemm": peak, "parity_tolerance": PARITY_TOL,
               "networks": networks, "targets": targets,
               "max_error": max((m["max_error"] for n in networks for m in n["modes"].values()), default=0.0)}
-    (out_dir / "mlp.json").write_text(json.dumps(result, indent=2) + "\n")
-    md = markdown(result)
-    (out_dir / "mlp.md").write_text(md)
-    plot(result, out_dir / "mlp.png")
-    print(md)
+    write_report(out_dir, "mlp", result, markdown, plot)
     print(f"wrote {out_dir / 'mlp.json'}, {out_dir / 'mlp.md'}, {out_dir / 'mlp.png'}", file=sys.stderr)
     if not all(m["parity_ok"] for n in networks for m in n["modes"].values()):
         print(f"error: some generated code differs from torch by >= {PARITY_TOL}", file=sys.stderr)
@@ -305,11 +294,12 @@ def markdown(result: dict) -> str:
     lines = [
         "# inshade bench mlp",
         "",
-        f"- GL_RENDERER: `{m['gl_renderer']}`; GL_VERSION: `{m['gl_version']}`",
+        machine_markdown(m),
         f"- CPU count: {m['cpu_count']}; torch {m['torch']} ({m['torch_threads']} threads); "
         f"numpy {m['numpy']}; LP_NUM_THREADS={m['LP_NUM_THREADS'] or 'default'}",
         f"- batch: {b['size']}x{b['size']} = {b['pixels']} pixels; median of {result['repeats']} repeats "
-        f"after one warm-up; GLSL time = draw + finish (read-back listed separately)",
+        f"after one warm-up; GLSL time = {result.get('clock_note') or 'draw + finish'} "
+        f"(read-back listed separately)",
         f"- numpy sgemm {peak['n']}x{peak['n']} float32: {peak['gflops']:.1f} GFLOP/s (practical peak)",
         f"- GFLOP/s count the dense layers only (2*in*out + bias per pixel); parity tolerance "
         f"{result['parity_tolerance']:g}",
@@ -335,10 +325,7 @@ def markdown(result: dict) -> str:
 
 
 def plot(result: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = matplotlib_pyplot()
 
     nets = result["networks"]
     modes = list(dict.fromkeys(k for n in nets for k in n["modes"]))

@@ -1,4 +1,4 @@
-// The mesh G-buffer a deferred pass reads (viewer/geometry.py MeshGBuffer, GBUFFER order; drawn by
+// The mesh G-buffer a deferred pass reads (runtime/geometry.py MeshGBuffer, GBUFFER order; drawn by
 // passes/mesh_gbuffer.frag into float targets the size of this pass's, so texel = pixel).
 uniform sampler2D u_gbuffer_position;   // world position, w = 1 where the mesh covers the pixel
 uniform sampler2D u_gbuffer_normal;     // unit interpolated normal

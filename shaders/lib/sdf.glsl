@@ -2,7 +2,7 @@
 // chunk <sdf_scene> (codegen/sdf.py: chunks=sdf_chunks(scene)): scene_sdf(p), scene_albedo(p) and
 // the constants SDF_MAX_STEPS, SDF_STEP_SCALE, SDF_HIT_EPS, SDF_NORMAL_EPS, SDF_BOUND_CENTER,
 // SDF_BOUND_RADIUS. Torch twins, step for step, in models/sdf.py (trace, normals).
-// World frame: right-handed, y up; the camera looks down -z (viewer/camera.py).
+// World frame: right-handed, y up; the camera looks down -z (runtime/camera.py).
 #include <sdf_scene>
 
 #include <lib/camera>

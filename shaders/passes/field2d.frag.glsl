@@ -1,7 +1,7 @@
 // 2D field pass: evaluates the generated network (one 2-wide input, the uv) once per pixel and
 // writes its colour output, in linear light, to a float target (RGBA32F).
 //
-// Orientation, decided once for every 2D field (models/neural_image.py follows it): uv (0,0) is
+// Orientation, decided once for every 2D field (every torch twin of a field follows it): uv (0,0) is
 // the bottom-left corner of the picture and (1,1) the top-right, the GL texture convention
 // (y up). Each pixel is evaluated at its centre, uv = gl_FragCoord.xy / u_size, which is what
 // fullscreen.vert's v_uv interpolates to; it is computed from gl_FragCoord rather than read from
@@ -9,12 +9,12 @@
 // into visible disagreement with torch. render.read_rgba flips rows, so image row 0 (top) holds
 // v = (H - 0.5) / H.
 //
-// Camera (viewer/camera.py, `plane2d`): uv = u_view.xy + gl_FragCoord.xy / u_size * u_view.zw. The
+// Camera (runtime/camera.py, `plane2d`): uv = u_view.xy + gl_FragCoord.xy / u_size * u_view.zw. The
 // default view is u_view = (0, 0, 1, 1), which adds 0 and multiplies by 1 (exact), so the pixels
 // are the same as without a camera. Outside the unit square the network is not evaluated and the
 // pixel is transparent (alpha 0 = no coverage; the display pass draws a background there).
 //
-// Defines (set by viewer/headless.py from the bundle's `render` field):
+// Defines (set by runtime/headless.py from the bundle's `render` field):
 //   FIELD_OUT_OFFSET  first lane of the shown output in the network's concatenated outputs
 //   FIELD_OUT_DIM     its width: 1 (grey), 3 (rgb, alpha = 1) or 4 (rgba)
 #include <network>

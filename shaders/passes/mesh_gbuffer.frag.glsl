@@ -1,10 +1,10 @@
-// Mesh G-buffer pass (deferred PRT on triangle meshes, seeds/002 §4.1): rasterise the mesh once
+// Mesh G-buffer pass (deferred PRT on triangle meshes, Learnt Transfer, Dhawal et al. 2022 §4.1): rasterise the mesh once
 // with depth testing (common/mesh.vert) so that a later full-screen pass runs the transfer
 // network once per pixel, on the visible surface only.
 // attachment 0: (world position, 1); attachment 1: (unit interpolated normal, 1); 2: (uv, 0, 1);
 // 3: (interpolated tangent, handedness). The clear value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
 // consistently wound closed mesh), not flipped towards the viewer: transfer is a function of it.
-// Built and read by viewer/geometry.py MeshGBuffer.
+// Built and read by runtime/geometry.py MeshGBuffer.
 
 in vec3 v_world_position;
 in vec3 v_normal;

@@ -1,0 +1,233 @@
+"""The technique plug-in contract: one record per technique, found by name.
+
+A technique (a paper's method, e.g. learnt-transfer PRT) is one folder under ``techniques/``
+holding its record, its torch side (trainer, twin, asset builder), its bench and its GLSL. The
+record is a ``Technique``: what it is, which bundle kinds it reads, which programs it draws and
+what each program needs from the runtime (``ProgramSpec``). The CLI (``inshade train NAME``,
+``inshade bench NAME``), the runtime and the viewer read the registry; none of them names a
+technique.
+
+Records are torch-free: entry points are module names imported only when run, and the hooks a
+program spec carries (extra chunks, per-frame uniforms, validation) import numpy-side code only.
+
+Registering: built-in techniques are listed in ``inshade.techniques.BUILTIN`` (one line each).
+Out-of-tree techniques are folders named in ``INSHADE_TECHNIQUES`` (``os.pathsep``-separated):
+each is imported as a package (its parent folder joins ``sys.path``) and must define
+``TECHNIQUE``. ``register()`` adds a record at run time (tests).
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+PLUGINS_ENV = "INSHADE_TECHNIQUES"
+# What a program draws over; the runtime sets up the matching pass (runtime/scene.py GEOMETRIES).
+GEOMETRIES = ("fullscreen", "sdf", "mesh")
+MESH_ATTRIBUTES = ("uv", "tangent")
+
+
+class TechniqueError(ValueError):
+    """An unknown technique or program, or a record that breaks the contract."""
+
+
+@dataclass(frozen=True)
+class Paper:
+    title: str
+    venue: str
+    arxiv: str | None = None      # arXiv id, e.g. "2305.02678"; None when there is none
+    doi: str | None = None
+
+    def cite(self) -> str:
+        ids = [f"arXiv:{self.arxiv}"] * bool(self.arxiv) + [f"doi:{self.doi}"] * bool(self.doi)
+        return f"{self.title} ({', '.join([self.venue, *ids])})"
+
+
+@dataclass(frozen=True)
+class FrameInputs:
+    """What a program's per-frame hook sees: the scene, the current setting values, and the
+    environment's radiance SH [K, 3] float32 (lit scenes; else None)."""
+    scene: object
+    values: Mapping
+    environment_sh: object = None
+
+
+@dataclass(frozen=True)
+class ProgramSpec:
+    """One fragment program a technique draws, and what it needs from the runtime.
+
+    - ``program``: the entry chunk (``passes/<name>.frag``), unique over all techniques;
+    - ``geometry``: what the pass covers: ``fullscreen`` (a field or an analytic scene in the
+      shader), ``sdf`` (a sphere-traced SDF: the scene's ``sdf``), ``mesh`` (a rasterised G-buffer
+      of the scene's ``mesh``, shaded once per pixel); ``mesh_attributes`` the mesh must carry;
+    - ``attachments``: colour outputs the program writes (RGBA32F each; location 0 is what the
+      display pass shows, the others are data a caller reads back, e.g. a sampler's inputs);
+    - ``field_inputs``: a bundle's ``render.program`` may name this program; the bundle's only
+      input must be this wide (None: scenes only);
+    - ``bundle_kinds``: the scene's networks must include one bundle of one of these kinds;
+    - ``uniforms``: values set every frame unless a scene setting binds them (a program shared
+      through a program cache never keeps another scene's values);
+    - ``chunks(scene, bundles, networks, codegen_options) -> {name: source}``: generated chunks
+      besides the networks' own;
+    - ``frame(FrameInputs) -> {uniform: value}``: per-frame CPU work (e.g. a light matrix);
+    - ``validate(scene)``: raise ``ValueError`` with a field-naming message if the scene cannot
+      be drawn by this program (checked when the scene loads);
+    - ``environment_degree``: the SH degree the program's lighting needs (None: any).
+    """
+    program: str
+    geometry: str = "fullscreen"
+    mesh_attributes: tuple[str, ...] = ()
+    attachments: int = 1
+    field_inputs: int | None = None
+    bundle_kinds: tuple[str, ...] = ()
+    uniforms: Mapping = field(default_factory=dict)
+    chunks: Callable | None = None
+    frame: Callable | None = None
+    validate: Callable | None = None
+    environment_degree: int | None = None
+
+    def __post_init__(self):
+        if self.geometry not in GEOMETRIES:
+            raise TechniqueError(f"program {self.program}: geometry must be one of {list(GEOMETRIES)}, "
+                                 f"got {self.geometry!r}")
+        if not isinstance(self.attachments, int) or self.attachments < 1:
+            raise TechniqueError(f"program {self.program}: attachments must be an int >= 1, got {self.attachments!r}")
+        bad = [a for a in self.mesh_attributes if a not in MESH_ATTRIBUTES]
+        if bad:
+            raise TechniqueError(f"program {self.program}: unknown mesh attribute {bad[0]!r} "
+                                 f"(known: {', '.join(MESH_ATTRIBUTES)})")
+
+
+@dataclass(frozen=True)
+class Technique:
+    """A technique's record: see the module docstring.
+
+    ``kinds`` are the bundle kinds its trainers write (new bundles); ``old_kinds`` maps kinds
+    that earlier bundles carry to the current one, and they are still read. ``train`` and
+    ``bench`` name modules with ``main(argv) -> int`` (imported only when run: they may need
+    torch). ``shaders`` is the folder whose chunks join the shader search path.
+    """
+    name: str
+    summary: str
+    paper: Paper | None = None
+    kinds: tuple[str, ...] = ()
+    old_kinds: Mapping = field(default_factory=dict)
+    programs: tuple[ProgramSpec, ...] = ()
+    train: str | None = None
+    train_help: str = ""
+    bench: str | None = None
+    bench_help: str = ""
+    shaders: Path | None = None
+
+    def __post_init__(self):
+        if not self.name.isidentifier():
+            raise TechniqueError(f"technique name must be an identifier, got {self.name!r}")
+
+
+_REGISTRY: dict[str, Technique] = {}
+_LOADED = False
+
+
+def register(technique: Technique) -> Technique:
+    """Add a record. A name, program or bundle kind that another technique already has is an error."""
+    if not isinstance(technique, Technique):
+        raise TechniqueError(f"register: expected a Technique, got {type(technique).__name__}")
+    old = _REGISTRY.get(technique.name)
+    if old is not None and old is not technique:
+        raise TechniqueError(f"technique {technique.name!r} is registered twice")
+    for other in _REGISTRY.values():
+        if other.name == technique.name:
+            continue
+        programs = {p.program for p in other.programs} & {p.program for p in technique.programs}
+        if programs:
+            raise TechniqueError(f"technique {technique.name!r}: program {sorted(programs)[0]} already "
+                                 f"belongs to {other.name!r}")
+        kinds = set(_all_kinds(other)) & set(_all_kinds(technique))
+        if kinds:
+            raise TechniqueError(f"technique {technique.name!r}: bundle kind {sorted(kinds)[0]!r} already "
+                                 f"belongs to {other.name!r}")
+    _REGISTRY[technique.name] = technique
+    return technique
+
+
+def unregister(name: str) -> None:
+    _REGISTRY.pop(name, None)
+
+
+def _all_kinds(t: Technique) -> list[str]:
+    return [*t.kinds, *t.old_kinds]
+
+
+def _load() -> None:
+    """Import the built-in records, then the plug-in folders of ``INSHADE_TECHNIQUES`` (once)."""
+    global _LOADED
+    if _LOADED:
+        return
+    _LOADED = True
+    from inshade import techniques as builtin
+
+    for name in builtin.BUILTIN:
+        register(importlib.import_module(f"inshade.techniques.{name}").TECHNIQUE)
+    for folder in filter(None, os.environ.get(PLUGINS_ENV, "").split(os.pathsep)):
+        load_folder(folder)
+
+
+def load_folder(folder) -> Technique:
+    """Import a technique folder (a package whose ``__init__`` defines ``TECHNIQUE``) and register it."""
+    folder = Path(folder).resolve()
+    if not (folder / "__init__.py").is_file():
+        raise TechniqueError(f"{PLUGINS_ENV}: {folder}: not a technique folder (no __init__.py)")
+    if str(folder.parent) not in sys.path:
+        sys.path.insert(0, str(folder.parent))
+    module = importlib.import_module(folder.name)
+    record = getattr(module, "TECHNIQUE", None)
+    if not isinstance(record, Technique):
+        raise TechniqueError(f"{PLUGINS_ENV}: {folder}: defines no TECHNIQUE record")
+    return register(record)
+
+
+def techniques() -> list[Technique]:
+    """Every registered technique, in registration order."""
+    _load()
+    return list(_REGISTRY.values())
+
+
+def get(name: str) -> Technique:
+    _load()
+    if name not in _REGISTRY:
+        raise TechniqueError(f"unknown technique {name!r} (known: {', '.join(_REGISTRY)})")
+    return _REGISTRY[name]
+
+
+def program_spec(program: str) -> tuple[Technique, ProgramSpec]:
+    """The technique that draws ``program`` and its spec."""
+    _load()
+    for t in _REGISTRY.values():
+        for spec in t.programs:
+            if spec.program == program:
+                return t, spec
+    known = sorted(p.program for t in _REGISTRY.values() for p in t.programs)
+    raise TechniqueError(f"no technique draws program {program!r} (known: {', '.join(known)})")
+
+
+def technique_of_kind(kind: str) -> Technique | None:
+    """The technique whose bundles carry ``kind`` (current or old), or None."""
+    _load()
+    for t in _REGISTRY.values():
+        if kind in t.kinds or kind in t.old_kinds:
+            return t
+    return None
+
+
+def current_kind(kind: str) -> str:
+    """``kind`` with an old name mapped to the current one (unknown kinds unchanged)."""
+    t = technique_of_kind(kind)
+    return t.old_kinds.get(kind, kind) if t is not None else kind
+
+
+def shader_roots() -> list[Path]:
+    """The technique shader folders, in registration order (the chunk resolver searches them)."""
+    return [t.shaders for t in techniques() if t.shaders is not None]

@@ -1,0 +1,119 @@
+"""Triangle-mesh geometry on the GPU: the G-buffer pass that deferred mesh shading (PRT, PBR sets) reads.
+
+``MeshGBuffer(ctx, mesh)`` uploads a trimesh mesh's positions, shading normals (inshade/mesh.py
+``shading_normals``: welded across uv seams), uv and tangents once; ``draw(view, proj, model,
+width, height)`` rasterises it with depth testing (common/mesh.vert + passes/mesh_gbuffer.frag)
+into four RGBA32F textures (``GBUFFER``), NEAREST-filtered, data orientation (texel (x, y) is
+pixel (x, y), as runtime/render.py ``read_rgba_raw``):
+
+- ``position``: world position, w = 1 where the mesh covers the pixel, all 0 in the background;
+- ``normal``: unit interpolated vertex normal (inverse-transpose of ``model``), w = 1 / 0 likewise;
+- ``uv``: interpolated texture coordinates (0 for a mesh without uv), z = 0, w = 1 / 0;
+- ``tangent``: interpolated world tangent (not renormalised: the shading pass orthonormalises it
+  against the normal) and its handedness in w (+-1; 0 in the background or without uv).
+
+Matrices follow runtime/camera.py: numpy 4x4 in pyrr's row-vector layout (``v @ view @ proj``),
+i.e. exactly ``camera.view_matrix()`` and ``camera.projection(width, height)``; their C-order
+float32 bytes are GLSL's column-major ``M * v``. ``model`` defaults to the identity.
+A consumer pass (e.g. mesh PRT) samples the two textures with ``texelFetch`` at
+``ivec2(gl_FragCoord.xy)`` on a target of the same size, and skips pixels whose w is 0.
+"""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from inshade.mesh import mesh_uv, shading_normals, vertex_tangents
+
+from .programs import ProgramCache
+from .render import float_target, read_rgba_raw
+
+VERTEX = "common/mesh.vert"
+FRAGMENT = "passes/mesh_gbuffer.frag"
+GBUFFER = ("position", "normal", "uv", "tangent")   # attachment order; sampler u_gbuffer_<name>
+
+
+def _mat_bytes(m) -> bytes:
+    m = np.asarray(m, np.float64)
+    if m.shape != (4, 4) or not np.isfinite(m).all():
+        raise ValueError(f"expected a finite 4x4 matrix, got shape {m.shape}")
+    return m.astype("f4").tobytes()
+
+
+class MeshGBuffer:
+    """A mesh's G-buffer pass: ``draw`` -> (position texture, normal texture)."""
+
+    def __init__(self, ctx: moderngl.Context, mesh, cache: ProgramCache | None = None, *, version: str = "330"):
+        self.ctx = ctx
+        self.cache = cache if cache is not None else ProgramCache(ctx)
+        self.program = self.cache.get(VERTEX, FRAGMENT, version=version)
+        vertices = np.asarray(mesh.vertices, np.float32)
+        normals = shading_normals(mesh)
+        faces = np.asarray(mesh.faces, np.int32)
+        uv = mesh_uv(mesh)
+        self.has_uv = uv is not None
+        tangents = vertex_tangents(mesh, normals) if self.has_uv else np.zeros((len(vertices), 4))
+        uv = uv if self.has_uv else np.zeros((len(vertices), 2))
+        self.bounds = (vertices.min(0), vertices.max(0))
+        self.face_count = len(faces)
+        # as render.MeshPass, but owning its buffers so release() frees them
+        attributes = {"in_position": (vertices, "3f"), "in_normal": (normals, "3f"), "in_uv": (uv, "2f"),
+                      "in_tangent": (tangents, "4f")}
+        self.buffers = [ctx.buffer(np.ascontiguousarray(a, np.float32).tobytes()) for a, _ in attributes.values()]
+        self.index_buffer = ctx.buffer(np.ascontiguousarray(faces).tobytes())
+        content = [(b, layout, name) for b, (name, (_, layout)) in zip(self.buffers, attributes.items())
+                   if name in self.program]
+        self.vao = ctx.vertex_array(self.program, content, index_buffer=self.index_buffer, index_element_size=4)
+        self.fbo: moderngl.Framebuffer | None = None
+
+    @property
+    def size(self) -> tuple[int, int] | None:
+        return self.fbo.size if self.fbo is not None else None
+
+    def _target(self, width: int, height: int) -> moderngl.Framebuffer:
+        if self.fbo is None or self.fbo.size != (width, height):
+            self._release_target()
+            self.fbo = float_target(self.ctx, width, height, len(GBUFFER), depth=True)
+        return self.fbo
+
+    def draw(self, view, proj, model=None, width: int = 512, height: int = 512):
+        """Rasterise into the (reused) target of this size; returns its textures in GBUFFER order."""
+        fbo = self._target(int(width), int(height))
+        fbo.use()
+        self.ctx.viewport = (0, 0, int(width), int(height))
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        model = np.eye(4) if model is None else model
+        for name, m in (("u_view", view), ("u_proj", proj), ("u_model", model)):
+            self.program[name].write(_mat_bytes(m))
+        self.vao.render(moderngl.TRIANGLES)
+        return tuple(fbo.color_attachments)
+
+    def draw_camera(self, camera, width: int, height: int, model=None):
+        """``draw`` with a viewer.camera 3D camera's matrices."""
+        return self.draw(camera.view_matrix(), camera.projection(width, height), model, width, height)
+
+    def read(self) -> tuple[np.ndarray, ...]:
+        """The last draw's textures in GBUFFER order ([H, W, 4] each), data orientation (row 0 =
+        GL y 0): (position, normal, uv, tangent)."""
+        if self.fbo is None:
+            raise RuntimeError("MeshGBuffer.read before draw")
+        return tuple(read_rgba_raw(self.fbo, i) for i in range(len(GBUFFER)))
+
+    def _release_target(self) -> None:
+        if self.fbo is not None:
+            for a in self.fbo.color_attachments:
+                a.release()
+            if self.fbo.depth_attachment is not None:
+                self.fbo.depth_attachment.release()
+            self.fbo.release()
+            self.fbo = None
+
+    def release(self) -> None:
+        """GL objects of this pass (the program stays in the cache, whose owner releases it)."""
+        self._release_target()
+        self.vao.release()
+        for b in [*self.buffers, self.index_buffer]:
+            b.release()
+        self.buffers = []

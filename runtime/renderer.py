@@ -1,0 +1,488 @@
+"""SceneRenderer: the one per-frame render function shared by ``inshade render`` and ``inshade view``.
+
+It owns the GL side of a scene: the generated network(s) and their resources, the scene program
+(the network pass), the display pass (modes, compare, heat map), the reference texture and the
+float targets. ``render(camera, w, h, mode)`` draws into a linear RGBA32F target; the headless path
+reads it back and writes files, the window app blits it to the screen. There is no render code in
+the window app.
+
+Cost model (matters on llvmpipe, where the first draw of a network program JIT-compiles for seconds):
+the network pass is redrawn only when its inputs change (camera, size, weights, program, network
+uniforms); mode, split, exposure and error scale only redraw the cheap display pass.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from pathlib import Path
+
+import moderngl
+import numpy as np
+from PIL import Image
+
+from inshade.bundle import Bundle, load
+from inshade.codegen.network import generate
+from inshade.codegen.network_sdf import network_sdf_chunks
+from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunks
+from inshade.codegen.spherical_harmonics import sh_chunks
+from inshade.technique import FrameInputs
+
+from .context import GLContextError, gl_info, make_current, shared_context
+from .display import DisplayMode, glsl_chunk, parse_mode
+from .geometry import GBUFFER, MeshGBuffer
+from .image_io import read_exr
+from .network import NetworkResources
+from .programs import ProgramCache
+from .render import FullscreenPass, float_target, read_rgba, read_rgba_raw, release_target
+from .scene import MAX_LIGHTS, NetworkSdfRef, Scene, SceneError, codegen_option_path
+
+VERTEX = "common/fullscreen.vert"
+
+
+class CapabilityError(GLContextError):
+    """The context lacks something the scene needs (GL version, extension, limit)."""
+
+
+def check_capabilities(ctx: moderngl.Context, scene: Scene) -> None:
+    need = scene.requires
+    gl = int(need.get("gl", 330))
+    if ctx.version_code < gl:
+        raise CapabilityError(f"scene '{scene.name}' needs OpenGL {gl // 100}.{gl % 100 // 10}; "
+                              f"this context is {ctx.version_code // 100}.{ctx.version_code % 100 // 10} "
+                              f"({ctx.info['GL_RENDERER']})")
+    missing = [e for e in need.get("extensions", []) if e not in ctx.extensions]
+    if missing:
+        raise CapabilityError(f"scene '{scene.name}' needs {', '.join(missing)}, which "
+                              f"{ctx.info['GL_RENDERER']} does not offer")
+    for name, low in need.get("limits", {}).items():
+        have = ctx.info.get(name)
+        if have is None or int(have) < int(low):
+            raise CapabilityError(f"scene '{scene.name}' needs {name} >= {low}; this context has {have}")
+
+
+def load_reference(path: Path, colour: str = "srgb") -> np.ndarray:
+    """Reference image as linear float32 RGB [H, W, 3], image orientation (row 0 = top)."""
+    if colour == "linear":
+        return np.asarray(read_exr(path), np.float32)[..., :3]
+    encoded = np.asarray(Image.open(path).convert("RGB"), np.float64) / 255.0
+    linear = np.where(encoded <= 0.04045, encoded / 12.92, ((encoded + 0.055) / 1.055) ** 2.4)
+    return linear.astype(np.float32)
+
+
+class SceneRenderer:
+    """GL objects and state to draw one scene; call ``release()`` when done (no GL leaks).
+
+    ``settings`` overrides the scene's defaults (checked against their ranges/choices).
+    ``bundles`` gives already-loaded bundles (else each network's bundle is loaded from disk).
+    ``owns_programs``: discard replaced programs from ``cache`` on rebuild (a window app with its
+    own cache); leave False when the cache is shared with other code.
+    """
+
+    def __init__(self, scene: Scene, ctx: moderngl.Context | None = None, *, cache: ProgramCache | None = None,
+                 settings: dict | None = None, bundles: list[Bundle] | None = None,
+                 owns_programs: bool = False):
+        self.ctx = shared_context() if ctx is None else make_current(ctx)
+        self.scene = scene
+        self.spec = scene.spec        # what the program needs (its technique's ProgramSpec)
+        self.gl = gl_info(self.ctx)
+        check_capabilities(self.ctx, scene)
+        self.cache = cache if cache is not None else ProgramCache(self.ctx)
+        self.owns_programs = owns_programs
+        self.values = scene.check_settings(settings or {})
+        self.bundles = bundles or [load(n.bundle) for n in scene.networks]
+        self.sdf_bundle = load(scene.sdf.bundle) if isinstance(scene.sdf, NetworkSdfRef) else None
+        self.error = None              # the last failed rebuild (ShaderCompileError ...), cleared on success
+        self.weights_version = 0
+        self.compile_seconds = 0.0
+        self.first_draw_seconds = None  # wall time of the first network draw (llvmpipe JITs there)
+        self.first_draw_pending = True
+        self.program = None
+        self.generated = []
+        self.resources: list[NetworkResources] = []
+        self._net_pass = None
+        self._net_key = None
+        self._targets: dict[str, moderngl.Framebuffer] = {}
+        self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
+        self._build()
+        if scene.mesh is not None:
+            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache)
+        self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
+        self.display_program = self.cache.get(VERTEX, "passes/display.frag",
+                                              chunks={"display_modes": glsl_chunk()})
+        self._display_pass = FullscreenPass(self.ctx, self.display_program)
+        self.reference_image = None
+        if scene.reference is not None:
+            self.reference_image = load_reference(scene.reference.image, scene.reference.colour)
+            self._reference_tex = self.ctx.texture(
+                self.reference_image.shape[1::-1], 3,
+                np.ascontiguousarray(self.reference_image[::-1]).tobytes(), dtype="f4")  # uv (0,0) = bottom-left
+            self._reference_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        else:
+            self._reference_tex = self.ctx.texture((1, 1), 3, np.zeros(3, "f4").tobytes(), dtype="f4")
+        self._reference_tex.repeat_x = self._reference_tex.repeat_y = False
+
+    # building ---------------------------------------------------------------------------------------
+    def _codegen_options(self) -> dict:
+        options = {}
+        for n, s in self.scene.settings.items():
+            if s.binding == "codegen":
+                component, option = codegen_option_path(s.target)
+                options.setdefault(component, {})[option] = self.values[n]
+        return {"limits": dict(self.gl), "options": options}  # GL_MAX_* limits, software or not (auto storage)
+
+    def _generate(self, bundles):
+        options = self._codegen_options()
+        return [generate(b, prefix=n.prefix, **options) for b, n in zip(bundles, self.scene.networks)]
+
+    def _geometry_chunks(self, bundles) -> tuple[dict, list]:
+        """Chunks for the scene's geometry and shading besides the networks': the SDF (analytic, or
+        a network SDF with its Generated, returned to get GL resources), the SH basis, and what the
+        program's technique generates (``ProgramSpec.chunks``, e.g. PRT's <prt_network>)."""
+        chunks, extra = {}, []
+        sdf = self.scene.sdf
+        if isinstance(sdf, NetworkSdfRef):
+            sdf_ch, gen = network_sdf_chunks(self.sdf_bundle, prefix=sdf.prefix, **self._codegen_options())
+            chunks.update(sdf_ch)
+            extra.append(gen)
+        elif sdf is not None:
+            chunks.update(sdf_chunks(sdf))
+        if self.scene.lit:
+            chunks.update(sh_chunks(int(self.scene.environment["degree"])))
+        if self.spec.chunks is not None:
+            try:
+                chunks.update(self.spec.chunks(self.scene, bundles, self.scene.networks, self._codegen_options()))
+            except ValueError as exc:
+                raise SceneError(f"{self.scene.source or self.scene.name}: {exc}") from None
+        return chunks, extra
+
+    def _defines(self, bundles) -> dict:
+        defines = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "define"}
+        if not bundles:
+            return defines
+        primary, ref = bundles[0], self.scene.networks[0]
+        name = ref.output or primary.outputs[0].name
+        lanes = primary.output_lanes(name)
+        if lanes is None:
+            raise SceneError(f"scene '{self.scene.name}': network {primary.name!r} has no output {name!r} "
+                             f"(outputs: {', '.join(p.name for p in primary.outputs)})")
+        defines.update(FIELD_OUT_OFFSET=lanes[0], FIELD_OUT_DIM=lanes[1])
+        return defines
+
+    def _build(self, bundles=None) -> str:
+        """(Re)generate and compile. On failure nothing changes (the last good program keeps
+        drawing), ``self.error`` is set and the error is raised. Returns "unchanged",
+        "reuploaded" or "recompiled"."""
+        bundles = bundles or self.bundles
+        try:
+            generated = self._generate(bundles)
+            chunks = {n.chunk: g.chunk for n, g in zip(self.scene.networks, generated)}
+            geometry, extra = self._geometry_chunks(bundles)
+            chunks.update(geometry)
+            generated = generated + extra   # GL resources of a network SDF bind like a network's
+            program = self.cache.get(VERTEX, self.scene.program, defines=self._defines(bundles), chunks=chunks)
+        except Exception as exc:
+            self.error = exc
+            raise
+        self.error = None
+        self.compile_seconds = self.cache.last_compile_seconds
+        same_code = [g.chunk for g in generated] == [g.chunk for g in self.generated]
+        if self.resources and same_code:
+            for res, g in zip(self.resources, generated):
+                res.upload(g)   # ubo: rewritten in place; textures: replaced; no recompile
+        else:
+            for res in self.resources:
+                res.release()
+            self.resources = [NetworkResources(self.ctx, g) for g in generated]
+        outcome = "unchanged" if program is self.program else "recompiled"
+        if program is not self.program:
+            if self._net_pass is not None:
+                self._net_pass.vao.release()
+            if self.program is not None and self.owns_programs:
+                self.cache.discard(self.program)
+            self.program = program
+            self._net_pass = FullscreenPass(self.ctx, program)
+            self.first_draw_pending = True
+        elif self.bundles is not bundles:
+            outcome = "reuploaded"
+        self.generated, self.bundles = generated, bundles
+        self._net_key = None
+        return outcome
+
+    def set_setting(self, name: str, value) -> str:
+        """Change one setting: "uniform" (takes effect next frame) or what a rebuild did."""
+        if name not in self.scene.settings:
+            raise SceneError(f"unknown setting {name!r} (this scene has: {', '.join(self.scene.settings)})")
+        setting = self.scene.settings[name]
+        value = setting.check(value)
+        if setting.binding in ("uniform", "environment", "frame"):
+            self.values[name] = value
+            return "uniform"
+        old = self.values[name]
+        if old == value:
+            return "unchanged"
+        self.values[name] = value
+        try:
+            return self._build()
+        except Exception:
+            self.values[name] = old
+            raise
+
+    def reload_weights(self) -> str:
+        """Re-read every bundle from disk; re-upload without recompiling when the code is unchanged
+        (ubo/texture storage), else recompile (inline storage bakes weights into the code)."""
+        if isinstance(self.scene.sdf, NetworkSdfRef):
+            self.sdf_bundle = load(self.scene.sdf.bundle)
+        outcome = self._build([load(n.bundle) for n in self.scene.networks])
+        self.weights_version += 1
+        return outcome
+
+    def reload_shaders(self) -> str:
+        """Re-assemble the programs from the chunk files (after a .glsl edit)."""
+        outcome = self._build(self.bundles)
+        try:
+            display = self.cache.get(VERTEX, "passes/display.frag", chunks={"display_modes": glsl_chunk()})
+        except Exception as exc:
+            self.error = exc
+            raise
+        if display is not self.display_program:
+            self._display_pass.vao.release()
+            if self.owns_programs:
+                self.cache.discard(self.display_program)
+            self.display_program = display
+            self._display_pass = FullscreenPass(self.ctx, display)
+            outcome = "recompiled"
+        self._net_key = None
+        return outcome
+
+    # drawing ----------------------------------------------------------------------------------------
+    def _target(self, name: str, width: int, height: int, attachments: int = 1) -> moderngl.Framebuffer:
+        fbo = self._targets.get(name)
+        if fbo is not None and fbo.size == (width, height) and len(fbo.color_attachments) == attachments:
+            return fbo
+        if fbo is not None:
+            release_target(fbo)
+        fbo = self._targets[name] = float_target(self.ctx, width, height, attachments=attachments)
+        return fbo
+
+    def _uniforms(self, program, camera, width, height) -> dict:
+        out = {"u_size": (float(width), float(height))}
+        out.update(self.spec.uniforms)
+        out.update(camera.uniforms(width, height))
+        for name, s in self.scene.settings.items():
+            if s.binding == "uniform":
+                v = self.values[name]
+                if isinstance(v, bool):
+                    v = int(v)
+                elif s.type == "choice":   # a choice drives an int uniform: its index in the choices
+                    v = s.choices.index(v)
+                out[s.target] = v
+        if "u_lights" in program:   # lib/lights.glsl: the scene's point lights
+            lights = np.zeros((MAX_LIGHTS, 4), np.float32)
+            for i, light in enumerate(self.scene.lights):
+                lights[i] = (*light.position, light.intensity)
+            out.update(u_lights=lights.tobytes(), u_scene_light_count=len(self.scene.lights))
+        if self.scene.lit:
+            sh = self.environment_sh()
+            out["u_sh"] = sh.tobytes()
+        if self.spec.frame is not None:   # per-frame CPU work of the technique (e.g. a light matrix)
+            out.update(self.spec.frame(FrameInputs(self.scene, self.values, sh if self.scene.lit else None)))
+        return {k: v for k, v in out.items() if k in program}
+
+    def environment_sh(self) -> np.ndarray:
+        """SDF scenes: the radiance SH [K, 3] float32 of the environment (scene + settings)."""
+        env = dict(self.scene.environment)
+        for name, s in self.scene.settings.items():
+            if s.binding == "environment":
+                env[s.target] = self.values[name]
+        if env["sky"] == "map":   # environment.map, projected at load time (runtime/scene.py)
+            return _rotated_map_sh(self.scene.environment_map, float(env["rotation"]))
+        return environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
+
+    def render_network(self, camera, width: int, height: int) -> moderngl.Framebuffer:
+        """The scene pass alone (linear float, alpha = coverage); redrawn only when its inputs change."""
+        make_current(self.ctx)
+        fbo = self._target("network", width, height, self.spec.attachments)
+        uniforms = self._uniforms(self.program, camera, width, height)
+        key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())))
+        if key != self._net_key:
+            self.ctx.scissor = None
+            gbuffer = self.gbuffer.draw_camera(camera, width, height) if self.gbuffer is not None else None
+            self.ctx.viewport = (0, 0, width, height)
+            unit = 0
+            for block, res in enumerate(self.resources):
+                unit = res.bind(self.program, first_unit=unit, first_block=block * 16)
+            for name, tex in self.scene_textures.items():   # scene.json "textures"
+                if name in self.program:
+                    tex.use(location=unit)
+                    self.program[name].value = unit
+                    unit += 1
+            if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
+                for name, tex in zip([f"u_gbuffer_{n}" for n in GBUFFER], gbuffer):
+                    if name in self.program:
+                        tex.use(location=unit)
+                        self.program[name].value = unit
+                        unit += 1
+            start = time.perf_counter()
+            self._net_pass.render(fbo, uniforms=uniforms)
+            if self.first_draw_pending:
+                self.ctx.finish()
+                self.first_draw_seconds = time.perf_counter() - start
+                self.first_draw_pending = False
+            self._net_key = key
+        return fbo
+
+    def render(self, camera, width: int, height: int, *, mode=None, split: float | None = None,
+               target: str = "output") -> moderngl.Framebuffer:
+        """Network pass (if stale) + display pass into a linear RGBA32F target; returns it."""
+        mode = self.scene.display_mode if mode is None else parse_mode(mode)
+        split = self.scene.split if split is None else float(split)
+        net = self.render_network(camera, width, height)
+        out = self._target(target, width, height)
+        ref_view = (0.0, 0.0, 1.0, 1.0)
+        if self.scene.reference is not None and self.scene.reference.space == "field":
+            ref_view = camera.uniforms(width, height).get("u_view", ref_view)
+        uniforms = self._uniforms(self.display_program, camera, width, height)
+        uniforms.update({k: v for k, v in {"u_mode": int(mode), "u_split": split, "u_ref_view": tuple(ref_view),
+                                           "u_has_reference": int(self.scene.reference is not None)}.items()
+                         if k in self.display_program})
+        for name, default in (("u_exposure", 1.0), ("u_error_scale", 4.0)):
+            if name in self.display_program and name not in uniforms:
+                uniforms[name] = default
+        self.ctx.scissor = None
+        self.ctx.viewport = (0, 0, width, height)
+        self._display_pass.render(out, uniforms=uniforms,
+                                  textures={"u_network": net.color_attachments[0], "u_reference": self._reference_tex})
+        return out
+
+    def read(self, target: str = "output", attachment: int = 0) -> np.ndarray:
+        """The last render as linear float32 RGBA [H, W, 4], image orientation; ``target="network"``
+        with ``attachment`` reads the scene pass's other outputs (``ProgramSpec.attachments``)."""
+        return read_rgba(self._targets[target], attachment)
+
+    def psnr(self, camera, width: int, height: int) -> float | None:
+        """PSNR (dB, linear RGB, peak 1) of the network vs the reference over the covered pixels
+        of this view; None without a reference or coverage."""
+        if self.scene.reference is None:
+            return None
+        fbo = self.render(camera, width, height, mode=DisplayMode.SQUARED_ERROR, target="stats")
+        data = read_rgba_raw(fbo)
+        mask = data[..., 3] > 0
+        if not mask.any():
+            return None
+        from inshade.metrics import psnr_from_mse
+
+        return psnr_from_mse(float(data[mask][:, :3].mean()))
+
+    def info(self, camera, width: int, height: int, *, mode=None, split=None) -> dict:
+        """What a sidecar records: enough to re-render the same pixels (``inshade render --from``)."""
+        mode = self.scene.display_mode if mode is None else parse_mode(mode)
+        common = {
+            "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
+            "render": {"program": self.scene.program, "width": width, "height": height,
+                       "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
+            "scene": {"name": self.scene.name,
+                      "path": str(Path(self.scene.source).resolve()) if self.scene.source else None},
+            "view": {"camera": camera.to_dict(), "mode": mode.name.lower(),
+                     "split": self.scene.split if split is None else float(split),
+                     "settings": json.loads(json.dumps(self.values))},
+        }
+        if not self.bundles:
+            return {**common, "bundle": None, "bundles": [], **self._geometry_info()}
+        primary = self.bundles[0]
+        storages = {}
+        for g in self.generated:
+            for row in g.plan.rows:
+                if row.storage and row.storage != "-":
+                    storages[row.storage] = storages.get(row.storage, 0) + 1
+        totals = {}
+        for g in self.generated:
+            for k, v in g.plan.totals().items():
+                totals[k] = totals.get(k, 0) + v
+        ref = self.scene.networks[0]
+        return {
+            "bundle": {"name": primary.name, "kind": primary.kind,
+                       "path": str(primary.path) if primary.path else None, "digest": primary.digest()},
+            "bundles": [{"name": b.name, "digest": b.digest(), "prefix": n.prefix}
+                        for b, n in zip(self.bundles, self.scene.networks)],
+            **common,
+            "render": {**common["render"], "input": primary.inputs[0].name,
+                       "output": ref.output or primary.outputs[0].name,
+                       "storage": self.values.get("storage", "auto"),
+                       "lut_filter": self.values.get("lut_filter", "exact")},
+            "plan": {"storage": storages, "totals": totals},
+            **(self._geometry_info() if self.scene.lit else {}),
+        }
+
+    def _geometry_info(self) -> dict:
+        """Sidecar record of the lit geometry (SDF or mesh) and its environment."""
+        sdf = self.scene.sdf
+        env = dict(self.scene.environment)
+        for name, s in self.scene.settings.items():
+            if s.binding == "environment":
+                env[s.target] = self.values[name]
+        if sdf is None:
+            mesh = self.scene.mesh
+            return {"mesh": {"path": str(mesh.path), "name": mesh.name, "vertices": int(len(mesh.data.vertices)),
+                             "faces": int(len(mesh.data.faces))}, "environment": env}
+        if isinstance(sdf, NetworkSdfRef):
+            record = {"path": str(sdf.path), "name": self.sdf_bundle.name, "network": True,
+                      "digest": self.sdf_bundle.digest()}
+        else:
+            record = {"path": str(sdf.path) if sdf.path else None, "name": sdf.name, **sdf.to_dict(),
+                      "chunk_sha256": hashlib.sha256(sdf_chunks(sdf)[SDF_CHUNK].encode()).hexdigest()}
+        return {"sdf": record, "environment": env}
+
+    def release(self, keep=()) -> None:
+        """Release every GL object this renderer created (programs stay with the cache unless owned;
+        ``keep``: programs another renderer on the same cache still uses)."""
+        for fbo in self._targets.values():
+            release_target(fbo)
+        self._targets.clear()
+        for res in self.resources:
+            res.release()
+        self.resources = []
+        programs = [self.program, self.display_program]
+        if self.gbuffer is not None:
+            programs.append(self.gbuffer.program)
+            self.gbuffer.release()
+            self.gbuffer = None
+        for p in (self._net_pass, self._display_pass):
+            if p is not None:
+                p.vao.release()
+        self._net_pass = self._display_pass = None
+        self._reference_tex.release()
+        for tex in self.scene_textures.values():
+            tex.release()
+        self.scene_textures = {}
+        if self.owns_programs:
+            for p in programs:
+                if p is not None and not any(p is k for k in keep):
+                    self.cache.discard(p)
+        self.program = None
+
+
+def _rotated_map_sh(coeffs: np.ndarray, rotation_deg: float) -> np.ndarray:
+    """An environment map's SH rotated about +y, float32, as codegen.sdf.environment_sh does for
+    the sky presets."""
+    from inshade.sh import rotate_sh, rotation_matrix
+
+    if rotation_deg:
+        coeffs = rotate_sh(coeffs, rotation_matrix([0.0, 1.0, 0.0], math.radians(rotation_deg)))
+    return np.asarray(coeffs, np.float32)
+
+
+def _scene_texture(ctx: moderngl.Context, t) -> moderngl.Texture:
+    """A scene.json texture: RGBA8 bytes as stored (no sRGB decode), uv (0,0) = bottom-left."""
+    data = np.asarray(Image.open(t.image).convert("RGBA"), np.uint8)[::-1]
+    tex = ctx.texture(data.shape[1::-1], 4, np.ascontiguousarray(data).tobytes(), alignment=1)
+    if t.mipmaps:
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.anisotropy = min(t.anisotropy, ctx.max_anisotropy)
+    else:
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = t.repeat
+    return tex
+

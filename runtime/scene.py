@@ -1,0 +1,693 @@
+"""Scenes are data: what to draw (program, networks), how to look at it (camera, bookmarks), what to
+compare with (reference), the lights/environment, and the knobs a UI may turn (settings with ranges).
+
+One small ``scene.json`` per asset, read by both ``inshade render`` and ``inshade view``:
+
+    {"format": "inshade.scene", "version": 1, "name": "my_image",
+     "program": "passes/field2d.frag", "size": [256, 256],
+     "networks": [{"bundle": ".", "prefix": "net", "output": "rgb"}],
+     "reference": {"image": "reference.png", "colour": "srgb", "space": "field"},
+     "camera": {"type": "plane2d"}, "bookmarks": {"eye": {"type": "plane2d", "center": [0.4, 0.6], "zoom": 4}},
+     "lights": [], "environment": null,
+     "display": {"mode": "final", "modes": ["final", "network", "reference", "error", "split"], "split": 0.5},
+     "settings": {"exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure"},
+                  "storage": {"type": "choice", "default": "auto", "choices": ["auto", "ubo"], "codegen": "storage"}}}
+
+A setting is bound to exactly one of: ``uniform`` (set each frame, no recompile), ``define``
+(a ``#define``, recompiles the program), ``codegen`` (an option of ``codegen.generate``, e.g.
+weight storage or LUT filtering; regenerates and recompiles), ``environment`` (the SH lighting
+computed on the CPU) or ``frame`` (read by the technique's per-frame hook, no recompile). A later 3D scene (SDF sphere tracing,
+meshes with materials) is new data here (another program, an orbit camera, lights, meshes), not a
+new code path in the renderer or the viewer.
+
+An analytic SDF scene (inshade/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
+have ``"networks": []``, and lights the scene with ``"environment": {"sky": preset, "rotation":
+degrees, "degree": 4}`` (a procedural sky of inshade.sh, projected to SH); settings bound to
+``"environment": "sky" | "rotation"`` override those two at run time. A network SDF (an MLP fitted
+to a mesh, codegen/network_sdf.py) is ``"sdf": {"network": "sdf_bundle"}`` instead: the bundle is
+compiled into the same ``sdf_scene`` chunk, so every SDF pass traces it unchanged.
+
+The ``program`` names a fragment chunk that a registered technique draws (inshade/technique.py
+``ProgramSpec``): the spec says what the program needs (geometry, mesh attributes, bundle kinds,
+SH degree, uniforms, extra chunks, per-frame work) and the scene is checked against it here. A
+mesh scene has ``"mesh": "mesh.ply"`` (OBJ/PLY/GLB, inshade/mesh.py) instead of ``"sdf"``: the
+renderer rasterises a G-buffer first (runtime/geometry.py MeshGBuffer), then the full-screen pass
+shades each covered pixel once.
+The environment of SDF and mesh scenes may also be an equirectangular map,
+``"environment": {"map": "env.exr", "rotation": 0}`` (projected to SH at load time; a bad map is one
+SceneError naming the file), selected by ``"sky": "map"``.
+
+A choice setting bound to a uniform sets the index of its value in ``choices``.
+
+A folder with only a bundle (no scene.json) is still a scene: it is derived from the bundle's
+``render`` field (the format before scenes existed). Every problem is one ``SceneError`` naming the
+file and the field.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from inshade import technique
+from inshade.codegen import FILTERS, OPTIONS, SHORTHANDS, STORAGE_MODES
+from inshade.mesh import mesh_uv
+from inshade.shaders import find_chunk
+
+from .camera import CameraError, camera_from_dict
+from .display import UI_MODES, DisplayMode, parse_mode
+
+SCENE_FILE = "scene.json"
+BUNDLE_FILE = "bundle.json"
+MAX_SIZE = 16384
+REFERENCE_SPACES = ("field", "screen")
+SETTING_TYPES = ("float", "int", "bool", "choice")
+# "frame": read only by the program's per-frame hook (ProgramSpec.frame), which turns it into uniforms.
+BINDINGS = ("uniform", "define", "codegen", "environment", "frame")
+# "environment" settings drive the lighting the renderer computes on the CPU (SDF scenes: the
+# radiance SH uniform u_sh); a change re-uploads a uniform, no recompile.
+ENVIRONMENT_TARGETS = ("sky", "rotation")
+# Codegen options a setting may drive: "<component type>.<option>" (codegen.OPTIONS) or a shorthand
+# ("storage", "lut_filter", codegen.SHORTHANDS) -> its choices.
+CODEGEN_OPTIONS = {**{f"{t}.{name}": choices for t, opts in OPTIONS.items() for name, (choices, _) in opts.items()},
+                   **{short: OPTIONS[t][name][0] for short, (t, name) in SHORTHANDS.items()}}
+
+
+def codegen_option_path(target: str) -> tuple[str, str]:
+    """(component type, option) a setting's ``codegen`` target names."""
+    return SHORTHANDS[target] if target in SHORTHANDS else tuple(target.split(".", 1))
+# Codegen options every scene has, even when its file does not expose them in the UI.
+BUILTIN_SETTINGS = {
+    "storage": {"type": "choice", "default": "auto", "choices": list(STORAGE_MODES), "codegen": "storage",
+                "label": "weight storage"},
+    "lut_filter": {"type": "choice", "default": "exact", "choices": list(FILTERS), "codegen": "lut_filter",
+                   "label": "LUT filtering"},
+}
+
+
+class SceneError(ValueError):
+    """A scene description that cannot be used; the message names the file and the field."""
+
+
+@dataclass
+class Setting:
+    name: str
+    type: str
+    default: object
+    binding: str              # "uniform" | "define" | "codegen"
+    target: str               # uniform name, define name, or generate() keyword
+    min: float | None = None
+    max: float | None = None
+    choices: tuple = ()
+    label: str = ""
+    exposed: bool = True      # shown in the UI (built-in codegen options are hidden unless declared)
+
+    def check(self, value, where: str = "setting"):
+        """Validate and normalise a value for this setting (SceneError if it does not fit)."""
+        w = f"{where} {self.name!r}"
+        if self.type == "choice":
+            if value not in self.choices:
+                raise SceneError(f"{w}: {value!r} is not one of {list(self.choices)}")
+            return value
+        if self.type == "bool":
+            if not isinstance(value, bool):
+                raise SceneError(f"{w}: must be true or false, got {value!r}")
+            return value
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise SceneError(f"{w}: must be a finite number, got {value!r}")
+        if self.type == "int":
+            if int(value) != value:
+                raise SceneError(f"{w}: must be an integer, got {value!r}")
+            value = int(value)
+        else:
+            value = float(value)
+        if (self.min is not None and value < self.min) or (self.max is not None and value > self.max):
+            raise SceneError(f"{w}: {value} is outside [{self.min}, {self.max}]")
+        return value
+
+
+@dataclass
+class NetworkRef:
+    bundle: Path              # bundle folder (or bundle.json)
+    prefix: str = "net"       # GLSL symbol prefix; the chunk is <network> for "net", <network_P> otherwise
+    output: str | None = None  # the output port the program shows (None: the first)
+
+    @property
+    def chunk(self) -> str:
+        return "network" if self.prefix == "net" else f"network_{self.prefix}"
+
+
+@dataclass
+class NetworkSdfRef:
+    """``"sdf": {"network": "sdf_bundle"}``: a network SDF bundle traced as the scene's geometry
+    (codegen/network_sdf.py); ``prefix`` names its GLSL function (``<prefix>_eval``)."""
+    bundle: Path
+    prefix: str = "sdfnet"
+
+    @property
+    def path(self) -> Path:
+        return self.bundle
+
+    @property
+    def name(self) -> str:
+        return self.bundle.name
+
+
+@dataclass
+class MeshRef:
+    """``"mesh": "mesh.ply"``: a triangle mesh (inshade/mesh.py load_mesh), rasterised into a
+    G-buffer (runtime/geometry.py MeshGBuffer) that a deferred pass (mesh_prt) shades."""
+    path: Path
+    data: object = None       # the trimesh.Trimesh
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+
+@dataclass(frozen=True)
+class PointLight:
+    position: tuple[float, float, float]
+    intensity: float
+
+    def to_dict(self) -> dict:
+        return {"type": "point", "position": list(self.position), "intensity": self.intensity}
+
+
+@dataclass
+class Reference:
+    image: Path
+    colour: str = "srgb"      # "srgb" (8-bit PNG, decoded to linear) or "linear" (EXR)
+    space: str = "field"      # "field": lives in the camera's uv plane; "screen": a render of the same view
+
+
+@dataclass
+class SceneTexture:
+    """An 8-bit image bound to a sampler uniform as stored (no colour decode: the program decides),
+    image row 0 at v = 1 (uv (0,0) bottom-left), optionally with a GL-built mip chain."""
+    uniform: str
+    image: Path
+    mipmaps: bool = True
+    anisotropy: float = 1.0
+    repeat: bool = True
+
+
+@dataclass
+class Scene:
+    name: str
+    root: Path | None         # folder relative paths resolve against (None: a bundle in memory)
+    path: Path | None         # the scene.json, or None if derived from a bundle
+    program: str
+    size: tuple[int, int]
+    networks: list[NetworkRef]
+    camera: dict
+    reference: Reference | None = None
+    title: str = ""
+    bookmarks: dict = field(default_factory=dict)
+    lights: list = field(default_factory=list)     # PointLight: uploaded as u_lights (lib/lights.glsl)
+    environment: dict | None = None
+    display_mode: DisplayMode = DisplayMode.FINAL
+    display_modes: tuple = UI_MODES
+    split: float = 0.5
+    settings: dict = field(default_factory=dict)   # name -> Setting
+    requires: dict = field(default_factory=dict)   # {"gl": 330, "extensions": [...]}
+    sdf: object = None        # inshade.sdf.SdfScene (analytic), NetworkSdfRef (network SDF) or None
+    textures: list = field(default_factory=list)   # SceneTexture: plain images the program samples
+    environment_map: object = None  # radiance SH [K, 3] (float64) of environment.map, before rotation
+    mesh: object = None       # MeshRef for triangle-mesh scenes ("mesh": "mesh.ply"), else None
+
+    @property
+    def lit(self) -> bool:
+        """3D geometry lit by the SH environment (an SDF or a mesh): u_sh, the SH chunk."""
+        return self.sdf is not None or self.mesh is not None
+
+    @property
+    def spec(self) -> technique.ProgramSpec:
+        """What the scene's program needs (its technique's ``ProgramSpec``)."""
+        return technique.program_spec(self.program)[1]
+
+    @property
+    def source(self) -> Path:
+        """What to pass to ``load_scene`` to get this scene again."""
+        return self.path if self.path is not None else self.root
+
+    def make_camera(self, name: str | None = None):
+        data = self.camera if name is None else self.bookmarks[name]
+        return camera_from_dict(data)
+
+    def default_settings(self) -> dict:
+        return {name: s.default for name, s in self.settings.items()}
+
+    def check_settings(self, values: dict, where: str = "settings") -> dict:
+        out = self.default_settings()
+        for name, value in (values or {}).items():
+            if name not in self.settings:
+                raise SceneError(f"{where}: unknown setting {name!r} (this scene has: {', '.join(self.settings)})")
+            out[name] = self.settings[name].check(value, where)
+        return out
+
+
+def load_scene(path) -> Scene:
+    """A scene from a scene.json, a folder holding one, or a bundle (folder or bundle.json)."""
+    path = Path(path)
+    if path.is_dir():
+        if (path / SCENE_FILE).is_file():
+            return _parse_file(path / SCENE_FILE)
+        if (path / BUNDLE_FILE).is_file():
+            return scene_from_bundle(path)
+        raise SceneError(f"{path}: neither {SCENE_FILE} nor {BUNDLE_FILE} here")
+    if not path.exists():
+        raise SceneError(f"{path}: no such file or folder")
+    if path.name == BUNDLE_FILE:
+        return scene_from_bundle(path)
+    return _parse_file(path)
+
+
+class RenderSpecError(ValueError):
+    """A bundle cannot be rendered headless: no or malformed `render` field."""
+
+
+def render_spec(bundle: Bundle) -> dict:
+    """The bundle's ``render`` field, checked against the bundle's ports; adds the output's
+    lane offset and width as ``out_offset``/``out_dim``."""
+    where = _where(bundle)
+    spec = bundle.meta.get("render")
+    if spec is None:
+        raise RenderSpecError(f"bundle '{bundle.name}' ({where}) has no 'render' field, so it does not say "
+                              "how to render it headless; add one, e.g. {\"program\": "
+                              "\"passes/field2d.frag\", \"width\": 256, \"height\": 256, "
+                              "\"input\": \"uv\", \"output\": \"rgb\"}")
+    if not isinstance(spec, dict):
+        raise RenderSpecError(f"{where}: render: must be an object")
+    program = spec.get("program")
+    programs = {p.program: p for t in technique.techniques() for p in t.programs if p.field_inputs is not None}
+    drawn_by = [p for t in technique.techniques() for p in t.programs if bundle.kind in p.bundle_kinds]
+    if program is None and drawn_by:   # e.g. a PRT transfer network: its shading needs geometry
+        raise RenderSpecError(f"{where}: a {bundle.kind} bundle is drawn by a scene, not on its own: a scene.json "
+                              f"with \"program\": \"{drawn_by[0].program}\", its geometry "
+                              f"(\"{drawn_by[0].geometry}\") and \"networks\": [{{\"bundle\": ...}}] naming this bundle")
+    if program not in programs:
+        raise RenderSpecError(f"{where}: render.program: unknown program {program!r} "
+                              f"(known: {', '.join(programs)})")
+    out = dict(spec)
+    for key in ("width", "height"):
+        v = spec.get(key, 256)
+        if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_SIZE:
+            raise RenderSpecError(f"{where}: render.{key}: must be an int in 1..{MAX_SIZE}, got {v!r}")
+        out[key] = v
+    need = programs[program].field_inputs
+    in_name = spec.get("input", bundle.inputs[0].name)
+    if len(bundle.inputs) != 1 or bundle.inputs[0].name != in_name or bundle.inputs[0].dim != need:
+        have = ", ".join(f"{p.name}[{p.dim}]" for p in bundle.inputs)
+        raise RenderSpecError(f"{where}: render.input: {program} needs the bundle's only input to be "
+                              f"{in_name!r} of width {need}; the bundle has {have}")
+    out_name = spec.get("output", bundle.outputs[0].name)
+    lanes = bundle.output_lanes(out_name)
+    if lanes is None:
+        raise RenderSpecError(f"{where}: render.output: no output named {out_name!r} "
+                              f"(outputs: {', '.join(p.name for p in bundle.outputs)})")
+    offset, dim = lanes
+    if dim not in (1, 3, 4):
+        raise RenderSpecError(f"{where}: render.output: {out_name!r} is {dim} wide; 1, 3 or 4 can be shown")
+    out.update(program=program, input=in_name, output=out_name, out_offset=offset, out_dim=dim)
+    return out
+
+
+def scene_from_bundle(bundle) -> Scene:
+    """The scene a bundle's ``render`` field describes (bundles made before scene.json existed)."""
+    from inshade.bundle import Bundle, load
+
+    if not isinstance(bundle, Bundle):
+        bundle = load(bundle)
+    spec = render_spec(bundle)   # RenderSpecError if there is no usable render field
+    reference, root = None, None
+    if bundle.path is not None:
+        root = Path(bundle.path).parent if Path(bundle.path).is_file() else Path(bundle.path)
+        if (root / "reference.png").is_file():  # what `inshade train` writes beside the bundle
+            reference = Reference(root / "reference.png")
+    return Scene(name=bundle.name, root=root, path=None, program=spec["program"],
+                 size=(spec["width"], spec["height"]),
+                 networks=[NetworkRef(Path(bundle.path) if bundle.path is not None else None, "net", spec["output"])],
+                 camera={"type": "plane2d", "aspect": spec["width"] / spec["height"]},
+                 reference=reference, title=bundle.name,
+                 settings=_settings({}, "render"))
+
+
+def list_scenes(root) -> list[Path]:
+    """Sub-folders of ``root`` (e.g. ``trained/``) that hold a scene.json or a bundle, sorted."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    return sorted(p for p in root.iterdir() if p.is_dir() and ((p / SCENE_FILE).is_file() or (p / BUNDLE_FILE).is_file()))
+
+
+# parsing ---------------------------------------------------------------------------------------------
+_KEYS = {"format", "version", "name", "title", "program", "size", "networks", "reference", "camera",
+         "bookmarks", "lights", "environment", "display", "settings", "requires", "notes", "sdf",
+         "mesh", "textures"}
+TEXTURE_KEYS = {"uniform", "image", "mipmaps", "anisotropy", "repeat"}
+
+
+def _parse_file(path: Path) -> Scene:
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SceneError(f"{path}: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+    try:
+        return parse_scene(data, root=path.parent, path=path)
+    except (SceneError, CameraError) as exc:
+        raise SceneError(f"{path}: {exc}") from None
+
+
+def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
+    """Check a scene's JSON object; errors name the field (the caller prefixes the file)."""
+    if not isinstance(data, dict):
+        raise SceneError("must be a JSON object")
+    if data.get("format") != "inshade.scene":
+        raise SceneError(f"format: expected \"inshade.scene\", got {data.get('format')!r}")
+    if data.get("version") != 1:
+        raise SceneError(f"version: this inshade reads version 1, got {data.get('version')!r}")
+    unknown = sorted(set(data) - _KEYS)
+    if unknown:
+        raise SceneError(f"{unknown[0]}: unknown field (known: {', '.join(sorted(_KEYS))})")
+    name = data.get("name")
+    if not isinstance(name, str) or not name:
+        raise SceneError("name: must be a non-empty string")
+    program = data.get("program")
+    if not isinstance(program, str):
+        raise SceneError(f"program: must name a fragment chunk, e.g. \"passes/field2d.frag\", got {program!r}")
+    try:
+        spec = technique.program_spec(program)[1]
+    except technique.TechniqueError as exc:
+        raise SceneError(f"program: {exc}") from None
+    if find_chunk(program) is None:
+        raise SceneError(f"program: no shader chunk {program!r} on the search path")
+    size = data.get("size", [256, 256])
+    if not (isinstance(size, list) and len(size) == 2 and all(
+            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_SIZE for v in size)):
+        raise SceneError(f"size: must be [width, height], ints in 1..{MAX_SIZE}, got {size!r}")
+    sdf = _parse_sdf(data.get("sdf"), root)
+    networks = data.get("networks")
+    if spec.bundle_kinds and not networks:
+        raise SceneError(f"networks: {program} needs a network of kind {' or '.join(map(repr, spec.bundle_kinds))}: "
+                         "[{\"bundle\": \"folder\"}]")
+    mesh = _parse_mesh(data.get("mesh"), root)
+    if sdf is not None and mesh is not None:
+        raise SceneError("mesh: a scene has one geometry: \"sdf\" or \"mesh\", not both")
+    if spec.geometry == "sdf" and sdf is None:
+        raise SceneError(f"sdf: {program} traces an SDF: it needs \"sdf\": \"sdf.json\" or "
+                         "{\"network\": \"sdf_bundle\"}")
+    if spec.geometry == "mesh" and mesh is None:
+        raise SceneError(f"mesh: {program} shades a mesh: it needs \"mesh\": \"mesh.ply\" (OBJ/PLY/GLB)")
+    if {"uv", "tangent"} & set(spec.mesh_attributes) and mesh_uv(mesh.data) is None:
+        raise SceneError(f"mesh: {mesh.path.name} has no texture coordinates; {program} maps textures "
+                         "by uv (an OBJ with vt, or PLY/GLB with texture coordinates)")
+    if not isinstance(networks, list) or (not networks and sdf is None):
+        raise SceneError("networks: must be a non-empty list of {\"bundle\": ..., \"prefix\": ..., \"output\": ...}")
+    refs, prefixes = [], set()
+    for i, n in enumerate(networks):
+        w = f"networks[{i}]"
+        if not isinstance(n, dict) or not isinstance(n.get("bundle"), str):
+            raise SceneError(f"{w}.bundle: must name a bundle folder (relative to the scene file)")
+        extra = sorted(set(n) - {"bundle", "prefix", "output"})
+        if extra:
+            raise SceneError(f"{w}.{extra[0]}: unknown field (known: bundle, prefix, output)")
+        bpath = (root / n["bundle"]).resolve()
+        if not ((bpath / BUNDLE_FILE).is_file() or (bpath.name == BUNDLE_FILE and bpath.is_file())):
+            raise SceneError(f"{w}.bundle: no bundle at {bpath}")
+        prefix = n.get("prefix", "net")
+        if isinstance(sdf, NetworkSdfRef) and prefix == sdf.prefix:
+            raise SceneError(f"{w}.prefix: {prefix!r} is the network SDF's prefix (sdf.prefix)")
+        if not isinstance(prefix, str) or not prefix.isidentifier() or prefix in prefixes:
+            raise SceneError(f"{w}.prefix: must be a unique GLSL identifier, got {prefix!r}")
+        prefixes.add(prefix)
+        output = n.get("output")
+        if output is not None and not isinstance(output, str):
+            raise SceneError(f"{w}.output: must be an output port name")
+        refs.append(NetworkRef(bpath, prefix, output))
+    reference = None
+    ref = data.get("reference")
+    if ref is not None:
+        if isinstance(ref, str):
+            ref = {"image": ref}
+        if not isinstance(ref, dict) or not isinstance(ref.get("image"), str):
+            raise SceneError("reference.image: must name an image file (relative to the scene file)")
+        image = (root / ref["image"]).resolve()
+        if not image.is_file():
+            raise SceneError(f"reference.image: no file {image}")
+        colour, space = ref.get("colour", "srgb"), ref.get("space", "field")
+        if colour not in ("srgb", "linear"):
+            raise SceneError(f"reference.colour: must be \"srgb\" or \"linear\", got {colour!r}")
+        if space not in REFERENCE_SPACES:
+            raise SceneError(f"reference.space: must be one of {list(REFERENCE_SPACES)}, got {space!r}")
+        reference = Reference(image, colour, space)
+    camera = data.get("camera", {"type": "plane2d"})
+    camera_from_dict(camera, "camera")  # validate now: one clear error at load time
+    bookmarks = data.get("bookmarks", {})
+    if not isinstance(bookmarks, dict):
+        raise SceneError("bookmarks: must be an object {name: camera}")
+    for k, v in bookmarks.items():
+        camera_from_dict(v, f"bookmarks.{k}")
+    lights = _lights(data.get("lights", []))
+    environment = data.get("environment")
+    if environment is not None and not isinstance(environment, dict):
+        raise SceneError("environment: must be an object or null")
+    environment_map = None
+    if sdf is not None or mesh is not None:
+        environment, environment_map = _lit_environment(environment, root)
+        need = spec.environment_degree
+        if need is not None and environment["degree"] != need:
+            raise SceneError(f"environment.degree: {program} uses {need * need} SH coefficients "
+                             f"(degree {need}), got {environment['degree']}")
+    display = data.get("display", {})
+    if not isinstance(display, dict):
+        raise SceneError("display: must be an object")
+    try:
+        mode = parse_mode(display.get("mode", "final"))
+        modes = tuple(parse_mode(m) for m in display.get("modes", [m.name.lower() for m in UI_MODES]))
+    except ValueError as exc:
+        raise SceneError(f"display: {exc}") from None
+    split = display.get("split", 0.5)
+    if isinstance(split, bool) or not isinstance(split, (int, float)) or not 0.0 <= split <= 1.0:
+        raise SceneError(f"display.split: must be a number in [0, 1], got {split!r}")
+    requires = data.get("requires", {})
+    if not isinstance(requires, dict):
+        raise SceneError("requires: must be an object, e.g. {\"gl\": 330, \"extensions\": []}")
+    settings = _settings(data.get("settings", {}), "settings")
+    if sdf is not None or mesh is not None:
+        _check_sky_settings(settings, environment_map is not None)
+    textures = _textures(data.get("textures", []), root)
+    title = data.get("title", name)
+    scene = Scene(textures=textures, name=name, root=root, path=path, program=program, size=tuple(size), networks=refs,
+                  camera=camera, reference=reference, title=str(title), bookmarks=bookmarks, lights=lights,
+                  environment=environment, display_mode=mode, display_modes=modes, split=float(split),
+                  settings=settings, requires=requires, sdf=sdf, environment_map=environment_map,
+                  mesh=mesh)
+    if spec.validate is not None:
+        try:
+            spec.validate(scene)
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+    return scene
+
+
+def _parse_sdf(value, root: Path):
+    """``"sdf"``: a description file (analytic, inshade/sdf.py) or {"network": bundle folder}."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        from inshade.sdf import SdfError, load_sdf
+        try:
+            return load_sdf((root / value).resolve())
+        except SdfError as exc:
+            raise SceneError(f"sdf: {exc}") from None
+    if isinstance(value, dict):
+        extra = sorted(set(value) - {"network", "prefix"})
+        if extra:
+            raise SceneError(f"sdf.{extra[0]}: unknown field (known: network, prefix)")
+        if not isinstance(value.get("network"), str):
+            raise SceneError("sdf.network: must name a network SDF bundle folder (relative to the scene file)")
+        bpath = (root / value["network"]).resolve()
+        if not ((bpath / BUNDLE_FILE).is_file() or (bpath.name == BUNDLE_FILE and bpath.is_file())):
+            raise SceneError(f"sdf.network: no bundle at {bpath}")
+        prefix = value.get("prefix", "sdfnet")
+        if not isinstance(prefix, str) or not prefix.isidentifier():
+            raise SceneError(f"sdf.prefix: must be a GLSL identifier, got {prefix!r}")
+        return NetworkSdfRef(bpath, prefix)
+    raise SceneError("sdf: must name an SDF description file or be {\"network\": \"bundle folder\"} "
+                     "(relative to the scene file)")
+
+
+def _parse_mesh(value, root: Path):
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise SceneError("mesh: must name a mesh file (OBJ/PLY/GLB, relative to the scene file)")
+    from inshade.mesh import MeshError, load_mesh
+
+    path = (root / value).resolve()
+    try:
+        return MeshRef(path, load_mesh(path))
+    except MeshError as exc:
+        raise SceneError(f"mesh: {exc}") from None
+
+
+def _lit_environment(env, root: Path) -> tuple[dict, object]:
+    """The lighting of an SDF or mesh scene: a procedural sky preset ("sky") or an equirectangular map
+    ("map": .exr/.png/.jpg relative to the scene file, projected to SH once here; "sky" is then
+    "map"), rotated about +y by "rotation" degrees. Returns (environment, map SH or None)."""
+    from inshade.sh import MAX_DEGREE, SKY_PRESETS, load_environment, project_environment
+
+    given = dict(env or {})
+    env = {"sky": "map" if "map" in given else "overcast", "rotation": 0.0, "degree": 4, **given}
+    extra = sorted(set(env) - {"sky", "rotation", "degree", "map"})
+    if extra:
+        raise SceneError(f"environment.{extra[0]}: unknown field (known: degree, map, rotation, sky)")
+    rot = env["rotation"]
+    if isinstance(rot, bool) or not isinstance(rot, (int, float)) or not math.isfinite(rot):
+        raise SceneError(f"environment.rotation: must be a finite number of degrees, got {rot!r}")
+    if env["degree"] not in range(1, MAX_DEGREE + 1):
+        raise SceneError(f"environment.degree: must be an int in 1..{MAX_DEGREE}, got {env['degree']!r}")
+    sh = None
+    if "map" in env:
+        if not isinstance(env["map"], str):
+            raise SceneError("environment.map: must name an equirectangular image (.exr, .png, .jpg)")
+        path = (root / env["map"]).resolve()
+        try:
+            sh = project_environment(load_environment(path), env["degree"])
+        except ValueError as exc:   # load_environment names the file and what is wrong with it
+            raise SceneError(f"environment.map: {exc}") from None
+        env["map"] = str(path)
+    if env["sky"] not in SKY_PRESETS and not (env["sky"] == "map" and sh is not None):
+        known = ", ".join([*SKY_PRESETS, *(["map"] if sh is not None else [])])
+        raise SceneError(f"environment.sky: unknown sky {env['sky']!r} (known: {known})")
+    return env, sh
+
+
+def _check_sky_settings(settings: dict, has_map: bool) -> None:
+    from inshade.sh import SKY_PRESETS
+
+    for name, s in settings.items():
+        if s.binding == "environment" and s.target == "sky":
+            bad = [c for c in (s.choices or (s.default,)) if c not in SKY_PRESETS and not (c == "map" and has_map)]
+            if bad:
+                raise SceneError(f"settings.{name}.choices: unknown sky {bad[0]!r} (known: {', '.join(SKY_PRESETS)}"
+                                 f"{', map' if has_map else ''})")
+
+
+MAX_LIGHTS = 4   # lib/lights.glsl INSHADE_MAX_LIGHTS
+
+
+def _lights(data) -> list:
+    """scene.json "lights": [{"type": "point", "position": [x, y, z], "intensity": I}, ...]."""
+    if not isinstance(data, list):
+        raise SceneError("lights: must be a list of {\"type\": \"point\", \"position\": [x, y, z], \"intensity\": I}")
+    if len(data) > MAX_LIGHTS:
+        raise SceneError(f"lights: at most {MAX_LIGHTS} lights, got {len(data)}")
+    out = []
+    for i, light in enumerate(data):
+        w = f"lights[{i}]"
+        if not isinstance(light, dict) or light.get("type") != "point":
+            raise SceneError(f"{w}.type: must be \"point\"")
+        extra = sorted(set(light) - {"type", "position", "intensity"})
+        if extra:
+            raise SceneError(f"{w}.{extra[0]}: unknown field (known: intensity, position, type)")
+        pos, power = light.get("position"), light.get("intensity")
+        if not (isinstance(pos, list) and len(pos) == 3 and all(_finite(v) for v in pos)):
+            raise SceneError(f"{w}.position: must be 3 finite numbers, got {pos!r}")
+        if not _finite(power) or power < 0:
+            raise SceneError(f"{w}.intensity: must be a finite number >= 0, got {power!r}")
+        out.append(PointLight(tuple(float(v) for v in pos), float(power)))
+    return out
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _textures(data, root: Path) -> list:
+    if not isinstance(data, list):
+        raise SceneError("textures: must be a list of {\"uniform\": ..., \"image\": ...}")
+    out = []
+    for i, t in enumerate(data):
+        w = f"textures[{i}]"
+        if not isinstance(t, dict):
+            raise SceneError(f"{w}: must be an object")
+        extra = sorted(set(t) - TEXTURE_KEYS)
+        if extra:
+            raise SceneError(f"{w}.{extra[0]}: unknown field (known: {', '.join(sorted(TEXTURE_KEYS))})")
+        name = t.get("uniform")
+        if not isinstance(name, str) or not name.isidentifier():
+            raise SceneError(f"{w}.uniform: must be a GLSL identifier, got {name!r}")
+        if not isinstance(t.get("image"), str) or not (root / t["image"]).is_file():
+            raise SceneError(f"{w}.image: no image file {t.get('image')!r} (relative to the scene file)")
+        aniso = t.get("anisotropy", 1.0)
+        if isinstance(aniso, bool) or not isinstance(aniso, (int, float)) or not 1.0 <= aniso <= 16.0:
+            raise SceneError(f"{w}.anisotropy: must be a number in [1, 16], got {aniso!r}")
+        for key in ("mipmaps", "repeat"):
+            if not isinstance(t.get(key, True), bool):
+                raise SceneError(f"{w}.{key}: must be true or false")
+        out.append(SceneTexture(name, (root / t["image"]).resolve(), t.get("mipmaps", True), float(aniso),
+                                t.get("repeat", True)))
+    return out
+
+
+def _settings(data, where: str) -> dict:
+    if not isinstance(data, dict):
+        raise SceneError(f"{where}: must be an object {{name: setting}}")
+    merged = {k: dict(v, exposed=False) for k, v in BUILTIN_SETTINGS.items()}
+    for k, v in data.items():
+        merged[k] = dict(v, exposed=True) if isinstance(v, dict) else v
+    out = {}
+    for name, s in merged.items():
+        w = f"{where}.{name}"
+        if not isinstance(s, dict):
+            raise SceneError(f"{w}: must be an object")
+        kind = s.get("type")
+        if kind not in SETTING_TYPES:
+            raise SceneError(f"{w}.type: must be one of {list(SETTING_TYPES)}, got {kind!r}")
+        bound = [b for b in BINDINGS if b in s]
+        if len(bound) != 1:
+            raise SceneError(f"{w}: needs exactly one of {list(BINDINGS)} (what the value drives)")
+        binding = bound[0]
+        target = s[binding]
+        if not isinstance(target, str) or not (target.isidentifier() or binding == "codegen"):
+            raise SceneError(f"{w}.{binding}: must be an identifier, got {target!r}")
+        if binding == "environment" and target not in ENVIRONMENT_TARGETS:
+            raise SceneError(f"{w}.environment: must be one of {list(ENVIRONMENT_TARGETS)}, got {target!r}")
+        if binding == "codegen" and target not in CODEGEN_OPTIONS:
+            raise SceneError(f"{w}.codegen: unknown codegen option {target!r} (known: {', '.join(CODEGEN_OPTIONS)})")
+        extra = sorted(set(s) - {"type", "default", "min", "max", "choices", "label", "exposed", *BINDINGS})
+        if extra:
+            raise SceneError(f"{w}.{extra[0]}: unknown field")
+        lo, hi = s.get("min"), s.get("max")
+        for key, v in (("min", lo), ("max", hi)):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                raise SceneError(f"{w}.{key}: must be a number")
+        if kind in ("float", "int") and (lo is None or hi is None or lo > hi):
+            raise SceneError(f"{w}: a {kind} setting needs a range: \"min\" <= \"max\"")
+        choices = tuple(s.get("choices", ()))
+        if kind == "choice":
+            if not choices:
+                raise SceneError(f"{w}.choices: a choice setting needs a non-empty list")
+            if binding == "codegen":
+                bad = [c for c in choices if c not in CODEGEN_OPTIONS[target]]
+                if bad:
+                    raise SceneError(f"{w}.choices: {bad[0]!r} is not a {target} option "
+                                     f"({', '.join(CODEGEN_OPTIONS[target])})")
+        setting = Setting(name, kind, s.get("default"), binding, target, lo, hi, choices,
+                          str(s.get("label", name)), bool(s.get("exposed", True)))
+        if "default" not in s:
+            raise SceneError(f"{w}.default: missing")
+        setting.default = setting.check(s["default"], f"{w}.default:")
+        out[name] = setting
+    return out
+
+
+def _where(bundle) -> str:
+    return str(bundle.path) if bundle.path is not None else "<bundle in memory>"

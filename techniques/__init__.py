@@ -1,0 +1,17 @@
+"""Built-in techniques: one folder each, registered by one line in ``BUILTIN``.
+
+Each folder's ``__init__`` defines ``TECHNIQUE`` (inshade/technique.py) and imports nothing heavy;
+its trainer, bench, twin and GLSL sit beside it.
+"""
+
+BUILTIN = (
+    "neural_image",
+    "sdf",
+    "neural_sdf",
+    "prt",
+    "di_texture",
+    "di_pbr_set",
+    "di_footprint",
+    "di_brdf",
+    "di_sdf",
+)

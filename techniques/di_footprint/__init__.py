@@ -1,0 +1,19 @@
+"""di_footprint: the DI footprint-aware texture sampler (no mip chain) on a receding plane, against
+GL trilinear and anisotropic filtering."""
+from pathlib import Path
+
+from inshade.papers import DIFFERENTIABLE_INDIRECTION
+from inshade.technique import ProgramSpec, Technique
+
+TECHNIQUE = Technique(
+    name="di_footprint",
+    summary="DI footprint-aware texture sampler vs GL trilinear / anisotropic",
+    paper=DIFFERENTIABLE_INDIRECTION,
+    kinds=("di_footprint",),
+    programs=(ProgramSpec("passes/footprint_plane.frag", geometry="fullscreen", attachments=2),),
+    train="inshade.techniques.di_footprint.train",
+    train_help="DI footprint-aware texture sampler (no mip chain)",
+    bench="inshade.techniques.di_footprint.bench",
+    bench_help="DI footprint-aware sampler vs GL trilinear / anisotropic",
+    shaders=Path(__file__).resolve().parent / "shaders",
+)

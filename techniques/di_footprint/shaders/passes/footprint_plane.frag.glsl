@@ -1,0 +1,93 @@
+// Footprint-aware sampling on a tiled ground plane seen at grazing angles: full-screen ray-plane
+// intersection (lib/footprint), uv from the hit, the pixel footprint from dFdx/dFdy of uv, and the
+// texture read by one of FOOTPRINT_MODE (mirrored in techniques/di_footprint/train.py MODES):
+//   0 FOOTPRINT_DI           the generated DI network <network>: inputs (fract(uv), log2 footprint)
+//   1 FOOTPRINT_TRILINEAR    GL trilinear: u_texture (RGB8 + mip chain, LINEAR_MIPMAP_LINEAR, REPEAT)
+//   2 FOOTPRINT_ANISOTROPIC  GL anisotropic: u_texture_aniso (same texels, max anisotropy 16)
+//   3 FOOTPRINT_BILINEAR     no mips: bilinear of the base level (aliases)
+//   4 FOOTPRINT_EXPLICIT_LOD GL trilinear at our LOD, log2 footprint + log2 N (checks the emulation)
+// The GL modes read sRGB-encoded RGB8 texels (filtered in encoded space, like the emulated sampler
+// the network learns) and decode with srgb_eotf; the network decodes itself. Output: linear RGB,
+// alpha = 1 on the plane, 0 off it (the display pass draws a background there).
+// Location 1 gets the DI inputs (fract(uv), log2 footprint, hit) of the same pixel, so a parity test
+// can feed torch exactly what the network saw (derivatives cannot be recomputed off-GPU).
+// GL modes sample with textureGrad from the same derivatives: implicit-derivative texture() is
+// undefined inside the hit branch (non-uniform control flow).
+#include <network>
+#include <lib/footprint>
+#include <lib/colour>
+
+#define FOOTPRINT_DI 0
+#define FOOTPRINT_TRILINEAR 1
+#define FOOTPRINT_ANISOTROPIC 2
+#define FOOTPRINT_BILINEAR 3
+#define FOOTPRINT_EXPLICIT_LOD 4
+#ifndef FOOTPRINT_MODE
+#define FOOTPRINT_MODE FOOTPRINT_DI
+#endif
+#ifndef FIELD_OUT_OFFSET
+#define FIELD_OUT_OFFSET 0
+#endif
+#ifndef FIELD_OUT_DIM
+#define FIELD_OUT_DIM 3
+#endif
+#if NET_IN_DIM != 3
+#error "passes/footprint_plane.frag needs a network with inputs uv (2) and log2_footprint (1)"
+#endif
+
+uniform vec2 u_size;   // target size in pixels
+uniform float u_tile;    // world units per texture tile
+uniform float u_extent;  // the plane is the square |x|, |z| <= u_extent world units
+#if FOOTPRINT_MODE == FOOTPRINT_ANISOTROPIC
+uniform sampler2D u_texture_aniso;
+#elif FOOTPRINT_MODE != FOOTPRINT_DI
+uniform sampler2D u_texture;
+#endif
+layout(location = 0) out vec4 frag_color;
+layout(location = 1) out vec4 frag_inputs;
+
+float footprint_lane(in vec4 y[NET_OUT_BLOCKS], int lane) {
+    return y[lane / 4][lane % 4];
+}
+
+vec3 footprint_network(vec2 uv, float log2_fp) {
+    vec4 x[NET_IN_BLOCKS];
+    x[0] = vec4(uv, log2_fp, 0.0);
+    vec4 y[NET_OUT_BLOCKS];
+    net_eval(x, y);
+#if FIELD_OUT_DIM == 1
+    return vec3(footprint_lane(y, FIELD_OUT_OFFSET));
+#else
+    return vec3(footprint_lane(y, FIELD_OUT_OFFSET), footprint_lane(y, FIELD_OUT_OFFSET + 1),
+                footprint_lane(y, FIELD_OUT_OFFSET + 2));
+#endif
+}
+
+void main() {
+    vec3 ro, rd;
+    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
+    bool hit;
+    vec2 uv = footprint_plane_uv(ro, rd, u_tile, u_extent, hit);
+    vec2 dx = dFdx(uv);
+    vec2 dy = dFdy(uv);
+    float log2_fp = footprint_log2(dx, dy);
+    vec2 tile_uv = fract(uv);
+    frag_inputs = vec4(tile_uv, log2_fp, hit ? 1.0 : 0.0);
+    if (!hit) {
+        frag_color = vec4(0.0);
+        return;
+    }
+#if FOOTPRINT_MODE == FOOTPRINT_DI
+    vec3 rgb = footprint_network(tile_uv, log2_fp);
+#elif FOOTPRINT_MODE == FOOTPRINT_TRILINEAR
+    vec3 rgb = srgb_eotf(textureGrad(u_texture, uv, dx, dy).rgb);
+#elif FOOTPRINT_MODE == FOOTPRINT_ANISOTROPIC
+    vec3 rgb = srgb_eotf(textureGrad(u_texture_aniso, uv, dx, dy).rgb);
+#elif FOOTPRINT_MODE == FOOTPRINT_BILINEAR
+    vec3 rgb = srgb_eotf(textureLod(u_texture, uv, 0.0).rgb);
+#else
+    float lod = log2_fp + log2(float(textureSize(u_texture, 0).x));
+    vec3 rgb = srgb_eotf(textureLod(u_texture, uv, lod).rgb);
+#endif
+    frag_color = vec4(rgb, 1.0);
+}

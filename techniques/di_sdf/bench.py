@@ -1,0 +1,366 @@
+"""`inshade bench di_sdf`: the DI-SDF (techniques/di_sdf/train.py) against the MLP SDF (techniques/neural_sdf/train.py)
+at equal bytes, on one mesh, rendered by the same sphere-tracing pass.
+
+For each ``--budgets-kb`` value: a DI-SDF is fitted within the budget (8-bit arrays; its actual
+bytes are the cells, N_p³·3 + N_c³), and an MLP SDF (``--mlp-layers`` hidden layers, float32
+weights as the bundle stores them) whose width is the largest with 4 · params <= the DI's bytes.
+Both are measured the same way:
+
+- surface error: mean and 95th percentile |d| at 20k mesh surface points (world units and per
+  mesh bound radius);
+- IoU of inside (d < 0) against the mesh's inside on 100k uniform points in the bound cube;
+- normal angle error (degrees) at the surface points, central differences with the bundle's own
+  ``normal_eps`` (the shader's estimator);
+- the sdf_diffuse pass (lib/sdf sphere tracing, SH environment "noon") rendered by the GL driver
+  at ``--size``² (DI on both LUT paths: exact = texelFetch + fp32 mix, fast = hardware
+  filtering): PSNR (linear, peak 1) against a ground truth ray-traced from the mesh (trimesh +
+  embree first hits, barycentric-interpolated vertex normals, the same shading); and ms/frame
+  (median and min of ``--frames`` draws after a warm-up draw, timed by ``--clock`` of
+  ``inshade.bench.harness``: GL timer query on a hardware driver, draw + ``glFinish`` wall time
+  on llvmpipe; the first draw, where llvmpipe JIT-compiles, reported apart -- seconds only on a
+  cold Mesa shader cache).
+
+Writes ``di_sdf.json``, ``di_sdf.md``, ``di_sdf.png`` (renders + bars) and the renders as PNGs
+into ``--out``; GL_RENDERER is logged in all of them. ``--quick``: one tiny budget, few steps,
+64² (smoke runs and tests).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from inshade import command
+from inshade.bench.harness import (BenchError, WallClock, add_clock_argument, clock_for, clock_record, machine,
+                                   machine_markdown, matplotlib_pyplot, measure, write_report)
+from inshade.metrics import psnr
+
+DEFAULT_OUT = "bench-out/di_sdf"
+DEFAULT_MESH = "trained/prt_mesh/mesh.ply"
+SKY = "noon"
+VERTEX = "common/fullscreen.vert"
+PROGRAM = "passes/sdf_diffuse.frag"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
+    p.add_argument("--mesh", default=DEFAULT_MESH,
+                   help="closed mesh (default: the procedural rabbit of inshade.mesh, generated if missing)")
+    p.add_argument("--budgets-kb", default="13", help="DI-SDFs to fit here, byte budgets in KiB, comma-separated ( = none; default %(default)s)")
+    p.add_argument("--di-steps", type=int, default=1500, help="DI training steps (default %(default)s)")
+    p.add_argument("--di-bundles", default="",
+                   help="also compare these trained DI-SDF bundle folders (comma-separated; their bytes set "
+                        "the MLP's), e.g. trained/di_sdf")
+    p.add_argument("--mlp-steps", type=int, default=3000, help="MLP training steps (default %(default)s)")
+    p.add_argument("--mlp-layers", type=int, default=3, help="MLP hidden layers (default %(default)s)")
+    p.add_argument("--mlp-samples", type=int, default=300_000, help="MLP training samples (default %(default)s)")
+    p.add_argument("--mlp-max-width", type=int, default=48,
+                   help="skip (and say so) MLPs wider than this: sdf_diffuse inlines scene_sdf 7 times and "
+                        "llvmpipe's first-draw JIT of a 38-wide MLP took 147 s here (default %(default)s)")
+    p.add_argument("--mlp-storage", default="auto", choices=("auto", "inline", "ubo", "texture"),
+                   help="MLP weight placement in the shader (default %(default)s: as the renderer picks)")
+    p.add_argument("--size", type=int, default=256, help="render size (default %(default)s)")
+    p.add_argument("--frames", type=int, default=5, help="timed frames per method (default %(default)s)")
+    p.add_argument("--quick", action="store_true", help="tiny run: 13 KiB, 40/100 steps, 64x64, 1 frame")
+    add_clock_argument(p)
+    return p
+
+
+def main(argv=None) -> int:
+    return command.main("inshade bench di_sdf", __doc__, add_arguments, run, argv, errors=(BenchError,))
+
+
+# ---------------------------------------------------------------------------------------------
+# equal bytes
+
+def mlp_params(width: int, layers: int) -> int:
+    """Parameters of neural_sdf.build(width, layers): 3 -> width (x layers) -> 1, with biases."""
+    return 4 * width + (layers - 1) * (width * width + width) + width + 1
+
+
+def mlp_width_for_bytes(nbytes: int, layers: int) -> int:
+    """The widest MLP whose float32 weights fit ``nbytes`` (at least 1)."""
+    w = 1
+    while 4 * mlp_params(w + 1, layers) <= nbytes:
+        w += 1
+    return w
+
+
+# ---------------------------------------------------------------------------------------------
+# ground truth and GL renders
+
+def camera(frame) -> dict:
+    from inshade.techniques.di_sdf.train import orbit_camera
+
+    return orbit_camera(frame)
+
+
+def mesh_ground_truth(mesh, uniforms: dict, size: int, sh: np.ndarray) -> dict:
+    """The sdf_diffuse shading of the mesh itself: first hits by embree, barycentric-interpolated
+    vertex normals, albedo 0.8; misses show max(L(rd), 0) as the pass does. Linear RGBA [H, W, 4]."""
+    import torch
+    import trimesh
+
+    from inshade.techniques.di_sdf.train import ALBEDO
+    from inshade.models.sdf import INV_PI, camera_rays, sh_irradiance_t, sh_radiance_t
+
+    ro, rd = camera_rays(uniforms, size, size)
+    coeffs = torch.from_numpy(np.asarray(sh, np.float32))
+    out = sh_radiance_t(coeffs, rd).clamp_min(0.0).numpy()
+    loc, ray, tri = mesh.ray.intersects_location(ro.numpy().astype(np.float64), rd.numpy().astype(np.float64),
+                                                 multiple_hits=False)
+    hit = np.zeros(size * size, bool)
+    if len(ray):
+        bary = trimesh.triangles.points_to_barycentric(mesh.triangles[tri], loc)
+        n = (mesh.vertex_normals[mesh.faces[tri]] * bary[:, :, None]).sum(1)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        shade = sh_irradiance_t(coeffs, torch.from_numpy(n.astype(np.float32))).numpy()
+        out[ray] = np.asarray(ALBEDO, np.float32) * shade * np.float32(INV_PI)
+        hit[ray] = True
+    rgba = np.concatenate([out, np.ones((size * size, 1), np.float32)], -1)
+    return {"rgba": rgba.reshape(size, size, 4), "hit": hit.reshape(size, size)}
+
+
+def glsl_render(ctx, bundle, uniforms: dict, size: int, sh: np.ndarray, frames: int, clock=None,
+                **generate_options) -> dict:
+    """passes/sdf_diffuse.frag on the network SDF bundle: the image and the frame times (``clock``:
+    a harness clock, default draw + glFinish wall time)."""
+    from inshade.codegen.network_sdf import network_sdf_chunks
+    from inshade.codegen.spherical_harmonics import sh_chunks
+    from inshade.runtime.context import gl_info
+    from inshade.runtime.network import NetworkResources
+    from inshade.runtime.programs import ProgramCache
+    from inshade.runtime.render import FullscreenPass, float_target, read_rgba, release_target
+
+    chunks, gen = network_sdf_chunks(bundle, limits=gl_info(ctx), **generate_options)
+    t = time.perf_counter()
+    prog = ProgramCache(ctx).get(VERTEX, PROGRAM, chunks={**chunks, **sh_chunks(4)})
+    link = time.perf_counter() - t
+    res = NetworkResources(ctx, gen)
+    fbo = float_target(ctx, size, size)
+    pass_ = FullscreenPass(ctx, prog)
+    res.bind(prog)
+    u = {**uniforms, "u_size": (float(size), float(size)), "u_sh": np.asarray(sh, np.float32).tobytes()}
+    try:
+        first = WallClock(ctx.finish).time(lambda: pass_.render(fbo, uniforms=u))   # llvmpipe JIT
+        timing = measure(lambda: pass_.render(fbo, uniforms=u), repeats=frames, warmup=0,
+                         clock=clock or WallClock(ctx.finish))
+        image = read_rgba(fbo)
+    finally:
+        pass_.vao.release()
+        res.release()
+        release_target(fbo)
+        prog.release()
+    return {"image": image, "first_draw_s": round(first, 3), "compile_s": round(link, 3),
+            "ms_median": round(1e3 * timing.median, 2), "ms_min": round(1e3 * timing.min, 2),
+            "ms_max": round(1e3 * timing.max, 2), "clock": timing.clock,
+            "plan": gen.plan.report() if hasattr(gen.plan, "report") else ""}
+
+
+# ---------------------------------------------------------------------------------------------
+# the models
+
+def di_bundles(mesh, args) -> list[tuple[object, str]]:
+    """A DI-SDF fitted here for each ``--budgets-kb`` value, then each ``--di-bundles`` folder."""
+    from inshade import bundle as bundle_mod
+    from inshade.techniques.di_sdf import train as di_sdf
+
+    out = []
+    for kb in args.budget_list:
+        r = di_sdf.fit(mesh, kb * 1024, steps=args.di_steps, evaluate=False, name=f"di_sdf_{kb:g}k",
+                       **({"samples": 60000, "batch": 8192} if args.quick else {}))
+        out.append((r.bundle, f"trained in this run ({args.di_steps} steps)"))
+    for p in (p.strip() for p in args.di_bundles.split(",")):
+        if p:
+            b = bundle_mod.load(p)
+            out.append((b, f"{p} ({b.meta.get('metrics', {}).get('steps')} steps)"))
+    return out
+
+
+def mlp_bundle(mesh_path: str, nbytes: int, args, workdir: Path):
+    from inshade.techniques.neural_sdf import train as neural_sdf
+    from inshade.techniques.di_sdf.train import torch_threads
+
+    width = mlp_width_for_bytes(nbytes, args.mlp_layers)
+    with torch_threads(1):   # 18x faster per step than 2 threads on the shared, busy 2 cores (measured)
+        b = neural_sdf.train(out=workdir / f"mlp_{width}x{args.mlp_layers}", mesh=mesh_path, width=width,
+                             layers=args.mlp_layers, steps=args.mlp_steps, samples=args.mlp_samples,
+                             mc_resolution=32 if args.quick else 64)
+    return b, width
+
+
+def model_entry(name, bundle, nbytes, mesh_radius, ev, gt, ctx, uniforms, sh, args, **generate_options) -> dict:
+    import torch
+
+    from inshade.techniques.di_sdf.train import sdf_metrics
+    from inshade.models.network_sdf import NetworkSdfModule
+
+    module = NetworkSdfModule.from_bundle(bundle)
+    trace = module.scene.trace
+    with torch.no_grad():
+        m = sdf_metrics(module, ev, trace["normal_eps"], mesh_radius)
+    r = glsl_render(ctx, bundle, uniforms, args.size, sh, args.frames, clock=args.timer, **generate_options)
+    bm = bundle.meta.get("metrics", {})
+    return {"method": name, "bytes": int(nbytes), "kind": bundle.kind,
+            "surface_mae": m["surface_mae"], "surface_p95": m["surface_p95"],
+            "surface_mae_per_radius": m["surface_mae"] / mesh_radius, "iou": m["iou"],
+            "normal_deg_mean": m["normal_deg_mean"], "normal_deg_median": m["normal_deg_median"],
+            "psnr": round(psnr(r["image"][..., :3], gt["rgba"][..., :3]), 3),
+            "ms_median": r["ms_median"], "ms_min": r["ms_min"], "ms_max": r["ms_max"], "clock": r["clock"],
+            "first_draw_s": r["first_draw_s"],
+            "train_seconds": bm.get("train_seconds"), "trace": dict(trace), "_image": r["image"]}
+
+
+# ---------------------------------------------------------------------------------------------
+# run
+
+def run(args) -> int:
+    from inshade.codegen.sdf import environment_sh
+    from inshade.mesh import bounding_sphere, write_bunny
+    from inshade.techniques.di_sdf import train as di_sdf
+    from inshade.runtime.camera import camera_from_dict
+    from inshade.runtime.context import gl_info, shared_context
+    from inshade.runtime.image_io import write_png
+
+    if args.quick:
+        args.budgets_kb, args.di_steps, args.mlp_steps, args.size, args.frames = "13", 40, 100, 64, 1
+        args.mlp_samples = min(args.mlp_samples, 20000)
+    try:
+        args.budget_list = [float(v) for v in args.budgets_kb.split(",") if v.strip()]
+    except ValueError:
+        raise BenchError(f"--budgets-kb: expected numbers, got {args.budgets_kb!r}") from None
+    if args.mesh == DEFAULT_MESH and not Path(DEFAULT_MESH).is_file():   # not run from the repository root
+        from inshade.mesh import DEFAULT_OUT as generated
+        args.mesh = str(write_bunny(generated))
+    mesh = di_sdf.load_mesh(args.mesh)
+    ctx = shared_context()
+    info = gl_info(ctx)
+    args.timer = clock_for(ctx, args.clock, software=info["software"])
+    print(f"GL_RENDERER: {info['renderer']}", file=sys.stderr)
+    center, mesh_radius = bounding_sphere(mesh)
+    view = di_sdf.Frame(tuple(float(c) for c in center), float(mesh_radius) * 1.1)
+    cam = camera(view)
+    uniforms = camera_from_dict(cam).uniforms(args.size, args.size)
+    sh = environment_sh(SKY, 0.0)
+    ev = di_sdf.eval_set(mesh, view)
+    gt = mesh_ground_truth(mesh, uniforms, args.size, sh)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_png(out / "ground_truth.png", gt["rgba"][..., :3])
+    result = {
+        "benchmark": "di_sdf", "quick": bool(args.quick),
+        "machine": machine(info), **clock_record(args.timer),
+        "mesh": {"path": str(args.mesh), "faces": int(len(mesh.faces)), "radius": float(mesh_radius)},
+        "render": {"size": args.size, "sky": SKY, "camera": cam, "frames": args.frames,
+                   "ground_truth": "embree first hits of the mesh, interpolated vertex normals, same shading"},
+        "budgets": [],
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        for bundle, origin in di_bundles(mesh, args):
+            nbytes = int(bundle.meta["metrics"]["bytes"])
+            rows = []
+            for f in ("exact", "fast"):
+                e = model_entry(f"DI-SDF ({f})", bundle, nbytes, mesh_radius, ev, gt, ctx, uniforms, sh, args,
+                                lut_filter=f)
+                m = bundle.meta["metrics"]
+                e.update(n_primary=m["n_primary"], n_cascaded=m["n_cascaded"], origin=origin,
+                         fast_path_bound=di_sdf.fast_path_bound(bundle))
+                rows.append(e)
+            width = mlp_width_for_bytes(nbytes, args.mlp_layers)
+            if width > args.mlp_max_width:
+                rows.append({"method": f"MLP {width}x{args.mlp_layers} (fp32)", "skipped":
+                             f"width {width} > --mlp-max-width {args.mlp_max_width} (llvmpipe JIT time)",
+                             "bytes": 4 * mlp_params(width, args.mlp_layers)})
+                result["budgets"].append({"di_bytes": nbytes, "rows": _write_images(rows, out, nbytes)})
+                continue
+            mlp, width = mlp_bundle(str(args.mesh), nbytes, args, Path(tmp))
+            e = model_entry(f"MLP {width}x{args.mlp_layers} (fp32)", mlp, 4 * mlp_params(width, args.mlp_layers),
+                            mesh_radius, ev, gt, ctx, uniforms, sh, args, storage=args.mlp_storage)
+            e.update(width=width, layers=args.mlp_layers, step_scale=e["trace"]["step_scale"], storage=args.mlp_storage)
+            rows.append(e)
+            result["budgets"].append({"di_bytes": nbytes, "rows": _write_images(rows, out, nbytes)})
+            print(f"budget {nbytes} bytes done", file=sys.stderr)
+    write_report(out, "di_sdf", result, markdown, plot)
+    print(f"wrote {out / 'di_sdf.json'}, {out / 'di_sdf.md'}, {out / 'di_sdf.png'}", file=sys.stderr)
+    return 0
+
+
+def _write_images(rows, out: Path, nbytes: int) -> list:
+    from inshade.runtime.image_io import write_png
+
+    for r in rows:
+        if "_image" in r:
+            tag = r["method"].split(" ")[0].lower() + ("_fast" if "fast" in r["method"] else "")
+            write_png(out / f"{tag}_{nbytes}.png", r.pop("_image")[..., :3])
+            r["image"] = f"{tag}_{nbytes}.png"
+    return rows
+
+
+def markdown(result: dict) -> str:
+    m = result["machine"]
+    lines = ["# DI-SDF vs MLP SDF at equal bytes", "",
+             machine_markdown(m),
+             f"- mesh: `{result['mesh']['path']}` ({result['mesh']['faces']} faces, bound radius "
+             f"{result['mesh']['radius']:.4f}); render {result['render']['size']}² sdf_diffuse, sky "
+             f"{result['render']['sky']}; PSNR vs {result['render']['ground_truth']}",
+             "- surface |d| at mesh surface points (per bound radius); IoU on uniform points in the bound cube; "
+             "normal error at surface points (central differences, each bundle's normal_eps); ms/frame: median "
+             f"of {result['render']['frames']} draws after a warm-up ({result.get('clock_note') or 'wall clock'}); "
+             "first draw includes llvmpipe's JIT unless Mesa's on-disk shader cache already holds the program "
+             "(a repeated run)", ""]
+    for b in result["budgets"]:
+        lines += [f"## DI budget {b['di_bytes']} bytes", "",
+                  "| method | bytes | surface MAE / r | p95 / r | IoU | normal err ° | PSNR dB | ms/frame | "
+                  "first draw s | train s |", "|---|---|---|---|---|---|---|---|---|---|"]
+        r_mesh = result["mesh"]["radius"]
+        for e in b["rows"]:
+            if "skipped" in e:
+                lines.append(f"| {e['method']} | {e['bytes']} | skipped: {e['skipped']} |||||||| ")
+                continue
+            lines.append(f"| {e['method']} | {e['bytes']} | {e['surface_mae_per_radius']:.2e} | "
+                         f"{e['surface_p95'] / r_mesh:.2e} | {e['iou']:.4f} | {e['normal_deg_mean']:.2f} | "
+                         f"{e['psnr']:.2f} | {e['ms_median']:.1f} | {e['first_draw_s']:.2f} | "
+                         f"{'—' if e['train_seconds'] is None else format(e['train_seconds'], '.0f')} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def plot(result: dict, path: Path) -> None:
+    """Renders (read from ``path``'s folder) and PSNR vs ms/frame, into ``path``."""
+    from PIL import Image
+
+    plt = matplotlib_pyplot()
+    out = path.parent
+
+    b = max(result["budgets"], key=lambda x: sum("image" in e for e in x["rows"]))
+    rows = [e for e in b["rows"] if "image" in e]
+    fig, axes = plt.subplots(1, len(rows) + 2, figsize=(3.0 * (len(rows) + 2), 3.2))
+    axes[0].imshow(Image.open(out / "ground_truth.png"))
+    axes[0].set_title("mesh (ray traced)", fontsize=8)
+    for ax, e in zip(axes[1:], rows):
+        ax.imshow(Image.open(out / e["image"]))
+        ax.set_title(f"{e['method']}\n{e['psnr']:.1f} dB, {e['ms_median']:.0f} ms", fontsize=8)
+    for ax in axes[:-1]:
+        ax.axis("off")
+    ax = axes[-1]
+    for bud in result["budgets"]:
+        for e in (e for e in bud["rows"] if "image" in e):
+            ax.scatter(e["ms_median"], e["psnr"], marker="o" if "DI" in e["method"] else "s")
+            ax.annotate(f"{e['method'].split(' (')[0]} {'fast' if 'fast' in e['method'] else ''} {e['bytes'] // 1024}K",
+                        (e["ms_median"], e["psnr"]), fontsize=6)
+    ax.set_xscale("log")
+    ax.set_xlabel("ms / frame")
+    ax.set_ylabel("PSNR dB")
+    ax.grid(True, alpha=0.3)
+    fig.suptitle(f"DI-SDF vs MLP SDF, equal bytes — {result['machine']['gl_renderer']}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,299 @@
+"""Neural image: a 2D field uv -> linear RGB fitted to one photograph.
+
+The first shipped asset (``trained/neural_image``) and the smallest end-to-end example of the
+data flow: torch training here, ``codegen.network.generate`` for the GLSL, and
+``shaders/passes/field2d.frag`` + ``runtime/headless.py`` to render it without torch.
+
+Orientation (decided once; the shader and the torch preview both follow it): ``uv`` is the GL
+texture convention, ``(0, 0)`` the *bottom-left* corner of the picture and ``(1, 1)`` the
+top-right, so ``v`` grows upwards. Pixel ``(column c, row r)`` of an image-oriented array
+(row 0 = top) is sampled at its centre, ``uv = ((c + 0.5) / W, (H - 1 - r + 0.5) / H)``; that is
+``gl_FragCoord.xy / size`` for the GL pixel the read-back (``render.read_rgba``) puts at row r.
+
+Colour: the target is the sRGB photograph decoded to linear light (sRGB EOTF); the network
+outputs linear RGB and the loss is MSE in linear light. PSNR is reported both in linear light
+and after sRGB encoding.
+
+Command: ``inshade train neural_image [--out trained/neural_image] [--steps N] [--image NAME]
+[--seed S] [--size N]``, or ``python -m inshade.techniques.neural_image.train`` with the same options.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import math
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from inshade import command
+from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
+from inshade.models import activations as _act
+from inshade.models import encodings as _enc
+from inshade.models.graph import GraphModule
+
+IMAGES = ("astronaut", "chelsea", "coffee", "camera", "rocket")  # skimage.data names (RGB or grey)
+ARCHES = ("siren", "frequency_relu")
+OUTPUT_ACTIVATIONS = ("identity", "sigmoid")
+
+# The shipped asset's settings, chosen by PSNR on astronaut 256x256 at 800 steps, batch 4096, on a
+# shared 2-core CPU: frequency(8)+relu 64x3, identity out, lr 2e-3: 22.95 dB linear in 105 s;
+# same with sigmoid out: 22.33 dB in 63 s; SIREN 64x3 omega0=30, lr 3e-4: 23.03 dB in 174 s
+# (sin makes each step ~2x dearer, so per second of training the frequency+relu net wins).
+DEFAULTS = dict(out="trained/neural_image", image="astronaut", size=256, steps=1500, seed=0,
+                arch="frequency_relu", width=64, depth=3, n_freqs=8, omega0=30.0,
+                output_activation="identity", lr=None, batch=4096)
+RENDER_PROGRAM = "passes/field2d.frag"
+
+
+# ---------------------------------------------------------------------------------------------
+# data
+
+def load_target(image: str = "astronaut", size: int = 256) -> np.ndarray:
+    """A ``skimage.data`` photograph as linear RGB float32 ``[size, size, 3]`` (row 0 = top).
+
+    Centre-cropped to a square, decoded to linear light, then area-resampled to ``size`` in
+    linear light (averaging is only physically right there).
+    """
+    try:
+        import skimage.data
+        import skimage.transform
+    except ImportError as e:  # pragma: no cover - depends on the [train] extra
+        raise SystemExit("scikit-image is needed for training: pip install 'inshade[train]'") from e
+    if image not in IMAGES:
+        raise ValueError(f"unknown image {image!r} (choose from {', '.join(IMAGES)})")
+    pixels = getattr(skimage.data, image)()
+    if pixels.ndim == 2:
+        pixels = np.repeat(pixels[..., None], 3, axis=2)
+    pixels = pixels[..., :3].astype(np.float64) / 255.0
+    h, w = pixels.shape[:2]
+    s = min(h, w)
+    top, left = (h - s) // 2, (w - s) // 2
+    linear = srgb_eotf(pixels[top:top + s, left:left + s])
+    if s != size:
+        linear = skimage.transform.resize(linear, (size, size), order=1, anti_aliasing=s > size,
+                                          mode="edge")
+    return np.clip(linear, 0.0, 1.0).astype(np.float32)
+
+
+def pixel_uvs(width: int, height: int) -> np.ndarray:
+    """Pixel-centre uvs ``[H, W, 2]`` float32 in image orientation (row 0 = top); see the module
+    docstring. Computed in float32 as the shader does: ``gl_FragCoord.xy / size``."""
+    x = (np.arange(width, dtype=np.float32) + np.float32(0.5)) / np.float32(width)
+    y = (np.arange(height, dtype=np.float32)[::-1] + np.float32(0.5)) / np.float32(height)
+    u, v = np.meshgrid(x, y)
+    return np.stack([u, v], -1).astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------------
+# model
+
+def build(arch: str = "frequency_relu", width: int = 64, depth: int = 3, n_freqs: int = 8,
+          omega0: float = 30.0, output_activation: str = "identity") -> GraphModule:
+    """uv[2] -> rgb[3] network as a bundle graph.
+
+    - ``siren``: (dense -> sin(omega0 x)) * depth -> dense, with SIREN's initialisation.
+    - ``frequency_relu``: NeRF frequency encoding (n_freqs, raw input kept) ->
+      (dense -> relu) * depth -> dense.
+    """
+    if arch not in ARCHES:
+        raise ValueError(f"unknown arch {arch!r} (choose from {', '.join(ARCHES)})")
+    if output_activation not in OUTPUT_ACTIVATIONS:
+        raise ValueError(f"unknown output activation {output_activation!r}")
+    g = GraphModule([("uv", 2, "uv")])
+    src = "uv"
+    if arch == "frequency_relu":
+        src = g.add("enc", _enc.Frequency(n_freqs, include_input=True), src)
+    for i in range(depth):
+        src = g.dense(f"l{i}", src, width)
+        layer = g.nodes[src].linear
+        if arch == "siren":
+            fan_in = layer.in_features
+            bound = 1.0 / fan_in if i == 0 else math.sqrt(6.0 / fan_in) / omega0
+            with torch.no_grad():
+                layer.weight.uniform_(-bound, bound)
+                layer.bias.uniform_(-1.0 / math.sqrt(fan_in), 1.0 / math.sqrt(fan_in))
+            src = g.add(f"a{i}", _act.Sin(omega0), src)
+        else:
+            src = g.add(f"a{i}", _act.ReLU(), src)
+    src = g.dense(f"l{depth}", src, 3)
+    if arch == "siren":
+        layer = g.nodes[src].linear
+        bound = math.sqrt(6.0 / layer.in_features) / omega0
+        with torch.no_grad():
+            layer.weight.uniform_(-bound, bound)
+            layer.bias.fill_(0.5 if output_activation == "identity" else 0.0)
+    if output_activation == "sigmoid":
+        src = g.add("out_act", _act.Sigmoid(), src)
+    g.output("rgb", src, "linear_rgb")
+    return g
+
+
+def predict(model: torch.nn.Module, width: int, height: int, chunk: int = 65536) -> np.ndarray:
+    """Linear RGB ``[H, W, 3]`` float32 at the pixel centres (image orientation)."""
+    uv = torch.from_numpy(pixel_uvs(width, height).reshape(-1, 2))
+    with torch.no_grad():
+        out = torch.cat([model(uv[i:i + chunk]) for i in range(0, uv.shape[0], chunk)], 0)
+    return out.reshape(height, width, -1).numpy().astype(np.float32)
+
+
+def metrics_of(prediction: np.ndarray, target: np.ndarray) -> dict:
+    """Quality of a linear prediction against the linear target (clipped to [0, 1] as shown)."""
+    shown = np.clip(prediction, 0.0, 1.0)
+    return {
+        "psnr_linear": round(psnr(shown, target), 4),
+        "psnr_srgb": round(psnr(srgb_oetf(shown), srgb_oetf(target)), 4),
+        "mse_linear": mse(shown, target),
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# training
+
+def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr: float | None = None,
+        batch: int = 16384, arch: str = "frequency_relu", progress: bool | None = None) -> dict:
+    """Adam on random pixel batches (full image when ``batch`` >= pixels), cosine-decayed lr.
+    Deterministic for a given seed on a given torch build. Returns timing and the loss curve."""
+    h, w = target.shape[:2]
+    uv = torch.from_numpy(pixel_uvs(w, h).reshape(-1, 2))
+    rgb = torch.from_numpy(target.reshape(-1, 3))
+    n = uv.shape[0]
+    lr = lr if lr is not None else (3e-4 if arch == "siren" else 2e-3)
+    opt = torch.optim.Adam(model.parameters(), lr=lr)
+    sched = torch.optim.lr_scheduler.LambdaLR(
+        opt, lambda s: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0))))
+    gen = torch.Generator().manual_seed(seed)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    from tqdm import tqdm
+
+    losses = []
+    start = time.perf_counter()
+    bar = tqdm(range(steps), desc="neural_image", disable=not progress, leave=False)
+    for step in bar:
+        if batch >= n:
+            xb, yb = uv, rgb
+        else:
+            idx = torch.randint(0, n, (batch,), generator=gen)
+            xb, yb = uv[idx], rgb[idx]
+        loss = torch.mean((model(xb) - yb) ** 2)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        sched.step()
+        if step % 50 == 0 or step == steps - 1:
+            value = float(loss.detach())
+            losses.append((step, value))
+            bar.set_postfix(psnr=f"{psnr_from_mse(max(value, 1e-12)):.2f}")
+    return {"seconds": time.perf_counter() - start, "losses": losses, "lr": lr}
+
+
+def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"],
+          steps=DEFAULTS["steps"], seed=DEFAULTS["seed"], arch=DEFAULTS["arch"],
+          width=DEFAULTS["width"], depth=DEFAULTS["depth"], n_freqs=DEFAULTS["n_freqs"],
+          omega0=DEFAULTS["omega0"], output_activation=DEFAULTS["output_activation"],
+          lr=DEFAULTS["lr"], batch=DEFAULTS["batch"], command: str | None = None,
+          progress: bool | None = None, write_images: bool = True):
+    """Trains and writes the bundle (+ preview.png, reference.png) into ``out``.
+    Returns the saved ``Bundle``."""
+    torch.manual_seed(seed)
+    target = load_target(image, size)
+    model = build(arch, width, depth, n_freqs, omega0, output_activation)
+    start_metrics = metrics_of(predict(model, size, size), target)
+    log = fit(model, target, steps=steps, seed=seed, lr=lr, batch=batch, arch=arch, progress=progress)
+    prediction = predict(model, size, size)
+    metrics = metrics_of(prediction, target)
+    metrics.update({
+        "psnr_linear_step0": start_metrics["psnr_linear"],
+        "psnr_srgb_step0": start_metrics["psnr_srgb"],
+        "params": int(sum(p.numel() for p in model.parameters())),
+        "train_seconds": round(log["seconds"], 2),
+    })
+    provenance = {
+        "command": command or _command_line(out=out, image=image, size=size, steps=steps, seed=seed,
+                                            arch=arch, width=width, depth=depth,
+                                            n_freqs=n_freqs if arch == "frequency_relu" else None,
+                                            omega0=omega0 if arch == "siren" else None,
+                                            output_activation=output_activation,
+                                            lr=lr, batch=batch),
+        "image": f"skimage.data.{image}",
+        "image_preprocessing": f"centre square crop, sRGB EOTF to linear, resized to {size}x{size}",
+        "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
+        "steps": steps, "seed": seed, "arch": arch, "width": width, "depth": depth,
+        "n_freqs": n_freqs if arch == "frequency_relu" else None,
+        "omega0": omega0 if arch == "siren" else None,
+        "output_activation": output_activation, "lr": log["lr"], "batch": batch,
+        "optimizer": "adam, cosine decay to 5%", "loss": "mse, linear rgb",
+        "torch": torch.__version__,
+        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }
+    provenance = {k: v for k, v in provenance.items() if v is not None}
+    render = {"program": RENDER_PROGRAM, "width": size, "height": size, "input": "uv", "output": "rgb"}
+    bundle = model.export("neural_image", "neural_image", provenance=provenance, metrics=metrics,
+                          render=render)
+    out = Path(out)
+    bundle.save(out)
+    if write_images:
+        from inshade.runtime.image_io import write_png
+
+        write_png(out / "preview.png", prediction)
+        write_png(out / "reference.png", target)
+    return bundle
+
+
+def _command_line(**kw) -> str:
+    parts = ["inshade", "train", "neural_image"]
+    for k, v in kw.items():
+        if v is None:
+            continue
+        parts += [f"--{k.replace('_', '-')}", str(v)]
+    return shlex.join(parts)
+
+
+# ---------------------------------------------------------------------------------------------
+# command line
+
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    d = DEFAULTS
+    parser.add_argument("--out", default=d["out"], help="bundle folder (default: %(default)s)")
+    parser.add_argument("--image", default=d["image"], choices=IMAGES,
+                        help="skimage.data photograph (default: %(default)s)")
+    parser.add_argument("--size", type=int, default=d["size"], help="target resolution, square (default: %(default)s)")
+    parser.add_argument("--steps", type=int, default=d["steps"], help="optimizer steps (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
+    parser.add_argument("--arch", default=d["arch"], choices=ARCHES, help="network (default: %(default)s)")
+    parser.add_argument("--width", type=int, default=d["width"], help="hidden width (default: %(default)s)")
+    parser.add_argument("--depth", type=int, default=d["depth"], help="hidden layers (default: %(default)s)")
+    parser.add_argument("--n-freqs", type=int, default=d["n_freqs"],
+                        help="frequency encoding octaves, frequency_relu only (default: %(default)s)")
+    parser.add_argument("--omega0", type=float, default=d["omega0"], help="SIREN omega0 (default: %(default)s)")
+    parser.add_argument("--output-activation", default=d["output_activation"], choices=OUTPUT_ACTIVATIONS,
+                        help="(default: %(default)s)")
+    parser.add_argument("--lr", type=float, default=d["lr"],
+                        help="Adam learning rate (default: 3e-4 for siren, 2e-3 otherwise)")
+    parser.add_argument("--batch", type=int, default=d["batch"], help="pixels per step (default: %(default)s)")
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    kw = {k: getattr(args, k) for k in ("out", "image", "size", "steps", "seed", "arch", "width", "depth",
+                                         "n_freqs", "omega0", "output_activation", "lr", "batch")}
+    if kw["steps"] < 0 or kw["size"] < 1:
+        raise SystemExit("--steps must be >= 0 and --size >= 1")
+    bundle = train(**kw)
+    m = bundle.meta["metrics"]
+    print(f"wrote {bundle.path}: PSNR {m['psnr_linear']:.2f} dB linear, {m['psnr_srgb']:.2f} dB sRGB "
+          f"({m['params']} params, {m['train_seconds']:.1f} s)")
+    return 0
+
+
+def main(argv=None) -> int:
+    return command.main("inshade train neural_image", __doc__, add_arguments, run, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,65 @@
+"""prt: learnt-transfer precomputed radiance transfer. A transfer MLP maps a surface point and its
+normal to 16 SH coefficients of cosine-weighted visibility; diffuse and glossy (triple-product
+light matrix) shading on sphere-traced SDFs and rasterised meshes."""
+from pathlib import Path
+
+from inshade.papers import LEARNT_TRANSFER
+from inshade.technique import ProgramSpec, Technique
+
+
+def _chunks(scene, bundles, networks, codegen_options):
+    """``<prt_network>``: the transfer network's eval function and its frame (codegen.py)."""
+    from .codegen import KINDS, PrtError, prt_chunks
+
+    found = [(b, n) for b, n in zip(bundles, networks) if b.kind in KINDS]
+    if not found:
+        kinds = ", ".join(f"{b.name} ({b.kind})" for b in bundles)
+        raise ValueError(f"networks: {scene.program} needs a transfer network (bundle kind \"{KINDS[0]}\"); "
+                         f"this scene has {kinds or 'none'}")
+    try:
+        return prt_chunks(found[0][0], prefix=found[0][1].prefix)
+    except PrtError as exc:
+        raise ValueError(f"networks: {exc}") from None
+
+
+def _frame(inputs):
+    """The glossy light matrix of the current lighting (cached per lighting in codegen.py)."""
+    from .codegen import light_matrix_uniform
+
+    return {"u_prt_light": light_matrix_uniform(inputs.environment_sh)}
+
+
+def _validate(scene):
+    """A u_shading choice lists lib/prt.glsl's modes in order (its index is the uniform)."""
+    from .codegen import SHADING_MODES
+
+    if not scene.networks:
+        raise ValueError(f"networks: a PRT scene ({scene.program}) needs a transfer network: "
+                         "[{\"bundle\": \"transfer\"}] naming a bundle of kind \"prt\"")
+    for name, s in scene.settings.items():
+        if s.binding == "uniform" and s.target == "u_shading":
+            if s.type != "choice" or tuple(s.choices) != SHADING_MODES[:len(s.choices)]:
+                raise ValueError(f"settings.{name}.choices: u_shading takes {list(SHADING_MODES)} "
+                                 f"(in that order), got {list(s.choices) or s.type}")
+
+
+# Values of the PRT passes' uniforms a scene does not bind to a setting (twin.py PrtShading's defaults).
+UNIFORM_DEFAULTS = {"u_shading": 0, "u_phong_exponent": 16.0, "u_albedo": 1.0, "u_kd": 1.0, "u_ks": 0.5,
+                    "u_prt_debug": 0}
+_PRT = dict(bundle_kinds=("prt", "transfer"), uniforms=UNIFORM_DEFAULTS, chunks=_chunks, frame=_frame,
+            validate=_validate, environment_degree=4)
+
+TECHNIQUE = Technique(
+    name="prt",
+    summary="learnt-transfer PRT: a transfer MLP, diffuse + glossy SH shading on SDFs and meshes",
+    paper=LEARNT_TRANSFER,
+    kinds=("prt",),
+    old_kinds={"transfer": "prt"},
+    programs=(ProgramSpec("passes/sdf_prt.frag", geometry="sdf", **_PRT),
+              ProgramSpec("passes/mesh_prt.frag", geometry="mesh", **_PRT)),
+    train="inshade.techniques.prt.train",
+    train_help="a complete PRT asset: ground-truth transfer (cached), transfer MLP, scene, previews, quality",
+    bench="inshade.techniques.prt.bench",
+    bench_help="learnt-transfer PRT frame times (k, size, shading, geometry) vs torch",
+    shaders=Path(__file__).resolve().parent / "shaders",
+)

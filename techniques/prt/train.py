@@ -1,0 +1,163 @@
+"""`inshade train prt`: build a shipped PRT asset folder from one geometry.
+
+    inshade train prt --sdf trained/sdf_creature/sdf.json --out trained/prt_creature
+    inshade train prt --neural-sdf trained/prt_neural_bunny/sdf --out trained/prt_neural_bunny
+    inshade train prt --mesh trained/prt_mesh/mesh.ply --out trained/prt_mesh
+
+Steps, all timed and recorded in ``OUT/metrics.json``:
+
+1. the geometry is copied into OUT (unless it is already there);
+2. ground-truth transfer data + the transfer network (techniques/prt/transfer_net.py, same options;
+   the dataset cache lives outside the asset, in ``--cache``);
+3. ``OUT/scene.json``: the PRT pass for the geometry (sdf_prt or mesh_prt) with the settings
+   ``PRT_SETTINGS`` below, the camera of ``--camera-from`` (a scene.json) or an orbit framing the
+   geometry's bound;
+4. previews (diffuse and glossy PNG, rendered by the GL driver through ``inshade render``'s path);
+5. quality against the per-pixel ground-truth-transfer render over an orbit (``techniques/prt/twin.py``
+   ``quality_orbit``: PSNR / SSIM / MAE, diffuse and glossy).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from inshade import command
+from inshade.lit_settings import lit_settings
+
+from inshade.techniques.prt import transfer_net
+
+# The PRT scene's user-facing settings (uniforms of lib/prt.glsl, the environment of lib/sdf).
+PRT_SETTINGS = {
+    **lit_settings(),
+    "shading": {"type": "choice", "default": "diffuse", "choices": ["diffuse", "glossy"], "uniform": "u_shading",
+                "label": "material"},
+    "phong_exponent": {"type": "float", "default": 16.0, "min": 0.0, "max": 256.0, "uniform": "u_phong_exponent",
+                       "label": "Phong exponent"},
+    "albedo": {"type": "float", "default": 1.0, "min": 0.0, "max": 2.0, "uniform": "u_albedo",
+               "label": "albedo tint"},
+    "kd": {"type": "float", "default": 1.0, "min": 0.0, "max": 1.0, "uniform": "u_kd", "label": "kd"},
+    "ks": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0, "uniform": "u_ks", "label": "ks"},
+    "storage": {"type": "choice", "default": "auto", "choices": ["auto", "inline", "ubo", "texture"],
+                "codegen": "storage", "label": "weight storage"},
+}
+PROGRAMS = {"sdf": "passes/sdf_prt.frag", "neural_sdf": "passes/sdf_prt.frag", "mesh": "passes/mesh_prt.frag"}
+PREVIEW_SIZE = 256
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
+    transfer_net.add_arguments(parser)
+    parser.add_argument("--title", default="", help="scene title")
+    parser.add_argument("--camera-from", default=None, help="take camera and bookmarks from this scene.json")
+    parser.add_argument("--quality-views", type=int, default=30, help="orbit views of the quality measurement")
+    parser.add_argument("--quality-size", type=int, default=96, help="square size of the quality renders")
+    parser.add_argument("--quality-dirs", type=int, default=512, help="rays per pixel of the ground truth")
+    parser.add_argument("--skip-train", action="store_true", help="keep OUT/transfer, redo scene/previews/quality")
+    return parser
+
+
+def _geometry(args) -> tuple[str, Path]:
+    given = [(k, getattr(args, k)) for k in ("sdf", "neural_sdf", "mesh") if getattr(args, k)]
+    if len(given) != 1:
+        raise SystemExit("inshade train prt: give exactly one of --sdf, --neural-sdf, --mesh")
+    kind, path = given[0]
+    path = Path(path)
+    if not path.exists():
+        raise SystemExit(f"inshade train prt: {path}: no such file or folder")
+    return kind, path
+
+
+def _copy_geometry(kind: str, src: Path, out: Path) -> str:
+    """Copy the geometry into the asset; returns its name relative to OUT."""
+    name = {"sdf": "sdf.json", "neural_sdf": "sdf", "mesh": "mesh" + src.suffix.lower()}[kind]
+    dst = out / name
+    if src.resolve() != dst.resolve():
+        if src.is_dir():
+            shutil.copytree(src, dst, dirs_exist_ok=True)
+        else:
+            shutil.copyfile(src, dst)
+    return name
+
+
+def _framing_camera(center, radius) -> dict:
+    return {"type": "orbit", "fov_y": 40.0, "target": [float(c) for c in center],
+            "distance": float(radius) * 2.9, "yaw": -30.0, "pitch": -18.0}
+
+
+def scene_dict(kind: str, geometry_name: str, name: str, title: str, camera: dict, bookmarks: dict) -> dict:
+    geometry = ({"mesh": geometry_name} if kind == "mesh" else
+                {"sdf": {"network": geometry_name}} if kind == "neural_sdf" else {"sdf": geometry_name})
+    return {"format": "inshade.scene", "version": 1, "name": name, "title": title, "program": PROGRAMS[kind],
+            "size": [PREVIEW_SIZE, PREVIEW_SIZE], "networks": [{"bundle": "transfer", "prefix": "transfer"}],
+            **geometry, "camera": camera, "bookmarks": bookmarks, "lights": [],
+            "environment": {"sky": "noon", "rotation": 0.0, "degree": 4},
+            "display": {"mode": "final", "modes": ["final"], "split": 0.5},
+            "settings": PRT_SETTINGS, "requires": {"gl": 330}}
+
+
+def run(args: argparse.Namespace) -> int:
+    from inshade.bundle import load
+    from inshade.techniques.prt.twin import quality_orbit
+    from inshade.techniques.prt.transfer import geometry_bound
+    from inshade.runtime.headless import render_scene, save_render
+    from inshade.runtime.scene import load_scene
+
+    kind, src = _geometry(args)
+    command = shlex.join(["inshade", "train", "prt"]
+                         + transfer_net.command_options(args, set(vars(args)) - {"func", "command"}))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    times = {}
+    geometry_name = _copy_geometry(kind, src, out)
+    setattr(args, kind, str(out / geometry_name))
+    if args.cache is None:
+        args.cache = str(Path.home() / ".cache" / "inshade" / "transfer")
+    final_out = args.out
+    args.out = str(out / "transfer")
+    if not args.skip_train:
+        start = time.perf_counter()
+        status = transfer_net.run(args)
+        times["transfer_seconds"] = time.perf_counter() - start
+        if status:
+            return status
+    args.out = final_out
+    geometry, _ = transfer_net.load_geometry(args)
+    center, radius = geometry_bound(geometry)
+    camera, bookmarks = _framing_camera(center, radius), {}
+    if args.camera_from:
+        base = json.loads(Path(args.camera_from).read_text())
+        camera, bookmarks = base["camera"], base.get("bookmarks", {})
+    scene = scene_dict(kind, geometry_name, out.name, args.title or f"PRT: {out.name}", camera, bookmarks)
+    (out / "scene.json").write_text(json.dumps(scene, indent=1) + "\n")
+    loaded = load_scene(out)
+    start = time.perf_counter()
+    for shading, fname in (("diffuse", "preview.png"), ("glossy", "preview_glossy.png")):
+        image, info = render_scene(loaded, settings={"shading": shading})
+        save_render(image, info, out / fname)
+        (out / (fname + ".json")).unlink(missing_ok=True)  # the sidecar names local paths
+    times["preview_seconds"] = time.perf_counter() - start
+    start = time.perf_counter()
+    quality = quality_orbit(loaded, n_views=args.quality_views, size=args.quality_size, n_dirs=args.quality_dirs,
+                            progress=None)
+    times["quality_seconds"] = time.perf_counter() - start
+    for mode in ("diffuse", "glossy"):
+        quality[mode].pop("views", None)
+    bundle = load(out / "transfer")
+    metrics = {"asset": out.name, "geometry": kind, "command": command, "transfer": bundle.meta.get("metrics", {}),
+               "provenance": bundle.meta.get("provenance", {}), "quality": quality, **times}
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=1, sort_keys=True) + "\n")
+    print(json.dumps({"quality": {m: quality[m] for m in ("diffuse", "glossy")}, **times}, indent=1))
+    return 0
+
+
+def main(argv=None) -> int:
+    return command.main("inshade train prt", __doc__, add_arguments, run, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
