@@ -119,11 +119,13 @@ class Bundle:
     def save(self, folder) -> Path:
         from safetensors.numpy import save_file
 
+        from inshade.files import atomic_files
+
         folder = Path(folder)
-        folder.mkdir(parents=True, exist_ok=True)
-        (folder / JSON_NAME).write_text(canonical_json(self.meta))
-        save_file({k: np.ascontiguousarray(v) for k, v in sorted(self.tensors.items())},
-                  str(folder / WEIGHTS_NAME), metadata={"format": FORMAT})
+        with atomic_files(folder / JSON_NAME, folder / WEIGHTS_NAME) as (meta_tmp, weights_tmp):
+            meta_tmp.write_text(canonical_json(self.meta))
+            save_file({k: np.ascontiguousarray(v) for k, v in sorted(self.tensors.items())},
+                      str(weights_tmp), metadata={"format": FORMAT})
         self.path = folder
         return folder
 

@@ -56,6 +56,7 @@ def cmd_codegen(args) -> int:
     from inshade import bundle as bundle_mod
     from inshade.codegen import generate
     from inshade.codegen.glsl import TextureResource
+    from inshade.files import atomic_files
     from inshade.shaders import flatten
 
     b = bundle_mod.load(args.bundle)
@@ -69,8 +70,6 @@ def cmd_codegen(args) -> int:
     if args.output is None:
         return 0
     out = Path(args.output)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(flatten("network", chunks={"network": gen.chunk}))
     manifest = {"bundle": str(b.path), "bundle_digest": b.digest(), "function": gen.function,
                 "in_dim": gen.in_dim, "out_dim": gen.out_dim, "target": args.target,
                 "plan": gen.plan.to_dict(), "resources": []}
@@ -84,11 +83,16 @@ def cmd_codegen(args) -> int:
             manifest["resources"].append({"name": res.name, "kind": "uniform_block_std140",
                                           "bytes": res.nbytes})
             tensors[res.name] = __import__("numpy").frombuffer(res.data, "uint8")
+    rpath = out.with_suffix(".resources.safetensors")
     if tensors:
-        rpath = out.with_suffix(".resources.safetensors")
-        save_file(tensors, str(rpath))
         manifest["resources_file"] = rpath.name
-    out.with_suffix(out.suffix + ".json").write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    # the GLSL, its manifest and its resources appear together or not at all
+    paths = [out, out.with_suffix(out.suffix + ".json")] + ([rpath] if tensors else [])
+    with atomic_files(*paths) as temps:
+        temps[0].write_text(flatten("network", chunks={"network": gen.chunk}))
+        temps[1].write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+        if tensors:
+            save_file(tensors, str(temps[2]))
     print(f"wrote {out} ({len(gen.resources)} resources)", file=sys.stderr)
     return 0
 

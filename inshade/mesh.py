@@ -189,8 +189,9 @@ def obj_text(mesh: trimesh.Trimesh) -> str:
 def write_torus(out, **kw) -> Path:
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(obj_text(torus(**kw)))
-    return out
+    from inshade.files import atomic_write
+
+    return atomic_write(out, obj_text(torus(**kw)))
 
 
 # the procedural bunny ----------------------------------------------------------------------------

@@ -25,7 +25,9 @@ from inshade.bundle import Bundle, load
 
 from .camera import camera_from_dict
 from .context import make_current, shared_context
-from .image_io import write_exr, write_png, write_sidecar
+from inshade.files import atomic_files
+
+from .image_io import sidecar_path, sidecar_text, write_exr, write_png
 from .programs import ProgramCache
 from .renderer import SceneRenderer
 from .scene import MAX_SIZE, RenderSpecError, Scene, load_scene, render_spec, scene_from_bundle  # noqa: F401
@@ -123,12 +125,17 @@ def save_render(image: np.ndarray, info: dict, out_path, *, exposure: float = 1.
     suffix = out_path.suffix.lower()
     if suffix not in IMAGE_SUFFIXES:
         raise ValueError(f"{out_path}: unknown image type {suffix or '(none)'!r}; use .png or .exr")
-    out_path.parent.mkdir(parents=True, exist_ok=True)
     record = dict(info)
     if suffix == ".png":
-        write_png(out_path, image, exposure=exposure, tonemap=tonemap)
         record["file"] = {"format": "png", "encoding": "srgb 8-bit", "exposure": exposure, "tonemap": tonemap}
     else:
-        write_exr(out_path, image)
         record["file"] = {"format": "exr", "encoding": "linear float32"}
-    return out_path, write_sidecar(out_path, record)
+    side = sidecar_path(out_path)
+    text = sidecar_text(record)          # a record that cannot be written fails before any file exists
+    with atomic_files(out_path, side) as (image_tmp, side_tmp):   # both appear, or neither
+        if suffix == ".png":
+            write_png(image_tmp, image, exposure=exposure, tonemap=tonemap)
+        else:
+            write_exr(image_tmp, image)
+        side_tmp.write_text(text)
+    return out_path, side

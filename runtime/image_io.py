@@ -1,7 +1,8 @@
 """Writing renders: PNG for eyes (tonemap + sRGB, 8-bit), EXR for numbers (linear float32).
 
 Arrays are image-oriented ([H, W, C], row 0 = top), as returned by ``render.read_rgba``.
-Each output can get a JSON sidecar saying how it was made.
+Each output can get a JSON sidecar saying how it was made. Every file is written atomically
+(inshade/files.py): a temporary file in the same folder, renamed into place when complete.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 from PIL import Image
+
+from inshade.files import atomic_files
 
 TONEMAPS = ("none", "reinhard")
 
@@ -38,7 +41,8 @@ def write_png(path: str | Path, linear_rgb: np.ndarray, exposure: float = 1.0, t
     channels = [srgb_oetf(rgb)] + ([np.clip(image[..., 3:], 0.0, 1.0)] if image.shape[2] == 4 else [])
     pixels = np.rint(np.concatenate(channels, axis=2) * 255.0).astype(np.uint8)
     path = Path(path)
-    Image.fromarray(pixels).save(path)
+    with atomic_files(path) as tmp:
+        Image.fromarray(pixels).save(tmp, format="PNG")
     return path
 
 
@@ -48,8 +52,8 @@ def write_exr(path: str | Path, linear: np.ndarray) -> Path:
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     channels = {"RGBA" if image.shape[2] == 4 else "RGB": image}
     path = Path(path)
-    with OpenEXR.File(header, channels) as exr:
-        exr.write(str(path))
+    with atomic_files(path) as tmp, OpenEXR.File(header, channels) as exr:
+        exr.write(str(tmp))
     return path
 
 
@@ -67,12 +71,22 @@ def write_sidecar(image_path: str | Path, info: dict) -> Path:
     ``info`` carries what the caller knows (camera, settings, bundle hash, GL renderer); numpy
     values are converted to plain JSON.
     """
+    path = sidecar_path(image_path)
+    with atomic_files(path) as tmp:
+        tmp.write_text(sidecar_text(info))
+    return path
+
+
+def sidecar_path(image_path: str | Path) -> Path:
+    return Path(f"{image_path}.json")
+
+
+def sidecar_text(info: dict) -> str:
+    """The sidecar JSON of ``info`` plus the inshade version and the UTC time."""
     record = dict(info)
     record["inshade_version"] = metadata.version("inshade")
     record["timestamp_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-    path = Path(f"{image_path}.json")
-    path.write_text(json.dumps(record, sort_keys=True, indent=2, default=_to_json) + "\n")
-    return path
+    return json.dumps(record, sort_keys=True, indent=2, default=_to_json) + "\n"
 
 
 def _to_json(value):

@@ -300,13 +300,14 @@ class SceneRenderer:
             return _rotated_map_sh(self.scene.environment_map, float(env["rotation"]))
         return environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
 
-    def render_network(self, camera, width: int, height: int) -> moderngl.Framebuffer:
-        """The scene pass alone (linear float, alpha = coverage); redrawn only when its inputs change."""
+    def render_network(self, camera, width: int, height: int, *, force: bool = False) -> moderngl.Framebuffer:
+        """The scene pass alone (linear float, alpha = coverage); redrawn only when its inputs change,
+        or every call with ``force`` (timing repeated draws of the same view)."""
         make_current(self.ctx)
         fbo = self._target("network", width, height, self.spec.attachments)
         uniforms = self._uniforms(self.program, camera, width, height)
         key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())))
-        if key != self._net_key:
+        if force or key != self._net_key:
             self.ctx.scissor = None
             gbuffer = self.gbuffer.draw_camera(camera, width, height) if self.gbuffer is not None else None
             self.ctx.viewport = (0, 0, width, height)

@@ -16,9 +16,9 @@ One small ``scene.json`` per asset, read by both ``inshade render`` and ``inshad
 A setting is bound to exactly one of: ``uniform`` (set each frame, no recompile), ``define``
 (a ``#define``, recompiles the program), ``codegen`` (an option of ``codegen.generate``, e.g.
 weight storage or LUT filtering; regenerates and recompiles), ``environment`` (the SH lighting
-computed on the CPU) or ``frame`` (read by the technique's per-frame hook, no recompile). A later 3D scene (SDF sphere tracing,
-meshes with materials) is new data here (another program, an orbit camera, lights, meshes), not a
-new code path in the renderer or the viewer.
+computed on the CPU) or ``frame`` (read by the technique's per-frame hook, no recompile).
+``"lights"`` lists point lights, ``{"type": "point", "position": [x, y, z], "intensity": I}`` (at
+most 4), uploaded as ``u_lights`` to programs that include ``lib/lights``.
 
 An analytic SDF scene (inshade/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
 have ``"networks": []``, and lights the scene with ``"environment": {"sky": preset, "rotation":

@@ -138,8 +138,9 @@ class Assembled:
         directory.mkdir(parents=True, exist_ok=True)
         stage = stage or self.stage
         path = directory / (f"{self.key[:16]}.{stage}.glsl" if stage else f"{self.key[:16]}.glsl")
-        path.write_text(self.source)
-        return path
+        from inshade.files import atomic_write
+
+        return atomic_write(path, self.source)
 
 
 def assemble(entry: str, *, version: str = "330",

@@ -220,9 +220,9 @@ def test_cli_builds_an_asset_the_bench_times(gl, tmp_path, capsys):
     out = tmp_path / "bench"
     assert bench.main(["--assets", str(tmp_path), "--out", str(out), "--size", "32", "--rounds", "1",
                        "--warmup", "1", "--filters", "fast"]) == 0
-    result = __import__("json").loads((out / "brdf.json").read_text())
+    result = __import__("json").loads((out / "di_brdf.json").read_text())
     assert "unavailable" in result["models"]["disney"]
     rows = result["models"]["ggx"]["rows"]
     assert [r["lights"] for r in rows] == [1, 2, 3, 4] and all(r["learned_ms"] > 0 for r in rows)
     assert result["models"]["ggx"]["gl"]["renderer"]
-    assert (out / "brdf.md").is_file() and (out / "brdf.png").is_file()
+    assert (out / "di_brdf.md").is_file() and (out / "di_brdf.png").is_file()

@@ -225,11 +225,11 @@ def test_asset_folder_renders_with_the_scene_renderer(gl, trained, tmp_path):
 
 def test_bench_quick(gl, tmp_path):
     assert bench.main(["--quick", "--out", str(tmp_path)]) == 0
-    result = json.loads((tmp_path / "footprint.json").read_text())
+    result = json.loads((tmp_path / "di_footprint.json").read_text())
     modes = {r["mode"]: r for r in result["rows"]}
     assert set(modes) >= {"di", "di_fast", "trilinear", "anisotropic", "bilinear"}
     assert result["parity_exact_max_abs_diff"] <= 1e-5
     assert result["machine"]["gl_renderer"]
     assert modes["di"]["bytes"] < modes["trilinear"]["bytes"]
-    for f in ("footprint.md", "footprint.png", "views.png"):
+    for f in ("di_footprint.md", "di_footprint.png", "di_footprint_views.png"):
         assert (tmp_path / f).is_file()

@@ -155,11 +155,11 @@ def test_bench_quick_writes_files(gl, tmp_path):
     from inshade.techniques.di_texture import bench as di
 
     assert di.main(["--quick", "--out", str(tmp_path)]) == 0
-    for f in ("di.json", "di.md", "di.png"):
+    for f in ("di_texture.json", "di_texture.md", "di_texture.png"):
         assert (tmp_path / f).is_file()
     import json
 
-    result = json.loads((tmp_path / "di.json").read_text())
+    result = json.loads((tmp_path / "di_texture.json").read_text())
     entries = result["images"][0]["entries"]
     assert {e["codec"] for e in entries} >= {"DI (exact)", "DI (fast)", "ASTC 4x4", "BC1", "BC7"}
     for e in entries:   # every baseline either measured or unavailable with a reason

@@ -25,6 +25,7 @@ import glfw
 import moderngl
 import numpy as np
 
+from inshade.files import atomic_files
 from inshade.shaders import search_path
 
 from . import navigation
@@ -359,7 +360,8 @@ class ViewerApp:
         window = self.read_window()
         out["window"] = path.with_name(path.stem + ".window.png")
         from PIL import Image
-        Image.fromarray(window).save(out["window"])
+        with atomic_files(out["window"]) as tmp:
+            Image.fromarray(window).save(tmp, format="PNG")
         if self.renderer is not None:
             _, _, w, h = self.scene_rect()
             self.renderer.render(self.camera, w, h, mode=self.mode, split=self.split)

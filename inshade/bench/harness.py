@@ -27,12 +27,13 @@ import math
 import os
 import platform
 import statistics
-import tempfile
 import time
 from collections.abc import Callable, Mapping, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from inshade.files import atomic_files, atomic_write  # noqa: F401 (re-exported for benches)
+from inshade.files import atomic_files as atomic_path  # noqa: F401
 
 MIN_ROUNDS = 3
 
@@ -301,26 +302,6 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence], align: str 
     return lines
 
 
-@contextmanager
-def atomic_path(path: Path):
-    """Yield a temporary path in ``path``'s folder (same suffix, so writers infer the format);
-    moved onto ``path`` when the block succeeds, removed when it raises."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        _unlink(tmp)
-        raise
-
-
-def atomic_write(path: Path, data: str | bytes) -> Path:
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data.encode() if isinstance(data, str) else data)
-    return Path(path)
-
 
 def matplotlib_pyplot():
     """matplotlib.pyplot on the Agg backend (imported on first use)."""
@@ -343,34 +324,18 @@ def write_report(out: Path | str, stem: str, result: dict, markdown: str | Calla
     if "machine" not in result:
         raise ValueError("a bench result needs its 'machine' record (inshade.bench.harness.machine)")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     md = markdown(result) if callable(markdown) else markdown
     targets = {"json": out / f"{stem}.json", "md": out / f"{stem}.md"}
     if plot is not None:
         targets["png"] = out / f"{stem}.png"
-    temps: dict[str, str] = {}
-    try:
-        for key, path in targets.items():
-            fd, temps[key] = tempfile.mkstemp(prefix=f".{stem}.", suffix=path.suffix, dir=out)
-            os.close(fd)
-        Path(temps["json"]).write_text(json.dumps(result, indent=2) + "\n")
-        Path(temps["md"]).write_text(md if md.endswith("\n") else md + "\n")
+    with atomic_files(*targets.values()) as temps:
+        temps = dict(zip(targets, temps))
+        temps["json"].write_text(json.dumps(result, indent=2) + "\n")
+        temps["md"].write_text(md if md.endswith("\n") else md + "\n")
         if plot is not None:
-            plot(result, Path(temps["png"]))
-            if not os.path.getsize(temps["png"]):
+            plot(result, temps["png"])
+            if not temps["png"].stat().st_size:
                 raise RuntimeError(f"the plot of {stem} wrote nothing")
-        for key, path in targets.items():
-            os.replace(temps.pop(key), path)
-    finally:
-        for tmp in temps.values():
-            _unlink(tmp)
     if echo:
         print(md)
     return targets
-
-
-def _unlink(path) -> None:
-    try:
-        os.unlink(path)
-    except FileNotFoundError:
-        pass

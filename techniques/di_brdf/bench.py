@@ -16,7 +16,7 @@ drifts hit all alike. Each draw is timed by ``--clock`` (GL timer query on a har
 BRDF cost per round (variant minus the diffuse baseline of the same round) and the speed-ups as the
 median of the per-round ratios with their min..max; a speed-up whose rounds do not all agree
 (min..max contains 1) is reported as "no difference". GL_RENDERER is logged.
-Writes ``brdf.json``, ``brdf.md`` and ``brdf.png`` into ``--out``.
+Writes ``di_brdf.json``, ``di_brdf.md`` and ``di_brdf.png`` into ``--out``.
 """
 from __future__ import annotations
 
@@ -124,7 +124,7 @@ def run(args) -> int:
     for r in timed[1:]:
         r.pop("machine")
     result["clock"] = timed[0]["clock"] if timed else None
-    write_report(args.out, "brdf", result, markdown, plot)
+    write_report(args.out, "di_brdf", result, markdown, plot)
     return 0
 
 

@@ -58,6 +58,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.files import atomic_files, atomic_write
 from inshade import command
 from inshade.models import brdf
 from inshade.models import indirection as di
@@ -639,7 +640,7 @@ def _provenance(command, extra):
 def _write_scene(out: Path, scene: dict, preview: np.ndarray):
     from inshade.runtime.image_io import write_png
 
-    (out / "scene.json").write_text(json.dumps(scene, indent=2) + "\n")
+    atomic_write(out / "scene.json", json.dumps(scene, indent=2) + "\n")
     write_png(out / "preview.png", preview)
 
 
@@ -727,7 +728,8 @@ def _save_encoders(model: DisneyDI, path: Path):
 
     tensors = {f"E_{k}.cells": np.ascontiguousarray(e.table().detach().numpy(), dtype=np.float32)
                for k, e in model.encoders.items()}
-    save_file(tensors, str(path), metadata={"inputs": json.dumps(ENCODERS)})
+    with atomic_files(path) as tmp:
+        save_file(tensors, str(tmp), metadata={"inputs": json.dumps(ENCODERS)})
 
 
 # =============================================================================================

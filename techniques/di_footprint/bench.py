@@ -19,8 +19,8 @@ sub-sample hits the plane. Also reported: the DI sampler vs the emulated triline
 (torch) on held-out (uv, footprint) samples and per LOD, the DI-vs-torch parity of the exact
 path on this view, the bytes of each mode, and GL_RENDERER.
 
-Writes ``footprint.json``, ``footprint.md``, ``footprint.png`` (PSNR per mode, PSNR per LOD) and
-``views.png`` (the modes side by side with the ground truth) into ``--out``.
+Writes ``di_footprint.json``, ``.md``, ``.png`` (PSNR per mode, PSNR per LOD) and
+``di_footprint_views.png`` (the modes side by side with the ground truth) into ``--out``.
 ``--quick``: a 32x32 texture trained 60 steps, a 96x48 view (tests / smoke runs).
 """
 from __future__ import annotations
@@ -68,72 +68,60 @@ def main(argv=None) -> int:
 # ---------------------------------------------------------------------------------------------
 # GL renders
 
-def texture_objects(ctx, image_tex: np.ndarray, anisotropy: float = MAX_ANISOTROPY):
-    """{sampler name: texture}: the sRGB-encoded texture (texture orientation, row 0 at v ~ 0) as
-    RGB8 with a GL-built mip chain, GL_REPEAT; one trilinear, one anisotropic."""
-    import moderngl
+def write_texture(path: Path, image_tex: np.ndarray) -> Path:
+    """The sRGB-encoded texture (texture orientation, row 0 at v ~ 0) as the 8-bit RGB PNG a scene's
+    "textures" entry binds (image orientation; the values exactly, no colour conversion)."""
+    from PIL import Image
 
     data = np.rint(np.clip(image_tex, 0, 1) * 255).astype(np.uint8)
     if data.shape[2] == 1:
         data = np.repeat(data, 3, -1)
-    out = {}
-    for name, aniso in (("u_texture", 1.0), ("u_texture_aniso", min(anisotropy, ctx.max_anisotropy))):
-        t = ctx.texture(data.shape[1::-1], 3, np.ascontiguousarray(data).tobytes(), alignment=1)
-        t.build_mipmaps()
-        t.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        t.repeat_x = t.repeat_y = True
-        t.anisotropy = aniso
-        out[name] = t
-    return out
+    Image.fromarray(np.ascontiguousarray(data[::-1]), "RGB").save(path)
+    return path
 
 
 class PlaneRenderer:
-    """passes/footprint_plane.frag for one bundle and texture: ``render(mode, camera, w, h, tile)``
-    -> (linear RGBA [H, W, 4], DI inputs [H, W, 4]), both in image orientation."""
+    """passes/footprint_plane.frag for one bundle and texture, drawn by the runtime's SceneRenderer
+    over the asset's scene with the GL modes (train.py ``scene_dict(gl_modes=True)``: the texture as
+    RGB8 + GL-built mips, GL_REPEAT, bound as u_texture and, anisotropic, u_texture_aniso):
+    ``render(mode, camera, w, h, tile, extent)`` -> (linear RGBA [H, W, 4], DI inputs [H, W, 4]),
+    both in image orientation (the program's two attachments)."""
 
     def __init__(self, ctx, bundle, image_tex: np.ndarray, lut_filter: str = "exact"):
-        from inshade.codegen import generate
-        from inshade.runtime.network import NetworkResources
-        from inshade.runtime.programs import ProgramCache
+        import tempfile
+
+        from inshade.techniques.di_footprint import train as fp
+        from inshade.runtime.renderer import SceneRenderer
+        from inshade.runtime.scene import load_scene
 
         self.ctx, self.bundle = ctx, bundle
-        self.cache = ProgramCache(ctx)
-        self.generated = generate(bundle, lut_filter=lut_filter)
-        self.resources = NetworkResources(ctx, self.generated)
-        self.textures = texture_objects(ctx, image_tex)
-        lanes = bundle.output_lanes(bundle.outputs[0].name)
-        self.defines = {"FIELD_OUT_OFFSET": lanes[0], "FIELD_OUT_DIM": lanes[1]}
+        # the scene is read from a folder (scene.json, bundle.json, texture.png) that only lives
+        # while the renderer is built: the textures are uploaded and the bundle given in memory
+        with tempfile.TemporaryDirectory(prefix="inshade-footprint-") as tmp:
+            folder = Path(tmp)
+            path = bundle.path
+            bundle.save(folder)
+            bundle.path = path   # save() points the bundle at the folder, which goes away
+            write_texture(folder / "texture.png", image_tex)
+            output = bundle.outputs[0].name
+            scene = fp.scene_dict(folder.name, "footprint bench", output, gl_modes=True)
+            (folder / "scene.json").write_text(json.dumps(scene))
+            self.scene = load_scene(folder)
+            self.renderer = SceneRenderer(self.scene, ctx, bundles=[bundle], settings={"lut_filter": lut_filter})
 
     def render(self, mode: str, camera, width: int, height: int, tile: float, extent: float):
         from inshade.techniques.di_footprint.train import MODES
-        from inshade.runtime.render import FullscreenPass, float_target, read_rgba, release_target
 
-        program = self.cache.get("common/fullscreen.vert", "passes/footprint_plane.frag",
-                                 defines={**self.defines, "FOOTPRINT_MODE": MODES[mode]},
-                                 chunks={"network": self.generated.chunk})
-        fbo = float_target(self.ctx, width, height, attachments=2)
-        pass_ = FullscreenPass(self.ctx, program)
-        try:
-            self.ctx.viewport = (0, 0, width, height)
-            unit = self.resources.bind(program)
-            textures = {k: v for k, v in self.textures.items() if k in program}
-            uniforms = {"u_size": (float(width), float(height)), "u_tile": float(tile), "u_extent": float(extent),
-                        **camera.uniforms(width, height)}
-            for name, tex in textures.items():
-                tex.use(location=unit)
-                program[name].value = unit
-                unit += 1
-            pass_.render(fbo, uniforms=uniforms)
-            return read_rgba(fbo, 0), read_rgba(fbo, 1)
-        finally:
-            pass_.vao.release()
-            release_target(fbo)
+        r = self.renderer
+        r.set_setting("mode", MODES[mode])
+        r.set_setting("tile", float(tile))
+        r.set_setting("extent", float(extent))
+        r.render_network(camera, width, height)
+        return r.read("network", 0), r.read("network", 1)
 
     def release(self):
-        self.resources.release()
-        for t in self.textures.values():
-            t.release()
-        self.cache.release()
+        self.renderer.release()
+        self.renderer.cache.release()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -276,6 +264,11 @@ def run(args) -> int:
     camera = scene.make_camera()
     tile = args.tile if args.tile is not None else scene.settings["tile"].default
     extent = args.extent if args.extent is not None else scene.settings["extent"].default
+    for name, value in (("tile", tile), ("extent", extent)):   # the renders set them as scene settings
+        try:
+            scene.settings[name].check(value, "--" + name)
+        except ValueError as exc:
+            raise BenchError(str(exc)) from None
     w, h = args.width, args.height
 
     t0 = time.perf_counter()
@@ -342,9 +335,10 @@ def run(args) -> int:
         "rows": rows,
     }
     out = Path(args.out)
-    write_report(out, "footprint", result, markdown, plot)
-    views(renders, truth * mask[..., None], k, out / "views.png")
-    print(f"wrote {out / 'footprint.json'}, footprint.md, footprint.png, views.png", file=sys.stderr)
+    write_report(out, "di_footprint", result, markdown, plot)
+    views(renders, truth * mask[..., None], k, out / "di_footprint_views.png")
+    print(f"wrote {out / 'di_footprint.json'}, di_footprint.md, di_footprint.png, di_footprint_views.png",
+          file=sys.stderr)
     return 0
 
 

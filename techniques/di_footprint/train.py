@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.files import atomic_write
 from inshade import command
 from inshade.metrics import srgb_eotf
 from inshade.models import indirection as di
@@ -508,7 +509,7 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
     result.bundle.save(out)
     output = result.graph.outputs[0][0]
     title = title or f"DI footprint sampler, {result.metrics['ratio_vs_base']:.1f}x vs RGB8 (no mip chain)"
-    (out / "scene.json").write_text(json.dumps(scene_dict(out.name, title, output, preview_size, gl_modes), indent=2) + "\n")
+    atomic_write(out / "scene.json", json.dumps(scene_dict(out.name, title, output, preview_size, gl_modes), indent=2) + "\n")
     src = result.image if result.image.shape[2] == 3 else np.repeat(result.image, 3, -1)
     write_png(out / "texture.png", srgb_eotf(src))
     from inshade.runtime.renderer import SceneRenderer

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.files import atomic_files, atomic_write
 from inshade import command
 from inshade.lit_settings import lit_settings
 from inshade.metrics import psnr, srgb_oetf
@@ -415,10 +416,11 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
     bundle.save(out)
     set8 = split_rgba8(lanes)
     for i, img in enumerate(set8):
-        Image.fromarray(img, "RGBA").save(out / f"set{i}.png", optimize=False)
+        with atomic_files(out / f"set{i}.png") as tmp:
+            Image.fromarray(img, "RGBA").save(tmp, format="PNG", optimize=False)
     write_torus(out / "mesh.obj")
     title = f"DI PBR set (bricks, 8 lanes) at {result.metrics['ratio']:.2f}x on a torus: uncompressed | DI"
-    (out / "scene.json").write_text(json.dumps(scene_dict(out.name, title, render, lights), indent=2) + "\n")
+    atomic_write(out / "scene.json", json.dumps(scene_dict(out.name, title, render, lights), indent=2) + "\n")
     metrics = {"texture": {k: result.metrics[k] for k in ("width", "height", "channels", "ratio", "bytes",
                                                           "uncompressed_bytes", "n_primary", "n_cascaded",
                                                           "steps", "finish_steps", "finish_optimizer",
@@ -439,8 +441,8 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
         write_png(out / "preview.png", views["split"][..., :3])
     metrics["command"] = command
     metrics["date_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
-    (out / "report.md").write_text(markdown(metrics))
+    atomic_write(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
+    atomic_write(out / "report.md", markdown(metrics))
     return metrics
 
 

@@ -12,8 +12,9 @@ Both are measured the same way:
 - normal angle error (degrees) at the surface points, central differences with the bundle's own
   ``normal_eps`` (the shader's estimator);
 - the sdf_diffuse pass (lib/sdf sphere tracing, SH environment "noon") rendered by the GL driver
-  at ``--size``² (DI on both LUT paths: exact = texelFetch + fp32 mix, fast = hardware
-  filtering): PSNR (linear, peak 1) against a ground truth ray-traced from the mesh (trimesh +
+  through the runtime's SceneRenderer, on the scene ``inshade train di_sdf`` writes (``"sdf":
+  {"network": bundle folder}``), at ``--size``² (DI on both LUT paths: exact = texelFetch + fp32
+  mix, fast = hardware filtering): PSNR (linear, peak 1) against a ground truth ray-traced from the mesh (trimesh +
   embree first hits, barycentric-interpolated vertex normals, the same shading); and ms/frame
   (median and min of ``--frames`` draws after a warm-up draw, timed by ``--clock`` of
   ``inshade.bench.harness``: GL timer query on a hardware driver, draw + ``glFinish`` wall time
@@ -42,7 +43,6 @@ from inshade.metrics import psnr
 DEFAULT_OUT = "bench-out/di_sdf"
 DEFAULT_MESH = "trained/prt_mesh/mesh.ply"
 SKY = "noon"
-VERTEX = "common/fullscreen.vert"
 PROGRAM = "passes/sdf_diffuse.frag"
 
 
@@ -125,40 +125,47 @@ def mesh_ground_truth(mesh, uniforms: dict, size: int, sh: np.ndarray) -> dict:
     return {"rgba": rgba.reshape(size, size, 4), "hit": hit.reshape(size, size)}
 
 
-def glsl_render(ctx, bundle, uniforms: dict, size: int, sh: np.ndarray, frames: int, clock=None,
-                **generate_options) -> dict:
-    """passes/sdf_diffuse.frag on the network SDF bundle: the image and the frame times (``clock``:
-    a harness clock, default draw + glFinish wall time)."""
-    from inshade.codegen.network_sdf import network_sdf_chunks
-    from inshade.codegen.spherical_harmonics import sh_chunks
-    from inshade.runtime.context import gl_info
-    from inshade.runtime.network import NetworkResources
-    from inshade.runtime.programs import ProgramCache
-    from inshade.runtime.render import FullscreenPass, float_target, read_rgba, release_target
+def sdf_scene(bundle_folder, frame, size: int, workdir: Path):
+    """The scene ``inshade train di_sdf`` writes for an asset (train.py ``scene_dict``: sdf_diffuse,
+    the orbit camera framing ``frame``, sky SKY), tracing the network SDF bundle in
+    ``bundle_folder`` (a DI-SDF or an MLP SDF: both are ``"sdf": {"network": ...}``)."""
+    import json
 
-    chunks, gen = network_sdf_chunks(bundle, limits=gl_info(ctx), **generate_options)
-    t = time.perf_counter()
-    prog = ProgramCache(ctx).get(VERTEX, PROGRAM, chunks={**chunks, **sh_chunks(4)})
-    link = time.perf_counter() - t
-    res = NetworkResources(ctx, gen)
-    fbo = float_target(ctx, size, size)
-    pass_ = FullscreenPass(ctx, prog)
-    res.bind(prog)
-    u = {**uniforms, "u_size": (float(size), float(size)), "u_sh": np.asarray(sh, np.float32).tobytes()}
+    from inshade.techniques.di_sdf.train import scene_dict
+    from inshade.runtime.scene import load_scene
+
+    data = scene_dict("di_sdf_bench", "DI-SDF bench", frame, size=size)
+    data["program"] = PROGRAM
+    data["sdf"] = {"network": str(Path(bundle_folder).resolve())}
+    data["environment"] = {**data["environment"], "sky": SKY, "rotation": 0.0}
+    folder = Path(tempfile.mkdtemp(prefix="scene-", dir=workdir))
+    (folder / "scene.json").write_text(json.dumps(data))
+    return load_scene(folder)
+
+
+def glsl_render(ctx, scene, size: int, frames: int, clock=None, **settings) -> dict:
+    """The scene's pass (sdf_diffuse on its network SDF) drawn by the runtime's SceneRenderer at
+    ``size``² from the scene's camera, ``settings`` overriding the scene's (``lut_filter``,
+    ``storage``): the image and the frame times (``clock``: a harness clock, default draw +
+    glFinish wall time; every timed frame is redrawn, ``render_network(force=True)``)."""
+    from inshade.runtime.renderer import SceneRenderer
+
+    cam = scene.make_camera()
+    r = SceneRenderer(scene, ctx, settings=settings)
     try:
-        first = WallClock(ctx.finish).time(lambda: pass_.render(fbo, uniforms=u))   # llvmpipe JIT
-        timing = measure(lambda: pass_.render(fbo, uniforms=u), repeats=frames, warmup=0,
+        link = r.compile_seconds
+        first = WallClock(ctx.finish).time(lambda: r.render_network(cam, size, size))   # llvmpipe JIT
+        timing = measure(lambda: r.render_network(cam, size, size, force=True), repeats=frames, warmup=0,
                          clock=clock or WallClock(ctx.finish))
-        image = read_rgba(fbo)
+        image = r.read("network")
+        plan = r.generated[-1].plan   # the network SDF's Generated comes after the (no) networks'
     finally:
-        pass_.vao.release()
-        res.release()
-        release_target(fbo)
-        prog.release()
+        r.release()
+        r.cache.release()
     return {"image": image, "first_draw_s": round(first, 3), "compile_s": round(link, 3),
             "ms_median": round(1e3 * timing.median, 2), "ms_min": round(1e3 * timing.min, 2),
             "ms_max": round(1e3 * timing.max, 2), "clock": timing.clock,
-            "plan": gen.plan.report() if hasattr(gen.plan, "report") else ""}
+            "plan": plan.report() if hasattr(plan, "report") else ""}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -193,7 +200,15 @@ def mlp_bundle(mesh_path: str, nbytes: int, args, workdir: Path):
     return b, width
 
 
-def model_entry(name, bundle, nbytes, mesh_radius, ev, gt, ctx, uniforms, sh, args, **generate_options) -> dict:
+def on_disk(bundle, workdir: Path) -> Path:
+    """The bundle's folder, saved into ``workdir`` first if it lives only in memory (a scene names
+    its network SDF by folder)."""
+    if bundle.path is None:
+        bundle.save(Path(tempfile.mkdtemp(prefix=f"{bundle.name}-", dir=workdir)))
+    return Path(bundle.path)
+
+
+def model_entry(name, bundle, nbytes, mesh_radius, ev, gt, ctx, view, args, workdir: Path, **settings) -> dict:
     import torch
 
     from inshade.techniques.di_sdf.train import sdf_metrics
@@ -203,7 +218,8 @@ def model_entry(name, bundle, nbytes, mesh_radius, ev, gt, ctx, uniforms, sh, ar
     trace = module.scene.trace
     with torch.no_grad():
         m = sdf_metrics(module, ev, trace["normal_eps"], mesh_radius)
-    r = glsl_render(ctx, bundle, uniforms, args.size, sh, args.frames, clock=args.timer, **generate_options)
+    scene = sdf_scene(on_disk(bundle, workdir), view, args.size, workdir)
+    r = glsl_render(ctx, scene, args.size, args.frames, clock=args.timer, **settings)
     bm = bundle.meta.get("metrics", {})
     return {"method": name, "bytes": int(nbytes), "kind": bundle.kind,
             "surface_mae": m["surface_mae"], "surface_p95": m["surface_p95"],
@@ -264,7 +280,7 @@ def run(args) -> int:
             nbytes = int(bundle.meta["metrics"]["bytes"])
             rows = []
             for f in ("exact", "fast"):
-                e = model_entry(f"DI-SDF ({f})", bundle, nbytes, mesh_radius, ev, gt, ctx, uniforms, sh, args,
+                e = model_entry(f"DI-SDF ({f})", bundle, nbytes, mesh_radius, ev, gt, ctx, view, args, Path(tmp),
                                 lut_filter=f)
                 m = bundle.meta["metrics"]
                 e.update(n_primary=m["n_primary"], n_cascaded=m["n_cascaded"], origin=origin,
@@ -279,7 +295,7 @@ def run(args) -> int:
                 continue
             mlp, width = mlp_bundle(str(args.mesh), nbytes, args, Path(tmp))
             e = model_entry(f"MLP {width}x{args.mlp_layers} (fp32)", mlp, 4 * mlp_params(width, args.mlp_layers),
-                            mesh_radius, ev, gt, ctx, uniforms, sh, args, storage=args.mlp_storage)
+                            mesh_radius, ev, gt, ctx, view, args, Path(tmp), storage=args.mlp_storage)
             e.update(width=width, layers=args.mlp_layers, step_scale=e["trace"]["step_scale"], storage=args.mlp_storage)
             rows.append(e)
             result["budgets"].append({"di_bytes": nbytes, "rows": _write_images(rows, out, nbytes)})

@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.files import atomic_write
 from inshade import command
 from inshade.lit_settings import lit_settings
 
@@ -515,7 +516,7 @@ def write_asset(result: Result, out, title: str, lut_filter: str = "exact", prev
     out = Path(out)
     result.bundle.save(out)
     scene = scene_dict(out.name, title, result.frame, lut_filter)
-    (out / "scene.json").write_text(json.dumps(scene, indent=1) + "\n")
+    atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
     img = render_torch(result.bundle, scene["camera"], preview_size)
     write_png(out / "preview.png", img["rgba"][..., :3])
     return out

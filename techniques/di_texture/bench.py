@@ -15,7 +15,7 @@ Quality: PSNR in sRGB 8-bit space against the 8-bit original, and mean FLIP (LDR
 PPD) with ``flip-evaluator``. Size: bits per pixel and the ratio to RGB8 (24 bpp). A baseline
 whose package is missing or fails is listed as unavailable with the reason, never estimated.
 
-Writes ``di.json``, ``di.md`` and ``di.png`` (PSNR vs compression ratio) into ``--out``.
+Writes ``di_texture.json``, ``di_texture.md`` and ``di_texture.png`` (PSNR vs compression ratio) into ``--out``.
 ``--quick``: one 32x32 image, DI trained 60 steps at 3x (for tests / smoke runs).
 """
 from __future__ import annotations
@@ -196,8 +196,8 @@ def run(args) -> int:
         result["images"].append({"image": source, "size": args.size, "notes": notes, "entries": entries})
         print(f"{name}: {len(entries)} entries", file=sys.stderr)
     out = Path(args.out)
-    write_report(out, "di", result, markdown, plot)
-    print(f"wrote {out / 'di.json'}, {out / 'di.md'}, {out / 'di.png'}", file=sys.stderr)
+    write_report(out, "di_texture", result, markdown, plot)
+    print(f"wrote {out / 'di_texture.json'}, {out / 'di_texture.md'}, {out / 'di_texture.png'}", file=sys.stderr)
     return 0
 
 

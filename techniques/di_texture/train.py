@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.files import atomic_write
 from inshade import command
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
 from inshade.models import indirection as di
@@ -449,7 +450,7 @@ def write_asset(result: Result, out, title: str, lut_filter: str = "exact") -> P
     size = result.image.shape[0]
     output = result.graph.outputs[0][0]
     if result.bundle.meta.get("render"):
-        (out / "scene.json").write_text(json.dumps(scene_dict(out.name, title, size, output, lut_filter),
+        atomic_write(out / "scene.json", json.dumps(scene_dict(out.name, title, size, output, lut_filter),
                                                    indent=2) + "\n")
         preview = torch_decode(result.bundle, size)
         ref = srgb_eotf(result.image)

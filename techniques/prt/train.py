@@ -26,6 +26,7 @@ import sys
 import time
 from pathlib import Path
 
+from inshade.files import atomic_write
 from inshade import command
 from inshade.lit_settings import lit_settings
 
@@ -133,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
         base = json.loads(Path(args.camera_from).read_text())
         camera, bookmarks = base["camera"], base.get("bookmarks", {})
     scene = scene_dict(kind, geometry_name, out.name, args.title or f"PRT: {out.name}", camera, bookmarks)
-    (out / "scene.json").write_text(json.dumps(scene, indent=1) + "\n")
+    atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
     loaded = load_scene(out)
     start = time.perf_counter()
     for shading, fname in (("diffuse", "preview.png"), ("glossy", "preview_glossy.png")):
@@ -150,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
     bundle = load(out / "transfer")
     metrics = {"asset": out.name, "geometry": kind, "command": command, "transfer": bundle.meta.get("metrics", {}),
                "provenance": bundle.meta.get("provenance", {}), "quality": quality, **times}
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=1, sort_keys=True) + "\n")
+    atomic_write(out / "metrics.json", json.dumps(metrics, indent=1, sort_keys=True) + "\n")
     print(json.dumps({"quality": {m: quality[m] for m in ("diffuse", "glossy")}, **times}, indent=1))
     return 0
 
