@@ -1,4 +1,6 @@
 """Bundle -> GLSL. numpy only: importing this never imports torch."""
 from .network import FILTERS, OPTIONS, SHORTHANDS, STORAGE_MODES, TARGETS, TEXTURE_FORMATS, Generated, generate
+from .limits import GL33_MINIMUMS, LimitError
 
-__all__ = ["generate", "Generated", "TARGETS", "STORAGE_MODES", "FILTERS", "TEXTURE_FORMATS", "OPTIONS", "SHORTHANDS"]
+__all__ = ["generate", "Generated", "TARGETS", "STORAGE_MODES", "FILTERS", "TEXTURE_FORMATS", "OPTIONS", "SHORTHANDS",
+           "LimitError", "GL33_MINIMUMS"]

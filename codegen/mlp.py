@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .glsl import PlanRow, TextureResource, UniformBlockResource, blocks, mat4, vec4
+from .limits import LimitError, limit, source
 from .registry import emitter
 from .values import declare
 
@@ -71,6 +72,8 @@ def std140(wblocks: np.ndarray, bias: np.ndarray) -> bytes:
 def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str, str]]:
     """Storage per dense node, with the reason the plan report prints."""
     dense = [n for n in bundle.nodes if n.type == "dense"]
+    if requested == "ubo":
+        _check_ubo(dense, limits)
     if requested != "auto":
         return {n.id: (requested, "requested") for n in dense}
     floats = sum(blocks(n.in_dim) * blocks(n.out_dim) * 16 + blocks(n.out_dim) * 4 for n in dense)
@@ -81,14 +84,14 @@ def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str,
         why = (f"network has {floats} floats <= {inline_max}: literals compile quickly"
                + (" and run 10x+ faster than gathers on a software renderer" if software else ""))
         return {n.id: ("inline", why) for n in dense}
-    max_bytes = int(limits.get("GL_MAX_UNIFORM_BLOCK_SIZE", 16384))
-    free_blocks = int(limits.get("GL_MAX_FRAGMENT_UNIFORM_BLOCKS", 12)) - UBO_RESERVED_BLOCKS
+    max_bytes = limit(limits, "GL_MAX_UNIFORM_BLOCK_SIZE")
+    free_blocks = limit(limits, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS") - UBO_RESERVED_BLOCKS
     out = {}
     if software:  # UBO loads are per-lane gathers with a slow JIT there; texture loops are leaner
         return {n.id: ("texture", f"network has {floats} floats > {inline_max}; software renderer: "
                                   "texture loops JIT fastest") for n in dense}
     for n in dense:
-        size = blocks(n.in_dim) * blocks(n.out_dim) * 64 + blocks(n.out_dim) * 16
+        size = ubo_bytes(n)
         if size <= max_bytes and free_blocks > 0:
             free_blocks -= 1
             out[n.id] = ("ubo", f"{size} B fits GL_MAX_UNIFORM_BLOCK_SIZE={max_bytes}")
@@ -99,15 +102,39 @@ def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str,
     return out
 
 
+def ubo_bytes(node) -> int:
+    """Size of a dense layer's std140 block: mat4 W[OB*IB] + vec4 b[OB]."""
+    return blocks(node.in_dim) * blocks(node.out_dim) * 64 + blocks(node.out_dim) * 16
+
+
+def _check_ubo(dense, limits: dict) -> None:
+    """Explicit `ubo` storage: every block within GL_MAX_UNIFORM_BLOCK_SIZE, and no more blocks
+    than GL_MAX_FRAGMENT_UNIFORM_BLOCKS (one per layer)."""
+    name = "GL_MAX_UNIFORM_BLOCK_SIZE"
+    max_bytes = limit(limits, name)
+    for n in dense:
+        size = ubo_bytes(n)
+        if size > max_bytes:
+            raise LimitError(f"node {n.id}: dense {n.in_dim} -> {n.out_dim} as a uniform block needs {size} B; "
+                             f"{name} is {max_bytes} ({source(limits, name)}); use storage 'texture' or 'auto'")
+    name = "GL_MAX_FRAGMENT_UNIFORM_BLOCKS"
+    max_blocks = limit(limits, name)
+    if len(dense) > max_blocks:
+        raise LimitError(f"nodes {', '.join(n.id for n in dense)}: {len(dense)} dense layers as uniform blocks "
+                         f"need {len(dense)} blocks; {name} is {max_blocks} ({source(limits, name)}); "
+                         "use storage 'texture' or 'auto'")
+
+
 class WeightTexture:
     """One texture per network holding every texture-stored layer, a row per output block:
     texel 0 = bias, texels 1 + 4*i .. 4 + 4*i = the columns of block (o, i)."""
 
     def __init__(self, ctx):
-        self.ctx, self.rows = ctx, []
+        self.ctx, self.rows, self.nodes = ctx, [], []
         self.name = ctx.name("weights")
 
-    def add(self, wblocks, bias) -> int:
+    def add(self, wblocks, bias, node_id: str = "?") -> int:
+        self.nodes.append(node_id)
         row0 = len(self.rows)
         for o in range(wblocks.shape[0]):
             cols = wblocks[o].transpose(0, 2, 1).reshape(-1, 4)  # [IB*4 columns, 4 rows]
@@ -118,6 +145,13 @@ class WeightTexture:
         if not self.rows:
             return None
         width = max(len(r) for r in self.rows)
+        limits = getattr(self.ctx, "limits", {})
+        name, cap = "GL_MAX_TEXTURE_SIZE", limit(limits, "GL_MAX_TEXTURE_SIZE")
+        if width > cap or len(self.rows) > cap:
+            layers = ", ".join(self.nodes)
+            raise LimitError(f"node(s) {layers}: the dense weight texture needs {width}x{len(self.rows)} texels "
+                             f"(1 + 4 per input block wide, a row per output block); {name} is {cap} "
+                             f"({source(limits, name)}); use storage 'inline' or 'ubo' for some layers")
         data = np.zeros((len(self.rows), width, 4), np.float32)
         for y, r in enumerate(self.rows):
             data[y, : len(r)] = r
@@ -211,7 +245,7 @@ def emit_dense(ctx, node, src, bundle):
                        lambda o, i: f"{name}.W[({o}) * {ib} + {i}]", src)
     elif mode == "texture":
         tex = ctx.weight_texture
-        row0 = tex.add(wb, bb)
+        row0 = tex.add(wb, bb, node.id)
         t = tex.name
 
         def fetch(o, i):

@@ -9,12 +9,14 @@ bundle's declaration order, four lanes per vec4; outputs likewise. Same bundle a
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from inshade.bundle import Bundle
 
 from . import activations, encodings, lookup_array, mlp  # noqa: F401  (register emitters)
-from .glsl import EmitContext, PlanRow, blocks
+from .glsl import EmitContext, PlanRow, TextureResource, UniformBlockResource, blocks
+from .limits import LimitError, limit, source
 from .lookup_array import FILTERS
 from .mlp import STORAGE_MODES, TEXTURE_FORMATS, WeightTexture, choose_storage
 from .plan import Plan
@@ -53,7 +55,9 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
     ``options``: per component type, e.g. ``{"dense": {"storage": "ubo"}, "lookup_array": {"filter":
     "fast"}}`` (the types and options the emitters declare: ``codegen.registry.OPTIONS``).
     ``storage=``, ``lut_filter=``, ``texture_format=`` are shorthands for the same (``SHORTHANDS``).
-    ``limits``: the context's queried GL limits (``auto`` storage chooses by them).
+    ``limits``: the context's queried GL limits (``auto`` storage chooses by them; every resource
+    is laid out to fit them, else LimitError). A missing limit means the GL 3.3 minimum
+    (``codegen.limits.GL33_MINIMUMS``); the plan records each limit's use, value and source.
     """
     if target not in TARGETS:
         raise ValueError(f"unknown target {target!r} (choose from {', '.join(TARGETS)})")
@@ -102,9 +106,47 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
         *(f"    y[{b}] = {result.array}[{b}];" for b in range(blocks(bundle.out_dim))),
         "}",
     ]
-    plan = Plan(bundle.name, target, ctx.plan, ctx.resources)
+    plan = Plan(bundle.name, target, ctx.plan, ctx.resources, check_limits(ctx.resources, lines, limits))
     return Generated("\n".join(lines) + "\n", fn, prefix, bundle.in_dim, bundle.out_dim, ctx.resources, plan)
 
 
+_SAMPLER = re.compile(r"^\s*uniform\s+(\w*sampler\w*)\s+(\w+)")
+
+
+def check_limits(resources: list, lines: list[str], limits: dict) -> dict:
+    """What the generated code uses of each GL limit it depends on, checked: every texture side,
+    every uniform block, the number of blocks and of samplers (every sampler the code declares).
+    Returns {limit: {"uses", "limit", "source"}} for the plan; raises LimitError on the first
+    limit exceeded (emitters choose layouts that fit, so this is the last line of defence)."""
+    tex2 = [r for r in resources if isinstance(r, TextureResource) and r.dims == 2]
+    tex3 = [r for r in resources if isinstance(r, TextureResource) and r.dims == 3]
+    ubos = [r for r in resources if isinstance(r, UniformBlockResource)]
+    samplers = [m.group(2) for line in lines for m in [_SAMPLER.match(line)] if m]
+    side = lambda r: max(r.data.shape[:-1])  # noqa: E731
+    uses = {
+        "GL_MAX_TEXTURE_SIZE": (max(tex2, key=side, default=None), max((side(r) for r in tex2), default=0),
+                                "texture side"),
+        "GL_MAX_3D_TEXTURE_SIZE": (max(tex3, key=side, default=None), max((side(r) for r in tex3), default=0),
+                                   "3D texture side"),
+        "GL_MAX_UNIFORM_BLOCK_SIZE": (max(ubos, key=lambda r: r.nbytes, default=None),
+                                      max((r.nbytes for r in ubos), default=0), "uniform block bytes"),
+        "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": (None, len(ubos), "uniform blocks"),
+        "GL_MAX_TEXTURE_IMAGE_UNITS": (None, len(samplers), "samplers"),
+        "GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS": (None, len(samplers), "samplers"),
+        # only samplers (opaque) live in the default uniform block; weights are literals, blocks or textures
+        "GL_MAX_FRAGMENT_UNIFORM_COMPONENTS": (None, 0, "default-block uniform components"),
+    }
+    out = {}
+    for name, (res, used, what) in uses.items():
+        cap = limit(limits, name)
+        if used > cap:
+            who = f"resource {res.name}" if res is not None else (
+                f"samplers {', '.join(samplers)}" if "sampler" in what else what)
+            shape = f" ({'x'.join(map(str, res.data.shape[-2::-1]))})" if isinstance(res, TextureResource) else ""
+            raise LimitError(f"{who}{shape}: needs {what} {used}; {name} is {cap} ({source(limits, name)})")
+        out[name] = {"uses": used, "limit": cap, "source": source(limits, name)}
+    return out
+
+
 __all__ = ["generate", "Generated", "TARGETS", "STORAGE_MODES", "FILTERS", "TEXTURE_FORMATS", "OPTIONS", "SHORTHANDS",
-           "PlanRow"]
+           "PlanRow", "LimitError"]

@@ -1,7 +1,7 @@
 """The plan report: what the generated code costs per pixel and where the weights live."""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 
 @dataclass
@@ -10,6 +10,7 @@ class Plan:
     target: str
     rows: list
     resources: list
+    limits: dict = field(default_factory=dict)   # GL limit -> {"uses", "limit", "source"}
 
     def totals(self) -> dict:
         keys = ("params", "flops", "fetches", "uniform_bytes", "texture_bytes")
@@ -17,7 +18,7 @@ class Plan:
 
     def to_dict(self) -> dict:
         return {"network": self.network, "target": self.target, "totals": self.totals(),
-                "nodes": [asdict(r) for r in self.rows]}
+                "nodes": [asdict(r) for r in self.rows], "limits": self.limits}
 
     def report(self) -> str:
         head = ("node", "type", "shape", "storage", "params", "FLOPs/px", "fetches/px", "UBO B", "tex B")
@@ -33,4 +34,7 @@ class Plan:
         whys = [f"  {r.node}: {r.storage}: {r.why}" for r in self.rows if r.why]
         if whys:
             out += ["storage choices:"] + whys
+        if self.limits:
+            out.append("GL limits (uses / limit, from):")
+            out += [f"  {k}: {v['uses']} / {v['limit']} ({v['source']})" for k, v in self.limits.items()]
         return "\n".join(out)

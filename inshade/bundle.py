@@ -24,6 +24,16 @@ SUPPORTED_VERSIONS = (1,)
 JSON_NAME = "bundle.json"
 WEIGHTS_NAME = "weights.safetensors"
 MAX_JSON_BYTES = 16 << 20
+MAX_JSON_DEPTH = 64
+MAX_WEIGHTS_BYTES = 4 << 30          # a weights file larger than this is refused before reading
+MAX_SAFETENSORS_HEADER = 100 << 20
+# safetensors dtype -> (numpy dtype as stored, itemsize); F16/BF16 are widened to float32 at load
+# (exact: every half and bfloat16 value is a float32 value) and `Bundle.converted` records it.
+SAFETENSORS_DTYPES = {"F64": ("<f8", 8), "F32": ("<f4", 4), "F16": ("<f2", 2), "BF16": ("<u2", 2),
+                      "I64": ("<i8", 8), "I32": ("<i4", 4), "I16": ("<i2", 2), "I8": ("i1", 1),
+                      "U64": ("<u8", 8), "U32": ("<u4", 4), "U16": ("<u2", 2), "U8": ("u1", 1),
+                      "BOOL": ("?", 1)}
+WIDENED = {"F16": "float16", "BF16": "bfloat16"}
 MAX_INPUT_DIM = 64
 _ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,47}$")
 
@@ -60,12 +70,15 @@ class Port:
 class Bundle:
     """A validated bundle in memory. Build with `Bundle(meta, tensors)` or `load(path)`."""
 
-    def __init__(self, meta: dict, tensors: dict[str, np.ndarray], path: Path | None = None):
+    def __init__(self, meta: dict, tensors: dict[str, np.ndarray], path: Path | None = None,
+                 converted: dict[str, str] | None = None):
         self.path = Path(path) if path is not None else None
         where = self.path / JSON_NAME if self.path else "<bundle>"
         self.meta = meta
         self.inputs, self.nodes, self.outputs = _parse_graph(meta, where)
         self.tensors = dict(tensors)
+        # tensor name -> dtype it was stored as, for tensors widened to float32 at load (F16/BF16)
+        self.converted = dict(converted or {})
         _check_tensors(self, self.path / WEIGHTS_NAME if self.path else "<weights>")
 
     # graph queries -------------------------------------------------------------------
@@ -144,36 +157,184 @@ def load(path) -> Bundle:
         raise BundleError(path, "", "not a bundle folder (expected bundle.json + weights.safetensors)")
     if not jpath.is_file():
         raise BundleError(jpath, "", "missing")
-    if jpath.stat().st_size > MAX_JSON_BYTES:
-        raise BundleError(jpath, "", f"larger than {MAX_JSON_BYTES} bytes")
     try:
-        meta = json.loads(jpath.read_text(encoding="utf-8"),
-                          parse_constant=lambda c: (_ for _ in ()).throw(ValueError(f"{c} is not JSON")))
-    except (ValueError, UnicodeDecodeError) as e:
-        raise BundleError(jpath, "", f"not valid JSON ({e})") from None
+        meta = read_json(jpath)
+    except JSONFileError as e:
+        raise BundleError(jpath, "", str(e)) from None
     _parse_graph(meta, jpath)  # the graph's errors first: they explain the tensors' errors
     if not wpath.is_file():
         raise BundleError(wpath, "", "missing")
-    tensors = _read_safetensors(wpath)
-    return Bundle(meta, tensors, path)
+    tensors, converted = _read_safetensors(wpath)
+    return Bundle(meta, tensors, path, converted)
 
 
-def _read_safetensors(wpath: Path) -> dict[str, np.ndarray]:
-    from safetensors import SafetensorError
-    from safetensors.numpy import load_file
+class JSONFileError(ValueError):
+    """A JSON file that is not plain, unambiguous JSON (the message does not name the file)."""
 
-    size = wpath.stat().st_size
-    with open(wpath, "rb") as f:
-        head = f.read(8)
-    if len(head) < 8:
-        raise BundleError(wpath, "", "truncated: shorter than the 8-byte safetensors header length")
-    header_len = int.from_bytes(head, "little")
-    if header_len > min(size - 8, 100 << 20):
-        raise BundleError(wpath, "", f"truncated or corrupt: header claims {header_len} bytes, file has {size}")
+
+def _no_duplicates(pairs):
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise JSONFileError(f"key {k!r} appears twice in one object (ambiguous)")
+        out[k] = v
+    return out
+
+
+def _no_constant(name):
+    raise JSONFileError(f"{name} is not JSON (numbers must be finite)")
+
+
+def _finite_float(text):
+    v = float(text)
+    if not np.isfinite(v):
+        raise JSONFileError(f"number {text[:40]} is out of range (it would be {v})")
+    return v
+
+
+def parse_json_bytes(data: bytes, max_depth: int = MAX_JSON_DEPTH):
+    """Strict JSON from bytes: UTF-8 without BOM, no duplicate keys, no NaN/Infinity, no numbers
+    that overflow, at most `max_depth` levels of nesting. Raises JSONFileError("not valid JSON: ...")."""
     try:
-        return load_file(str(wpath))
-    except (SafetensorError, ValueError, OSError) as e:
-        raise BundleError(wpath, "", f"unreadable safetensors ({e})") from None
+        return _parse_json(data, max_depth)
+    except JSONFileError as e:
+        raise JSONFileError(f"not valid JSON: {e}") from None
+
+
+def _parse_json(data: bytes, max_depth: int):
+    if not data.strip():
+        raise JSONFileError("empty file (expected a JSON object)")
+    if data.startswith(b"\xef\xbb\xbf"):
+        raise JSONFileError("starts with a UTF-8 byte order mark; save it as UTF-8 without BOM")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise JSONFileError(f"not UTF-8 text (byte 0x{data[e.start]:02x} at offset {e.start})") from None
+    try:
+        value = json.loads(text, object_pairs_hook=_no_duplicates, parse_constant=_no_constant,
+                           parse_float=_finite_float)
+    except JSONFileError:
+        raise
+    except json.JSONDecodeError as e:
+        raise JSONFileError(f"{e.msg} at line {e.lineno} column {e.colno}") from None
+    except RecursionError:
+        raise JSONFileError(f"nested more than {max_depth} levels deep") from None
+    except ValueError as e:   # e.g. an integer with thousands of digits
+        raise JSONFileError(str(e).splitlines()[0][:120]) from None
+    stack = [(value, 1)]
+    while stack:   # iterative: deep nesting must not be what stops a later recursive walk
+        item, depth = stack.pop()
+        if isinstance(item, (dict, list)):
+            if depth > max_depth:
+                raise JSONFileError(f"nested more than {max_depth} levels deep")
+            stack.extend((v, depth + 1) for v in (item.values() if isinstance(item, dict) else item))
+    return value
+
+
+def read_json(path, max_bytes: int = MAX_JSON_BYTES):
+    """Strict JSON from a file (see parse_json_bytes); JSONFileError for a file that is not a
+    regular readable file, is too large, or is not plain JSON."""
+    path = Path(path)
+    if path.is_dir():
+        raise JSONFileError("is a folder, expected a JSON file")
+    try:
+        size = path.stat().st_size
+        if size > max_bytes:
+            raise JSONFileError(f"larger than {max_bytes} bytes")
+        with open(path, "rb") as f:
+            data = f.read(max_bytes + 1)
+    except OSError as e:
+        raise JSONFileError(f"cannot read ({e.strerror or e})") from None
+    if len(data) > max_bytes:
+        raise JSONFileError(f"larger than {max_bytes} bytes")
+    return parse_json_bytes(data)
+
+
+def _read_safetensors(wpath: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Tensors of a safetensors file, read by this parser (numpy only, nothing executable): the
+    header is checked whole (dtypes, shapes, offsets that tile the data exactly, sizes within the
+    file) before any tensor memory is allocated. F16/BF16 tensors are widened to float32 (exact);
+    returns (tensors, {name: stored dtype} of those)."""
+    def bad(message, field=""):
+        return BundleError(wpath, field, message)
+
+    try:
+        size = wpath.stat().st_size
+        if size > MAX_WEIGHTS_BYTES:
+            raise bad(f"larger than {MAX_WEIGHTS_BYTES} bytes")
+        with open(wpath, "rb") as f:
+            head = f.read(8)
+            if len(head) < 8:
+                raise bad("truncated: shorter than the 8-byte safetensors header length")
+            header_len = int.from_bytes(head, "little")
+            if header_len > min(size - 8, MAX_SAFETENSORS_HEADER):
+                raise bad(f"truncated or corrupt: header claims {header_len} bytes, file has {size}")
+            raw = f.read(header_len)
+            if not raw.lstrip().startswith(b"{"):
+                raise bad("unreadable safetensors (the header is not a JSON object; not a safetensors file?)")
+            try:
+                header = parse_json_bytes(raw)
+            except JSONFileError as e:
+                raise bad(f"unreadable safetensors (header: {e})") from None
+            if not isinstance(header, dict):
+                raise bad("unreadable safetensors (the header is not a JSON object)")
+            data_len = size - 8 - header_len
+            entries = []
+            for name, spec in header.items():
+                if name == "__metadata__":
+                    if not isinstance(spec, dict) or not all(isinstance(v, str) for v in spec.values()):
+                        raise bad("__metadata__ must map names to strings", "__metadata__")
+                    continue
+                if not isinstance(spec, dict) or set(spec) != {"dtype", "shape", "data_offsets"}:
+                    raise bad("header entry must be {dtype, shape, data_offsets}", name)
+                dtype, shape, offsets = spec["dtype"], spec["shape"], spec["data_offsets"]
+                if dtype not in SAFETENSORS_DTYPES:
+                    raise bad(f"unsupported dtype {dtype!r} (known: {', '.join(SAFETENSORS_DTYPES)})", name)
+                if not (isinstance(shape, list) and len(shape) <= 8 and all(
+                        isinstance(d, int) and not isinstance(d, bool) and 0 <= d < (1 << 40) for d in shape)):
+                    raise bad(f"shape must be a list of at most 8 sizes >= 0, got {str(shape)[:80]}", name)
+                if not (isinstance(offsets, list) and len(offsets) == 2 and all(
+                        isinstance(o, int) and not isinstance(o, bool) for o in offsets)
+                        and 0 <= offsets[0] <= offsets[1]):
+                    raise bad(f"data_offsets must be [begin, end] with 0 <= begin <= end, got {str(offsets)[:80]}",
+                              name)
+                count = int(np.prod(shape, dtype=object)) if shape else 1
+                itemsize = SAFETENSORS_DTYPES[dtype][1]
+                if count * itemsize > data_len:
+                    raise bad(f"claims {count} {dtype} values ({count * itemsize} bytes); the file holds "
+                              f"{data_len} bytes of data (truncated or corrupt)", name)
+                if offsets[1] - offsets[0] != count * itemsize:
+                    raise bad(f"data_offsets span {offsets[1] - offsets[0]} bytes but shape {shape} of {dtype} "
+                              f"is {count * itemsize}", name)
+                entries.append((offsets[0], offsets[1], name, dtype, shape, count))
+            entries.sort(key=lambda e: (e[0], e[1]))
+            at = 0
+            for begin, end, name, *_ in entries:
+                if begin != at:
+                    raise bad("data_offsets overlap or leave a gap (corrupt)" if begin < at else
+                              "data_offsets leave a gap in the data (corrupt)", name)
+                at = end
+            if at != data_len:
+                raise bad(f"truncated or corrupt: the header indexes {at} bytes of data, the file holds {data_len}")
+            buffer = bytearray(data_len)
+            if f.readinto(buffer) != data_len:
+                raise bad("truncated while reading")
+    except OSError as e:
+        raise bad(f"cannot read ({e.strerror or e})") from None
+    tensors, converted = {}, {}
+    for begin, end, name, dtype, shape, count in entries:
+        stored = np.dtype(SAFETENSORS_DTYPES[dtype][0])
+        a = np.frombuffer(buffer, stored, count, begin).reshape(shape)
+        if dtype == "BF16":
+            a = (a.astype(np.uint32) << 16).view(np.float32)
+        elif dtype == "F16":
+            a = a.astype(np.float32)
+        elif begin % stored.itemsize:
+            a = a.copy()   # aligned
+        if dtype in WIDENED:
+            converted[name] = WIDENED[dtype]
+        tensors[name] = a.astype(a.dtype.newbyteorder("="), copy=False)
+    return tensors, converted
 
 
 def _req(obj, key, kind, where, field):
@@ -268,8 +429,8 @@ def _check_tensors(bundle: Bundle, where):
         a = bundle.tensors[name]
         if not isinstance(a, np.ndarray):
             raise BundleError(where, name, "not an array")
-        if a.dtype != np.dtype(spec.dtype):
-            raise BundleError(where, name, f"dtype {a.dtype} but {spec.dtype} expected")
+        if a.dtype != np.dtype(spec.dtype) or name in bundle.converted and spec.dtype != "float32":
+            raise BundleError(where, name, f"dtype {bundle.converted.get(name, a.dtype)} but {spec.dtype} expected")
         if tuple(a.shape) != spec.shape:
             raise BundleError(where, name, f"shape {list(a.shape)} but {list(spec.shape)} expected")
         if a.dtype.kind == "f" and not np.isfinite(a).all():

@@ -9,7 +9,9 @@ import argparse
 import importlib
 import json
 import logging
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 log = logging.getLogger("inshade")
@@ -40,13 +42,68 @@ class UserError(Exception):
     """Input the user can fix; reported in one line with exit status 2."""
 
 
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse, but a bad command line is one `inshade: error: ...` line (exit 2), not a usage dump."""
+
+    def error(self, message):
+        command = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
+        self.exit(2, f"inshade: error: {command}{' '.join(message.split())}\n")
+
+
+def _size(text: str) -> int:
+    """--width/--height: an int in 1..MAX_SIZE."""
+    from inshade.runtime.scene import MAX_SIZE
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if not 1 <= value <= MAX_SIZE:
+        raise argparse.ArgumentTypeError(f"must be in 1..{MAX_SIZE}, got {value}")
+    return value
+
+
+def check_output(path, option: str = "-o") -> Path:
+    """Refuse an output path that cannot be written, before any work: its folder (or the first
+    existing folder above it) must be a writable folder, and the path itself not a folder."""
+    path = Path(path)
+    if path.is_dir():
+        raise UserError(f"{path}: {option}: is a folder, expected a file path")
+    parent = path.parent
+    while not parent.exists():
+        if parent.is_symlink():
+            raise UserError(f"{path}: {option}: {parent} is a dangling link")
+        parent = parent.parent
+    if not parent.is_dir():
+        raise UserError(f"{path}: {option}: {parent} is a file, not a folder")
+    if parent == path.parent:   # try exactly what the writer will do: a temporary file beside it
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=parent)
+        except OSError as e:
+            raise UserError(f"{path}: {option}: cannot write in {parent} ({e.strerror or e})") from None
+        os.close(fd)
+        os.unlink(tmp)
+    elif not os.access(parent, os.W_OK | os.X_OK):
+        raise UserError(f"{path}: {option}: cannot create folders in {parent} (not writable)")
+    return path
+
+
+def _one_line(text: str) -> str:
+    """A message as one line: its lines joined with '; ' (e.g. a shader compiler's log)."""
+    return "; ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def _write_error(path, e: OSError) -> UserError:
+    return UserError(f"{path}: cannot write ({e.strerror or e})")
+
+
 def _user_errors():
     from inshade.bundle import BundleError
     from inshade.components import ComponentError
     from inshade.shaders import ShaderCompileError, ShaderIncludeError
     from inshade.runtime.context import GLContextError
     return (UserError, BundleError, ComponentError, ShaderCompileError, ShaderIncludeError,
-            GLContextError, FileNotFoundError, ValueError)
+            GLContextError, ValueError)
 
 
 # codegen ---------------------------------------------------------------------------------
@@ -59,6 +116,8 @@ def cmd_codegen(args) -> int:
     from inshade.files import atomic_files
     from inshade.shaders import flatten
 
+    if args.output is not None:
+        check_output(args.output)
     b = bundle_mod.load(args.bundle)
     limits = {}
     if args.storage == "auto" and not args.no_gl:
@@ -88,11 +147,14 @@ def cmd_codegen(args) -> int:
         manifest["resources_file"] = rpath.name
     # the GLSL, its manifest and its resources appear together or not at all
     paths = [out, out.with_suffix(out.suffix + ".json")] + ([rpath] if tensors else [])
-    with atomic_files(*paths) as temps:
-        temps[0].write_text(flatten("network", chunks={"network": gen.chunk}))
-        temps[1].write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
-        if tensors:
-            save_file(tensors, str(temps[2]))
+    try:
+        with atomic_files(*paths) as temps:
+            temps[0].write_text(flatten("network", chunks={"network": gen.chunk}))
+            temps[1].write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+            if tensors:
+                save_file(tensors, str(temps[2]))
+    except OSError as e:
+        raise _write_error(out, e) from None
     print(f"wrote {out} ({len(gen.resources)} resources)", file=sys.stderr)
     return 0
 
@@ -100,11 +162,18 @@ def cmd_codegen(args) -> int:
 # info -------------------------------------------------------------------------------------
 def cmd_info(args) -> int:
     from inshade import bundle as bundle_mod
+    from inshade.envelope import analyse, format_findings
 
     b = bundle_mod.load(args.bundle)
+    envelope = analyse(b)
+    for line in format_findings(envelope, notes=False):   # warnings only; the full list: --json
+        if line.startswith("warning:"):
+            log.warning("%s: %s", b.path or b.name, line)
     if args.json:
         print(json.dumps({"meta": b.meta, "digest": b.digest(),
-                          "tensors": {k: [str(v.dtype), list(v.shape)] for k, v in sorted(b.tensors.items())}},
+                          "tensors": {k: [str(v.dtype), list(v.shape)] for k, v in sorted(b.tensors.items())},
+                          "converted": dict(sorted(b.converted.items())),
+                          "envelope": format_findings(envelope)},
                          indent=2, sort_keys=True))
         return 0
     print(f"{b.name}  (kind {b.kind}, format v{b.meta['version']})  sha256 {b.digest()[:16]}")
@@ -116,6 +185,11 @@ def cmd_info(args) -> int:
         print(f"  {n.id:<12} {n.type:<20} {n.in_dim:>4} -> {n.out_dim:<4} {params}")
     total = sum(v.nbytes for v in b.tensors.values())
     print(f"tensors: {len(b.tensors)}, {sum(v.size for v in b.tensors.values())} values, {total} bytes")
+    if b.converted:
+        stored = ", ".join(sorted(set(b.converted.values())))
+        print(f"converted: {len(b.converted)} tensors stored as {stored}, widened to float32 at load (exact): "
+              + ", ".join(sorted(b.converted)))
+    print("parity envelope: " + "; ".join(format_findings(envelope, notes=False)))
     for key in ("metrics", "provenance"):
         if b.meta.get(key):
             print(f"{key}:")
@@ -126,8 +200,15 @@ def cmd_info(args) -> int:
 
 # render -----------------------------------------------------------------------------------
 def cmd_render(args) -> int:
-    from inshade.runtime.headless import render_bundle, render_from_sidecar, render_scene, save_render
+    from inshade.runtime.headless import (IMAGE_SUFFIXES, render_bundle, render_from_sidecar, render_scene,
+                                          save_render)
 
+    if args.output is not None:
+        suffix = Path(args.output).suffix.lower()
+        if suffix not in IMAGE_SUFFIXES:
+            raise UserError(f"{args.output}: -o: unknown image type {suffix or '(none)'!r}; use .png or .exr")
+        check_output(args.output)
+        check_output(str(args.output) + ".json", "-o (its .json sidecar)")
     if args.from_ is not None:
         if args.bundle is not None:
             raise UserError("render: give either an ASSET or --from SIDECAR, not both")
@@ -136,7 +217,8 @@ def cmd_render(args) -> int:
         if out is None:  # shot.png.json -> shot.from.png
             image_path = Path(str(args.from_)[:-5] if str(args.from_).endswith(".json") else args.from_)
             out = image_path.with_name(image_path.stem + ".from" + (image_path.suffix or ".png"))
-        paths = save_render(image, info, out)
+            check_output(out)
+        paths = _save(save_render, image, info, out)
     else:
         if args.bundle is None or args.output is None:
             raise UserError("render: needs an ASSET and -o IMAGE (or --from SIDECAR)")
@@ -150,10 +232,17 @@ def cmd_render(args) -> int:
             image, info = render_bundle(args.bundle, width=args.width, height=args.height,
                                         storage=settings.get("storage", "auto"),
                                         lut_filter=settings.get("lut_filter", "exact"))
-        paths = save_render(image, info, args.output)
+        paths = _save(save_render, image, info, args.output)
     for p in paths if isinstance(paths, (list, tuple)) else [paths]:
         print(f"wrote {p}", file=sys.stderr)
     return 0
+
+
+def _save(save_render, image, info, out):
+    try:
+        return save_render(image, info, out)
+    except OSError as e:
+        raise _write_error(out, e) from None
 
 
 def _settings(args) -> dict:
@@ -168,6 +257,8 @@ def _settings(args) -> dict:
         name, sep, text = item.partition("=")
         if not sep or not name:
             raise UserError(f"render: --set expects NAME=VALUE, got {item!r}")
+        if name in settings:
+            raise UserError(f"render: --set {name}: given more than once (or also by its own option)")
         try:
             settings[name] = json.loads(text)
         except ValueError:
@@ -242,7 +333,7 @@ def _run_module(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from inshade.codegen import FILTERS, STORAGE_MODES, TARGETS
 
-    ap = argparse.ArgumentParser(prog="inshade", description="Run PyTorch-trained networks in OpenGL shaders.")
+    ap = ArgumentParser(prog="inshade", description="Run PyTorch-trained networks in OpenGL shaders.")
     ap.add_argument("-q", "--quiet", action="store_true", help="only errors on stderr")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
@@ -273,8 +364,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="image path (.png or .exr); with --from defaults to <shot>.from.png")
     p.add_argument("--from", dest="from_", metavar="SIDECAR",
                    help="re-render exactly what a screenshot's JSON sidecar (shot.png.json) describes")
-    p.add_argument("--width", type=int)
-    p.add_argument("--height", type=int)
+    p.add_argument("--width", type=_size)
+    p.add_argument("--height", type=_size)
     p.add_argument("--storage", choices=STORAGE_MODES, help="weight storage (default: the scene's, else auto)")
     p.add_argument("--lut-filter", choices=FILTERS, help="lookup array path (default: the scene's, else exact)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE",
@@ -287,8 +378,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "xvfb-run. Keys: 1-5 display modes, T neural/reference, F frame, Home reset, "
                                    "F12 screenshot, Esc quit.")
     p.add_argument("asset", nargs="?", help="default: the first scene in trained/")
-    p.add_argument("--width", type=int, default=1280)
-    p.add_argument("--height", type=int, default=800)
+    p.add_argument("--width", type=_size, default=1280)
+    p.add_argument("--height", type=_size, default=800)
     p.add_argument("--storage", choices=STORAGE_MODES, help="override the scene's weight storage")
     p.add_argument("--trained", help="folder the scene picker lists (default: the shipped trained/)")
     p.add_argument("--frames", type=int, help="run N frames and exit (scripts, smoke tests)")
@@ -332,7 +423,11 @@ def main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except _user_errors() as e:
-        print(f"inshade: error: {e}", file=sys.stderr)
+        print(f"inshade: error: {_one_line(str(e))}", file=sys.stderr)
+        return 2
+    except OSError as e:   # an input that cannot be read (permissions, a folder for a file, ...)
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"inshade: error: {where}{_one_line(str(e.strerror or e))}", file=sys.stderr)
         return 2
 
 

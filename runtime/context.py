@@ -28,6 +28,8 @@ LIMITS = (
     "GL_MAX_3D_TEXTURE_SIZE",
     "GL_MAX_DRAW_BUFFERS",
     "GL_MAX_TEXTURE_IMAGE_UNITS",
+    "GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS",
+    "GL_MAX_ARRAY_TEXTURE_LAYERS",
 )
 
 _REMEDY = ("install Mesa's EGL and GL drivers (Debian/Ubuntu: apt-get install libegl1 libgl1-mesa-dri), "

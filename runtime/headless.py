@@ -73,6 +73,7 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
     elif isinstance(camera, dict):
         camera = camera_from_dict(camera)
     ctx = shared_context() if ctx is None else make_current(ctx)
+    check_render_size(ctx, width, height)
     t_load = time.perf_counter()
     renderer = SceneRenderer(scene, ctx, cache=cache, settings=settings, bundles=bundles)
     try:
@@ -91,25 +92,88 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
     return image, info
 
 
+# Host bytes per pixel a render needs at its peak: the RGBA float32 readback (16) and write_png's float64
+# copy of it (32) plus its float64 intermediates (~48).
+HOST_BYTES_PER_PIXEL = 96
+
+
+def check_render_size(ctx, width: int, height: int) -> None:
+    """Refuse, before allocating anything, a render size this context or this machine cannot hold:
+    GL_MAX_RENDERBUFFER_SIZE, GL_MAX_VIEWPORT_DIMS, GL_MAX_TEXTURE_SIZE (the targets are RGBA32F
+    textures plus a depth renderbuffer), and the host memory the readback and encoding need."""
+    info = ctx.info
+    viewport = info.get("GL_MAX_VIEWPORT_DIMS") or (None, None)
+    limits = [("GL_MAX_RENDERBUFFER_SIZE", info.get("GL_MAX_RENDERBUFFER_SIZE"), info.get("GL_MAX_RENDERBUFFER_SIZE")),
+              ("GL_MAX_VIEWPORT_DIMS", viewport[0], viewport[1]),
+              ("GL_MAX_TEXTURE_SIZE", info.get("GL_MAX_TEXTURE_SIZE"), info.get("GL_MAX_TEXTURE_SIZE"))]
+    for name, max_w, max_h in limits:
+        if max_w is None or max_h is None:
+            continue
+        if width > int(max_w) or height > int(max_h):
+            shown = f"{max_w}x{max_h}" if name == "GL_MAX_VIEWPORT_DIMS" else f"{max_w}"
+            raise ValueError(f"render size {width}x{height} exceeds {name}={shown} of {info.get('GL_RENDERER')}; "
+                             f"at most {min(width, int(max_w))}x{min(height, int(max_h))}")
+    need = width * height * HOST_BYTES_PER_PIXEL
+    avail = _available_memory()
+    if avail is not None and need > avail:
+        side = int((avail / HOST_BYTES_PER_PIXEL) ** 0.5)
+        raise ValueError(f"render size {width}x{height} needs about {need / 2**30:.1f} GiB of memory to read back "
+                         f"and encode; this machine has {avail / 2**30:.1f} GiB available; at most about "
+                         f"{side}x{side} pixels")
+
+
+def _available_memory() -> int | None:
+    """MemAvailable (Linux), lowered to this process's address-space limit (RLIMIT_AS) if it has
+    one; None if neither is known (not checked)."""
+    found = []
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    found.append(int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY:
+            found.append(soft)
+    except (ImportError, OSError, ValueError):
+        pass
+    return min(found) if found else None
+
+
 def render_from_sidecar(sidecar, *, ctx=None, cache: ProgramCache | None = None):
     """Re-render the image a screenshot's JSON sidecar describes: same scene, camera, mode, split,
     settings and size. Returns ``(image, info, record)``; warns (log) if a bundle changed since."""
+    from inshade.bundle import JSONFileError, read_json
+
     sidecar = Path(sidecar)
     try:
-        record = json.loads(sidecar.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+        record = read_json(sidecar)
+    except JSONFileError as exc:
         raise ValueError(f"{sidecar}: not a readable JSON sidecar ({exc})") from None
-    scene_path = (record.get("scene") or {}).get("path")
-    view = record.get("view")
-    if not scene_path or not isinstance(view, dict):
+    scene_path = (record.get("scene") or {}).get("path") if isinstance(record, dict) else None
+    view = record.get("view") if isinstance(record, dict) else None
+    if not isinstance(scene_path, str) or not scene_path or not isinstance(view, dict):
         raise ValueError(f"{sidecar}: no 'scene.path'/'view' fields; only sidecars written by inshade "
                          "(render or view screenshots) can be re-rendered")
-    scene = load_scene(scene_path)
     size = record.get("render", {})
+    if not isinstance(size, dict) or not isinstance(view.get("camera"), dict) or not isinstance(
+            view["camera"].get("type"), str) or not isinstance(
+            view.get("settings", {}), dict) or not isinstance(record.get("bundles", []), list):
+        raise ValueError(f"{sidecar}: render/view.camera/view.settings/bundles: malformed; only sidecars "
+                         "written by inshade (render or view screenshots) can be re-rendered")
+    for key in ("width", "height"):
+        v = size.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_SIZE):
+            raise ValueError(f"{sidecar}: render.{key}: must be an int in 1..{MAX_SIZE}, got {v!r}")
+    scene = load_scene(scene_path)
     image, info = render_scene(scene, width=size.get("width"), height=size.get("height"), camera=view["camera"],
                                mode=view.get("mode"), split=view.get("split"), settings=view.get("settings"),
                                ctx=ctx, cache=cache)
-    old = {b["name"]: b["digest"] for b in record.get("bundles", [])}
+    old = {b.get("name"): b.get("digest") for b in record.get("bundles", []) if isinstance(b, dict)}
     for b in info["bundles"]:
         if b["name"] in old and old[b["name"]] != b["digest"]:
             log.warning("bundle %s changed since %s was taken: the image will differ", b["name"], sidecar)

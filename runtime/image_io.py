@@ -58,11 +58,60 @@ def write_exr(path: str | Path, linear: np.ndarray) -> Path:
 
 
 def read_exr(path: str | Path) -> np.ndarray:
-    """Read an RGB or RGBA EXR back as float32 ``[H, W, 3|4]``."""
-    with OpenEXR.File(str(path)) as exr:
-        channels = exr.channels()
-        name = "RGBA" if "RGBA" in channels else "RGB"
-        return np.asarray(channels[name].pixels, dtype=np.float32)
+    """Read an RGB or RGBA EXR back as float32 ``[H, W, 3|4]``; ValueError naming the file if it is
+    not a readable RGB(A) EXR."""
+    try:
+        with OpenEXR.File(str(path)) as exr:
+            channels = exr.channels()
+            name = "RGBA" if "RGBA" in channels else "RGB" if "RGB" in channels else None
+            if name is None:
+                raise ValueError(f"no RGB or RGBA channels (has {', '.join(sorted(channels)) or 'none'})")
+            return np.asarray(channels[name].pixels, dtype=np.float32)
+    except ValueError as exc:
+        raise ValueError(f"{path}: not a usable EXR ({exc})") from None
+    except Exception as exc:  # OpenEXR raises RuntimeError (and others, by version) for unreadable files
+        raise ValueError(f"{path}: not a readable EXR ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+
+
+MAX_IMAGE_SIDE = 16384
+IMAGE_READ_SUFFIXES = (".png", ".jpg", ".jpeg", ".exr")
+
+
+def check_image_file(path: str | Path, *, exr: bool | None = None, max_side: int = MAX_IMAGE_SIDE) -> tuple[int, int]:
+    """Check, from its header, that ``path`` is an image inshade can read (8-bit PNG/JPEG through
+    Pillow, or an EXR when ``exr`` is true or the suffix is .exr) of at most ``max_side`` pixels a
+    side, without decoding the pixels. Returns (width, height); ValueError naming the file otherwise."""
+    import warnings
+
+    from PIL import UnidentifiedImageError
+
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: {'is a folder, not an image file' if path.is_dir() else 'no such file'}")
+    if exr is None:
+        exr = path.suffix.lower() == ".exr"
+    if exr:
+        try:
+            with OpenEXR.File(str(path), header_only=True) as f:
+                window = f.header().get("dataWindow")
+            (x0, y0), (x1, y1) = window if window is not None else ((0, 0), (-1, -1))
+            size = (int(x1) - int(x0) + 1, int(y1) - int(y0) + 1)
+        except Exception as exc:
+            raise ValueError(f"{path}: not a readable EXR ({str(exc).splitlines()[0] if str(exc) else exc!r})") from None
+    else:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+                with Image.open(path) as im:
+                    size = im.size
+                    im.verify()   # chunk structure and checksums, without decoding the pixels
+        except (UnidentifiedImageError, Image.DecompressionBombError) as exc:
+            raise ValueError(f"{path}: not an image Pillow can read ({str(exc).splitlines()[0][:160]})") from None
+        except (OSError, SyntaxError, ValueError, EOFError) as exc:   # Pillow's corrupt-file errors
+            raise ValueError(f"{path}: corrupt or truncated image ({str(exc).splitlines()[0][:160] or type(exc).__name__})") from None
+    if not (1 <= size[0] <= max_side and 1 <= size[1] <= max_side):
+        raise ValueError(f"{path}: image size {size[0]}x{size[1]} out of range 1..{max_side}")
+    return size
 
 
 def write_sidecar(image_path: str | Path, info: dict) -> Path:

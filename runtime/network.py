@@ -2,17 +2,63 @@
 an evaluator that runs the network over a batch of inputs (parity tests, benchmarks)."""
 from __future__ import annotations
 
+import logging
 import math
 
 import moderngl
 import numpy as np
 
 from inshade.codegen.glsl import TextureResource, UniformBlockResource
+from inshade.codegen.limits import LimitError
 
 from .programs import ProgramCache
 from .render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
 
+log = logging.getLogger("inshade")
 _COMPONENTS_DTYPE = {"f4": "f4", "f2": "f2", "f1": "f1", "nu2": "nu2"}
+
+
+class GLResourceError(RuntimeError):
+    """Creating or uploading a network's GL resource failed (the driver raised or set a GL error)."""
+
+
+def _describe(res) -> str:
+    if isinstance(res, TextureResource):
+        return (f"texture {res.name} ({'x'.join(map(str, res.data.shape[-2::-1]))}, {res.data.shape[-1]} channels, "
+                f"{res.dtype})")
+    return f"uniform block {res.name} ({res.nbytes} B)"
+
+
+def _check_fits(ctx: moderngl.Context, res) -> None:
+    """The driver's own limits, checked before an upload (codegen may have planned with others)."""
+    info = ctx.info
+    if isinstance(res, TextureResource):
+        name = "GL_MAX_TEXTURE_SIZE" if res.dims == 2 else "GL_MAX_3D_TEXTURE_SIZE"
+        cap, side = int(info[name]), max(res.data.shape[:-1])
+        if side > cap:
+            raise LimitError(f"{_describe(res)}: a side of {side} texels; this context's {name} is {cap}")
+    else:
+        cap = int(info["GL_MAX_UNIFORM_BLOCK_SIZE"])
+        if res.nbytes > cap:
+            raise LimitError(f"{_describe(res)}: this context's GL_MAX_UNIFORM_BLOCK_SIZE is {cap}")
+
+
+def _checked(ctx: moderngl.Context, res, make, new: bool = True):
+    """Runs `make()` (a create/upload) and raises GLResourceError naming `res` if moderngl raised
+    or the driver recorded a GL error; a new object that failed is released, never handed back."""
+    stale = ctx.error   # reading clears it; an error from before belongs to earlier calls
+    if stale != "GL_NO_ERROR":
+        log.warning("GL error %s was pending before uploading %s", stale, res.name)
+    try:
+        obj = make()
+    except moderngl.Error as exc:
+        raise GLResourceError(f"{_describe(res)}: {exc}") from exc
+    err = ctx.error
+    if err != "GL_NO_ERROR":
+        if new:
+            obj.release()
+        raise GLResourceError(f"{_describe(res)}: the driver reported {err} creating or uploading it")
+    return obj
 
 
 class NetworkResources:
@@ -28,24 +74,33 @@ class NetworkResources:
         """Creates or refreshes every resource; same-shaped uniform blocks are rewritten in
         place, so new weights need no recompile in `ubo` mode."""
         for res in generated.resources:
+            if isinstance(res, (UniformBlockResource, TextureResource)):
+                _check_fits(self.ctx, res)
             if isinstance(res, UniformBlockResource):
                 buf = self.buffers.get(res.name)
                 if buf is not None and buf.size == len(res.data):
-                    buf.write(res.data)
+                    _checked(self.ctx, res, lambda: (buf.write(res.data), buf)[1], new=False)
                 else:
-                    self.buffers[res.name] = self.ctx.buffer(res.data)
+                    old = self.buffers.pop(res.name, None)
+                    if old is not None:
+                        old.release()
+                    self.buffers[res.name] = _checked(self.ctx, res, lambda: self.ctx.buffer(res.data))
             elif isinstance(res, TextureResource):
                 old = self.textures.pop(res.name, None)
                 if old is not None:
                     old.release()
-                self.textures[res.name] = _make_texture(self.ctx, res)
+                self.textures[res.name] = _checked(self.ctx, res, lambda: _make_texture(self.ctx, res))
 
     def bind(self, program: moderngl.Program, first_unit: int = 0, first_block: int = 0) -> int:
         """Binds samplers to consecutive units and blocks to consecutive bindings.
         Returns the next free texture unit. Resources the linker removed are skipped."""
         unit = first_unit
+        units = int(self.ctx.info["GL_MAX_TEXTURE_IMAGE_UNITS"])
         for name, tex in self.textures.items():
             if name in program:
+                if unit >= units:
+                    raise LimitError(f"sampler {name} needs texture unit {unit} (units {first_unit}.. are this "
+                                     f"network's); this context's GL_MAX_TEXTURE_IMAGE_UNITS is {units}")
                 tex.use(location=unit)
                 program[name].value = unit
                 unit += 1

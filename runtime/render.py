@@ -12,6 +12,7 @@ Two orientations, kept apart on purpose:
 
 from __future__ import annotations
 
+import logging
 from typing import Mapping
 
 import moderngl
@@ -85,6 +86,20 @@ class MeshPass:
         self.vao.render(moderngl.TRIANGLES)
 
 
+def clear_gl_error(ctx: moderngl.Context, what: str) -> None:
+    """Clear a GL error left by earlier calls (logged, not blamed on ``what``)."""
+    err = ctx.error
+    if err != "GL_NO_ERROR":
+        logging.getLogger("inshade").warning("GL error %s was pending before %s", err, what)
+
+
+def check_gl_error(ctx: moderngl.Context, what: str) -> None:
+    """Raise RuntimeError naming ``what`` if the driver recorded a GL error (reading clears it)."""
+    err = ctx.error
+    if err != "GL_NO_ERROR":
+        raise RuntimeError(f"{what}: the driver reported {err}")
+
+
 def float_target(ctx: moderngl.Context, width: int, height: int, attachments: int = 1,
                  depth: bool = False) -> moderngl.Framebuffer:
     """A framebuffer of ``attachments`` RGBA32F colour textures (MRT), plus a depth buffer if asked.
@@ -94,12 +109,16 @@ def float_target(ctx: moderngl.Context, width: int, height: int, attachments: in
     limit = ctx.info["GL_MAX_DRAW_BUFFERS"]
     if not 1 <= attachments <= limit:
         raise ValueError(f"{attachments} colour attachments requested; this driver allows 1..{limit}")
+    clear_gl_error(ctx, "creating a float target")
     colours = []
     for _ in range(attachments):
         texture = ctx.texture((width, height), 4, dtype="f4")
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         colours.append(texture)
     depth_attachment = ctx.depth_renderbuffer((width, height)) if depth else None
+    # the attachments are checked; moderngl checks the framebuffer's completeness itself (and its
+    # creation leaves a benign GL_INVALID_OPERATION on Mesa with several attachments)
+    check_gl_error(ctx, f"float target {width}x{height}: {attachments} RGBA32F attachment(s)")
     return ctx.framebuffer(color_attachments=colours, depth_attachment=depth_attachment)
 
 
@@ -135,7 +154,13 @@ def upload_float_texture(ctx: moderngl.Context, array: np.ndarray) -> moderngl.T
     if array.ndim != 3 or not 1 <= array.shape[2] <= 4:
         raise ValueError(f"expected [H, W] or [H, W, 1..4], got shape {array.shape}")
     height, width, channels = array.shape
+    clear_gl_error(ctx, "uploading a float data texture")
     texture = ctx.texture((width, height), channels, np.ascontiguousarray(array).tobytes(), dtype="f4")
     texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
     texture.repeat_x = texture.repeat_y = False
+    try:
+        check_gl_error(ctx, f"float data texture {width}x{height}x{channels}")
+    except RuntimeError:
+        texture.release()
+        raise
     return texture

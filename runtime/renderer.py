@@ -78,15 +78,17 @@ class SceneRenderer:
     ``bundles`` gives already-loaded bundles (else each network's bundle is loaded from disk).
     ``owns_programs``: discard replaced programs from ``cache`` on rebuild (a window app with its
     own cache); leave False when the cache is shared with other code.
+    ``limits`` overrides the context's GL limits codegen plans against (``gl_info``), e.g. a lowered
+    GL_MAX_TEXTURE_SIZE to exercise a layout that fits it.
     """
 
     def __init__(self, scene: Scene, ctx: moderngl.Context | None = None, *, cache: ProgramCache | None = None,
                  settings: dict | None = None, bundles: list[Bundle] | None = None,
-                 owns_programs: bool = False):
+                 owns_programs: bool = False, limits: dict | None = None):
         self.ctx = shared_context() if ctx is None else make_current(ctx)
         self.scene = scene
         self.spec = scene.spec        # what the program needs (its technique's ProgramSpec)
-        self.gl = gl_info(self.ctx)
+        self.gl = {**gl_info(self.ctx), **(limits or {})}   # `limits` overrides (e.g. lowered on purpose)
         check_capabilities(self.ctx, scene)
         self.cache = cache if cache is not None else ProgramCache(self.ctx)
         self.owns_programs = owns_programs

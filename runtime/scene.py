@@ -325,6 +325,7 @@ def scene_from_bundle(bundle) -> Scene:
     if bundle.path is not None:
         root = Path(bundle.path).parent if Path(bundle.path).is_file() else Path(bundle.path)
         if (root / "reference.png").is_file():  # what `inshade train` writes beside the bundle
+            _check_image(root / "reference.png", "reference", exr=False)
             reference = Reference(root / "reference.png")
     return Scene(name=bundle.name, root=root, path=None, program=spec["program"],
                  size=(spec["width"], spec["height"]),
@@ -350,14 +351,12 @@ TEXTURE_KEYS = {"uniform", "image", "mipmaps", "anisotropy", "repeat"}
 
 
 def _parse_file(path: Path) -> Scene:
+    from inshade.bundle import JSONFileError, read_json
+
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise SceneError(f"{path}: not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
+        data = read_json(path)
+    except JSONFileError as exc:
+        raise SceneError(f"{path}: {exc}") from None
     try:
         return parse_scene(data, root=path.parent, path=path)
     except (SceneError, CameraError) as exc:
@@ -443,16 +442,17 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
         colour, space = ref.get("colour", "srgb"), ref.get("space", "field")
         if colour not in ("srgb", "linear"):
             raise SceneError(f"reference.colour: must be \"srgb\" or \"linear\", got {colour!r}")
+        _check_image(image, "reference.image", exr=colour == "linear")
         if space not in REFERENCE_SPACES:
             raise SceneError(f"reference.space: must be one of {list(REFERENCE_SPACES)}, got {space!r}")
         reference = Reference(image, colour, space)
     camera = data.get("camera", {"type": "plane2d"})
-    camera_from_dict(camera, "camera")  # validate now: one clear error at load time
+    _check_camera(camera, "camera")  # validate now: one clear error at load time
     bookmarks = data.get("bookmarks", {})
     if not isinstance(bookmarks, dict):
         raise SceneError("bookmarks: must be an object {name: camera}")
     for k, v in bookmarks.items():
-        camera_from_dict(v, f"bookmarks.{k}")
+        _check_camera(v, f"bookmarks.{k}")
     lights = _lights(data.get("lights", []))
     environment = data.get("environment")
     if environment is not None and not isinstance(environment, dict):
@@ -467,6 +467,8 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     display = data.get("display", {})
     if not isinstance(display, dict):
         raise SceneError("display: must be an object")
+    if not isinstance(display.get("modes", []), list):
+        raise SceneError(f"display.modes: must be a list of mode names, got {display.get('modes')!r}")
     try:
         mode = parse_mode(display.get("mode", "final"))
         modes = tuple(parse_mode(m) for m in display.get("modes", [m.name.lower() for m in UI_MODES]))
@@ -563,6 +565,8 @@ def _lit_environment(env, root: Path) -> tuple[dict, object]:
         except ValueError as exc:   # load_environment names the file and what is wrong with it
             raise SceneError(f"environment.map: {exc}") from None
         env["map"] = str(path)
+    if not isinstance(env["sky"], str):
+        raise SceneError(f"environment.sky: must be a sky name, got {env['sky']!r}")
     if env["sky"] not in SKY_PRESETS and not (env["sky"] == "map" and sh is not None):
         known = ", ".join([*SKY_PRESETS, *(["map"] if sh is not None else [])])
         raise SceneError(f"environment.sky: unknown sky {env['sky']!r} (known: {known})")
@@ -574,7 +578,8 @@ def _check_sky_settings(settings: dict, has_map: bool) -> None:
 
     for name, s in settings.items():
         if s.binding == "environment" and s.target == "sky":
-            bad = [c for c in (s.choices or (s.default,)) if c not in SKY_PRESETS and not (c == "map" and has_map)]
+            bad = [c for c in (s.choices or (s.default,))
+                   if not isinstance(c, str) or c not in SKY_PRESETS and not (c == "map" and has_map)]
             if bad:
                 raise SceneError(f"settings.{name}.choices: unknown sky {bad[0]!r} (known: {', '.join(SKY_PRESETS)}"
                                  f"{', map' if has_map else ''})")
@@ -632,9 +637,27 @@ def _textures(data, root: Path) -> list:
         for key in ("mipmaps", "repeat"):
             if not isinstance(t.get(key, True), bool):
                 raise SceneError(f"{w}.{key}: must be true or false")
+        _check_image((root / t["image"]).resolve(), f"{w}.image", exr=False)
         out.append(SceneTexture(name, (root / t["image"]).resolve(), t.get("mipmaps", True), float(aniso),
                                 t.get("repeat", True)))
     return out
+
+
+def _check_camera(value, field: str) -> None:
+    if not isinstance(value, dict) or not isinstance(value.get("type"), str):
+        raise SceneError(f"{field}: must be a camera object with a \"type\" name, got {str(value)[:80]}")
+    camera_from_dict(value, field)
+
+
+def _check_image(path: Path, field: str, exr: bool) -> None:
+    """An image file the renderer will read: a readable header of a sane size (image_io), else one
+    SceneError naming the field and the file."""
+    from .image_io import check_image_file
+
+    try:
+        check_image_file(path, exr=exr)
+    except ValueError as exc:
+        raise SceneError(f"{field}: {exc}") from None
 
 
 def _settings(data, where: str) -> dict:
@@ -671,7 +694,10 @@ def _settings(data, where: str) -> dict:
                 raise SceneError(f"{w}.{key}: must be a number")
         if kind in ("float", "int") and (lo is None or hi is None or lo > hi):
             raise SceneError(f"{w}: a {kind} setting needs a range: \"min\" <= \"max\"")
-        choices = tuple(s.get("choices", ()))
+        choices = s.get("choices", [])
+        if not isinstance(choices, list):
+            raise SceneError(f"{w}.choices: must be a list, got {choices!r}")
+        choices = tuple(choices)
         if kind == "choice":
             if not choices:
                 raise SceneError(f"{w}.choices: a choice setting needs a non-empty list")

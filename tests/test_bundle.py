@@ -111,13 +111,25 @@ def test_wrong_shape(bundle_dir):
     _expect(bundle_dir, WEIGHTS_NAME, "l1.weight", r"shape \[6, 3\] but \[3, 6\]")
 
 
-@pytest.mark.parametrize("name,dtype", [("l0.weight", np.float64), ("l0.bias", np.float16),
-                                         ("lut.cells", np.uint16), ("lut.scale", np.float64)])
+@pytest.mark.parametrize("name,dtype", [("l0.weight", np.float64), ("l0.bias", np.int32),
+                                         ("lut.cells", np.uint16), ("lut.scale", np.float64),
+                                         ("lut.cells", np.float16)])
 def test_wrong_dtype(bundle_dir, name, dtype):
     t = _tensors(bundle_dir)
     t[name] = t[name].astype(dtype)
     _write_tensors(bundle_dir, t)
     _expect(bundle_dir, WEIGHTS_NAME, name, "dtype")
+
+
+def test_half_weights_widened_to_float32(bundle_dir):
+    """float16 weights load as float32 (exact), and the bundle records which were widened."""
+    t = _tensors(bundle_dir)
+    t["l0.weight"] = t["l0.weight"].astype(np.float16)
+    _write_tensors(bundle_dir, t)
+    b = load(bundle_dir)
+    assert b.converted == {"l0.weight": "float16"}
+    assert b.tensors["l0.weight"].dtype == np.float32
+    np.testing.assert_array_equal(b.tensors["l0.weight"], t["l0.weight"].astype(np.float32))
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])

@@ -49,7 +49,7 @@ def test_failing_sidecar_leaves_no_image(tmp_path, suffix):
     assert not fresh.parent.exists() or _names(fresh.parent) == []
 
 
-def test_failing_codegen_resources_leave_no_glsl(tmp_path, monkeypatch):
+def test_failing_codegen_resources_leave_no_glsl(tmp_path, monkeypatch, capsys):
     """`inshade codegen -o net.glsl` with texture storage writes three files; if the resources
     cannot be written, none of them appears."""
     import safetensors.numpy
@@ -65,8 +65,9 @@ def test_failing_codegen_resources_leave_no_glsl(tmp_path, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr(safetensors.numpy, "save_file", broken)
-    with pytest.raises(OSError, match="disk full"):
-        cli.main(["-q", "codegen", str(bundle), "--storage", "texture", "--no-gl", "-o", str(out)])
+    assert cli.main(["-q", "codegen", str(bundle), "--storage", "texture", "--no-gl", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"inshade: error: {out}: cannot write (disk full)"], err   # one line, exit 2
     assert _names(out.parent) == []
     monkeypatch.undo()
     assert cli.main(["-q", "codegen", str(bundle), "--storage", "texture", "--no-gl", "-o", str(out)]) == 0

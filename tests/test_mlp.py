@@ -131,12 +131,12 @@ def test_wide_square_texture(gl, width):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not os.environ.get("INSHADE_SLOW"), reason="minutes of llvmpipe JIT; set INSHADE_SLOW=1")
-def test_ubo_big_layer(gl):
+def test_ubo_big_layer(gl, gl_limits):
     """A uniform-block layer of 272 mat4 blocks (64 -> 68). llvmpipe unrolls the generated loop
     and JIT-compiles every UBO gather: measured > 200 s on 2 cores, hence opt-in."""
     torch.manual_seed(4)
     bundle = mlp_graph(64, [68], 4, "tanh").export("ubo_big")
-    check_parity(gl, bundle, uniform_inputs(5, 32, 64), storage="ubo")
+    check_parity(gl, bundle, uniform_inputs(5, 32, 64), storage="ubo", limits=gl_limits)
 
 
 # --- layouts against numpy (no GL) ------------------------------------------------------------

@@ -1,0 +1,45 @@
+"""GL limits codegen plans against, and the error raised when a resource cannot fit them.
+
+``generate(..., limits=...)`` takes the context's queried limits (``runtime.context.gl_info``,
+plus any override). A limit missing from that dict means the OpenGL 3.3 core minimum (the
+"Implementation Dependent Values" tables 23.5x of the GL 3.3 core specification), so code
+generated without a context fits every GL 3.3 driver:
+
+    GL_MAX_TEXTURE_SIZE                  1024    width and height of a 2D texture
+    GL_MAX_3D_TEXTURE_SIZE                256    each side of a 3D texture
+    GL_MAX_ARRAY_TEXTURE_LAYERS           256    (no generated layout uses array textures)
+    GL_MAX_UNIFORM_BLOCK_SIZE           16384    bytes of one std140 block (ubo dense layers)
+    GL_MAX_FRAGMENT_UNIFORM_BLOCKS         12    blocks one fragment shader may declare
+    GL_MAX_FRAGMENT_UNIFORM_COMPONENTS   1024    default-block uniform components (the generated
+                                                 code declares only samplers there)
+    GL_MAX_TEXTURE_IMAGE_UNITS             16    samplers one fragment shader may use
+    GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS    48    samplers of one program, all stages
+"""
+from __future__ import annotations
+
+GL33_MINIMUMS = {
+    "GL_MAX_TEXTURE_SIZE": 1024,
+    "GL_MAX_3D_TEXTURE_SIZE": 256,
+    "GL_MAX_ARRAY_TEXTURE_LAYERS": 256,
+    "GL_MAX_UNIFORM_BLOCK_SIZE": 16384,
+    "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 12,
+    "GL_MAX_FRAGMENT_UNIFORM_COMPONENTS": 1024,
+    "GL_MAX_TEXTURE_IMAGE_UNITS": 16,
+    "GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS": 48,
+}
+
+
+class LimitError(ValueError):
+    """A network (or one of its GL resources) does not fit the context's limits. The message
+    names the node or resource, the limit and both values."""
+
+
+def limit(limits: dict, name: str) -> int:
+    """The context's value of ``name``, or the GL 3.3 minimum when the dict lacks it."""
+    value = limits.get(name)
+    return int(GL33_MINIMUMS[name] if value is None else value)
+
+
+def source(limits: dict, name: str) -> str:
+    """Where a limit's value came from, for the plan: the context (or override) or the table."""
+    return "context" if limits.get(name) is not None else "GL 3.3 minimum"

@@ -1,0 +1,322 @@
+"""The parity envelope: where fp32 itself, not the code, stops GLSL and torch agreeing.
+
+Every parity test holds |glsl - torch| <= 1e-5 * max(1, |torch|) (tests/parity.py). The two
+sides sum in different orders and use different transcendental implementations, so they differ
+by a few ulp of every intermediate value; that is harmless until a node *amplifies* it past the
+rule. This module bounds, from the weights alone (numpy, no torch, no GL), the quantities that
+do the amplifying, by interval arithmetic over the bundle's input ranges, and reports each one
+that leaves the measured envelope:
+
+- periodic arguments (``sin`` = sin(omega0 x), ``frequency`` = sin/cos(2^k pi x),
+  ``triangle_wave`` = tri(2^k x)): a discrepancy in the argument moves the output by as much.
+  Measured on llvmpipe: a 64-input dense feeding sin(omega0 .) gives a scaled error of about
+  5.7e-8 * A (A = argument bound): 5.7e-6 at A = 2^5 pi, 1.4e-5 at 2^6 pi, 2.3e-5 at 2^7 pi.
+  Limit for a computed argument: ``PERIODIC_ARG_COMPUTED`` = 128 (below it the argument's own
+  ulp is <= 2^-17 = 7.6e-6). For an argument taken straight from a bundle input (both sides
+  round the same product), llvmpipe's sin/cos agree with torch to 1 ulp up to 2^20 pi; the
+  limit is then ``PERIODIC_ARG_INPUT`` = 2^7 pi (n_freqs <= 8 on [-1, 1], the range the parity
+  suite covers: beyond it agreement is up to the driver's argument reduction). A triangle wave
+  of an input is exact (power-of-two scale, mod 2), so only its computed arguments are checked.
+- ``exp`` arguments: float32 overflows at ln(FLT_MAX) = 88.72; up to 88.7 llvmpipe's exp is
+  within 3.9e-6 relative of torch's, and a computed argument adds ~5.7e-8 * A relative (4.6e-6
+  at 80). Limit ``EXP_ARG`` = 80.
+- dense accumulations: |glsl - torch| measured <= 5.7e-8 * S (n = 16 and 64 inputs,
+  S = sum_j |W_ij| max|x_j| + |b_i|, the magnitude of the sum). The rule allows
+  1e-5 * max(1, |y|), so a node whose S can exceed ``DENSE_MAGNITUDE`` (1e-5 / 5.7e-8 = 175)
+  times max(1, min |y|) can break it by cancellation alone. Interval bounds on deep layers are
+  loose, so this is reported as a warning only past ``DENSE_MAGNITUDE_WARN`` = 2^24 / 16
+  (~1e6): there one ulp of S is >= 1/16, i.e. the sum cannot even represent its own result to
+  the rule's absolute scale; between 175 and that it is a note.
+- lookup arrays: a computed coordinate's discrepancy is multiplied by the array's gain
+  sum over axes of (N - 1) * max |adjacent cell difference|, divided by max(1, max |cell|)
+  (the rule is relative beyond 1). Measured: a dense (|coord| <= 1) feeding a 1D array gives
+  1.0e-6 at gain 13, 5.0e-5 at gain 252 (~2e-7 * gain): limit ``LOOKUP_GAIN`` = 50. A
+  coordinate read straight from another lookup array (the DI cascade) carries a smaller
+  discrepancy: the shipped DI textures measure <= 6.9e-6 at gain 147 (~4.7e-8 * gain): limit
+  ``LOOKUP_GAIN_CHAINED`` = 200. An input coordinate is rounded identically on both sides (no
+  limit). Coordinates outside [0, 1] are clamped by both sides (a note, not a warning).
+
+Saturating activations (sigmoid, tanh, softplus) are safe at any argument: lib/activations
+evaluates them in overflow-free forms. The probes behind these numbers are described in the
+README's "Parity envelope" section.
+
+API: ``analyse(bundle, ranges=None) -> Envelope``; ``format_findings(envelope) -> list[str]``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .bundle import Bundle, Node
+from .components import LUT_BITS
+
+TOL = 1e-5
+PERIODIC_ARG_INPUT = 2.0 ** 7 * math.pi    # ~402: sin/cos of a bundle input
+PERIODIC_ARG_COMPUTED = 128.0              # sin/cos/tri of a computed value
+EXP_ARG = 80.0
+DENSE_MAGNITUDE = 175.0                    # S / max(1, min|y|) where cancellation can break the rule
+DENSE_MAGNITUDE_WARN = 2.0 ** 24 / 16      # ~1.05e6: one ulp of S >= 1/16
+LOOKUP_GAIN = 50.0                         # gain / max(1, max|cell|), coordinate from a dense etc.
+LOOKUP_GAIN_CHAINED = 200.0                # same, coordinate straight from another lookup array
+
+WARNING, NOTE = "warning", "note"
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One quantity outside (warning) or near/assumed about (note) the parity envelope."""
+
+    level: str          # "warning" or "note"
+    node: str           # node id (or input port name for range assumptions)
+    quantity: str       # what was bounded, e.g. "sin argument |omega0 * x|"
+    bound: float        # its bound over the input ranges
+    threshold: float    # the envelope's limit for it (nan for pure notes)
+    why: str            # one sentence: what breaks beyond the threshold
+
+    def line(self) -> str:
+        thr = "" if math.isnan(self.threshold) else f" > {self.threshold:.4g}"
+        return f"{self.level}: {self.node}: {self.quantity} bound {self.bound:.4g}{thr}: {self.why}"
+
+
+@dataclass
+class Envelope:
+    """What `analyse` found: findings, the input ranges used, and each value's interval."""
+
+    findings: list[Finding]
+    ranges: dict[str, tuple[float, float]]
+    intervals: dict[str, tuple[np.ndarray, np.ndarray]] = field(repr=False, default_factory=dict)
+
+    @property
+    def warnings(self) -> list[Finding]:
+        return [f for f in self.findings if f.level == WARNING]
+
+    @property
+    def notes(self) -> list[Finding]:
+        return [f for f in self.findings if f.level == NOTE]
+
+    @property
+    def ok(self) -> bool:
+        return not self.warnings
+
+
+def input_ranges(bundle: Bundle) -> tuple[dict[str, tuple[float, float]], list[Finding]]:
+    """The range of every input port from its semantic, plus notes for assumed ones.
+
+    uv: [0, 1]; normal / direction: [-1, 1] (unit vectors); position: [-1, 1] when a
+    `render.transfer` or `render.sdf` frame normalises it (q = (p - center) / radius lies in
+    the unit ball), assumed [-1, 1] otherwise; anything else: assumed [-1, 1]."""
+    render = bundle.meta.get("render") or {}
+    framed = isinstance(render, dict) and any(isinstance(render.get(k), dict) for k in ("transfer", "sdf"))
+    ranges, notes = {}, []
+    for p in bundle.inputs:
+        sem = p.semantic.lower()
+        if sem == "uv":
+            ranges[p.name] = (0.0, 1.0)
+        elif sem in ("normal", "direction"):
+            ranges[p.name] = (-1.0, 1.0)
+        elif sem == "position" and framed:
+            ranges[p.name] = (-1.0, 1.0)
+        else:
+            ranges[p.name] = (-1.0, 1.0)
+            what = "no render.transfer/render.sdf frame" if sem == "position" else "no known range"
+            notes.append(Finding(NOTE, p.name, f"input range (semantic {p.semantic!r})", 1.0, math.nan,
+                                 f"{what}: assumed [-1, 1]; pass ranges= to analyse() for the real one"))
+    return ranges, notes
+
+
+# --- interval helpers ----------------------------------------------------------------------
+
+def _sin_range(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact range of sin over [lo, hi], elementwise (float64)."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    out_lo = np.minimum(np.sin(lo), np.sin(hi))
+    out_hi = np.maximum(np.sin(lo), np.sin(hi))
+    with np.errstate(invalid="ignore"):
+        # a maximum pi/2 + 2k pi inside [lo, hi]?  a minimum -pi/2 + 2k pi?
+        has_max = np.floor((hi - math.pi / 2) / (2 * math.pi)) >= np.ceil((lo - math.pi / 2) / (2 * math.pi))
+        has_min = np.floor((hi + math.pi / 2) / (2 * math.pi)) >= np.ceil((lo + math.pi / 2) / (2 * math.pi))
+    wide = ~np.isfinite(lo) | ~np.isfinite(hi) | (hi - lo >= 2 * math.pi)
+    out_hi = np.where(has_max | wide, 1.0, out_hi)
+    out_lo = np.where(has_min | wide, -1.0, out_lo)
+    return out_lo, out_hi
+
+
+def _mag(lo, hi) -> np.ndarray:
+    return np.maximum(np.abs(lo), np.abs(hi))
+
+
+def _min_abs(lo, hi) -> np.ndarray:
+    return np.where((lo <= 0) & (hi >= 0), 0.0, np.minimum(np.abs(lo), np.abs(hi)))
+
+
+def _lut_cells(bundle: Bundle, node: Node) -> np.ndarray:
+    """The cells as the shader sees them, float64 [N_{d-1}, ..., N_0, C]."""
+    cells = bundle.tensor(node, "cells")
+    bits = node.params["bits"]
+    if bits == 32:
+        return cells.astype(np.float64)
+    levels = float((1 << bits) - 1)
+    scale = bundle.tensor(node, "scale").astype(np.float64)
+    offset = bundle.tensor(node, "offset").astype(np.float64)
+    return offset + scale * (cells.astype(np.float64) / levels)
+
+
+_SIN_WHY_INPUT = ("beyond 2^7 pi (n_freqs > 8 on [-1, 1]) GLSL/torch agreement depends on the "
+                  "driver's sin argument reduction, outside what the parity suite covers")
+_SIN_WHY_COMPUTED = ("an upstream discrepancy of ~1 ulp is multiplied by the argument: measured "
+                     "~5.7e-8 * bound scaled error (1.4e-5 at 2^6 pi), past the 1e-5 rule")
+
+
+def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None) -> Envelope:
+    """Propagates interval bounds from the input ranges through the graph and returns every
+    quantity outside the parity envelope (warnings) plus range assumptions and near-misses
+    (notes). `ranges` overrides the semantic ranges per input port: {name: (lo, hi)}."""
+    rng, findings = input_ranges(bundle)
+    if ranges:
+        for name, (lo, hi) in ranges.items():
+            if name not in rng:
+                raise ValueError(f"no input port named {name!r} (ports: {', '.join(rng)})")
+            rng[name] = (float(lo), float(hi))
+        findings = [f for f in findings if f.node not in ranges]
+
+    iv: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    exact: dict[str, bool] = {}       # value bit-identical on both sides (bundle inputs, relu of them)
+    lut_ids: set[str] = set()
+    for p in bundle.inputs:
+        lo, hi = rng[p.name]
+        iv[p.name] = (np.full(p.dim, lo, np.float64), np.full(p.dim, hi, np.float64))
+        exact[p.name] = True
+
+    def warn(node, quantity, bound, threshold, why, level=WARNING):
+        findings.append(Finding(level, node, quantity, float(bound), float(threshold), why))
+
+    def periodic(node, quantity, bound, is_exact, check_input=True):
+        if is_exact:
+            if check_input and bound > PERIODIC_ARG_INPUT:
+                warn(node, quantity, bound, PERIODIC_ARG_INPUT, _SIN_WHY_INPUT)
+        elif bound > PERIODIC_ARG_COMPUTED:
+            warn(node, quantity, bound, PERIODIC_ARG_COMPUTED, _SIN_WHY_COMPUTED)
+
+    with np.errstate(over="ignore", invalid="ignore"):
+        for n in bundle.nodes:
+            lo = np.concatenate([iv[s][0] for s in n.inputs])
+            hi = np.concatenate([iv[s][1] for s in n.inputs])
+            src_exact = all(exact[s] for s in n.inputs)
+            t, p = n.type, n.params
+            is_exact = False
+            if t == "dense":
+                w = bundle.tensor(n, "weight").astype(np.float64)
+                b = bundle.tensor(n, "bias").astype(np.float64) if p["bias"] else np.zeros(n.out_dim)
+                c, r = (lo + hi) / 2, (hi - lo) / 2
+                yc, yr = w @ c + b, np.abs(w) @ r
+                olo, ohi = yc - yr, yc + yr
+                s = np.abs(w) @ _mag(lo, hi) + np.abs(b)
+                ratio = s / np.maximum(1.0, _min_abs(olo, ohi))
+                i = int(np.nanargmax(np.where(np.isnan(ratio), np.inf, ratio)))
+                if not np.isfinite(ratio[i]) or ratio[i] > DENSE_MAGNITUDE_WARN:
+                    warn(n.id, f"accumulation magnitude sum|W||x|+|b| (row {i})", s[i], DENSE_MAGNITUDE_WARN,
+                         "one ulp of the sum is >= 1/16: fp32 cannot hold the result to the rule's scale, "
+                         "and summation order alone (GEMM vs mat4 blocks) breaks parity")
+                elif ratio[i] > DENSE_MAGNITUDE:
+                    warn(n.id, f"accumulation magnitude sum|W||x|+|b| (row {i})", s[i], DENSE_MAGNITUDE,
+                         "measured summation-order discrepancy ~5.7e-8 * magnitude; if the output can "
+                         "cancel to |y| <= 1 that exceeds 1e-5 (interval bound, may be loose)", NOTE)
+            elif t in ("relu", "identity"):
+                olo, ohi = (np.maximum(lo, 0), np.maximum(hi, 0)) if t == "relu" else (lo, hi)
+                is_exact = src_exact
+            elif t == "leaky_relu":
+                s = p["slope"]
+                f = lambda x: np.maximum(x, 0) + s * np.minimum(x, 0)  # noqa: E731
+                cand = np.stack([f(lo), f(hi), np.where((lo < 0) & (hi > 0), 0.0, f(lo))])
+                olo, ohi = cand.min(0), cand.max(0)
+                is_exact = src_exact
+            elif t == "sigmoid":
+                olo, ohi = 1 / (1 + np.exp(-lo)), 1 / (1 + np.exp(-hi))
+            elif t == "tanh":
+                olo, ohi = np.tanh(lo), np.tanh(hi)
+            elif t == "softplus":
+                olo, ohi = np.logaddexp(0, lo), np.logaddexp(0, hi)
+            elif t == "exp":
+                bound = float(np.max(hi))
+                if bound > EXP_ARG:
+                    warn(n.id, "exp argument", bound, EXP_ARG,
+                         "float32 exp overflows to inf at 88.72 (and relative agreement nears 1e-5 above 80)")
+                olo, ohi = np.exp(lo), np.exp(hi)
+            elif t == "sin":
+                w0 = p["omega0"]
+                alo, ahi = np.minimum(w0 * lo, w0 * hi), np.maximum(w0 * lo, w0 * hi)
+                periodic(n.id, f"sin argument |omega0 * x| (omega0 {w0:g})", float(np.max(_mag(alo, ahi))), src_exact)
+                olo, ohi = _sin_range(alo, ahi)
+            elif t == "frequency":
+                nf, d = p["n_freqs"], n.in_dim
+                parts_lo, parts_hi = ([lo], [hi]) if p["include_input"] else ([], [])
+                for fn in ("sin", "cos"):
+                    for k in range(nf):
+                        a = (2.0 ** k) * math.pi
+                        alo, ahi = a * lo, a * hi
+                        if fn == "cos":   # cos(t) = sin(t + pi/2)
+                            alo, ahi = alo + math.pi / 2, ahi + math.pi / 2
+                        slo, shi = _sin_range(alo, ahi)
+                        parts_lo.append(slo)
+                        parts_hi.append(shi)
+                bound = (2.0 ** (nf - 1)) * math.pi * float(np.max(_mag(lo, hi)))
+                periodic(n.id, f"frequency argument 2^{nf - 1} pi |x| (n_freqs {nf})", bound, src_exact)
+                olo, ohi = np.concatenate(parts_lo), np.concatenate(parts_hi)
+                assert olo.size == n.out_dim == d * (2 * nf + int(p["include_input"]))
+            elif t == "triangle_wave":
+                nf = p["n_freqs"]
+                bound = (2.0 ** (nf - 1)) * float(np.max(_mag(lo, hi)))
+                periodic(n.id, f"triangle_wave argument 2^{nf - 1} |x| (n_freqs {nf})", bound, src_exact,
+                         check_input=False)
+                olo, ohi = np.zeros(n.out_dim), np.ones(n.out_dim)
+            elif t == "spherical_harmonics":
+                deg = p["degree"]
+                # real orthonormal SH: sum_m Y_lm^2 = (2l+1)/4pi on the unit sphere, so |Y_lm| <= that root
+                m = np.concatenate([np.full(2 * l + 1, math.sqrt((2 * l + 1) / (4 * math.pi))) for l in range(deg)])
+                olo, ohi = -m, m
+            elif t == "lookup_array":
+                cells = _lut_cells(bundle, n)
+                if np.any(lo < 0) or np.any(hi > 1):
+                    warn(n.id, "lookup coordinate", float(np.max(np.maximum(-lo, hi - 1) + 1)), 1.0,
+                         "coordinates outside [0, 1] are clamped (same on both sides)", NOTE)
+                if not src_exact:
+                    res = list(reversed(cells.shape[:-1]))    # N_0 .. N_{d-1}
+                    gain = 0.0
+                    for k, nk in enumerate(res):
+                        if nk > 1:
+                            axis = cells.ndim - 2 - k
+                            gain += (nk - 1) * float(np.abs(np.diff(cells, axis=axis)).max())
+                    gain /= max(1.0, float(np.abs(cells).max()))   # the rule is relative beyond 1
+                    chained = all(s in lut_ids for s in n.inputs)
+                    limit = LOOKUP_GAIN_CHAINED if chained else LOOKUP_GAIN
+                    if gain > limit:
+                        src_kind = "another lookup array" if chained else "a computed value"
+                        warn(n.id, f"lookup gain sum_k (N_k - 1) max|cell step| / max(1, max|cell|) "
+                             f"(coordinate from {src_kind})", gain, limit,
+                             "an upstream coordinate discrepancy is multiplied by the gain: measured "
+                             + ("~4.7e-8 * gain (shipped DI textures: 6.9e-6 at gain 147)" if chained
+                                else "~2e-7 * gain scaled error (5e-5 at gain 252)"))
+                lut_ids.add(n.id)
+                flat = cells.reshape(-1, cells.shape[-1])
+                olo, ohi = flat.min(0), flat.max(0)
+            else:  # a component this module does not know: no bound, say so
+                warn(n.id, f"unknown component {t!r}", math.inf, math.nan,
+                     "no interval rule: downstream bounds are unknown", NOTE)
+                olo, ohi = np.full(n.out_dim, -np.inf), np.full(n.out_dim, np.inf)
+            iv[n.id] = (np.asarray(olo, np.float64).reshape(n.out_dim), np.asarray(ohi, np.float64).reshape(n.out_dim))
+            exact[n.id] = is_exact
+    return Envelope(findings, rng, iv)
+
+
+def format_findings(envelope: Envelope, *, notes: bool = True) -> list[str]:
+    """One line per finding, warnings first: 'warning: NODE: QUANTITY bound B > T: WHY'.
+    With no warnings the first line says the bundle is inside the envelope."""
+    lines = [f.line() for f in envelope.warnings]
+    if not lines:
+        lines.append("inside the parity envelope (no fp32 limit reached over the input ranges: "
+                     + ", ".join(f"{k} [{lo:g}, {hi:g}]" for k, (lo, hi) in envelope.ranges.items()) + ")")
+    if notes:
+        lines += [f.line() for f in envelope.notes]
+    return lines
