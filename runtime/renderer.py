@@ -35,7 +35,8 @@ from .geometry import GBUFFER, MeshGBuffer
 from .image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
-from .render import FullscreenPass, float_target, read_rgba, read_rgba_raw, release_target
+from .render import (FullscreenPass, check_gl_error, clear_gl_error, float_target, read_rgba, read_rgba_raw,
+                     release_target)
 from .scene import MAX_LIGHTS, NetworkSdfRef, Scene, SceneError, codegen_option_path
 
 VERTEX = "common/fullscreen.vert"
@@ -110,7 +111,9 @@ class SceneRenderer:
         self._build()
         if scene.mesh is not None:
             self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache)
+        clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
+        check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
         self.display_program = self.cache.get(VERTEX, "passes/display.frag",
                                               chunks={"display_modes": glsl_chunk()})
         self._display_pass = FullscreenPass(self.ctx, self.display_program)
@@ -124,6 +127,7 @@ class SceneRenderer:
         else:
             self._reference_tex = self.ctx.texture((1, 1), 3, np.zeros(3, "f4").tobytes(), dtype="f4")
         self._reference_tex.repeat_x = self._reference_tex.repeat_y = False
+        check_gl_error(self.ctx, f"scene '{scene.name}': reference texture")
 
     # building ---------------------------------------------------------------------------------------
     def _codegen_options(self) -> dict:

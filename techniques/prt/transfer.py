@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.files import atomic_files
 from inshade.sh import sh_basis
 
 DEGREE = 4
@@ -467,10 +468,9 @@ def save_dataset(data: dict, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = {k: v for k, v in data.items() if k not in TENSORS and k != "cached"}
-    tmp = path.with_suffix(".tmp")
-    save_file({k: data[k].contiguous() for k in TENSORS if k in data}, str(tmp),
-              metadata={"format": "inshade.transfer_data", "meta": json.dumps(meta, sort_keys=True)})
-    tmp.replace(path)
+    with atomic_files(path) as tmp:
+        save_file({k: data[k].contiguous() for k in TENSORS if k in data}, str(tmp),
+                  metadata={"format": "inshade.transfer_data", "meta": json.dumps(meta, sort_keys=True)})
     return path
 
 

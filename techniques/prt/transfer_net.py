@@ -30,8 +30,9 @@ import numpy as np
 import torch
 
 from inshade import command
-from inshade.metrics import psnr_from_mse
 from inshade.bundle import Bundle
+from inshade.files import atomic_files
+from inshade.metrics import psnr_from_mse
 from inshade.sdf import f32
 
 from inshade.models.activations import LeakyReLU
@@ -168,10 +169,9 @@ def _save_checkpoint(path: Path, net, opt, step: int, config: dict) -> None:
         if "step" in st:
             tensors[f"adam.{i}.step"] = torch.as_tensor(st["step"], dtype=torch.float32).reshape(1)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    save_file(tensors, str(tmp), metadata={"format": "inshade.transfer_checkpoint", "step": str(step),
-                                           "config": json.dumps(config, sort_keys=True)})
-    tmp.replace(path)
+    with atomic_files(path) as tmp:
+        save_file(tensors, str(tmp), metadata={"format": "inshade.transfer_checkpoint", "step": str(step),
+                                               "config": json.dumps(config, sort_keys=True)})
 
 
 def _load_checkpoint(path: Path, net, opt, config: dict) -> int:
