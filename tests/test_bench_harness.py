@@ -61,6 +61,10 @@ def test_too_few_rounds_or_a_cost_lost_in_noise_give_no_verdict():
     assert math.isinf(noisy.high) and noisy.verdict == "no difference"
     assert noisy.to_dict()["high"] is None
     json.dumps(noisy.to_dict(), allow_nan=False)   # stays valid JSON
+    # a numerator <= 0 (docs/bench/brdf.md once printed "-0.06x" speed-ups from such rounds)
+    lost = paired_ratio([0.1, -0.05, 0.1, 0.1, 0.1], [1.0, 1.0, 1.0, 1.0, 1.0])
+    assert lost.verdict == "no difference" and math.isinf(lost.low) and lost.median == 0.1
+    assert "-" not in lost.describe().replace("–", "")
 
 
 def test_interleave_alternates_the_order_and_warms_up():

@@ -212,7 +212,7 @@ class Ratio:
 
     def __post_init__(self):
         finite = [r for r in self.per_round if math.isfinite(r)]
-        self.median = statistics.median(self.per_round) if self.per_round else math.nan
+        self.median = statistics.median(finite) if finite else math.nan
         self.low = min(self.per_round) if finite == self.per_round and finite else -math.inf
         self.high = max(self.per_round) if finite == self.per_round and finite else math.inf
 
@@ -249,14 +249,12 @@ class Ratio:
 
 
 def paired_ratio(numerators: Sequence[float], denominators: Sequence[float]) -> Ratio:
-    """Ratio of paired per-round values; a denominator <= 0 (a cost lost in noise) makes that
-    round's ratio unbounded, so the interval contains 1 and the verdict is "no difference"."""
+    """Ratio of paired per-round values. A value <= 0 on either side (a cost lost in noise) leaves
+    that round's ratio undefined (NaN), so the interval is unbounded and the verdict is "no
+    difference": noise never prints as a negative speed-up."""
     if len(numerators) != len(denominators):
         raise ValueError("paired_ratio needs as many numerators as denominators")
-    out = []
-    for a, b in zip(numerators, denominators):
-        out.append(a / b if b > 0 else (math.inf if a > 0 else -math.inf))
-    return Ratio(out)
+    return Ratio([a / b if a > 0 and b > 0 else math.nan for a, b in zip(numerators, denominators)])
 
 
 def compare(baseline: Timing, candidate: Timing) -> Ratio:
