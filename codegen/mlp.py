@@ -45,6 +45,10 @@ UNROLL_MAX_BLOCKS = 4096     # inline layers beyond this loop over a const array
 # (llvmpipe) literals are 10-20x faster than UBO/texture gathers and their JIT (a few seconds
 # for 64x4, ~14k floats) is no slower than the UBO JIT, so literals go up to ~64x5; beyond
 # that the JIT grows superlinearly (128x3: over a minute) and texture loops win.
+# Cold first draws (empty Mesa shader cache, llvmpipe 2 cores) of the shipped assets keep this rule:
+# a 64x4 image net inline 6 s / ubo 16 s / texture 6 s; 64x5 nets inside ray-marched lit scenes
+# inline 49-62 s / ubo 118->300 s / texture 26-60 s with 3-7x slower frames; so the runtime says
+# "compiling ..." before such a draw rather than trading frame time for a shorter first one.
 INLINE_MAX_FLOATS = 4096
 INLINE_MAX_FLOATS_SOFTWARE = 20000
 SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")

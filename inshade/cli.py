@@ -10,6 +10,7 @@ import importlib
 import json
 import logging
 import os
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -118,12 +119,24 @@ def cmd_codegen(args) -> int:
 
     if args.output is not None:
         check_output(args.output)
-    b = bundle_mod.load(args.bundle)
+    src = _resolve(args.bundle)
+    scene, nets = _asset_networks(src)
+    prefix = args.prefix
+    if scene is None:
+        if args.network is not None:
+            raise UserError(f"{src}: --network picks a network of an asset (a folder with scene.json); "
+                            "this is a bundle")
+        bpath = src
+    else:
+        chosen = _pick_network(args.bundle, scene, nets, args.network)
+        bpath = chosen[2]
+        prefix = prefix or chosen[1]
+    b = bundle_mod.load(bpath)
     limits = {}
     if args.storage == "auto" and not args.no_gl:
         from inshade.runtime.context import gl_info, shared_context
         limits = gl_info(shared_context())
-    gen = generate(b, storage=args.storage, target=args.target, prefix=args.prefix,
+    gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
                    lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits)
     print(gen.plan.report())
     if args.output is None:
@@ -160,41 +173,189 @@ def cmd_codegen(args) -> int:
 
 
 # info -------------------------------------------------------------------------------------
+def _resolve(name_or_path) -> Path:
+    """An asset path, or a bare name looked up in trained/ and $INSHADE_ASSETS (runtime/scene.py)."""
+    from inshade.runtime.scene import resolve_asset
+
+    return resolve_asset(name_or_path)
+
+
+def _asset_networks(src: Path):
+    """(scene, [(role, prefix, bundle path)]) of an asset with a scene.json (its networks, then a
+    network SDF), or (None, []) for a bare bundle."""
+    from inshade.runtime.scene import SCENE_FILE, NetworkSdfRef, load_scene
+
+    if not ((src / SCENE_FILE).is_file() or (src.suffix == ".json" and src.name != "bundle.json")):
+        return None, []
+    scene = load_scene(src)
+    nets = [("network", n.prefix, n.bundle) for n in scene.networks]
+    if isinstance(scene.sdf, NetworkSdfRef):
+        nets.append(("network SDF", scene.sdf.prefix, scene.sdf.bundle))
+    return scene, nets
+
+
+def _pick_network(src, scene, nets, prefix):
+    prefixes = ", ".join(p for _, p, _ in nets)
+    if not nets:
+        raise UserError(f"{src}: scene '{scene.name}' uses no networks (e.g. an analytic SDF); nothing to generate")
+    if prefix is not None:
+        for net in nets:
+            if net[1] == prefix:
+                return net
+        raise UserError(f"{src}: --network {prefix}: no such network (this asset has: {prefixes})")
+    if len(nets) > 1:
+        raise UserError(f"{src}: uses {len(nets)} networks; pick one with --network PREFIX ({prefixes})")
+    return nets[0]
+
+
+def _short(value) -> str:
+    """A metrics/provenance value for the text output: scalars as they are, short lists of
+    scalars inline, other lists and tables summarised (--json has them in full)."""
+    if isinstance(value, list):
+        if len(value) <= 4 and all(isinstance(v, (int, float, str, bool)) for v in value) \
+                and len(str(value)) <= 60:
+            return str(value)
+        return f"{len(value)} values"
+    if isinstance(value, dict):
+        return f"{len(value)} entries"
+    return str(value)
+
+
+def _bundle_json(b, envelope) -> dict:
+    from inshade.envelope import format_findings
+
+    return {"meta": b.meta, "digest": b.digest(),
+            "tensors": {k: [str(v.dtype), list(v.shape)] for k, v in sorted(b.tensors.items())},
+            "converted": dict(sorted(b.converted.items())),
+            "envelope": format_findings(envelope)}
+
+
+def _describe_bundle(b, envelope, indent: str = "") -> None:
+    from inshade.envelope import format_findings
+
+    out = [f"{b.name}  (kind {b.kind}, format v{b.meta['version']})  sha256 {b.digest()[:16]}",
+           "inputs:  " + ", ".join(f"{p.name}[{p.dim}] ({p.semantic})" for p in b.inputs),
+           "outputs: " + ", ".join(f"{p.name}[{p.dim}] <- {p.node} ({p.semantic})" for p in b.outputs),
+           "nodes:"]
+    for n in b.nodes:
+        params = ", ".join(f"{k}={v}" for k, v in n.params.items())
+        out.append(f"  {n.id:<12} {n.type:<20} {n.in_dim:>4} -> {n.out_dim:<4} {params}")
+    total = sum(v.nbytes for v in b.tensors.values())
+    out.append(f"tensors: {len(b.tensors)}, {sum(v.size for v in b.tensors.values())} values, {total} bytes")
+    if b.converted:
+        stored = ", ".join(sorted(set(b.converted.values())))
+        out.append(f"converted: {len(b.converted)} tensors stored as {stored}, widened to float32 at load (exact): "
+                   + ", ".join(sorted(b.converted)))
+    out.append("parity envelope: " + "; ".join(format_findings(envelope, notes=False)))
+    summarised = False
+    for key in ("metrics", "provenance"):
+        if b.meta.get(key):
+            out.append(f"{key}:")
+            for k, v in sorted(b.meta[key].items()):
+                summarised |= isinstance(v, (list, dict)) and _short(v) != str(v)
+                out.append(f"  {k}: {_short(v)}")
+    if summarised:
+        out.append("(lists and tables summarised; --json has them in full)")
+    for line in out:
+        print(indent + line)
+
+
+def _setting_rows(scene) -> list[str]:
+    rows = []
+    for s in scene.settings.values():
+        if s.type == "choice":
+            values = "|".join(str(c) for c in s.choices)
+        elif s.type == "bool":
+            values = "true|false"
+        else:
+            values = f"{s.min:g}..{s.max:g}"
+        also = {"storage": "  (also --storage)", "lut_filter": "  (also --lut-filter)"}.get(s.name, "")
+        label = f"  {s.label}" if s.label and s.label != s.name else ""
+        default = json.dumps(s.default) if isinstance(s.default, bool) else s.default
+        rows.append(f"  {s.name:<14} {s.type:<6} {values:<32} default {default}{label}{also}")
+    return rows
+
+
+def _sdf_summary(sdf) -> str:
+    from collections import Counter
+
+    counts, stack = Counter(), [sdf.root]
+    while stack:
+        node = stack.pop()
+        counts[node.type] += 1
+        stack.extend(node.children)
+    parts = ", ".join(f"{t} x{n}" if n > 1 else t for t, n in sorted(counts.items()))
+    where = sdf.path.name if sdf.path is not None else "inline"
+    centre = ", ".join(f"{c:g}" for c in sdf.center)
+    return (f"analytic SDF '{sdf.name}' ({where}): {sum(counts.values())} nodes ({parts}); "
+            f"bound centre ({centre}) radius {sdf.radius:g}")
+
+
+def _scene_json(scene) -> dict:
+    from inshade.runtime.scene import NetworkSdfRef
+
+    if isinstance(scene.sdf, NetworkSdfRef):
+        sdf = {"network": str(scene.sdf.bundle), "prefix": scene.sdf.prefix}
+    elif scene.sdf is not None:
+        sdf = {"name": scene.sdf.name, "file": str(scene.sdf.path) if scene.sdf.path else None, **scene.sdf.to_dict()}
+    else:
+        sdf = None
+    settings = {s.name: {"type": s.type, "default": s.default, "min": s.min, "max": s.max,
+                         "choices": list(s.choices), "binding": s.binding, "target": s.target,
+                         "label": s.label, "exposed": s.exposed} for s in scene.settings.values()}
+    return {"name": scene.name, "title": scene.title, "path": str(scene.source), "program": scene.program,
+            "size": list(scene.size), "sdf": sdf, "mesh": str(scene.mesh.path) if scene.mesh is not None else None,
+            "settings": settings}
+
+
 def cmd_info(args) -> int:
     from inshade import bundle as bundle_mod
     from inshade.envelope import analyse, format_findings
+    from inshade.runtime.scene import NetworkSdfRef
 
-    b = bundle_mod.load(args.bundle)
-    envelope = analyse(b)
-    for line in format_findings(envelope, notes=False):   # warnings only; the full list: --json
-        if line.startswith("warning:"):
-            log.warning("%s: %s", b.path or b.name, line)
+    src = _resolve(args.bundle)
+    scene, nets = _asset_networks(src)
+    if scene is None:
+        nets = [(None, None, src)]
+    loaded = []
+    for role, prefix, path in nets:
+        b = bundle_mod.load(path)
+        envelope = analyse(b)
+        for line in format_findings(envelope, notes=False):   # warnings only; the full list: --json
+            if line.startswith("warning:"):
+                log.warning("%s: %s", b.path or b.name, line)
+        loaded.append((role, prefix, b, envelope))
+    if scene is None:
+        _, _, b, envelope = loaded[0]
+        if args.json:
+            print(json.dumps(_bundle_json(b, envelope), indent=2, sort_keys=True))
+        else:
+            _describe_bundle(b, envelope)
+        return 0
     if args.json:
-        print(json.dumps({"meta": b.meta, "digest": b.digest(),
-                          "tensors": {k: [str(v.dtype), list(v.shape)] for k, v in sorted(b.tensors.items())},
-                          "converted": dict(sorted(b.converted.items())),
-                          "envelope": format_findings(envelope)},
+        print(json.dumps({"scene": _scene_json(scene),
+                          "bundles": [{"role": role, "prefix": prefix, "path": str(b.path), **_bundle_json(b, env)}
+                                      for role, prefix, b, env in loaded]},
                          indent=2, sort_keys=True))
         return 0
-    print(f"{b.name}  (kind {b.kind}, format v{b.meta['version']})  sha256 {b.digest()[:16]}")
-    print("inputs:  " + ", ".join(f"{p.name}[{p.dim}] ({p.semantic})" for p in b.inputs))
-    print("outputs: " + ", ".join(f"{p.name}[{p.dim}] <- {p.node} ({p.semantic})" for p in b.outputs))
-    print("nodes:")
-    for n in b.nodes:
-        params = ", ".join(f"{k}={v}" for k, v in n.params.items())
-        print(f"  {n.id:<12} {n.type:<20} {n.in_dim:>4} -> {n.out_dim:<4} {params}")
-    total = sum(v.nbytes for v in b.tensors.values())
-    print(f"tensors: {len(b.tensors)}, {sum(v.size for v in b.tensors.values())} values, {total} bytes")
-    if b.converted:
-        stored = ", ".join(sorted(set(b.converted.values())))
-        print(f"converted: {len(b.converted)} tensors stored as {stored}, widened to float32 at load (exact): "
-              + ", ".join(sorted(b.converted)))
-    print("parity envelope: " + "; ".join(format_findings(envelope, notes=False)))
-    for key in ("metrics", "provenance"):
-        if b.meta.get(key):
-            print(f"{key}:")
-            for k, v in sorted(b.meta[key].items()):
-                print(f"  {k}: {v}")
+    print(f"{scene.name}: {scene.title}" if scene.title and scene.title != scene.name else scene.name)
+    print(f"scene:    {scene.source}")
+    print(f"program:  {scene.program}, {scene.size[0]}x{scene.size[1]}")
+    if isinstance(scene.sdf, NetworkSdfRef):
+        print(f"geometry: network SDF {scene.sdf.bundle.name} (prefix {scene.sdf.prefix}), described below")
+    elif scene.sdf is not None:
+        print(f"geometry: {_sdf_summary(scene.sdf)}")
+    elif scene.mesh is not None:
+        print(f"geometry: mesh {scene.mesh.name}")
+    if not loaded:
+        print("networks: none (nothing trained here; `inshade codegen` has nothing to generate)")
+    print(f"settings (`inshade render {scene.name} --set NAME=VALUE`):")
+    for row in _setting_rows(scene):
+        print(row)
+    for role, prefix, b, envelope in loaded:
+        print()
+        print(f"== {role} (prefix {prefix}): {b.path}")
+        _describe_bundle(b, envelope, indent="  ")
     return 0
 
 
@@ -222,14 +383,14 @@ def cmd_render(args) -> int:
     else:
         if args.bundle is None or args.output is None:
             raise UserError("render: needs an ASSET and -o IMAGE (or --from SIDECAR)")
-        src = Path(args.bundle)
+        src = _resolve(args.bundle)
         settings = _settings(args)
         if (src / "scene.json").is_file() or src.suffix == ".json" and src.name != "bundle.json":
             image, info = render_scene(src, width=args.width, height=args.height, settings=settings)
         else:
             if set(settings) - {"storage", "lut_filter"}:
                 raise UserError("render: --set needs a scene (scene.json); a bare bundle has no settings")
-            image, info = render_bundle(args.bundle, width=args.width, height=args.height,
+            image, info = render_bundle(src, width=args.width, height=args.height,
                                         storage=settings.get("storage", "auto"),
                                         lut_filter=settings.get("lut_filter", "exact"))
         paths = _save(save_render, image, info, args.output)
@@ -276,7 +437,7 @@ def cmd_view(args) -> int:
     size = (args.width, args.height)
     settings = {"storage": args.storage} if args.storage else None
     try:
-        app = ViewerApp(args.asset, size=size, settings=settings, trained_root=args.trained)
+        app = ViewerApp(_resolve(args.asset) if args.asset is not None else None, size=size, settings=settings, trained_root=args.trained)
     except NoDisplayError as e:
         raise UserError(str(e)) from None
     if args.frames:
@@ -333,34 +494,48 @@ def _run_module(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from inshade.codegen import FILTERS, STORAGE_MODES, TARGETS
 
-    ap = ArgumentParser(prog="inshade", description="Run PyTorch-trained networks in OpenGL shaders.")
+    ap = ArgumentParser(prog="inshade", description="Run PyTorch-trained networks in OpenGL shaders. "
+                        "An ASSET is a folder (scene.json and/or a bundle) or the name of a shipped one "
+                        f"(looked up in $INSHADE_ASSETS, then trained/), e.g. `inshade render prt_creature -o x.png`.")
     ap.add_argument("-q", "--quiet", action="store_true", help="only errors on stderr")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     p = sub.add_parser("codegen", help="bundle -> GLSL (prints the plan report)",
                        description="Generate the GLSL function of a bundle; prints the plan report. With -o, "
                                    "writes the flattened GLSL, a .json manifest and the resources "
-                                   "(.resources.safetensors) the code binds.")
-    p.add_argument("bundle", help="bundle folder (bundle.json + weights.safetensors)")
+                                   "(.resources.safetensors) the code binds. Given an asset, generates the "
+                                   "network its scene.json names; an asset with several networks (e.g. a PRT "
+                                   "transfer network over a network SDF) needs --network PREFIX to pick one.")
+    p.add_argument("bundle",
+                   help="bundle folder (bundle.json + weights.safetensors), or an asset folder / shipped asset name")
+    p.add_argument("--network", metavar="PREFIX",
+                   help="the asset's network to generate, by its prefix (needed when it has several)")
     p.add_argument("-o", "--output", help="GLSL file to write")
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
     p.add_argument("--target", choices=TARGETS, default="330", help="GLSL target")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")
-    p.add_argument("--prefix", default="net", help="name prefix of the generated symbols")
+    p.add_argument("--prefix", help="name prefix of the generated symbols (default: the network's prefix in "
+                                    "the asset's scene.json, else net)")
     p.add_argument("--no-gl", action="store_true", help="'auto' uses default limits instead of a live context")
     p.set_defaults(func=cmd_codegen)
 
-    p = sub.add_parser("info", help="describe a bundle", description="Validate and describe a bundle.")
-    p.add_argument("bundle")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p = sub.add_parser("info", help="describe a bundle or an asset",
+                       description="Validate and describe a bundle, or an asset: its scene, the --set settings "
+                                   "it takes (types, ranges, defaults) and every bundle it uses. Long training "
+                                   "histories are summarised; --json has everything.")
+    p.add_argument("bundle",
+                   help="bundle folder, asset folder (scene.json), scene.json or shipped asset name")
+    p.add_argument("--json", action="store_true", help="machine-readable output (everything)")
     p.set_defaults(func=cmd_info)
 
     p = sub.add_parser("render", help="render a bundle headless to PNG/EXR + JSON sidecar",
-                       description="Render a bundle headless (EGL). .png is tonemapped sRGB, .exr linear; "
+                       description="Render an asset headless (EGL). .png: exposure applied, then sRGB-encoded 8-bit, no tonemap "
+                                   "operator (values above 1 clip); .exr: linear float32, exposure-scaled; "
                                    "a JSON sidecar records the settings, bundle digest and GL renderer.")
     p.add_argument("bundle", nargs="?", metavar="ASSET",
-                   help="asset folder (scene.json, or a bundle with a 'render' field), scene.json or bundle")
+                   help="asset folder (scene.json, or a bundle with a 'render' field), scene.json, bundle, "
+                        "or the name of a shipped asset (e.g. prt_creature); `inshade info ASSET` lists its settings")
     p.add_argument("-o", "--output", help="image path (.png or .exr); with --from defaults to <shot>.from.png")
     p.add_argument("--from", dest="from_", metavar="SIDECAR",
                    help="re-render exactly what a screenshot's JSON sidecar (shot.png.json) describes")
@@ -377,7 +552,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "scene picker listing trained/. Needs a display: on a headless machine use "
                                    "xvfb-run. Keys: 1-5 display modes, T neural/reference, F frame, Home reset, "
                                    "F12 screenshot, Esc quit.")
-    p.add_argument("asset", nargs="?", help="default: the first scene in trained/")
+    p.add_argument("asset", nargs="?", help="asset folder or shipped asset name (default: the first scene in trained/)")
     p.add_argument("--width", type=_size, default=1280)
     p.add_argument("--height", type=_size, default=800)
     p.add_argument("--storage", choices=STORAGE_MODES, help="override the scene's weight storage")
@@ -400,10 +575,34 @@ def build_parser() -> argparse.ArgumentParser:
 
     _mount(sub, "bench", benches(), "benchmarks (write JSON + markdown + plot)")
     _mount(sub, "train", trainers(), "build trained/ assets")
+    for name, p in sub.choices.items():   # -q also after the command (`inshade render x -q ...`);
+        if name not in ("bench", "train", *ALIASES):   # SUPPRESS keeps a -q given before it
+            p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                           help="only errors on stderr")
     return ap
 
 
 def main(argv=None) -> int:
+    """Run a command; Ctrl+C ends it quietly with status 130, a closed output pipe (`| head`)
+    with status 141, neither with a traceback."""
+    try:
+        try:
+            return _main(argv)
+        finally:
+            if sys.stdout is not None:
+                sys.stdout.flush()   # a closed pipe shows here, where it is handled below
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        # Python's recipe: point stdout at devnull so the flush at exit does not fail again
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):   # a stdout without a file descriptor
+            pass
+        return 141
+
+
+def _main(argv) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = build_parser()
     # `inshade bench mlp ...` / `inshade train X ...`: the module parses its own options
@@ -420,16 +619,40 @@ def main(argv=None) -> int:
         args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="inshade: %(message)s", stream=sys.stderr)
+    logging.getLogger("OpenGL").setLevel(logging.WARNING)   # no "No OpenGL_accelerate module loaded"
     try:
         return int(args.func(args) or 0)
     except _user_errors() as e:
         print(f"inshade: error: {_one_line(str(e))}", file=sys.stderr)
         return 2
+    except BrokenPipeError:   # stdout closed (`| head`): main() ends quietly
+        raise
     except OSError as e:   # an input that cannot be read (permissions, a folder for a file, ...)
         where = f"{e.filename}: " if e.filename else ""
         print(f"inshade: error: {where}{_one_line(str(e.strerror or e))}", file=sys.stderr)
         return 2
 
 
-if __name__ == "__main__":
+def _interrupted(signum, frame) -> None:
+    """Ctrl+C in the `inshade` executable: remove unfinished outputs and leave at once, status 130.
+    Unwinding instead would release GL objects while the driver's threads may still be drawing
+    them, which crashes llvmpipe now and then (SIGSEGV)."""
+    from inshade.files import remove_temporaries
+
+    remove_temporaries()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):
+            pass
+    os._exit(130)
+
+
+def entry() -> None:
+    """The `inshade` executable (``main`` in-process still turns Ctrl+C into status 130)."""
+    signal.signal(signal.SIGINT, _interrupted)
     sys.exit(main())
+
+
+if __name__ == "__main__":
+    entry()

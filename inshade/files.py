@@ -17,6 +17,17 @@ from contextlib import contextmanager
 from pathlib import Path
 
 
+_LIVE: set[Path] = set()   # temporaries not yet renamed or removed (see remove_temporaries)
+
+
+def remove_temporaries() -> None:
+    """Remove every temporary an unfinished ``atomic_files`` block holds (for an exit that
+    skips unwinding, e.g. the CLI's Ctrl+C handler)."""
+    for tmp in list(_LIVE):
+        tmp.unlink(missing_ok=True)
+        _LIVE.discard(tmp)
+
+
 @contextmanager
 def atomic_files(*paths):
     """Yield one temporary path per target (the folders are created); on success each is moved
@@ -29,6 +40,7 @@ def atomic_files(*paths):
             fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=target.suffix, dir=target.parent)
             os.close(fd)
             temps.append(Path(tmp))
+            _LIVE.add(Path(tmp))
         yield temps if len(temps) != 1 else temps[0]
         for tmp, target in zip(temps, targets):
             os.replace(tmp, target)
@@ -36,6 +48,8 @@ def atomic_files(*paths):
         for tmp in temps:
             tmp.unlink(missing_ok=True)
         raise
+    finally:
+        _LIVE.difference_update(temps)
 
 
 def atomic_write(path, data: str | bytes) -> Path:

@@ -5,7 +5,7 @@ A description file::
 
     {"format": "inshade.sdf", "version": 1,
      "bound": {"center": [0, 0, 0], "radius": 2.0},          # sphere tracing only inside it
-     "trace": {"max_steps": 96, "step_scale": 0.9, "hit_eps": 1e-3, "normal_eps": 1e-3},
+     "trace": {"max_steps": 256, "step_scale": 0.9, "hit_eps": 1e-3, "normal_eps": 1e-3},
      "root": NODE}
 
 Nodes (``type`` picks one; every node may carry ``"albedo": [r, g, b]`` in [0, 1], linear: the
@@ -30,7 +30,11 @@ colour of its subtree's leaves unless a deeper node sets its own; with none at a
   centred on +x): angle = atan(z, x), folded into [-pi/count, pi/count).
 
 Exactness: repetition and smooth booleans give a bound, not an exact distance; sphere tracing
-steps with ``step_scale`` < 1 and stops within the ``bound`` sphere and ``max_steps``.
+steps with ``step_scale`` < 1 and stops within the ``bound`` sphere and ``max_steps``. A ray that
+grazes an edge or approaches a surface at a shallow angle crawls (each step shrinks by about
+``step_scale * sin(angle)``): such rays need up to ~180 steps in the shipped scenes at 512 px, and
+one that runs out of steps is a miss, i.e. a sky-coloured hole in a surface (tests/test_sdf_leaks.py).
+Hence the default of 256; only the crawling rays pay for it.
 
 Every problem is one ``SdfError`` naming the file and the field (``root.children[1].radius``).
 """
@@ -47,7 +51,7 @@ DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
 PRIMITIVES = ("sphere", "box", "round_box", "capsule", "torus", "cylinder", "plane")
 BOOLEANS = ("union", "subtract", "intersect")
 NODE_TYPES = PRIMITIVES + BOOLEANS + ("transform", "repeat", "repeat_polar")
-TRACE_DEFAULTS = {"max_steps": 96, "step_scale": 0.9, "hit_eps": 1e-3, "normal_eps": 1e-3}
+TRACE_DEFAULTS = {"max_steps": 256, "step_scale": 0.9, "hit_eps": 1e-3, "normal_eps": 1e-3}
 _FIELDS = {
     "sphere": {"radius"}, "box": {"size"}, "round_box": {"size", "radius"},
     "capsule": {"a", "b", "radius"}, "torus": {"major", "minor"}, "cylinder": {"radius", "height"},

@@ -32,7 +32,6 @@ Pieces, each a table where there is a choice (no if-chains):
 from __future__ import annotations
 
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Iterable
@@ -477,11 +476,11 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
     (loss, PSNR) each history record holds, in place of `eval_set`.
 
     Deterministic for a seed: global torch RNG is seeded (and restored afterwards); samplers
-    should carry their own seeded generator, as `image_sampler` does. Progress bar on stderr
-    only when it is a TTY (or `progress=True`). Evaluates every `eval_every` steps (default
-    steps / 20) and at the end; returns the History.
+    should carry their own seeded generator, as `image_sampler` does. Progress on stderr: a bar
+    on a TTY, a line every ~30 s off it (`progress=False`: silent). Evaluates every `eval_every`
+    steps (default steps / 20) and at the end; returns the History.
     """
-    from tqdm import tqdm
+    from inshade.progress import progress as progress_bar
 
     if schedule not in SCHEDULES:
         raise ValueError(f"unknown schedule {schedule!r}; known: {', '.join(SCHEDULES)}")
@@ -495,7 +494,6 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
     loss_fn = LOSSES[loss]
     prim = primaries if primaries is not None else primary_nodes(cascade)
     eval_every = eval_every or max(1, steps // 20)
-    progress = sys.stderr.isatty() if progress is None else progress
     history = History()
     batches = iter(sampler)
 
@@ -523,7 +521,7 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
         evaluate(0, None, first, start)
         pending = first
         acc, count = 0.0, 0
-        bar = tqdm(range(1, steps + 1), desc=desc, disable=not progress, leave=False)
+        bar = progress_bar(range(1, steps + 1), desc=desc, enabled=progress)
         for step in bar:
             if finish is not None and step == finish[0] + 1:
                 batches, loss_fn, pending = iter(finish[1]), LOSSES[finish[2]], None

@@ -183,8 +183,9 @@ def render_from_sidecar(sidecar, *, ctx=None, cache: ProgramCache | None = None)
 def save_render(image: np.ndarray, info: dict, out_path, *, exposure: float = 1.0,
                 tonemap: str = "none") -> tuple[Path, Path]:
     """Write ``image`` (linear, image orientation) by suffix: ``.png`` = exposure, tonemap, sRGB,
-    8-bit; ``.exr`` = linear float32. A sidecar ``<out_path>.json`` records ``info``.
-    Returns ``(image_path, sidecar_path)``."""
+    8-bit, with the scene's labels drawn over it (runtime/labels.py; the built-in setting ``labels``
+    turns them off); ``.exr`` = linear float32, never labelled. A sidecar ``<out_path>.json``
+    records ``info``. Returns ``(image_path, sidecar_path)``."""
     out_path = Path(out_path)
     suffix = out_path.suffix.lower()
     if suffix not in IMAGE_SUFFIXES:
@@ -199,7 +200,23 @@ def save_render(image: np.ndarray, info: dict, out_path, *, exposure: float = 1.
     with atomic_files(out_path, side) as (image_tmp, side_tmp):   # both appear, or neither
         if suffix == ".png":
             write_png(image_tmp, image, exposure=exposure, tonemap=tonemap)
+            _draw_labels(image_tmp, info)
         else:
             write_exr(image_tmp, image)
         side_tmp.write_text(text)
     return out_path, side
+
+
+def _draw_labels(png_path, info: dict) -> None:
+    """The scene's labels (scene.json ``"labels"``, for the recorded settings and mode) over the 8-bit
+    PNG only: the float image and the EXR stay as rendered."""
+    from .labels import draw_on_png, labels_for_info
+
+    labels = labels_for_info(info)
+    if not labels:
+        return
+    try:
+        camera = camera_from_dict(info["view"]["camera"])
+    except Exception:   # noqa: BLE001 - no camera recorded: labels in image space
+        camera = None
+    draw_on_png(png_path, labels, camera)

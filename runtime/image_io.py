@@ -1,4 +1,5 @@
-"""Writing renders: PNG for eyes (tonemap + sRGB, 8-bit), EXR for numbers (linear float32).
+"""Writing renders: PNG for eyes (exposure, then sRGB-encoded 8-bit; no tonemap operator unless
+``tonemap="reinhard"`` is asked for: values above 1 clip), EXR for numbers (linear float32).
 
 Arrays are image-oriented ([H, W, C], row 0 = top), as returned by ``render.read_rgba``.
 Each output can get a JSON sidecar saying how it was made. Every file is written atomically
@@ -28,7 +29,9 @@ def srgb_oetf(linear: np.ndarray) -> np.ndarray:
 
 
 def write_png(path: str | Path, linear_rgb: np.ndarray, exposure: float = 1.0, tonemap: str = "none") -> Path:
-    """Write linear ``[H, W, 3|4]`` as an 8-bit sRGB PNG: scale by exposure, tonemap, clip, encode.
+    """Write linear ``[H, W, 3|4]`` as an 8-bit sRGB PNG: scale by exposure, apply ``tonemap``
+    (``"none"``, the default: no operator, values above 1 clip; ``"reinhard"``: x / (1 + x)),
+    clip to [0, 1], sRGB-encode.
 
     Alpha (if present) is written linearly, without exposure or tonemap.
     """

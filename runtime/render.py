@@ -119,7 +119,10 @@ def float_target(ctx: moderngl.Context, width: int, height: int, attachments: in
     # the attachments are checked; moderngl checks the framebuffer's completeness itself (and its
     # creation leaves a benign GL_INVALID_OPERATION on Mesa with several attachments)
     check_gl_error(ctx, f"float target {width}x{height}: {attachments} RGBA32F attachment(s)")
-    return ctx.framebuffer(color_attachments=colours, depth_attachment=depth_attachment)
+    fbo = ctx.framebuffer(color_attachments=colours, depth_attachment=depth_attachment)
+    if attachments > 1:
+        ctx.error   # consume Mesa's benign GL_INVALID_OPERATION so it is not blamed on a later resource
+    return fbo
 
 
 def release_target(fbo: moderngl.Framebuffer) -> None:

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -40,6 +42,7 @@ from .render import (FullscreenPass, check_gl_error, clear_gl_error, float_targe
 from .scene import MAX_LIGHTS, NetworkSdfRef, Scene, SceneError, codegen_option_path
 
 VERTEX = "common/fullscreen.vert"
+log = logging.getLogger("inshade")
 
 
 class CapabilityError(GLContextError):
@@ -331,12 +334,18 @@ class SceneRenderer:
                         tex.use(location=unit)
                         self.program[name].value = unit
                         unit += 1
+            announce = self.first_draw_pending and self.gl.get("software") and first_draw_message(
+                self.generated, self.gl.get("renderer", ""))
+            if announce:   # software renderers JIT here: say so before a silent wait (once per program)
+                log.info("%s", announce)
             start = time.perf_counter()
             self._net_pass.render(fbo, uniforms=uniforms)
             if self.first_draw_pending:
                 self.ctx.finish()
                 self.first_draw_seconds = time.perf_counter() - start
                 self.first_draw_pending = False
+                if announce and sys.stderr.isatty():
+                    log.info("... compiled in %.1f s", self.first_draw_seconds)
             self._net_key = key
         return fbo
 
@@ -468,6 +477,26 @@ class SceneRenderer:
                 if p is not None and not any(p is k for k in keep):
                     self.cache.discard(p)
         self.program = None
+
+
+def first_draw_message(generated, renderer: str = "") -> str | None:
+    """What a software renderer's first draw of these networks is about to do, from their plans:
+    "compiling 64x4 inline network (llvmpipe JIT, first run only; cached afterwards)", WIDTHxLAYERS
+    = widest dense layer x dense layers. None when no network has a dense layer."""
+    nets = []
+    for g in generated:
+        plan = getattr(g, "plan", None)
+        dense = [r for r in (plan.rows if plan is not None else []) if r.type == "dense"]
+        if not dense:
+            continue
+        dims = [int(d) for r in dense for d in str(r.shape).split("->")[-1:]]
+        storage = "+".join(sorted({r.storage for r in dense}))
+        nets.append(f"{max(dims)}x{len(dense)} {storage}")
+    if not nets:
+        return None
+    what = f"{nets[0]} network" if len(nets) == 1 else f"networks {', '.join(nets)}"
+    name = str(renderer).split(" ")[0] or "software renderer"
+    return f"compiling {what} ({name} JIT, first run only; cached afterwards)"
 
 
 def _rotated_map_sh(coeffs: np.ndarray, rotation_deg: float) -> np.ndarray:

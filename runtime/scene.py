@@ -57,6 +57,7 @@ from inshade.shaders import find_chunk
 
 from .camera import CameraError, camera_from_dict
 from .display import UI_MODES, DisplayMode, parse_mode
+from .labels import parse_labels
 
 SCENE_FILE = "scene.json"
 BUNDLE_FILE = "bundle.json"
@@ -83,6 +84,8 @@ BUILTIN_SETTINGS = {
                 "label": "weight storage"},
     "lut_filter": {"type": "choice", "default": "exact", "choices": list(FILTERS), "codegen": "lut_filter",
                    "label": "LUT filtering"},
+    # scene labels (runtime/labels.py): drawn over the window and the PNG, never in the float image
+    "labels": {"type": "bool", "default": True, "frame": "labels", "label": "labels"},
 }
 
 
@@ -111,6 +114,8 @@ class Setting:
                 raise SceneError(f"{w}: {value!r} is not one of {list(self.choices)}")
             return value
         if self.type == "bool":
+            if not isinstance(value, bool) and type(value) is int and value in (0, 1):
+                value = bool(value)      # --set labels=0 (the command line parses JSON)
             if not isinstance(value, bool):
                 raise SceneError(f"{w}: must be true or false, got {value!r}")
             return value
@@ -216,6 +221,7 @@ class Scene:
     textures: list = field(default_factory=list)   # SceneTexture: plain images the program samples
     environment_map: object = None  # radiance SH [K, 3] (float64) of environment.map, before rotation
     mesh: object = None       # MeshRef for triangle-mesh scenes ("mesh": "mesh.ply"), else None
+    labels: tuple = ()        # runtime/labels.py Label: overlay texts/lines (window and PNG only)
 
     @property
     def lit(self) -> bool:
@@ -343,10 +349,47 @@ def list_scenes(root) -> list[Path]:
     return sorted(p for p in root.iterdir() if p.is_dir() and ((p / SCENE_FILE).is_file() or (p / BUNDLE_FILE).is_file()))
 
 
+ASSETS_ENV = "INSHADE_ASSETS"   # extra folders of assets, os.pathsep-separated, searched before trained/
+
+
+def asset_roots() -> list[Path]:
+    """Folders a bare asset name is looked up in: each folder of $INSHADE_ASSETS, then the shipped
+    ``trained/`` (beside the package, in this editable layout)."""
+    import os
+
+    import inshade
+
+    roots = [Path(p).expanduser() for p in os.environ.get(ASSETS_ENV, "").split(os.pathsep) if p]
+    roots.append(Path(inshade.__file__).resolve().parents[1] / "trained")
+    return roots
+
+
+def resolve_asset(name_or_path) -> Path:
+    """The path of an asset given as a path (used as is when it exists) or as a bare name such as
+    ``prt_creature`` (looked up in ``asset_roots()``). A path that does not exist is a SceneError
+    saying so, with the closest asset names."""
+    import difflib
+
+    path = Path(name_or_path)
+    if path.exists():
+        return path
+    text = str(name_or_path)
+    bare = bool(text) and path.name == text and text not in (".", "..")
+    if bare:
+        for root in asset_roots():
+            if (root / text).exists():
+                return root / text
+    names = sorted({p.name for root in asset_roots() for p in list_scenes(root)})
+    close = difflib.get_close_matches(path.name, names, n=3, cutoff=0.6)
+    hint = f" (did you mean {', '.join(close)}?)" if close else \
+        (f" (no such path, nor an asset in {', '.join(str(r) for r in asset_roots())})" if bare else "")
+    raise SceneError(f"{text}: does not exist{hint}")
+
+
 # parsing ---------------------------------------------------------------------------------------------
 _KEYS = {"format", "version", "name", "title", "program", "size", "networks", "reference", "camera",
          "bookmarks", "lights", "environment", "display", "settings", "requires", "notes", "sdf",
-         "mesh", "textures"}
+         "mesh", "textures", "labels"}
 TEXTURE_KEYS = {"uniform", "image", "mipmaps", "anisotropy", "repeat"}
 
 
@@ -484,12 +527,16 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     if sdf is not None or mesh is not None:
         _check_sky_settings(settings, environment_map is not None)
     textures = _textures(data.get("textures", []), root)
+    try:
+        labels = parse_labels(data.get("labels"), settings, [m.label for m in UI_MODES])
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
     title = data.get("title", name)
     scene = Scene(textures=textures, name=name, root=root, path=path, program=program, size=tuple(size), networks=refs,
                   camera=camera, reference=reference, title=str(title), bookmarks=bookmarks, lights=lights,
                   environment=environment, display_mode=mode, display_modes=modes, split=float(split),
                   settings=settings, requires=requires, sdf=sdf, environment_map=environment_map,
-                  mesh=mesh)
+                  mesh=mesh, labels=labels)
     if spec.validate is not None:
         try:
             spec.validate(scene)

@@ -2,8 +2,13 @@
 from __future__ import annotations
 
 import json
+import os
+import re
+import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +19,7 @@ from inshade.cli import main
 from inshade.models import mlp_graph
 from inshade.models.encodings import Frequency
 
+REPO = Path(__file__).resolve().parents[1]
 COMMANDS = [[], ["codegen"], ["info"], ["render"], ["doctor"], ["bench"], ["train"],
             ["bench", "mlp"], ["train", "neural_image"]]
 
@@ -98,7 +104,134 @@ def test_malformed_bundle_is_one_clear_error(demo_bundle, tmp_path, how, field, 
 
 def test_missing_bundle_folder(tmp_path, capsys):
     assert main(["info", str(tmp_path / "nope")]) == 2
-    assert "not a bundle folder" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "does not exist" in err and "not a bundle folder" not in err
+
+
+# assets by name, info/codegen on asset folders ------------------------------------------------
+def test_asset_by_name_from_anywhere(tmp_path, monkeypatch, capsys):
+    from inshade.runtime.scene import resolve_asset
+    monkeypatch.chdir(tmp_path)
+    assert resolve_asset("prt_creature") == REPO / "trained" / "prt_creature"
+    assert main(["-q", "render", "sdf_creature", "--width", "8", "--height", "8", "-o", "x.png"]) == 0
+    assert (tmp_path / "x.png").is_file()
+    capsys.readouterr()
+    assert main(["info", "prt_creatur"]) == 2
+    err = capsys.readouterr().err
+    assert "prt_creatur: does not exist" in err and "prt_creature" in err
+
+
+def test_assets_env_folders(tmp_path, monkeypatch, demo_bundle, capsys):
+    from inshade.runtime.scene import resolve_asset
+    monkeypatch.chdir(tmp_path / "demo")   # a bare name that is not a path here
+    monkeypatch.setenv("INSHADE_ASSETS", f"{tmp_path / 'none'}{os.pathsep}{tmp_path}")
+    assert resolve_asset("demo") == tmp_path / "demo"
+    assert main(["info", "demo"]) == 0 and "frequency" in capsys.readouterr().out
+
+
+def test_info_prt_asset_follows_scene(capsys):
+    assert main(["-q", "info", "prt_neural_bunny"]) == 0
+    out = capsys.readouterr().out
+    assert "== network (prefix transfer)" in out and "== network SDF (prefix sdfnet)" in out
+    assert "settings (" in out and "exposure" in out and "sunset|overcast|noon|studio" in out
+    assert "default noon" in out and "-180..180" in out
+
+
+def test_info_analytic_sdf_asset_has_no_networks(capsys):
+    assert main(["-q", "info", "sdf_creature"]) == 0
+    out = capsys.readouterr().out
+    assert "networks: none" in out and "analytic SDF 'creature'" in out and "env_rotation" in out
+    assert main(["-q", "info", "sdf_creature", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["bundles"] == [] and data["scene"]["settings"]["sky"]["choices"]
+
+
+def test_info_summarises_training_history(capsys):
+    assert main(["-q", "info", "di_texture_astronaut"]) == 0
+    out = capsys.readouterr().out
+    assert "history: 31 values" in out and "--json has them in full" in out
+    assert main(["-q", "info", "di_texture_astronaut", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert len(data["bundles"][0]["meta"]["metrics"]["history"]) == 31
+
+
+def test_codegen_on_assets(tmp_path, capsys):
+    assert main(["-q", "codegen", "prt_neural_bunny", "--no-gl"]) == 2
+    err = capsys.readouterr().err
+    assert "--network PREFIX" in err and "transfer, sdfnet" in err and len(err.strip().splitlines()) == 1
+    out = tmp_path / "t.glsl"
+    assert main(["-q", "codegen", "prt_neural_bunny", "--network", "transfer", "--no-gl", "-o", str(out)]) == 0
+    assert "void transfer_eval(" in out.read_text()
+    assert main(["-q", "codegen", "prt_creature", "--no-gl"]) == 0   # one network: no --network needed
+    capsys.readouterr()
+    assert main(["-q", "codegen", "sdf_creature", "--no-gl"]) == 2
+    assert "uses no networks" in capsys.readouterr().err
+
+
+# no tracebacks: Ctrl+C, a closed pipe; -q after the command; --help defaults once ------------
+def test_ctrl_c_is_quiet(tmp_path):
+    p = subprocess.Popen([sys.executable, "-m", "inshade.cli", "render", "prt_creature", "--width", "2048",
+                          "--height", "2048", "-o", str(tmp_path / "x.png")],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    line = p.stderr.readline()   # the GL context line: the command is under way
+    assert line.startswith("inshade: "), line
+    time.sleep(0.5)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("cmd", [["train", "neural_image", "--help"], ["info", "prt_creature"]],
+                         ids=["train-help", "info"])
+def test_closed_pipe_is_quiet(cmd):
+    p = subprocess.Popen([sys.executable, "-m", "inshade.cli", *cmd], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    p.stdout.close()   # like `| head -0`: the reader is gone before anything is written
+    err = p.stderr.read().decode()
+    p.wait(timeout=120)
+    assert p.returncode in (0, 141), err
+    assert "Traceback" not in err and "BrokenPipe" not in err and "Exception ignored" not in err, err
+
+
+def test_quiet_after_the_command(demo_bundle):
+    r = subprocess.run([sys.executable, "-m", "inshade.cli", "render", "sdf_creature", "-q", "--width", "8",
+                        "--height", "8", "-o", str(demo_bundle / "x.png")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert not [ln for ln in r.stderr.splitlines() if not ln.startswith("wrote ")], r.stderr
+
+
+def test_no_opengl_accelerate_notice():
+    r = subprocess.run([sys.executable, "-c", "import sys; from inshade.cli import main; "
+                        "sys.argv[1:] = ['doctor']; import logging; main(['doctor']); import OpenGL.GL"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "OpenGL_accelerate" not in r.stderr
+
+
+def _option_helps(text: str) -> list[str]:
+    """Each option's entry of an argparse --help, joined into one line."""
+    blocks = []
+    for line in text.splitlines():
+        if line.startswith("  -"):
+            blocks.append([line])
+        elif blocks and blocks[-1] is not None and line.startswith("   "):
+            blocks[-1].append(line)
+        elif blocks:
+            blocks.append(None)
+    return [" ".join(" ".join(b).split()) for b in blocks if b]
+
+
+def test_help_shows_each_default_once(capsys):
+    from inshade.cli import benches, trainers
+    said = re.compile(r"[(;,]\s*default\b", re.I)
+    for group, table in (("train", trainers()), ("bench", benches())):
+        for name in table:
+            with pytest.raises(SystemExit):
+                main([group, name, "--help"])
+            for entry in _option_helps(capsys.readouterr().out):
+                assert len(said.findall(entry)) <= 1, f"inshade {group} {name} --help: {entry}"
 
 
 def test_doctor_reports_renderer(capsys):

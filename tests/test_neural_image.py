@@ -63,6 +63,42 @@ def test_shipped_bundle_is_small_and_described(shipped):
     assert (SHIPPED / "preview.png").is_file() and (SHIPPED / "reference.png").is_file()
 
 
+def test_shipped_asset_is_sharp_and_inside_the_envelope(shipped):
+    """The first thing a newcomer renders: >= 30 dB linear PSNR against the 8-bit reference
+    (measured on the exported, quantised bundle), built by `--preset ship`, and no parity-envelope
+    warning (`inshade info` prints none)."""
+    from inshade.envelope import analyse
+    from inshade.techniques.neural_image.train import PRESETS
+
+    m, p = shipped.meta["metrics"], shipped.meta["provenance"]
+    assert m["psnr_linear"] >= 30.0 and m["psnr_srgb"] >= 30.0
+    assert p["preset"] == "ship"
+    for key, value in PRESETS["ship"].items():
+        assert p[key] == value, key
+    assert analyse(shipped).warnings == []
+
+
+def test_presets_and_explicit_options():
+    """`--preset` fills what is not given; an explicit option wins; the old arches still build."""
+    import argparse
+
+    import torch
+
+    from inshade.techniques.neural_image.train import PRESETS, add_arguments, build, resolve
+
+    parse = add_arguments(argparse.ArgumentParser()).parse_args
+    quick = resolve(parse(["--preset", "quick"]))
+    assert quick["steps"] == PRESETS["quick"]["steps"] and quick["levels"] == PRESETS["quick"]["levels"]
+    mine = resolve(parse(["--preset", "ship", "--steps", "7", "--arch", "siren"]))
+    assert mine["steps"] == 7 and mine["arch"] == "siren" and mine["width"] == PRESETS["ship"]["width"]
+    uv = torch.rand(5, 2)
+    for arch in ("siren", "frequency_relu", "multires"):
+        g = build(arch, width=16, depth=1, levels="4:4,8:1", grid_bits=32).eval()
+        again = GraphModule.from_bundle(g.export("neural_image")).eval()
+        with torch.no_grad():
+            assert torch.allclose(g(uv), again(uv))
+
+
 def test_render_matches_torch(rendered, torch_reference):
     """(a) GL at 64x64 vs torch at the same pixel-centre uvs, linear RGB, atol 1e-5."""
     image, info = rendered

@@ -387,7 +387,7 @@ def test_hot_reload_weights_and_shaders(app, tmp_path, monkeypatch):
 
     # weights: same shapes -> re-upload, no recompile (texture storage keeps weights out of the code)
     tensors = load_file(str(asset / "weights.safetensors"))
-    tensors["l3.bias"] = tensors["l3.bias"] + np.float32(0.2)
+    tensors["l2.bias"] = tensors["l2.bias"] + np.float32(0.2)
     time.sleep(0.01)
     save_file(tensors, str(asset / "weights.safetensors"))
     assert app.check_reload(force=True) == "weights reuploaded"
@@ -443,6 +443,77 @@ def test_soak_gl_objects_stay_flat(app):
     assert end == start
     glfw.set_window_size(app.window, *SIZE)
     app.step(2)
+
+
+def test_modes_a_scene_lacks_are_refused_with_the_reason(app):
+    """Point 3 of "the first hour": on a scene without a reference, T and keys 3-5 say why in the
+    viewport instead of showing a blank checkerboard or doing nothing."""
+    import glfw
+
+    try:
+        assert app.open(ROOT / "trained" / "prt_mesh"), app.messages[-1:]
+        app.step(3)
+        assert app.mode is DisplayMode.FINAL
+        for mode in ("reference", "error", "split"):
+            assert "no reference image" in app.mode_unavailable(mode)
+        assert "not a display mode of this scene" in app.mode_unavailable("network")
+        assert app.mode_unavailable("final") is None
+        plain = _scene_pixels(app, app.read_window())
+        app._on_key(app.window, glfw.KEY_T, 0, glfw.PRESS, 0)          # the real key path
+        app._on_key(app.window, glfw.KEY_T, 0, glfw.RELEASE, 0)
+        assert app.mode is DisplayMode.FINAL and "no reference image" in app.flash_shown
+        app.step(1)                 # imgui sizes a new auto-resizing window in its first frame
+        told = _scene_pixels(app, app.read_window())                    # the message is in the viewport
+        assert np.abs(told - plain).max() > 100
+        app._on_key(app.window, glfw.KEY_4, 0, glfw.PRESS, 0)
+        app._on_key(app.window, glfw.KEY_4, 0, glfw.RELEASE, 0)
+        assert app.mode is DisplayMode.FINAL and app.flash_shown.startswith("error:")
+        assert app.set_mode("split") is False and app.mode is DisplayMode.FINAL
+        app._flash_until = 0.0                                          # a few seconds later: gone
+        assert app.flash_shown is None
+        assert np.array_equal(_scene_pixels(app, app.read_window()), plain)
+    finally:
+        assert app.open(ASSET)
+        app.step(3)
+    assert app.set_mode("split") and app.toggle_reference() and app.mode is DisplayMode.REFERENCE
+    _reset(app)
+
+
+def test_named_int_settings_are_combos_and_ranges_stay_sliders():
+    from inshade.viewer.ui import setting_widget
+
+    ggx = load_scene(ROOT / "trained" / "di_brdf_ggx").settings
+    assert setting_widget(ggx["view"]) == ("combo", "view", [(0, "analytic"), (1, "learned"),
+                                                             (2, "side by side"), (3, "diffuse baseline")])
+    assert setting_widget(ggx["model"]) == ("fixed", "model", [(1, "GGX")])
+    assert setting_widget(ggx["cols"])[0] == "fixed"
+    assert setting_widget(ggx["lights"]) == ("slider", "point lights", [])
+    assert setting_widget(ggx["exposure"]) == ("slider", "exposure", [])
+    assert setting_widget(ggx["lut_filter"]) == ("combo", "LUT filtering", [("exact", "exact"), ("fast", "fast")])
+    sampler = setting_widget(load_scene(ROOT / "trained" / "di_footprint").settings["mode"])
+    assert sampler[:2] == ("combo", "sampler") and sampler[2][1] == (1, "trilinear")
+
+
+def test_side_panel_fits_its_longest_label(app):
+    import glfw
+    from inshade.viewer.app import WIDGET_WIDTH
+
+    try:
+        assert app.open(ROOT / "trained" / "di_brdf_ggx"), app.messages[-1:]
+        glfw.set_window_size(app.window, 1280, 800)
+        app.step(4)
+        from imgui_bundle import imgui
+        assert app.label_width >= imgui.calc_text_size("LUT filtering").x
+        assert app.panel_width >= app.label_width + WIDGET_WIDTH
+        assert app.active_labels()                       # "analytic | learned" over the viewport
+        with_labels = _scene_pixels(app, app.read_window())
+        assert app.set_setting("labels", False) == "uniform"
+        without = _scene_pixels(app, app.read_window())
+        assert np.abs(with_labels - without).max() > 100
+    finally:
+        glfw.set_window_size(app.window, *SIZE)
+        assert app.open(ASSET)
+        app.step(3)
 
 
 @pytest.mark.parametrize("scene", [p.name for p in list_scenes(ROOT / "trained")])

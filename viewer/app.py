@@ -8,7 +8,8 @@ Scripting / test hook: everything the UI does is a method (``open``, ``set_mode`
 ``drag``, ``scroll``, ``go_to_bookmark``, ``screenshot``, ``check_reload``) and ``step(n)`` runs n
 frames, so a script drives the app exactly as a user would, without synthetic OS events.
 
-Keys: 1..5 display modes, T neural/reference toggle, F frame, Home reset, F12 or P screenshot,
+Keys: 1..5 display modes (final, network, reference, error, split; a mode the scene lacks says why in
+the viewport), T neural/reference toggle, F frame, Home reset, F12 or P screenshot,
 W A S D Q E move (fly) / pan, Esc quit. Mouse: see ``navigation``.
 """
 from __future__ import annotations
@@ -30,7 +31,8 @@ from inshade.shaders import search_path
 
 from . import navigation
 from inshade.runtime.context import release_shared
-from inshade.runtime.display import DisplayMode, parse_mode
+from inshade.runtime.display import UI_MODES, DisplayMode, parse_mode
+from inshade.runtime.labels import active as active_labels
 from inshade.runtime.headless import save_render
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass
@@ -40,7 +42,10 @@ from .watch import FileWatcher
 
 log = logging.getLogger("inshade")
 
-PANEL_MAX = 300           # side panel width (window units), at most 45% of the window
+PANEL_MIN = 300           # side panel width (window units): at least this, wider for long labels,
+PANEL_MAX = 520           # at most this and at most 45% of the window
+WIDGET_WIDTH = 170        # the widget column of the side panel (window units)
+FLASH_SECONDS = 3.0       # how long a viewport message (e.g. "no reference") stays
 HISTORY = 240             # frames in the timing plots
 PSNR_INTERVAL = 0.25      # seconds between live PSNR updates (only when the view changed)
 
@@ -102,6 +107,7 @@ class ViewerApp:
         self.present = FullscreenPass(self.ctx, self.present_program)
         self.timer = self.ctx.query(time=True)
         self.frame_ms: collections.deque = collections.deque(maxlen=HISTORY)
+        self.frame_t: collections.deque = collections.deque(maxlen=HISTORY)   # perf_counter per frame
         self.gpu_ms: collections.deque = collections.deque(maxlen=HISTORY)
         self.messages: list[str] = []
         self.trained_root = Path(trained_root) if trained_root is not None else default_trained_root()
@@ -112,6 +118,8 @@ class ViewerApp:
         self.mode, self.split, self.psnr = DisplayMode.FINAL, 0.5, None
         self.compiling = False
         self.frames = 0
+        self.label_width = 0.0            # widest label of the side panel (measured by ui.draw)
+        self.flash_text, self._flash_until = None, 0.0
         self._psnr_key = None
         self._psnr_time = 0.0
         self._last_frame = time.perf_counter()
@@ -174,11 +182,49 @@ class ViewerApp:
         self.renderer = None
 
     # state changes (UI and scripts) -------------------------------------------------------------
-    def set_mode(self, mode) -> None:
-        self.mode = parse_mode(mode)
+    def mode_unavailable(self, mode) -> str | None:
+        """Why this scene cannot show display ``mode`` (None: it can)."""
+        mode = parse_mode(mode)
+        if self.scene is None:
+            return "no scene is open"
+        if mode in (DisplayMode.REFERENCE, DisplayMode.ERROR, DisplayMode.SPLIT) and self.scene.reference is None:
+            return f"{mode.label}: this scene has no reference image"
+        if mode not in self.scene.display_modes:
+            shown = ", ".join(m.label for m in self.scene.display_modes)
+            return f"{mode.label}: not a display mode of this scene (it shows: {shown})"
+        return None
 
-    def toggle_reference(self) -> None:
-        self.mode = DisplayMode.REFERENCE if self.mode is not DisplayMode.REFERENCE else DisplayMode.FINAL
+    def set_mode(self, mode) -> bool:
+        """Switch the display mode; a mode the scene lacks is refused with a viewport message."""
+        mode = parse_mode(mode)
+        why = self.mode_unavailable(mode)
+        if why is not None:
+            self.flash(why)
+            return False
+        self.mode = mode
+        return True
+
+    def toggle_reference(self) -> bool:
+        if self.scene is not None and self.scene.reference is None:
+            self.flash("T: this scene has no reference image to compare with")
+            return False
+        target = DisplayMode.REFERENCE if self.mode is not DisplayMode.REFERENCE else DisplayMode.FINAL
+        return self.set_mode(target)
+
+    def flash(self, text: str, seconds: float = FLASH_SECONDS) -> None:
+        """A short message over the viewport for a few seconds."""
+        self.flash_text, self._flash_until = text, time.perf_counter() + seconds
+
+    @property
+    def flash_shown(self) -> str | None:
+        """The viewport message now on screen (None once it has timed out)."""
+        return self.flash_text if self.flash_text and time.perf_counter() < self._flash_until else None
+
+    def active_labels(self) -> list:
+        """The scene's labels (runtime/labels.py) to draw over the viewport now."""
+        if self.scene is None or self.renderer is None:
+            return []
+        return active_labels(self.scene.labels, self.renderer.values, self.mode)
 
     def set_setting(self, name: str, value) -> str:
         self._current()
@@ -222,7 +268,10 @@ class ViewerApp:
 
     @property
     def panel_width(self) -> int:
-        return int(min(PANEL_MAX, 0.45 * self.window_size[0]))
+        """Wide enough for the longest label beside a WIDGET_WIDTH widget, within PANEL_MIN..PANEL_MAX
+        and at most 45% of the window."""
+        want = max(PANEL_MIN, self.label_width + WIDGET_WIDTH + 40)
+        return int(min(PANEL_MAX, want, 0.45 * self.window_size[0]))
 
     def scene_rect_window(self) -> tuple[int, int, int, int]:
         """Scene viewport in window units: x, y (from the top), width, height."""
@@ -254,6 +303,7 @@ class ViewerApp:
         now = time.perf_counter()
         dt, self._last_frame = now - self._last_frame, now
         self.frame_ms.append(dt * 1000.0)
+        self.frame_t.append(now)
         self._current()
         glfw.poll_events()
         self.impl.process_inputs()
@@ -390,9 +440,8 @@ class ViewerApp:
             return
         self._held.add(key)
         if glfw.KEY_1 <= key <= glfw.KEY_9 and self.scene is not None:
-            modes = self.scene.display_modes
-            if key - glfw.KEY_1 < len(modes):
-                self.set_mode(modes[key - glfw.KEY_1])
+            if key - glfw.KEY_1 < len(UI_MODES):   # 1 final, 2 network, 3 reference, 4 error, 5 split
+                self.set_mode(UI_MODES[key - glfw.KEY_1])
         elif key == glfw.KEY_T:
             self.toggle_reference()
         elif key == glfw.KEY_F and self.camera is not None:

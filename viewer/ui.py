@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 from imgui_bundle import ImVec2, ImVec4, imgui, implot
 
-from inshade.runtime.display import DisplayMode
+from inshade.runtime.display import UI_MODES, DisplayMode
+from inshade.runtime.labels import layout as label_layout
 
 RED = ImVec4(1.0, 0.35, 0.3, 1.0)
 YELLOW = ImVec4(1.0, 0.85, 0.3, 1.0)
@@ -17,10 +19,13 @@ GREY = ImVec4(0.65, 0.65, 0.65, 1.0)
 def draw(app) -> None:
     """The side panel (fixed at the left, ``app.panel_width`` wide) and overlays."""
     width, height = app.window_size
+    app.label_width = _label_width(app)
     imgui.set_next_window_pos(ImVec2(0, 0))
     imgui.set_next_window_size(ImVec2(app.panel_width, height))
     flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
     imgui.begin("inshade", None, flags)
+    # widgets fill what the longest label leaves (labels are never cut while the panel can grow)
+    imgui.push_item_width(-max(app.label_width, 1.0) - imgui.get_style().item_inner_spacing.x)
     _messages(app)
     _scene(app)
     if app.renderer is not None:
@@ -29,9 +34,94 @@ def draw(app) -> None:
         _compare(app)
         _performance(app)
         _plan(app)
+    imgui.pop_item_width()
     imgui.end()
+    if app.renderer is not None and not app.compiling:
+        _labels(app)
     if app.compiling:
         _overlay(app, "compiling the network program...\n(llvmpipe JIT-compiles at the first draw)")
+    elif app.flash_shown:
+        _overlay(app, app.flash_shown, name="##flash", colour=YELLOW)
+
+
+# settings whose label lists named values, e.g. "1 GGX, 2 Disney" or "sampler: 0 di, 1 trilinear"
+_NAMED = re.compile(r"^(?:(?P<title>[^:,]+):\s*)?(?P<items>-?\d+\s+[^,]+(?:,\s*-?\d+\s+[^,]+)+)$")
+
+
+def named_values(setting) -> tuple[str, dict] | None:
+    """``(title, {value: name})`` when a setting's label lists names for its numbers, else None."""
+    m = _NAMED.match((setting.label or "").strip())
+    if not m:
+        return None
+    names = {}
+    for item in m.group("items").split(","):
+        number, name = item.strip().split(None, 1)
+        names[int(number)] = name.strip()
+    return (m.group("title") or setting.name).strip(), names
+
+
+def setting_widget(setting) -> tuple[str, str, list]:
+    """How the panel shows a setting: ``(kind, label, values)``. kind: ``combo`` (values: (value,
+    shown name) pairs), ``slider``, ``checkbox`` or ``fixed`` (one possible value: plain text).
+    An int or choice setting whose label names its values (``"1 GGX, 2 Disney"``) is a combo of
+    those names; an int setting without names keeps its slider (a true range)."""
+    label = setting.label or setting.name
+    named = named_values(setting) if setting.type in ("int", "choice") else None
+    if setting.type == "int":
+        values = list(range(int(setting.min), int(setting.max) + 1))
+    elif setting.type == "choice":
+        values = list(setting.choices)
+    else:
+        values = []
+    if setting.type == "bool":
+        return "checkbox", label, []
+    if setting.type == "float":
+        return ("fixed" if setting.min == setting.max else "slider"), label, []
+    if named is not None and all(isinstance(v, int) and v in named[1] for v in values):
+        title, names = named
+        pairs = [(v, names[v]) for v in values]
+        return ("fixed" if len(pairs) == 1 else "combo"), title, pairs
+    if setting.type == "choice":
+        pairs = [(v, str(v)) for v in values]
+        return ("fixed" if len(pairs) == 1 else "combo"), label, pairs
+    if len(values) == 1:
+        return "fixed", label, [(values[0], str(values[0]))]
+    return "slider", label, []
+
+
+def _label_width(app) -> float:
+    """Width of the longest label of the side panel's widgets (window units)."""
+    labels = ["display", "scene", "split", "labels"]
+    if app.scene is not None:
+        labels += [setting_widget(s)[1] for s in app.scene.settings.values() if s.exposed]
+    return max(imgui.calc_text_size(t).x for t in labels)
+
+
+def _labels(app) -> None:
+    """The scene's labels (runtime/labels.py) over the viewport: the window's copy of what the PNG
+    writer draws; never part of the rendered image."""
+    labels = app.active_labels()
+    if not labels:
+        return
+    x0, y0, w, h = app.scene_rect_window()
+    if w <= 0 or h <= 0:
+        return
+    draw = imgui.get_background_draw_list()
+    white, dark = imgui.IM_COL32(255, 255, 255, 255), imgui.IM_COL32(0, 0, 0, 230)
+    for item in label_layout(labels, app.camera, w, h):
+        if item[0] == "line":
+            _, ax, ay, bx, by = item
+            draw.add_line(ImVec2(x0 + ax, y0 + ay), ImVec2(x0 + bx, y0 + by), white, 1.0)
+            continue
+        _, x, y, text, align = item
+        size = imgui.calc_text_size(text)
+        tx = x - {"left": 0.0, "center": size.x / 2, "right": size.x}[align]
+        ty = y - size.y / 2
+        tx = min(max(tx, 2.0), w - size.x - 2.0)
+        ty = min(max(ty, 2.0), h - size.y - 2.0)
+        for dx, dy in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            draw.add_text(ImVec2(x0 + tx + dx, y0 + ty + dy), dark, text)
+        draw.add_text(ImVec2(x0 + tx, y0 + ty), white, text)
 
 
 def _messages(app) -> None:
@@ -70,18 +160,35 @@ def _scene(app) -> None:
 def _view(app) -> None:
     if not imgui.collapsing_header("View", imgui.TreeNodeFlags_.default_open):
         return
-    modes = list(app.scene.display_modes)
-    labels = [m.label for m in modes]
-    index = modes.index(app.mode) if app.mode in modes else 0
-    changed, index = imgui.combo("display", index, labels)
-    if changed:
-        app.set_mode(modes[index])
+    if imgui.begin_combo("display", app.mode.label):
+        for key, mode in enumerate(UI_MODES, start=1):
+            why = app.mode_unavailable(mode)
+            if why is not None:
+                imgui.begin_disabled()
+            if imgui.selectable(f"{key}  {mode.label}", mode is app.mode)[0]:
+                app.set_mode(mode)
+            if why is not None:
+                imgui.end_disabled()
+                if imgui.is_item_hovered(imgui.HoveredFlags_.allow_when_disabled):
+                    imgui.set_tooltip(why)
+        imgui.end_combo()
     if app.mode is DisplayMode.SPLIT:
-        changed, value = imgui.slider_float("split", app.split, 0.0, 1.0)
+        changed, value = imgui.slider_float("split", app.split, 0.0, 1.0, "%.2f")
         if changed:
             app.split = value
+    if app.scene.labels:
+        changed, on = imgui.checkbox("labels", bool(app.renderer.values.get("labels", True)))
+        if changed:
+            app.set_setting("labels", on)
+    no_reference = app.scene.reference is None
+    if no_reference:
+        imgui.begin_disabled()
     if imgui.button("neural <-> reference (T)"):
         app.toggle_reference()
+    if no_reference:
+        imgui.end_disabled()
+        if imgui.is_item_hovered(imgui.HoveredFlags_.allow_when_disabled):
+            imgui.set_tooltip("this scene has no reference image")
     imgui.same_line()
     if imgui.button("reset (Home)"):
         app.reset_camera()
@@ -98,7 +205,7 @@ def _camera_text(camera) -> str:
     d = camera.to_dict()
     if d["type"] == "plane2d":
         return f"centre ({d['center'][0]:.3f}, {d['center'][1]:.3f})  zoom {d['zoom']:.2f}"
-    return ", ".join(f"{k} {v}" for k, v in d.items() if k in ("yaw", "pitch", "distance"))
+    return ", ".join(f"{k} {v:.3g}" for k, v in d.items() if k in ("yaw", "pitch", "distance"))
 
 
 def _settings(app) -> None:
@@ -107,17 +214,26 @@ def _settings(app) -> None:
         return
     for s in shown:
         value = app.renderer.values[s.name]
-        label = s.label or s.name
-        if s.type == "float":
-            changed, new = imgui.slider_float(label, float(value), float(s.min), float(s.max))
-        elif s.type == "int":
+        kind, label, pairs = setting_widget(s)
+        changed, new = False, value
+        if kind == "fixed":
+            shown_value = pairs[0][1] if pairs else f"{value:.3g}" if isinstance(value, float) else str(value)
+            imgui.text_disabled(shown_value)
+            imgui.same_line(0.0, -1.0)
+            imgui.text(label)
+        elif kind == "slider" and s.type == "float":
+            changed, new = imgui.slider_float(label, float(value), float(s.min), float(s.max), "%.3g")
+        elif kind == "slider":
             changed, new = imgui.slider_int(label, int(value), int(s.min), int(s.max))
-        elif s.type == "bool":
+        elif kind == "checkbox":
             changed, new = imgui.checkbox(label, bool(value))
         else:
-            choices = list(s.choices)
-            changed, index = imgui.combo(label, choices.index(value), [str(c) for c in choices])
-            new = choices[index]
+            values = [v for v, _ in pairs]
+            index = values.index(value) if value in values else 0
+            changed, index = imgui.combo(label, index, [name for _, name in pairs])
+            new = values[index]
+        if imgui.is_item_hovered(imgui.HoveredFlags_.allow_when_disabled) and (s.label or s.name) != label:
+            imgui.set_tooltip(s.label or s.name)
         if changed:
             app.set_setting(s.name, new)
 
@@ -142,13 +258,19 @@ def _performance(app) -> None:
     if frame.size:
         imgui.text(f"frame {frame[-1]:.1f} ms   GPU {gpu[-1] if gpu.size else float('nan'):.2f} ms")
     if app.renderer.first_draw_seconds is not None:
-        imgui.text_colored(GREY, f"first network draw (JIT on llvmpipe): {app.renderer.first_draw_seconds:.1f} s")
-    if frame.size > 1 and implot.begin_plot("##times", ImVec2(-1, 110)):
-        implot.setup_axes("frame", "ms")
+        imgui.push_style_color(imgui.Col_.text, GREY)
+        imgui.text_wrapped(f"first network draw (JIT on llvmpipe): {app.renderer.first_draw_seconds:.1f} s")
+        imgui.pop_style_color()
+    stamps = np.asarray(app.frame_t, np.float64)
+    if frame.size > 1 and stamps.size == frame.size and implot.begin_plot("##times", ImVec2(-1, 110)):
+        seconds = stamps - stamps[-1]      # x: seconds before now
+        implot.setup_axes("time (s)", "ms")
+        implot.setup_axis_limits(implot.ImAxis_.x1, float(seconds[0]), 0.0, imgui.Cond_.always)
         implot.setup_axis_limits(implot.ImAxis_.y1, 0.0, float(max(frame.max(), 1.0)) * 1.1, imgui.Cond_.always)
-        implot.plot_line("frame", frame)
-        if gpu.size > 1:
-            implot.plot_line("GPU", gpu)
+        implot.plot_line("frame", seconds, frame.astype(np.float64))
+        n = min(gpu.size, seconds.size)
+        if n > 1:   # one GPU time per drawn frame: the latest frames
+            implot.plot_line("GPU", seconds[-n:], gpu[-n:].astype(np.float64))
         implot.end_plot()
 
 
@@ -171,11 +293,14 @@ def _plan(app) -> None:
             imgui.end_table()
 
 
-def _overlay(app, text: str) -> None:
+def _overlay(app, text: str, name: str = "##overlay", colour=None) -> None:
     x, _, w, _ = app.scene_rect_window()
     imgui.set_next_window_pos(ImVec2(x + 8, 8))
     flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.always_auto_resize |
              imgui.WindowFlags_.no_inputs | imgui.WindowFlags_.no_saved_settings)
-    imgui.begin("##overlay", None, flags)
-    imgui.text(text)
+    imgui.begin(name, None, flags)
+    if colour is not None:
+        imgui.text_colored(colour, text)
+    else:
+        imgui.text(text)
     imgui.end()

@@ -10,6 +10,9 @@
 // Sphere tracing inside the bound sphere: step d * SDF_STEP_SCALE (< 1: smooth booleans and
 // repetition give a bound, not an exact distance), hit when d < SDF_HIT_EPS, give up past the
 // sphere's exit or after SDF_MAX_STEPS. Returns hit; t is the ray parameter of the last point.
+// A ray grazing an edge or meeting a surface at a shallow angle crawls (steps shrink by about
+// SDF_STEP_SCALE * sin(angle)) and may need ~180 steps; one that runs out is a miss, i.e. a
+// sky-coloured hole in the surface: SDF_MAX_STEPS must cover them (inshade/sdf.py, default 256).
 bool sdf_trace(vec3 ro, vec3 rd, out float t) {
     vec3 oc = ro - SDF_BOUND_CENTER;
     float b = oc.x * rd.x + oc.y * rd.y + oc.z * rd.z;

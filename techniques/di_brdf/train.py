@@ -406,12 +406,11 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
                  samples=DISNEY_DEFAULTS["samples"], seed=DISNEY_DEFAULTS["seed"], exposure: float = 1.5,
                  progress=None):
     """End-to-end L1 on tone-mapped radiance (exposure ~ the scene's E / r^2); returns (model, history, seconds)."""
-    from tqdm import tqdm
+    from inshade.progress import progress as progress_bar
 
     torch.manual_seed(seed)
     model = DisneyDI()
     data = disney_samples(samples, seed)
-    progress = sys.stderr.isatty() if progress is None else progress
     history = []
     t0 = time.perf_counter()
     with torch.random.fork_rng(devices=[]):
@@ -420,7 +419,8 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
         sched = torch.optim.lr_scheduler.LambdaLR(
             opt, lambda i: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(i / max(steps, 1), 1.0))))
         gen = torch.Generator().manual_seed(seed + 1)
-        for step in tqdm(range(1, steps + 1), desc="di_brdf_disney", disable=not progress, leave=False):
+        bar = progress_bar(range(1, steps + 1), desc="di_brdf_disney", enabled=progress)
+        for step in bar:
             idx = torch.randint(0, samples, (batch,), generator=gen)
             l, v, base, params, target = (t[idx] for t in data)
             pred = model(l, v, base, params)
@@ -433,6 +433,7 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
             sched.step()
             if step % max(1, steps // 10) == 0 or step == steps:
                 history.append({"step": step, "loss": float(loss.detach()), "seconds": round(time.perf_counter() - t0, 2)})
+                bar.set_postfix(loss=f"{history[-1]['loss']:.4f}")
     for p in model.parameters():
         p.requires_grad_(False)
     return model, history, time.perf_counter() - t0
@@ -629,6 +630,14 @@ def scene_dict(name: str, title: str, model: str, size, cols: int, rows: int, ba
         },
         "requires": {"gl": 330},
         "notes": f"material balls, {ball_px} px each; left half analytic, right half learned (view 2)",
+        "labels": [
+            {"text": "analytic", "at": [0.25, 0.95], "when": {"view": VIEWS["split"]}},
+            {"text": "learned", "at": [0.75, 0.95], "when": {"view": VIEWS["split"]}},
+            {"line": [[0.5, 0.0], [0.5, 1.0]], "when": {"view": VIEWS["split"]}},
+            {"text": "analytic", "at": [0.5, 0.95], "when": {"view": VIEWS["analytic"]}},
+            {"text": "learned", "at": [0.5, 0.95], "when": {"view": VIEWS["learned"]}},
+            {"text": "diffuse baseline", "at": [0.5, 0.95], "when": {"view": VIEWS["diffuse"]}},
+        ],
     }
 
 

@@ -496,6 +496,11 @@ def scene_dict(name: str, title: str, output: str, size=(512, 256), gl_modes: bo
                                      "define": "FOOTPRINT_MODE", "label": "sampler: " + ", ".join(
                                          f"{v} {k}" for k, v in MODES.items())}
         scene["notes"] = "--set mode=N: " + ", ".join(f"{v} {k}" for k, v in MODES.items())
+        names = {"di": "DI footprint sampler", "trilinear": "GL trilinear (mip chain)",
+                 "anisotropic": "GL anisotropic 16x", "bilinear": "GL bilinear (no mips)",
+                 "explicit_lod": "GL explicit LOD"}
+        scene["labels"] = [{"text": names.get(k, k), "at": [0.02, 0.95], "align": "left", "when": {"mode": v}}
+                           for k, v in MODES.items()]
     return scene
 
 

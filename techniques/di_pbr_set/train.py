@@ -323,6 +323,13 @@ def scene_dict(name: str, title: str, size: int, lights: int) -> dict:
         },
         "requires": {"gl": 330},
         "notes": "a DI-compressed PBR set (albedo, normal, roughness, AO: 8 lanes) on a uv-mapped torus",
+        "labels": [
+            {"text": "uncompressed", "at": [0.25, 0.95], "when": {"view": "split"}},
+            {"text": "DI", "at": [0.75, 0.95], "when": {"view": "split"}},
+            {"line": [[0.5, 0.0], [0.5, 1.0]], "when": {"view": "split"}},
+            {"text": "uncompressed", "at": [0.5, 0.95], "when": {"view": "uncompressed"}},
+            {"text": "DI", "at": [0.5, 0.95], "when": {"view": "di"}},
+        ],
     }
 
 

@@ -154,13 +154,13 @@ class DistanceQuery:
 
     def __call__(self, points: np.ndarray, chunk: int = 65536) -> np.ndarray:
         import trimesh
-        from tqdm import tqdm
+
+        from inshade.progress import progress as progress_bar
 
         points = np.asarray(points, np.float64)
         out = np.full(len(points), self.band)
         starts = range(0, len(points), chunk)
-        for s in tqdm(starts, desc="signed distance", disable=not sys.stderr.isatty() or len(starts) < 4,
-                      leave=False):
+        for s in progress_bar(starts, desc="signed distance", enabled=len(starts) >= 4):
             q = points[s:s + chunk]
             dist, idx = self.tree.query(q, k=KNN, distance_upper_bound=self.reach, workers=-1)
             near = np.isfinite(dist[:, 0])

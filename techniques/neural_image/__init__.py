@@ -1,5 +1,5 @@
-"""neural_image: an image as a coordinate network (frequency or SIREN encoding + MLP), drawn as a
-field over the camera's uv plane."""
+"""neural_image: an image as a coordinate network (a multiresolution lookup-array encoding, or a
+frequency or SIREN encoding, + MLP), drawn as a field over the camera's uv plane."""
 from inshade.technique import ProgramSpec, Technique
 
 TECHNIQUE = Technique(

@@ -14,8 +14,15 @@ Colour: the target is the sRGB photograph decoded to linear light (sRGB EOTF); t
 outputs linear RGB and the loss is MSE in linear light. PSNR is reported both in linear light
 and after sRGB encoding.
 
-Command: ``inshade train neural_image [--out trained/neural_image] [--steps N] [--image NAME]
-[--seed S] [--size N]``, or ``python -m inshade.techniques.neural_image.train`` with the same options.
+Architectures (``--arch``): ``multires`` (the shipped one: a multiresolution set of 2D lookup
+arrays of uv, concatenated into a small ReLU MLP: an Instant-NGP-style dense feature pyramid made
+of existing components), ``frequency_relu`` (NeRF frequency encoding + ReLU MLP) and ``siren``.
+
+Command: ``inshade train neural_image [--preset quick|ship] [--out trained/neural_image] [--steps N]
+[--image NAME] [--seed S] [--size N] [--arch A] [--levels R:C,...]``, or
+``python -m inshade.techniques.neural_image.train`` with the same options. ``--preset ship`` (the
+default) is exactly what built ``trained/neural_image``; ``--preset quick`` is the same network
+trained for fewer steps; any option given explicitly overrides the preset's value.
 """
 from __future__ import annotations
 
@@ -35,18 +42,33 @@ from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
 from inshade.models import activations as _act
 from inshade.models import encodings as _enc
 from inshade.models.graph import GraphModule
+from inshade.models.lookup_array import LookupArray
 
 IMAGES = ("astronaut", "chelsea", "coffee", "camera", "rocket")  # skimage.data names (RGB or grey)
-ARCHES = ("siren", "frequency_relu")
+ARCHES = ("multires", "siren", "frequency_relu")
 OUTPUT_ACTIVATIONS = ("identity", "sigmoid")
 
-# The shipped asset's settings, chosen by PSNR on astronaut 256x256 at 800 steps, batch 4096, on a
-# shared 2-core CPU: frequency(8)+relu 64x3, identity out, lr 2e-3: 22.95 dB linear in 105 s;
-# same with sigmoid out: 22.33 dB in 63 s; SIREN 64x3 omega0=30, lr 3e-4: 23.03 dB in 174 s
-# (sin makes each step ~2x dearer, so per second of training the frequency+relu net wins).
-DEFAULTS = dict(out="trained/neural_image", image="astronaut", size=256, steps=1500, seed=0,
-                arch="frequency_relu", width=64, depth=3, n_freqs=8, omega0=30.0,
-                output_activation="identity", lr=None, batch=4096)
+# Before the multires arch (kept for comparison, astronaut 256x256, 800 steps, batch 4096, shared
+# 2-core CPU): frequency(8)+relu 64x3, identity out, lr 2e-3: 22.95 dB linear in 105 s; SIREN 64x3
+# omega0=30, lr 3e-4: 23.03 dB in 174 s; the 1500-step frequency_relu asset reached 24.79 dB linear
+# (21.85 dB sRGB 8-bit): visibly blurry.
+#
+# The shipped settings (``--preset ship``): SHIP_NOTE below records how they were chosen.
+SHIP_NOTE = (
+    "multires levels chosen on astronaut 256x256, full-image batches, 1 thread of a shared 2-core CPU, "
+    "width 32 x depth 2 MLP, 8-bit arrays (dB linear / sRGB): 32:4,64:4,128:4 (87k params, 300 steps) "
+    "32.4 / 28.3; 16:4,32:4,64:4,128:2 (56k, 600 steps) 33.5 / 31.0; 16,32,64,128,256 x 2 channels "
+    "(176k, 300 steps) 41.3 / 33.6; 32:4,64:4,128:2,256:1 (120k, 600 steps) 44.4 / 36.9; "
+    "32:4,64:4,256:1 (87k, 600 steps) 41.2 / 34.6: shipped, trained 1000 steps. The one-channel "
+    "full-resolution level carries the detail, the coarse four-channel ones the colour.")
+PRESETS = {
+    "ship": dict(arch="multires", levels="32:4,64:4,256:1", width=32, depth=2, steps=1000,
+                 batch=65536, grid_bits=8, output_activation="identity"),
+    "quick": dict(arch="multires", levels="32:4,64:4,256:1", width=32, depth=2, steps=300,
+                  batch=65536, grid_bits=8, output_activation="identity"),
+}
+DEFAULTS = dict(out="trained/neural_image", image="astronaut", size=256, seed=0, n_freqs=8,
+                omega0=30.0, lr=None, grid_lr=1e-2, preset="ship", **PRESETS["ship"])
 RENDER_PROGRAM = "passes/field2d.frag"
 
 
@@ -92,9 +114,25 @@ def pixel_uvs(width: int, height: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # model
 
-def build(arch: str = "frequency_relu", width: int = 64, depth: int = 3, n_freqs: int = 8,
-          omega0: float = 30.0, output_activation: str = "identity") -> GraphModule:
+def parse_levels(levels: str) -> list[tuple[int, int]]:
+    """``"32:4,64:4,128:2"`` -> ``[(32, 4), (64, 4), (128, 2)]`` (resolution : channels)."""
+    out = []
+    for part in str(levels).split(","):
+        res, _, ch = part.strip().partition(":")
+        out.append((int(res), int(ch or 4)))
+    if not out or any(r < 2 or not 1 <= c <= 4 for r, c in out):
+        raise ValueError(f"bad --levels {levels!r}: RES:CHANNELS,... with RES >= 2, 1 <= CHANNELS <= 4")
+    return out
+
+
+def build(arch: str = DEFAULTS["arch"], width: int = DEFAULTS["width"], depth: int = DEFAULTS["depth"],
+          n_freqs: int = 8, omega0: float = 30.0, output_activation: str = "identity",
+          levels: str = DEFAULTS["levels"], grid_bits: int = DEFAULTS["grid_bits"]) -> GraphModule:
     """uv[2] -> rgb[3] network as a bundle graph.
+
+    - ``multires``: one 2D ``lookup_array`` of uv per level (``levels`` = resolution:channels,
+      cells initialised uniform in [-0.1, 0.1], exported at ``grid_bits``), all concatenated into
+      (dense -> relu) * depth -> dense.
 
     - ``siren``: (dense -> sin(omega0 x)) * depth -> dense, with SIREN's initialisation.
     - ``frequency_relu``: NeRF frequency encoding (n_freqs, raw input kept) ->
@@ -108,6 +146,11 @@ def build(arch: str = "frequency_relu", width: int = 64, depth: int = 3, n_freqs
     src = "uv"
     if arch == "frequency_relu":
         src = g.add("enc", _enc.Frequency(n_freqs, include_input=True), src)
+    elif arch == "multires":
+        src = []
+        for i, (res, ch) in enumerate(parse_levels(levels)):
+            cells = (torch.rand(res, res, ch) * 2.0 - 1.0) * 0.1
+            src.append(g.add(f"grid{i}", LookupArray([res, res], ch, bits=grid_bits, init=cells), "uv"))
     for i in range(depth):
         src = g.dense(f"l{i}", src, width)
         layer = g.nodes[src].linear
@@ -155,25 +198,30 @@ def metrics_of(prediction: np.ndarray, target: np.ndarray) -> dict:
 # training
 
 def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr: float | None = None,
-        batch: int = 16384, arch: str = "frequency_relu", progress: bool | None = None) -> dict:
-    """Adam on random pixel batches (full image when ``batch`` >= pixels), cosine-decayed lr.
+        batch: int = 16384, arch: str = "frequency_relu", progress: bool | None = None,
+        grid_lr: float = DEFAULTS["grid_lr"]) -> dict:
+    """Adam on random pixel batches (full image when ``batch`` >= pixels), cosine-decayed lr;
+    lookup-array cells (multires) at ``grid_lr``, Adam eps 1e-15 as Instant NGP.
     Deterministic for a given seed on a given torch build. Returns timing and the loss curve."""
     h, w = target.shape[:2]
     uv = torch.from_numpy(pixel_uvs(w, h).reshape(-1, 2))
     rgb = torch.from_numpy(target.reshape(-1, 3))
     n = uv.shape[0]
     lr = lr if lr is not None else (3e-4 if arch == "siren" else 2e-3)
-    opt = torch.optim.Adam(model.parameters(), lr=lr)
+    cells = [p for name, p in model.named_parameters() if name.endswith(".cells")]
+    if cells:
+        rest = [p for name, p in model.named_parameters() if not name.endswith(".cells")]
+        opt = torch.optim.Adam([{"params": cells, "lr": grid_lr}, {"params": rest, "lr": lr}], eps=1e-15)
+    else:
+        opt = torch.optim.Adam(model.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.LambdaLR(
         opt, lambda s: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0))))
     gen = torch.Generator().manual_seed(seed)
-    if progress is None:
-        progress = sys.stderr.isatty()
-    from tqdm import tqdm
+    from inshade.progress import progress as progress_bar
 
     losses = []
     start = time.perf_counter()
-    bar = tqdm(range(steps), desc="neural_image", disable=not progress, leave=False)
+    bar = progress_bar(range(steps), desc="neural_image", enabled=progress)
     for step in bar:
         if batch >= n:
             xb, yb = uv, rgb
@@ -196,45 +244,65 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
           steps=DEFAULTS["steps"], seed=DEFAULTS["seed"], arch=DEFAULTS["arch"],
           width=DEFAULTS["width"], depth=DEFAULTS["depth"], n_freqs=DEFAULTS["n_freqs"],
           omega0=DEFAULTS["omega0"], output_activation=DEFAULTS["output_activation"],
-          lr=DEFAULTS["lr"], batch=DEFAULTS["batch"], command: str | None = None,
-          progress: bool | None = None, write_images: bool = True):
+          lr=DEFAULTS["lr"], batch=DEFAULTS["batch"], levels=DEFAULTS["levels"],
+          grid_bits=DEFAULTS["grid_bits"], grid_lr=DEFAULTS["grid_lr"], preset: str | None = None,
+          command: str | None = None, progress: bool | None = None, write_images: bool = True):
     """Trains and writes the bundle (+ preview.png, reference.png) into ``out``.
-    Returns the saved ``Bundle``."""
+    Returns the saved ``Bundle``. Metrics and the preview come from the *exported* bundle (lookup
+    arrays quantised to ``grid_bits``), i.e. what the shader draws."""
     torch.manual_seed(seed)
     target = load_target(image, size)
-    model = build(arch, width, depth, n_freqs, omega0, output_activation)
+    multires = arch == "multires"
+    model = build(arch, width, depth, n_freqs, omega0, output_activation, levels, grid_bits)
     start_metrics = metrics_of(predict(model, size, size), target)
-    log = fit(model, target, steps=steps, seed=seed, lr=lr, batch=batch, arch=arch, progress=progress)
-    prediction = predict(model, size, size)
-    metrics = metrics_of(prediction, target)
-    metrics.update({
-        "psnr_linear_step0": start_metrics["psnr_linear"],
-        "psnr_srgb_step0": start_metrics["psnr_srgb"],
-        "params": int(sum(p.numel() for p in model.parameters())),
-        "train_seconds": round(log["seconds"], 2),
-    })
+    log = fit(model, target, steps=steps, seed=seed, lr=lr, batch=batch, arch=arch, progress=progress,
+              grid_lr=grid_lr)
+    float_metrics = metrics_of(predict(model, size, size), target)
     provenance = {
-        "command": command or _command_line(out=out, image=image, size=size, steps=steps, seed=seed,
-                                            arch=arch, width=width, depth=depth,
+        "command": command or _command_line(preset=preset, out=out, image=image, size=size, steps=steps,
+                                            seed=seed, arch=arch, width=width, depth=depth,
                                             n_freqs=n_freqs if arch == "frequency_relu" else None,
                                             omega0=omega0 if arch == "siren" else None,
+                                            levels=levels if multires else None,
+                                            grid_bits=grid_bits if multires else None,
+                                            grid_lr=grid_lr if multires else None,
                                             output_activation=output_activation,
                                             lr=lr, batch=batch),
+        "preset": preset,
+        "preset_note": SHIP_NOTE if preset == "ship" else None,
         "image": f"skimage.data.{image}",
         "image_preprocessing": f"centre square crop, sRGB EOTF to linear, resized to {size}x{size}",
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
         "steps": steps, "seed": seed, "arch": arch, "width": width, "depth": depth,
         "n_freqs": n_freqs if arch == "frequency_relu" else None,
         "omega0": omega0 if arch == "siren" else None,
+        "levels": levels if multires else None,
+        "grid_bits": grid_bits if multires else None,
+        "grid_lr": grid_lr if multires else None,
         "output_activation": output_activation, "lr": log["lr"], "batch": batch,
-        "optimizer": "adam, cosine decay to 5%", "loss": "mse, linear rgb",
+        "optimizer": "adam, cosine decay to 5%" + (", eps 1e-15" if multires else ""),
+        "loss": "mse, linear rgb",
         "torch": torch.__version__,
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
     provenance = {k: v for k, v in provenance.items() if v is not None}
     render = {"program": RENDER_PROGRAM, "width": size, "height": size, "input": "uv", "output": "rgb"}
-    bundle = model.export("neural_image", "neural_image", provenance=provenance, metrics=metrics,
-                          render=render)
+    bundle = model.export("neural_image", "neural_image", provenance=provenance, render=render)
+    # What the shader draws: the exported (quantised) bundle, read back through torch.
+    shipped = GraphModule.from_bundle(bundle).eval()
+    prediction = predict(shipped, size, size)
+    metrics = metrics_of(prediction, target)
+    metrics.update({
+        "psnr_linear_step0": start_metrics["psnr_linear"],
+        "psnr_srgb_step0": start_metrics["psnr_srgb"],
+        "psnr_linear_float": float_metrics["psnr_linear"],
+        "psnr_srgb_float": float_metrics["psnr_srgb"],
+        "params": int(sum(p.numel() for p in model.parameters())),
+        "weight_bytes": int(sum(np.asarray(t).nbytes for t in bundle.tensors.values())),
+        "train_seconds": round(log["seconds"], 2),
+        "train_threads": torch.get_num_threads(),
+    })
+    bundle.meta["metrics"] = metrics
     out = Path(out)
     bundle.save(out)
     if write_images:
@@ -259,35 +327,59 @@ def _command_line(**kw) -> str:
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
+    # Options a preset sets default to None here and are resolved in run(): explicit > preset.
+    parser.add_argument("--preset", default=d["preset"], choices=sorted(PRESETS),
+                        help="ship: exactly what built trained/neural_image; quick: the same network, "
+                             "fewer steps (default: %(default)s)")
     parser.add_argument("--out", default=d["out"], help="bundle folder (default: %(default)s)")
     parser.add_argument("--image", default=d["image"], choices=IMAGES,
                         help="skimage.data photograph (default: %(default)s)")
     parser.add_argument("--size", type=int, default=d["size"], help="target resolution, square (default: %(default)s)")
-    parser.add_argument("--steps", type=int, default=d["steps"], help="optimizer steps (default: %(default)s)")
+    parser.add_argument("--steps", type=int, help="optimizer steps (default: the preset's)")
     parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
-    parser.add_argument("--arch", default=d["arch"], choices=ARCHES, help="network (default: %(default)s)")
-    parser.add_argument("--width", type=int, default=d["width"], help="hidden width (default: %(default)s)")
-    parser.add_argument("--depth", type=int, default=d["depth"], help="hidden layers (default: %(default)s)")
+    parser.add_argument("--arch", choices=ARCHES, help="network (default: the preset's, multires)")
+    parser.add_argument("--width", type=int, help="hidden width (default: the preset's)")
+    parser.add_argument("--depth", type=int, help="hidden layers (default: the preset's)")
+    parser.add_argument("--levels", help="multires lookup arrays, RES:CHANNELS,... (default: the preset's)")
+    parser.add_argument("--grid-bits", type=int, choices=(8, 16, 32),
+                        help="multires lookup-array storage bits (default: the preset's)")
+    parser.add_argument("--grid-lr", type=float, default=d["grid_lr"],
+                        help="multires lookup-array learning rate (default: %(default)s)")
     parser.add_argument("--n-freqs", type=int, default=d["n_freqs"],
                         help="frequency encoding octaves, frequency_relu only (default: %(default)s)")
     parser.add_argument("--omega0", type=float, default=d["omega0"], help="SIREN omega0 (default: %(default)s)")
-    parser.add_argument("--output-activation", default=d["output_activation"], choices=OUTPUT_ACTIVATIONS,
-                        help="(default: %(default)s)")
+    parser.add_argument("--output-activation", choices=OUTPUT_ACTIVATIONS,
+                        help="(default: the preset's)")
     parser.add_argument("--lr", type=float, default=d["lr"],
-                        help="Adam learning rate (default: 3e-4 for siren, 2e-3 otherwise)")
-    parser.add_argument("--batch", type=int, default=d["batch"], help="pixels per step (default: %(default)s)")
+                        help="Adam learning rate of the dense layers (default: 3e-4 for siren, 2e-3 otherwise)")
+    parser.add_argument("--batch", type=int, help="pixels per step (default: the preset's)")
     return parser
 
 
+def resolve(args: argparse.Namespace) -> dict:
+    """train() keywords: each option given explicitly, else the preset's value, else DEFAULTS."""
+    preset = PRESETS[args.preset]
+    kw = {"preset": args.preset}
+    for k in ("out", "image", "size", "steps", "seed", "arch", "width", "depth", "n_freqs", "omega0",
+              "output_activation", "lr", "batch", "levels", "grid_bits", "grid_lr"):
+        v = getattr(args, k)
+        kw[k] = v if v is not None else preset.get(k, DEFAULTS[k])
+    return kw
+
+
 def run(args: argparse.Namespace) -> int:
-    kw = {k: getattr(args, k) for k in ("out", "image", "size", "steps", "seed", "arch", "width", "depth",
-                                         "n_freqs", "omega0", "output_activation", "lr", "batch")}
+    kw = resolve(args)
     if kw["steps"] < 0 or kw["size"] < 1:
         raise SystemExit("--steps must be >= 0 and --size >= 1")
+    if kw["arch"] == "multires":
+        try:
+            parse_levels(kw["levels"])
+        except ValueError as e:
+            raise SystemExit(str(e)) from e
     bundle = train(**kw)
     m = bundle.meta["metrics"]
     print(f"wrote {bundle.path}: PSNR {m['psnr_linear']:.2f} dB linear, {m['psnr_srgb']:.2f} dB sRGB "
-          f"({m['params']} params, {m['train_seconds']:.1f} s)")
+          f"({m['params']} params, {m['weight_bytes']} weight bytes, {m['train_seconds']:.1f} s)")
     return 0
 
 

@@ -90,7 +90,8 @@ def sample_points(mesh, center, radius: float, n: int, seed: int = 0, progress: 
     """{"surface": [n/4, 3] points on the mesh, "near": [n/2, 3] Gaussian-offset points and
     "uniform": [n/4, 3] points in the bound's cube, each with "<name>_sdf"} (world units)."""
     import trimesh
-    from tqdm import tqdm
+
+    from inshade.progress import progress as progress_bar
 
     rng = np.random.default_rng(seed)
     n_s, n_n = n // 4, n // 2
@@ -103,8 +104,7 @@ def sample_points(mesh, center, radius: float, n: int, seed: int = 0, progress: 
     for name in ("near", "uniform"):
         pts = out[name]
         chunks = np.array_split(np.arange(len(pts)), max(1, len(pts) // 20000))
-        sd = [signed_distance(mesh, pts[c]) for c in tqdm(chunks, desc=f"sdf {name}", disable=not progress,
-                                                          leave=False)]
+        sd = [signed_distance(mesh, pts[c]) for c in progress_bar(chunks, desc=f"sdf {name}", enabled=progress)]
         out[name + "_sdf"] = np.concatenate(sd)
     out["surface_sdf"] = np.zeros(n_s)
     return out
@@ -253,7 +253,7 @@ def fit(graph: GraphModule, data: dict, center, radius: float, *, steps: int, ba
         lipschitz_target: float, lipschitz_weight: float, progress: bool | None = None) -> dict:
     """Adam on the L1 error of the normalised distance (surface, near and uniform samples
     mixed), cosine-decayed lr, plus the Lipschitz penalty. Deterministic for a seed."""
-    from tqdm import tqdm
+    from inshade.progress import progress as progress_bar
 
     c = np.asarray(center, np.float64)
     inv_r = 1.0 / radius
@@ -264,10 +264,9 @@ def fit(graph: GraphModule, data: dict, center, radius: float, *, steps: int, ba
     sched = torch.optim.lr_scheduler.LambdaLR(
         opt, lambda s: 0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0))))
     gen = torch.Generator().manual_seed(seed)
-    progress = sys.stderr.isatty() if progress is None else progress
     log_target = math.log(lipschitz_target)
     losses, start = [], time.perf_counter()
-    bar = tqdm(range(steps), desc="neural_sdf", disable=not progress, leave=False)
+    bar = progress_bar(range(steps), desc="neural_sdf", enabled=progress)
     for step in bar:
         idx = torch.randint(0, x.shape[0], (batch,), generator=gen)
         err = (graph(x[idx])[:, 0] - y[idx]).abs().mean()
@@ -350,7 +349,6 @@ def train(*, out=DEFAULTS["out"], mesh=None, width=DEFAULTS["width"], layers=DEF
 
 def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, samples, seed, lipschitz_target,
            lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview):
-    progress = sys.stderr.isatty() if progress is None else progress
     torch.manual_seed(seed)
     if mesh is None:
         from inshade.mesh import write_bunny

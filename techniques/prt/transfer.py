@@ -38,7 +38,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import sys
 import time
 import warnings
 from pathlib import Path
@@ -181,10 +180,10 @@ def _check_mesh(mesh):
 
 
 def _bar(total, desc, progress, unit="ray"):
-    from tqdm import tqdm
+    from inshade.progress import progress as progress_bar
 
-    return tqdm(total=total, desc=desc, unit=unit, unit_scale=True, leave=False,
-                disable=progress is False or not sys.stderr.isatty())   # quiet when not a TTY
+    # tqdm on a TTY, a line every ~30 s off it; progress=False: silent
+    return progress_bar(total=total, desc=desc, unit=unit, unit_scale=True, enabled=progress)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -281,12 +281,11 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
     if ckpt is not None and ckpt.is_file():
         start_step = _load_checkpoint(ckpt, net, opt, config)
     every = checkpoint_every or max(1, steps // 10)
-    from tqdm import tqdm
+    from inshade.progress import progress as progress_bar
 
-    progress = progress is not False and sys.stderr.isatty()     # quiet when not a TTY
     stop = steps if until is None else max(start_step, min(int(until), steps))
-    bar = tqdm(range(start_step, stop), desc=f"transfer k={width}", disable=not progress, leave=False,
-               initial=start_step, total=steps)
+    bar = progress_bar(range(start_step, stop), desc=f"transfer k={width}", enabled=progress,
+                       initial=start_step, total=steps)
     start = time.perf_counter()
     acc, count, train_l1 = 0.0, 0, float("nan")
     n_tr = x_tr.shape[0]
@@ -377,7 +376,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     geo.add_argument("--mesh", help="triangle mesh (OBJ/PLY/GLB), transfer by embree ray casting")
     geo.add_argument("--neural-sdf", help="network-SDF bundle folder")
     parser.add_argument("--out", required=True, help="bundle folder to write")
-    parser.add_argument("--cache", default=None, help="dataset cache folder (default: OUT/../.transfer_cache)")
+    parser.add_argument("--cache", default=None, help="dataset cache folder (default: OUT/../.transfer_cache)%(default).0s")
     parser.add_argument("--width", type=int, default=d["width"], help="hidden width k (default: %(default)s)")
     parser.add_argument("--layers", type=int, default=d["layers"], help="hidden layers (default: %(default)s)")
     parser.add_argument("--points", type=int, default=d["points"], help="surface samples (default: %(default)s)")
@@ -393,7 +392,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="train without samples whose every visibility ray is blocked (enclosed shells)")
     parser.add_argument("--checkpoint", default=None,
                         help="resumable checkpoint (default: CACHE/checkpoint-HASH.safetensors, HASH of the "
-                             "dataset and the training settings, so a rerun resumes or finds it done)")
+                             "dataset and the training settings, so a rerun resumes or finds it done)%(default).0s")
     parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
     parser.add_argument("--threads", type=int, default=d["threads"],
                         help="torch CPU threads; 0 = torch's default (default: %(default)s: on a shared 2-core "
