@@ -356,6 +356,3 @@ def plot(result: dict, path: Path) -> None:
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

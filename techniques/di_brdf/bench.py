@@ -190,6 +190,3 @@ def plot(result: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -764,7 +764,7 @@ def run(args, argv=None) -> int:
     if steps < 0 or batch < 1 or not lr > 0:
         raise BrdfTrainingError("--steps must be >= 0, --batch >= 1 and --lr > 0")
     argv = list(sys.argv[1:] if argv is None else argv)
-    command = shlex.join(["python", "-m", "inshade.techniques.di_brdf.train", *argv])
+    command = shlex.join(["inshade", "train", "di_brdf", *argv])
     build = build_ggx if args.which == "ggx" else build_disney
     m = build(args.out, steps=steps, batch=batch, lr=lr, seed=args.seed, command=command,
               gl_metrics=not args.no_gl)
@@ -782,6 +782,3 @@ def run(args, argv=None) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train di_brdf", __doc__, add_arguments, run, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -38,7 +38,7 @@ values (filtering happens on the encoded values, as for an RGB8 texture); the gr
     result = fp.train_sampler(image, ratio=6)
     fp.write_asset(result, "/tmp/di_assets/di_footprint")
 
-Command: ``python -m inshade.techniques.di_footprint.train --out DIR`` (mounted as ``inshade train di_footprint``).
+Command: ``inshade train di_footprint --out DIR``.
 """
 from __future__ import annotations
 
@@ -573,6 +573,3 @@ def run(args, argv=None) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train di_footprint", __doc__, add_arguments, run, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

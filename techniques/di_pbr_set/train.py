@@ -494,6 +494,3 @@ def run(args, argv=None) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train di_pbr_set", __doc__, add_arguments, run, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -35,7 +35,7 @@ identity ramp. L1 loss, Adam with a cosine schedule, the primary's half-cell gra
     result.bundle.save("trained/di_sdf")
 
 Command: ``inshade train di_sdf --mesh PATH --budget-kb 64 --steps 1500 --out DIR`` (writes the
-bundle, scene.json and preview.png); also ``python -m inshade.techniques.di_sdf.train``.
+bundle, scene.json and preview.png).
 """
 from __future__ import annotations
 
@@ -566,6 +566,3 @@ def run(args, argv=None) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train di_sdf", __doc__, add_arguments, run, argv, errors=(DiSdfError,))
 
-
-if __name__ == "__main__":
-    sys.exit(main())

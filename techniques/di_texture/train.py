@@ -30,7 +30,7 @@ Orientation follows techniques/neural_image/train.py: uv (0, 0) is the bottom-le
     result.bundle.save("trained/di_texture_astronaut")
 
 Command: ``inshade train di_texture IMAGE --ratio 6 -o trained/di_texture_<name>`` (IMAGE a file or
-``skimage:NAME``); also ``python -m inshade.techniques.di_texture.train``.
+``skimage:NAME``; ``inshade compress`` is the same command).
 """
 from __future__ import annotations
 
@@ -523,6 +523,3 @@ def run(args, argv=None) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train di_texture", __doc__, add_arguments, run, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

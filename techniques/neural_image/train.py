@@ -19,8 +19,7 @@ arrays of uv, concatenated into a small ReLU MLP: an Instant-NGP-style dense fea
 of existing components), ``frequency_relu`` (NeRF frequency encoding + ReLU MLP) and ``siren``.
 
 Command: ``inshade train neural_image [--preset quick|ship] [--out trained/neural_image] [--steps N]
-[--image NAME] [--seed S] [--size N] [--arch A] [--levels R:C,...]``, or
-``python -m inshade.techniques.neural_image.train`` with the same options. ``--preset ship`` (the
+[--image NAME] [--seed S] [--size N] [--arch A] [--levels R:C,...]``. ``--preset ship`` (the
 default) is exactly what built ``trained/neural_image``; ``--preset quick`` is the same network
 trained for fewer steps; any option given explicitly overrides the preset's value.
 """
@@ -30,7 +29,6 @@ import argparse
 import datetime
 import math
 import shlex
-import sys
 import time
 from pathlib import Path
 
@@ -386,6 +384,3 @@ def run(args: argparse.Namespace) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train neural_image", __doc__, add_arguments, run, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -33,8 +33,8 @@ Metrics (held out, world units and relative to the radius): mean |network| on su
 mean |d error| on near-surface and uniform samples, inside/outside IoU on uniform samples, and a
 symmetric Chamfer distance between marching cubes of the network (64^3) and the mesh.
 
-Command: ``inshade train neural_sdf --mesh PATH --out DIR [--width 32 --layers 3 --steps 3000]``,
-or ``python -m inshade.techniques.neural_sdf.train``. Without ``--mesh``, the procedural rabbit
+Command: ``inshade train neural_sdf --mesh PATH --out DIR [--width 32 --layers 3 --steps 3000]``.
+Without ``--mesh``, the procedural rabbit
 (inshade.mesh.bunny) is generated into /tmp/inshade_mesh/bunny.ply first.
 """
 from __future__ import annotations
@@ -488,6 +488,3 @@ def run(args: argparse.Namespace) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train neural_sdf", __doc__, add_arguments, run, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -22,7 +22,6 @@ import argparse
 import json
 import shlex
 import shutil
-import sys
 import time
 from pathlib import Path
 
@@ -159,6 +158,3 @@ def run(args: argparse.Namespace) -> int:
 def main(argv=None) -> int:
     return command.main("inshade train prt", __doc__, add_arguments, run, argv)
 
-
-if __name__ == "__main__":
-    sys.exit(main())
