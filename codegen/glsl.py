@@ -37,20 +37,32 @@ def lane(array: str, index: int) -> str:
 @dataclass
 class TextureResource:
     """A texture the generated code samples: data [H, W, C] (2D) or [D, H, W, C] (3D),
-    moderngl dtype ('f4', 'f2', 'f1' = unorm8, 'nu2' = unorm16), filter 'nearest'|'linear'."""
+    moderngl dtype ('f4', 'f2' = half float, 'f1' = unorm8, 'nu2' = unorm16), filter
+    'nearest'|'linear' (within a level), ``wrap`` 'clamp'|'repeat'.
+
+    ``mips``: levels 1.. of a 2D mip chain (level k is [H >> k, W >> k, C], same dtype), uploaded
+    as given (never GL-built, so torch and GLSL see the same texels); with mips the minification
+    filter picks the nearest level (``textureLod`` at an integer level = bilinear within it)."""
 
     name: str
     data: np.ndarray
     dtype: str
     filter: str = "nearest"
+    mips: tuple = ()
+    wrap: str = "clamp"
 
     @property
     def dims(self) -> int:
         return self.data.ndim - 1
 
     @property
+    def levels(self) -> int:
+        return 1 + len(self.mips)
+
+    @property
     def nbytes(self) -> int:
-        return int(np.prod(self.data.shape)) * {"f4": 4, "f2": 2, "f1": 1, "nu2": 2}[self.dtype]
+        size = {"f4": 4, "f2": 2, "f1": 1, "nu2": 2}[self.dtype]
+        return sum(int(np.prod(a.shape)) * size for a in (self.data, *self.mips))
 
 
 @dataclass

@@ -51,6 +51,17 @@ class ArgumentParser(argparse.ArgumentParser):
         self.exit(2, f"inshade: error: {command}{' '.join(message.split())}\n")
 
 
+def _count(text: str) -> int:
+    """--spp: an int >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
 def _size(text: str) -> int:
     """--width/--height: an int in 1..MAX_SIZE."""
     from inshade.runtime.scene import MAX_SIZE
@@ -291,6 +302,13 @@ def _sdf_summary(sdf) -> str:
             f"bound centre ({centre}) radius {sdf.radius:g}")
 
 
+def _mesh_json(mesh):
+    """A mesh file's path, or a built-in shape as the scene names it ({"shape": ..., parameters})."""
+    if mesh is None:
+        return None
+    return str(mesh.path) if mesh.path is not None else {"shape": mesh.shape, **mesh.params}
+
+
 def _scene_json(scene) -> dict:
     from inshade.runtime.scene import NetworkSdfRef
 
@@ -304,7 +322,7 @@ def _scene_json(scene) -> dict:
                          "choices": list(s.choices), "binding": s.binding, "target": s.target,
                          "label": s.label, "exposed": s.exposed} for s in scene.settings.values()}
     return {"name": scene.name, "title": scene.title, "path": str(scene.source), "program": scene.program,
-            "size": list(scene.size), "sdf": sdf, "mesh": str(scene.mesh.path) if scene.mesh is not None else None,
+            "size": list(scene.size), "sdf": sdf, "mesh": _mesh_json(scene.mesh),
             "settings": settings}
 
 
@@ -373,6 +391,8 @@ def cmd_render(args) -> int:
     if args.from_ is not None:
         if args.bundle is not None:
             raise UserError("render: give either an ASSET or --from SIDECAR, not both")
+        if args.spp is not None:
+            raise UserError("render: --from re-renders the spp its sidecar records; drop --spp")
         image, info, record = render_from_sidecar(args.from_)
         out = args.output
         if out is None:  # shot.png.json -> shot.from.png
@@ -386,13 +406,14 @@ def cmd_render(args) -> int:
         src = _resolve(args.bundle)
         settings = _settings(args)
         if (src / "scene.json").is_file() or src.suffix == ".json" and src.name != "bundle.json":
-            image, info = render_scene(src, width=args.width, height=args.height, settings=settings)
+            image, info = render_scene(src, width=args.width, height=args.height, settings=settings,
+                                       spp=args.spp or 1)
         else:
             if set(settings) - {"storage", "lut_filter"}:
                 raise UserError("render: --set needs a scene (scene.json); a bare bundle has no settings")
             image, info = render_bundle(src, width=args.width, height=args.height,
                                         storage=settings.get("storage", "auto"),
-                                        lut_filter=settings.get("lut_filter", "exact"))
+                                        lut_filter=settings.get("lut_filter", "exact"), spp=args.spp or 1)
         paths = _save(save_render, image, info, args.output)
     for p in paths if isinstance(paths, (list, tuple)) else [paths]:
         print(f"wrote {p}", file=sys.stderr)
@@ -545,6 +566,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lut-filter", choices=FILTERS, help="lookup array path (default: the scene's, else exact)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="a scene setting, e.g. --set sky=sunset --set env_rotation=90 (repeatable)")
+    p.add_argument("--spp", type=_count, metavar="N",
+                   help="samples per pixel averaged by a stochastic (accumulating) program (default 1)")
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("view", help="interactive viewer window (glfw + imgui-bundle)",

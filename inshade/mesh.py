@@ -10,7 +10,8 @@
 - Texture coordinates: a file's uv (OBJ ``vt``, PLY/GLB texture coordinates) survive loading
   (vertices on a uv seam stay split); ``mesh_uv(mesh)`` returns them or None.
   ``shading_normals(mesh)`` averages normals across such seams (welded by position), and
-  ``vertex_tangents(mesh, normals)`` gives per-vertex (tangent, handedness) for normal maps.
+  ``vertex_tangents(mesh, normals)`` gives per-vertex (tangent, handedness) for normal maps;
+  ``check_tangents(mesh)`` refuses uv that define no tangent anywhere.
 - ``torus()`` / ``write_torus(out)``: a procedural uv-mapped torus (OBJ), the PBR-texture asset's
   mesh; its uv tile the texture ``tiles`` times around each circle.
 - ``bunny(resolution)``: the shipped procedural mesh (no downloads exist here): marching cubes of
@@ -118,11 +119,28 @@ def shading_normals(mesh: trimesh.Trimesh) -> np.ndarray:
     return np.asarray(merged.vertex_normals, np.float64)[inverse]
 
 
+UV_AREA_EPS = 1e-20   # |uv edge determinant| below which a face says nothing about tangents
+
+
+def check_tangents(mesh: trimesh.Trimesh) -> None:
+    """MeshError unless ``vertex_tangents`` is defined by the uv somewhere: the mesh has uv and at
+    least one face whose uv span an area (where none does, every tangent would be an arbitrary
+    fallback, e.g. all uv identical)."""
+    uv = mesh_uv(mesh)
+    if uv is None:
+        raise MeshError("no texture coordinates: tangents need a uv-mapped mesh")
+    f = np.asarray(mesh.faces)
+    d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
+    if not (np.abs(d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]) > UV_AREA_EPS).any():
+        raise MeshError(f"texture coordinates are degenerate: all {len(f)} faces have zero uv area "
+                        "(e.g. every vertex has the same uv), so tangents are undefined")
+
+
 def vertex_tangents(mesh: trimesh.Trimesh, normals: np.ndarray | None = None) -> np.ndarray:
     """Per-vertex [V, 4] (unit tangent along +u, handedness w = +-1) for tangent-space normal maps:
     per face the edge vectors solved against the uv edges, accumulated with the face's area, made
     orthogonal to the normal (Gram-Schmidt); the bitangent is w * cross(n, t). Raises MeshError
-    without uv."""
+    without uv (``check_tangents`` also refuses uv that span no area anywhere)."""
     uv = mesh_uv(mesh)
     if uv is None:
         raise MeshError("no texture coordinates: normal-mapped shading needs a uv-mapped mesh "
@@ -132,7 +150,7 @@ def vertex_tangents(mesh: trimesh.Trimesh, normals: np.ndarray | None = None) ->
     e1, e2 = v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]
     d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
     det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
-    ok = np.abs(det) > 1e-20
+    ok = np.abs(det) > UV_AREA_EPS
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
     # the face's area weights it (the solved vectors are per unit uv, so rescale by |det| ...)
     weight = np.abs(det)[:, None]

@@ -75,7 +75,12 @@ class ProgramSpec:
     - ``frame(FrameInputs) -> {uniform: value}``: per-frame CPU work (e.g. a light matrix);
     - ``validate(scene)``: raise ``ValueError`` with a field-naming message if the scene cannot
       be drawn by this program (checked when the scene loads);
-    - ``environment_degree``: the SH degree the program's lighting needs (None: any).
+    - ``environment_degree``: the SH degree the program's lighting needs (None: any);
+    - ``accumulate``: a stochastic program drawing one Monte Carlo sample per pixel per draw. It
+      gets ``uniform int u_sample_index`` (0, 1, 2, ... since the last reset; hash it with the
+      pixel: shaders/lib/random.glsl) and the runtime shows the running mean of its samples over
+      all attachments, restarting whenever the draw's inputs change (camera, size, settings,
+      weights, program); ``inshade render --spp N`` draws N samples.
     """
     program: str
     geometry: str = "fullscreen"
@@ -88,6 +93,7 @@ class ProgramSpec:
     frame: Callable | None = None
     validate: Callable | None = None
     environment_degree: int | None = None
+    accumulate: bool = False
 
     def __post_init__(self):
         if self.geometry not in GEOMETRIES:

@@ -3,19 +3,22 @@
 ``MeshGBuffer(ctx, mesh)`` uploads a trimesh mesh's positions, shading normals (inshade/mesh.py
 ``shading_normals``: welded across uv seams), uv and tangents once; ``draw(view, proj, model,
 width, height)`` rasterises it with depth testing (common/mesh.vert + passes/mesh_gbuffer.frag)
-into four RGBA32F textures (``GBUFFER``), NEAREST-filtered, data orientation (texel (x, y) is
+into five RGBA32F textures (``GBUFFER``), NEAREST-filtered, data orientation (texel (x, y) is
 pixel (x, y), as runtime/render.py ``read_rgba_raw``):
 
 - ``position``: world position, w = 1 where the mesh covers the pixel, all 0 in the background;
 - ``normal``: unit interpolated vertex normal (inverse-transpose of ``model``), w = 1 / 0 likewise;
 - ``uv``: interpolated texture coordinates (0 for a mesh without uv), z = 0, w = 1 / 0;
 - ``tangent``: interpolated world tangent (not renormalised: the shading pass orthonormalises it
-  against the normal) and its handedness in w (+-1; 0 in the background or without uv).
+  against the normal) and its handedness in w (+-1; 0 in the background or without uv);
+- ``uv_grad``: the uv footprint (dFdx(uv), dFdy(uv)), uv change per pixel along +x and +y, for
+  picking a mip level; taken in this pass because derivatives in the deferred pass would
+  difference neighbours across triangle edges and uv seams; 0 in the background.
 
 Matrices follow runtime/camera.py: numpy 4x4 in pyrr's row-vector layout (``v @ view @ proj``),
 i.e. exactly ``camera.view_matrix()`` and ``camera.projection(width, height)``; their C-order
 float32 bytes are GLSL's column-major ``M * v``. ``model`` defaults to the identity.
-A consumer pass (e.g. mesh PRT) samples the two textures with ``texelFetch`` at
+A consumer pass (e.g. mesh PRT) samples the textures it needs with ``texelFetch`` at
 ``ivec2(gl_FragCoord.xy)`` on a target of the same size, and skips pixels whose w is 0.
 """
 from __future__ import annotations
@@ -30,7 +33,7 @@ from .render import float_target, read_rgba_raw
 
 VERTEX = "common/mesh.vert"
 FRAGMENT = "passes/mesh_gbuffer.frag"
-GBUFFER = ("position", "normal", "uv", "tangent")   # attachment order; sampler u_gbuffer_<name>
+GBUFFER = ("position", "normal", "uv", "tangent", "uv_grad")   # attachment order; sampler u_gbuffer_<name>
 
 
 def _mat_bytes(m) -> bytes:
@@ -96,7 +99,7 @@ class MeshGBuffer:
 
     def read(self) -> tuple[np.ndarray, ...]:
         """The last draw's textures in GBUFFER order ([H, W, 4] each), data orientation (row 0 =
-        GL y 0): (position, normal, uv, tangent)."""
+        GL y 0): (position, normal, uv, tangent, uv_grad)."""
         if self.fbo is None:
             raise RuntimeError("MeshGBuffer.read before draw")
         return tuple(read_rgba_raw(self.fbo, i) for i in range(len(GBUFFER)))

@@ -38,7 +38,7 @@ IMAGE_SUFFIXES = (".png", ".exr")
 
 
 def render_bundle(bundle, *, width: int | None = None, height: int | None = None, storage: str = "auto",
-                  lut_filter: str = "exact", ctx=None, cache: ProgramCache | None = None):
+                  lut_filter: str = "exact", ctx=None, cache: ProgramCache | None = None, spp: int = 1):
     """Render a bundle (folder, bundle.json path, or ``Bundle``) as its ``render`` field says.
 
     Returns ``(image, info)``: ``image`` is linear RGBA float32 ``[H, W, 4]`` in image orientation
@@ -51,16 +51,17 @@ def render_bundle(bundle, *, width: int | None = None, height: int | None = None
         bundle = load(bundle)
     scene = scene_from_bundle(bundle)
     return render_scene(scene, width=width, height=height, settings={"storage": storage, "lut_filter": lut_filter},
-                        ctx=ctx, cache=cache, bundles=[bundle], _t0=t0)
+                        ctx=ctx, cache=cache, bundles=[bundle], spp=spp, _t0=t0)
 
 
 def render_scene(scene, *, width: int | None = None, height: int | None = None, camera=None, mode=None,
                  split: float | None = None, settings: dict | None = None, ctx=None,
-                 cache: ProgramCache | None = None, bundles=None, _t0: float | None = None):
+                 cache: ProgramCache | None = None, bundles=None, spp: int = 1, _t0: float | None = None):
     """Render a scene (``Scene`` or anything ``load_scene`` takes) headless, once, through the same
     ``SceneRenderer`` the window app draws with. ``camera`` (a camera object or its dict) defaults to
-    the scene's; ``mode``/``split`` to the scene's display settings. Returns ``(image, info)`` as
-    ``render_bundle``."""
+    the scene's; ``mode``/``split`` to the scene's display settings. ``spp``: samples per pixel
+    averaged by an accumulating program (``ProgramSpec.accumulate``; others take only 1). Returns
+    ``(image, info)`` as ``render_bundle``; ``info["spp"]`` is the sample count."""
     t0 = time.perf_counter() if _t0 is None else _t0
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -68,6 +69,7 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
     height = scene.size[1] if height is None else int(height)
     if not (1 <= width <= MAX_SIZE and 1 <= height <= MAX_SIZE):
         raise ValueError(f"render size {width}x{height} out of range 1..{MAX_SIZE}")
+    check_spp(scene, spp)
     if camera is None:
         camera = scene.make_camera()
     elif isinstance(camera, dict):
@@ -78,6 +80,7 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
     renderer = SceneRenderer(scene, ctx, cache=cache, settings=settings, bundles=bundles)
     try:
         t_gen = time.perf_counter()
+        renderer.accumulate(camera, width, height, spp)   # a deterministic program: its one draw
         renderer.render(camera, width, height, mode=mode, split=split)
         ctx.finish()
         t_read = time.perf_counter()
@@ -90,6 +93,15 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
                         "compile": round(renderer.compile_seconds, 6), "draw": round(t_read - t_gen, 6),
                         "read": round(t_end - t_read, 6), "total": round(t_end - t0, 6)}
     return image, info
+
+
+def check_spp(scene: Scene, spp) -> None:
+    """``spp`` is an int >= 1, and 1 unless the scene's program accumulates samples."""
+    if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
+        raise ValueError(f"spp: must be an int >= 1, got {spp!r}")
+    if spp > 1 and not scene.spec.accumulate:
+        raise ValueError(f"spp {spp}: program {scene.program} of scene '{scene.name}' draws one deterministic "
+                         "sample per pixel (it does not accumulate samples); use 1")
 
 
 # Host bytes per pixel a render needs at its peak: the RGBA float32 readback (16) and write_png's float64
@@ -165,6 +177,9 @@ def render_from_sidecar(sidecar, *, ctx=None, cache: ProgramCache | None = None)
             view.get("settings", {}), dict) or not isinstance(record.get("bundles", []), list):
         raise ValueError(f"{sidecar}: render/view.camera/view.settings/bundles: malformed; only sidecars "
                          "written by inshade (render or view screenshots) can be re-rendered")
+    spp = record.get("spp", 1)   # sidecars from before accumulation have none: one sample
+    if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
+        raise ValueError(f"{sidecar}: spp: must be an int >= 1, got {spp!r}")
     for key in ("width", "height"):
         v = size.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_SIZE):
@@ -172,7 +187,7 @@ def render_from_sidecar(sidecar, *, ctx=None, cache: ProgramCache | None = None)
     scene = load_scene(scene_path)
     image, info = render_scene(scene, width=size.get("width"), height=size.get("height"), camera=view["camera"],
                                mode=view.get("mode"), split=view.get("split"), settings=view.get("settings"),
-                               ctx=ctx, cache=cache)
+                               ctx=ctx, cache=cache, spp=spp)
     old = {b.get("name"): b.get("digest") for b in record.get("bundles", []) if isinstance(b, dict)}
     for b in info["bundles"]:
         if b["name"] in old and old[b["name"]] != b["digest"]:

@@ -117,8 +117,39 @@ class NetworkResources:
         self.buffers.clear()
 
 
+_NUMPY_DTYPE = {"f4": np.float32, "f2": np.float16}   # float textures: the bytes GL reads are these
+
+
+def texture_levels(res: TextureResource) -> list[np.ndarray]:
+    """The arrays of every level of ``res`` (base first) as GL reads them; ValueError naming the
+    resource and level for a chain that is not a valid 2D mip chain (each level half the previous,
+    floor, at least 1, same channels, nothing after 1x1)."""
+    if res.wrap not in ("clamp", "repeat"):
+        raise ValueError(f"texture {res.name}: wrap must be 'clamp' or 'repeat', got {res.wrap!r}")
+    if res.mips and res.dims != 2:
+        raise ValueError(f"texture {res.name}: mips are for 2D textures; this one is {res.dims}D")
+    cast = _NUMPY_DTYPE.get(res.dtype)
+    levels = []
+    for k, a in enumerate((res.data, *res.mips)):
+        a = np.asarray(a)
+        if k:
+            prev = levels[-1].shape
+            if prev[:2] == (1, 1):
+                raise ValueError(f"texture {res.name}: mip level {k}: the chain already ends at 1x1 (level {k - 1}); "
+                                 f"{len(res.mips) + 1} levels given, at most {k}")
+            want = (max(prev[0] // 2, 1), max(prev[1] // 2, 1), prev[2])
+            if a.shape != want:
+                raise ValueError(f"texture {res.name}: mip level {k} must be [H, W, C] = {list(want)} (half of "
+                                 f"level {k - 1}, {list(prev)}), got {list(a.shape)}")
+            if a.dtype != levels[0].dtype and cast is None:
+                raise ValueError(f"texture {res.name}: mip level {k} is {a.dtype}; level 0 is {levels[0].dtype}")
+        levels.append(np.ascontiguousarray(a if cast is None else a.astype(cast, copy=False)))
+    return levels
+
+
 def _make_texture(ctx, res: TextureResource):
-    data = np.ascontiguousarray(res.data)
+    levels = texture_levels(res)
+    data = levels[0]
     comps = data.shape[-1]
     if res.dims == 2:
         h, w = data.shape[:2]
@@ -128,8 +159,17 @@ def _make_texture(ctx, res: TextureResource):
         tex = ctx.texture3d((w, h, dpt), comps, data.tobytes(), dtype=res.dtype, alignment=1)
         tex.repeat_z = False
     f = moderngl.LINEAR if res.filter == "linear" else moderngl.NEAREST
-    tex.filter = (f, f)
-    tex.repeat_x = tex.repeat_y = False
+    if len(levels) > 1:
+        # moderngl has no GL_TEXTURE_MAX_LEVEL setter: build_mipmaps sets base/max level (a chain
+        # may stop before 1x1) and allocates the levels, which are then overwritten with ours
+        tex.build_mipmaps(0, len(levels) - 1)
+        for k, a in enumerate(levels[1:], 1):
+            tex.write(a.tobytes(), level=k, alignment=1)
+        # nearest level, bilinear within it: textureLod(t, uv, k) at integer k reads level k only
+        tex.filter = (moderngl.LINEAR_MIPMAP_NEAREST if f == moderngl.LINEAR else moderngl.NEAREST_MIPMAP_NEAREST, f)
+    else:
+        tex.filter = (f, f)
+    tex.repeat_x = tex.repeat_y = res.wrap == "repeat"
     return tex
 
 

@@ -8,7 +8,10 @@ the window app.
 
 Cost model (matters on llvmpipe, where the first draw of a network program JIT-compiles for seconds):
 the network pass is redrawn only when its inputs change (camera, size, weights, program, network
-uniforms); mode, split, exposure and error scale only redraw the cheap display pass.
+uniforms); mode, split, exposure and error scale only redraw the cheap display pass. A stochastic
+program (``ProgramSpec.accumulate``) is the exception: each call draws one more sample (seeded by
+``u_sample_index``) and folds it into the running mean in the "network" target (``samples``), up to
+``sample_cap``; a change of those inputs restarts the mean (``accumulate`` draws N samples).
 """
 from __future__ import annotations
 
@@ -33,6 +36,7 @@ from inshade.technique import FrameInputs
 
 from .context import GLContextError, gl_info, make_current, shared_context
 from .display import DisplayMode, glsl_chunk, parse_mode
+from .environment import EnvironmentSampler, EnvironmentTextures, environment_image, scene_environment
 from .geometry import GBUFFER, MeshGBuffer
 from .image_io import read_exr
 from .network import NetworkResources
@@ -110,6 +114,9 @@ class SceneRenderer:
         self._net_pass = None
         self._net_key = None
         self._targets: dict[str, moderngl.Framebuffer] = {}
+        self.samples = 0               # samples in the "network" target since the last reset (accumulate)
+        self.sample_cap = None         # accumulating programs stop adding samples here (None: one per render)
+        self._accumulate_pass = None   # passes/accumulate.frag, built on the first accumulated sample
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self._build()
         if scene.mesh is not None:
@@ -117,6 +124,9 @@ class SceneRenderer:
         clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
+        self.environment = None        # EnvironmentTextures while the program samples lib/environment
+        self._environment_key = None
+        self._sync_environment()
         self.display_program = self.cache.get(VERTEX, "passes/display.frag",
                                               chunks={"display_modes": glsl_chunk()})
         self._display_pass = FullscreenPass(self.ctx, self.display_program)
@@ -190,6 +200,7 @@ class SceneRenderer:
             geometry, extra = self._geometry_chunks(bundles)
             chunks.update(geometry)
             generated = generated + extra   # GL resources of a network SDF bind like a network's
+            check_program_limits(generated, self.gl, self.scene)
             program = self.cache.get(VERTEX, self.scene.program, defines=self._defines(bundles), chunks=chunks)
         except Exception as exc:
             self.error = exc
@@ -227,6 +238,9 @@ class SceneRenderer:
         value = setting.check(value)
         if setting.binding in ("uniform", "environment", "frame"):
             self.values[name] = value
+            if setting.binding == "environment" and self.environment is not None:
+                self._sync_environment()   # the importance-sampled texture follows sky / rotation
+                self._net_key = None
             return "uniform"
         old = self.values[name]
         if old == value:
@@ -237,6 +251,22 @@ class SceneRenderer:
         except Exception:
             self.values[name] = old
             raise
+
+    def _sync_environment(self) -> EnvironmentTextures | None:
+        """(Re)build the environment textures when the program uses them and sky/rotation changed."""
+        if self.program is None or "u_env_radiance" not in self.program:
+            return self.environment
+        try:
+            env = scene_environment(self.scene, self.values)
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+        key = (env.get("sky"), float(env.get("rotation", 0.0)), env.get("map"))
+        if self.environment is None or key != self._environment_key:
+            textures = EnvironmentTextures(self.ctx, EnvironmentSampler(environment_image(env)))
+            if self.environment is not None:
+                self.environment.release()
+            self.environment, self._environment_key = textures, key
+        return self.environment
 
     def reload_weights(self) -> str:
         """Re-read every bundle from disk; re-upload without recompiling when the code is unchanged
@@ -287,11 +317,13 @@ class SceneRenderer:
                 elif s.type == "choice":   # a choice drives an int uniform: its index in the choices
                     v = s.choices.index(v)
                 out[s.target] = v
-        if "u_lights" in program:   # lib/lights.glsl: the scene's point lights
-            lights = np.zeros((MAX_LIGHTS, 4), np.float32)
-            for i, light in enumerate(self.scene.lights):
-                lights[i] = (*light.position, light.intensity)
-            out.update(u_lights=lights.tobytes(), u_scene_light_count=len(self.scene.lights))
+        if "u_lights" in program:   # lib/lights.glsl: the scene's lights
+            from .scene import light_uniforms
+            # a program that never calls scene_light (u_light_kinds unused) reads u_lights as positions
+            if any(light.kind != "point" for light in self.scene.lights) and "u_light_kinds" not in program:
+                raise SceneError(f"lights: {self.scene.program} treats every light as a point light (it reads "
+                                 "u_lights without scene_light from lib/lights); use point lights only")
+            out.update(light_uniforms(self.scene.lights))
         if self.scene.lit:
             sh = self.environment_sh()
             out["u_sh"] = sh.tobytes()
@@ -316,7 +348,16 @@ class SceneRenderer:
         fbo = self._target("network", width, height, self.spec.attachments)
         uniforms = self._uniforms(self.program, camera, width, height)
         key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())))
-        if force or key != self._net_key:
+        draw_into = fbo
+        if self.spec.accumulate:   # stochastic: one more sample per call into a scratch target, folded into the mean
+            if force or key != self._net_key:
+                self.samples = 0
+            if self.sample_cap is not None and self.samples >= self.sample_cap:
+                return fbo
+            if "u_sample_index" in self.program:
+                uniforms["u_sample_index"] = self.samples
+            draw_into = self._target("sample", width, height, self.spec.attachments)
+        if force or key != self._net_key or self.spec.accumulate:
             self.ctx.scissor = None
             gbuffer = self.gbuffer.draw_camera(camera, width, height) if self.gbuffer is not None else None
             self.ctx.viewport = (0, 0, width, height)
@@ -328,6 +369,8 @@ class SceneRenderer:
                     tex.use(location=unit)
                     self.program[name].value = unit
                     unit += 1
+            if "u_env_radiance" in self.program:   # lib/environment: the importance-sampled environment
+                unit = self._sync_environment().bind(self.program, unit)
             if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
                 for name, tex in zip([f"u_gbuffer_{n}" for n in GBUFFER], gbuffer):
                     if name in self.program:
@@ -339,7 +382,7 @@ class SceneRenderer:
             if announce:   # software renderers JIT here: say so before a silent wait (once per program)
                 log.info("%s", announce)
             start = time.perf_counter()
-            self._net_pass.render(fbo, uniforms=uniforms)
+            self._net_pass.render(draw_into, uniforms=uniforms)
             if self.first_draw_pending:
                 self.ctx.finish()
                 self.first_draw_seconds = time.perf_counter() - start
@@ -347,6 +390,50 @@ class SceneRenderer:
                 if announce and sys.stderr.isatty():
                     log.info("... compiled in %.1f s", self.first_draw_seconds)
             self._net_key = key
+            if self.spec.accumulate:
+                return self._fold_sample(draw_into, width, height)
+            self.samples = 1
+        return fbo
+
+    def _fold_sample(self, sample: moderngl.Framebuffer, width: int, height: int) -> moderngl.Framebuffer:
+        """Running mean of every attachment: "network" (mean of n - 1 samples) + ``sample`` -> the
+        spare target, which then becomes "network" (ping-pong: a pass cannot read its own target)."""
+        n = self.spec.attachments
+        if self._accumulate_pass is None:
+            program = self.cache.get(VERTEX, "passes/accumulate.frag", defines={"ACCUMULATE_ATTACHMENTS": n})
+            self._accumulate_pass = FullscreenPass(self.ctx, program)
+        mean = self._target("network", width, height, n)
+        spare = self._target("network_spare", width, height, n)
+        self.samples += 1
+        textures = {}
+        for k in range(n):
+            textures[f"u_mean{k}"] = mean.color_attachments[k]
+            textures[f"u_sample{k}"] = sample.color_attachments[k]
+        self._accumulate_pass.render(spare, uniforms={"u_count": self.samples}, textures=textures)
+        self._targets["network"], self._targets["network_spare"] = spare, mean
+        return spare
+
+    def accumulate(self, camera, width: int, height: int, spp: int, *, progress: bool | None = None
+                   ) -> moderngl.Framebuffer:
+        """Draw samples of this view until its running mean holds ``spp`` (the sample cap is set to
+        ``spp``, so later renders of the same view add none). A deterministic program draws once
+        and only ``spp == 1`` is allowed for it. ``progress``: inshade/progress.py (None: auto)."""
+        from inshade.progress import Progress
+
+        if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
+            raise ValueError(f"spp: must be an int >= 1, got {spp!r}")
+        if spp > 1 and not self.spec.accumulate:
+            raise ValueError(f"spp {spp}: program {self.scene.program} draws one deterministic sample per pixel "
+                             f"(its technique does not accumulate samples); use 1")
+        self.sample_cap = spp
+        fbo = self.render_network(camera, width, height, force=self.samples > spp)   # more than asked: restart
+        if self.samples >= spp:
+            return fbo
+        with Progress(total=spp, initial=self.samples, desc=f"{self.scene.name} spp", unit="spp",
+                      enabled=progress) as bar:
+            while self.samples < spp:
+                fbo = self.render_network(camera, width, height)
+                bar.update(1)
         return fbo
 
     def render(self, camera, width: int, height: int, *, mode=None, split: float | None = None,
@@ -396,6 +483,7 @@ class SceneRenderer:
         mode = self.scene.display_mode if mode is None else parse_mode(mode)
         common = {
             "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
+            "spp": self.samples,   # samples averaged (accumulating programs; else 1)
             "render": {"program": self.scene.program, "width": width, "height": height,
                        "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
             "scene": {"name": self.scene.name,
@@ -440,7 +528,10 @@ class SceneRenderer:
                 env[s.target] = self.values[name]
         if sdf is None:
             mesh = self.scene.mesh
-            return {"mesh": {"path": str(mesh.path), "name": mesh.name, "vertices": int(len(mesh.data.vertices)),
+            # a built-in shape is recorded by name and parameters (inshade/shapes.py rebuilds it)
+            source = {"path": str(mesh.path)} if mesh.path is not None else \
+                {"path": None, "shape": mesh.shape, **mesh.params}
+            return {"mesh": {**source, "name": mesh.name, "vertices": int(len(mesh.data.vertices)),
                              "faces": int(len(mesh.data.faces))}, "environment": env}
         if isinstance(sdf, NetworkSdfRef):
             record = {"path": str(sdf.path), "name": self.sdf_bundle.name, "network": True,
@@ -464,19 +555,44 @@ class SceneRenderer:
             programs.append(self.gbuffer.program)
             self.gbuffer.release()
             self.gbuffer = None
-        for p in (self._net_pass, self._display_pass):
+        if self._accumulate_pass is not None:
+            programs.append(self._accumulate_pass.program)
+        for p in (self._net_pass, self._display_pass, self._accumulate_pass):
             if p is not None:
                 p.vao.release()
-        self._net_pass = self._display_pass = None
+        self._net_pass = self._display_pass = self._accumulate_pass = None
         self._reference_tex.release()
         for tex in self.scene_textures.values():
             tex.release()
         self.scene_textures = {}
+        if self.environment is not None:
+            self.environment.release()
+            self.environment = None
         if self.owns_programs:
             for p in programs:
                 if p is not None and not any(p is k for k in keep):
                     self.cache.discard(p)
         self.program = None
+
+
+def check_program_limits(generated, gl: dict, scene) -> None:
+    """What the scene's networks need together, checked before compiling: codegen plans each
+    network against the limits alone, but one program holds them all (e.g. six networks of three
+    uniform blocks each: 18 blocks where llvmpipe allows 15)."""
+    from inshade.codegen.glsl import TextureResource, UniformBlockResource
+    from inshade.codegen.limits import limit
+
+    blocks = sum(isinstance(r, UniformBlockResource) for g in generated for r in g.resources)
+    cap = limit(gl, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS")
+    if blocks > cap:
+        raise SceneError(f"scene '{scene.name}': its {len(generated)} networks need {blocks} uniform blocks "
+                         f"together; GL_MAX_FRAGMENT_UNIFORM_BLOCKS is {cap} (choose storage 'auto', "
+                         f"'inline' or 'texture')")
+    samplers = sum(isinstance(r, TextureResource) for g in generated for r in g.resources) + len(scene.textures)
+    cap = limit(gl, "GL_MAX_TEXTURE_IMAGE_UNITS")
+    if samplers > cap:
+        raise SceneError(f"scene '{scene.name}': its networks and textures need {samplers} texture units "
+                         f"together; GL_MAX_TEXTURE_IMAGE_UNITS is {cap}")
 
 
 def first_draw_message(generated, renderer: str = "") -> str | None:

@@ -17,8 +17,11 @@ A setting is bound to exactly one of: ``uniform`` (set each frame, no recompile)
 (a ``#define``, recompiles the program), ``codegen`` (an option of ``codegen.generate``, e.g.
 weight storage or LUT filtering; regenerates and recompiles), ``environment`` (the SH lighting
 computed on the CPU) or ``frame`` (read by the technique's per-frame hook, no recompile).
-``"lights"`` lists point lights, ``{"type": "point", "position": [x, y, z], "intensity": I}`` (at
-most 4), uploaded as ``u_lights`` to programs that include ``lib/lights``.
+``"lights"`` lists at most 4 lights, point ``{"type": "point", "position": [x, y, z], "intensity": I}``
+(inverse-square falloff) or directional ``{"type": "directional", "direction": [x, y, z], "intensity":
+I}`` (the direction towards the light, normalised here; irradiance I), uploaded as ``u_lights`` +
+``u_light_kinds`` to programs that include ``lib/lights`` (its ``scene_light`` handles both kinds; a
+program that reads ``u_lights`` as positions only is refused a directional light at render time).
 
 An analytic SDF scene (inshade/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
 have ``"networks": []``, and lights the scene with ``"environment": {"sky": preset, "rotation":
@@ -30,7 +33,9 @@ compiled into the same ``sdf_scene`` chunk, so every SDF pass traces it unchange
 The ``program`` names a fragment chunk that a registered technique draws (inshade/technique.py
 ``ProgramSpec``): the spec says what the program needs (geometry, mesh attributes, bundle kinds,
 SH degree, uniforms, extra chunks, per-frame work) and the scene is checked against it here. A
-mesh scene has ``"mesh": "mesh.ply"`` (OBJ/PLY/GLB, inshade/mesh.py) instead of ``"sdf"``: the
+mesh scene has ``"mesh": "mesh.ply"`` (OBJ/PLY/GLB, inshade/mesh.py) or a built-in shape,
+``"mesh": {"shape": "teapot", "segments": 12}`` (``sphere``: radius, segments; ``plane``: size,
+segments; inshade/shapes.py), instead of ``"sdf"``: the
 renderer rasterises a G-buffer first (runtime/geometry.py MeshGBuffer), then the full-screen pass
 shades each covered pixel once.
 The environment of SDF and mesh scenes may also be an equirectangular map,
@@ -161,23 +166,37 @@ class NetworkSdfRef:
 
 @dataclass
 class MeshRef:
-    """``"mesh": "mesh.ply"``: a triangle mesh (inshade/mesh.py load_mesh), rasterised into a
-    G-buffer (runtime/geometry.py MeshGBuffer) that a deferred pass (mesh_prt) shades."""
-    path: Path
+    """``"mesh": "mesh.ply"``: a triangle mesh (inshade/mesh.py load_mesh), or ``"mesh": {"shape":
+    "teapot", ...}``: a built-in one (inshade/shapes.py; ``path`` None), rasterised into a G-buffer
+    (runtime/geometry.py MeshGBuffer) that a deferred pass (mesh_prt) shades."""
+    path: Path | None
     data: object = None       # the trimesh.Trimesh
+    shape: str | None = None  # built-in shape name
+    params: dict = field(default_factory=dict)   # its parameters, defaults filled in
 
     @property
     def name(self) -> str:
-        return self.path.name
+        return self.path.name if self.path is not None else self.shape
 
 
 @dataclass(frozen=True)
 class PointLight:
     position: tuple[float, float, float]
     intensity: float
+    kind = "point"
 
     def to_dict(self) -> dict:
         return {"type": "point", "position": list(self.position), "intensity": self.intensity}
+
+
+@dataclass(frozen=True)
+class DirectionalLight:
+    direction: tuple[float, float, float]   # unit vector towards the light
+    intensity: float                        # irradiance, no falloff
+    kind = "directional"
+
+    def to_dict(self) -> dict:
+        return {"type": "directional", "direction": list(self.direction), "intensity": self.intensity}
 
 
 @dataclass
@@ -210,7 +229,7 @@ class Scene:
     reference: Reference | None = None
     title: str = ""
     bookmarks: dict = field(default_factory=dict)
-    lights: list = field(default_factory=list)     # PointLight: uploaded as u_lights (lib/lights.glsl)
+    lights: list = field(default_factory=list)     # Point/DirectionalLight: u_lights (lib/lights.glsl)
     environment: dict | None = None
     display_mode: DisplayMode = DisplayMode.FINAL
     display_modes: tuple = UI_MODES
@@ -445,10 +464,10 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
         raise SceneError(f"sdf: {program} traces an SDF: it needs \"sdf\": \"sdf.json\" or "
                          "{\"network\": \"sdf_bundle\"}")
     if spec.geometry == "mesh" and mesh is None:
-        raise SceneError(f"mesh: {program} shades a mesh: it needs \"mesh\": \"mesh.ply\" (OBJ/PLY/GLB)")
-    if {"uv", "tangent"} & set(spec.mesh_attributes) and mesh_uv(mesh.data) is None:
-        raise SceneError(f"mesh: {mesh.path.name} has no texture coordinates; {program} maps textures "
-                         "by uv (an OBJ with vt, or PLY/GLB with texture coordinates)")
+        raise SceneError(f"mesh: {program} shades a mesh: it needs \"mesh\": \"mesh.ply\" (OBJ/PLY/GLB) or a "
+                         "built-in shape, e.g. {\"shape\": \"teapot\"}")
+    if mesh is not None:
+        _check_mesh_attributes(mesh, program, spec.mesh_attributes)
     if not isinstance(networks, list) or (not networks and sdf is None):
         raise SceneError("networks: must be a non-empty list of {\"bundle\": ..., \"prefix\": ..., \"output\": ...}")
     refs, prefixes = [], set()
@@ -575,8 +594,16 @@ def _parse_sdf(value, root: Path):
 def _parse_mesh(value, root: Path):
     if value is None:
         return None
+    if isinstance(value, dict):
+        from inshade.shapes import ShapeError, make_shape
+        try:
+            name, params, data = make_shape(value, "mesh")
+        except ShapeError as exc:
+            raise SceneError(str(exc)) from None
+        return MeshRef(None, data, name, params)
     if not isinstance(value, str):
-        raise SceneError("mesh: must name a mesh file (OBJ/PLY/GLB, relative to the scene file)")
+        raise SceneError("mesh: must name a mesh file (OBJ/PLY/GLB, relative to the scene file) or a "
+                         "built-in shape, e.g. {\"shape\": \"teapot\", \"segments\": 12}")
     from inshade.mesh import MeshError, load_mesh
 
     path = (root / value).resolve()
@@ -584,6 +611,26 @@ def _parse_mesh(value, root: Path):
         return MeshRef(path, load_mesh(path))
     except MeshError as exc:
         raise SceneError(f"mesh: {exc}") from None
+
+
+def _check_mesh_attributes(mesh: MeshRef, program: str, needs) -> None:
+    """The mesh carries what the program reads (ProgramSpec.mesh_attributes): uv, and tangents that
+    are defined somewhere (uv that span an area), else one SceneError naming the mesh and the
+    attribute, rather than NaN or arbitrary shading."""
+    from inshade.mesh import MeshError, check_tangents
+
+    needs = [a for a in needs if a in ("uv", "tangent")]
+    if not needs:
+        return
+    if mesh_uv(mesh.data) is None:
+        raise SceneError(f"mesh: {mesh.name} has no texture coordinates, and {program} needs the mesh "
+                         f"attribute{'s' if len(needs) > 1 else ''} {', '.join(needs)} (use an OBJ with vt, "
+                         "a PLY/GLB with texture coordinates, or a built-in shape)")
+    if "tangent" in needs:
+        try:
+            check_tangents(mesh.data)
+        except MeshError as exc:
+            raise SceneError(f"mesh: {mesh.name}: {exc}; {program} needs the mesh attribute tangent") from None
 
 
 def _lit_environment(env, root: Path) -> tuple[dict, object]:
@@ -635,27 +682,59 @@ def _check_sky_settings(settings: dict, has_map: bool) -> None:
 MAX_LIGHTS = 4   # lib/lights.glsl INSHADE_MAX_LIGHTS
 
 
+# light type -> (its vector field, the class); the kind's index is u_light_kinds' value
+# (lib/lights.glsl INSHADE_LIGHT_POINT 0, INSHADE_LIGHT_DIRECTIONAL 1)
+LIGHT_TYPES = {"point": ("position", PointLight), "directional": ("direction", DirectionalLight)}
+LIGHT_KINDS = tuple(LIGHT_TYPES)
+
+
 def _lights(data) -> list:
-    """scene.json "lights": [{"type": "point", "position": [x, y, z], "intensity": I}, ...]."""
+    """scene.json "lights": [{"type": "point", "position": [x, y, z], "intensity": I} or
+    {"type": "directional", "direction": [x, y, z] (towards the light), "intensity": I}, ...]."""
     if not isinstance(data, list):
-        raise SceneError("lights: must be a list of {\"type\": \"point\", \"position\": [x, y, z], \"intensity\": I}")
+        raise SceneError("lights: must be a list of {\"type\": \"point\", \"position\": [x, y, z], \"intensity\": I} "
+                         "or {\"type\": \"directional\", \"direction\": [x, y, z], \"intensity\": I}")
     if len(data) > MAX_LIGHTS:
         raise SceneError(f"lights: at most {MAX_LIGHTS} lights, got {len(data)}")
     out = []
     for i, light in enumerate(data):
         w = f"lights[{i}]"
-        if not isinstance(light, dict) or light.get("type") != "point":
-            raise SceneError(f"{w}.type: must be \"point\"")
-        extra = sorted(set(light) - {"type", "position", "intensity"})
+        if not isinstance(light, dict):
+            raise SceneError(f"{w}: must be an object {{\"type\": ..., ...}}")
+        kind = light.get("type")
+        if not isinstance(kind, str) or kind not in LIGHT_TYPES:
+            raise SceneError(f"{w}.type: must be one of {', '.join(map(repr, LIGHT_TYPES))}, got {kind!r}")
+        vector, cls = LIGHT_TYPES[kind]
+        extra = sorted(set(light) - {"type", vector, "intensity"})
         if extra:
-            raise SceneError(f"{w}.{extra[0]}: unknown field (known: intensity, position, type)")
-        pos, power = light.get("position"), light.get("intensity")
-        if not (isinstance(pos, list) and len(pos) == 3 and all(_finite(v) for v in pos)):
-            raise SceneError(f"{w}.position: must be 3 finite numbers, got {pos!r}")
+            raise SceneError(f"{w}.{extra[0]}: unknown field for a {kind} light (known: intensity, {vector}, type)")
+        vec, power = light.get(vector), light.get("intensity")
+        if not (isinstance(vec, list) and len(vec) == 3 and all(_finite(v) for v in vec)):
+            raise SceneError(f"{w}.{vector}: must be 3 finite numbers, got {vec!r}")
+        vec = tuple(float(v) for v in vec)
+        if kind == "directional":
+            length = math.sqrt(sum(v * v for v in vec))
+            if not length > 1e-12 or not math.isfinite(length):
+                raise SceneError(f"{w}.direction: must be a non-zero vector of finite length (towards the light), "
+                                 f"got {list(vec)!r}")
+            vec = tuple(v / length for v in vec)
         if not _finite(power) or power < 0:
             raise SceneError(f"{w}.intensity: must be a finite number >= 0, got {power!r}")
-        out.append(PointLight(tuple(float(v) for v in pos), float(power)))
+        out.append(cls(vec, float(power)))
     return out
+
+
+def light_uniforms(lights) -> dict:
+    """lib/lights.glsl's uniforms for ``lights``: u_lights (vec4: position or direction, intensity),
+    u_light_kinds (LIGHT_KINDS index), u_scene_light_count; unused slots are zero."""
+    import numpy as np
+
+    packed = np.zeros((MAX_LIGHTS, 4), np.float32)
+    kinds = np.zeros(MAX_LIGHTS, np.int32)
+    for i, light in enumerate(lights):
+        packed[i] = (*(light.position if light.kind == "point" else light.direction), light.intensity)
+        kinds[i] = LIGHT_KINDS.index(light.kind)
+    return {"u_lights": packed.tobytes(), "u_light_kinds": kinds.tobytes(), "u_scene_light_count": len(lights)}
 
 
 def _finite(v) -> bool:

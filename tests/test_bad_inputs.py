@@ -275,6 +275,13 @@ _scene_edit("network_bundle_missing", lambda d: d["networks"][0].update(bundle="
 _scene_edit("version_string", lambda d: d.update(version="1"), "version")
 
 
+@case("scene", "spp_on_a_deterministic_program")
+def _(tmp):
+    s = _scene(tmp)
+    argv, out = _render_scene(tmp, s)
+    return [*argv, "--spp", "4"], "spp 4: program passes/field2d.frag", [out]
+
+
 @case("scene", "scene_json_is_a_folder")
 def _(tmp):
     s = _scene(tmp)
@@ -307,6 +314,8 @@ _sidecar("render_not_object", lambda g: {**g, "render": [8, 8]})
 _sidecar("width_1e12", lambda g: {**g, "render": {"width": 10 ** 12, "height": 8}}, "render.width")
 _sidecar("nan", lambda g: json.dumps(g).replace('"width": 8', '"width": NaN').encode())
 _sidecar("scene_gone", lambda g: {**g, "scene": {"path": "/nonexistent/scene"}}, "/nonexistent/scene")
+_sidecar("spp_zero", lambda g: {**g, "spp": 0}, "spp: must be an int >= 1")
+_sidecar("spp_string", lambda g: {**g, "spp": "4"}, "spp: must be an int >= 1")
 
 
 # reference / texture images ----------------------------------------------------------------------
@@ -499,6 +508,67 @@ def _(tmp):
     _edit_json(b / "bundle.json", lambda d: d["render"].update(width=10 ** 9))
     out = tmp / "out" / "big.png"
     return ["render", str(b), "-o", str(out)], "render.width", [out]
+
+
+# mesh scenes (a program that maps textures by uv and tangents) and lights --------------------------
+PBR_SOURCE = REPO / "trained" / "di_pbr_set_bricks"
+
+
+def _pbr_scene(tmp: Path) -> Path:
+    folder = tmp / "pbr"
+    shutil.copytree(PBR_SOURCE, folder, ignore=shutil.ignore_patterns("preview.png"))
+    return folder
+
+
+def _obj_lines(keep_vt, vt_same=False):
+    """The shipped mesh.obj without its vt lines (keep_vt False), or with every vt the same."""
+    out = []
+    for line in (PBR_SOURCE / "mesh.obj").read_text().splitlines():
+        if line.startswith("vt "):
+            if keep_vt:
+                out.append("vt 0.5 0.5" if vt_same else line)
+        elif line.startswith("f ") and not keep_vt:
+            out.append("f " + " ".join(c.split("/")[0] for c in line.split()[1:]))
+        else:
+            out.append(line)
+    return "\n".join(out) + "\n"
+
+
+@case("mesh", "mesh_without_uv")
+def _(tmp):
+    s = _pbr_scene(tmp)
+    (s / "mesh.obj").write_text(_obj_lines(keep_vt=False))
+    argv, out = _render_scene(tmp, s)
+    return argv, "mesh: mesh.obj has no texture coordinates", [out]
+
+
+@case("mesh", "mesh_uv_all_identical")
+def _(tmp):
+    s = _pbr_scene(tmp)
+    (s / "mesh.obj").write_text(_obj_lines(keep_vt=True, vt_same=True))
+    argv, out = _render_scene(tmp, s)
+    return argv, "zero uv area", [out]
+
+
+def _pbr_edit(name, edit, expect):
+    @case("mesh", name)
+    def build(tmp):
+        s = _pbr_scene(tmp)
+        _edit_json(s / "scene.json", edit)
+        argv, out = _render_scene(tmp, s)
+        return argv, expect, [out]
+
+
+_pbr_edit("shape_unknown", lambda d: d.update(mesh={"shape": "cube"}), "mesh.shape")
+_pbr_edit("shape_segments_zero", lambda d: d.update(mesh={"shape": "teapot", "segments": 0}), "mesh.segments")
+_pbr_edit("shape_segments_1e12", lambda d: d.update(mesh={"shape": "sphere", "segments": 10 ** 12}), "mesh.segments")
+_pbr_edit("shape_unknown_field", lambda d: d.update(mesh={"shape": "plane", "radius": 1}), "mesh.radius")
+_pbr_edit("light_directional_zero", lambda d: d["lights"].__setitem__(
+    0, {"type": "directional", "direction": [0, 0, 0], "intensity": 1}), "lights[0].direction")
+_pbr_edit("light_type_spot", lambda d: d["lights"].__setitem__(0, {"type": "spot"}), "lights[0].type")
+# the shipped PBR pass reads u_lights as point positions: a directional light is refused, not misdrawn
+_pbr_edit("light_directional_old_program", lambda d: d["lights"].__setitem__(
+    0, {"type": "directional", "direction": [0, 1, 0], "intensity": 1}), "lights: passes/mesh_pbr_set.frag")
 
 
 # --- running ------------------------------------------------------------------------------------------

@@ -242,7 +242,7 @@ def test_gbuffer_uv_and_tangent_on_torus(gl, tmp_path):
     gb = MeshGBuffer(gl, m)
     try:
         gb.draw_camera(cam, size, size)
-        pos, nrm, uv, tan = (x.reshape(-1, 4).astype(np.float64) for x in gb.read())
+        pos, nrm, uv, tan = (x.reshape(-1, 4).astype(np.float64) for x in gb.read()[:4])
     finally:
         gb.release()
     covered = pos[:, 3] == 1.0

@@ -530,6 +530,40 @@ def test_every_shipped_scene_opens_and_draws(app, scene):
         app.step(3)
 
 
+def test_stochastic_scene_accumulates_while_still_and_restarts_on_change(app, tmp_path):
+    """An accumulating program (tests/plugins/toy_noise, see tests/test_accumulation.py) adds one
+    sample per frame up to the app's cap; a camera drag or a setting change restarts the mean."""
+    from test_accumulation import _toy, expected_mean, mean_tol
+
+    from inshade.runtime.render import read_rgba_raw
+
+    asset = _toy().write(tmp_path / "noise", size=(8, 6))
+    cap = app.max_spp
+    app.max_spp = 4
+    try:
+        assert app.open(asset), app.messages[-1:]
+        app.step(1)   # the "compiling..." frame draws nothing
+        assert app.renderer.samples == 0
+        for n in (1, 2, 3, 4, 4, 4):
+            app.step(1)
+            assert app.renderer.samples == n
+        _, _, w, h = app.scene_rect()
+        np.testing.assert_allclose(read_rgba_raw(app.renderer._targets["network"], 0),
+                                   expected_mean(app.camera, w, h, 4)[0], atol=mean_tol(4), rtol=0)
+        app.drag(3, 0)
+        app.step(1)
+        assert app.renderer.samples == 1
+        app.step(1)
+        assert app.renderer.samples == 2
+        assert app.set_setting("gain", 0.5) == "uniform"
+        app.step(1)
+        assert app.renderer.samples == 1
+    finally:
+        app.max_spp = cap
+        assert app.open(ASSET)
+        app.step(3)
+
+
 def test_view_without_display_exits_2():
     import sys
 

@@ -8,6 +8,9 @@ Scripting / test hook: everything the UI does is a method (``open``, ``set_mode`
 ``drag``, ``scroll``, ``go_to_bookmark``, ``screenshot``, ``check_reload``) and ``step(n)`` runs n
 frames, so a script drives the app exactly as a user would, without synthetic OS events.
 
+A stochastic program (``ProgramSpec.accumulate``) adds one sample per frame to its running mean
+while the view is still, up to ``max_spp``; any change of the view or a setting restarts it.
+
 Keys: 1..5 display modes (final, network, reference, error, split; a mode the scene lacks says why in
 the viewport), T neural/reference toggle, F frame, Home reset, F12 or P screenshot,
 W A S D Q E move (fly) / pan, Esc quit. Mouse: see ``navigation``.
@@ -48,6 +51,7 @@ WIDGET_WIDTH = 170        # the widget column of the side panel (window units)
 FLASH_SECONDS = 3.0       # how long a viewport message (e.g. "no reference") stays
 HISTORY = 240             # frames in the timing plots
 PSNR_INTERVAL = 0.25      # seconds between live PSNR updates (only when the view changed)
+MAX_SPP = 256             # stochastic programs: samples a still view accumulates, one per frame
 
 
 class NoDisplayError(RuntimeError):
@@ -62,7 +66,7 @@ def default_trained_root() -> Path:
 class ViewerApp:
     def __init__(self, source=None, *, size=(1280, 800), visible: bool = True, trained_root=None,
                  settings: dict | None = None, vsync: bool = True, screenshot_dir=None,
-                 title: str = "inshade view"):
+                 title: str = "inshade view", max_spp: int = MAX_SPP):
         with warnings.catch_warnings():  # glfw warns, then returns False; the error below says it all
             warnings.simplefilter("ignore")
             ok = glfw.init()
@@ -118,6 +122,7 @@ class ViewerApp:
         self.mode, self.split, self.psnr = DisplayMode.FINAL, 0.5, None
         self.compiling = False
         self.frames = 0
+        self.max_spp = int(max_spp)
         self.label_width = 0.0            # widest label of the side panel (measured by ui.draw)
         self.flash_text, self._flash_until = None, 0.0
         self._psnr_key = None
@@ -159,6 +164,7 @@ class ViewerApp:
             return False
         self._release_scene(keep=(renderer.program, renderer.display_program))
         self.scene, self.renderer = scene, renderer
+        renderer.sample_cap = self.max_spp   # accumulating programs: a still view stops adding samples here
         self.camera = scene.make_camera()
         self.mode, self.split, self.psnr, self._psnr_key = scene.display_mode, scene.split, None, None
         self.compiling = False

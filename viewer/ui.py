@@ -199,6 +199,8 @@ def _view(app) -> None:
     if imgui.small_button("+ bookmark"):
         app.add_bookmark()
     imgui.text_colored(GREY, _camera_text(app.camera))
+    if app.renderer.spec.accumulate:   # a stochastic program: samples averaged so far (reset on any change)
+        imgui.text(f"{app.renderer.samples} spp (of {app.max_spp})")
 
 
 def _camera_text(camera) -> str:

@@ -2,7 +2,9 @@
 // with depth testing (common/mesh.vert) so that a later full-screen pass runs the transfer
 // network once per pixel, on the visible surface only.
 // attachment 0: (world position, 1); attachment 1: (unit interpolated normal, 1); 2: (uv, 0, 1);
-// 3: (interpolated tangent, handedness). The clear value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
+// 3: (interpolated tangent, handedness); 4: uv footprint (dFdx(uv), dFdy(uv)): uv change per pixel
+// along +x and +y (window axes), taken here where the triangle is known, since derivatives in the
+// deferred pass would difference neighbours across triangle edges and uv seams. The clear value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
 // consistently wound closed mesh), not flipped towards the viewer: transfer is a function of it.
 // Built and read by runtime/geometry.py MeshGBuffer.
 
@@ -15,6 +17,7 @@ layout(location = 0) out vec4 out_position;
 layout(location = 1) out vec4 out_normal;
 layout(location = 2) out vec4 out_uv;
 layout(location = 3) out vec4 out_tangent;
+layout(location = 4) out vec4 out_uv_grad;
 
 void main() {
     out_position = vec4(v_world_position, 1.0);
@@ -22,4 +25,5 @@ void main() {
     out_normal = vec4(v_normal * (1.0 / length(v_normal)), 1.0);
     out_uv = vec4(v_uv, 0.0, 1.0);
     out_tangent = v_tangent;
+    out_uv_grad = vec4(dFdx(v_uv), dFdy(v_uv));
 }

@@ -231,7 +231,7 @@ def render_gbuffer(gbuffer, uniforms: dict, width: int, height: int, sh, *, grap
     def flat(x):
         return torch.from_numpy(np.ascontiguousarray(np.asarray(x, np.float32)[::-1]).reshape(-1, 4))
 
-    pos, nrm, uvs, tan = (flat(x) for x in gbuffer)
+    pos, nrm, uvs, tan = (flat(x) for x in gbuffer[:4])
     _, rd = camera_rays(uniforms, width, height)
     sh = torch.as_tensor(np.asarray(sh, np.float32))
     out = torch.clamp(sh_radiance_t(sh, rd), min=0.0)

@@ -1,0 +1,15 @@
+// Test pass for lib/lights: one sample per pixel, (p.xyz, light index) from texel (x, y) of
+// u_inputs (data orientation) -> (to_light.xyz, irradiance_scale) of scene_light(index, p).
+// Used by tests/test_lights.py.
+#include <lib/lights>
+
+uniform sampler2D u_inputs;
+layout(location = 0) out vec4 frag_out;
+
+void main() {
+    vec4 t = texelFetch(u_inputs, ivec2(gl_FragCoord.xy), 0);
+    vec3 to_light;
+    float irradiance_scale;
+    scene_light(int(t.w), t.xyz, to_light, irradiance_scale);
+    frag_out = vec4(to_light, irradiance_scale);
+}
