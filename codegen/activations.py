@@ -13,8 +13,10 @@ _EXPR = {
     "softplus": lambda v, p: f"inshade_softplus({v})",
     "sin": lambda v, p: f"sin({flt(p['omega0'])} * {v})",
     "exp": lambda v, p: f"exp({v})",
+    # GLSL has no expm1; exp(x) - 1 is within ~1e-7 absolute of it, inside the parity rule
+    "expm1": lambda v, p: f"(exp({v}) - 1.0)",
 }
-_FLOPS = {"relu": 1, "leaky_relu": 3, "sigmoid": 4, "tanh": 6, "softplus": 6, "sin": 2, "exp": 1, "identity": 0}
+_FLOPS = {"relu": 1, "leaky_relu": 3, "sigmoid": 4, "tanh": 6, "softplus": 6, "sin": 2, "exp": 1, "expm1": 2, "identity": 0}
 
 
 @emitter(*_EXPR, "identity")

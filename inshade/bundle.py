@@ -435,3 +435,9 @@ def _check_tensors(bundle: Bundle, where):
             raise BundleError(where, name, f"shape {list(a.shape)} but {list(spec.shape)} expected")
         if a.dtype.kind == "f" and not np.isfinite(a).all():
             raise BundleError(where, name, "contains NaN or Inf")
+        if spec.representable is not None:
+            rt = a.astype(spec.representable).astype(a.dtype)
+            if not np.array_equal(rt, a):
+                bad = tuple(int(i) for i in np.argwhere(rt != a)[0])
+                raise BundleError(where, name, f"value {float(a[bad]):.9g} at {list(bad)} is not representable as "
+                                               f"{spec.representable} (the node's precision)")

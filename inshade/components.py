@@ -36,6 +36,9 @@ class Param:
 class TensorSpec:
     shape: tuple[int, ...]
     dtype: str  # numpy dtype name
+    # values must survive a round trip through this dtype (e.g. "float16" for latents stored in
+    # RGBA16F textures): the bundle then holds exactly what the GPU will see
+    representable: str | None = None
 
 
 @dataclass(frozen=True)
@@ -63,7 +66,7 @@ def _same(p, d):
     return d
 
 
-ACTIVATIONS = ("relu", "leaky_relu", "sigmoid", "tanh", "softplus", "sin", "exp", "identity")
+ACTIVATIONS = ("relu", "leaky_relu", "sigmoid", "tanh", "softplus", "sin", "exp", "expm1", "identity")
 
 COMPONENTS: dict[str, ComponentSpec] = {}
 
@@ -81,7 +84,7 @@ _register(ComponentSpec(
     in_dim=lambda p, d: 1 <= d <= MAX_WIDTH,
     category="layer",
 ))
-for _name in ("relu", "sigmoid", "tanh", "softplus", "exp", "identity"):
+for _name in ("relu", "sigmoid", "tanh", "softplus", "exp", "expm1", "identity"):
     _register(ComponentSpec(_name, f"elementwise {_name}", {}, out_dim=_same))
 _register(ComponentSpec("leaky_relu", "x if x>0 else slope*x",
                         {"slope": Param(float, 0.01, _finite)}, out_dim=_same))
@@ -146,6 +149,69 @@ _register(ComponentSpec(
 ))
 
 
+# --- neural appearance (Real-Time Neural Appearance Models, NVIDIA 2024) ----------------------
+
+LATENT_PRECISIONS = {"f16": "float16", "f32": None}
+MAX_LATENT_RES = 1 << 14
+
+
+def _is_pow2(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_LATENT_RES and v & (v - 1) == 0
+
+
+def _pyramid_tensors(p, d):
+    res, c = p["resolution"], p["channels"]
+    rep = LATENT_PRECISIONS[p["precision"]]
+    return {f"level{k}": TensorSpec((res >> k, res >> k, c), "float32", rep) for k in range(p["levels"])}
+
+
+def _pyramid_checks(p, d):
+    top = p["resolution"].bit_length()   # log2(res) + 1 levels down to 1x1
+    if not 1 <= p["levels"] <= top:
+        raise ComponentError(f"param 'levels' of latent_pyramid must be 1..{top} for resolution "
+                             f"{p['resolution']}, got {p['levels']}")
+
+
+_register(ComponentSpec(
+    "latent_pyramid",
+    "latent texture mip pyramid: input (u, v, level); level floored and clamped to [0, levels-1]; "
+    "bilinear within that level, texel centres at (i + 0.5) / N, wrap = repeat; "
+    "level k is [res >> k, res >> k, channels]",
+    {"resolution": Param(int, check=_is_pow2, doc=f"a power of two, at most {MAX_LATENT_RES}"),
+     "levels": Param(int, check=_pos_int(15)),
+     "channels": Param(int, 8, lambda v: isinstance(v, int) and 4 <= v <= 64 and v % 4 == 0,
+                       doc="a multiple of 4 from 4 to 64: one RGBA texture per 4"),
+     "precision": Param(str, "f32", lambda v: v in LATENT_PRECISIONS)},
+    out_dim=lambda p, d: p["channels"],
+    tensors=_pyramid_tensors,
+    in_dim=lambda p, d: d == 3,
+    category="lookup",
+    extra_checks=_pyramid_checks,
+))
+_register(ComponentSpec(
+    "shading_frames",
+    "learned shading frames (Eq. 7): input [z (latent), light (3), view (3)]; a linear layer "
+    "[6N, latent] gives per frame k n_k = rows 6k..6k+2, t_k = rows 6k+3..6k+5; n, t normalised "
+    "(not orthogonalised), b = normalize(n x t); output per frame (t.l, b.l, n.l, t.v, b.v, n.v)",
+    {"frames": Param(int, 2, _pos_int(8)), "latent": Param(int, 8, _pos_int(64))},
+    out_dim=lambda p, d: 6 * p["frames"],
+    tensors=lambda p, d: {"weight": TensorSpec((6 * p["frames"], p["latent"]), "float32"),
+                          "bias": TensorSpec((6 * p["frames"],), "float32")},
+    in_dim=lambda p, d: d == p["latent"] + 6,
+    category="layer",
+))
+PROXY_PARAMS = ("w_d", "w_s", "mu_d.x", "mu_d.y", "alpha_x", "alpha_y", "rho", "mu_s.x", "mu_s.y")
+_register(ComponentSpec(
+    "proxy_params",
+    "importance-sampling proxy output activation: raw 9 lanes (3 when isotropic: 2 logits, alpha) "
+    "-> [w_d, w_s, mu_d.x, mu_d.y, alpha_x, alpha_y, rho, mu_s.x, mu_s.y] (models/proxy_lobe.py)",
+    {"isotropic": Param(bool, False),
+     "alpha_min": Param(float, 0.01, lambda v: np.isfinite(v) and 0.0 < v <= 1.0)},
+    out_dim=lambda p, d: len(PROXY_PARAMS),
+    in_dim=lambda p, d: d == (3 if p["isotropic"] else 9),
+))
+
+
 def resolve_params(node_type: str, params: dict) -> dict:
     """Validated params with defaults filled in; raises ComponentError naming the field."""
     if node_type not in COMPONENTS:
@@ -169,7 +235,8 @@ def resolve_params(node_type: str, params: dict) -> dict:
         if p.kind is int and isinstance(v, bool) or not isinstance(v, p.kind):
             raise ComponentError(f"param '{name}' of {node_type} must be {p.kind.__name__}, got {v!r}")
         if p.check is not None and not p.check(v):
-            raise ComponentError(f"param '{name}' of {node_type} has an invalid value {v!r}")
+            why = f" (must be {p.doc})" if p.doc else ""
+            raise ComponentError(f"param '{name}' of {node_type} has an invalid value {v!r}{why}")
         out[name] = v
     return out
 

@@ -244,6 +244,20 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                     warn(n.id, "exp argument", bound, EXP_ARG,
                          "float32 exp overflows to inf at 88.72 (and relative agreement nears 1e-5 above 80)")
                 olo, ohi = np.exp(lo), np.exp(hi)
+            elif t == "expm1":
+                bound = float(np.max(hi))
+                if bound > EXP_ARG:
+                    warn(n.id, "expm1 argument", bound, EXP_ARG,
+                         "float32 exp overflows to inf at 88.72 (and relative agreement nears 1e-5 above 80)")
+                olo, ohi = np.expm1(lo), np.expm1(hi)
+            elif t == "latent_pyramid":   # bilinear within a level: a convex combination of texels
+                levels = [bundle.tensor(n, f"level{k}").reshape(-1, p["channels"]) for k in range(p["levels"])]
+                olo = np.min([lv.min(0) for lv in levels], 0)
+                ohi = np.max([lv.max(0) for lv in levels], 0)
+            elif t == "shading_frames":   # unit frame vectors dotted with unit directions
+                olo, ohi = np.full(n.out_dim, -1.0), np.full(n.out_dim, 1.0)
+            elif t == "proxy_params":     # weights, slopes (sinh-like of the inputs), alphas, correlation
+                olo, ohi = _proxy_ranges(p, lo, hi)
             elif t == "sin":
                 w0 = p["omega0"]
                 alo, ahi = np.minimum(w0 * lo, w0 * hi), np.maximum(w0 * lo, w0 * hi)
@@ -308,6 +322,20 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             iv[n.id] = (np.asarray(olo, np.float64).reshape(n.out_dim), np.asarray(ohi, np.float64).reshape(n.out_dim))
             exact[n.id] = is_exact
     return Envelope(findings, rng, iv)
+
+
+def _proxy_ranges(p: dict, lo: np.ndarray, hi: np.ndarray):
+    """Output bounds of proxy_params (models/proxy_lobe.py): w in [0, 1], alpha in [alpha_min, 1],
+    rho in [-0.99, 0.99], slopes mu = x (1 + |x| / 4) (monotone) of raw lanes 2, 3, 7, 8."""
+    olo = np.array([0.0, 0.0, 0.0, 0.0, p["alpha_min"], p["alpha_min"], -0.99, 0.0, 0.0])
+    ohi = np.array([1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.99, 0.0, 0.0])
+    if p["isotropic"]:
+        ohi[6] = olo[6] = 0.0
+    else:
+        mu = lambda x: x * (1 + np.abs(x) / 4)  # noqa: E731
+        for i in (2, 3, 7, 8):
+            olo[i], ohi[i] = mu(lo[i]), mu(hi[i])
+    return olo, ohi
 
 
 def format_findings(envelope: Envelope, *, notes: bool = True) -> list[str]:

@@ -79,3 +79,11 @@ class Sin(Component):
 
     def forward(self, x):
         return torch.sin(self.omega0 * x)
+
+
+@register
+class Expm1(_Elementwise):
+    """exp(x) - 1: maps a decoder's log(1 + f) back to f."""
+
+    type = "expm1"
+    fn = staticmethod(torch.expm1)

@@ -33,7 +33,7 @@ from inshade.codegen import generate
 from inshade.codegen.glsl import blocks
 from inshade.components import ACTIVATIONS
 from inshade.models import GraphModule
-from inshade.models.activations import Exp, Identity, LeakyReLU, ReLU, Sigmoid, Sin, Softplus, Tanh
+from inshade.models.activations import Exp, Expm1, Identity, LeakyReLU, ReLU, Sigmoid, Sin, Softplus, Tanh
 from inshade.models.mlp import Dense
 
 TOL = 1e-5
@@ -184,7 +184,7 @@ class MLPSpec:
 
 
 _ACT = {"relu": ReLU, "leaky_relu": LeakyReLU, "sigmoid": Sigmoid, "tanh": Tanh, "softplus": Softplus,
-        "sin": Sin, "exp": Exp, "identity": Identity}
+        "sin": Sin, "exp": Exp, "expm1": Expm1, "identity": Identity}
 assert set(_ACT) == set(ACTIVATIONS)
 
 
@@ -237,13 +237,13 @@ def _init_dense(layer: Dense, next_act: tuple[str, dict] | None, gen: torch.Gene
     with torch.no_grad():
         if name == "sin":          # SIREN init: omega0 * W x stays O(1) per unit of input
             bound = math.sqrt(6.0 / n) / params["omega0"]
-        elif name == "exp":        # row L1 norm <= 0.25: exp chains stay below ~2 (no overflow)
+        elif name in ("exp", "expm1"):   # row L1 norm <= 0.25: exp chains stay below ~2 (no overflow)
             bound = 0.25 / n
         else:                      # torch.nn.Linear's default scale
             bound = 1.0 / math.sqrt(n)
         w.copy_((torch.rand(w.shape, generator=gen) * 2 - 1) * bound)
         if b is not None:
-            b.copy_((torch.rand(b.shape, generator=gen) * 2 - 1) * min(bound, 0.1 if name == "exp" else 1.0))
+            b.copy_((torch.rand(b.shape, generator=gen) * 2 - 1) * min(bound, 0.1 if name in ("exp", "expm1") else 1.0))
 
 
 def build_mlp(spec: MLPSpec) -> GraphModule:
