@@ -117,11 +117,11 @@ def float_target(ctx: moderngl.Context, width: int, height: int, attachments: in
         colours.append(texture)
     depth_attachment = ctx.depth_renderbuffer((width, height)) if depth else None
     # the attachments are checked; moderngl checks the framebuffer's completeness itself (and its
-    # creation leaves a benign GL_INVALID_OPERATION on Mesa with several attachments)
+    # creation leaves a benign GL_INVALID_OPERATION on Mesa with several attachments, or when the
+    # framebuffer it restores afterwards was released, e.g. by an earlier renderer)
     check_gl_error(ctx, f"float target {width}x{height}: {attachments} RGBA32F attachment(s)")
     fbo = ctx.framebuffer(color_attachments=colours, depth_attachment=depth_attachment)
-    if attachments > 1:
-        ctx.error   # consume Mesa's benign GL_INVALID_OPERATION so it is not blamed on a later resource
+    ctx.error   # consume that benign error so it is not blamed on a later resource
     return fbo
 
 

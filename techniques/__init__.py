@@ -14,4 +14,5 @@ BUILTIN = (
     "di_footprint",
     "di_brdf",
     "di_sdf",
+    "neural_appearance",
 )

@@ -2,6 +2,7 @@
 record that a refactor must reproduce pixel for pixel (linear float32 read-back, bit-identical).
 
     python tests/shipped_renders.py            # (re)write tests/data/shipped_renders.npz
+    python tests/shipped_renders.py --missing  # add the cases the record lacks (a new asset), keep the rest
     pytest tests/test_shipped_renders.py       # render again and compare, bit for bit
 
 The record was written on main before the technique plug-in refactor; rewrite it only when a
@@ -31,6 +32,8 @@ CASES = [
     ("di_footprint", {}), ("di_footprint", {"mode": 1}), ("di_footprint", {"mode": 2}), ("di_footprint", {"mode": 3}),
     ("di_brdf_ggx", {}), ("di_brdf_disney", {}), ("di_brdf_disney", {"lut_filter": "fast"}),
     ("di_sdf", {}),
+    ("neural_appearance_ceramic", {}), ("neural_appearance_ceramic", {"view": "reference"}),
+    ("neural_appearance_brushed_metal", {"view": "split", "lighting": "environment"}),
 ]
 
 
@@ -53,9 +56,15 @@ def render_case(asset: str, settings: dict) -> np.ndarray:
     return np.asarray(image, np.float32)
 
 
-def main() -> int:
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
     images = {}
+    if "--missing" in argv:
+        with np.load(RECORD) as data:
+            images = {k: data[k] for k in data.files}
     for asset, settings in CASES:
+        if key(asset, settings) in images:
+            continue
         images[key(asset, settings)] = render_case(asset, settings)
         print(f"rendered {key(asset, settings)} {images[key(asset, settings)].shape}", file=sys.stderr)
     RECORD.parent.mkdir(parents=True, exist_ok=True)

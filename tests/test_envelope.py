@@ -17,7 +17,11 @@ SHIPPED = sorted(p.parent for p in (REPO / "trained").rglob("bundle.json"))
 # di_sdf: its `primary` lookup array (24^3 triangle-baked cells) reads a coordinate computed by
 # the `to_unit` dense; its gain (~69) is past LOOKUP_GAIN = 50, which is calibrated on a 64-input
 # dense (to_unit has one weight per row, so the real discrepancy is smaller: a conservative warning).
-EXPECTED_WARNINGS = {"di_sdf": {"primary"}}
+# neural_appearance_*/decoder_3x64: interval arithmetic through three 64-wide layers bounds the expm1
+# argument at ~230 over z in [-1, 1] (the latents lie in [-0.98, 0.71]); the decoders' real outputs,
+# 200k random latents x directions, stay below log(1 + 63) = 4.2: a conservative warning.
+EXPECTED_WARNINGS = {"di_sdf": {"primary"}, "neural_appearance_ceramic/decoder_3x64": {"expm1"},
+                     "neural_appearance_brushed_metal/decoder_3x64": {"expm1"}}
 
 
 def _name(folder: Path) -> str:

@@ -1,0 +1,82 @@
+"""neural_appearance: Real-Time Neural Appearance Models (NVIDIA 2024) in plain GLSL.
+
+A layered reference material (material.py: a clear coat over a normal-mapped diffuse/anisotropic
+conductor base, 12 procedurally textured channels) is baked into an 8-channel latent mip pyramid
+(two RGBA16F chains) decoded by small MLPs with a learned shading-frame layer (2x16, 2x32, 3x64),
+plus a 3x32 importance-sampling decoder driving an analytic two-lobe proxy (tilted cosine +
+anisotropic non-centred GGX). One asset folder holds one bundle per network (kind
+``neural_appearance``): ``latents``, ``decoder_2x16``, ``decoder_2x32``, ``decoder_3x64``,
+``sampler`` and ``sampler_isotropic`` (the paper's isotropic baseline), the material description
+(``material.json``) and its parameter textures (``param0..2.png``) for the reference shader.
+"""
+from pathlib import Path
+
+from inshade.papers import NEURAL_APPEARANCE
+from inshade.technique import ProgramSpec, Technique
+
+KIND = "neural_appearance"
+# (bundle folder in the asset, GLSL prefix): the pass includes <network_PREFIX> for each.
+NETWORKS = (("latents", "latents"), ("decoder_2x16", "dec16"), ("decoder_2x32", "dec32"),
+            ("decoder_3x64", "dec64"), ("sampler", "smp"), ("sampler_isotropic", "iso"))
+DECODERS = {"2x16": "decoder_2x16", "2x32": "decoder_2x32", "3x64": "decoder_3x64"}
+# the pass's views and lighting modes (lib/na_shading.glsl NA_VIEW_* / NA_LIGHTING_*), in order
+VIEWS = ("neural", "reference", "split", "error", "level", "latents")
+LIGHTING = ("lights", "environment")
+SAMPLING = ("learned", "isotropic", "cosine")
+UNIFORM_DEFAULTS = {"u_na_view": 0, "u_na_lighting": 0, "u_na_sampling": 0, "u_na_mis": 1, "u_na_level_bias": 0.0,
+                    "u_na_error_scale": 4.0, "u_na_latent_page": 0, "u_light_count": 4}
+
+
+def _validate(scene):
+    """Every network role at its prefix; a lit (environment) scene."""
+    from .material_uniforms import material_path
+
+    have = {n.prefix: n for n in scene.networks}
+    missing = [f"{folder} (prefix {prefix})" for folder, prefix in NETWORKS if prefix not in have]
+    if missing:
+        raise ValueError(f"networks: a neural appearance scene needs {', '.join(missing)} "
+                         f"(one entry per network: {', '.join(f for f, _ in NETWORKS)})")
+    if not material_path(scene).is_file():
+        raise ValueError(f"material: {material_path(scene)}: missing (the reference material's description)")
+    for name, choices in (("u_na_view", VIEWS), ("u_na_lighting", LIGHTING), ("u_na_sampling", SAMPLING)):
+        for sname, s in scene.settings.items():
+            if s.binding == "uniform" and s.target == name and tuple(s.choices) != choices[:len(s.choices)]:
+                raise ValueError(f"settings.{sname}.choices: {name} takes {list(choices)} (in that order)")
+
+
+def _chunks(scene, bundles, networks, codegen_options):
+    """``<na_latents_info>``: the latent pyramid's finest side and level count (lib/na_neural)."""
+    for bundle, ref in zip(bundles, networks):
+        if ref.prefix != "latents":
+            continue
+        nodes = [n for n in bundle.nodes if n.type == "latent_pyramid"]
+        if len(nodes) != 1:
+            raise ValueError(f"networks: {bundle.name}: the latents bundle needs one latent_pyramid node, "
+                             f"has {len(nodes)}")
+        p = nodes[0].params
+        return {"na_latents_info": f"#define NA_LATENT_RES {int(p['resolution'])}\n"
+                                   f"#define NA_LATENT_LEVELS {int(p['levels'])}\n"}
+    raise ValueError("networks: no latents bundle (prefix \"latents\")")
+
+
+def _frame(inputs):
+    """The reference material's constants (the asset's material.json) as uniforms."""
+    from .material_uniforms import material_uniforms
+
+    return material_uniforms(inputs.scene)
+
+
+TECHNIQUE = Technique(
+    name="neural_appearance",
+    summary="neural materials: latent mip pyramid + MLP decoders with learned frames and a learned sampler",
+    paper=NEURAL_APPEARANCE,
+    kinds=(KIND,),
+    programs=(ProgramSpec("passes/mesh_neural_appearance.frag", geometry="mesh", mesh_attributes=("uv", "tangent"),
+                          bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS, chunks=_chunks, frame=_frame, validate=_validate,
+                          accumulate=True),),
+    train="inshade.techniques.neural_appearance.train",
+    train_help="bake a layered material into a latent pyramid + decoders + sampler",
+    bench="inshade.techniques.neural_appearance.bench",
+    bench_help="neural vs reference layered material: quality, speed, sampler variance, memory",
+    shaders=Path(__file__).resolve().parent / "shaders",
+)

@@ -1,0 +1,111 @@
+"""The neural material in torch: latent pyramid, encoder (training only), decoders with learned
+shading frames, importance-sampling decoders; built from bundle components so that the exported
+bundles are exactly what was trained (models/ twins, codegen/ emitters).
+
+Networks (Real-Time Neural Appearance Models §2; sizes from the paper):
+- ``latents``: ``latent_pyramid`` (u, v, level) -> z (8), bilinear within one level, repeat wrap;
+- ``decoder_WxD``: (z, light, view) -> ``shading_frames`` (2 frames, 12 lanes) ++ z -> MLP
+  (2x16, 2x32, 3x64, ReLU) -> log(1 + f cos); exported with an ``expm1`` node, so the bundle
+  outputs f cos itself;
+- ``sampler``: (z, view) -> MLP 3x32 -> ``proxy_params`` (9 proxy parameters);
+  ``sampler_isotropic``: the same with the isotropic proxy (3 raw outputs), the paper's baseline;
+- ``encoder`` (training only): k(x) (the material's per-texel parameters, LEAN-prefiltered for
+  coarse levels) -> MLP 2x64 -> z.
+"""
+from __future__ import annotations
+
+import torch
+
+from inshade.models.graph import GraphModule
+from inshade.models.latent_pyramid import bilinear_repeat
+from inshade.models.registry import TORCH_COMPONENTS
+
+LATENT = 8
+DECODER_SIZES = {"2x16": (16, 16), "2x32": (32, 32), "3x64": (64, 64, 64)}
+SAMPLER_WIDTHS = (32, 32, 32)
+ENCODER_WIDTHS = (64, 64)
+
+
+def _component(type_name: str, **params):
+    return TORCH_COMPONENTS[type_name](**params)
+
+
+def mlp(g: GraphModule, src, widths, out: int, prefix: str = "l") -> str:
+    """(dense -> relu) per width, then a dense layer of ``out``; returns the last node."""
+    for i, w in enumerate(widths):
+        src = g.dense(f"{prefix}{i}", src, w)
+        src = g.add(f"{prefix}a{i}", _component("relu"), src)
+    return g.dense(f"{prefix}{len(widths)}", src, out)
+
+
+def decoder(widths) -> GraphModule:
+    """(z, light, view) -> log(1 + f cos) [3], without the final expm1 (``finish_decoder`` adds it)."""
+    g = GraphModule([("z", LATENT, "latent"), ("light", 3, "direction"), ("view", 3, "direction")])
+    frames = g.add("frames", _component("shading_frames", latent=LATENT, frames=2), ["z", "light", "view"])
+    last = mlp(g, ["z", frames], widths, 3)
+    g.output("log_brdf", last, "log1p_rgb")
+    return g
+
+
+def finish_decoder(g: GraphModule) -> GraphModule:
+    """The exported decoder: the trained graph + expm1, outputting f cos (linear RGB)."""
+    last = g.outputs[0][1]
+    node = g.add("expm1", _component("expm1"), last)
+    g.outputs = [("brdf", node, "linear_rgb")]
+    return g
+
+
+def sampler(isotropic: bool = False) -> GraphModule:
+    """(z, view) -> the 9 proxy-lobe parameters (models/proxy_lobe.py order)."""
+    g = GraphModule([("z", LATENT, "latent"), ("view", 3, "direction")])
+    last = mlp(g, ["z", "view"], SAMPLER_WIDTHS, 3 if isotropic else 9)
+    proxy = g.add("proxy", _component("proxy_params", isotropic=isotropic), last)
+    g.output("proxy", proxy, "proxy_lobe")
+    return g
+
+
+def encoder(inputs: int) -> torch.nn.Sequential:
+    layers, width = [], inputs
+    for w in ENCODER_WIDTHS:
+        layers += [torch.nn.Linear(width, w), torch.nn.ReLU()]
+        width = w
+    layers.append(torch.nn.Linear(width, LATENT))
+    return torch.nn.Sequential(*layers)
+
+
+def latents_graph(pyramid) -> GraphModule:
+    g = GraphModule([("uvl", 3, "uv_level")])
+    node = g.add("pyramid", pyramid, "uvl")
+    g.output("z", node, "latent")
+    return g
+
+
+class NeuralMaterial(torch.nn.Module):
+    """Everything trained for one material. ``pyramid`` is created at phase 2 (from the encoder)."""
+
+    def __init__(self, encoder_inputs: int, resolution: int, levels: int):
+        super().__init__()
+        self.resolution, self.levels = int(resolution), int(levels)
+        self.encoder = encoder(encoder_inputs)
+        self.decoders = torch.nn.ModuleDict({name: decoder(w) for name, w in DECODER_SIZES.items()})
+        self.samplers = torch.nn.ModuleDict({"sampler": sampler(False), "sampler_isotropic": sampler(True)})
+        self.pyramid = None
+
+    def make_pyramid(self, levels_data: list[torch.Tensor]):
+        """The latent pyramid initialised from per-level latents [N >> k, N >> k, 8]."""
+        cls = TORCH_COMPONENTS["latent_pyramid"]
+        self.pyramid = cls.from_arrays([t.detach().cpu().numpy() for t in levels_data], precision="f16")
+        return self.pyramid
+
+
+def sample_levels(levels: list[torch.Tensor], uv: torch.Tensor, level: torch.Tensor) -> torch.Tensor:
+    """Bilinear lookup within one level per sample, repeat wrap, texel centres at (i + 0.5) / N
+    (the latent_pyramid convention) of a pyramid held as plain tensors [N_k, N_k, C] (encoder
+    inputs, parameter mips). uv [B, 2], level [B] (integers) -> [B, C]."""
+    out = torch.empty(uv.shape[0], levels[0].shape[-1], dtype=levels[0].dtype, device=uv.device)
+    for k, tex in enumerate(levels):
+        sel = (level == k).nonzero(as_tuple=True)[0]
+        if sel.numel() == 0:
+            continue
+        out[sel] = bilinear_repeat(tex, uv[sel])
+    return out

@@ -1,0 +1,96 @@
+// Shading of the neural and the reference material with the same lights, estimator and random
+// numbers, so that a split or error view differs by the material alone.
+// Lighting: NA_LIGHTING_LIGHTS (the scene's point and directional lights, decoder only) or
+// NA_LIGHTING_ENVIRONMENT (the environment map by Monte Carlo: one BRDF-proxy sample, combined by
+// the power heuristic with one environment sample when MIS is on; accumulated over frames).
+// BRDF sampling: NA_SAMPLING_LEARNED (the sampler decoder's proxy), _ISOTROPIC (the isotropic
+// baseline proxy) or _COSINE (BRDF-agnostic cosine-weighted). No shadowing: lights and
+// environment reach every point with n.l > 0 (as in the paper's material-only comparisons).
+#include <lib/na_neural>
+#include <lib/na_reference>
+#include <lib/lights>
+#include <lib/environment>
+#include <lib/random>
+
+#define NA_LIGHTING_LIGHTS 0
+#define NA_LIGHTING_ENVIRONMENT 1
+#define NA_SAMPLING_LEARNED 0
+#define NA_SAMPLING_ISOTROPIC 1
+#define NA_SAMPLING_COSINE 2
+
+
+struct NaPoint {
+    vec3 t;            // tangent frame of the geometric surface (world space)
+    vec3 b;
+    vec3 n;
+    vec3 position;
+    vec3 view;         // local direction to the viewer
+    vec2 uv;
+    float lod;         // continuous pyramid level of the footprint
+    NaLatent z;        // latents at the stochastically chosen level
+    vec4 p0;           // reference parameters (textures through their own mips at lod)
+    vec4 p1;
+    vec4 p2;
+};
+
+vec3 na_local(NaPoint s, vec3 w) {
+    return vec3(dot(w, s.t), dot(w, s.b), dot(w, s.n));
+}
+
+vec3 na_world(NaPoint s, vec3 w) {
+    return s.t * w.x + s.b * w.y + s.n * w.z;
+}
+
+// f cos of the shown material: the neural decoder or the reference.
+vec3 na_reflectance_of(NaPoint s, bool neural, vec3 light) {
+    if (neural) return na_neural(s.z, light, s.view);
+    return na_reflectance(s.p0, s.p1, s.p2, light, s.view);
+}
+
+vec3 na_lights(NaPoint s, bool neural, int light_count) {
+    vec3 sum = vec3(0.0);
+    for (int i = 0; i < INSHADE_MAX_LIGHTS; ++i) {
+        if (i >= scene_lights(light_count)) break;
+        vec3 to_light;
+        float scale;
+        scene_light(i, s.position, to_light, scale);
+        sum += na_reflectance_of(s, neural, na_local(s, to_light)) * (u_lights[i].w * scale);
+    }
+    return sum;
+}
+
+float na_bsdf_pdf(int sampling, ProxyLobe lobe, vec3 view, vec3 light) {
+    if (sampling == NA_SAMPLING_COSINE) return max(light.z, 0.0) * (1.0 / NA_PI);
+    return proxy_pdf(lobe, view, light);
+}
+
+vec3 na_bsdf_sample(int sampling, ProxyLobe lobe, vec3 view, vec3 u) {
+    if (sampling == NA_SAMPLING_COSINE) {
+        float r = sqrt(u.y), phi = 2.0 * NA_PI * u.z;
+        return vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.y)));
+    }
+    return proxy_sample(lobe, view, u);
+}
+
+// One Monte Carlo sample of the environment's reflected radiance (pixel px, sample index k).
+vec3 na_environment(NaPoint s, bool neural, int sampling, bool mis, uvec2 px, int k) {
+    ProxyLobe lobe = na_lobe(s.z, s.view, sampling == NA_SAMPLING_ISOTROPIC);
+    vec3 sum = vec3(0.0);
+    vec3 light = na_bsdf_sample(sampling, lobe, s.view, random_uniform3(px, k, 1));
+    float pdf = na_bsdf_pdf(sampling, lobe, s.view, light);
+    if (light.z > 0.0 && pdf > 0.0) {
+        vec3 dir = na_world(s, light);
+        float w = mis ? mis_power(pdf, env_pdf(dir)) : 1.0;
+        sum += na_reflectance_of(s, neural, light) * env_radiance(dir) * (w / pdf);
+    }
+    if (mis) {
+        float env_p;
+        vec3 dir = env_sample(random_uniform2(px, k, 2), env_p);
+        vec3 l = na_local(s, dir);
+        if (l.z > 0.0 && env_p > 0.0) {
+            float w = mis_power(env_p, na_bsdf_pdf(sampling, lobe, s.view, l));
+            sum += na_reflectance_of(s, neural, l) * env_radiance(dir) * (w / env_p);
+        }
+    }
+    return sum;
+}

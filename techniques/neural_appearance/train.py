@@ -1,0 +1,545 @@
+"""Bake a layered reference material into a neural material (Real-Time Neural Appearance Models §3).
+
+Command: ``inshade train neural_appearance [--material ceramic|brushed_metal|FILE.json] [--preset
+quick|ship] [--device cpu|cuda] [--out DIR] [--resolution N] [--steps1 N] [--steps2 N] [--seed S]
+[--restart]``. ``--preset ship`` is what built ``trained/neural_appearance_<material>``; ``quick``
+is the same pipeline at 32x32 for a few seconds (tests). Options given explicitly override the preset.
+
+Training (one run per material; every network shares one latent pyramid):
+- **samples online** (§3.1): uv uniform; the pyramid level drawn from an exponential distribution
+  favouring fine levels (§3.3); directions half of the time from uniformly sampled half and
+  difference vectors (Rusinkiewicz), half cosine-weighted pairs; both above the horizon;
+- **prefiltered targets** (§3.3): the reference averaged over uv points drawn from a Gaussian
+  matching the level's footprint (1 point at level 0, ``--footprint-samples`` above), and over a
+  cone of light directions whose angle shrinks to 0 (the mollification curriculum, §3.4);
+- **losses** (§3.5): L1 between the decoders' output and log(1 + target) — the three decoders
+  (2x16, 2x32, 3x64) are trained together on the same latents; for the samplers (learned and
+  isotropic) the KL divergence from the current 3x64 decoder's cosine-weighted BRDF to the proxy
+  density, estimated with directions drawn half from the proxy and half cosine-weighted (a
+  defensive mixture, so a lobe the proxy misses still gets samples), with the latents detached;
+- **two phases** (§3.2): phase 1 trains the encoder (material parameters -> latents, LEAN-
+  prefiltered for coarse levels) end to end; then every texel of every level is encoded into the
+  latent pyramid, the encoder is dropped and phase 2 fine-tunes the latents and the decoders.
+- Adam, cosine learning-rate decay per phase; a checkpoint every ``--checkpoint-every`` steps in the
+  output folder (resumed by the same command unless ``--restart``; removed when done).
+
+Writes the asset folder: one bundle per network (``latents/``, ``decoder_2x16/`` ...), the material
+description and its parameter textures (for the reference shader), ``scene.json`` (the teapot),
+``metrics.json`` (with the rebuild command) and ``preview.png``.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import shlex
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from inshade import command
+from inshade.files import atomic_files, atomic_write
+
+from . import KIND, NETWORKS
+from inshade.models.latent_pyramid import bilinear_repeat
+
+from .model import LATENT, NeuralMaterial, finish_decoder, latents_graph, sample_levels
+
+PRESETS = {
+    "ship": dict(resolution=512, steps1=5000, steps2=10000, batch=4096, sampler_batch=512, sampler_samples=8,
+                 footprint_samples=8),
+    "quick": dict(resolution=32, steps1=30, steps2=30, batch=512, sampler_batch=64, sampler_samples=4,
+                  footprint_samples=4),
+}
+DEFAULTS = dict(material="ceramic", preset="ship", seed=0, device="cpu", lr=2e-3, latent_lr=1e-3,
+                level_scale=1.5, mollify_degrees=12.0, checkpoint_every=250, out=None)
+MATERIALS = ("ceramic", "brushed_metal")
+CHECKPOINT = "checkpoint.safetensors"
+
+
+# ---------------------------------------------------------------------------------------------
+# samples
+
+def draw_levels(n: int, levels: int, scale: float, gen: torch.Generator) -> torch.Tensor:
+    """Integer levels in [0, levels) from a truncated exponential favouring fine levels (§3.3)."""
+    p = torch.exp(-torch.arange(levels, dtype=torch.float64) / scale)
+    return torch.multinomial(p / p.sum(), n, replacement=True, generator=gen)
+
+
+def _cosine(u1, u2):
+    r, phi = torch.sqrt(u1), 2 * math.pi * u2
+    return torch.stack([r * torch.cos(phi), r * torch.sin(phi), torch.sqrt(torch.clamp(1 - u1, min=0))], -1)
+
+
+def _uniform_hemisphere(u1, u2):
+    z = u1
+    r, phi = torch.sqrt(torch.clamp(1 - z * z, min=0)), 2 * math.pi * u2
+    return torch.stack([r * torch.cos(phi), r * torch.sin(phi), z], -1)
+
+
+def half_difference_pairs(n: int, gen: torch.Generator):
+    """(light, view) from uniformly sampled half and difference vectors (Rusinkiewicz 1998)."""
+    u = torch.rand(n, 4, generator=gen, dtype=torch.float64)
+    h = _uniform_hemisphere(u[:, 0], u[:, 1])
+    d = _uniform_hemisphere(u[:, 2], u[:, 3])
+    # frame around h: rotate (0, 0, 1) onto h
+    t = torch.nn.functional.normalize(torch.cross(torch.tensor([0.0, 1.0, 0.0], dtype=h.dtype).expand_as(h), h,
+                                                  dim=-1) + torch.tensor([1e-9, 0, 0], dtype=h.dtype), dim=-1)
+    b = torch.cross(h, t, dim=-1)
+    light = d[:, :1] * t + d[:, 1:2] * b + d[:, 2:] * h
+    view = 2 * (light * h).sum(-1, keepdim=True) * h - light
+    return light, view
+
+
+def direction_pairs(n: int, gen: torch.Generator):
+    """n (light, view) pairs above the horizon: half half/difference, half cosine x cosine."""
+    lights, views, have = [], [], 0
+    while have < n:
+        m = 2 * (n - have) + 64
+        l1, v1 = half_difference_pairs(m // 2, gen)
+        u = torch.rand(m - m // 2, 4, generator=gen, dtype=torch.float64)
+        l2, v2 = _cosine(u[:, 0], u[:, 1]), _cosine(u[:, 2], u[:, 3])
+        light, view = torch.cat([l1, l2]), torch.cat([v1, v2])
+        ok = (light[:, 2] > 1e-4) & (view[:, 2] > 1e-4)
+        lights.append(light[ok])
+        views.append(view[ok])
+        have += int(ok.sum())
+    light = torch.cat(lights)[:n]
+    view = torch.cat(views)[:n]
+    perm = torch.randperm(n, generator=gen)
+    return light[perm].float(), view[perm].float()
+
+
+def jitter_cone(d: torch.Tensor, angle: float, gen: torch.Generator) -> torch.Tensor:
+    """Directions drawn uniformly in a cone of half-angle ``angle`` (radians) around d."""
+    if angle <= 0:
+        return d
+    u = torch.rand(d.shape[0], 2, generator=gen)
+    cos_max = math.cos(angle)
+    z = 1 - u[:, 0] * (1 - cos_max)
+    r, phi = torch.sqrt(torch.clamp(1 - z * z, min=0)), 2 * math.pi * u[:, 1]
+    helper = torch.where(d[:, 2:].abs() < 0.9, torch.tensor([0.0, 0.0, 1.0]), torch.tensor([1.0, 0.0, 0.0]))
+    t = torch.nn.functional.normalize(torch.cross(helper.expand_as(d), d, dim=-1), dim=-1)
+    b = torch.cross(d, t, dim=-1)
+    return (r * torch.cos(phi))[:, None] * t + (r * torch.sin(phi))[:, None] * b + z[:, None] * d
+
+
+class Targets:
+    """Prefiltered, mollified reference values (§3.3, §3.4) from the material's level-0 textures."""
+
+    def __init__(self, material, raw: np.ndarray, device):
+        from .reference import reflectance
+
+        self.material = material
+        self.reflectance = reflectance
+        self.texels = torch.from_numpy(np.ascontiguousarray(raw)).float().to(device)
+        self.size = raw.shape[0]
+
+    def __call__(self, uv, level, light, view, samples: int, cone: float, gen) -> torch.Tensor:
+        n = uv.shape[0]
+        k = torch.where(level == 0, torch.ones_like(level), torch.full_like(level, samples))
+        reps = int(k.max())
+        total = torch.zeros(n, 3, device=uv.device)
+        for s in range(reps):
+            active = (k > s).nonzero(as_tuple=True)[0]
+            sigma = (0.4 * 2.0 ** level[active].float() / self.size)[:, None]
+            offset = torch.randn(active.numel(), 2, generator=gen).to(uv.device) * sigma
+            offset = torch.where(level[active, None] == 0, torch.zeros_like(offset), offset)
+            p = bilinear_repeat(self.texels, uv[active] + offset)
+            l_jit = jitter_cone(light[active], cone, gen)
+            total[active] += self.reflectance(p, l_jit, view[active], self.material)
+        return total / k[:, None].float()
+
+
+# ---------------------------------------------------------------------------------------------
+# losses
+
+def decoder_loss(model: NeuralMaterial, z, light, view, target) -> tuple[torch.Tensor, dict]:
+    x = torch.cat([z, light, view], -1)
+    goal = torch.log1p(torch.clamp(target, min=0))
+    losses = {name: (dec(x) - goal).abs().mean() for name, dec in model.decoders.items()}
+    return sum(losses.values()), {k: float(v.detach()) for k, v in losses.items()}
+
+
+def sampler_loss(model: NeuralMaterial, z, view, samples: int, gen) -> tuple[torch.Tensor, dict]:
+    """KL(decoder || proxy) up to a constant, per (z, view): -E_m[(p / m) log q] with directions
+    from the mixture m = (q + cosine) / 2, p the 3x64 decoder's luminance normalised per pair by
+    its own estimate; latents and the decoder detached (§3.5)."""
+    from inshade.models.proxy_lobe import proxy_pdf, proxy_sample
+
+    z = z.detach()
+    n = z.shape[0]
+    zz = z.repeat_interleave(samples, 0)
+    vv = view.repeat_interleave(samples, 0)
+    u = torch.rand(n * samples, 3, generator=gen).to(z.device)
+    dec = model.decoders["3x64"]
+    out = {}
+    total = 0.0
+    for name, smp in model.samplers.items():
+        params = smp(torch.cat([z, view], -1)).repeat_interleave(samples, 0)
+        with torch.no_grad():
+            from_proxy = proxy_sample(params.detach(), vv, u)
+            cos = _cosine(u[:, 1].double(), u[:, 2].double()).float()
+            pick = (torch.arange(n * samples, device=z.device) % 2 == 0)[:, None]
+            light = torch.where(pick, from_proxy, cos)
+            light = torch.nn.functional.normalize(light, dim=-1)
+            f = torch.expm1(dec(torch.cat([zz, light, vv], -1))).clamp(min=0).mean(-1)
+            f = torch.where(light[:, 2] > 0, f, torch.zeros_like(f))
+            q_det = proxy_pdf(params.detach(), vv, light)
+            m = 0.5 * q_det + 0.5 * torch.clamp(light[:, 2], min=0) / math.pi
+            w = torch.where(m > 0, f / m.clamp(min=1e-12), torch.zeros_like(f)).reshape(n, samples)
+            w = w / w.mean(1, keepdim=True).clamp(min=1e-12)
+        q = proxy_pdf(params, vv, light).clamp(min=1e-12)
+        loss = -(w.reshape(-1) * torch.log(q)).mean()
+        out[name] = float(loss.detach())
+        total = total + loss
+    return total, out
+
+
+# ---------------------------------------------------------------------------------------------
+# checkpoints
+
+def _save_checkpoint(path: Path, model, opt, phase: int, step: int, config: dict) -> None:
+    from safetensors.torch import save_file
+
+    tensors = {f"model.{k}": v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    state = opt.state_dict()
+    for idx, st in state["state"].items():
+        for key, value in st.items():
+            tensors[f"opt.{idx}.{key}"] = torch.as_tensor(value).detach().cpu().reshape(-1).contiguous().float() \
+                if key == "step" else value.detach().cpu().contiguous()
+    meta = {"format": "inshade.neural_appearance_checkpoint", "phase": str(phase), "step": str(step),
+            "config": json.dumps(config, sort_keys=True),
+            "groups": json.dumps([{k: v for k, v in g.items() if k != "params"} for g in state["param_groups"]])}
+    with atomic_files(path) as tmp:
+        save_file(tensors, str(tmp), metadata=meta)
+
+
+def _load_checkpoint(path: Path, config: dict):
+    """(phase, step, tensors, groups); ValueError naming the field if it belongs to another run."""
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            meta = f.metadata() or {}
+            tensors = {k: f.get_tensor(k) for k in f.keys()}
+    except Exception as exc:  # safetensors raises several types for corrupt files
+        raise ValueError(f"{path}: unreadable checkpoint ({exc}); delete it or pass --restart") from None
+    if meta.get("format") != "inshade.neural_appearance_checkpoint":
+        raise ValueError(f"{path}: format: not a neural appearance checkpoint")
+    saved = json.loads(meta.get("config", "{}"))
+    if saved != config:
+        key = sorted(k for k in set(saved) | set(config) if saved.get(k) != config.get(k))[0]
+        raise ValueError(f"{path}: config.{key}: the checkpoint has {saved.get(key)!r}, this run "
+                         f"{config.get(key)!r} (pass --restart to start over)")
+    return int(meta["phase"]), int(meta["step"]), tensors, json.loads(meta["groups"])
+
+
+def _restore(model, opt, tensors, groups) -> None:
+    model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
+    state = {"state": {}, "param_groups": []}
+    params = [p for g in opt.param_groups for p in g["params"]]
+    start = 0
+    for g, saved in zip(opt.param_groups, groups):
+        ids = list(range(start, start + len(g["params"])))
+        state["param_groups"].append({**saved, "params": ids})
+        start += len(g["params"])
+    for i in range(len(params)):
+        st = {}
+        for key in ("step", "exp_avg", "exp_avg_sq"):
+            t = tensors.get(f"opt.{i}.{key}")
+            if t is not None:
+                st[key] = t.reshape(()) if key == "step" else t
+        if st:
+            state["state"][i] = st
+    opt.load_state_dict(state)
+
+
+# ---------------------------------------------------------------------------------------------
+# training
+
+def _optimizer(model: NeuralMaterial, phase: int, lr: float, latent_lr: float):
+    nets = [p for name, p in model.named_parameters() if not name.startswith(("pyramid.", "encoder."))]
+    if phase == 1:
+        groups = [{"params": list(model.encoder.parameters()), "lr": lr}, {"params": nets, "lr": lr}]
+    else:
+        groups = [{"params": list(model.pyramid.parameters()), "lr": latent_lr}, {"params": nets, "lr": lr}]
+    return torch.optim.Adam(groups, eps=1e-15)
+
+
+def encode_pyramid(model: NeuralMaterial, encoder_levels: list[torch.Tensor]) -> list[torch.Tensor]:
+    """Phase 2's initial latents: the encoder run on every texel of every level (§3.2)."""
+    with torch.no_grad():
+        return [model.encoder(t.reshape(-1, t.shape[-1])).reshape(*t.shape[:2], LATENT) for t in encoder_levels]
+
+
+def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps1=None, steps2=None,
+          batch=None, sampler_batch=None, sampler_samples=None, footprint_samples=None, seed=0, device="cpu",
+          lr=DEFAULTS["lr"], latent_lr=DEFAULTS["latent_lr"], level_scale=DEFAULTS["level_scale"],
+          mollify_degrees=DEFAULTS["mollify_degrees"], checkpoint_every=DEFAULTS["checkpoint_every"],
+          restart=False, progress=None, command_line=None, write_preview=True) -> Path:
+    """Train and write the asset folder; returns it."""
+    from inshade.progress import progress as progress_bar
+
+    from .material import ENCODER_INPUTS, bake_parameters, load_material, parameter_pyramid
+
+    p = PRESETS[preset]
+    resolution = resolution or p["resolution"]
+    steps1 = p["steps1"] if steps1 is None else steps1
+    steps2 = p["steps2"] if steps2 is None else steps2
+    batch, sampler_batch = batch or p["batch"], sampler_batch or p["sampler_batch"]
+    sampler_samples = sampler_samples or p["sampler_samples"]
+    footprint_samples = footprint_samples or p["footprint_samples"]
+    if resolution < 4 or resolution & (resolution - 1):
+        raise ValueError(f"--resolution: must be a power of two >= 4, got {resolution}")
+    mat = load_material(material)
+    out = Path(out or f"trained/neural_appearance_{mat.name}")
+    device = torch.device(device)
+    levels = int(math.log2(resolution)) + 1
+    config = dict(material=mat.name, resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
+                  sampler_batch=sampler_batch, sampler_samples=sampler_samples,
+                  footprint_samples=footprint_samples, seed=seed, lr=lr, latent_lr=latent_lr,
+                  level_scale=level_scale, mollify_degrees=mollify_degrees)
+    command_line = command_line or _command_line(material, preset, out, config)
+
+    torch.manual_seed(seed)
+    raw = bake_parameters(mat, resolution)
+    enc_levels = [torch.from_numpy(np.ascontiguousarray(a)).float().to(device)
+                  for a in parameter_pyramid(raw, levels, mat)]
+    targets = Targets(mat, raw, device)
+    model = NeuralMaterial(ENCODER_INPUTS, resolution, levels).to(device)
+
+    ckpt = out / CHECKPOINT
+    start_phase, start_step, saved = 1, 0, None
+    if ckpt.is_file() and not restart:
+        start_phase, start_step, tensors, groups = _load_checkpoint(ckpt, config)
+        saved = (tensors, groups)
+        print(f"resuming {ckpt}: phase {start_phase}, step {start_step}")
+    history = {"phase1": [], "phase2": []}
+    started = time.perf_counter()
+    for phase, steps in ((1, steps1), (2, steps2)):
+        if phase < start_phase:
+            continue
+        if phase == 2 and model.pyramid is None:
+            if saved is not None and start_phase == 2:
+                shapes = [(resolution >> k, resolution >> k, LATENT) for k in range(levels)]
+                model.make_pyramid([torch.zeros(s) for s in shapes])
+            else:
+                model.make_pyramid(encode_pyramid(model, enc_levels))
+            model.pyramid.to(device)
+            if checkpoint_every and saved is None:
+                _save_checkpoint(ckpt, model, _optimizer(model, 2, lr, latent_lr), 2, 0, config)
+        opt = _optimizer(model, phase, lr, latent_lr)
+        first = 0
+        if saved is not None and phase == start_phase:
+            _restore(model, opt, *saved)
+            first, saved = start_step, None
+        base = [g["lr"] for g in opt.param_groups]
+        bar = progress_bar(range(first, steps), desc=f"neural_appearance {mat.name} phase {phase}",
+                           enabled=progress)
+        for step in bar:
+            t = step / max(steps, 1)
+            for g, lr0 in zip(opt.param_groups, base):
+                g["lr"] = lr0 * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * t)))
+            gen = torch.Generator().manual_seed(seed * 1_000_003 + phase * 100_000 + step)
+            uv = torch.rand(batch, 2, generator=gen).to(device)
+            level = draw_levels(batch, levels, level_scale, gen).to(device)
+            light, view = (d.to(device) for d in direction_pairs(batch, gen))
+            cone = math.radians(mollify_degrees) * max(0.0, 1.0 - 2.0 * (step / max(steps, 1))) if phase == 1 else 0.0
+            with torch.no_grad():
+                target = targets(uv, level, light, view, footprint_samples, cone, gen)
+            if phase == 1:
+                z = model.encoder(sample_levels(enc_levels, uv, level))
+            else:
+                z = model.pyramid(torch.cat([uv, level[:, None].float()], -1))
+            loss, parts = decoder_loss(model, z, light, view, target)
+            s_loss, s_parts = sampler_loss(model, z[:sampler_batch], view[:sampler_batch], sampler_samples, gen)
+            opt.zero_grad(set_to_none=True)
+            (loss + 0.1 * s_loss).backward()
+            opt.step()
+            if step % 25 == 0 or step == steps - 1:
+                history[f"phase{phase}"].append({"step": step, **{f"l1_{k}": round(v, 5) for k, v in parts.items()},
+                                                 **{f"kl_{k}": round(v, 5) for k, v in s_parts.items()}})
+                bar.set_postfix(l1=f"{parts['3x64']:.4f}")
+            if checkpoint_every and (step + 1) % checkpoint_every == 0 and step + 1 < steps:
+                _save_checkpoint(ckpt, model, opt, phase, step + 1, config)
+    seconds = time.perf_counter() - started
+    if model.pyramid is None:     # steps2 == 0: latents straight from the encoder
+        model.make_pyramid(encode_pyramid(model, enc_levels))
+    history["holdout"] = holdout(model, targets, levels, device, seed)
+    write_asset(out, model, mat, raw, config, history, seconds, command_line, preset, device)
+    ckpt.unlink(missing_ok=True)
+    if write_preview:
+        render_preview(out)
+    return out
+
+
+def holdout(model: NeuralMaterial, targets: Targets, levels: int, device, seed: int, n: int = 8192) -> dict:
+    """L1 (log space) of each decoder on fixed samples the training never drew, per level 0..2."""
+    out = {}
+    for level in range(min(3, levels)):
+        gen = torch.Generator().manual_seed(10_000_019 + seed + level)
+        uv = torch.rand(n, 2, generator=gen).to(device)
+        lv = torch.full((n,), level, dtype=torch.long, device=device)
+        light, view = (d.to(device) for d in direction_pairs(n, gen))
+        with torch.no_grad():
+            target = targets(uv, lv, light, view, 16, 0.0, gen)
+            z = model.pyramid(torch.cat([uv, lv[:, None].float()], -1))
+            _, parts = decoder_loss(model, z, light, view, target)
+        out[f"level{level}"] = {k: round(v, 5) for k, v in parts.items()}
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# the asset
+
+def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, history, seconds, command_line, preset,
+                device) -> None:
+    from .material import write_textures
+
+    out.mkdir(parents=True, exist_ok=True)
+    provenance = {"command": command_line, "preset": preset, "material": mat.name, **config,
+                  "torch": torch.__version__, "device": str(device),
+                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+    cpu = model.to("cpu")
+    graphs = {"latents": latents_graph(cpu.pyramid)}
+    for name, dec in cpu.decoders.items():
+        graphs[f"decoder_{name}"] = finish_decoder(dec)
+    graphs.update(cpu.samplers.items())
+    sizes = {}
+    for folder, _prefix in NETWORKS:
+        bundle = graphs[folder].export(KIND, folder, provenance=provenance)
+        if folder == "latents":   # fp16 texels (what RGBA16F holds) stored as F16: half the file, widened exactly at load
+            bundle.tensors = {k: v.astype(np.float16) for k, v in bundle.tensors.items()}
+        bundle.save(out / folder)
+        sizes[folder] = int(sum(np.asarray(t).nbytes for t in bundle.tensors.values()))
+    write_textures(mat, raw.shape[0], out)
+    shutil.copyfile(mat.path, out / ".material.json.tmp")
+    (out / ".material.json.tmp").replace(out / "material.json")
+    atomic_write(out / "scene.json", json.dumps(scene_description(mat, out.name), indent=2) + "\n")
+    metrics = {"command": command_line, "preset": preset, "train_seconds": round(seconds, 1),
+               "train_threads": torch.get_num_threads(), "device": str(device),
+               "bundle_bytes": sizes, "history": history}
+    atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+
+
+def scene_description(mat, name: str) -> dict:
+    """The asset's scene: the teapot under two lights and the studio environment."""
+    from . import LIGHTING, SAMPLING, VIEWS
+
+    return {
+        "format": "inshade.scene", "version": 1, "name": name,
+        "title": f"neural appearance: {mat.name} (latent pyramid + MLP decoder) on the Utah teapot",
+        "program": "passes/mesh_neural_appearance.frag", "size": [384, 288],
+        "networks": [{"bundle": folder, "prefix": prefix} for folder, prefix in NETWORKS],
+        "mesh": {"shape": "teapot", "segments": 12},
+        "camera": {"type": "orbit", "fov_y": 35.0, "target": [0.0, 1.2, 0.0], "distance": 8.5, "yaw": 30.0,
+                   "pitch": -22.0},
+        "bookmarks": {
+            "close-up": {"type": "orbit", "fov_y": 35.0, "target": [0.6, 1.6, 1.2], "distance": 3.0, "yaw": 20.0,
+                         "pitch": -20.0},
+            "far": {"type": "orbit", "fov_y": 35.0, "target": [0.0, 1.2, 0.0], "distance": 24.0, "yaw": 30.0,
+                    "pitch": -22.0}},
+        "lights": [{"type": "point", "position": [4.0, 6.0, 5.0], "intensity": 60.0},
+                   {"type": "directional", "direction": [-0.6, 0.5, 0.3], "intensity": 1.5}],
+        "environment": {"sky": "studio", "rotation": 0.0, "degree": 4},
+        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
+        "settings": {
+            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
+                         "label": "exposure"},
+            "view": {"type": "choice", "default": "neural", "choices": list(VIEWS), "uniform": "u_na_view",
+                     "label": "view"},
+            "decoder": {"type": "choice", "default": 32, "choices": [16, 32, 64], "define": "NA_DECODER",
+                        "label": "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64"},
+            "lighting": {"type": "choice", "default": "lights", "choices": list(LIGHTING),
+                         "uniform": "u_na_lighting", "label": "lighting (environment: Monte Carlo, accumulated)"},
+            "sampling": {"type": "choice", "default": "learned", "choices": list(SAMPLING),
+                         "uniform": "u_na_sampling", "label": "BRDF sampling"},
+            "mis": {"type": "bool", "default": True, "uniform": "u_na_mis", "label": "MIS with the environment"},
+            "latent_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
+                              "codegen": "latent_pyramid.filter",
+                              "label": "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)"},
+            "lights": {"type": "int", "default": 2, "min": 0, "max": 4, "uniform": "u_light_count",
+                       "label": "lights"},
+            "level_bias": {"type": "float", "default": 0.0, "min": -4.0, "max": 4.0, "uniform": "u_na_level_bias",
+                           "label": "pyramid level bias"},
+            "error_scale": {"type": "float", "default": 4.0, "min": 0.0, "max": 64.0, "uniform": "u_na_error_scale",
+                            "label": "error scale"},
+            "latent_page": {"type": "int", "default": 0, "min": 0, "max": 2, "uniform": "u_na_latent_page",
+                            "label": "latent channels (page)"},
+            "sky": {"type": "choice", "default": "studio", "choices": ["sunset", "overcast", "noon", "studio"],
+                    "environment": "sky", "label": "environment"},
+            "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0,
+                             "environment": "rotation", "label": "env rotation (deg)"},
+        },
+        "textures": [{"uniform": f"u_na_param{k}", "image": f"param{k}.png", "mipmaps": True, "repeat": True}
+                     for k in range(3)],
+        "requires": {"gl": 330},
+        "notes": "neural | reference: the 'view' setting; environment lighting accumulates (inshade render --spp N)",
+    }
+
+
+def render_preview(out: Path, spp: int = 4) -> None:
+    """preview.png (+ sidecar): the asset's scene, split view (left reference, right neural)."""
+    from inshade.runtime.headless import render_scene, save_render
+
+    image, info = render_scene(out, spp=spp, settings={"view": "split"})
+    save_render(image, info, out / "preview.png")
+    Path(f"{out / 'preview.png'}.json").unlink()   # a shipped picture: its sidecar would hold this machine's paths
+
+
+def _command_line(material, preset, out, config) -> str:
+    parts = ["inshade", "train", "neural_appearance", "--material", str(material), "--preset", preset]
+    if Path(out) != Path(f"trained/neural_appearance_{Path(str(material)).stem}"):
+        parts += ["--out", str(out)]
+    for key in ("resolution", "steps1", "steps2", "seed"):
+        if config[key] != PRESETS[preset].get(key, DEFAULTS.get(key)):
+            parts += [f"--{key.replace('_', '-')}", str(config[key])]
+    return shlex.join(parts)
+
+
+# ---------------------------------------------------------------------------------------------
+# command line
+
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--material", default=DEFAULTS["material"],
+                        help=f"{' | '.join(MATERIALS)} or a material description .json (default: %(default)s)")
+    parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
+                        help="ship: what built trained/neural_appearance_*; quick: 32x32, seconds (default: %(default)s)")
+    parser.add_argument("--device", default=DEFAULTS["device"], help="torch device: cpu, cuda, cuda:1 ... (default: %(default)s)")
+    parser.add_argument("--out", help="asset folder (default: trained/neural_appearance_<material>)")
+    parser.add_argument("--resolution", type=int, help="finest latent/texture side, a power of two (default: the preset's)")
+    parser.add_argument("--steps1", type=int, help="phase 1 (encoder) steps (default: the preset's)")
+    parser.add_argument("--steps2", type=int, help="phase 2 (latent fine-tuning) steps (default: the preset's)")
+    parser.add_argument("--batch", type=int, help="BRDF samples per step (default: the preset's)")
+    parser.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="random seed (default: %(default)s)")
+    parser.add_argument("--checkpoint-every", type=int, default=DEFAULTS["checkpoint_every"],
+                        help="steps between checkpoints, 0 for none (default: %(default)s)")
+    parser.add_argument("--restart", action="store_true", help="ignore a checkpoint in the output folder")
+    parser.add_argument("--no-preview", action="store_true", help="skip rendering preview.png")
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.device.startswith("cuda") and not torch.cuda.is_available():
+        raise SystemExit(f"--device {args.device}: this torch build has no CUDA device")
+    for name in ("steps1", "steps2", "batch"):
+        v = getattr(args, name)
+        if v is not None and v < 0:
+            raise SystemExit(f"--{name}: must be >= 0, got {v}")
+    out = train(material=args.material, preset=args.preset, out=args.out, resolution=args.resolution,
+                steps1=args.steps1, steps2=args.steps2, batch=args.batch, seed=args.seed, device=args.device,
+                checkpoint_every=args.checkpoint_every, restart=args.restart, write_preview=not args.no_preview)
+    metrics = json.loads((out / "metrics.json").read_text())
+    last = metrics["history"]["phase2"][-1] if metrics["history"]["phase2"] else metrics["history"]["phase1"][-1]
+    print(f"wrote {out}: L1(log) 3x64 {last['l1_3x64']:.4f}, 2x32 {last['l1_2x32']:.4f}, "
+          f"2x16 {last['l1_2x16']:.4f} in {metrics['train_seconds']:.0f} s")
+    return 0
+
+
+def main(argv=None) -> int:
+    return command.main("inshade train neural_appearance", __doc__, add_arguments, run, argv, errors=(ValueError,))

@@ -1,0 +1,14 @@
+// Test pass for lib/na_reference's na_fetch_parameters: one sample per pixel, (uv, lod, -) read
+// from u_inputs (data orientation); the caller binds u_na_param0..2. Attachments 0-2: p0, p1, p2.
+// Used by tests/test_neural_appearance_material.py.
+#include <lib/na_reference>
+
+uniform sampler2D u_inputs;
+layout(location = 0) out vec4 out_p0;
+layout(location = 1) out vec4 out_p1;
+layout(location = 2) out vec4 out_p2;
+
+void main() {
+    vec4 t = texelFetch(u_inputs, ivec2(gl_FragCoord.xy), 0);
+    na_fetch_parameters(t.xy, t.z, out_p0, out_p1, out_p2);
+}
