@@ -238,18 +238,13 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                 olo, ohi = np.tanh(lo), np.tanh(hi)
             elif t == "softplus":
                 olo, ohi = np.logaddexp(0, lo), np.logaddexp(0, hi)
-            elif t == "exp":
+            elif t in ("exp", "expm1"):   # expm1 = exp(x) - 1 in GLSL: the same overflow
                 bound = float(np.max(hi))
                 if bound > EXP_ARG:
-                    warn(n.id, "exp argument", bound, EXP_ARG,
+                    warn(n.id, f"{t} argument", bound, EXP_ARG,
                          "float32 exp overflows to inf at 88.72 (and relative agreement nears 1e-5 above 80)")
-                olo, ohi = np.exp(lo), np.exp(hi)
-            elif t == "expm1":
-                bound = float(np.max(hi))
-                if bound > EXP_ARG:
-                    warn(n.id, "expm1 argument", bound, EXP_ARG,
-                         "float32 exp overflows to inf at 88.72 (and relative agreement nears 1e-5 above 80)")
-                olo, ohi = np.expm1(lo), np.expm1(hi)
+                fn = np.exp if t == "exp" else np.expm1
+                olo, ohi = fn(lo), fn(hi)
             elif t == "latent_pyramid":   # bilinear within a level: a convex combination of texels
                 levels = [bundle.tensor(n, f"level{k}").reshape(-1, p["channels"]) for k in range(p["levels"])]
                 olo = np.min([lv.min(0) for lv in levels], 0)

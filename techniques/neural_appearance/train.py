@@ -42,7 +42,8 @@ import numpy as np
 import torch
 
 from inshade import command
-from inshade.files import atomic_files, atomic_write
+from inshade.files import atomic_write
+from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 
 from . import KIND, NETWORKS
 from inshade.models.latent_pyramid import bilinear_repeat
@@ -204,38 +205,18 @@ def sampler_loss(model: NeuralMaterial, z, view, samples: int, gen) -> tuple[tor
 # checkpoints
 
 def _save_checkpoint(path: Path, model, opt, phase: int, step: int, config: dict) -> None:
-    from safetensors.torch import save_file
-
-    tensors = {f"model.{k}": v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    tensors = {f"model.{k}": v for k, v in model.state_dict().items()}
     state = opt.state_dict()
     for idx, st in state["state"].items():
         for key, value in st.items():
-            tensors[f"opt.{idx}.{key}"] = torch.as_tensor(value).detach().cpu().reshape(-1).contiguous().float() \
-                if key == "step" else value.detach().cpu().contiguous()
-    meta = {"format": "inshade.neural_appearance_checkpoint", "phase": str(phase), "step": str(step),
-            "config": json.dumps(config, sort_keys=True),
-            "groups": json.dumps([{k: v for k, v in g.items() if k != "params"} for g in state["param_groups"]])}
-    with atomic_files(path) as tmp:
-        save_file(tensors, str(tmp), metadata=meta)
+            tensors[f"opt.{idx}.{key}"] = torch.as_tensor(value).reshape(-1).float() if key == "step" else value
+    groups = [{k: v for k, v in g.items() if k != "params"} for g in state["param_groups"]]
+    write_checkpoint(path, "neural_appearance", tensors, config, phase=phase, step=step, groups=json.dumps(groups))
 
 
 def _load_checkpoint(path: Path, config: dict):
     """(phase, step, tensors, groups); ValueError naming the field if it belongs to another run."""
-    from safetensors import safe_open
-
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            meta = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception as exc:  # safetensors raises several types for corrupt files
-        raise ValueError(f"{path}: unreadable checkpoint ({exc}); delete it or pass --restart") from None
-    if meta.get("format") != "inshade.neural_appearance_checkpoint":
-        raise ValueError(f"{path}: format: not a neural appearance checkpoint")
-    saved = json.loads(meta.get("config", "{}"))
-    if saved != config:
-        key = sorted(k for k in set(saved) | set(config) if saved.get(k) != config.get(k))[0]
-        raise ValueError(f"{path}: config.{key}: the checkpoint has {saved.get(key)!r}, this run "
-                         f"{config.get(key)!r} (pass --restart to start over)")
+    tensors, meta = read_checkpoint(path, "neural_appearance", config, "pass --restart to start over")
     return int(meta["phase"]), int(meta["step"]), tensors, json.loads(meta["groups"])
 
 

@@ -31,11 +31,11 @@ import torch
 
 from inshade import command
 from inshade.bundle import Bundle
-from inshade.files import atomic_files
 from inshade.metrics import psnr_from_mse
 from inshade.sdf import f32
 
 from inshade.models.activations import LeakyReLU
+from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 from inshade.models.encodings import Frequency
 from inshade.models.graph import GraphModule
 from inshade.models.registry import TORCH_COMPONENTS
@@ -158,40 +158,21 @@ def _config(width, layers, pos_freqs, normal_freqs, output, steps, batch, lr, se
 
 
 def _save_checkpoint(path: Path, net, opt, step: int, config: dict) -> None:
-    from safetensors.torch import save_file
-
-    tensors = {f"net.{k}": v.detach().contiguous() for k, v in net.state_dict().items()}
+    tensors = {f"net.{k}": v for k, v in net.state_dict().items()}
     for i, p in enumerate(opt.param_groups[0]["params"]):
         st = opt.state.get(p, {})
         for name in ("exp_avg", "exp_avg_sq"):
             if name in st:
-                tensors[f"adam.{i}.{name}"] = st[name].contiguous()
+                tensors[f"adam.{i}.{name}"] = st[name]
         if "step" in st:
             tensors[f"adam.{i}.step"] = torch.as_tensor(st["step"], dtype=torch.float32).reshape(1)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_files(path) as tmp:
-        save_file(tensors, str(tmp), metadata={"format": "inshade.transfer_checkpoint", "step": str(step),
-                                               "config": json.dumps(config, sort_keys=True)})
+    write_checkpoint(path, "transfer", tensors, config, step=step)
 
 
 def _load_checkpoint(path: Path, net, opt, config: dict) -> int:
     """Restores net + Adam state; returns the steps done. ValueError if the file is not a
     checkpoint of this configuration (resuming another run's weights would be silent garbage)."""
-    from safetensors import safe_open
-
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            header = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception as exc:  # safetensors raises several types for corrupt files
-        raise ValueError(f"{path}: unreadable checkpoint ({exc})") from None
-    if header.get("format") != "inshade.transfer_checkpoint":
-        raise ValueError(f"{path}: format: not a transfer checkpoint")
-    saved = json.loads(header.get("config", "{}"))
-    if saved != config:
-        diff = sorted(k for k in set(saved) | set(config) if saved.get(k) != config.get(k))
-        raise ValueError(f"{path}: config.{diff[0]}: checkpoint has {saved.get(diff[0])!r}, this run "
-                         f"{config.get(diff[0])!r} (use another --checkpoint or delete it)")
+    tensors, header = read_checkpoint(path, "transfer", config, "use another --checkpoint or delete it")
     net.load_state_dict({k[4:]: v for k, v in tensors.items() if k.startswith("net.")})
     for i, p in enumerate(opt.param_groups[0]["params"]):
         if f"adam.{i}.exp_avg" in tensors:
