@@ -1,4 +1,4 @@
-"""Training checkpoints: a safetensors file (never a pickle) holding a run's tensors, written
+"""Training checkpoints: a safetensors file (data only, nothing a loader executes) holding a run's tensors, written
 atomically, with the configuration they belong to. Resuming with another configuration is a
 ValueError naming the first differing field: another run's weights would be silent garbage."""
 from __future__ import annotations
