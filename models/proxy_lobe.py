@@ -94,7 +94,8 @@ def diffuse_normal(params: torch.Tensor) -> torch.Tensor:
     return _normalize(torch.stack([-params[..., 2], -params[..., 3], torch.ones_like(params[..., 2])], -1))
 
 
-def _cosine(u1, u2):
+def cosine_direction(u1, u2):
+    """A cosine-weighted direction about +z from two uniforms (r = sqrt(u1), phi = 2 pi u2)."""
     r = torch.sqrt(u1)
     phi = (2.0 * math.pi) * u2
     return torch.stack([r * torch.cos(phi), r * torch.sin(phi), torch.sqrt(torch.clamp_min(1.0 - u1, 0.0))], -1)
@@ -119,7 +120,7 @@ def _m_inverse_apply(params, v):
 
 def proxy_sample(params: torch.Tensor, view: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
     """params [..., 9], view [..., 3] (unit), u [..., 3] in [0, 1) -> light [..., 3] (unit)."""
-    local = _cosine(u[..., 1], u[..., 2])
+    local = cosine_direction(u[..., 1], u[..., 2])
     n = diffuse_normal(params)
     a = -1.0 / (1.0 + n[..., 2])
     c = n[..., 0] * n[..., 1] * a

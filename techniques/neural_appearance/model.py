@@ -17,7 +17,6 @@ from __future__ import annotations
 import torch
 
 from inshade.models.graph import GraphModule
-from inshade.models.latent_pyramid import bilinear_repeat
 from inshade.models.registry import TORCH_COMPONENTS
 
 LATENT = 8
@@ -96,16 +95,3 @@ class NeuralMaterial(torch.nn.Module):
         cls = TORCH_COMPONENTS["latent_pyramid"]
         self.pyramid = cls.from_arrays([t.detach().cpu().numpy() for t in levels_data], precision="f16")
         return self.pyramid
-
-
-def sample_levels(levels: list[torch.Tensor], uv: torch.Tensor, level: torch.Tensor) -> torch.Tensor:
-    """Bilinear lookup within one level per sample, repeat wrap, texel centres at (i + 0.5) / N
-    (the latent_pyramid convention) of a pyramid held as plain tensors [N_k, N_k, C] (encoder
-    inputs, parameter mips). uv [B, 2], level [B] (integers) -> [B, C]."""
-    out = torch.empty(uv.shape[0], levels[0].shape[-1], dtype=levels[0].dtype, device=uv.device)
-    for k, tex in enumerate(levels):
-        sel = (level == k).nonzero(as_tuple=True)[0]
-        if sel.numel() == 0:
-            continue
-        out[sel] = bilinear_repeat(tex, uv[sel])
-    return out

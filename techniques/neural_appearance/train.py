@@ -34,7 +34,6 @@ import datetime
 import json
 import math
 import shlex
-import shutil
 import time
 from pathlib import Path
 
@@ -46,9 +45,10 @@ from inshade.files import atomic_write
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 
 from . import KIND, NETWORKS
-from inshade.models.latent_pyramid import bilinear_repeat
+from inshade.models.latent_pyramid import LatentPyramid, bilinear_repeat
+from inshade.models.proxy_lobe import cosine_direction
 
-from .model import LATENT, NeuralMaterial, finish_decoder, latents_graph, sample_levels
+from .model import LATENT, NeuralMaterial, finish_decoder, latents_graph
 
 PRESETS = {
     "ship": dict(resolution=512, steps1=5000, steps2=10000, batch=4096, sampler_batch=512, sampler_samples=8,
@@ -69,11 +69,6 @@ def draw_levels(n: int, levels: int, scale: float, gen: torch.Generator) -> torc
     """Integer levels in [0, levels) from a truncated exponential favouring fine levels (§3.3)."""
     p = torch.exp(-torch.arange(levels, dtype=torch.float64) / scale)
     return torch.multinomial(p / p.sum(), n, replacement=True, generator=gen)
-
-
-def _cosine(u1, u2):
-    r, phi = torch.sqrt(u1), 2 * math.pi * u2
-    return torch.stack([r * torch.cos(phi), r * torch.sin(phi), torch.sqrt(torch.clamp(1 - u1, min=0))], -1)
 
 
 def _uniform_hemisphere(u1, u2):
@@ -103,7 +98,7 @@ def direction_pairs(n: int, gen: torch.Generator):
         m = 2 * (n - have) + 64
         l1, v1 = half_difference_pairs(m // 2, gen)
         u = torch.rand(m - m // 2, 4, generator=gen, dtype=torch.float64)
-        l2, v2 = _cosine(u[:, 0], u[:, 1]), _cosine(u[:, 2], u[:, 3])
+        l2, v2 = cosine_direction(u[:, 0], u[:, 1]), cosine_direction(u[:, 2], u[:, 3])
         light, view = torch.cat([l1, l2]), torch.cat([v1, v2])
         ok = (light[:, 2] > 1e-4) & (view[:, 2] > 1e-4)
         lights.append(light[ok])
@@ -184,7 +179,7 @@ def sampler_loss(model: NeuralMaterial, z, view, samples: int, gen) -> tuple[tor
         params = smp(torch.cat([z, view], -1)).repeat_interleave(samples, 0)
         with torch.no_grad():
             from_proxy = proxy_sample(params.detach(), vv, u)
-            cos = _cosine(u[:, 1].double(), u[:, 2].double()).float()
+            cos = cosine_direction(u[:, 1].double(), u[:, 2].double()).float()
             pick = (torch.arange(n * samples, device=z.device) % 2 == 0)[:, None]
             light = torch.where(pick, from_proxy, cos)
             light = torch.nn.functional.normalize(light, dim=-1)
@@ -289,8 +284,9 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
 
     torch.manual_seed(seed)
     raw = bake_parameters(mat, resolution)
-    enc_levels = [torch.from_numpy(np.ascontiguousarray(a)).float().to(device)
-                  for a in parameter_pyramid(raw, levels, mat)]
+    # the encoder inputs per level, looked up like latents (bilinear within a level, repeat); fixed data
+    encoder_inputs = LatentPyramid.from_arrays(parameter_pyramid(raw, levels, mat)).requires_grad_(False).to(device)
+    enc_levels = [encoder_inputs.level(k) for k in range(levels)]
     targets = Targets(mat, raw, device)
     model = NeuralMaterial(ENCODER_INPUTS, resolution, levels).to(device)
 
@@ -334,7 +330,7 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
             with torch.no_grad():
                 target = targets(uv, level, light, view, footprint_samples, cone, gen)
             if phase == 1:
-                z = model.encoder(sample_levels(enc_levels, uv, level))
+                z = model.encoder(encoder_inputs(torch.cat([uv, level[:, None].float()], -1)))
             else:
                 z = model.pyramid(torch.cat([uv, level[:, None].float()], -1))
             loss, parts = decoder_loss(model, z, light, view, target)
@@ -399,8 +395,7 @@ def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, history, sec
         bundle.save(out / folder)
         sizes[folder] = int(sum(np.asarray(t).nbytes for t in bundle.tensors.values()))
     write_textures(mat, raw.shape[0], out)
-    shutil.copyfile(mat.path, out / ".material.json.tmp")
-    (out / ".material.json.tmp").replace(out / "material.json")
+    atomic_write(out / "material.json", Path(mat.path).read_bytes())
     atomic_write(out / "scene.json", json.dumps(scene_description(mat, out.name), indent=2) + "\n")
     metrics = {"command": command_line, "preset": preset, "train_seconds": round(seconds, 1),
                "train_threads": torch.get_num_threads(), "device": str(device),

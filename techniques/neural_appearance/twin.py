@@ -1,6 +1,7 @@
 """Torch twin of passes/mesh_neural_appearance.frag (neural view, scene lights): the same G-buffer,
 camera rays, level choice (lib/random's hashes via inshade/random.py), latent fetch, decoder and
-light loop, in the same order — the whole-image parity reference for the shader.
+light loop, in the same order — the whole-image parity reference for the shader (camera rays:
+models/sdf.py ``camera_rays``, lib/camera's twin).
 
 ``render_lights(asset, gbuffer, camera, width, height, decoder=64, sample_index=0, light_count=4,
 level_bias=0.0)`` takes ``MeshGBuffer.read()`` (data orientation: row 0 = GL y 0) and returns the
@@ -15,23 +16,10 @@ import torch
 
 from inshade.bundle import load
 from inshade.models.graph import GraphModule
+from inshade.models.sdf import camera_rays
 from inshade.random import random_uniform
 
 from . import DECODERS
-
-
-def camera_rays(camera, width: int, height: int) -> np.ndarray:
-    """Unit ray directions [H, W, 3] (data orientation), as lib/camera camera_ray in float32."""
-    u = camera.uniforms(width, height)
-    inv = np.frombuffer(u["u_inv_view_proj"], np.float32).reshape(4, 4)   # row-vector layout: v @ inv
-    eye = np.asarray(u["u_eye"], np.float32)
-    x = (np.arange(width, dtype=np.float32) + 0.5) * np.float32(2.0 / width) - 1
-    y = (np.arange(height, dtype=np.float32) + 0.5) * np.float32(2.0 / height) - 1
-    ndc = np.stack(list(np.meshgrid(x, y)) + [np.ones((height, width), np.float32)] * 2, -1)
-    w = ndc @ inv
-    far = w[..., :3] / w[..., 3:]
-    d = far - eye
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
 def _normalize(x):
@@ -44,7 +32,8 @@ def render_lights(asset, gbuffer, camera, width: int, height: int, *, lights, de
     asset = Path(asset)
     position, normal, uv, tangent, uv_grad = (np.asarray(g, np.float32) for g in gbuffer)
     covered = position[..., 3] != 0
-    rd = camera_rays(camera, width, height)
+    _, rd = camera_rays(camera.uniforms(width, height), width, height)   # image orientation
+    rd = rd.numpy().reshape(height, width, 3)[::-1]
     n = normal[..., :3]
     t = _normalize(tangent[..., :3] - n * (n * tangent[..., :3]).sum(-1, keepdims=True))
     b = np.cross(n, t) * np.where(tangent[..., 3:] < 0, -1.0, 1.0)
