@@ -156,12 +156,7 @@ def speed(scene, size: int, rounds: int, warmup: int, clock_name: str, log) -> d
     """The material pass full screen: a plane filling the view, one light."""
     from inshade.runtime.scene import parse_scene
 
-    data = dict(scene.raw) if hasattr(scene, "raw") else None
-    if data is None:
-        import json
-
-        data = json.loads(Path(scene.path).read_text())
-    data = {**data, "mesh": {"shape": "plane", "size": 2.0},
+    data = {**json.loads(Path(scene.path).read_text()), "mesh": {"shape": "plane", "size": 2.0},
             "camera": {"type": "orbit", "fov_y": 30.0, "target": [0.0, 0.0, 0.0], "distance": 3.0, "yaw": 0.0,
                        "pitch": -89.0}, "bookmarks": {}}
     plane = parse_scene(data, root=Path(scene.root), path=None)
