@@ -36,9 +36,10 @@ def lane(array: str, index: int) -> str:
 
 @dataclass
 class TextureResource:
-    """A texture the generated code samples: data [H, W, C] (2D) or [D, H, W, C] (3D),
-    moderngl dtype ('f4', 'f2' = half float, 'f1' = unorm8, 'nu2' = unorm16), filter
-    'nearest'|'linear' (within a level), ``wrap`` 'clamp'|'repeat'.
+    """A texture the generated code samples: data [H, W, C] (2D) or [D, H, W, C] (3D), C = 1..4
+    (R, RG, RGB, RGBA), moderngl dtype ('f4', 'f2' = half float, 'f1' = unorm8, 'nu2' = unorm16,
+    'u4' = unsigned integer R32UI..RGBA32UI, declared ``usampler*``, read with texelFetch, always
+    nearest), filter 'nearest'|'linear' (within a level), ``wrap`` 'clamp'|'repeat'.
 
     ``mips``: levels 1.. of a 2D mip chain (level k is [H >> k, W >> k, C], same dtype), uploaded
     as given (never GL-built, so torch and GLSL see the same texels); with mips the minification
@@ -51,6 +52,10 @@ class TextureResource:
     mips: tuple = ()
     wrap: str = "clamp"
 
+    def __post_init__(self):
+        if self.dtype == "u4" and self.filter != "nearest":
+            raise ValueError(f"texture {self.name}: integer (u4) textures are read unfiltered: filter must be 'nearest'")
+
     @property
     def dims(self) -> int:
         return self.data.ndim - 1
@@ -61,7 +66,7 @@ class TextureResource:
 
     @property
     def nbytes(self) -> int:
-        size = {"f4": 4, "f2": 2, "f1": 1, "nu2": 2}[self.dtype]
+        size = {"f4": 4, "f2": 2, "f1": 1, "nu2": 2, "u4": 4}[self.dtype]
         return sum(int(np.prod(a.shape)) * size for a in (self.data, *self.mips))
 
 

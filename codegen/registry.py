@@ -9,13 +9,18 @@ A new component type brings its own options without touching ``generate``'s sign
 from __future__ import annotations
 
 EMITTERS: dict = {}
+SEPARATE_INPUTS: set[str] = set()   # types whose emitter takes a list of input Values (may be uint), not one gathered
 OPTIONS: dict[str, dict[str, tuple[tuple, object]]] = {}   # type -> option -> (choices, default)
 
 
-def emitter(*types: str, options: dict | None = None):
+def emitter(*types: str, options: dict | None = None, separate_inputs: bool = False):
+    """Register ``fn(ctx, node, src, bundle) -> Value``; with ``separate_inputs`` ``src`` is the list
+    of the node's input Values as they are (a uint input stays uint), else their float concatenation."""
     def deco(fn):
         for t in types:
             EMITTERS[t] = fn
+            if separate_inputs:
+                SEPARATE_INPUTS.add(t)
             if options:
                 OPTIONS.setdefault(t, {}).update(options)
         return fn

@@ -1,4 +1,5 @@
-"""Values in generated code: a graph value lives in lanes of a `vec4 name[blocks]` array."""
+"""Values in generated code: a graph value lives in lanes of a `vec4 name[blocks]` array, or of a
+`uvec4` array for "uint" bundle inputs (e.g. a triangle id)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -11,6 +12,7 @@ class Value:
     array: str
     offset: int   # first lane in the array
     dim: int
+    kind: str = "float"   # "uint": the array is uvec4 and each lane a uint expression
 
     def lane(self, i: int) -> str:
         return lane(self.array, self.offset + i)
@@ -21,8 +23,9 @@ class Value:
 
 
 def gather(ctx: EmitContext, name: str, sources: list[Value]) -> Value:
-    """The concatenation of sources as one lane-0-aligned array; copies only when needed."""
-    if len(sources) == 1 and sources[0].aligned:
+    """The concatenation of sources as one lane-0-aligned float array; copies only when needed.
+    uint lanes become floats (exact below 2^24, as torch carries them)."""
+    if len(sources) == 1 and sources[0].aligned and sources[0].kind == "float":
         return sources[0]
     dim = sum(s.dim for s in sources)
     ctx.body.append(f"vec4 {name}[{blocks(dim)}];")
@@ -33,11 +36,12 @@ def gather(ctx: EmitContext, name: str, sources: list[Value]) -> Value:
         while i < s.dim:
             # whole vec4 copies when both sides are block-aligned, lanes otherwise
             if (k % 4 == 0) and ((s.offset + i) % 4 == 0) and s.dim - i >= 4:
-                ctx.body.append(f"{name}[{k // 4}] = {s.array}[{(s.offset + i) // 4}];")
+                block = f"{s.array}[{(s.offset + i) // 4}]"
+                ctx.body.append(f"{name}[{k // 4}] = {block if s.kind == 'float' else f'vec4({block})'};")
                 i += 4
                 k += 4
             else:
-                ctx.body.append(f"{out.lane(k)} = {s.lane(i)};")
+                ctx.body.append(f"{out.lane(k)} = {s.lane(i) if s.kind == 'float' else f'float({s.lane(i)})'};")
                 i += 1
                 k += 1
     for j in range(k, blocks(dim) * 4):  # zero the padding lanes: dense layers read them

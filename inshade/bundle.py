@@ -35,6 +35,10 @@ SAFETENSORS_DTYPES = {"F64": ("<f8", 8), "F32": ("<f4", 4), "F16": ("<f2", 2), "
                       "BOOL": ("?", 1)}
 WIDENED = {"F16": "float16", "BF16": "bfloat16"}
 MAX_INPUT_DIM = 64
+# input lane types: "uint" inputs (e.g. a triangle id) reach GLSL as uint, torch carries them as
+# float32 values that are exact integers, so they must stay below UINT_INPUT_RANGE
+INPUT_DTYPES = ("float", "uint")
+UINT_INPUT_RANGE = 1 << 24
 _ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,47}$")
 
 
@@ -65,6 +69,7 @@ class Port:
     dim: int
     semantic: str
     node: str = ""
+    dtype: str = "float"   # inputs only: "uint" lanes are unsigned integers (GLSL uvec4; torch: exact floats < 2^24)
 
 
 class Bundle:
@@ -372,7 +377,10 @@ def _parse_graph(meta, where):
             raise BundleError(where, f + ".name", f"invalid or repeated name {name!r}")
         if not 1 <= dim <= MAX_INPUT_DIM:
             raise BundleError(where, f + ".dim", f"must be 1..{MAX_INPUT_DIM}, got {dim}")
-        inputs.append(Port(name, dim, str(p.get("semantic", "generic"))))
+        dtype = p.get("dtype", "float")
+        if dtype not in INPUT_DTYPES:
+            raise BundleError(where, f + ".dtype", f"must be one of {', '.join(INPUT_DTYPES)}, got {dtype!r}")
+        inputs.append(Port(name, dim, str(p.get("semantic", "generic")), dtype=dtype))
         dims[name] = dim
     if not inputs:
         raise BundleError(where, "inputs", "a bundle needs at least one input")

@@ -76,6 +76,10 @@ class ProgramSpec:
     - ``validate(scene)``: raise ``ValueError`` with a field-naming message if the scene cannot
       be drawn by this program (checked when the scene loads);
     - ``environment_degree``: the SH degree the program's lighting needs (None: any);
+    - ``visibility``: (mesh) the G-buffer also holds a visibility buffer, the face index
+      (``usampler2D u_gbuffer_primitive``, R32UI) and barycentrics (``u_gbuffer_barycentric``,
+      RG32F: t0, t1 of the face's vertices 0, 1), for a pass that decodes per (triangle,
+      barycentric) point (runtime/geometry.py);
     - ``accumulate``: a stochastic program drawing one Monte Carlo sample per pixel per draw. It
       gets ``uniform int u_sample_index`` (0, 1, 2, ... since the last reset; hash it with the
       pixel: shaders/lib/random.glsl) and the runtime shows the running mean of its samples over
@@ -93,6 +97,7 @@ class ProgramSpec:
     frame: Callable | None = None
     validate: Callable | None = None
     environment_degree: int | None = None
+    visibility: bool = False
     accumulate: bool = False
 
     def __post_init__(self):
@@ -101,6 +106,8 @@ class ProgramSpec:
                                  f"got {self.geometry!r}")
         if not isinstance(self.attachments, int) or self.attachments < 1:
             raise TechniqueError(f"program {self.program}: attachments must be an int >= 1, got {self.attachments!r}")
+        if self.visibility and self.geometry != "mesh":
+            raise TechniqueError(f"program {self.program}: visibility is a mesh G-buffer option (geometry 'mesh')")
         bad = [a for a in self.mesh_attributes if a not in MESH_ATTRIBUTES]
         if bad:
             raise TechniqueError(f"program {self.program}: unknown mesh attribute {bad[0]!r} "

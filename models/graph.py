@@ -13,9 +13,12 @@ class GraphModule(torch.nn.Module):
     """Nodes wired by name. forward takes the inputs concatenated in declaration order
     ([..., in_dim]) and returns the outputs concatenated ([..., out_dim])."""
 
-    def __init__(self, inputs: list[tuple[str, int] | tuple[str, int, str]]):
+    def __init__(self, inputs: list[tuple[str, int] | tuple[str, int, str] | tuple[str, int, str, str]]):
+        """``inputs``: (name, dim[, semantic[, dtype]]); dtype "uint" marks lanes that GLSL receives
+        as uint (torch still takes them in the float input, as exact integers < 2^24)."""
         super().__init__()
         self.inputs = [(p[0], int(p[1]), p[2] if len(p) > 2 else "generic") for p in inputs]
+        self.input_dtypes = {p[0]: (p[3] if len(p) > 3 else "float") for p in inputs}
         self.nodes = torch.nn.ModuleDict()
         self.wiring: dict[str, list[str]] = {}
         self.outputs: list[tuple[str, str, str]] = []
@@ -68,7 +71,9 @@ class GraphModule(torch.nn.Module):
                 tensors[f"{node_id}.{slot}"] = arr
         meta = {
             "format": FORMAT, "version": VERSION, "kind": kind, "name": name or kind,
-            "inputs": [{"name": n, "dim": d, "semantic": s} for n, d, s in self.inputs],
+            "inputs": [{"name": n, "dim": d, "semantic": s,
+                        **({"dtype": self.input_dtypes[n]} if self.input_dtypes[n] != "float" else {})}
+                       for n, d, s in self.inputs],
             "nodes": nodes,
             "outputs": [{"name": n, "node": node, "semantic": s} for n, node, s in self.outputs],
             "provenance": provenance or {}, "metrics": metrics or {},
@@ -79,7 +84,7 @@ class GraphModule(torch.nn.Module):
 
     @classmethod
     def from_bundle(cls, bundle: Bundle) -> "GraphModule":
-        g = cls([(p.name, p.dim, p.semantic) for p in bundle.inputs])
+        g = cls([(p.name, p.dim, p.semantic, p.dtype) for p in bundle.inputs])
         for n in bundle.nodes:
             slots = {k[len(n.id) + 1:]: v for k, v in bundle.tensors.items() if k.startswith(n.id + ".")}
             comp = TORCH_COMPONENTS[n.type].from_node(n.params, n.in_dim, slots)

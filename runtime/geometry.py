@@ -15,6 +15,15 @@ pixel (x, y), as runtime/render.py ``read_rgba_raw``):
   picking a mip level; taken in this pass because derivatives in the deferred pass would
   difference neighbours across triangle edges and uv seams; 0 in the background.
 
+With ``visibility=True`` (a program whose spec asks for it, ProgramSpec.visibility) the pass also
+writes a visibility buffer, with no vendor extension:
+
+- ``primitive`` (R32UI, a ``usampler2D``): the face index (``gl_PrimitiveID``, faces in the mesh's
+  order, one draw), meaningful where ``position.w`` = 1 (coverage is read from ``position`` only);
+- ``barycentric`` (RG32F): the perspective-correct barycentrics (t0, t1) of face vertices 0 and 1
+  (t2 = 1 - t0 - t1), interpolated from per-corner attributes: the mesh is drawn de-indexed
+  (three vertices per face) so that each corner carries its own unit vector.
+
 Matrices follow runtime/camera.py: numpy 4x4 in pyrr's row-vector layout (``v @ view @ proj``),
 i.e. exactly ``camera.view_matrix()`` and ``camera.projection(width, height)``; their C-order
 float32 bytes are GLSL's column-major ``M * v``. ``model`` defaults to the identity.
@@ -29,11 +38,13 @@ import numpy as np
 from inshade.mesh import mesh_uv, shading_normals, vertex_tangents
 
 from .programs import ProgramCache
-from .render import float_target, read_rgba_raw
+from .render import TARGET_FORMATS, float_target, read_rgba_raw
 
 VERTEX = "common/mesh.vert"
 FRAGMENT = "passes/mesh_gbuffer.frag"
 GBUFFER = ("position", "normal", "uv", "tangent", "uv_grad")   # attachment order; sampler u_gbuffer_<name>
+VISIBILITY = ("primitive", "barycentric")                      # after GBUFFER with visibility=True
+VISIBILITY_FORMATS = ("r32ui", "rg32f")
 
 
 def _mat_bytes(m) -> bytes:
@@ -46,10 +57,15 @@ def _mat_bytes(m) -> bytes:
 class MeshGBuffer:
     """A mesh's G-buffer pass: ``draw`` -> (position texture, normal texture)."""
 
-    def __init__(self, ctx: moderngl.Context, mesh, cache: ProgramCache | None = None, *, version: str = "330"):
+    def __init__(self, ctx: moderngl.Context, mesh, cache: ProgramCache | None = None, *, version: str = "330",
+                 visibility: bool = False):
         self.ctx = ctx
         self.cache = cache if cache is not None else ProgramCache(ctx)
-        self.program = self.cache.get(VERTEX, FRAGMENT, version=version)
+        self.visibility = bool(visibility)
+        self.names = GBUFFER + (VISIBILITY if self.visibility else ())
+        self.formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if self.visibility else ())
+        self.program = self.cache.get(VERTEX, FRAGMENT, version=version,
+                                      defines={"GBUFFER_VISIBILITY": 1} if self.visibility else None)
         vertices = np.asarray(mesh.vertices, np.float32)
         normals = shading_normals(mesh)
         faces = np.asarray(mesh.faces, np.int32)
@@ -62,11 +78,15 @@ class MeshGBuffer:
         # as render.MeshPass, but owning its buffers so release() frees them
         attributes = {"in_position": (vertices, "3f"), "in_normal": (normals, "3f"), "in_uv": (uv, "2f"),
                       "in_tangent": (tangents, "4f")}
+        if self.visibility:   # de-indexed: corner c of face f is vertex 3f + c, carrying barycentric e_c
+            attributes = {name: (np.asarray(a)[faces.reshape(-1)], layout) for name, (a, layout) in attributes.items()}
+            attributes["in_barycentric"] = (np.tile(np.eye(3, dtype=np.float32)[:, :2], (len(faces), 1)), "2f")
         self.buffers = [ctx.buffer(np.ascontiguousarray(a, np.float32).tobytes()) for a, _ in attributes.values()]
-        self.index_buffer = ctx.buffer(np.ascontiguousarray(faces).tobytes())
+        self.index_buffer = None if self.visibility else ctx.buffer(np.ascontiguousarray(faces).tobytes())
         content = [(b, layout, name) for b, (name, (_, layout)) in zip(self.buffers, attributes.items())
                    if name in self.program]
-        self.vao = ctx.vertex_array(self.program, content, index_buffer=self.index_buffer, index_element_size=4)
+        self.vao = (ctx.vertex_array(self.program, content) if self.visibility else
+                    ctx.vertex_array(self.program, content, index_buffer=self.index_buffer, index_element_size=4))
         self.fbo: moderngl.Framebuffer | None = None
 
     @property
@@ -76,7 +96,7 @@ class MeshGBuffer:
     def _target(self, width: int, height: int) -> moderngl.Framebuffer:
         if self.fbo is None or self.fbo.size != (width, height):
             self._release_target()
-            self.fbo = float_target(self.ctx, width, height, len(GBUFFER), depth=True)
+            self.fbo = float_target(self.ctx, width, height, depth=True, formats=self.formats)
         return self.fbo
 
     def draw(self, view, proj, model=None, width: int = 512, height: int = 512):
@@ -98,11 +118,22 @@ class MeshGBuffer:
         return self.draw(camera.view_matrix(), camera.projection(width, height), model, width, height)
 
     def read(self) -> tuple[np.ndarray, ...]:
-        """The last draw's textures in GBUFFER order ([H, W, 4] each), data orientation (row 0 =
-        GL y 0): (position, normal, uv, tangent, uv_grad)."""
+        """The last draw's textures in ``names`` order, data orientation (row 0 = GL y 0):
+        (position, normal, uv, tangent, uv_grad) as [H, W, 4] float32, then with visibility
+        primitive [H, W] uint32 and barycentric [H, W, 2] float32."""
         if self.fbo is None:
             raise RuntimeError("MeshGBuffer.read before draw")
-        return tuple(read_rgba_raw(self.fbo, i) for i in range(len(GBUFFER)))
+        out = []
+        for i, f in enumerate(self.formats):
+            if f == "rgba32f":
+                out.append(read_rgba_raw(self.fbo, i))
+                continue
+            components, dtype = TARGET_FORMATS[f]
+            w, h = self.fbo.size
+            raw = self.fbo.read(components=components, dtype=dtype, attachment=i)
+            a = np.frombuffer(raw, np.uint32 if dtype == "u4" else np.float32).reshape(h, w, components).copy()
+            out.append(a[..., 0] if components == 1 else a)
+        return tuple(out)
 
     def _release_target(self) -> None:
         if self.fbo is not None:
@@ -117,6 +148,6 @@ class MeshGBuffer:
         """GL objects of this pass (the program stays in the cache, whose owner releases it)."""
         self._release_target()
         self.vao.release()
-        for b in [*self.buffers, self.index_buffer]:
+        for b in [*self.buffers, *([self.index_buffer] if self.index_buffer is not None else [])]:
             b.release()
         self.buffers = []

@@ -9,6 +9,7 @@ import moderngl
 import numpy as np
 
 from inshade.codegen.glsl import TextureResource, UniformBlockResource
+from inshade.bundle import UINT_INPUT_RANGE
 from inshade.codegen.limits import LimitError
 
 from .programs import ProgramCache
@@ -117,7 +118,7 @@ class NetworkResources:
         self.buffers.clear()
 
 
-_NUMPY_DTYPE = {"f4": np.float32, "f2": np.float16}   # float textures: the bytes GL reads are these
+_NUMPY_DTYPE = {"f4": np.float32, "f2": np.float16, "u4": np.uint32}   # the bytes GL reads are these
 
 
 def texture_levels(res: TextureResource) -> list[np.ndarray]:
@@ -204,9 +205,19 @@ class NetworkEvaluator:
             raise ValueError(f"inputs must be [N, {g.in_dim}], got {list(inputs.shape)}")
         n = inputs.shape[0]
         w, h = self.layout(n)
+        uint = np.zeros(g.in_dim, bool)
+        uint[list(g.uint_lanes)] = True
         padded = np.zeros((w * h, g.in_blocks * 4), np.float32)
-        padded[:n, : g.in_dim] = inputs
-        tex = upload_float_texture(self.ctx, padded.reshape(h, w * g.in_blocks, 4))
+        padded[:n, : g.float_in_dim] = inputs[:, ~uint]
+        textures = {"u_inputs": upload_float_texture(self.ctx, padded.reshape(h, w * g.in_blocks, 4))}
+        if uint.any():   # uint lanes arrive as exact float integers (torch's convention)
+            ids = inputs[:, uint]
+            if (ids < 0).any() or (ids >= UINT_INPUT_RANGE).any() or (ids != np.floor(ids)).any():
+                raise ValueError(f"uint inputs must be integers in 0..{UINT_INPUT_RANGE - 1}")
+            packed = np.zeros((w * h, g.in_uint_blocks * 4), np.uint32)
+            packed[:n, : len(g.uint_lanes)] = ids.astype(np.uint32)
+            textures["u_inputs_uint"] = upload_float_texture(self.ctx, packed.reshape(h, w * g.in_uint_blocks, 4),
+                                                             dtype="u4")
         if self._fbo is None or self._fbo.size != (w, h):
             if self._fbo is not None:
                 for a in self._fbo.color_attachments:
@@ -217,11 +228,11 @@ class NetworkEvaluator:
 
         def draw():
             self.ctx.viewport = (0, 0, w, h)
-            unit = self.resources.bind(self.program, first_unit=1)
+            unit = self.resources.bind(self.program, first_unit=len(textures))
             del unit
-            self.pass_.render(fbo, textures={"u_inputs": tex})
+            self.pass_.render(fbo, textures=textures)
 
-        draw.release = tex.release
+        draw.release = lambda: [t.release() for t in textures.values()]
         draw.n = n
         return draw
 

@@ -100,26 +100,39 @@ def check_gl_error(ctx: moderngl.Context, what: str) -> None:
         raise RuntimeError(f"{what}: the driver reported {err}")
 
 
+# render-target formats: name -> (components, moderngl dtype); "r32ui" is read with a usampler2D
+TARGET_FORMATS = {"rgba32f": (4, "f4"), "rg32f": (2, "f4"), "r32f": (1, "f4"), "r32ui": (1, "u4"),
+                  "rgba32ui": (4, "u4")}
+
+
 def float_target(ctx: moderngl.Context, width: int, height: int, attachments: int = 1,
-                 depth: bool = False) -> moderngl.Framebuffer:
+                 depth: bool = False, formats: tuple[str, ...] | None = None) -> moderngl.Framebuffer:
     """A framebuffer of ``attachments`` RGBA32F colour textures (MRT), plus a depth buffer if asked.
+    ``formats`` (names in ``TARGET_FORMATS``, one per attachment) replaces RGBA32F, e.g. a visibility
+    buffer's ("rgba32f", "r32ui", "rg32f"): a fragment output is then a uint / vec2 at that location.
 
     Colour textures use NEAREST filtering so a later pass can read them as exact data.
     """
+    formats = tuple(formats) if formats is not None else ("rgba32f",) * attachments
+    attachments = len(formats)
     limit = ctx.info["GL_MAX_DRAW_BUFFERS"]
     if not 1 <= attachments <= limit:
         raise ValueError(f"{attachments} colour attachments requested; this driver allows 1..{limit}")
+    unknown = [f for f in formats if f not in TARGET_FORMATS]
+    if unknown:
+        raise ValueError(f"unknown render-target format {unknown[0]!r} (known: {', '.join(TARGET_FORMATS)})")
     clear_gl_error(ctx, "creating a float target")
     colours = []
-    for _ in range(attachments):
-        texture = ctx.texture((width, height), 4, dtype="f4")
+    for f in formats:
+        components, dtype = TARGET_FORMATS[f]
+        texture = ctx.texture((width, height), components, dtype=dtype)
         texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
         colours.append(texture)
     depth_attachment = ctx.depth_renderbuffer((width, height)) if depth else None
     # the attachments are checked; moderngl checks the framebuffer's completeness itself (and its
     # creation leaves a benign GL_INVALID_OPERATION on Mesa with several attachments, or when the
     # framebuffer it restores afterwards was released, e.g. by an earlier renderer)
-    check_gl_error(ctx, f"float target {width}x{height}: {attachments} RGBA32F attachment(s)")
+    check_gl_error(ctx, f"render target {width}x{height}: {', '.join(f.upper() for f in formats)}")
     fbo = ctx.framebuffer(color_attachments=colours, depth_attachment=depth_attachment)
     ctx.error   # consume that benign error so it is not blamed on a later resource
     return fbo
@@ -146,23 +159,24 @@ def read_rgba(fbo: moderngl.Framebuffer, attachment: int = 0) -> np.ndarray:
     return np.ascontiguousarray(read_rgba_raw(fbo, attachment)[::-1])
 
 
-def upload_float_texture(ctx: moderngl.Context, array: np.ndarray) -> moderngl.Texture:
-    """Upload ``[H, W]`` or ``[H, W, C]`` (C in 1..4) as a float32 data texture, without flipping.
+def upload_float_texture(ctx: moderngl.Context, array: np.ndarray, dtype: str = "f4") -> moderngl.Texture:
+    """Upload ``[H, W]`` or ``[H, W, C]`` (C in 1..4) as a float32 data texture, without flipping
+    (``dtype="u4"``: a uint32 one, R32UI..RGBA32UI, read by a ``usampler2D``).
 
     Texel (x, y) holds ``array[y, x]``. NEAREST filtering, no mipmaps, clamp-to-edge.
     """
-    array = np.asarray(array, dtype=np.float32)
+    array = np.asarray(array, dtype=np.uint32 if dtype == "u4" else np.float32)
     if array.ndim == 2:
         array = array[:, :, None]
     if array.ndim != 3 or not 1 <= array.shape[2] <= 4:
         raise ValueError(f"expected [H, W] or [H, W, 1..4], got shape {array.shape}")
     height, width, channels = array.shape
     clear_gl_error(ctx, "uploading a float data texture")
-    texture = ctx.texture((width, height), channels, np.ascontiguousarray(array).tobytes(), dtype="f4")
+    texture = ctx.texture((width, height), channels, np.ascontiguousarray(array).tobytes(), dtype=dtype)
     texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
     texture.repeat_x = texture.repeat_y = False
     try:
-        check_gl_error(ctx, f"float data texture {width}x{height}x{channels}")
+        check_gl_error(ctx, f"{dtype} data texture {width}x{height}x{channels}")
     except RuntimeError:
         texture.release()
         raise

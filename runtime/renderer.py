@@ -37,7 +37,7 @@ from inshade.technique import FrameInputs
 from .context import GLContextError, gl_info, make_current, shared_context
 from .display import DisplayMode, glsl_chunk, parse_mode
 from .environment import EnvironmentSampler, EnvironmentTextures, environment_image, scene_environment
-from .geometry import GBUFFER, MeshGBuffer
+from .geometry import MeshGBuffer
 from .image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
@@ -120,7 +120,7 @@ class SceneRenderer:
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self._build()
         if scene.mesh is not None:
-            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache)
+            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, visibility=self.spec.visibility)
         clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
@@ -372,7 +372,7 @@ class SceneRenderer:
             if "u_env_radiance" in self.program:   # lib/environment: the importance-sampled environment
                 unit = self._sync_environment().bind(self.program, unit)
             if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
-                for name, tex in zip([f"u_gbuffer_{n}" for n in GBUFFER], gbuffer):
+                for name, tex in zip([f"u_gbuffer_{n}" for n in self.gbuffer.names], gbuffer):
                     if name in self.program:
                         tex.use(location=unit)
                         self.program[name].value = unit

@@ -10,6 +10,10 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec2 in_uv;
 in vec4 in_tangent;   // (tangent along +u, handedness); zero for meshes without uv
+#ifdef GBUFFER_VISIBILITY
+in vec2 in_barycentric;   // the corner's unit barycentrics (t0, t1): the mesh is drawn de-indexed
+out vec2 v_barycentric;
+#endif
 
 out vec3 v_world_position;
 out vec3 v_normal;
@@ -22,5 +26,8 @@ void main() {
     v_normal = normalize(transpose(inverse(mat3(u_model))) * in_normal);
     v_uv = in_uv;
     v_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
+#ifdef GBUFFER_VISIBILITY
+    v_barycentric = in_barycentric;
+#endif
     gl_Position = u_proj * u_view * world;
 }

@@ -1,9 +1,13 @@
 // Evaluates the generated network chunk once per pixel: the parity harness and `inshade bench`.
-// Inputs: NET_IN_BLOCKS texels per sample, side by side in a float texture (data orientation).
+// Inputs: NET_IN_BLOCKS texels per sample, side by side in a float texture (data orientation);
+// a network with uint inputs also gets NET_IN_UINT_BLOCKS texels per sample of an RGBA32UI texture.
 // Outputs: block b of the result goes to colour attachment b (RGBA32F).
 #include <network>
 
 uniform sampler2D u_inputs;
+#ifdef NET_IN_UINT_DIM
+uniform usampler2D u_inputs_uint;
+#endif
 layout(location = 0) out vec4 frag_out[NET_OUT_BLOCKS];
 
 void main() {
@@ -13,7 +17,15 @@ void main() {
         x[b] = texelFetch(u_inputs, ivec2(p.x * NET_IN_BLOCKS + b, p.y), 0);
     }
     vec4 y[NET_OUT_BLOCKS];
+#ifdef NET_IN_UINT_DIM
+    uvec4 xu[NET_IN_UINT_BLOCKS];
+    for (int b = 0; b < NET_IN_UINT_BLOCKS; ++b) {
+        xu[b] = texelFetch(u_inputs_uint, ivec2(p.x * NET_IN_UINT_BLOCKS + b, p.y), 0);
+    }
+    net_eval(xu, x, y);
+#else
     net_eval(x, y);
+#endif
     // ES 3.00 indexes fragment outputs with constants only.
     frag_out[0] = y[0];
 #if NET_OUT_BLOCKS > 1

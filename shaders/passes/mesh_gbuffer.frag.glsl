@@ -6,7 +6,9 @@
 // along +x and +y (window axes), taken here where the triangle is known, since derivatives in the
 // deferred pass would difference neighbours across triangle edges and uv seams. The clear value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
 // consistently wound closed mesh), not flipped towards the viewer: transfer is a function of it.
-// Built and read by runtime/geometry.py MeshGBuffer.
+// With GBUFFER_VISIBILITY (a visibility buffer): 5: the face index gl_PrimitiveID (uint; the mesh is drawn
+// de-indexed in one draw, so primitive i is face i); 6: perspective-correct barycentrics (t0, t1) of the
+// face's vertices 0 and 1. Built and read by runtime/geometry.py MeshGBuffer.
 
 in vec3 v_world_position;
 in vec3 v_normal;
@@ -18,6 +20,11 @@ layout(location = 1) out vec4 out_normal;
 layout(location = 2) out vec4 out_uv;
 layout(location = 3) out vec4 out_tangent;
 layout(location = 4) out vec4 out_uv_grad;
+#ifdef GBUFFER_VISIBILITY
+in vec2 v_barycentric;
+layout(location = 5) out uint out_primitive;
+layout(location = 6) out vec2 out_barycentric;
+#endif
 
 void main() {
     out_position = vec4(v_world_position, 1.0);
@@ -26,4 +33,8 @@ void main() {
     out_uv = vec4(v_uv, 0.0, 1.0);
     out_tangent = v_tangent;
     out_uv_grad = vec4(dFdx(v_uv), dFdy(v_uv));
+#ifdef GBUFFER_VISIBILITY
+    out_primitive = uint(gl_PrimitiveID);
+    out_barycentric = v_barycentric;
+#endif
 }
