@@ -177,7 +177,7 @@ def _normalise(x, floor=None):
 
 
 def shade(s: dict, p, ng, tangent, rd, sh: torch.Tensor, light_count: int) -> torch.Tensor:
-    """pbr_set_shade: [N, 3] linear radiance (the same operations in the same order)."""
+    """lib/pbr_shading pbr_shade with metallic 0: [N, 3] linear radiance (the same operations in the same order)."""
     from inshade.models.sdf import sh_irradiance_t
 
     t = _normalise(tangent[:, :3] - ng * _dot(ng, tangent[:, :3])[:, None], 1e-30)

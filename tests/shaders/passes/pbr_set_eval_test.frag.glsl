@@ -1,6 +1,6 @@
 // Test pass for lib/pbr_set: one sample per pixel, read from 6 texels side by side in u_inputs
 // (data orientation): lanes 0-3, lanes 4-7, (p, -), (geometric normal, -), tangent (xyz,
-// handedness), (view ray, -). Attachment 0: (pbr_set_shade(...), 1). Needs chunks=sh_chunks(d).
+// handedness), (view ray, -). Attachment 0: (pbr_shade(...), 1). Needs chunks=sh_chunks(d).
 // Used by tests/test_pbr_set.py.
 #include <lib/pbr_set>
 
@@ -13,6 +13,6 @@ void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 t[6];
     for (int i = 0; i < 6; ++i) t[i] = texelFetch(u_inputs, ivec2(p.x * 6 + i, p.y), 0);
-    frag_out = vec4(pbr_set_shade(pbr_set_unpack(t[0], t[1]), t[2].xyz, t[3].xyz, t[4], t[5].xyz, u_sh,
+    frag_out = vec4(pbr_shade(pbr_set_unpack(t[0], t[1]), t[2].xyz, t[3].xyz, t[4], t[5].xyz, u_sh,
                                   u_light_count), 1.0);
 }

@@ -51,5 +51,5 @@ void main() {
         b = texture(u_pbr_set1, uv);
     }
     vec4 tangent = texelFetch(u_gbuffer_tangent, px, 0);
-    frag_color = vec4(pbr_set_shade(pbr_set_unpack(a, b), p, n, tangent, rd, u_sh, u_light_count), 1.0);
+    frag_color = vec4(pbr_shade(pbr_set_unpack(a, b), p, n, tangent, rd, u_sh, u_light_count), 1.0);
 }
