@@ -212,6 +212,48 @@ _register(ComponentSpec(
 ))
 
 
+# --- UV-free neural material (Walloner 2024; models/mesh_features.py has the exact rules) ------
+
+MESH_FEATURE_PRECISIONS = {"f16": "float16", "f32": None}
+MESH_MAX_FACES = 1 << 24          # triangle ids travel through torch as exact float32 integers
+MESH_MAX_TABLE = 1 << 24
+MESH_MAX_VALUES = 1 << 28         # levels * table_size * features (1 GiB of float32)
+
+
+def _mesh_feature_checks(p, d):
+    t, n = p["table_size"], p["faces"]
+    if not (2 <= t <= MESH_MAX_TABLE and t & (t - 1) == 0):
+        raise ComponentError(f"table_size: must be a power of two, got {t}")
+    if not 1 <= n <= MESH_MAX_FACES:
+        raise ComponentError(f"faces: must be 1..{MESH_MAX_FACES} (triangle ids travel as exact float32 "
+                             f"integers), got {n}")
+    if p["levels"] * t * p["features"] > MESH_MAX_VALUES:
+        raise ComponentError(f"table_size: levels * table_size * features = {p['levels'] * t * p['features']} "
+                             f"values, more than {MESH_MAX_VALUES}")
+
+
+_register(ComponentSpec(
+    "mesh_features",
+    "UV-free hashed per-triangle feature hierarchy: input (triangle id, t0, t1); per level l a "
+    "2^l subdivision, sub-vertices canonicalised by the corners/edges owner tables, hashed into "
+    "table rows l*T..l*T+T-1, barycentric blend; output levels*features lanes",
+    {"levels": Param(int, check=_pos_int(16)),
+     "features": Param(int, 2, lambda v: v in (1, 2, 4, 8), doc="1, 2, 4 or 8"),
+     "table_size": Param(int, doc="a power of two, 2..2^24"),
+     "faces": Param(int, doc="1..2^24"),
+     "precision": Param(str, "f16", lambda v: v in MESH_FEATURE_PRECISIONS)},
+    out_dim=lambda p, d: p["levels"] * p["features"],
+    tensors=lambda p, d: {
+        "table": TensorSpec((p["levels"] * p["table_size"], p["features"]), "float32",
+                            MESH_FEATURE_PRECISIONS[p["precision"]]),
+        "corners": TensorSpec((p["faces"], 3), "uint32"),
+        "edges": TensorSpec((p["faces"], 3), "uint32")},
+    in_dim=lambda p, d: d == 3,
+    category="lookup",
+    extra_checks=_mesh_feature_checks,
+))
+
+
 def resolve_params(node_type: str, params: dict) -> dict:
     """Validated params with defaults filled in; raises ComponentError naming the field."""
     if node_type not in COMPONENTS:

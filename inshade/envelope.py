@@ -104,7 +104,7 @@ class Envelope:
 def input_ranges(bundle: Bundle) -> tuple[dict[str, tuple[float, float]], list[Finding]]:
     """The range of every input port from its semantic, plus notes for assumed ones.
 
-    uv: [0, 1]; normal / direction: [-1, 1] (unit vectors); position: [-1, 1] when a
+    uv, barycentric: [0, 1]; triangle_id: [0, 2^24 - 1]; normal / direction: [-1, 1] (unit vectors); position: [-1, 1] when a
     `render.transfer` or `render.sdf` frame normalises it (q = (p - center) / radius lies in
     the unit ball), assumed [-1, 1] otherwise; anything else: assumed [-1, 1]."""
     render = bundle.meta.get("render") or {}
@@ -112,8 +112,10 @@ def input_ranges(bundle: Bundle) -> tuple[dict[str, tuple[float, float]], list[F
     ranges, notes = {}, []
     for p in bundle.inputs:
         sem = p.semantic.lower()
-        if sem == "uv":
+        if sem in ("uv", "barycentric"):
             ranges[p.name] = (0.0, 1.0)
+        elif sem == "triangle_id":    # a face index (uint input): 0 .. 2^24 - 1
+            ranges[p.name] = (0.0, float((1 << 24) - 1))
         elif sem in ("normal", "direction"):
             ranges[p.name] = (-1.0, 1.0)
         elif sem == "position" and framed:
@@ -249,6 +251,9 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                 levels = [bundle.tensor(n, f"level{k}").reshape(-1, p["channels"]) for k in range(p["levels"])]
                 olo = np.min([lv.min(0) for lv in levels], 0)
                 ohi = np.max([lv.max(0) for lv in levels], 0)
+            elif t == "mesh_features":    # per level a barycentric (convex) blend of table rows
+                table = bundle.tensor(n, "table")
+                olo, ohi = np.tile(table.min(0), p["levels"]), np.tile(table.max(0), p["levels"])
             elif t == "shading_frames":   # unit frame vectors dotted with unit directions
                 olo, ohi = np.full(n.out_dim, -1.0), np.full(n.out_dim, 1.0)
             elif t == "proxy_params":     # weights, slopes (sinh-like of the inputs), alphas, correlation

@@ -50,6 +50,7 @@ _VERSIONS = {
         "precision highp sampler2D;",
         "precision highp sampler3D;",
         "precision highp sampler2DArray;",
+        "precision highp usampler2D;",
     ),
 }
 _TARGET_DEFINES = {"330": "INSHADE_TARGET_330", "450": "INSHADE_TARGET_450", "es300": "INSHADE_TARGET_ES300"}

@@ -1,0 +1,110 @@
+"""The UV-free feature hierarchy as texture fetches; torch twin in models/mesh_features.py (the
+rules), shader functions in shaders/lib/mesh_features.glsl.
+
+Resources, each a 2D texture whose rows are 2^n texels wide (the largest power of two that fits
+GL_MAX_TEXTURE_SIZE, or less for small data), item `index` at (index & (W-1), index >> n):
+- topology: one RGBA32UI texture, 2 texels per face: texel 2k = (corners[k], edges[k, 0]),
+  texel 2k+1 = (edges[k, 1], edges[k, 2], 0, 0); fetched once per call (the row width is even,
+  so both texels of a face share a row);
+- table: rows l*T + h of the [levels * T, F] feature table, one texture per 4 features (F = 8:
+  two RGBA, 4: RGBA, 2: RG, 1: R), RGBA16F-family for precision f16 (the bundle's values are
+  fp16-representable: checked at load), 32F for f32; always texelFetch (nearest).
+
+Input: the node's inputs as they are (separate_inputs): triangle id (a uint lane, or a float one
+holding an exact integer) then t0, t1. Levels are unrolled (L <= 16).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from inshade.mesh_topology import check_tables
+
+from .glsl import PlanRow, TextureResource
+from .limits import LimitError, limit, source
+from .registry import emitter
+from .values import declare
+
+_FLOAT = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F")}
+_CHANNELS = {1: "R", 2: "RG", 4: "RGBA"}
+
+
+def row_layout(node_id: str, what: str, items: int, limits: dict) -> tuple[int, int]:
+    """(log2 of the row width, rows) for `items` texels; LimitError when they cannot fit."""
+    name = "GL_MAX_TEXTURE_SIZE"
+    cap = limit(limits, name)
+    log2w = min(cap.bit_length() - 1, max(1, (items - 1).bit_length()))
+    rows = -(-items // (1 << log2w))
+    if rows > cap:
+        raise LimitError(f"node {node_id}: the {what} needs {items} texels, {1 << log2w}x{rows} in rows; "
+                         f"{name} is {cap} ({source(limits, name)})")
+    return log2w, rows
+
+
+def _rows(data: np.ndarray, log2w: int, rows: int) -> np.ndarray:
+    """[items, C] -> [rows, 2^log2w, C], zero-padded."""
+    out = np.zeros((rows << log2w, data.shape[1]), data.dtype)
+    out[:data.shape[0]] = data
+    return out.reshape(rows, 1 << log2w, data.shape[1])
+
+
+@emitter("mesh_features", separate_inputs=True)
+def emit_mesh_features(ctx, node, srcs, bundle):
+    ctx.include("lib/mesh_features")
+    p = node.params
+    levels, feats, size, faces = p["levels"], p["features"], p["table_size"], p["faces"]
+    corners, edges = bundle.tensor(node, "corners"), bundle.tensor(node, "edges")
+    check_tables(corners, edges, faces)
+    table = bundle.tensor(node, "table")
+    fdtype, np_dtype, bits = _FLOAT[p["precision"]]
+
+    lanes = [(v, i) for v in srcs for i in range(v.dim)]
+    (kv, ki), (t0v, t0i), (t1v, t1i) = lanes
+    as_float = lambda v, i: v.lane(i) if v.kind == "float" else f"float({v.lane(i)})"  # noqa: E731
+    k_expr = kv.lane(ki) if kv.kind == "uint" else f"uint({kv.lane(ki)})"
+
+    topo_log2w, topo_rows = row_layout(node.id, "topology texture (2 texels per face)", 2 * faces, ctx.limits)
+    packed = np.zeros((faces, 8), np.uint32)
+    packed[:, 0:3], packed[:, 3:6] = corners, edges
+    topo = ctx.name(node.id, "topology")
+    ctx.globals.append(f"uniform usampler2D {topo};  // {node.id}: corner/edge owners of {faces} faces, 2 texels each")
+    ctx.resources.append(TextureResource(topo, _rows(packed.reshape(2 * faces, 4), topo_log2w, topo_rows), "u4"))
+
+    tab_log2w, tab_rows = row_layout(node.id, "feature table", levels * size, ctx.limits)
+    groups = []
+    for g in range(-(-feats // 4)):
+        width = min(4, feats - 4 * g)
+        name = ctx.name(node.id, f"table{g}")
+        data = np.ascontiguousarray(table[:, 4 * g:4 * g + width], dtype=np_dtype)
+        ctx.globals.append(f"uniform sampler2D {name};  // {node.id}: features {4 * g}..{4 * g + width - 1} "
+                           f"of {levels} levels x {size} rows, {p['precision']}")
+        ctx.resources.append(TextureResource(name, _rows(data, tab_log2w, tab_rows), fdtype))
+        groups.append((name, width))
+
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    k, t, c, e = (ctx.name(node.id, s) for s in ("k", "t", "corners", "edges"))
+    idx, wt, s = ctx.name(node.id, "index"), ctx.name(node.id, "weight"), ctx.name(node.id, "s")
+    ctx.body += [f"uint {k} = {k_expr};",
+                 f"vec2 {t} = vec2({as_float(t0v, t0i)}, {as_float(t1v, t1i)});",
+                 f"uvec3 {c}; uvec3 {e};",
+                 f"mf_face_tables({topo}, {k}, {topo_log2w}, {c}, {e});",
+                 f"uint {idx}[3]; vec3 {wt}; vec4 {s};"]
+    for level in range(levels):
+        ctx.body.append(f"mf_level_taps({k}, {t}, {level}, {size}u, {c}, {e}, {idx}, {wt});")
+        for g, (name, width) in enumerate(groups):
+            blend = f"mf_blend({name}, {tab_log2w}, {idx}, {wt})"
+            first = level * feats + 4 * g
+            if width == 4:
+                ctx.body.append(f"{out.array}[{first // 4}] = {blend};")
+                continue
+            ctx.body.append(f"{s} = {blend};")
+            ctx.body += [f"{out.lane(first + ch)} = {s}.{'xyzw'[ch]};" for ch in range(width)]
+
+    tex_bytes = sum(r.nbytes for r in ctx.resources[-1 - len(groups):])
+    fmt = " + ".join(f"{_CHANNELS[w]}{bits}" for _, w in groups)
+    ctx.plan.append(PlanRow(node.id, "mesh_features",
+                            f"{levels} levels x {size} rows x {feats} ({p['precision']}), {faces} faces",
+                            "texture/exact", f"RGBA32UI topology (2 texels/face) + {fmt} table, "
+                            f"rows of {1 << tab_log2w} texels", params=int(table.size),
+                            flops=levels * (3 * 2 * feats + 40), fetches=2 + 3 * levels * len(groups),
+                            texture_bytes=tex_bytes))
+    return out
