@@ -15,4 +15,5 @@ BUILTIN = (
     "di_brdf",
     "di_sdf",
     "neural_appearance",
+    "uvfree_material",
 )

@@ -1,10 +1,10 @@
-// A PBR channel set shaded on a mesh, shared by the techniques that decode one (di_pbr_set,
-// uvfree_material): albedo (linear), a tangent-space normal, roughness, metallic and AO.
+// A PBR channel set shaded on a mesh, shared by the techniques that decode one: albedo (linear),
+// a tangent-space normal, roughness, metallic and AO.
 // Material: Disney (lib/brdf) with specular 0.5, roughness and metallic from the set; point lights
 // (inverse-square) plus the SH environment: its Lambert term for the diffuse part, scaled by AO
 // and (1 - metallic), and for metals the SH radiance about the mirror direction (a coarse
 // stand-in for a prefiltered specular environment; exact for metallic 0, where it is absent).
-// techniques/di_pbr_set/train.py (unpack, shade) is the torch twin for metallic 0: same operations in the same order.
+// A torch twin for metallic 0 (same operations in the same order) sits with the PBR-set technique's trainer.
 #include <lib/brdf>
 #include <lib/spherical_harmonics>
 #include <lib/lights>

@@ -1,0 +1,55 @@
+"""uvfree_material: a UV-free neural material on meshes (Walloner 2024, "Neural Compression of
+Material Properties using a Geometry-Associated Feature Hierarchy"), decoded in a fragment shader.
+
+Features live on a regular 2^l subdivision of every triangle (L levels), shared across edges and
+vertices through precomputed owner tables and stored in per-level hash tables (component
+``mesh_features``: inshade/mesh_topology.py, models/mesh_features.py, codegen/mesh_features.py);
+an MLP decodes the concatenated features to 9 material channels (model.py CHANNELS). The pass
+reads the mesh's visibility buffer (face id + barycentrics, ProgramSpec.visibility) and decodes
+each visible pixel once, then shades the channels with lib/pbr_shading. An asset folder
+(``trained/uvfree_material_<object>_<config>``) holds the bundle ``material`` (kind
+``uvfree_material``), the mesh and its reference uv textures (albedo, normal, rma) that the
+``reference`` view samples.
+"""
+from pathlib import Path
+
+from inshade.papers import FEATURE_HIERARCHY
+from inshade.technique import ProgramSpec, Technique
+
+KIND = "uvfree_material"
+# u_uvf_view / u_uvf_channel (shaders/lib/uvf_views.glsl UVF_VIEW_* / UVF_CHANNEL_*), in order
+VIEWS = ("decoded", "reference", "split", "error")
+CHANNEL_VIEWS = ("shaded", "albedo", "normal", "roughness", "metallic", "ao")
+WIREFRAME = ("off", "triangles", "level")
+UNIFORM_DEFAULTS = {"u_uvf_view": 2, "u_uvf_channel": 0, "u_uvf_wireframe": 0, "u_uvf_wire_level": 1,
+                    "u_uvf_error_scale": 4.0, "u_light_count": 2}
+
+
+def _validate(scene):
+    """One material network at prefix "mat"; the scene's mesh is the one the bundle was trained on
+    (features are addressed by face id: same faces, same order, same welded topology)."""
+    from .scene_check import check_mesh_matches
+
+    nets = [n for n in scene.networks if n.prefix == "mat"]
+    if len(nets) != 1:
+        raise ValueError("networks: a uvfree_material scene needs one network with prefix \"mat\" (the material bundle)")
+    for name, choices in (("u_uvf_view", VIEWS), ("u_uvf_channel", CHANNEL_VIEWS), ("u_uvf_wireframe", WIREFRAME)):
+        for sname, s in scene.settings.items():
+            if s.binding == "uniform" and s.target == name and tuple(s.choices) != choices[:len(s.choices)]:
+                raise ValueError(f"settings.{sname}.choices: {name} takes {list(choices)} (in that order)")
+    check_mesh_matches(scene, nets[0])
+
+
+TECHNIQUE = Technique(
+    name="uvfree_material",
+    summary="UV-free neural material: hashed per-triangle feature hierarchy + MLP, decoded from a visibility buffer",
+    paper=FEATURE_HIERARCHY,
+    kinds=(KIND,),
+    programs=(ProgramSpec("passes/mesh_uvfree_material.frag", geometry="mesh", mesh_attributes=("uv", "tangent"),
+                          bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS, validate=_validate, visibility=True),),
+    train="inshade.techniques.uvfree_material.train",
+    train_help="fit a hashed per-triangle feature hierarchy + MLP to a uv-textured mesh",
+    bench="inshade.techniques.uvfree_material.bench",
+    bench_help="UV-free material vs its uv textures, BC1/BC7/ASTC at equal bytes: quality, memory, speed",
+    shaders=Path(__file__).resolve().parent / "shaders",
+)

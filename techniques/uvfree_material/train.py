@@ -1,0 +1,375 @@
+"""Train a UV-free neural material (Walloner 2024): a hashed per-triangle feature hierarchy + MLP
+fitted to a uv-textured mesh, written as an asset folder the runtime renders.
+
+Command: ``inshade train uvfree_material [--object rock|fruit|stump_low|stump_high | --mesh FILE
+--textures DIR] [--config memory|balanced|quality] [--preset quick|ship] [--device cpu|cuda]
+[--out DIR] [--resolution N] [--steps N] [--levels L] [--table-size T] [--seed S]``.
+
+- Targets: the mesh's own uv textures (``albedo.png`` sRGB, ``normal.png`` tangent-space
+  n * 0.5 + 0.5, ``rma.png`` roughness/metallic/AO), looked up bilinearly (clamp) at the uv of
+  each training point; the network learns the texel values as stored (model.py CHANNELS). A mesh
+  without uv cannot provide targets: one error line.
+- Points: triangles drawn by area (Vose alias table, O(1) per sample), barycentrics uniform on
+  the triangle (t0 = 1 - sqrt(r0), t1 = sqrt(r0) (1 - r1)); fresh every step.
+- Adam (betas 0.9, 0.99, as the thesis) on the feature table and the MLP, MSE, cosine decay.
+- The mesh is read back through the runtime's loader (inshade/mesh.py load_mesh) before training,
+  so triangle ids are the faces the renderer draws; the bundle records the welded topology's
+  digest and the scene refuses a mesh that does not match.
+
+Asset folder (default ``trained/uvfree_material_<object>_<config>``): ``material/`` (the bundle:
+fp16 feature table stored F16, owner tables, MLP), ``mesh.obj``, the three reference textures,
+``scene.json``, ``metrics.json`` and ``preview.png``. Presets: ``ship`` built the shipped assets
+(512^2 textures); ``quick`` is the same pipeline at 64^2 for a few seconds (tests).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import shlex
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image
+
+from inshade import command
+from inshade.files import atomic_write
+from inshade.mesh import MeshError, load_mesh, mesh_uv
+from inshade.mesh_topology import mesh_topology
+from inshade.metrics import psnr
+
+from . import objects
+from .model import CHANNELS, CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, \
+    material_graph, reference_bytes
+
+PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096),
+           "ship": dict(resolution=512, steps=3000, batch=1 << 14)}
+DEFAULTS = dict(object="rock", config="balanced", preset="ship", seed=0, device="cpu", lr=1e-2, mlp_lr=5e-3)
+BUNDLE = "material"
+
+
+class TrainError(ValueError):
+    """Bad training input; the message names the file or option."""
+
+
+# ---------------------------------------------------------------------------------------------
+# targets and samples
+
+def stored_textures(folder: Path) -> dict:
+    """The reference textures as stored: 8-bit values / 255 (albedo stays sRGB-encoded), image
+    order (objects.py conventions); all the same size."""
+    out = {}
+    for key in objects.TEXTURES:
+        path = folder / objects.FILES[key]
+        if not path.is_file():
+            raise TrainError(f"{path}: missing (a uv-textured mesh needs {', '.join(objects.FILES[k] for k in objects.TEXTURES)})")
+        try:
+            out[key] = np.asarray(Image.open(path).convert("RGB"), np.float32) / 255.0
+        except OSError as exc:
+            raise TrainError(f"{path}: cannot read as an image: {exc}") from None
+    shapes = {k: v.shape for k, v in out.items()}
+    if len(set(shapes.values())) != 1:
+        raise TrainError(f"{folder}: textures differ in size: {shapes}")
+    return out
+
+
+def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vose's alias method: (prob [N] float64, alias [N] int64); draw i uniform, keep it with
+    probability prob[i], else take alias[i]. Zero-weight entries are never drawn."""
+    w = np.asarray(weights, np.float64)
+    if w.ndim != 1 or not len(w) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
+        raise TrainError("faces: triangle areas must be finite, non-negative and not all zero")
+    n = len(w)
+    scaled = w * (n / w.sum())
+    prob, alias = np.ones(n), np.arange(n)
+    small = [i for i in range(n) if scaled[i] < 1.0]
+    large = [i for i in range(n) if scaled[i] >= 1.0]
+    while small and large:
+        s, g = small.pop(), large.pop()
+        prob[s], alias[s] = scaled[s], g
+        scaled[g] -= 1.0 - scaled[s]
+        (small if scaled[g] < 1.0 else large).append(g)
+    for i in small:   # float leftovers: keep
+        prob[i] = 1.0 if w[i] > 0 else 0.0
+    return prob, alias
+
+
+class SurfaceSampler:
+    """Area-weighted points (face, t0, t1) on a mesh and their uv."""
+
+    def __init__(self, mesh):
+        self.faces = np.asarray(mesh.faces, np.int64)
+        self.uv = mesh_uv(mesh)
+        self.prob, self.alias = alias_table(np.asarray(mesh.area_faces))
+
+    def __call__(self, n: int, rng: np.random.Generator):
+        i = rng.integers(0, len(self.prob), n)
+        face = np.where(rng.random(n) < self.prob[i], i, self.alias[i])
+        r0, r1 = rng.random(n), rng.random(n)
+        s = np.sqrt(r0)
+        t0, t1 = (1.0 - s).astype(np.float32), (s * (1.0 - r1)).astype(np.float32)
+        t2 = 1.0 - t0.astype(np.float64) - t1
+        corners = self.uv[self.faces[face]]                       # [n, 3, 2]
+        uv = t0[:, None] * corners[:, 0] + t1[:, None] * corners[:, 1] + t2[:, None] * corners[:, 2]
+        return face, t0, t1, uv
+
+
+def targets(textures: dict, uv: np.ndarray) -> np.ndarray:
+    looked = objects.sample_textures(textures, uv)
+    return np.concatenate([looked[k] for k in objects.TEXTURES], 1)
+
+
+# ---------------------------------------------------------------------------------------------
+# training
+
+def prepare_asset(out: Path, *, object_name: str | None, mesh_path, textures_dir, resolution: int, seed: int):
+    """Write the mesh and reference textures into ``out``; returns (mesh as the runtime loads it,
+    stored textures)."""
+    out.mkdir(parents=True, exist_ok=True)
+    if mesh_path is None:
+        objects.write_object(objects.make_object(object_name, resolution, seed), out)
+    else:
+        try:
+            mesh = load_mesh(mesh_path)
+        except MeshError as exc:
+            raise TrainError(str(exc)) from None
+        if mesh_uv(mesh) is None:
+            raise TrainError(f"{mesh_path}: the mesh has no texture coordinates: training targets are looked "
+                             f"up in its uv textures (export it with uvs)")
+        from inshade.mesh import obj_text
+
+        atomic_write(out / objects.FILES["mesh"], obj_text(mesh))
+        src = Path(textures_dir) if textures_dir else Path(mesh_path).parent
+        stored_textures(src)   # checked before copying
+        for key in objects.TEXTURES:
+            if src.resolve() != out.resolve():
+                atomic_write(out / objects.FILES[key], (src / objects.FILES[key]).read_bytes())
+    mesh = load_mesh(out / objects.FILES["mesh"])
+    if mesh_uv(mesh) is None:
+        raise TrainError(f"{out / objects.FILES['mesh']}: the mesh has no texture coordinates")
+    return mesh, stored_textures(out)
+
+
+def evaluate(graph, sampler, textures, n: int, seed: int, device) -> dict:
+    """PSNR per channel group and the mean normal angle on fresh area-weighted points (torch)."""
+    rng = np.random.default_rng(seed + 7_777_777)
+    face, t0, t1, uv = sampler(n, rng)
+    want = targets(textures, uv)
+    with torch.no_grad():
+        x = torch.from_numpy(np.stack([face.astype(np.float32), t0, t1], 1)).to(device)
+        got = graph(x).cpu().numpy()
+    out = {f"psnr_{g}": round(psnr(got[:, a:b], want[:, a:b]), 3) for g, (a, b) in GROUPS.items()}
+    n_got, n_want = (v[:, 3:6] * 2 - 1 for v in (got, want))
+    cos = (n_got * n_want).sum(1) / np.maximum(np.linalg.norm(n_got, axis=1) * np.linalg.norm(n_want, axis=1), 1e-12)
+    out["normal_mean_deg"] = round(float(np.degrees(np.arccos(np.clip(cos, -1, 1))).mean()), 3)
+    return out
+
+
+def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="balanced", preset="ship", out=None,
+          resolution=None, steps=None, batch=None, levels=None, table_size=None, hidden=HIDDEN, seed=0,
+          device="cpu", lr=DEFAULTS["lr"], mlp_lr=DEFAULTS["mlp_lr"], progress=None, command_line=None,
+          write_preview=True) -> Path:
+    """Train and write the asset folder; returns it."""
+    from inshade.progress import progress as progress_bar
+
+    if config not in CONFIGS:
+        raise TrainError(f"--config: unknown {config!r} (choose from {', '.join(CONFIGS)})")
+    p = PRESETS[preset]
+    resolution = resolution or p["resolution"]
+    steps = p["steps"] if steps is None else steps
+    batch = batch or p["batch"]
+    name = object_name if mesh_path is None else Path(mesh_path).stem
+    out = Path(out or f"trained/{KIND}_{name}_{config}")
+    started = time.perf_counter()
+    mesh, textures = prepare_asset(out, object_name=object_name, mesh_path=mesh_path, textures_dir=textures_dir,
+                                   resolution=resolution, seed=seed)
+    tex_res = textures["albedo"].shape[0]
+    faces = np.asarray(mesh.faces)
+    ref_bytes = reference_bytes(tex_res)
+    levels = levels or choose_levels(len(faces), tex_res * tex_res)
+    table_size = table_size or choose_table_size(CONFIGS[config] * ref_bytes, levels)
+    torch.manual_seed(seed)
+    device = torch.device(device)
+    graph = material_graph(mesh.vertices, faces, levels=levels, table_size=table_size, hidden=hidden,
+                           seed=seed).to(device)
+    sampler = SurfaceSampler(mesh)
+    table = graph.nodes["features"].table
+    mlp = [q for n, q in graph.named_parameters() if not n.startswith("nodes.features.")]
+    opt = torch.optim.Adam([{"params": [table], "lr": lr}, {"params": mlp, "lr": mlp_lr}], betas=(0.9, 0.99),
+                           eps=1e-15)
+    base = [g["lr"] for g in opt.param_groups]
+    rng = np.random.default_rng(seed)
+    history = []
+    bar = progress_bar(range(steps), desc=f"uvfree_material {name} {config}", enabled=progress)
+    for step in bar:
+        t = step / max(steps, 1)
+        for g, lr0 in zip(opt.param_groups, base):
+            g["lr"] = lr0 * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
+        face, t0, t1, uv = sampler(batch, rng)
+        x = torch.from_numpy(np.stack([face.astype(np.float32), t0, t1], 1)).to(device)
+        y = torch.from_numpy(targets(textures, uv)).to(device)
+        loss = torch.mean((graph(x) - y) ** 2)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        if step % 50 == 0 or step == steps - 1:
+            history.append({"step": step, "mse": round(loss.item(), 7)})
+            bar.set_postfix(mse=f"{loss.item():.5f}")
+    seconds = time.perf_counter() - started
+    graph = graph.to("cpu")
+    quality = evaluate(graph, sampler, textures, 1 << 16, seed, "cpu")
+    topo = mesh_topology(mesh.vertices, faces)
+    command_line = command_line or shlex.join(["inshade", "train", KIND, "--object", str(name), "--config", config,
+                                               "--preset", preset])
+    provenance = {"command": command_line, "preset": preset, "object": name, "config": config,
+                  "resolution": tex_res, "levels": levels, "features": FEATURES, "table_size": table_size,
+                  "hidden": list(hidden), "steps": steps, "batch": batch, "seed": seed, "lr": lr, "mlp_lr": mlp_lr,
+                  "mesh_digest": topo.digest, "faces": int(len(faces)), "torch": torch.__version__,
+                  "device": str(device),
+                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+    bundle = graph.export(KIND, f"{name}_{config}", provenance=provenance, metrics=quality)
+    # the fp16 table (what an RGBA16F texture holds) stored as F16: half the file, widened exactly at load
+    bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") else v) for k, v in bundle.tensors.items()}
+    bundle.save(out / BUNDLE)
+    memory = memory_report(bundle, tex_res)
+    atomic_write(out / "scene.json", json.dumps(scene_description(out.name, name, config), indent=2) + "\n")
+    metrics = {"command": command_line, "preset": preset, "train_seconds": round(seconds, 1),
+               "train_threads": torch.get_num_threads(), "device": str(device), "levels": levels,
+               "table_size": table_size, "features": FEATURES, "faces": int(len(faces)), "memory": memory,
+               "torch_quality": quality, "history": history}
+    atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+    if write_preview:
+        render_preview(out)
+    return out
+
+
+def memory_report(bundle, resolution: int) -> dict:
+    """Bytes on the GPU: fp16 features, the MLP (fp32 weights), the owner tables (uint32), against
+    the uncompressed RGB8 textures."""
+    feats = mlp = topo = 0
+    for name, a in bundle.tensors.items():
+        if name.endswith(".table"):
+            feats += a.size * 2
+        elif name.endswith((".corners", ".edges")):
+            topo += a.size * 4
+        else:
+            mlp += a.size * 4
+    ref = reference_bytes(resolution)
+    return {"features_bytes": feats, "mlp_bytes": mlp, "topology_bytes": topo, "reference_bytes": ref,
+            "rate_features_mlp": round((feats + mlp) / ref, 4), "rate_all": round((feats + mlp + topo) / ref, 4)}
+
+
+def scene_description(name: str, object_name: str, config: str) -> dict:
+    from . import CHANNEL_VIEWS, VIEWS, WIREFRAME
+
+    return {
+        "format": "inshade.scene", "version": 1, "name": name,
+        "title": f"UV-free neural material: {object_name} ({config}), hashed per-triangle features + MLP",
+        "program": "passes/mesh_uvfree_material.frag", "size": [320, 320],
+        "networks": [{"bundle": BUNDLE, "prefix": "mat"}],
+        "mesh": objects.FILES["mesh"],
+        "textures": [{"uniform": f"u_uvf_{k}", "image": objects.FILES[k], "mipmaps": False, "repeat": False}
+                     for k in objects.TEXTURES],
+        "camera": {"type": "orbit", "fov_y": 35.0, "target": [0.0, 0.0, 0.0], "distance": 3.4, "yaw": 30.0,
+                   "pitch": -20.0},
+        "bookmarks": {"close-up": {"type": "orbit", "fov_y": 35.0, "target": [0.3, 0.3, 0.3], "distance": 1.3,
+                                   "yaw": 35.0, "pitch": -25.0}},
+        "lights": [{"type": "point", "position": [2.5, 3.0, 2.5], "intensity": 14.0},
+                   {"type": "point", "position": [-3.0, 1.5, 1.5], "intensity": 6.0}],
+        "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
+        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
+        "settings": {
+            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
+                         "label": "exposure"},
+            "view": {"type": "choice", "default": "split", "choices": list(VIEWS), "uniform": "u_uvf_view",
+                     "label": "view (split: left reference, right decoded)"},
+            "channel": {"type": "choice", "default": "shaded", "choices": list(CHANNEL_VIEWS),
+                        "uniform": "u_uvf_channel", "label": "shaded, or one channel as stored (debug)"},
+            "wireframe": {"type": "choice", "default": "off", "choices": list(WIREFRAME),
+                          "uniform": "u_uvf_wireframe", "label": "overlay: mesh triangles | sub-triangles of a level"},
+            "wire_level": {"type": "int", "default": 1, "min": 0, "max": 7, "uniform": "u_uvf_wire_level",
+                           "label": "overlay level"},
+            "error_scale": {"type": "float", "default": 4.0, "min": 0.0, "max": 64.0, "uniform": "u_uvf_error_scale",
+                            "label": "error scale"},
+            "lights": {"type": "int", "default": 2, "min": 0, "max": 4, "uniform": "u_light_count",
+                       "label": "point lights"},
+            "sky": {"type": "choice", "default": "studio", "choices": ["sunset", "overcast", "noon", "studio"],
+                    "environment": "sky", "label": "environment"},
+            "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0,
+                             "environment": "rotation", "label": "env rotation (deg)"},
+        },
+        "requires": {"gl": 330},
+        "notes": "decoded | reference: the 'view' setting (channels as debug views); the mesh's uvs feed only "
+                 "the reference and the tangent frame, the decoder reads the visibility buffer",
+    }
+
+
+def render_preview(out: Path) -> None:
+    """preview.png: the asset's scene, split view (left reference, right decoded)."""
+    from inshade.runtime.headless import render_scene, save_render
+
+    image, info = render_scene(out, settings={"view": "split"})
+    save_render(image, info, out / "preview.png")
+    Path(f"{out / 'preview.png'}.json").unlink()   # a shipped picture: its sidecar would hold this machine's paths
+
+
+# ---------------------------------------------------------------------------------------------
+# command line
+
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--object", default=DEFAULTS["object"], choices=objects.OBJECTS,
+                        help="a procedural uv-textured object (default: %(default)s)")
+    parser.add_argument("--mesh", help="instead of --object: a uv-mapped mesh (OBJ/PLY/GLB)")
+    parser.add_argument("--textures", help="with --mesh: folder holding albedo.png, normal.png, rma.png "
+                        "(default: the mesh's folder)")
+    parser.add_argument("--config", default=DEFAULTS["config"], choices=sorted(CONFIGS),
+                        help="memory | balanced | quality: features sized to 1/12, 1/6, 1/3 of the "
+                        "uncompressed textures (default: %(default)s)")
+    parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
+                        help="ship: what built trained/uvfree_material_*; quick: 64^2 textures, seconds "
+                        "(default: %(default)s)")
+    parser.add_argument("--device", default=DEFAULTS["device"], help="torch device: cpu, cuda, cuda:1 ... "
+                        "(default: %(default)s)")
+    parser.add_argument("--out", help="asset folder (default: trained/uvfree_material_<object>_<config>)")
+    parser.add_argument("--resolution", type=int, help="procedural texture side, a power of two (default: the preset's)")
+    parser.add_argument("--steps", type=int, help="training steps (default: the preset's)")
+    parser.add_argument("--batch", type=int, help="surface points per step (default: the preset's)")
+    parser.add_argument("--levels", type=int, help="hierarchy levels L (default: from the texel density)")
+    parser.add_argument("--table-size", type=int, help="hash-table entries per level T, a power of two "
+                        "(default: from --config)")
+    parser.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="random seed (default: %(default)s)")
+    parser.add_argument("--no-preview", action="store_true", help="skip rendering preview.png")
+    return parser
+
+
+def run(args: argparse.Namespace, argv=None) -> int:
+    if args.device.startswith("cuda") and not torch.cuda.is_available():
+        raise TrainError(f"--device {args.device}: this torch build has no CUDA device")
+    for name in ("steps", "batch", "levels", "table_size"):
+        v = getattr(args, name)
+        if v is not None and v < (0 if name == "steps" else 1):
+            raise TrainError(f"--{name.replace('_', '-')}: must be >= {0 if name == 'steps' else 1}, got {v}")
+    if args.textures and not args.mesh:
+        raise TrainError("--textures: goes with --mesh")
+    command_line = shlex.join(["inshade", "train", KIND, *(argv or [])]) if argv else None
+    out = train(object_name=args.object, mesh_path=args.mesh, textures_dir=args.textures, config=args.config,
+                preset=args.preset, out=args.out, resolution=args.resolution, steps=args.steps, batch=args.batch,
+                levels=args.levels, table_size=args.table_size, seed=args.seed, device=args.device,
+                command_line=command_line, write_preview=not args.no_preview)
+    m = json.loads((out / "metrics.json").read_text())
+    q, mem = m["torch_quality"], m["memory"]
+    print(f"wrote {out}: albedo {q['psnr_albedo']:.2f} dB, normal {q['normal_mean_deg']:.2f} deg, "
+          f"rma {q['psnr_rma']:.2f} dB; {mem['rate_features_mlp']:.1%} of the textures "
+          f"({mem['rate_all']:.1%} with owner tables); {m['train_seconds']:.0f} s")
+    return 0
+
+
+def main(argv=None) -> int:
+    from inshade.components import ComponentError
+    from inshade.mesh_topology import MeshTopologyError
+
+    return command.main(f"inshade train {KIND}", __doc__, add_arguments, run, argv,
+                        errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError))
