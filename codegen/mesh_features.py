@@ -3,9 +3,9 @@ rules), shader functions in shaders/lib/mesh_features.glsl.
 
 Resources, each a 2D texture whose rows are 2^n texels wide (the largest power of two that fits
 GL_MAX_TEXTURE_SIZE, or less for small data), item `index` at (index & (W-1), index >> n):
-- topology: one RGBA32UI texture, 2 texels per face: texel 2k = (corners[k], edges[k, 0]),
-  texel 2k+1 = (edges[k, 1], edges[k, 2], 0, 0); fetched once per call (the row width is even,
-  so both texels of a face share a row);
+- topology: one RGB32UI texture, 2 texels per face (24 bytes, no padding): texel 2k = corners[k],
+  texel 2k+1 = edges[k]; fetched once per call (the row width is even, so both texels of a face
+  share a row);
 - table: rows l*T + h of the [levels * T, F] feature table, one texture per 4 features (F = 8:
   two RGBA, 4: RGBA, 2: RG, 1: R), RGBA16F-family for precision f16 (the bundle's values are
   fp16-representable: checked at load), 32F for f32; always texelFetch (nearest).
@@ -63,11 +63,10 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     k_expr = kv.lane(ki) if kv.kind == "uint" else f"uint({kv.lane(ki)})"
 
     topo_log2w, topo_rows = row_layout(node.id, "topology texture (2 texels per face)", 2 * faces, ctx.limits)
-    packed = np.zeros((faces, 8), np.uint32)
-    packed[:, 0:3], packed[:, 3:6] = corners, edges
+    packed = np.stack([corners, edges], 1).astype(np.uint32)   # [faces, 2 texels, 3]
     topo = ctx.name(node.id, "topology")
     ctx.globals.append(f"uniform usampler2D {topo};  // {node.id}: corner/edge owners of {faces} faces, 2 texels each")
-    ctx.resources.append(TextureResource(topo, _rows(packed.reshape(2 * faces, 4), topo_log2w, topo_rows), "u4"))
+    ctx.resources.append(TextureResource(topo, _rows(packed.reshape(2 * faces, 3), topo_log2w, topo_rows), "u4"))
 
     tab_log2w, tab_rows = row_layout(node.id, "feature table", levels * size, ctx.limits)
     groups = []
@@ -103,7 +102,7 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     fmt = " + ".join(f"{_CHANNELS[w]}{bits}" for _, w in groups)
     ctx.plan.append(PlanRow(node.id, "mesh_features",
                             f"{levels} levels x {size} rows x {feats} ({p['precision']}), {faces} faces",
-                            "texture/exact", f"RGBA32UI topology (2 texels/face) + {fmt} table, "
+                            "texture/exact", f"RGB32UI topology (2 texels/face) + {fmt} table, "
                             f"rows of {1 << tab_log2w} texels", params=int(table.size),
                             flops=levels * (3 * 2 * feats + 40), fetches=2 + 3 * levels * len(groups),
                             texture_bytes=tex_bytes))

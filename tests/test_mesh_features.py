@@ -324,7 +324,7 @@ def test_plan_resources_and_limits():
     g = feature_graph(MESHES["grid2"], 4, 8, 1 << 10, "f16")
     gen = generate(g.export("mesh_features_test"))
     topo, t0, t1 = gen.resources
-    assert topo.dtype == "u4" and topo.data.dtype == np.uint32 and topo.data.shape == (1, 16, 4)
+    assert topo.dtype == "u4" and topo.data.dtype == np.uint32 and topo.data.shape == (1, 16, 3)
     assert t0.dtype == t1.dtype == "f2" and t0.data.shape == (4, 1024, 4)
     row = next(r for r in gen.plan.rows if r.type == "mesh_features")
     assert row.fetches == 2 + 3 * 4 * 2 and row.params == 4 * 1024 * 8

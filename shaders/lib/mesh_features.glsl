@@ -73,14 +73,11 @@ ivec2 mf_texel(uint index, int log2w) {
     return ivec2(int(index & ((1u << uint(log2w)) - 1u)), int(index >> uint(log2w)));
 }
 
-// Face k's owner tables from an RGBA32UI texture holding 2 texels per face:
-// texel 2k = (corners.xyz, edges.x), texel 2k + 1 = (edges.yz, 0, 0). (highp: ES 3.00 has no
-// default precision for usampler2D.)
+// Face k's owner tables from an RGB32UI texture holding 2 texels per face (24 bytes, no padding):
+// texel 2k = corners.xyz, texel 2k + 1 = edges.xyz. (highp: ES 3.00 has no default precision for usampler2D.)
 void mf_face_tables(highp usampler2D topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
-    uvec4 a = texelFetch(topo, mf_texel(2u * k, log2w), 0);
-    uvec4 b = texelFetch(topo, mf_texel(2u * k + 1u, log2w), 0);
-    corners = a.xyz;
-    edges = uvec3(a.w, b.xy);
+    corners = texelFetch(topo, mf_texel(2u * k, log2w), 0).xyz;
+    edges = texelFetch(topo, mf_texel(2u * k + 1u, log2w), 0).xyz;
 }
 
 // One table row blended: ((w0 * f0) + w1 * f1) + w2 * f2, as torch sums it.

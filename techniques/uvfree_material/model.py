@@ -27,11 +27,6 @@ HIDDEN = (32, 32, 32)
 MAX_LEVELS = 8
 
 
-def reference_bytes(resolution: int) -> int:
-    """The uncompressed textures: three RGB8 maps (albedo, normal, roughness/metallic/AO)."""
-    return 3 * 3 * resolution * resolution
-
-
 def choose_levels(faces: int, area_fraction_texels: float) -> int:
     """Levels so the finest sub-triangles are about a texel: a face covers ``texels / faces``
     texels, i.e. about sqrt(2 texels / faces) along an edge."""

@@ -42,8 +42,8 @@ from inshade.mesh_topology import mesh_topology
 from inshade.metrics import psnr
 
 from . import objects
-from .model import CHANNELS, CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, \
-    material_graph, reference_bytes
+from .memory import memory_report, reference_bytes
+from .model import CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, material_graph
 
 PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096),
            "ship": dict(resolution=512, steps=3000, batch=1 << 14)}
@@ -244,22 +244,6 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     if write_preview:
         render_preview(out)
     return out
-
-
-def memory_report(bundle, resolution: int) -> dict:
-    """Bytes on the GPU: fp16 features, the MLP (fp32 weights), the owner tables (uint32), against
-    the uncompressed RGB8 textures."""
-    feats = mlp = topo = 0
-    for name, a in bundle.tensors.items():
-        if name.endswith(".table"):
-            feats += a.size * 2
-        elif name.endswith((".corners", ".edges")):
-            topo += a.size * 4
-        else:
-            mlp += a.size * 4
-    ref = reference_bytes(resolution)
-    return {"features_bytes": feats, "mlp_bytes": mlp, "topology_bytes": topo, "reference_bytes": ref,
-            "rate_features_mlp": round((feats + mlp) / ref, 4), "rate_all": round((feats + mlp + topo) / ref, 4)}
 
 
 def scene_description(name: str, object_name: str, config: str) -> dict:
