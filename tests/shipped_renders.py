@@ -34,6 +34,9 @@ CASES = [
     ("di_sdf", {}),
     ("neural_appearance_ceramic", {}), ("neural_appearance_ceramic", {"view": "reference"}),
     ("neural_appearance_brushed_metal", {"view": "split", "lighting": "environment"}),
+    ("uvfree_material_stump_high_quality", {}), ("uvfree_material_stump_low_balanced", {"view": "error"}),
+    ("uvfree_material_rock_balanced", {"view": "decoded", "wireframe": "level", "wire_level": 2}),
+    ("uvfree_material_fruit_balanced", {"view": "split", "channel": "normal"}),
 ]
 
 

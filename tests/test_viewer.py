@@ -573,3 +573,24 @@ def test_view_without_display_exits_2():
     assert proc.returncode == 2
     assert proc.stderr.startswith("inshade: error:") and "xvfb-run" in proc.stderr
     assert proc.stderr.count("\n") == 1
+
+
+def test_uvfree_material_views_channels_and_overlay_in_the_window(app):
+    """A UV-free material asset in the window: decoded | reference split, the error view, a channel as
+    a debug view and the triangle / level overlay are settings the panel drives; each changes the picture."""
+    try:
+        assert app.open(ROOT / "trained" / "uvfree_material_stump_low_balanced"), app.messages[-1:]
+        app.step(3)
+        pictures = {}
+        for name, value in [("view", "split"), ("view", "error"), ("view", "decoded"), ("channel", "normal"),
+                            ("wireframe", "triangles"), ("wireframe", "level")]:
+            assert app.set_setting(name, value) == "uniform", app.messages[-1:]
+            app.step(1)
+            pictures[f"{name}={value}"] = _scene_pixels(app, app.read_window())
+        keys = list(pictures)
+        for a, b in zip(keys, keys[1:]):
+            assert np.abs(pictures[a] - pictures[b]).max() > 40, (a, b)
+    finally:
+        assert app.open(ASSET)
+        app.step(3)
+    _reset(app)
