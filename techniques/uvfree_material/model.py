@@ -23,7 +23,7 @@ CHANNELS = ("albedo_r", "albedo_g", "albedo_b", "normal_x", "normal_y", "normal_
 GROUPS = {"albedo": (0, 3), "normal": (3, 6), "rma": (6, 9)}
 FEATURES = 4
 CONFIGS = {"memory": 1 / 12, "balanced": 1 / 6, "quality": 1 / 3}   # share of the uncompressed bytes
-HIDDEN = (32, 32, 32)
+HIDDEN = (64, 64, 64, 64)   # the thesis decoder: 4 hidden layers of 64, ReLU
 MAX_LEVELS = 8
 
 

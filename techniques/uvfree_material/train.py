@@ -19,7 +19,8 @@ Command: ``inshade train uvfree_material [--object rock|fruit|stump_low|stump_hi
 Asset folder (default ``trained/uvfree_material_<object>_<config>``): ``material/`` (the bundle:
 fp16 feature table stored F16, owner tables, MLP), ``mesh.obj``, the three reference textures,
 ``scene.json``, ``metrics.json`` and ``preview.png``. Presets: ``ship`` built the shipped assets
-(512^2 textures); ``quick`` is the same pipeline at 64^2 for a few seconds (tests).
+(512^2 textures, the thesis's 4x64 ReLU decoder); ``quick`` is the same pipeline at 64^2 with a
+2x32 decoder, for a few seconds (tests).
 """
 from __future__ import annotations
 
@@ -45,8 +46,8 @@ from . import objects
 from .memory import memory_report, reference_bytes
 from .model import CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, material_graph
 
-PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096),
-           "ship": dict(resolution=512, steps=3000, batch=1 << 14)}
+PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096, hidden=(32, 32)),
+           "ship": dict(resolution=512, steps=3000, batch=1 << 14, hidden=HIDDEN)}
 DEFAULTS = dict(object="rock", config="balanced", preset="ship", seed=0, device="cpu", lr=1e-2, mlp_lr=5e-3)
 BUNDLE = "material"
 
@@ -169,7 +170,8 @@ def evaluate(graph, sampler, textures, n: int, seed: int, device) -> dict:
 
 
 def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="balanced", preset="ship", out=None,
-          resolution=None, steps=None, batch=None, levels=None, table_size=None, hidden=HIDDEN, seed=0,
+          resolution=None, steps=None, batch=None, levels=None, table_size=None, features=FEATURES, hidden=None,
+          seed=0,
           device="cpu", lr=DEFAULTS["lr"], mlp_lr=DEFAULTS["mlp_lr"], progress=None, command_line=None,
           write_preview=True) -> Path:
     """Train and write the asset folder; returns it."""
@@ -181,6 +183,7 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     resolution = resolution or p["resolution"]
     steps = p["steps"] if steps is None else steps
     batch = batch or p["batch"]
+    hidden = tuple(hidden or p["hidden"])
     name = object_name if mesh_path is None else Path(mesh_path).stem
     out = Path(out or f"trained/{KIND}_{name}_{config}")
     started = time.perf_counter()
@@ -190,11 +193,11 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     faces = np.asarray(mesh.faces)
     ref_bytes = reference_bytes(tex_res)
     levels = levels or choose_levels(len(faces), tex_res * tex_res)
-    table_size = table_size or choose_table_size(CONFIGS[config] * ref_bytes, levels)
+    table_size = table_size or choose_table_size(CONFIGS[config] * ref_bytes, levels, features)
     torch.manual_seed(seed)
     device = torch.device(device)
-    graph = material_graph(mesh.vertices, faces, levels=levels, table_size=table_size, hidden=hidden,
-                           seed=seed).to(device)
+    graph = material_graph(mesh.vertices, faces, levels=levels, table_size=table_size, features=features,
+                           hidden=hidden, seed=seed).to(device)
     sampler = SurfaceSampler(mesh)
     table = graph.nodes["features"].table
     mlp = [q for n, q in graph.named_parameters() if not n.startswith("nodes.features.")]
@@ -225,7 +228,7 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     command_line = command_line or shlex.join(["inshade", "train", KIND, "--object", str(name), "--config", config,
                                                "--preset", preset])
     provenance = {"command": command_line, "preset": preset, "object": name, "config": config,
-                  "resolution": tex_res, "levels": levels, "features": FEATURES, "table_size": table_size,
+                  "resolution": tex_res, "levels": levels, "features": features, "table_size": table_size,
                   "hidden": list(hidden), "steps": steps, "batch": batch, "seed": seed, "lr": lr, "mlp_lr": mlp_lr,
                   "mesh_digest": topo.digest, "faces": int(len(faces)), "torch": torch.__version__,
                   "device": str(device),
@@ -238,7 +241,7 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     atomic_write(out / "scene.json", json.dumps(scene_description(out.name, name, config), indent=2) + "\n")
     metrics = {"command": command_line, "preset": preset, "train_seconds": round(seconds, 1),
                "train_threads": torch.get_num_threads(), "device": str(device), "levels": levels,
-               "table_size": table_size, "features": FEATURES, "faces": int(len(faces)), "memory": memory,
+               "table_size": table_size, "features": features, "faces": int(len(faces)), "memory": memory,
                "torch_quality": quality, "history": history}
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     if write_preview:
@@ -276,6 +279,8 @@ def scene_description(name: str, object_name: str, config: str) -> dict:
                           "uniform": "u_uvf_wireframe", "label": "overlay: mesh triangles | sub-triangles of a level"},
             "wire_level": {"type": "int", "default": 1, "min": 0, "max": 7, "uniform": "u_uvf_wire_level",
                            "label": "overlay level"},
+            "decoder": {"type": "bool", "default": True, "define": "UVF_DECODER",
+                        "label": "decoder compiled in (off: the reference-only shader, for timing)"},
             "error_scale": {"type": "float", "default": 4.0, "min": 0.0, "max": 64.0, "uniform": "u_uvf_error_scale",
                             "label": "error scale"},
             "lights": {"type": "int", "default": 2, "min": 0, "max": 4, "uniform": "u_light_count",
@@ -322,11 +327,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--steps", type=int, help="training steps (default: the preset's)")
     parser.add_argument("--batch", type=int, help="surface points per step (default: the preset's)")
     parser.add_argument("--levels", type=int, help="hierarchy levels L (default: from the texel density)")
+    parser.add_argument("--features", type=int, default=FEATURES, choices=(1, 2, 4, 8),
+                        help="features per table entry F (default: %(default)s)")
+    parser.add_argument("--hidden", help="hidden layer widths of the decoder MLP, comma-separated (default: the "
+                        f"preset's: ship {','.join(map(str, HIDDEN))}, the thesis's; quick 32,32)")
     parser.add_argument("--table-size", type=int, help="hash-table entries per level T, a power of two "
                         "(default: from --config)")
     parser.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="random seed (default: %(default)s)")
     parser.add_argument("--no-preview", action="store_true", help="skip rendering preview.png")
     return parser
+
+
+def _widths(text: str) -> tuple[int, ...]:
+    try:
+        widths = tuple(int(w) for w in text.split(",") if w.strip())
+    except ValueError:
+        widths = ()
+    if not widths or min(widths) < 1 or max(widths) > 256:
+        raise TrainError(f"--hidden: comma-separated widths 1..256, got {text!r}")
+    return widths
 
 
 def run(args: argparse.Namespace, argv=None) -> int:
@@ -341,7 +360,9 @@ def run(args: argparse.Namespace, argv=None) -> int:
     command_line = shlex.join(["inshade", "train", KIND, *(argv or [])]) if argv else None
     out = train(object_name=args.object, mesh_path=args.mesh, textures_dir=args.textures, config=args.config,
                 preset=args.preset, out=args.out, resolution=args.resolution, steps=args.steps, batch=args.batch,
-                levels=args.levels, table_size=args.table_size, seed=args.seed, device=args.device,
+                levels=args.levels, table_size=args.table_size, features=args.features,
+                hidden=_widths(args.hidden) if args.hidden else None,
+                seed=args.seed, device=args.device,
                 command_line=command_line, write_preview=not args.no_preview)
     m = json.loads((out / "metrics.json").read_text())
     q, mem = m["torch_quality"], m["memory"]

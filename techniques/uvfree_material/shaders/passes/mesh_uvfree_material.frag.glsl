@@ -9,6 +9,8 @@
 // normal n * 0.5 + 0.5, roughness, metallic, AO as grey), shown so the display's sRGB encoding
 // puts the stored value on screen. u_uvf_wireframe: off | triangles (face boundaries) | level
 // (boundaries of the sub-triangles of level u_uvf_wire_level), found from the neighbours' ids.
+// UVF_DECODER 0 (the scene setting "decoder": off) compiles the decoder out: the reference-only
+// shader, for timing the decode (a software rasteriser may run both sides of a uniform branch).
 // Linear radiance; alpha 1 on the mesh, 0 in the background (the environment).
 #include <lib/camera>
 #include <lib/gbuffer>
@@ -20,6 +22,9 @@
 #define UVF_VIEW_SPLIT 2
 #define UVF_VIEW_ERROR 3
 #define UVF_CHANNEL_SHADED 0
+#ifndef UVF_DECODER
+#define UVF_DECODER 1
+#endif
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
@@ -77,10 +82,12 @@ void main() {
                    || (u_uvf_view == UVF_VIEW_SPLIT && gl_FragCoord.x >= 0.5 * u_size.x);
     bool reference = u_uvf_view != UVF_VIEW_DECODED && !(u_uvf_view == UVF_VIEW_SPLIT && decoded);
     vec3 colour = vec3(0.0);
+#if UVF_DECODER
     if (decoded) {
         uint k = texelFetch(u_gbuffer_primitive, px, 0).x;
         colour = uvf_show(uvf_decode(k, texelFetch(u_gbuffer_barycentric, px, 0).xy), p, n, tangent, rd);
     }
+#endif
     if (reference) {
         vec3 r = uvf_show(uvf_reference(texelFetch(u_gbuffer_uv, px, 0).xy), p, n, tangent, rd);
         colour = u_uvf_view == UVF_VIEW_ERROR ? abs(colour - r) * u_uvf_error_scale : r;
