@@ -474,19 +474,51 @@ def cmd_view(args) -> int:
 
 # doctor -----------------------------------------------------------------------------------
 def cmd_doctor(args) -> int:
-    from inshade.runtime.context import egl_devices, gl_info, shared_context
+    from inshade.runtime import context
 
-    info = gl_info(shared_context())
-    info["egl_devices"] = egl_devices()
+    backend, device = context.resolve()
+    devices = context.egl_device_list()
+    try:
+        info = context.gl_info(context.shared_context())
+    except context.GLContextError:
+        if not args.json:   # what can be said without a context, then the error line
+            _print_egl_devices(devices, backend, device)
+            if backend == "egl":
+                print("hint: EGL cannot create a context here; Mesa's off-screen library may still work: "
+                      "apt-get install libosmesa6, then `inshade --gl-backend osmesa doctor`")
+        raise
+    info["egl_devices"] = [d.describe() for d in devices]
+    info["gl_backend"] = backend
+    info["egl_device"] = (device or 0) if backend == "egl" else None
     if args.json:
         print(json.dumps(info, indent=2, sort_keys=True))
         return 0
     width = max(len(k) for k in info)
     for k, v in info.items():
         print(f"{k:<{width}}  {v}")
+    _print_egl_devices(devices, backend, device)
     if info.get("software"):
         print("note: this is a software rasteriser (CPU); timings are not GPU timings")
     return 0
+
+
+def _print_egl_devices(devices, backend: str, device) -> None:
+    """The EGL device list with the one in use marked, and the NVIDIA hints when none is a GPU."""
+    from inshade.runtime.context import nvidia_hints
+
+    used = (device or 0) if backend == "egl" else None
+    print(f"EGL devices ({len(devices)}; --gl-device N / INSHADE_EGL_DEVICE=N picks one):")
+    for d in devices:
+        mark = "*" if d.index == used else " "
+        print(f"  {mark} {d.index}: {d.describe()}{'  [software]' if d.software else ''}")
+    if backend != "egl":
+        print(f"  (not used: the {backend} backend renders)")
+    if not any(not d.software for d in devices):
+        print("note: EGL sees no GPU. An NVIDIA GPU needs the driver's EGL library registered with glvnd "
+              "(libnvidia-gl-*, and in a container NVIDIA_DRIVER_CAPABILITIES=graphics,compute,utility); "
+              "docs/gpu.md has the steps. Checked here:")
+        for hint in nvidia_hints():
+            print(f"  - {hint}")
 
 
 # bench / train mount modules that bring their own arguments -------------------------------
@@ -519,6 +551,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "An ASSET is a folder (scene.json and/or a bundle) or the name of a shipped one "
                         f"(looked up in $INSHADE_ASSETS, then trained/), e.g. `inshade render prt_creature -o x.png`.")
     ap.add_argument("-q", "--quiet", action="store_true", help="only errors on stderr")
+    _gl_options(ap, None)
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     p = sub.add_parser("codegen", help="bundle -> GLSL (prints the plan report)",
@@ -586,7 +619,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("doctor", help="GL vendor/renderer/version and the limits codegen uses",
                        description="Report the OpenGL context inshade gets here: vendor, renderer, version, "
-                                   "limits that matter for codegen, EGL devices, software or not.")
+                                   "limits that matter for codegen, software or not, the backend, and the EGL "
+                                   "devices with the one in use marked. When EGL sees no GPU it says what to "
+                                   "check (NVIDIA driver, NVIDIA_DRIVER_CAPABILITIES=graphics, glvnd); when "
+                                   "EGL cannot start at all it suggests --gl-backend osmesa.")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_doctor)
 
@@ -602,7 +638,67 @@ def build_parser() -> argparse.ArgumentParser:
         if name not in ("bench", "train", *ALIASES):   # SUPPRESS keeps a -q given before it
             p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                            help="only errors on stderr")
+        if name in GL_COMMANDS:
+            _gl_options(p, argparse.SUPPRESS)
     return ap
+
+
+# GL backend and device: global options (before the command, or after it for the commands that
+# make a GL context; bench and train take them anywhere among their own options)
+GL_COMMANDS = ("codegen", "render", "view", "doctor")
+GL_OPTIONS = ("--gl-backend", "--gl-device")
+
+
+def _device_index(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an EGL device index (0, 1, ...), got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an EGL device index (0, 1, ...), got {value}")
+    return value
+
+
+def _gl_options(p, default) -> None:
+    from inshade.runtime.context import BACKENDS
+
+    p.add_argument("--gl-backend", choices=BACKENDS, default=default,
+                   help="headless OpenGL: egl (default; GPUs and Mesa) or osmesa (Mesa's off-screen CPU "
+                        "library, for where EGL cannot start); env INSHADE_GL_BACKEND")
+    p.add_argument("--gl-device", type=_device_index, metavar="N", default=default,
+                   help="EGL device to render on (`inshade doctor` lists them); env INSHADE_EGL_DEVICE")
+
+
+def _split_gl_options(argv: list[str]) -> tuple[list[str], list[str]]:
+    """(--gl-backend/--gl-device options, the other arguments) of a bench/train command line;
+    a `--` ends the search."""
+    gl, rest, i = [], [], 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "--":
+            rest += argv[i:]
+            break
+        if arg in GL_OPTIONS:
+            gl += argv[i:i + 2]
+            i += 2
+            continue
+        (gl if arg.split("=", 1)[0] in GL_OPTIONS else rest).append(arg)
+        i += 1
+    return gl, rest
+
+
+def _apply_gl_options(args) -> None:
+    """Check the GL flags and make them the process's choice (context.select)."""
+    backend, device = getattr(args, "gl_backend", None), getattr(args, "gl_device", None)
+    if backend is None and device is None:
+        return
+    if getattr(args, "command", None) == "view":
+        raise UserError("view: --gl-backend/--gl-device choose the headless context; a window renders on its "
+                        "display's GPU (on a hybrid laptop: __NV_PRIME_RENDER_OFFLOAD=1 "
+                        "__GLX_VENDOR_LIBRARY_NAME=nvidia inshade view)")
+    from inshade.runtime.context import select
+
+    select(backend, device)
 
 
 def main(argv=None) -> int:
@@ -630,20 +726,23 @@ def _main(argv) -> int:
     ap = build_parser()
     # `inshade bench mlp ...` / `inshade train X ...`: the module parses its own options
     # (so its --help is its own), after the global ones.
-    quiet = bool(argv) and argv[0] in ("-q", "--quiet")
-    rest = argv[1:] if quiet else argv
+    lead = _leading_options(argv)
+    rest = argv[len(lead):]
     if rest and rest[0] in ALIASES:
         rest = [*ALIASES[rest[0]], *rest[1:]]
     tables = {"train": trainers, "bench": benches}
     if len(rest) >= 2 and rest[0] in tables and rest[1] in tables[rest[0]]():
-        # the module parses its own options (and --help)
-        args = argparse.Namespace(quiet=quiet, module=tables[rest[0]]()[rest[1]][0], rest=rest[2:], func=_run_module)
+        # the module parses its own options (and --help); the global ones are taken out first
+        gl, module_rest = _split_gl_options(rest[2:])
+        args = _global_parser().parse_args([*lead, *gl])
+        args.module, args.rest, args.func = tables[rest[0]]()[rest[1]][0], module_rest, _run_module
     else:
         args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="inshade: %(message)s", stream=sys.stderr)
     logging.getLogger("OpenGL").setLevel(logging.WARNING)   # no "No OpenGL_accelerate module loaded"
     try:
+        _apply_gl_options(args)
         return int(args.func(args) or 0)
     except _user_errors() as e:
         print(f"inshade: error: {_one_line(str(e))}", file=sys.stderr)
@@ -654,6 +753,28 @@ def _main(argv) -> int:
         where = f"{e.filename}: " if e.filename else ""
         print(f"inshade: error: {where}{_one_line(str(e.strerror or e))}", file=sys.stderr)
         return 2
+
+
+def _global_parser() -> argparse.ArgumentParser:
+    """The options every command takes (for bench/train, whose modules parse the rest)."""
+    ap = ArgumentParser(prog="inshade", add_help=False)
+    ap.add_argument("-q", "--quiet", action="store_true")
+    _gl_options(ap, None)
+    return ap
+
+
+def _leading_options(argv: list[str]) -> list[str]:
+    """The global options before the command: -q, --gl-backend B, --gl-device N (or OPTION=VALUE)."""
+    i = 0
+    while i < len(argv):
+        name = argv[i].split("=", 1)[0]
+        if argv[i] in ("-q", "--quiet") or name != argv[i] and name in GL_OPTIONS:
+            i += 1
+        elif argv[i] in GL_OPTIONS:
+            i += 2
+        else:
+            break
+    return argv[:i]
 
 
 def _interrupted(signum, frame) -> None:

@@ -383,10 +383,11 @@ def monotonicity_penalty(array: LookupArray, kappa: float = 1.0, eps: float | No
         e = eps if eps is not None else -eps_scale / (n - 1)
         tc = t[..., c]
         sg = tc.detach()
-        nxt = sg.index_select(dim, torch.arange(1, n + 1).clamp(max=n - 1))
+        # indices on the table's device (index_select refuses a CPU index for a CUDA table)
+        nxt = sg.index_select(dim, torch.arange(1, n + 1, device=sg.device).clamp(max=n - 1))
         total = total + torch.relu(e + tc - nxt).sum()
         if central:
-            prv = sg.index_select(dim, torch.arange(-1, n - 1).clamp(min=0))
+            prv = sg.index_select(dim, torch.arange(-1, n - 1, device=sg.device).clamp(min=0))
             total = total + torch.relu(e + prv - tc).sum()
     return kappa * total / float(np.prod(res))
 

@@ -32,12 +32,13 @@ def _length2(x, y):
 
 
 @functools.lru_cache(maxsize=4096)
-def _const(v):
-    return torch.tensor(v, dtype=torch.float32)
+def _const(v, device=None):
+    return torch.tensor(v, dtype=torch.float32, device=device)
 
 
 def _c(v, like):
-    return _const(tuple(v))
+    # on the points' device (a CUDA trace, e.g. PRT transfer data), cached per device
+    return _const(tuple(v), like.device)
 
 
 class SdfModule(torch.nn.Module):
@@ -178,7 +179,7 @@ def normals(sdf: SdfModule, p: torch.Tensor, eps: float | None = None) -> torch.
     e = f32(sdf.scene.trace["normal_eps"] if eps is None else eps)
     g = []
     for i in range(3):
-        off = torch.zeros(3, dtype=torch.float32)
+        off = torch.zeros(3, dtype=torch.float32, device=p.device)
         off[i] = e
         g.append(sdf(p + off) - sdf(p - off))
     g = torch.stack(g, -1)

@@ -60,6 +60,7 @@ import torch
 
 from inshade.files import atomic_files, atomic_write
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.models import brdf
 from inshade.models import indirection as di
 from inshade.techniques.di_brdf import material_balls as mb
@@ -103,12 +104,13 @@ class BrdfTrainingError(ValueError):
 # =============================================================================================
 # GGX
 
-def ggx_sampler(batch: int, seed: int = 0):
-    """Endless ((alpha_h, h_z), D) batches: h_z of a cosine-hemisphere direction, alpha_h exponential-like."""
+def ggx_sampler(batch: int, seed: int = 0, device=None):
+    """Endless ((alpha_h, h_z), D) batches: h_z of a cosine-hemisphere direction, alpha_h exponential-like.
+    Drawn on a seeded CPU generator (the same numbers on every device), D computed on `device`."""
     gen = torch.Generator().manual_seed(seed)
     while True:
-        a = brdf.exponential_like(batch, gen, 3.0)
-        hz = brdf.cosine_hemisphere(batch, gen)[:, 2]
+        a = brdf.exponential_like(batch, gen, 3.0).to(device)
+        hz = brdf.cosine_hemisphere(batch, gen)[:, 2].to(device)
         yield torch.stack([a, hz], -1), brdf.ggx_d(hz, a)[:, None]
 
 
@@ -195,11 +197,11 @@ def ggx_ball_terms(P: torch.Tensor, lights: int = mb.MAX_LIGHTS):
     n.l * intensity / dist^2 (0 where n.l <= 0 or n.v <= 0), so that a ball pixel's linear radiance
     is sum_k w_k (GGX_KD / (2 pi) + GGX_KS D(alpha_h, n.h_k)) -- `ggx_shade` summed over the lights."""
     n = P / mb.BALL_RADIUS
-    lt = torch.tensor(mb.LIGHTS[:lights], dtype=torch.float32)
+    lt = torch.tensor(mb.LIGHTS[:lights], dtype=torch.float32, device=P.device)
     d = lt[None, :, :3] - P[:, None]
     dist2 = (d * d).sum(-1)
     l = d * torch.rsqrt(dist2)[..., None]
-    h = l + torch.tensor([0.0, 0.0, 1.0])
+    h = l + torch.tensor([0.0, 0.0, 1.0], device=P.device)
     h = h * torch.rsqrt((h * h).sum(-1))[..., None]
     nl = (n[:, None] * l).sum(-1)
     lit = (nl > 0.0) & (n[:, None, 2] > 0.0)
@@ -207,22 +209,24 @@ def ggx_ball_terms(P: torch.Tensor, lights: int = mb.MAX_LIGHTS):
     return (n[:, None] * h).sum(-1).clamp(0.0, 1.0), w
 
 
-def ggx_ball_sampler(batch: int, seed: int = 0):
+def ggx_ball_sampler(batch: int, seed: int = 0, device=None):
     """Endless (alpha_h [B], n.h [B, L], w [B, L]) batches distributed like the Fig. 6 ball pixels:
     alpha_h uniform over GGX_ALPHA_RANGE (continuous, not just the 8 columns), a point uniform over
-    the ball's disk, the first 1..MAX_LIGHTS scene lights (the viewer's light-count setting)."""
+    the ball's disk, the first 1..MAX_LIGHTS scene lights (the viewer's light-count setting).
+    Drawn on a seeded CPU generator (the same numbers on every device), computed on `device`."""
     gen = torch.Generator().manual_seed(seed)
     lo, hi = GGX_ALPHA_RANGE
     r2 = mb.BALL_RADIUS * mb.BALL_RADIUS
     while True:
-        a = lo + (hi - lo) * torch.rand(batch, generator=gen)
-        rho = torch.sqrt(r2 * torch.rand(batch, generator=gen))
-        phi = 2.0 * math.pi * torch.rand(batch, generator=gen)
+        u_a, u_rho, u_phi = (torch.rand(batch, generator=gen).to(device) for _ in range(3))
+        count = torch.randint(1, mb.MAX_LIGHTS + 1, (batch, 1), generator=gen).to(device)
+        a = lo + (hi - lo) * u_a
+        rho = torch.sqrt(r2 * u_rho)
+        phi = 2.0 * math.pi * u_phi
         x, y = rho * torch.cos(phi), rho * torch.sin(phi)
         P = torch.stack([x, y, torch.sqrt((r2 - x * x - y * y).clamp_min(0.0))], -1)
         nh, w = ggx_ball_terms(P)
-        count = torch.randint(1, mb.MAX_LIGHTS + 1, (batch, 1), generator=gen)
-        yield a, nh, w * (torch.arange(mb.MAX_LIGHTS)[None] < count)
+        yield a, nh, w * (torch.arange(mb.MAX_LIGHTS, device=device)[None] < count)
 
 
 def ggx_ball_display(d_fn, a, nh, w) -> torch.Tensor:
@@ -244,15 +248,16 @@ def ggx_loss(g: GraphModule, ball, fn):
 
 
 def train_ggx(steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=GGX_DEFAULTS["lr"],
-              schedule=GGX_DEFAULTS["schedule"], seed=GGX_DEFAULTS["seed"], progress=None):
+              schedule=GGX_DEFAULTS["schedule"], seed=GGX_DEFAULTS["seed"], progress=None, device=None):
     """Adam on `ggx_loss` (batch ball samples + batch / 4 function samples a step) with an
     `indirection.SCHEDULES` schedule (`indirection.train_cascade` with this objective). History:
     step, loss (mean training loss since the last record), psnr (display domain, float cascade, on
-    16384 fixed ball samples), lr, seconds."""
+    16384 fixed ball samples), lr, seconds. Trains on `device` (default the CPU); the cascade comes
+    back on the CPU."""
     torch.manual_seed(seed)
-    g = ggx_cascade()
-    samples = zip(ggx_ball_sampler(batch, seed), ggx_sampler(max(batch // 4, 1), seed + 1))
-    ev = next(ggx_ball_sampler(1 << 14, seed + 2))
+    g = ggx_cascade().to(device)
+    samples = zip(ggx_ball_sampler(batch, seed, device), ggx_sampler(max(batch // 4, 1), seed + 1, device))
+    ev = next(ggx_ball_sampler(1 << 14, seed + 2, device))
     with torch.no_grad():
         ev_ref = ggx_ball_display(analytic_d, *ev)
 
@@ -264,7 +269,7 @@ def train_ggx(steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=GGX_D
     hist = di.train_cascade(g, samples, steps, lr=lr, schedule=schedule, seed=seed,
                             objective=lambda cascade, b: ggx_loss(cascade, *b), metric=metric,
                             progress=progress, desc="di_brdf_ggx")
-    return g, hist, time.perf_counter() - t0
+    return g.to("cpu"), hist, time.perf_counter() - t0
 
 
 # =============================================================================================
@@ -384,8 +389,9 @@ def disney_glue(dec: dict, extra: dict, albedo, l, v):
     return torch.where(above[..., None], out, torch.zeros_like(out))
 
 
-def disney_samples(n: int, seed: int = 0):
-    """(l, v, base_color, params, target rgb): the paper's distributions (supp. 1.2)."""
+def disney_samples(n: int, seed: int = 0, device=None):
+    """(l, v, base_color, params, target rgb): the paper's distributions (supp. 1.2), drawn on a
+    seeded CPU generator (the same numbers on every device); all on `device`, the target computed there."""
     gen = torch.Generator().manual_seed(seed)
     l = brdf.uniform_hemisphere(n, gen, 0.01)
     v = brdf.uniform_hemisphere(n, gen, 0.01)
@@ -393,6 +399,7 @@ def disney_samples(n: int, seed: int = 0):
     params = torch.rand(n, len(brdf.PARAMS), generator=gen)
     params[:, brdf.PARAMS.index("roughness")] = brdf.exponential_like(n, gen, 2.0)
     params[:, brdf.PARAMS.index("clearcoat_gloss")] = 1.0 - brdf.exponential_like(n, gen, 2.0)
+    l, v, base, params = (t.to(device) for t in (l, v, base, params))
     with torch.no_grad():
         target = brdf.disney(l, v, base, params)
     return l, v, base, params, target
@@ -404,13 +411,14 @@ def _tonemap(x):
 
 def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"], lr=DISNEY_DEFAULTS["lr"],
                  samples=DISNEY_DEFAULTS["samples"], seed=DISNEY_DEFAULTS["seed"], exposure: float = 1.5,
-                 progress=None):
-    """End-to-end L1 on tone-mapped radiance (exposure ~ the scene's E / r^2); returns (model, history, seconds)."""
+                 progress=None, device=None):
+    """End-to-end L1 on tone-mapped radiance (exposure ~ the scene's E / r^2); returns (model, history, seconds).
+    Trains on `device` (default the CPU); the model comes back on the CPU."""
     from inshade.progress import progress as progress_bar
 
     torch.manual_seed(seed)
-    model = DisneyDI()
-    data = disney_samples(samples, seed)
+    model = DisneyDI().to(device)
+    data = disney_samples(samples, seed, device)
     history = []
     t0 = time.perf_counter()
     with torch.random.fork_rng(devices=[]):
@@ -421,7 +429,7 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
         gen = torch.Generator().manual_seed(seed + 1)
         bar = progress_bar(range(1, steps + 1), desc="di_brdf_disney", enabled=progress)
         for step in bar:
-            idx = torch.randint(0, samples, (batch,), generator=gen)
+            idx = torch.randint(0, samples, (batch,), generator=gen).to(device)
             l, v, base, params, target = (t[idx] for t in data)
             pred = model(l, v, base, params)
             loss = torch.mean(torch.abs(_tonemap(exposure * pred) - _tonemap(exposure * target)))
@@ -436,7 +444,7 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
                 bar.set_postfix(loss=f"{history[-1]['loss']:.4f}")
     for p in model.parameters():
         p.requires_grad_(False)
-    return model, history, time.perf_counter() - t0
+    return model.to("cpu"), history, time.perf_counter() - t0
 
 
 # =============================================================================================
@@ -655,8 +663,9 @@ def _write_scene(out: Path, scene: dict, preview: np.ndarray):
 
 def build_ggx(out, steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=GGX_DEFAULTS["lr"],
               seed=GGX_DEFAULTS["seed"], command: str = "", progress=None, ball_px: int = 64,
-              gl_metrics: bool = True) -> dict:
-    g, hist, seconds = train_ggx(steps, batch, lr, seed=seed, progress=progress)
+              gl_metrics: bool = True, device=None) -> dict:
+    device = torch.device("cpu") if device is None else torch.device(device)
+    g, hist, seconds = train_ggx(steps, batch, lr, seed=seed, progress=progress, device=device)
     for p in g.parameters():
         p.requires_grad_(False)
     metrics = {"train_seconds": round(seconds, 2), "steps": steps, "batch": batch, "lr": lr,
@@ -670,7 +679,8 @@ def build_ggx(out, steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=
                     f"the ball, 1-{mb.MAX_LIGHTS} scene lights) + {GGX_FUNCTION_WEIGHT:g} x L1 on x/(1+x) "
                     f"tone-mapped D (alpha_h exponential-like, h_z cosine-hemisphere), Adam lr {lr:g} "
                     f"cosine, batch {batch} (+{max(batch // 4, 1)} function samples), {steps} steps, seed {seed}",
-        "psnr_domain": "Fig. 6 ball row: radiance clamped to [0,1], sRGB-encoded, over ball pixels, peak 1"})
+        "psnr_domain": "Fig. 6 ball row: radiance clamped to [0,1], sRGB-encoded, over ball pixels, peak 1",
+        "device": str(device)})
     return write_ggx_asset(g, out, metrics, prov, ball_px, gl_metrics)
 
 
@@ -699,8 +709,9 @@ def write_ggx_asset(g: GraphModule, out, metrics: dict, prov: dict, ball_px: int
 
 def build_disney(out, steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"], lr=DISNEY_DEFAULTS["lr"],
                  samples=DISNEY_DEFAULTS["samples"], seed=DISNEY_DEFAULTS["seed"], command: str = "",
-                 progress=None, ball_px: int = 32, gl_metrics: bool = True) -> dict:
-    model, hist, seconds = train_disney(steps, batch, lr, samples, seed, progress=progress)
+                 progress=None, ball_px: int = 32, gl_metrics: bool = True, device=None) -> dict:
+    device = torch.device("cpu") if device is None else torch.device(device)
+    model, hist, seconds = train_disney(steps, batch, lr, samples, seed, progress=progress, device=device)
     cols, rows = SWEEP_COLUMNS, len(brdf.PARAMS)
     base, params = sweep_grid(cols)
     g = disney_graph(model, base, params)
@@ -715,7 +726,8 @@ def build_disney(out, steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["bat
                      "the latent textures lat_*; par* are the artist textures for the analytic shader",
         "training": f"end-to-end L1 on x/(1+x) tone-mapped radiance, Adam lr {lr:g} cosine, batch {batch}, "
                     f"{steps} steps over {samples} samples, seed {seed}",
-        "psnr_domain": "Fig. 11: ball pixels, radiance clamped to [0,1], sRGB-encoded, peak 1; min per row"})
+        "psnr_domain": "Fig. 11: ball pixels, radiance clamped to [0,1], sRGB-encoded, peak 1; min per row",
+        "device": str(device)})
     out = Path(out)
     bundle = g.export(DISNEY_KIND, out.name, provenance=prov, metrics=metrics)
     bundle.save(out)
@@ -753,10 +765,12 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--lr", type=float, help="Adam learning rate")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--no-gl", action="store_true", help="skip the shader-rendered PSNR (no GL context)")
+    add_device_argument(p)
     return p
 
 
 def run(args, argv=None) -> int:
+    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     d = GGX_DEFAULTS if args.which == "ggx" else DISNEY_DEFAULTS
     steps = d["steps"] if args.steps is None else args.steps
     batch = d["batch"] if args.batch is None else args.batch
@@ -767,7 +781,7 @@ def run(args, argv=None) -> int:
     command = shlex.join(["inshade", "train", "di_brdf", *argv])
     build = build_ggx if args.which == "ggx" else build_disney
     m = build(args.out, steps=steps, batch=batch, lr=lr, seed=args.seed, command=command,
-              gl_metrics=not args.no_gl)
+              gl_metrics=not args.no_gl, device=device)
     if args.which == "ggx":
         print(f"wrote {args.out}: GGX ball PSNR all pixels {m['psnr_balls_all_pixels']:.2f} dB, "
               f"mean {m['psnr_balls_mean']:.2f} dB (min {m['psnr_balls_min']:.2f}), "
@@ -780,5 +794,5 @@ def run(args, argv=None) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train di_brdf", __doc__, add_arguments, run, argv)
+    return command.main("inshade train di_brdf", __doc__, add_arguments, run, argv, errors=(DeviceError,))
 

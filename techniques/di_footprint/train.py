@@ -57,6 +57,7 @@ import torch
 
 from inshade.files import atomic_write
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import srgb_eotf
 from inshade.models import indirection as di
 from inshade.techniques.di_texture import train as tc
@@ -143,7 +144,7 @@ def emulated_trilinear(chain: list[torch.Tensor], uv: torch.Tensor, log2_footpri
 def _packed(chain):
     """All levels in one [sum n^2, C] table (one gather for any mix of levels) + level offsets."""
     flat = torch.cat([c.reshape(-1, c.shape[-1]) for c in chain])
-    offsets = torch.tensor(np.cumsum([0] + [c.shape[0] * c.shape[1] for c in chain[:-1]]))
+    offsets = torch.tensor(np.cumsum([0] + [c.shape[0] * c.shape[1] for c in chain[:-1]]), device=flat.device)
     return flat, offsets
 
 
@@ -177,37 +178,41 @@ def footprint_exponent(size: int, p: float = P_LOD0) -> float:
     return math.log(1.0 / size) / math.log(p)
 
 
-def sample_log2_footprint(n: int, size: int, gen: torch.Generator) -> torch.Tensor:
+def sample_log2_footprint(n: int, size: int, gen: torch.Generator, device=None) -> torch.Tensor:
     """The paper's footprint distribution as log2 of the linear footprint in uv units:
-    x = u^n  =>  log2 x = n log2 u."""
-    u = torch.rand(n, generator=gen).clamp_min(1e-12)
+    x = u^n  =>  log2 x = n log2 u. Drawn on `gen` (a CPU generator), computed on `device`."""
+    u = torch.rand(n, generator=gen).to(device).clamp_min(1e-12)
     return footprint_exponent(size) * torch.log2(u)
 
 
 def footprint_sampler(image: torch.Tensor, batch: int, seed: int = 0, chain=None):
     """Endless (x [B, 3] = (u, v, log2_footprint), target [B, C]) batches: stratified uv (one
     jittered sample per texel per epoch, as indirection.image_sampler), the paper's footprint
-    distribution, targets from `emulated_trilinear`. image [N, N, C] with row 0 at v ~ 0."""
+    distribution, targets from `emulated_trilinear`. image [N, N, C] with row 0 at v ~ 0.
+    Random numbers come from a seeded CPU generator (the same on every device); the batches are
+    computed on the device `chain` (default: `image`) lives on."""
     chain = mip_chain(image) if chain is None else chain
+    device = chain[0].device
     size = image.shape[0]
     gen = torch.Generator().manual_seed(seed)
     n = size * size
     while True:
         order = torch.randperm(n, generator=gen)
         for start in range(0, n, batch):
-            idx = order[start:start + batch]
-            jitter = torch.rand(len(idx), 2, generator=gen)
+            idx = order[start:start + batch].to(device)
+            jitter = torch.rand(len(idx), 2, generator=gen).to(device)
             uv = torch.stack([(idx % size + jitter[:, 0]) / size, (idx // size + jitter[:, 1]) / size], -1)
-            lf = sample_log2_footprint(len(idx), size, gen)
+            lf = sample_log2_footprint(len(idx), size, gen, device)
             yield torch.cat([uv, lf[:, None]], -1), emulated_trilinear(chain, uv, lf)
 
 
 def held_out_set(image: torch.Tensor, n: int = 65536, seed: int = 12345, chain=None):
-    """(x, target) from the training distribution with an independent seed (uniform uv)."""
+    """(x, target) from the training distribution with an independent seed (uniform uv), on the
+    device of `chain` (default: of `image`)."""
     chain = mip_chain(image) if chain is None else chain
     gen = torch.Generator().manual_seed(seed)
-    uv = torch.rand(n, 2, generator=gen)
-    lf = sample_log2_footprint(n, image.shape[0], gen)
+    uv = torch.rand(n, 2, generator=gen).to(chain[0].device)
+    lf = sample_log2_footprint(n, image.shape[0], gen, chain[0].device)
     return torch.cat([uv, lf[:, None]], -1), emulated_trilinear(chain, uv, lf)
 
 
@@ -218,8 +223,8 @@ def lod_sets(image: torch.Tensor, n: int = 8192, seed: int = 777, chain=None):
     gen = torch.Generator().manual_seed(seed)
     out = {}
     for level in range(levels(size) + 1):
-        uv = torch.rand(n, 2, generator=gen)
-        lf = torch.full((n,), float(level) - math.log2(size))
+        uv = torch.rand(n, 2, generator=gen).to(chain[0].device)
+        lf = torch.full((n,), float(level) - math.log2(size), device=chain[0].device)
         out[level] = (torch.cat([uv, lf[:, None]], -1), emulated_trilinear(chain, uv, lf))
     return out
 
@@ -384,34 +389,38 @@ def train_sampler(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *,
                   lr: float = DEFAULTS["lr"], batch: int = DEFAULTS["batch"],
                   schedule: str = DEFAULTS["schedule"], seed: int = DEFAULTS["seed"],
                   threads: int | None = DEFAULTS["threads"], provenance: dict | None = None, name: str = KIND,
-                  progress: bool | None = None) -> Result:
+                  progress: bool | None = None, device=None) -> Result:
     """Train the footprint sampler on `image` ([N, N, k] sRGB-encoded in [0, 1], N a power of
     two, k 1 or 3) against the emulated trilinear sampler; export at 8 bits. `threads`: torch
-    intra-op threads while training (None: leave as is)."""
+    intra-op threads while training (None: leave as is). `device` (default the CPU): where the
+    training and its data (mip chain, targets) live; the export and its metrics are on the CPU."""
+    device = torch.device("cpu") if device is None else torch.device(device)
     prev = torch.get_num_threads()
     if threads:
         torch.set_num_threads(int(threads))
     try:
-        return _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenance, name, progress)
+        return _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenance, name, progress, device)
     finally:
         torch.set_num_threads(prev)
 
 
-def _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenance, name, progress) -> Result:
+def _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenance, name, progress,
+           device) -> Result:
     image = np.asarray(image, np.float32)
     if image.ndim != 3 or image.shape[0] != image.shape[1] or image.shape[2] not in (1, 3):
         raise FootprintError(f"image: expected [N, N, 1 or 3], got shape {image.shape}")
     size, k = image.shape[0], image.shape[2]
     sizing = plan(size, k, ratio, n_cascaded)
-    tex = texture_tensor(image)
+    tex = texture_tensor(image).to(device)
     chain = mip_chain(tex)
     torch.manual_seed(seed)
-    core = sampler_graph(size, sizing, image.reshape(-1, k).mean(0))
+    core = sampler_graph(size, sizing, image.reshape(-1, k).mean(0)).to(device)
     eval_set = held_out_set(tex, 16384, seed=seed + 1, chain=chain)
     t0 = time.perf_counter()
     history = di.train_cascade(core, footprint_sampler(tex, batch, seed, chain), steps, lr=lr,
                                schedule=schedule, seed=seed, eval_set=eval_set, progress=progress, desc=name)
     seconds = time.perf_counter() - t0
+    core = core.to("cpu")       # export and metrics on the CPU
     graph = export_graph(core, k)
     prov = {
         "technique": "Differentiable Indirection footprint-aware texture sampler (Datta et al. 2023, "
@@ -424,7 +433,7 @@ def _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenanc
                     f"L1, Adam lr {lr:g}, {schedule}, batch {batch}, {steps} steps, seed {seed}",
         "colour": "arrays hold sRGB-encoded values; the graph decodes to linear (sRGB EOTF tables)",
         "uv_convention": "uv (0,0) = bottom-left of the picture; the shader passes fract(tiled uv)",
-        "torch": torch.__version__,
+        "torch": torch.__version__, "device": str(device),
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
     prov.update(provenance or {})
@@ -547,10 +556,12 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=d["seed"])
     p.add_argument("--threads", type=int, default=d["threads"], help="torch threads while training (0: torch's default)")
     p.add_argument("--title", help="scene title")
+    add_device_argument(p)
     return p
 
 
 def run(args, argv=None) -> int:
+    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     if args.steps < 0 or args.batch < 1:
         raise FootprintError("--steps must be >= 0 and --batch >= 1")
     image, notes, source = load_texture(args.image, args.size)
@@ -560,7 +571,7 @@ def run(args, argv=None) -> int:
     command = shlex.join(["inshade", "train", "di_footprint", *argv])
     result = train_sampler(image, args.ratio, n_cascaded=args.n_cascaded, steps=args.steps, lr=args.lr,
                            batch=args.batch, schedule=args.schedule, seed=args.seed, threads=args.threads or None,
-                           name=Path(args.out).name,
+                           name=Path(args.out).name, device=device,
                            provenance={"command": command, "image": source, "image_notes": notes})
     out = write_asset(result, args.out, args.title)
     m = result.metrics
@@ -571,5 +582,5 @@ def run(args, argv=None) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train di_footprint", __doc__, add_arguments, run, argv)
+    return command.main("inshade train di_footprint", __doc__, add_arguments, run, argv, errors=(DeviceError,))
 

@@ -37,6 +37,7 @@ import torch
 
 from inshade.files import atomic_files, atomic_write
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.lit_settings import lit_settings
 from inshade.metrics import psnr, srgb_oetf
 
@@ -386,8 +387,9 @@ def markdown(metrics: dict) -> str:
         lines.append(row(a["codec"], a["bytes"], a["ratio"], a) if a["available"]
                      else f"| {a['codec']} | unavailable: {a['reason']} |||||||")
     lines.append("")
+    device = metrics.get("device", "cpu")
     lines.append(f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, {t['train_seconds']:.0f} s "
-                 "training on 1 CPU thread.")
+                 f"training on {'1 CPU thread' if device == 'cpu' else device}.")
     if "render" in metrics:
         r = metrics["render"]
         lines.append(f"Rendered torus ({r['size']}^2, {r['lights']} lights + environment): DI vs uncompressed "
@@ -399,8 +401,8 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
           lr: float = DEFAULTS["lr"], batch: int = DEFAULTS["batch"], seed: int = DEFAULTS["seed"],
           render: int = DEFAULTS["render"], lights: int = DEFAULTS["lights"], recipe: Bricks = Bricks(),
           finish_optimizer: str = DEFAULTS["finish_optimizer"],
-          gl_metrics: bool = True, command: str | None = None, progress: bool | None = None) -> dict:
-    """Write the asset folder; returns its metrics."""
+          gl_metrics: bool = True, command: str | None = None, progress: bool | None = None, device=None) -> dict:
+    """Write the asset folder; returns its metrics. `device`: where the DI training runs (default the CPU)."""
     from PIL import Image
 
     from inshade.mesh import write_torus
@@ -414,7 +416,7 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
     t0 = time.perf_counter()
     result = compress(lanes, ratio, steps=steps, lr=lr, batch=batch, seed=seed, decode=False, gl_metrics=gl_metrics,
                       finish_optimizer=finish_optimizer,
-                      name=out.name, progress=progress,
+                      name=out.name, progress=progress, device=device,
                       provenance={"command": command, "material": {"generator": "techniques/di_pbr_set/train.py bricks",
                                                                    **asdict(recipe)},
                                   "lanes": {k: list(v) for k, v in LANES.items()}})
@@ -447,6 +449,7 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
         metrics["gl_renderer"] = gl_info(shared_context())["renderer"]
         write_png(out / "preview.png", views["split"][..., :3])
     metrics["command"] = command
+    metrics["device"] = str(torch.device("cpu") if device is None else torch.device(device))
     metrics["date_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     atomic_write(out / "report.md", markdown(metrics))
@@ -472,16 +475,18 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--lights", type=int, default=d["lights"], choices=range(0, len(LIGHTS) + 1),
                    help="default point-light count (default %(default)s)")
     p.add_argument("--no-gl", action="store_true", help="skip GL metrics and the preview (no GL context)")
+    add_device_argument(p)
     return p
 
 
 def run(args, argv=None) -> int:
+    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     if args.steps < 0 or args.batch < 1:
         raise PbrSetError("--steps must be >= 0 and --batch >= 1")
     argv = list(sys.argv[1:] if argv is None else argv)
     m = build(args.out, size=args.size, ratio=args.ratio, steps=args.steps, lr=args.lr, batch=args.batch,
               seed=args.seed, render=args.render, lights=args.lights, finish_optimizer=args.finish_optimizer,
-              gl_metrics=not args.no_gl,
+              gl_metrics=not args.no_gl, device=device,
               command=shlex.join(["inshade", "train", "di_pbr_set", *argv]))
     t = m["texture"]
     q = m.get("di_glsl_exact", m["di_torch"])
@@ -492,5 +497,5 @@ def run(args, argv=None) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train di_pbr_set", __doc__, add_arguments, run, argv)
+    return command.main("inshade train di_pbr_set", __doc__, add_arguments, run, argv, errors=(DeviceError,))
 

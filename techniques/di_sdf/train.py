@@ -34,8 +34,9 @@ identity ramp. L1 loss, Adam with a cosine schedule, the primary's half-cell gra
     result = fit(load_mesh("bunny.ply"), budget_bytes=64 * 1024)
     result.bundle.save("trained/di_sdf")
 
-Command: ``inshade train di_sdf --mesh PATH --budget-kb 64 --steps 1500 --out DIR`` (writes the
-bundle, scene.json and preview.png).
+Command: ``inshade train di_sdf --mesh PATH --budget-kb 64 --steps 1500 --out DIR [--device auto|cpu|cuda[:N]]``
+(writes the bundle, scene.json and preview.png). The cascade trains on the device; the signed
+distances (scipy, embree), the metrics, the export and the preview run on the CPU.
 """
 from __future__ import annotations
 
@@ -55,6 +56,7 @@ import torch
 
 from inshade.files import atomic_write
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.lit_settings import lit_settings
 
 from inshade.models import indirection as di
@@ -207,13 +209,14 @@ def make_samples(mesh, frame: Frame, n: int, truncation: float, *, uniform_fract
                    time.perf_counter() - t0)
 
 
-def sample_batches(samples: Samples, batch: int, seed: int = 0):
-    """Endless (x in [0, 1]^3, target [B, 1]) batches: epochs over the samples in a seeded random order."""
-    x = torch.from_numpy(samples.q * np.float32(0.5) + np.float32(0.5))
-    y = torch.from_numpy(samples.d)[:, None]
+def sample_batches(samples: Samples, batch: int, seed: int = 0, device="cpu"):
+    """Endless (x in [0, 1]^3, target [B, 1]) batches on ``device``: epochs over the samples in a
+    seeded random order (drawn on a CPU generator, then moved: the same order on every device)."""
+    x = torch.from_numpy(samples.q * np.float32(0.5) + np.float32(0.5)).to(device)
+    y = torch.from_numpy(samples.d)[:, None].to(device)
     gen = torch.Generator().manual_seed(seed)
     while True:
-        order = torch.randperm(len(x), generator=gen)
+        order = torch.randperm(len(x), generator=gen).to(device)
         for s in range(0, len(x) - batch + 1 if len(x) >= batch else 1, batch):
             idx = order[s:s + batch]
             yield x[idx], y[idx]
@@ -379,17 +382,19 @@ def fit(mesh, budget_bytes: float = DEFAULTS["budget_kb"] * 1024, *, rho: float 
         uniform_fraction: float = DEFAULTS["uniform_fraction"], near_sigmas=DEFAULTS["near_sigmas"],
         margin: float = DEFAULTS["margin"], seed: int = DEFAULTS["seed"], clip_primary=DEFAULTS["clip_primary"],
         monotonicity: float = DEFAULTS["monotonicity"], name: str = KIND, provenance: dict | None = None,
-        progress: bool | None = None, evaluate: bool = True, threads: int | None = 1) -> Result:
+        progress: bool | None = None, evaluate: bool = True, threads: int | None = 1, device="cpu") -> Result:
     """Learn a DI-SDF of ``mesh`` (a closed trimesh) within ``budget_bytes`` (8-bit cells).
     Returns the Result; the bundle holds 8-bit arrays and ``render.sdf`` (frame + trace settings).
-    ``threads``: torch intra-op threads while fitting (None: leave torch's setting)."""
+    ``threads``: torch intra-op threads while fitting (None: leave torch's setting). ``device``
+    (a torch.device or its name): where the cascade trains; the Result's graph is on the CPU."""
     with torch_threads(threads):
         return _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, samples, uniform_fraction,
-                    near_sigmas, margin, seed, clip_primary, monotonicity, name, provenance, progress, evaluate)
+                    near_sigmas, margin, seed, clip_primary, monotonicity, name, provenance, progress, evaluate,
+                    torch.device(device))
 
 
 def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, samples, uniform_fraction, near_sigmas,
-         margin, seed, clip_primary, monotonicity, name, provenance, progress, evaluate) -> Result:
+         margin, seed, clip_primary, monotonicity, name, provenance, progress, evaluate, device) -> Result:
     mesh = check_mesh(mesh)
     if not 0.0 < truncation <= 1.0:
         raise DiSdfError(f"--truncation must be in (0, 1] (a fraction of the bound radius), got {truncation}")
@@ -403,14 +408,18 @@ def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, sample
     held = make_samples(mesh, frame, min(32768, samples), truncation, uniform_fraction=uniform_fraction,
                         near_sigmas=near_sigmas, seed=seed + 7, query=query)
     torch.manual_seed(seed)
+    # initialised on the CPU, then moved: the same start on every device
     core = di.cascade(3, 1, sizing.n_primary, sizing.n_cascaded, cascaded_init="downsample",
-                      cascaded_init_args={"target": nearest_init(train)}, input_name="x", output_name="distance")
-    x_eval = torch.from_numpy(held.q * np.float32(0.5) + np.float32(0.5))
+                      cascaded_init_args={"target": nearest_init(train)}, input_name="x",
+                      output_name="distance").to(device)
+    x_eval = torch.from_numpy(held.q * np.float32(0.5) + np.float32(0.5)).to(device)
     t0 = time.perf_counter()
-    history = di.train_cascade(core, sample_batches(train, batch, seed), steps, lr=lr, schedule=schedule, seed=seed,
-                               eval_set=(x_eval, torch.from_numpy(held.d)[:, None]), clip_primary=clip_primary,
-                               monotonicity=monotonicity, peak=2.0 * truncation, progress=progress, desc=name)
+    history = di.train_cascade(core, sample_batches(train, batch, seed, device), steps, lr=lr, schedule=schedule,
+                               seed=seed, eval_set=(x_eval, torch.from_numpy(held.d)[:, None].to(device)),
+                               clip_primary=clip_primary, monotonicity=monotonicity, peak=2.0 * truncation,
+                               progress=progress, desc=name)
     seconds = time.perf_counter() - t0
+    core.cpu()    # clamp, metrics and export on the CPU
     with torch.no_grad():   # the band is a property of the array (see the module docstring)
         core.nodes["cascaded"].cells.clamp_(-truncation, truncation)
     graph = export_graph(core)
@@ -426,7 +435,7 @@ def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, sample
         "bytes_with_headers": sizing.bytes + 8 * 4 + 48,   # + per-channel scale/offset, + the fixed affine
         "center": list(frame.center), "radius": frame.radius, "faces": int(len(mesh.faces)),
         "samples": samples, "sample_seconds": round(train.seconds, 2), "train_seconds": round(seconds, 2),
-        "steps": steps, "heldout_l1_float": l1_float, "heldout_l1_quantised": l1_q,
+        "steps": steps, "device": str(device), "heldout_l1_float": l1_float, "heldout_l1_quantised": l1_q,
         "history": [{"step": r["step"], "loss": round(r["loss"], 6), "seconds": round(r["seconds"], 2)}
                     for r in history.records],
     }
@@ -437,6 +446,7 @@ def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, sample
                     f"radius; rest uniform in the bound cube), truncation {truncation} of the radius, L1, Adam lr "
                     f"{lr:g}, {schedule}, batch {batch}, {steps} steps, primary clip {clip_primary}, seed {seed}",
         "contract": "q = (p - center) / radius; distance = radius * graph(q) (models/network_sdf.py)",
+        "device": str(device),
         "torch": torch.__version__,
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
@@ -541,18 +551,20 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--monotonicity", type=float, default=d["monotonicity"],
                    help="soft-monotonicity weight on the primary (paper supp. §2; default %(default)s)")
     p.add_argument("--seed", type=int, default=d["seed"])
+    add_device_argument(p)
     p.add_argument("--lut-filter", choices=("exact", "fast"), default="exact", help="the scene's default LUT path")
     p.add_argument("--title", help="scene title")
     return p
 
 
 def run(args, argv=None) -> int:
+    device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
     mesh = load_mesh(args.mesh)
     argv = list(sys.argv[1:] if argv is None else argv)
     name = Path(args.out).name
     result = fit(mesh, args.budget_kb * 1024, rho=args.rho, truncation=args.truncation, steps=args.steps, lr=args.lr,
                  batch=args.batch, samples=args.samples, schedule=args.schedule, seed=args.seed, name=name,
-                 monotonicity=args.monotonicity,
+                 monotonicity=args.monotonicity, device=device,
                  provenance={"command": shlex.join(["inshade", "train", "di_sdf", *argv]), "mesh": str(args.mesh)})
     title = args.title or f"DI-SDF: {Path(args.mesh).name}, {result.metrics['bytes'] / 1024:.1f} KiB"
     out = write_asset(result, args.out, title, args.lut_filter)
@@ -564,5 +576,5 @@ def run(args, argv=None) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train di_sdf", __doc__, add_arguments, run, argv, errors=(DiSdfError,))
+    return command.main("inshade train di_sdf", __doc__, add_arguments, run, argv, errors=(DiSdfError, DeviceError))
 

@@ -49,6 +49,7 @@ import torch
 
 from inshade.files import atomic_write
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
@@ -88,6 +89,14 @@ RHO_SMALLEST_CASCADE = None
 
 class CompressionError(ValueError):
     """An image or a setting the compressor cannot use; the message says what to change."""
+
+
+def on_device(batches, device):
+    """A sampler's (x, target) batches moved to ``device``: the samplers draw on their CPU
+    generator (so a seed gives the same numbers on every device), the training runs where the
+    cascade is; on the CPU this is the identity."""
+    for batch in batches:
+        yield tuple(t.to(device) for t in batch)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -338,11 +347,14 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
              clip_primary=DEFAULTS["clip_primary"], finish: float = DEFAULTS["finish"],
              finish_optimizer: str = DEFAULTS["finish_optimizer"],
              decode: bool | None = None, gl_metrics: bool = True,
-             provenance: dict | None = None, name: str = KIND, progress: bool | None = None) -> Result:
+             provenance: dict | None = None, name: str = KIND, progress: bool | None = None,
+             device=None) -> Result:
     """Compress `image` (anything `prepare_image` accepts, e.g. uint8 [H, W, 3]) by `ratio`.
     Returns the Result with an exported 8-bit bundle whose metrics hold the sizes, the training
     time and PSNR (sRGB 8-bit) in torch and -- `gl_metrics` -- decoded by the GLSL (exact and
-    fast LUT paths). `decode` (default: for 1 or 3 channels) appends the sRGB -> linear decode."""
+    fast LUT paths). `decode` (default: for 1 or 3 channels) appends the sRGB -> linear decode.
+    `device` (a torch.device; default the CPU) is where the training runs; the exported result
+    and its metrics are computed on the CPU."""
     if not 0.0 <= finish <= 1.0:
         raise CompressionError(f"finish must be a fraction of the steps in [0, 1], got {finish!r}")
     if finish_optimizer not in FINISH_OPTIMIZERS:
@@ -352,24 +364,28 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
     h, w, k = image.shape
     decode = k in (1, 3) if decode is None else bool(decode)
     sizing = plan(image.shape, ratio, rho)
+    device = torch.device("cpu") if device is None else torch.device(device)
     torch.manual_seed(seed)
     flipped = np.ascontiguousarray(image[::-1])     # row 0 = v ~ 0 = bottom of the picture
     core = di.cascade(2, k, sizing.n_primary, sizing.n_cascaded, redundant=2,
                       cascaded_init="mean", cascaded_init_args={"target": image.reshape(-1, k)},
-                      input_name="uv", input_semantic="uv", output_name="values")
+                      input_name="uv", input_semantic="uv", output_name="values").to(device)
     eval_set = di.image_eval_set(flipped)
+    eval_on_device = tuple(t.to(device) for t in eval_set)
     finish_at = steps - int(round(finish * steps))
     lbfgs = finish_optimizer == "lbfgs" and finish_at < steps
     t0 = time.perf_counter()
-    history = di.train_cascade(core, di.image_sampler(flipped, batch, seed=seed), finish_at if lbfgs else steps,
-                               lr=lr, schedule=schedule, seed=seed, eval_set=eval_set, clip_primary=clip_primary,
-                               finish=(finish_at, di.texel_sampler(flipped, batch, seed=seed + 1), "mse")
-                               if finish_at < steps and not lbfgs else None,
+    history = di.train_cascade(core, on_device(di.image_sampler(flipped, batch, seed=seed), device),
+                               finish_at if lbfgs else steps,
+                               lr=lr, schedule=schedule, seed=seed, eval_set=eval_on_device, clip_primary=clip_primary,
+                               finish=(finish_at, on_device(di.texel_sampler(flipped, batch, seed=seed + 1), device),
+                                       "mse") if finish_at < steps and not lbfgs else None,
                                progress=progress, desc=name)
     if lbfgs:   # the same sample budget as the Adam finish, as whole-texture evaluations
         evaluations = max(1, round((steps - finish_at) * batch / (h * w)))
-        di.finish_lbfgs(core, eval_set, evaluations, history=history, first_step=finish_at)
+        di.finish_lbfgs(core, eval_on_device, evaluations, history=history, first_step=finish_at)
     seconds = time.perf_counter() - t0
+    core = core.to("cpu")       # export and metrics on the CPU
     graph = export_graph(core, k, decode)
     q = di.evaluate_quantised(core, 8, *eval_set)
     raw = uncompressed_bytes(image.shape)
@@ -399,7 +415,7 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
         "colour": "arrays hold sRGB-encoded values; the graph decodes to linear (sRGB EOTF tables)"
                   if decode else "arrays hold the channel values as given (no colour decode)",
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
-        "notes": notes, "torch": torch.__version__,
+        "notes": notes, "torch": torch.__version__, "device": str(device),
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
     prov.update(provenance or {})
@@ -490,10 +506,12 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="the scene's default LUT path (default %(default)s)")
     p.add_argument("--title", help="scene title")
     p.add_argument("--no-gl", action="store_true", help="skip the GLSL-decoded metrics (no GL context)")
+    add_device_argument(p)
     return p
 
 
 def run(args, argv=None) -> int:
+    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     if args.steps is None:
         args.steps = PRESETS[args.preset]
     if args.steps < 0 or args.batch < 1:
@@ -507,7 +525,7 @@ def run(args, argv=None) -> int:
     result = compress(image, args.ratio, rho=args.rho, steps=args.steps, lr=args.lr, batch=args.batch,
                       schedule=args.schedule, seed=args.seed, finish=args.finish,
                       finish_optimizer=args.finish_optimizer, gl_metrics=not args.no_gl,
-                      name=name,
+                      name=name, device=device,
                       provenance={"command": command, "image": source, "image_notes": notes})
     title = args.title or f"DI texture: {source}, {result.metrics['ratio']:.2f}x"
     out = write_asset(result, args.out, title, args.lut_filter)
@@ -521,5 +539,5 @@ def run(args, argv=None) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train di_texture", __doc__, add_arguments, run, argv)
+    return command.main("inshade train di_texture", __doc__, add_arguments, run, argv, errors=(DeviceError,))
 

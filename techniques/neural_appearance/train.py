@@ -1,7 +1,7 @@
 """Bake a layered reference material into a neural material (Real-Time Neural Appearance Models §3).
 
 Command: ``inshade train neural_appearance [--material ceramic|brushed_metal|FILE.json] [--preset
-quick|ship] [--device cpu|cuda] [--out DIR] [--resolution N] [--steps1 N] [--steps2 N] [--seed S]
+quick|ship] [--device auto|cpu|cuda[:N]] [--out DIR] [--resolution N] [--steps1 N] [--steps2 N] [--seed S]
 [--restart]``. ``--preset ship`` is what built ``trained/neural_appearance_<material>``; ``quick``
 is the same pipeline at 32x32 for a few seconds (tests). Options given explicitly override the preset.
 
@@ -41,6 +41,7 @@ import numpy as np
 import torch
 
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 
@@ -56,7 +57,7 @@ PRESETS = {
     "quick": dict(resolution=32, steps1=30, steps2=30, batch=512, sampler_batch=64, sampler_samples=4,
                   footprint_samples=4),
 }
-DEFAULTS = dict(material="ceramic", preset="ship", seed=0, device="cpu", lr=2e-3, latent_lr=1e-3,
+DEFAULTS = dict(material="ceramic", preset="ship", seed=0, device="auto", lr=2e-3, latent_lr=1e-3,
                 level_scale=1.5, mollify_degrees=12.0, checkpoint_every=250, out=None)
 MATERIALS = ("ceramic", "brushed_metal")
 CHECKPOINT = "checkpoint.safetensors"
@@ -114,11 +115,12 @@ def jitter_cone(d: torch.Tensor, angle: float, gen: torch.Generator) -> torch.Te
     """Directions drawn uniformly in a cone of half-angle ``angle`` (radians) around d."""
     if angle <= 0:
         return d
-    u = torch.rand(d.shape[0], 2, generator=gen)
+    u = torch.rand(d.shape[0], 2, generator=gen).to(d.device)    # drawn on the CPU generator, used on d's device
     cos_max = math.cos(angle)
     z = 1 - u[:, 0] * (1 - cos_max)
     r, phi = torch.sqrt(torch.clamp(1 - z * z, min=0)), 2 * math.pi * u[:, 1]
-    helper = torch.where(d[:, 2:].abs() < 0.9, torch.tensor([0.0, 0.0, 1.0]), torch.tensor([1.0, 0.0, 0.0]))
+    helper = torch.where(d[:, 2:].abs() < 0.9, torch.tensor([0.0, 0.0, 1.0], device=d.device),
+                         torch.tensor([1.0, 0.0, 0.0], device=d.device))
     t = torch.nn.functional.normalize(torch.cross(helper.expand_as(d), d, dim=-1), dim=-1)
     b = torch.cross(d, t, dim=-1)
     return (r * torch.cos(phi))[:, None] * t + (r * torch.sin(phi))[:, None] * b + z[:, None] * d
@@ -258,7 +260,8 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
           lr=DEFAULTS["lr"], latent_lr=DEFAULTS["latent_lr"], level_scale=DEFAULTS["level_scale"],
           mollify_degrees=DEFAULTS["mollify_degrees"], checkpoint_every=DEFAULTS["checkpoint_every"],
           restart=False, progress=None, command_line=None, write_preview=True) -> Path:
-    """Train and write the asset folder; returns it."""
+    """Train and write the asset folder; returns it. `device`: a torch.device or a --device spelling
+    (auto, cpu, cuda, cuda:N)."""
     from inshade.progress import progress as progress_bar
 
     from .material import ENCODER_INPUTS, bake_parameters, load_material, parameter_pyramid
@@ -274,7 +277,7 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
         raise ValueError(f"--resolution: must be a power of two >= 4, got {resolution}")
     mat = load_material(material)
     out = Path(out or f"trained/neural_appearance_{mat.name}")
-    device = torch.device(device)
+    device = resolve_device(device) if isinstance(device, str) else torch.device(device)
     levels = int(math.log2(resolution)) + 1
     config = dict(material=mat.name, resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
                   sampler_batch=sampler_batch, sampler_samples=sampler_samples,
@@ -486,7 +489,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help=f"{' | '.join(MATERIALS)} or a material description .json (default: %(default)s)")
     parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
                         help="ship: what built trained/neural_appearance_*; quick: 32x32, seconds (default: %(default)s)")
-    parser.add_argument("--device", default=DEFAULTS["device"], help="torch device: cpu, cuda, cuda:1 ... (default: %(default)s)")
+    add_device_argument(parser, DEFAULTS["device"])
     parser.add_argument("--out", help="asset folder (default: trained/neural_appearance_<material>)")
     parser.add_argument("--resolution", type=int, help="finest latent/texture side, a power of two (default: the preset's)")
     parser.add_argument("--steps1", type=int, help="phase 1 (encoder) steps (default: the preset's)")
@@ -501,14 +504,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.device.startswith("cuda") and not torch.cuda.is_available():
-        raise SystemExit(f"--device {args.device}: this torch build has no CUDA device")
+    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     for name in ("steps1", "steps2", "batch"):
         v = getattr(args, name)
         if v is not None and v < 0:
             raise SystemExit(f"--{name}: must be >= 0, got {v}")
     out = train(material=args.material, preset=args.preset, out=args.out, resolution=args.resolution,
-                steps1=args.steps1, steps2=args.steps2, batch=args.batch, seed=args.seed, device=args.device,
+                steps1=args.steps1, steps2=args.steps2, batch=args.batch, seed=args.seed, device=device,
                 checkpoint_every=args.checkpoint_every, restart=args.restart, write_preview=not args.no_preview)
     metrics = json.loads((out / "metrics.json").read_text())
     last = metrics["history"]["phase2"][-1] if metrics["history"]["phase2"] else metrics["history"]["phase1"][-1]
@@ -518,4 +520,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train neural_appearance", __doc__, add_arguments, run, argv, errors=(ValueError,))
+    return command.main("inshade train neural_appearance", __doc__, add_arguments, run, argv,
+                        errors=(ValueError, DeviceError))

@@ -18,8 +18,8 @@ Architectures (``--arch``): ``multires`` (the shipped one: a multiresolution set
 arrays of uv, concatenated into a small ReLU MLP: an Instant-NGP-style dense feature pyramid made
 of existing components), ``frequency_relu`` (NeRF frequency encoding + ReLU MLP) and ``siren``.
 
-Command: ``inshade train neural_image [--preset quick|ship] [--out trained/neural_image] [--steps N]
-[--image NAME] [--seed S] [--size N] [--arch A] [--levels R:C,...]``. ``--preset ship`` (the
+Command: ``inshade train neural_image [--preset quick|ship] [--device auto|cpu|cuda[:N]]
+[--out trained/neural_image] [--steps N] [--image NAME] [--seed S] [--size N] [--arch A] [--levels R:C,...]``. ``--preset ship`` (the
 default) is exactly what built ``trained/neural_image``; ``--preset quick`` is the same network
 trained for fewer steps; any option given explicitly overrides the preset's value.
 """
@@ -36,6 +36,7 @@ import numpy as np
 import torch
 
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
 from inshade.models import activations as _act
 from inshade.models import encodings as _enc
@@ -175,11 +176,13 @@ def build(arch: str = DEFAULTS["arch"], width: int = DEFAULTS["width"], depth: i
 
 
 def predict(model: torch.nn.Module, width: int, height: int, chunk: int = 65536) -> np.ndarray:
-    """Linear RGB ``[H, W, 3]`` float32 at the pixel centres (image orientation)."""
-    uv = torch.from_numpy(pixel_uvs(width, height).reshape(-1, 2))
+    """Linear RGB ``[H, W, 3]`` float32 at the pixel centres (image orientation), evaluated on the
+    model's device and returned on the CPU."""
+    device = next(model.parameters()).device
+    uv = torch.from_numpy(pixel_uvs(width, height).reshape(-1, 2)).to(device)
     with torch.no_grad():
         out = torch.cat([model(uv[i:i + chunk]) for i in range(0, uv.shape[0], chunk)], 0)
-    return out.reshape(height, width, -1).numpy().astype(np.float32)
+    return out.reshape(height, width, -1).cpu().numpy().astype(np.float32)
 
 
 def metrics_of(prediction: np.ndarray, target: np.ndarray) -> dict:
@@ -200,10 +203,13 @@ def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr
         grid_lr: float = DEFAULTS["grid_lr"]) -> dict:
     """Adam on random pixel batches (full image when ``batch`` >= pixels), cosine-decayed lr;
     lookup-array cells (multires) at ``grid_lr``, Adam eps 1e-15 as Instant NGP.
-    Deterministic for a given seed on a given torch build. Returns timing and the loss curve."""
+    Runs on the model's device; batch indices are drawn on a CPU generator and then moved, so a
+    seed draws the same batches on every device. Deterministic for a given seed on a given torch
+    build and device. Returns timing and the loss curve."""
     h, w = target.shape[:2]
-    uv = torch.from_numpy(pixel_uvs(w, h).reshape(-1, 2))
-    rgb = torch.from_numpy(target.reshape(-1, 3))
+    device = next(model.parameters()).device
+    uv = torch.from_numpy(pixel_uvs(w, h).reshape(-1, 2)).to(device)
+    rgb = torch.from_numpy(target.reshape(-1, 3)).to(device)
     n = uv.shape[0]
     lr = lr if lr is not None else (3e-4 if arch == "siren" else 2e-3)
     cells = [p for name, p in model.named_parameters() if name.endswith(".cells")]
@@ -224,7 +230,7 @@ def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr
         if batch >= n:
             xb, yb = uv, rgb
         else:
-            idx = torch.randint(0, n, (batch,), generator=gen)
+            idx = torch.randint(0, n, (batch,), generator=gen).to(device)
             xb, yb = uv[idx], rgb[idx]
         loss = torch.mean((model(xb) - yb) ** 2)
         opt.zero_grad(set_to_none=True)
@@ -244,14 +250,17 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
           omega0=DEFAULTS["omega0"], output_activation=DEFAULTS["output_activation"],
           lr=DEFAULTS["lr"], batch=DEFAULTS["batch"], levels=DEFAULTS["levels"],
           grid_bits=DEFAULTS["grid_bits"], grid_lr=DEFAULTS["grid_lr"], preset: str | None = None,
-          command: str | None = None, progress: bool | None = None, write_images: bool = True):
-    """Trains and writes the bundle (+ preview.png, reference.png) into ``out``.
-    Returns the saved ``Bundle``. Metrics and the preview come from the *exported* bundle (lookup
-    arrays quantised to ``grid_bits``), i.e. what the shader draws."""
+          command: str | None = None, progress: bool | None = None, write_images: bool = True,
+          device="cpu"):
+    """Trains on ``device`` (a torch.device or its name) and writes the bundle (+ preview.png,
+    reference.png) into ``out``. Returns the saved ``Bundle``. Metrics and the preview come from
+    the *exported* bundle (lookup arrays quantised to ``grid_bits``), i.e. what the shader draws."""
+    device = torch.device(device)
     torch.manual_seed(seed)
     target = load_target(image, size)
     multires = arch == "multires"
-    model = build(arch, width, depth, n_freqs, omega0, output_activation, levels, grid_bits)
+    # initialised on the CPU generator, then moved: the same start on every device
+    model = build(arch, width, depth, n_freqs, omega0, output_activation, levels, grid_bits).to(device)
     start_metrics = metrics_of(predict(model, size, size), target)
     log = fit(model, target, steps=steps, seed=seed, lr=lr, batch=batch, arch=arch, progress=progress,
               grid_lr=grid_lr)
@@ -280,6 +289,7 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
         "output_activation": output_activation, "lr": log["lr"], "batch": batch,
         "optimizer": "adam, cosine decay to 5%" + (", eps 1e-15" if multires else ""),
         "loss": "mse, linear rgb",
+        "device": str(device),
         "torch": torch.__version__,
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
@@ -299,6 +309,7 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
         "weight_bytes": int(sum(np.asarray(t).nbytes for t in bundle.tensors.values())),
         "train_seconds": round(log["seconds"], 2),
         "train_threads": torch.get_num_threads(),
+        "device": str(device),
     })
     bundle.meta["metrics"] = metrics
     out = Path(out)
@@ -329,6 +340,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--preset", default=d["preset"], choices=sorted(PRESETS),
                         help="ship: exactly what built trained/neural_image; quick: the same network, "
                              "fewer steps (default: %(default)s)")
+    add_device_argument(parser)
     parser.add_argument("--out", default=d["out"], help="bundle folder (default: %(default)s)")
     parser.add_argument("--image", default=d["image"], choices=IMAGES,
                         help="skimage.data photograph (default: %(default)s)")
@@ -366,6 +378,7 @@ def resolve(args: argparse.Namespace) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
     kw = resolve(args)
     if kw["steps"] < 0 or kw["size"] < 1:
         raise SystemExit("--steps must be >= 0 and --size >= 1")
@@ -374,7 +387,7 @@ def run(args: argparse.Namespace) -> int:
             parse_levels(kw["levels"])
         except ValueError as e:
             raise SystemExit(str(e)) from e
-    bundle = train(**kw)
+    bundle = train(**kw, device=device)
     m = bundle.meta["metrics"]
     print(f"wrote {bundle.path}: PSNR {m['psnr_linear']:.2f} dB linear, {m['psnr_srgb']:.2f} dB sRGB "
           f"({m['params']} params, {m['weight_bytes']} weight bytes, {m['train_seconds']:.1f} s)")
@@ -382,5 +395,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train neural_image", __doc__, add_arguments, run, argv)
+    return command.main("inshade train neural_image", __doc__, add_arguments, run, argv, errors=(DeviceError,))
 

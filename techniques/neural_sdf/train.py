@@ -33,7 +33,9 @@ Metrics (held out, world units and relative to the radius): mean |network| on su
 mean |d error| on near-surface and uniform samples, inside/outside IoU on uniform samples, and a
 symmetric Chamfer distance between marching cubes of the network (64^3) and the mesh.
 
-Command: ``inshade train neural_sdf --mesh PATH --out DIR [--width 32 --layers 3 --steps 3000]``.
+Command: ``inshade train neural_sdf --mesh PATH --out DIR [--width 32 --layers 3 --steps 3000]
+[--device auto|cpu|cuda[:N]]`` (the fit runs on the device; the signed distances come from the
+mesh on the CPU, and evaluation and export run on the CPU).
 Without ``--mesh``, the procedural rabbit
 (inshade.mesh.bunny) is generated into /tmp/inshade_mesh/bunny.ply first.
 """
@@ -51,6 +53,7 @@ import numpy as np
 import torch
 
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH, bounding_sphere, load_mesh
 from inshade.sdf import f32
 
@@ -252,14 +255,16 @@ def trace_settings(lipschitz: float, radius: float, hit_eps: float) -> dict:
 def fit(graph: GraphModule, data: dict, center, radius: float, *, steps: int, batch: int, lr: float, seed: int,
         lipschitz_target: float, lipschitz_weight: float, progress: bool | None = None) -> dict:
     """Adam on the L1 error of the normalised distance (surface, near and uniform samples
-    mixed), cosine-decayed lr, plus the Lipschitz penalty. Deterministic for a seed."""
+    mixed), cosine-decayed lr, plus the Lipschitz penalty. Runs on the graph's device (batch
+    indices drawn on a CPU generator, then moved). Deterministic for a seed and device."""
     from inshade.progress import progress as progress_bar
 
+    device = next(graph.parameters()).device
     c = np.asarray(center, np.float64)
     inv_r = 1.0 / radius
     parts = ("surface", "near", "uniform")
-    x = torch.from_numpy(np.concatenate([(data[k] - c) * inv_r for k in parts]).astype(np.float32))
-    y = torch.from_numpy(np.concatenate([data[k + "_sdf"] * inv_r for k in parts]).astype(np.float32))
+    x = torch.from_numpy(np.concatenate([(data[k] - c) * inv_r for k in parts]).astype(np.float32)).to(device)
+    y = torch.from_numpy(np.concatenate([data[k + "_sdf"] * inv_r for k in parts]).astype(np.float32)).to(device)
     opt = torch.optim.Adam(graph.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.LambdaLR(
         opt, lambda s: 0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0))))
@@ -268,7 +273,7 @@ def fit(graph: GraphModule, data: dict, center, radius: float, *, steps: int, ba
     losses, start = [], time.perf_counter()
     bar = progress_bar(range(steps), desc="neural_sdf", enabled=progress)
     for step in bar:
-        idx = torch.randint(0, x.shape[0], (batch,), generator=gen)
+        idx = torch.randint(0, x.shape[0], (batch,), generator=gen).to(device)
         err = (graph(x[idx])[:, 0] - y[idx]).abs().mean()
         loss = err
         if lipschitz_weight > 0:
@@ -333,8 +338,9 @@ def train(*, out=DEFAULTS["out"], mesh=None, width=DEFAULTS["width"], layers=DEF
           lipschitz_target=DEFAULTS["lipschitz_target"], lipschitz_weight=DEFAULTS["lipschitz_weight"],
           hit_eps=DEFAULTS["hit_eps"], albedo=(0.8, 0.8, 0.8), command: str | None = None,
           progress: bool | None = None, mc_resolution: int = 64, threads: int | None = DEFAULTS["threads"],
-          preview: bool = False):
-    """Fit, evaluate and write the bundle into ``out`` (+ metrics in it). Returns the Bundle.
+          preview: bool = False, device="cpu"):
+    """Fit (on ``device``, a torch.device or its name), evaluate and write the bundle into ``out``
+    (+ metrics in it). Returns the Bundle.
     ``threads``: torch intra-op threads while fitting (1 by default: on a shared 2-core machine two
     spinning threads made each step ~15x slower than one; None leaves torch's setting)."""
     previous = torch.get_num_threads()
@@ -342,13 +348,14 @@ def train(*, out=DEFAULTS["out"], mesh=None, width=DEFAULTS["width"], layers=DEF
         torch.set_num_threads(int(threads))
     try:
         return _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, samples, seed,
-                      lipschitz_target, lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview)
+                      lipschitz_target, lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview,
+                      torch.device(device))
     finally:
         torch.set_num_threads(previous)
 
 
 def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, samples, seed, lipschitz_target,
-           lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview):
+           lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview, device):
     torch.manual_seed(seed)
     if mesh is None:
         from inshade.mesh import write_bunny
@@ -362,10 +369,11 @@ def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, sample
     data = sample_points(tri, center, radius, samples, seed, progress)
     held = sample_points(tri, center, radius, max(4000, samples // 10), seed + 1, progress)
     data_seconds = time.perf_counter() - t0
-    graph = build(width, layers, freqs, activation)
+    # initialised on the CPU generator, then moved: the same start on every device
+    graph = build(width, layers, freqs, activation).to(device)
     log = fit(graph, data, center, radius, steps=steps, batch=batch, lr=lr, seed=seed,
               lipschitz_target=lipschitz_target, lipschitz_weight=lipschitz_weight, progress=progress)
-    graph = fold_beta(graph)
+    graph = fold_beta(graph.cpu())     # evaluation and export on the CPU
     lip = float(lipschitz_bound(graph))
     module = NetworkSdfModule(graph, trace_settings(lip, radius, hit_eps), center, radius, albedo, KIND)
     t1 = time.perf_counter()
@@ -377,6 +385,7 @@ def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, sample
         "eval_seconds": round(time.perf_counter() - t1, 2),
         "samples_per_second_sdf": round(1.1 * samples / max(data_seconds, 1e-9)),
         "final_l1_normalised": log["losses"][-1][1] if log["losses"] else None,
+        "device": str(device),
     })
     kw = dict(out=out, mesh=mesh_path, width=width, layers=layers, freqs=freqs, activation=activation,
               steps=steps, batch=batch, lr=lr, samples=samples, seed=seed, lipschitz_target=lipschitz_target,
@@ -389,6 +398,7 @@ def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, sample
                     f"1/4 uniform in the bound's cube; exact signed distance (point-cloud-utils)",
         "loss": "L1 on distance / radius + lipschitz_weight * relu(log L - log target)",
         "optimizer": "adam, cosine decay to 2%", **{k: v for k, v in kw.items() if k not in ("out", "mesh")},
+        "device": str(device),
         "torch": torch.__version__,
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
@@ -449,6 +459,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="watertight OBJ/PLY/GLB (default: the procedural rabbit, generated into "
                              f"{DEFAULT_MESH})")
     parser.add_argument("--out", default=d["out"], help="bundle folder (default: %(default)s)")
+    add_device_argument(parser)
     parser.add_argument("--width", type=int, default=d["width"], help="hidden width (default: %(default)s)")
     parser.add_argument("--layers", type=int, default=d["layers"], help="hidden layers (default: %(default)s)")
     parser.add_argument("--freqs", type=int, default=d["freqs"],
@@ -471,12 +482,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
     kw = {k: getattr(args, k) for k in ("out", "mesh", "width", "layers", "freqs", "activation", "steps", "batch",
                                          "lr", "samples", "seed", "lipschitz_target", "lipschitz_weight", "threads",
                                          "preview")}
     if kw["steps"] < 0 or kw["width"] < 1 or kw["layers"] < 1 or kw["samples"] < 100:
         raise SystemExit("--steps must be >= 0, --width and --layers >= 1, --samples >= 100")
-    bundle = train(**kw)
+    bundle = train(**kw, device=device)
     m = bundle.meta["metrics"]
     print(f"wrote {bundle.path}: surface |d| {m['surface_abs_mean_rel']:.2e} r, IoU {m['iou_uniform']:.4f}, "
           f"Chamfer {m['chamfer_rel']:.2e} r, Lipschitz bound {m['lipschitz_bound']:.2f} -> step_scale "
@@ -486,5 +498,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train neural_sdf", __doc__, add_arguments, run, argv)
+    return command.main("inshade train neural_sdf", __doc__, add_arguments, run, argv, errors=(DeviceError,))
 

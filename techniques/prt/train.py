@@ -15,6 +15,10 @@ Steps, all timed and recorded in ``OUT/metrics.json``:
 4. previews (diffuse and glossy PNG, rendered by the GL driver through ``inshade render``'s path);
 5. quality against the per-pixel ground-truth-transfer render over an orbit (``techniques/prt/twin.py``
    ``quality_orbit``: PSNR / SSIM / MAE, diffuse and glossy).
+
+``--device auto|cpu|cuda[:N]`` (resolved before anything else): where step 2 runs -- the SDF
+sphere tracing of the transfer rays (mesh rays are embree's, on the CPU) and the network's
+training; the resolved device is recorded in the transfer bundle's provenance and metrics.
 """
 from __future__ import annotations
 
@@ -27,6 +31,7 @@ from pathlib import Path
 
 from inshade.files import atomic_write
 from inshade import command
+from inshade.devices import DeviceError, resolve_device
 from inshade.lit_settings import lit_settings
 
 from inshade.techniques.prt import transfer_net
@@ -107,9 +112,11 @@ def run(args: argparse.Namespace) -> int:
     from inshade.runtime.headless import render_scene, save_render
     from inshade.runtime.scene import load_scene
 
+    resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work (transfer_net uses it)
     kind, src = _geometry(args)
+    # the device is recorded resolved in the transfer bundle's provenance, not in the recipe
     command = shlex.join(["inshade", "train", "prt"]
-                         + transfer_net.command_options(args, set(vars(args)) - {"func", "command"}))
+                         + transfer_net.command_options(args, set(vars(args)) - {"func", "command", "device"}))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     times = {}
@@ -156,5 +163,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train prt", __doc__, add_arguments, run, argv)
+    return command.main("inshade train prt", __doc__, add_arguments, run, argv, errors=(DeviceError,))
 

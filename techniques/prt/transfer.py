@@ -32,9 +32,17 @@ central differences of ``models.sdf.normals``, as the shader computes them: n is
 
 ``build_dataset`` caches (safetensors, keyed by a hash of geometry + settings) and records the
 measured throughput (``rays_per_second``) in the dataset's metadata.
+
+Devices: ``device`` (a torch.device or its name, default the CPU) is where SDF evaluation runs --
+the marching-cubes grid, the Newton projection and the shadow-ray sphere tracing. Random numbers
+are drawn on CPU generators and the transfer is projected and returned on the CPU, so a seed gives
+the same directions on every device and the CPU result does not depend on this option. Mesh
+visibility is embree's (CPU) whatever the device.
 """
 from __future__ import annotations
 
+import copy
+import functools
 import hashlib
 import json
 import math
@@ -198,27 +206,45 @@ def _sdf_normals(sdf, p: torch.Tensor) -> torch.Tensor:
     return normals(sdf, p)
 
 
-def _eval_chunked(sdf, p: torch.Tensor, chunk: int = 1 << 18) -> torch.Tensor:
+def _eval_chunked(sdf, p: torch.Tensor, chunk: int = 1 << 18, device=None) -> torch.Tensor:
+    """sdf(p) chunk by chunk, evaluated on ``device`` (default p's), returned on p's device."""
     with torch.no_grad():
-        return torch.cat([sdf(p[i:i + chunk]) for i in range(0, p.shape[0], chunk)])
+        return torch.cat([sdf(p[i:i + chunk].to(device or p.device)).to(p.device)
+                          for i in range(0, p.shape[0], chunk)])
 
 
-def sample_sdf_surface(sdf, n_points: int, seed: int = 0, resolution: int = 128, newton: int = 4):
+def _on_device(sdf, device: torch.device):
+    """The SDF module with its tensors on ``device``: itself when they are there already (or it has
+    none, as an analytic SdfModule), else a moved copy (the caller's module stays where it is)."""
+    if not isinstance(sdf, torch.nn.Module):
+        return sdf
+    probe = torch.empty(0, device=device).device        # "cuda" -> "cuda:<current>", as tensors report it
+    tensors = [*sdf.parameters(), *sdf.buffers()]
+    if all(t.device == probe for t in tensors):
+        return sdf
+    return copy.deepcopy(sdf).to(probe)
+
+
+def sample_sdf_surface(sdf, n_points: int, seed: int = 0, resolution: int = 128, newton: int = 4,
+                       device="cpu"):
     """``n_points`` surface samples (p [N, 3], unit normals [N, 3], float32) of an SDF module,
     area weighted: marching cubes at ``resolution`` over the bound's box, area-weighted samples of
     that mesh, ``newton`` Newton steps p -= d * n onto the zero set (n: the SDF's normal estimator,
     not autograd: hard booleans and box corners have NaN autograd gradients); only points inside
-    the bound sphere with |d| < hit_eps are kept."""
+    the bound sphere with |d| < hit_eps are kept. SDF evaluations run on ``device``; the samples
+    come back on the CPU."""
     import trimesh
     from skimage.measure import marching_cubes
 
     scene = _check_sdf(sdf)
     n_points = _check_count(n_points, "n_points")
+    device = torch.device(device)
+    sdf = _on_device(sdf, device)
     c = np.asarray(scene.center, np.float64)
     r = float(scene.radius)
     axis = np.linspace(-r, r, resolution)
     grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3) + c
-    d = _eval_chunked(sdf, torch.from_numpy(grid).float()).reshape(resolution, resolution, resolution)
+    d = _eval_chunked(sdf, torch.from_numpy(grid).float(), device=device).reshape(resolution, resolution, resolution)
     d = d.numpy()
     if not (d.min() < 0.0 < d.max()):
         raise TransferError(f"{getattr(scene, 'path', None) or 'sdf'}: no surface inside the bound "
@@ -232,12 +258,13 @@ def sample_sdf_surface(sdf, n_points: int, seed: int = 0, resolution: int = 128,
     for _ in range(8):              # top up: some samples land outside the bound or off the surface
         want = int((n_points - have) * 1.3) + 64
         pts, _ = trimesh.sample.sample_surface(mesh, want, seed=rng)
-        p = torch.from_numpy(np.asarray(pts, np.float32))
+        p = torch.from_numpy(np.asarray(pts, np.float32)).to(device)
         with torch.no_grad():
             for _ in range(newton):
                 p = p - sdf(p)[:, None] * _sdf_normals(sdf, p)
-            dist = sdf(p)
-            nrm = _sdf_normals(sdf, p)
+            dist = sdf(p).cpu()
+            nrm = _sdf_normals(sdf, p).cpu()
+        p = p.cpu()
         inside = (p.double() - torch.from_numpy(c)).norm(dim=-1) < r
         ok = inside & (dist.abs() < hit_eps) & torch.isfinite(nrm).all(-1) & torch.isfinite(p).all(-1)
         kept_p.append(p[ok])
@@ -257,7 +284,7 @@ def _shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, r
     b = (oc * d).sum(-1)
     h = b * b - ((oc * oc).sum(-1) - radius * radius)
     t1 = torch.where(h > 0, -b + torch.sqrt(h.clamp_min(0.0)), torch.zeros_like(b))
-    occluded = torch.zeros(o.shape[0], dtype=torch.bool)
+    occluded = torch.zeros(o.shape[0], dtype=torch.bool, device=o.device)
     idx = (t1 > 0).nonzero().squeeze(1)
     o, d, t1 = o[idx], d[idx], t1[idx]
     t = torch.zeros_like(t1)
@@ -275,17 +302,20 @@ def _shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, r
 
 
 def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool | None = False,
-                 max_steps: int | None = None, chunk_rays: int = CHUNK_RAYS) -> torch.Tensor:
-    """Ground-truth transfer [N, 16] float32 at points p [N, 3] with normals nrm [N, 3] (any
-    points: surface samples or G-buffer hits) of an SDF module; see the module docstring."""
+                 max_steps: int | None = None, chunk_rays: int = CHUNK_RAYS, device="cpu") -> torch.Tensor:
+    """Ground-truth transfer [N, 16] float32 (on the CPU) at points p [N, 3] with normals nrm [N, 3]
+    (any points: surface samples or G-buffer hits) of an SDF module, the shadow rays traced on
+    ``device``; see the module docstring."""
     scene = _check_sdf(sdf)
+    device = torch.device(device)
+    sdf = _on_device(sdf, device)
     p, nrm = _check_points(p, nrm)
     n_dirs = _check_count(n_dirs, "n_dirs")
     tr = scene.trace
     hit_eps, step_scale = float(tr["hit_eps"]), float(tr["step_scale"])
     steps = int(max_steps if max_steps is not None else max(SHADOW_STEPS, int(tr["max_steps"])))
     offset = OFFSET_EPS * hit_eps
-    center = torch.tensor(scene.center, dtype=torch.float32)
+    center = torch.tensor(scene.center, dtype=torch.float32, device=device)
     radius = float(scene.radius)
     gen = torch.Generator().manual_seed(int(seed))
     per = max(1, chunk_rays // n_dirs)
@@ -293,9 +323,10 @@ def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool |
     with torch.no_grad(), _bar(p.shape[0] * n_dirs, "transfer (sdf)", progress) as bar:
         for i in range(0, p.shape[0], per):
             pc, nc = p[i:i + per], nrm[i:i + per]
-            dirs = hemisphere_directions(nc, n_dirs, gen)                    # [n, D, 3]
+            dirs = hemisphere_directions(nc, n_dirs, gen)                    # [n, D, 3], CPU draws
             o = (pc + nc * offset)[:, None].expand_as(dirs).reshape(-1, 3)
-            occ = _shadow_trace(sdf, o, dirs.reshape(-1, 3), center, radius, step_scale, hit_eps, steps)
+            occ = _shadow_trace(sdf, o.to(device), dirs.reshape(-1, 3).to(device), center, radius, step_scale,
+                                hit_eps, steps).cpu()
             out[i:i + per] = _project(~occ.reshape(dirs.shape[:2]), dirs)
             bar.update(dirs.shape[0] * n_dirs)
     return out
@@ -394,7 +425,7 @@ def geometry_digest(geometry) -> str:
 
 def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, seed: int = 0,
                   progress: bool | None = None, holdout: int | None = None,
-                  holdout_dirs: int = HOLDOUT_DIRS) -> dict:
+                  holdout_dirs: int = HOLDOUT_DIRS, device="cpu") -> dict:
     """Surface samples + ground-truth transfer of an SDF module or a trimesh.Trimesh.
 
     Returns {"position" [N, 3], "normal" [N, 3], "transfer" [N, 16] (float32 tensors; the training
@@ -417,6 +448,11 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     settings = {"version": VERSION, "n_points": n_points, "n_dirs": n_dirs, "seed": int(seed),
                 "holdout": holdout, "holdout_dirs": holdout_dirs,
                 "offset": MESH_OFFSET if mesh else OFFSET_EPS, "shadow_steps": SHADOW_STEPS}
+    # SDF data traced on a GPU may differ from the CPU's in the last bits: its own cache entry (the
+    # CPU keys stay as they were; mesh rays are embree's on every device)
+    device = torch.device(device)
+    if device.type != "cpu" and not mesh:
+        settings["device"] = device.type
     key = hashlib.sha256((geometry_digest(geometry) + json.dumps(settings, sort_keys=True)).encode()).hexdigest()[:24]
     path = Path(cache_dir) / f"transfer-{key}.safetensors" if cache_dir is not None else None
     if path is not None and path.is_file():
@@ -429,10 +465,12 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     total = n_points + holdout
     if mesh:
         p, nrm = sample_mesh_surface(geometry, total, seed)
+        fn = mesh_transfer
     else:
-        p, nrm = sample_sdf_surface(geometry, total, seed)
+        geometry = _on_device(geometry, device)     # moved once for sampling and rays
+        p, nrm = sample_sdf_surface(geometry, total, seed, device=device)
+        fn = functools.partial(sdf_transfer, device=device)
     ray_start = time.perf_counter()
-    fn = mesh_transfer if mesh else sdf_transfer
     transfer = fn(geometry, p[:n_points], nrm[:n_points], n_dirs=n_dirs, seed=seed, progress=progress)
     held = fn(geometry, p[n_points:], nrm[n_points:], n_dirs=holdout_dirs, seed=seed + 1, progress=progress)
     end = time.perf_counter()
@@ -445,6 +483,7 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
             "key": key, "seconds": round(end - start, 3), "ray_seconds": round(end - ray_start, 3),
             "rays": rays, "rays_per_second": round(rays / max(end - ray_start, 1e-9), 1),
             "embree": bool(mesh and _has_embree()), "torch_threads": torch.get_num_threads(),
+            "device": "cpu" if mesh else str(device),
             "cached": False}
     if path is not None:
         save_dataset(data, path)

@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.bundle import Bundle
 from inshade.metrics import psnr_from_mse
 from inshade.sdf import f32
@@ -175,10 +176,10 @@ def _load_checkpoint(path: Path, net, opt, config: dict) -> int:
     tensors, header = read_checkpoint(path, "transfer", config, "use another --checkpoint or delete it")
     net.load_state_dict({k[4:]: v for k, v in tensors.items() if k.startswith("net.")})
     for i, p in enumerate(opt.param_groups[0]["params"]):
-        if f"adam.{i}.exp_avg" in tensors:
+        if f"adam.{i}.exp_avg" in tensors:   # moments beside their parameter (any device); step stays on the CPU
             opt.state[p] = {"step": tensors[f"adam.{i}.step"].reshape(()).clone(),
-                            "exp_avg": tensors[f"adam.{i}.exp_avg"].clone(),
-                            "exp_avg_sq": tensors[f"adam.{i}.exp_avg_sq"].clone()}
+                            "exp_avg": tensors[f"adam.{i}.exp_avg"].to(p.device, copy=True),
+                            "exp_avg_sq": tensors[f"adam.{i}.exp_avg_sq"].to(p.device, copy=True)}
     return int(header["step"])
 
 
@@ -217,7 +218,7 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
                    checkpoint=None, progress: bool | None = True, pos_freqs: int = DEFAULTS["pos_freqs"],
                    normal_freqs: int = DEFAULTS["normal_freqs"], output: str = DEFAULTS["output"],
                    holdout: float = DEFAULTS["holdout"], checkpoint_every: int | None = None,
-                   until: int | None = None, drop_enclosed: bool = False):
+                   until: int | None = None, drop_enclosed: bool = False, device="cpu"):
     """Fits ``transfer_graph`` to a dataset (techniques/prt/transfer.py ``build_dataset``).
 
     L1 loss on transfer / scale, Adam at ``lr`` with a cosine decay to 5%, ``batch`` random
@@ -228,7 +229,13 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
     casts them with many rays), else a seeded ``holdout`` fraction of its points. ``until``: stop once that many steps are done (a time-boxed run; call again
     with the same checkpoint to go on). Returns (GraphModule, TransferFrame, metrics) with held-out metrics
     (``heldout_*``, see ``transfer_metrics``) before and after training.
+
+    ``device`` (a torch.device or its name): where the network, the data and the steps live. The
+    initial weights and the batch indices are drawn on CPU generators and moved, so a seed starts
+    and samples alike on every device; metrics are computed on the CPU and the returned network
+    is on the CPU.
     """
+    device = torch.device(device)
     _check_dataset(dataset)
     degree = int(round(math.sqrt(dataset["transfer"].shape[1])))
     scale = TANH_SCALE if output == "tanh" else 1.0
@@ -239,6 +246,7 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         net = transfer_graph(width, layers, pos_freqs, normal_freqs, degree, output)
+    net.to(device)
     x = torch.cat([frame.normalise(dataset["position"]), dataset["normal"].float()], -1)
     y = dataset["transfer"].float() * (1.0 / scale)
     if "heldout_transfer" in dataset:      # separate samples with a many-ray reference
@@ -249,10 +257,11 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
         tr, ho = split(x.shape[0], holdout, seed)
         x_tr, y_tr, x_ho = x[tr], y[tr], x[ho]
         t_ho = dataset["transfer"][ho].float()
+    x_tr, y_tr, x_ho = x_tr.to(device), y_tr.to(device), x_ho.to(device)
 
     def heldout():
         with torch.no_grad():
-            return transfer_metrics(net(x_ho) * scale, t_ho)
+            return transfer_metrics((net(x_ho) * scale).cpu(), t_ho)
 
     opt = torch.optim.Adam(net.parameters(), lr=lr)
     sched = lambda s: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0)))  # noqa: E731
@@ -274,7 +283,7 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
         for g in opt.param_groups:
             g["lr"] = lr * sched(step)
         gen = torch.Generator().manual_seed(int(seed) * 1_000_003 + step)
-        idx = torch.randint(0, n_tr, (min(batch, n_tr),), generator=gen)
+        idx = torch.randint(0, n_tr, (min(batch, n_tr),), generator=gen).to(device)
         loss = (net(x_tr[idx]) - y_tr[idx]).abs().mean()
         opt.zero_grad(set_to_none=True)
         loss.backward()
@@ -293,8 +302,9 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
     metrics.update({"train_l1": round(train_l1, 6) if math.isfinite(train_l1) else None,
                     "train_seconds": round(seconds, 2), "steps": stop, "resumed_from": start_step,
                     "params": int(sum(p.numel() for p in net.parameters())),
-                    "n_train": int(n_tr), "n_heldout": int(x_ho.shape[0]), "eval_sky": EVAL_SKY})
-    net.eval()
+                    "n_train": int(n_tr), "n_heldout": int(x_ho.shape[0]), "eval_sky": EVAL_SKY,
+                    "device": str(device)})
+    net.cpu().eval()
     return net, frame, {k: v for k, v in metrics.items() if v is not None}
 
 
@@ -375,6 +385,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="resumable checkpoint (default: CACHE/checkpoint-HASH.safetensors, HASH of the "
                              "dataset and the training settings, so a rerun resumes or finds it done)%(default).0s")
     parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
+    add_device_argument(parser)
     parser.add_argument("--threads", type=int, default=d["threads"],
                         help="torch CPU threads; 0 = torch's default (default: %(default)s: on a shared 2-core "
                              "machine two spinning OpenMP threads ran rays and training ~10x slower than one)")
@@ -390,6 +401,7 @@ def _run_hash(data: dict, args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     from inshade.techniques.prt.transfer import build_dataset
 
+    device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
     for k in ("width", "layers", "points", "dirs", "steps", "batch"):
         if getattr(args, k) < 1:
             raise SystemExit(f"--{k} must be >= 1")
@@ -398,7 +410,7 @@ def run(args: argparse.Namespace) -> int:
     geometry, source = load_geometry(args)
     out = Path(args.out)
     cache = Path(args.cache) if args.cache else out.parent / ".transfer_cache"
-    data = build_dataset(geometry, args.points, args.dirs, cache, args.seed, progress=None)
+    data = build_dataset(geometry, args.points, args.dirs, cache, args.seed, progress=None, device=device)
     print(f"data: {args.points} points x {args.dirs} rays, {data['seconds']:.1f} s, "
           f"{data['rays_per_second'] / 1e3:.1f} k rays/s{' (cached)' if data['cached'] else ''}")
     net, frame, metrics = train_transfer(
@@ -406,15 +418,16 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed, checkpoint=args.checkpoint or (cache / f"checkpoint-{_run_hash(data, args)}.safetensors"),
         progress=None,
         pos_freqs=args.pos_freqs, normal_freqs=args.normal_freqs, output=args.output,
-        drop_enclosed=args.drop_enclosed)
+        drop_enclosed=args.drop_enclosed, device=device)
     metrics.update({"data_seconds": data["seconds"], "rays_per_second": data["rays_per_second"],
                     "points": args.points, "dirs": args.dirs})
-    own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {"help"}  # not a wrapper's options
+    # not a wrapper's options; the device goes into the provenance, resolved, not into the recipe
+    own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {"help", "device"}
     argv = ["inshade", "train", "transfer"] + command_options(args, own)
     provenance = {**source, "command": shlex.join(argv), "dataset_key": data["key"],
                   "estimator": "cosine-weighted Fibonacci lattice, per-point Cranley-Patterson shift",
                   "loss": "l1 on transfer / scale", "optimizer": "adam, cosine decay to 5%",
-                  "torch": torch.__version__,
+                  "device": str(device), "torch": torch.__version__,
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     name = getattr(getattr(geometry, "scene", None), "name", "") or "transfer"
     export_transfer(net, frame, out, metrics, provenance, name=f"{name}_transfer")
@@ -425,7 +438,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("python -m inshade.techniques.prt.transfer_net", __doc__, add_arguments, run, argv)
+    return command.main("python -m inshade.techniques.prt.transfer_net", __doc__, add_arguments, run, argv,
+                        errors=(DeviceError,))
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 fitted to a uv-textured mesh, written as an asset folder the runtime renders.
 
 Command: ``inshade train uvfree_material [--object rock|fruit|stump_low|stump_high | --mesh FILE
---textures DIR] [--config memory|balanced|quality] [--preset quick|ship] [--device cpu|cuda]
+--textures DIR] [--config memory|balanced|quality] [--preset quick|ship] [--device auto|cpu|cuda[:N]]
 [--out DIR] [--resolution N] [--steps N] [--levels L] [--table-size T] [--seed S]``.
 
 - Targets: the mesh's own uv textures (``albedo.png`` sRGB, ``normal.png`` tangent-space
@@ -37,6 +37,7 @@ import torch
 from PIL import Image
 
 from inshade import command
+from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 from inshade.mesh import MeshError, load_mesh, mesh_uv
 from inshade.mesh_topology import mesh_topology
@@ -48,7 +49,7 @@ from .model import CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choos
 
 PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096, hidden=(32, 32)),
            "ship": dict(resolution=512, steps=3000, batch=1 << 14, hidden=HIDDEN)}
-DEFAULTS = dict(object="rock", config="balanced", preset="ship", seed=0, device="cpu", lr=1e-2, mlp_lr=5e-3)
+DEFAULTS = dict(object="rock", config="balanced", preset="ship", seed=0, device="auto", lr=1e-2, mlp_lr=5e-3)
 BUNDLE = "material"
 
 
@@ -174,9 +175,11 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
           seed=0,
           device="cpu", lr=DEFAULTS["lr"], mlp_lr=DEFAULTS["mlp_lr"], progress=None, command_line=None,
           write_preview=True) -> Path:
-    """Train and write the asset folder; returns it."""
+    """Train and write the asset folder; returns it. `device`: a torch.device or a --device spelling
+    (auto, cpu, cuda, cuda:N)."""
     from inshade.progress import progress as progress_bar
 
+    device = resolve_device(device) if isinstance(device, str) else torch.device(device)
     if config not in CONFIGS:
         raise TrainError(f"--config: unknown {config!r} (choose from {', '.join(CONFIGS)})")
     p = PRESETS[preset]
@@ -195,7 +198,6 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     levels = levels or choose_levels(len(faces), tex_res * tex_res)
     table_size = table_size or choose_table_size(CONFIGS[config] * ref_bytes, levels, features)
     torch.manual_seed(seed)
-    device = torch.device(device)
     graph = material_graph(mesh.vertices, faces, levels=levels, table_size=table_size, features=features,
                            hidden=hidden, seed=seed).to(device)
     sampler = SurfaceSampler(mesh)
@@ -320,8 +322,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
                         help="ship: what built trained/uvfree_material_*; quick: 64^2 textures, seconds "
                         "(default: %(default)s)")
-    parser.add_argument("--device", default=DEFAULTS["device"], help="torch device: cpu, cuda, cuda:1 ... "
-                        "(default: %(default)s)")
+    add_device_argument(parser, DEFAULTS["device"])
     parser.add_argument("--out", help="asset folder (default: trained/uvfree_material_<object>_<config>)")
     parser.add_argument("--resolution", type=int, help="procedural texture side, a power of two (default: the preset's)")
     parser.add_argument("--steps", type=int, help="training steps (default: the preset's)")
@@ -349,8 +350,7 @@ def _widths(text: str) -> tuple[int, ...]:
 
 
 def run(args: argparse.Namespace, argv=None) -> int:
-    if args.device.startswith("cuda") and not torch.cuda.is_available():
-        raise TrainError(f"--device {args.device}: this torch build has no CUDA device")
+    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     for name in ("steps", "batch", "levels", "table_size"):
         v = getattr(args, name)
         if v is not None and v < (0 if name == "steps" else 1):
@@ -362,7 +362,7 @@ def run(args: argparse.Namespace, argv=None) -> int:
                 preset=args.preset, out=args.out, resolution=args.resolution, steps=args.steps, batch=args.batch,
                 levels=args.levels, table_size=args.table_size, features=args.features,
                 hidden=_widths(args.hidden) if args.hidden else None,
-                seed=args.seed, device=args.device,
+                seed=args.seed, device=device,
                 command_line=command_line, write_preview=not args.no_preview)
     m = json.loads((out / "metrics.json").read_text())
     q, mem = m["torch_quality"], m["memory"]
@@ -377,4 +377,4 @@ def main(argv=None) -> int:
     from inshade.mesh_topology import MeshTopologyError
 
     return command.main(f"inshade train {KIND}", __doc__, add_arguments, run, argv,
-                        errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError))
+                        errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError, DeviceError))
