@@ -41,8 +41,12 @@ over the ball pixels in the display domain -- linear radiance clamped to [0, 1],
 peak 1; for Disney one row per artist parameter swept 0 -> 1 with the others at brdf.DEFAULTS, and
 the minimum over the row is reported. For GGX the row sweeps alpha_h.
 
-    inshade train di_brdf ggx -o trained/di_brdf_ggx
-    inshade train di_brdf disney -o trained/di_brdf_disney --steps 300 --batch 2048
+    inshade train di_brdf ggx -o trained/di_brdf_ggx --preset ship
+    inshade train di_brdf disney -o trained/di_brdf_disney --preset ship
+
+``--preset ship`` (the default) is exactly what built the shipped assets (PRESETS; Disney: 300 steps at
+batch 2048); ``quick`` is a short run. Options given explicitly override the preset; OUT/metrics.json
+records the preset and the resolved settings.
 """
 from __future__ import annotations
 
@@ -89,6 +93,12 @@ GGX_FUNCTION_WEIGHT = 1e-3
 GGX_INIT_CAP = 2.0
 GGX_CASCADED_INIT = "clamped_d"
 DISNEY_DEFAULTS = dict(steps=400, batch=4096, lr=3e-3, schedule="cosine", seed=0, samples=1 << 17)
+# --preset, per BRDF: "ship" is what built trained/di_brdf_<which> (GGX: GGX_DEFAULTS; Disney: 300
+# steps at batch 2048, not DISNEY_DEFAULTS' 400 x 4096); "quick" a short run.
+PRESETS = {"ship": {"ggx": dict(steps=8000, batch=4096, lr=2e-2, seed=0),
+                    "disney": dict(steps=300, batch=2048, lr=3e-3, samples=1 << 17, seed=0)},
+           "quick": {"ggx": dict(steps=500, batch=4096, lr=2e-2, seed=0),
+                     "disney": dict(steps=60, batch=2048, lr=3e-3, samples=1 << 15, seed=0)}}
 ENCODER_SIZE = 64
 DECODER_SIZE = 16
 SWEEP_COLUMNS = 8
@@ -101,9 +111,15 @@ class BrdfTrainingError(ValueError):
     """A setting the BRDF trainer cannot use."""
 
 
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to for the asset folder ``asset`` (di_brdf_ggx or
+    di_brdf_disney; default ggx)."""
+    which = asset.removeprefix("di_brdf_") if asset else "ggx"
+    return {"which": which, **PRESETS[preset][which]}
+
+
 # =============================================================================================
 # GGX
-
 def ggx_sampler(batch: int, seed: int = 0, device=None):
     """Endless ((alpha_h, h_z), D) batches: h_z of a cosine-hemisphere direction, alpha_h exponential-like.
     Drawn on a seeded CPU generator (the same numbers on every device), D computed on `device`."""
@@ -759,11 +775,13 @@ def _save_encoders(model: DisneyDI, path: Path):
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("which", choices=("ggx", "disney"), help="which learned BRDF to build")
     p.add_argument("-o", "--out", required=True, help="asset folder to write")
-    p.add_argument("--steps", type=int, help="training steps (default: ggx %d, disney %d)"
-                   % (GGX_DEFAULTS["steps"], DISNEY_DEFAULTS["steps"]))
-    p.add_argument("--batch", type=int, help="samples per step (default 4096)")
-    p.add_argument("--lr", type=float, help="Adam learning rate")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--preset", choices=sorted(PRESETS), default="ship",
+                   help="ship: exactly what built trained/di_brdf_<which>; quick: a short run; options given "
+                        "explicitly override it (default %(default)s)")
+    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
+    p.add_argument("--batch", type=int, help="samples per step (default: the preset's)")
+    p.add_argument("--lr", type=float, help="Adam learning rate (default: the preset's)")
+    p.add_argument("--seed", type=int, help="random seed (default: the preset's, 0)")
     p.add_argument("--no-gl", action="store_true", help="skip the shader-rendered PSNR (no GL context)")
     add_device_argument(p)
     return p
@@ -771,17 +789,24 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    d = GGX_DEFAULTS if args.which == "ggx" else DISNEY_DEFAULTS
-    steps = d["steps"] if args.steps is None else args.steps
-    batch = d["batch"] if args.batch is None else args.batch
-    lr = d["lr"] if args.lr is None else args.lr
+    # explicit option > the preset's value
+    settings = {"which": args.which, **PRESETS[args.preset][args.which]}
+    for k in ("steps", "batch", "lr", "seed"):
+        if getattr(args, k) is not None:
+            settings[k] = getattr(args, k)
+    steps, batch, lr = settings["steps"], settings["batch"], settings["lr"]
     if steps < 0 or batch < 1 or not lr > 0:
         raise BrdfTrainingError("--steps must be >= 0, --batch >= 1 and --lr > 0")
     argv = list(sys.argv[1:] if argv is None else argv)
     command = shlex.join(["inshade", "train", "di_brdf", *argv])
+    kw = {k: v for k, v in settings.items() if k != "which"}
     build = build_ggx if args.which == "ggx" else build_disney
-    m = build(args.out, steps=steps, batch=batch, lr=lr, seed=args.seed, command=command,
-              gl_metrics=not args.no_gl, device=device)
+    m = build(args.out, **kw, command=command, gl_metrics=not args.no_gl, device=device)
+    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
+    # assets' equal to preset_settings("ship", asset)) and the bundle's metrics without the loss history
+    atomic_write(Path(args.out) / "metrics.json",
+                 json.dumps({"command": command, "preset": args.preset, "settings": settings,
+                             **{k: v for k, v in m.items() if k != "history"}}, indent=1) + "\n")
     if args.which == "ggx":
         print(f"wrote {args.out}: GGX ball PSNR all pixels {m['psnr_balls_all_pixels']:.2f} dB, "
               f"mean {m['psnr_balls_mean']:.2f} dB (min {m['psnr_balls_min']:.2f}), "

@@ -38,7 +38,9 @@ values (filtering happens on the encoded values, as for an RGB8 texture); the gr
     result = fp.train_sampler(image, ratio=6)
     fp.write_asset(result, "/tmp/di_assets/di_footprint")
 
-Command: ``inshade train di_footprint --out DIR``.
+Command: ``inshade train di_footprint --out DIR [--preset quick|ship]``. ``--preset ship`` is exactly
+what built trained/di_footprint (3000 steps); ``quick`` (the default) trains 1500; DIR/metrics.json
+records the preset and the resolved settings.
 """
 from __future__ import annotations
 
@@ -74,6 +76,16 @@ MIN_SIZE = 8
 MODES = {"di": 0, "trilinear": 1, "anisotropic": 2, "bilinear": 3, "explicit_lod": 4}
 DEFAULTS = dict(image="skimage:astronaut", size=256, ratio=6.0, n_cascaded=8, steps=1500, lr=1e-2,
                 batch=16384, schedule="cosine", seed=0, threads=1)
+# --preset: "ship" is what built trained/di_footprint; "quick" keeps the 1500-step default.
+PRESETS = {"quick": dict(steps=1500), "ship": dict(steps=3000)}
+SETTINGS = ("image", "size", "ratio", "n_cascaded", "steps", "lr", "batch", "schedule", "seed")
+
+
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
+    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
+
+
 # threads = 1: on the shared 2-core machines torch's intra-op threads spin against each other and
 # against other processes; one thread measured ~10x faster per step (0.045 s vs 0.46 s at load 4).
 
@@ -549,7 +561,10 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, default=d["size"], help="centre-crop and resize to SIZE^2, a power of two")
     p.add_argument("--ratio", type=float, default=d["ratio"], help="compression vs the RGB8 base level")
     p.add_argument("--n-cascaded", type=int, default=d["n_cascaded"], help="N_c (multiple of 4)")
-    p.add_argument("--steps", type=int, default=d["steps"])
+    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
+                   help="ship: exactly what built trained/di_footprint (3000 steps); quick: 1500 steps; "
+                        "options given explicitly override it (default %(default)s)")
+    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
     p.add_argument("--lr", type=float, default=d["lr"])
     p.add_argument("--batch", type=int, default=d["batch"])
     p.add_argument("--schedule", choices=sorted(di.SCHEDULES), default=d["schedule"])
@@ -562,6 +577,8 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+    if args.steps is None:
+        args.steps = PRESETS[args.preset]["steps"]
     if args.steps < 0 or args.batch < 1:
         raise FootprintError("--steps must be >= 0 and --batch >= 1")
     image, notes, source = load_texture(args.image, args.size)
@@ -575,6 +592,12 @@ def run(args, argv=None) -> int:
                            provenance={"command": command, "image": source, "image_notes": notes})
     out = write_asset(result, args.out, args.title)
     m = result.metrics
+    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
+    # asset's equal to preset_settings("ship")) and the bundle's metrics without the loss history
+    settings = {k: getattr(args, k) for k in SETTINGS}
+    atomic_write(out / "metrics.json", json.dumps({"command": command, "preset": args.preset, "settings": settings,
+                                                   **{k: v for k, v in m.items() if k != "history"}},
+                                                  indent=1) + "\n")
     print(f"wrote {out}: {m['bytes']} bytes ({m['ratio_vs_base']:.2f}x vs RGB8, {m['ratio_vs_mip_chain']:.2f}x vs "
           f"RGB8 + mips; N_p0 {m['n_primary']}, N_p1 {m['n_footprint']}, N_c {m['n_cascaded']}, N_lod {m['n_lod']}), "
           f"held-out PSNR vs emulated trilinear {m['psnr_heldout']:.2f} dB (8-bit arrays), {m['train_seconds']:.1f} s")

@@ -18,7 +18,9 @@ textures of the same lanes, so the side-by-side view isolates the compression.
   scene.json, preview.png and metrics.json (per-lane-group quality of the GLSL-decoded set,
   ASTC on the same two RGBA textures, and the rendered torus DI vs uncompressed).
 
-Command: ``inshade train di_pbr_set -o trained/di_pbr_set_bricks`` (``--help`` for options).
+Command: ``inshade train di_pbr_set -o trained/di_pbr_set_bricks [--preset quick|ship]`` (``--help`` for
+options). ``--preset ship`` is exactly what built trained/di_pbr_set_bricks; ``quick`` (the default) trains
+3000 steps. metrics.json records the preset and the resolved settings.
 """
 from __future__ import annotations
 
@@ -55,7 +57,15 @@ VIEWS = ("uncompressed", "di", "split")      # u_pbr_view index
 # all lanes 27.67 vs 27.50 dB), unlike on RGB images (techniques/di_texture/train.py FINISH_OPTIMIZERS)
 DEFAULTS = dict(size=256, ratio=6.0, steps=3000, lr=1e-2, batch=16384, seed=0, render=256, lights=2,
                 finish_optimizer="adam")
+# --preset: "ship" is what built trained/di_pbr_set_bricks; "quick" keeps the 3000-step default.
+PRESETS = {"quick": dict(steps=3000), "ship": dict(steps=12000)}
+SETTINGS = ("size", "ratio", "steps", "lr", "batch", "seed", "finish_optimizer")
 ASTC_BLOCKS = (4, 5, 6, 8)
+
+
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
+    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
 
 
 class PbrSetError(ValueError):
@@ -401,7 +411,8 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
           lr: float = DEFAULTS["lr"], batch: int = DEFAULTS["batch"], seed: int = DEFAULTS["seed"],
           render: int = DEFAULTS["render"], lights: int = DEFAULTS["lights"], recipe: Bricks = Bricks(),
           finish_optimizer: str = DEFAULTS["finish_optimizer"],
-          gl_metrics: bool = True, command: str | None = None, progress: bool | None = None, device=None) -> dict:
+          gl_metrics: bool = True, command: str | None = None, progress: bool | None = None, device=None,
+          preset: str | None = None) -> dict:
     """Write the asset folder; returns its metrics. `device`: where the DI training runs (default the CPU)."""
     from PIL import Image
 
@@ -449,6 +460,11 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
         metrics["gl_renderer"] = gl_info(shared_context())["renderer"]
         write_png(out / "preview.png", views["split"][..., :3])
     metrics["command"] = command
+    # the preset and the settings it resolved to (tests/test_presets.py holds the shipped asset's
+    # equal to preset_settings("ship"))
+    metrics["preset"] = preset
+    metrics["settings"] = dict(size=size, ratio=ratio, steps=steps, lr=lr, batch=batch, seed=seed,
+                               finish_optimizer=finish_optimizer)
     metrics["device"] = str(torch.device("cpu") if device is None else torch.device(device))
     metrics["date_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
@@ -465,7 +481,10 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, default=d["size"], help="texture side in texels (default %(default)s)")
     p.add_argument("--ratio", type=float, default=d["ratio"], help="compression ratio vs 8 lanes x 8 bit "
                    "(default %(default)s)")
-    p.add_argument("--steps", type=int, default=d["steps"], help="training steps (default %(default)s)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
+                   help="ship: exactly what built trained/di_pbr_set_bricks (12000 steps); quick: 3000 steps; "
+                        "options given explicitly override it (default %(default)s)")
+    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
     p.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default %(default)s)")
     p.add_argument("--batch", type=int, default=d["batch"], help="samples per step (default %(default)s)")
     p.add_argument("--seed", type=int, default=d["seed"])
@@ -481,12 +500,14 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+    if args.steps is None:
+        args.steps = PRESETS[args.preset]["steps"]
     if args.steps < 0 or args.batch < 1:
         raise PbrSetError("--steps must be >= 0 and --batch >= 1")
     argv = list(sys.argv[1:] if argv is None else argv)
     m = build(args.out, size=args.size, ratio=args.ratio, steps=args.steps, lr=args.lr, batch=args.batch,
               seed=args.seed, render=args.render, lights=args.lights, finish_optimizer=args.finish_optimizer,
-              gl_metrics=not args.no_gl, device=device,
+              gl_metrics=not args.no_gl, device=device, preset=args.preset,
               command=shlex.join(["inshade", "train", "di_pbr_set", *argv]))
     t = m["texture"]
     q = m.get("di_glsl_exact", m["di_torch"])

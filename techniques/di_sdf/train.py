@@ -34,9 +34,12 @@ identity ramp. L1 loss, Adam with a cosine schedule, the primary's half-cell gra
     result = fit(load_mesh("bunny.ply"), budget_bytes=64 * 1024)
     result.bundle.save("trained/di_sdf")
 
-Command: ``inshade train di_sdf --mesh PATH --budget-kb 64 --steps 1500 --out DIR [--device auto|cpu|cuda[:N]]``
-(writes the bundle, scene.json and preview.png). The cascade trains on the device; the signed
-distances (scipy, embree), the metrics, the export and the preview run on the CPU.
+Command: ``inshade train di_sdf [--mesh PATH] [--preset quick|ship] --budget-kb 64 --out DIR
+[--device auto|cpu|cuda[:N]]`` (writes the bundle, scene.json, metrics.json and preview.png). The cascade
+trains on the device; the signed distances (scipy, embree), the metrics, the export and the preview run on
+the CPU. ``--preset ship`` without ``--mesh`` is exactly what built trained/di_sdf (3000 steps on the
+procedural rabbit); ``quick``, the default, trains 1500 steps; metrics.json records the preset and the
+resolved settings.
 """
 from __future__ import annotations
 
@@ -58,6 +61,7 @@ from inshade.files import atomic_write
 from inshade import command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.lit_settings import lit_settings
+from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH
 
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
@@ -76,9 +80,17 @@ RENDER_PROGRAM = "passes/sdf_diffuse.frag"
 DEFAULTS = dict(budget_kb=64.0, rho=2.0, truncation=0.1, steps=1500, lr=1e-2, batch=16384, schedule="cosine",
                 samples=400_000, uniform_fraction=0.25, near_sigmas=(0.005, 0.02, 0.05), margin=1.1, seed=0,
                 clip_primary="auto", monotonicity=0.2)
+# --preset: "ship" is what built trained/di_sdf; "quick" keeps the 1500-step default.
+PRESETS = {"quick": dict(steps=1500), "ship": dict(steps=3000)}
+SETTINGS = ("budget_kb", "rho", "truncation", "steps", "lr", "batch", "samples", "schedule", "monotonicity", "seed")
 ALBEDO = (0.8, 0.8, 0.8)
 KNN = 8                     # candidate faces per query point (from the k nearest surface samples)
 SURFACE_SAMPLES = 200_000   # dense surface sample for the distance queries
+
+
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
+    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
 
 
 class DiSdfError(ValueError):
@@ -537,13 +549,17 @@ def write_asset(result: Result, out, title: str, lut_filter: str = "exact", prev
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
-    p.add_argument("--mesh", required=True, help="closed triangle mesh (PLY/OBJ/STL/GLB ...)")
+    p.add_argument("--mesh", help="closed triangle mesh (PLY/OBJ/STL/GLB ...; default: the procedural rabbit, "
+                   f"generated into {DEFAULT_MESH}, the shipped asset's)")
     p.add_argument("--out", "-o", required=True, help="asset folder to write (e.g. trained/di_sdf)")
     p.add_argument("--budget-kb", type=float, default=d["budget_kb"], help="bytes of 8-bit cells, KiB (default %(default)s)")
     p.add_argument("--rho", type=float, default=d["rho"], help="N_p / N_c (default %(default)s)")
     p.add_argument("--truncation", type=float, default=d["truncation"],
                    help="truncation band, fraction of the bound radius (default %(default)s)")
-    p.add_argument("--steps", type=int, default=d["steps"], help="training steps (default %(default)s)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
+                   help="ship: exactly what built trained/di_sdf (3000 steps); quick: 1500 steps; "
+                        "options given explicitly override it (default %(default)s)")
+    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
     p.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default %(default)s)")
     p.add_argument("--batch", type=int, default=d["batch"], help="samples per step (default %(default)s)")
     p.add_argument("--samples", type=int, default=d["samples"], help="training samples (default %(default)s)")
@@ -559,16 +575,30 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
+    if args.steps is None:
+        args.steps = PRESETS[args.preset]["steps"]
+    if args.mesh is None:     # the procedural rabbit (deterministic), as neural_sdf does
+        from inshade.mesh import write_bunny
+
+        args.mesh = str(DEFAULT_MESH if DEFAULT_MESH.is_file() else write_bunny(DEFAULT_MESH))
     mesh = load_mesh(args.mesh)
     argv = list(sys.argv[1:] if argv is None else argv)
     name = Path(args.out).name
+    provenance_command = shlex.join(["inshade", "train", "di_sdf", *argv])
     result = fit(mesh, args.budget_kb * 1024, rho=args.rho, truncation=args.truncation, steps=args.steps, lr=args.lr,
                  batch=args.batch, samples=args.samples, schedule=args.schedule, seed=args.seed, name=name,
                  monotonicity=args.monotonicity, device=device,
-                 provenance={"command": shlex.join(["inshade", "train", "di_sdf", *argv]), "mesh": str(args.mesh)})
+                 provenance={"command": provenance_command, "mesh": str(args.mesh)})
     title = args.title or f"DI-SDF: {Path(args.mesh).name}, {result.metrics['bytes'] / 1024:.1f} KiB"
     out = write_asset(result, args.out, title, args.lut_filter)
     m = result.metrics
+    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
+    # asset's equal to preset_settings("ship")) and the bundle's metrics without the loss history
+    settings = {k: getattr(args, k) for k in SETTINGS}
+    atomic_write(out / "metrics.json", json.dumps({"command": provenance_command, "preset": args.preset,
+                                                   "settings": settings,
+                                                   **{k: v for k, v in m.items() if k != "history"}},
+                                                  indent=1) + "\n")
     print(f"wrote {out}: {m['bytes']} bytes (N_p {m['n_primary']}, N_c {m['n_cascaded']}), surface MAE "
           f"{m['surface_mae_per_radius']:.2e} radius, IoU {m['iou']:.4f}, normals {m['normal_deg_mean']:.2f} deg, "
           f"samples {m['sample_seconds']:.1f} s, training {m['train_seconds']:.1f} s")

@@ -114,15 +114,15 @@ def bc_entries(img8: np.ndarray, flip: bool) -> list[dict]:
 # DI
 
 def di_bundles(name: str, image: np.ndarray, args) -> list[tuple[object, str]]:
-    """(bundle, origin) for each DI texture of this image: the shipped assets (``di_<image>`` and
-    ``di_<image>_*``, e.g. ``di_texture_astronaut_12x``) that match the size, and one trained here for
+    """(bundle, origin) for each DI texture of this image: the shipped assets (``di_texture_<image>`` and
+    ``di_texture_<image>_*``, e.g. ``di_texture_astronaut_12x``) that match the size, and one trained here for
     each extra ratio."""
     from inshade import bundle as bundle_mod
     from inshade.techniques.di_texture import train as tc
 
     found = []
     root = Path(args.assets) if args.assets else None
-    folders = sorted([root / f"di_{name}", *root.glob(f"di_{name}_*")]) if root is not None else []
+    folders = sorted([root / f"di_texture_{name}", *root.glob(f"di_texture_{name}_*")]) if root is not None else []
     for folder in folders:
         if not (folder / "bundle.json").is_file():
             continue

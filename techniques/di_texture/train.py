@@ -29,8 +29,10 @@ Orientation follows techniques/neural_image/train.py: uv (0, 0) is the bottom-le
     result = compress(image, ratio=6)
     result.bundle.save("trained/di_texture_astronaut")
 
-Command: ``inshade train di_texture IMAGE --ratio 6 -o trained/di_texture_<name>`` (IMAGE a file or
-``skimage:NAME``; ``inshade compress`` is the same command).
+Command: ``inshade train di_texture IMAGE --ratio 6 [--preset quick|ship] -o trained/di_texture_<name>``
+(IMAGE a file or ``skimage:NAME``; ``inshade compress`` is the same command). ``--preset ship`` with a
+shipped asset's IMAGE, ``--size`` and ``--ratio`` (SHIP_ASSETS) is exactly what built it; OUT/metrics.json
+records the preset and the resolved settings.
 """
 from __future__ import annotations
 
@@ -64,12 +66,18 @@ DECODE_TABLE_SIZE = 256
 RENDER_PROGRAM = "passes/field2d.frag"
 # Training lengths: "quick" runs in a couple of minutes on one CPU thread; "ship" is what the
 # trained/ assets use (12000 steps, ~10 min a 256^2 texture on one thread of the 2-core machine).
-PRESETS = {"quick": 1500, "ship": 12000}
+PRESETS = {"quick": dict(steps=1500), "ship": dict(steps=12000)}
+# The inputs of each shipped asset (IMAGE, --size, --ratio beside --preset ship): preset_settings() adds them.
+SHIP_ASSETS = {"di_texture_astronaut": dict(image="skimage:astronaut", size=256, ratio=6.0),
+               "di_texture_astronaut_12x": dict(image="skimage:astronaut", size=256, ratio=12.0),
+               "di_texture_chelsea": dict(image="skimage:chelsea", size=256, ratio=6.0),
+               "di_texture_coffee": dict(image="skimage:coffee", size=256, ratio=6.0)}
+SETTINGS = ("image", "size", "ratio", "rho", "steps", "lr", "batch", "schedule", "finish", "finish_optimizer", "seed")
 # Chosen by measurement on astronaut 256x256 at 6x on the shared 2-core CPU (see
 # docs in the report of `inshade bench di_texture`): lr 1e-2 with cosine decay reaches in ~2 min what
 # 1e-3 does not reach in 10; batch 16384 stratified samples (4 batches an epoch at 256^2).
-DEFAULTS = dict(ratio=6.0, rho=None, steps=PRESETS["quick"], lr=1e-2, batch=16384, schedule="cosine", seed=0,
-                clip_primary=None, finish=0.5, finish_optimizer="lbfgs")
+DEFAULTS = dict(ratio=6.0, rho=None, steps=PRESETS["quick"]["steps"], lr=1e-2, batch=16384, schedule="cosine",
+                seed=0,                 clip_primary=None, finish=0.5, finish_optimizer="lbfgs")
 # The finish phase's optimiser. "adam": the same minibatch Adam and schedule on texel-centre
 # batches. "lbfgs": the Adam phase (schedule over its own steps) is followed by full-batch L-BFGS
 # on all texel centres, given the same number of samples as the Adam finish would see
@@ -89,6 +97,13 @@ RHO_SMALLEST_CASCADE = None
 
 class CompressionError(ValueError):
     """An image or a setting the compressor cannot use; the message says what to change."""
+
+
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to (what metrics.json records as "settings") for the
+    shipped asset folder name ``asset`` (its image, size and ratio; None: no image, the default ratio)."""
+    inputs = SHIP_ASSETS[asset] if asset else dict(image=None, size=None)
+    return {k: inputs.get(k, PRESETS[preset].get(k, DEFAULTS.get(k))) for k in SETTINGS}
 
 
 def on_device(batches, device):
@@ -489,8 +504,9 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--rho", type=float, default=None,
                    help="N_p / N_c (default: largest primary next to an N_c = 4 cascaded array)")
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="training length: " + ", ".join(f"{k} = {v} steps" for k, v in PRESETS.items())
-                        + " (default %(default)s)")
+                   help="training length: " + ", ".join(f"{k} = {v['steps']} steps" for k, v in PRESETS.items())
+                        + "; ship with IMAGE, --size and --ratio of a shipped asset is exactly what built it "
+                        "(README) (default %(default)s)")
     p.add_argument("--steps", type=int, help="training steps (overrides --preset)")
     p.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default %(default)s)")
     p.add_argument("--batch", type=int, default=d["batch"], help="samples per step (default %(default)s)")
@@ -513,7 +529,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     if args.steps is None:
-        args.steps = PRESETS[args.preset]
+        args.steps = PRESETS[args.preset]["steps"]
     if args.steps < 0 or args.batch < 1:
         raise CompressionError("--steps must be >= 0 and --batch >= 1")
     image, notes, source = load_image(args.image, args.size)
@@ -530,6 +546,12 @@ def run(args, argv=None) -> int:
     title = args.title or f"DI texture: {source}, {result.metrics['ratio']:.2f}x"
     out = write_asset(result, args.out, title, args.lut_filter)
     m = result.metrics
+    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
+    # assets' equal to preset_settings("ship", asset)) and the bundle's metrics without the loss history
+    settings = {k: getattr(args, k) for k in SETTINGS}
+    atomic_write(out / "metrics.json", json.dumps({"command": command, "preset": args.preset, "settings": settings,
+                                                   **{k: v for k, v in m.items() if k != "history"}},
+                                                  indent=1) + "\n")
     gl = (f", GLSL exact {m['psnr_srgb8_glsl_exact']:.2f} dB / fast {m['psnr_srgb8_glsl_fast']:.2f} dB"
           if "psnr_srgb8_glsl_exact" in m else "")
     print(f"wrote {out}: {m['ratio']:.2f}x ({m['bytes']} bytes, N_p {m['n_primary']}, N_c {m['n_cascaded']}), "

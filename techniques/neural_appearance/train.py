@@ -63,6 +63,18 @@ MATERIALS = ("ceramic", "brushed_metal")
 CHECKPOINT = "checkpoint.safetensors"
 
 
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to (what metrics.json records as "settings"), for the
+    material of the asset folder ``asset`` (``neural_appearance_<material>``; default ceramic)."""
+    material = asset.removeprefix("neural_appearance_") if asset else DEFAULTS["material"]
+    p = PRESETS[preset]
+    return dict(material=material, resolution=p["resolution"], steps1=p["steps1"], steps2=p["steps2"],
+                batch=p["batch"], sampler_batch=p["sampler_batch"], sampler_samples=p["sampler_samples"],
+                footprint_samples=p["footprint_samples"], seed=DEFAULTS["seed"], lr=DEFAULTS["lr"],
+                latent_lr=DEFAULTS["latent_lr"], level_scale=DEFAULTS["level_scale"],
+                mollify_degrees=DEFAULTS["mollify_degrees"])
+
+
 # ---------------------------------------------------------------------------------------------
 # samples
 
@@ -400,8 +412,10 @@ def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, history, sec
     write_textures(mat, raw.shape[0], out)
     atomic_write(out / "material.json", Path(mat.path).read_bytes())
     atomic_write(out / "scene.json", json.dumps(scene_description(mat, out.name), indent=2) + "\n")
-    metrics = {"command": command_line, "preset": preset, "train_seconds": round(seconds, 1),
-               "train_threads": torch.get_num_threads(), "device": str(device),
+    # "settings": what the run resolved (preset + explicit options); tests/test_presets.py holds the
+    # shipped ones equal to preset_settings("ship", asset)
+    metrics = {"command": command_line, "preset": preset, "settings": config,
+               "train_seconds": round(seconds, 1), "train_threads": torch.get_num_threads(), "device": str(device),
                "bundle_bytes": sizes, "history": history}
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
 

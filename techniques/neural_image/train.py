@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import math
 import shlex
 import time
@@ -36,6 +37,7 @@ import numpy as np
 import torch
 
 from inshade import command
+from inshade.files import atomic_write
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
 from inshade.models import activations as _act
@@ -69,6 +71,26 @@ PRESETS = {
 DEFAULTS = dict(out="trained/neural_image", image="astronaut", size=256, seed=0, n_freqs=8,
                 omega0=30.0, lr=None, grid_lr=1e-2, preset="ship", **PRESETS["ship"])
 RENDER_PROGRAM = "passes/field2d.frag"
+SETTINGS = ("image", "size", "steps", "seed", "arch", "width", "depth", "n_freqs", "omega0", "output_activation",
+            "lr", "batch", "levels", "grid_bits", "grid_lr")
+
+
+def settings_of(*, image, size, steps, seed, arch, width, depth, n_freqs, omega0, output_activation, lr, batch,
+                levels, grid_bits, grid_lr) -> dict:
+    """The settings metrics.json records: those the architecture uses, lr resolved as fit() does."""
+    multires = arch == "multires"
+    s = dict(image=image, size=size, steps=steps, seed=seed, arch=arch, width=width, depth=depth,
+             n_freqs=n_freqs if arch == "frequency_relu" else None, omega0=omega0 if arch == "siren" else None,
+             output_activation=output_activation,
+             lr=lr if lr is not None else (3e-4 if arch == "siren" else 2e-3), batch=batch,
+             levels=levels if multires else None, grid_bits=grid_bits if multires else None,
+             grid_lr=grid_lr if multires else None)
+    return {k: v for k, v in s.items() if v is not None}
+
+
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
+    return settings_of(**{k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -314,6 +336,13 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
     bundle.meta["metrics"] = metrics
     out = Path(out)
     bundle.save(out)
+    # metrics.json: the bundle's metrics plus the preset and the settings it resolved to
+    # (tests/test_presets.py holds the shipped asset's equal to preset_settings("ship"))
+    settings = settings_of(image=image, size=size, steps=steps, seed=seed, arch=arch, width=width, depth=depth,
+                           n_freqs=n_freqs, omega0=omega0, output_activation=output_activation, lr=lr,
+                           batch=batch, levels=levels, grid_bits=grid_bits, grid_lr=grid_lr)
+    atomic_write(out / "metrics.json", json.dumps({"command": provenance["command"], "preset": preset,
+                                                   "settings": settings, **metrics}, indent=1) + "\n")
     if write_images:
         from inshade.runtime.image_io import write_png
 

@@ -33,9 +33,11 @@ Metrics (held out, world units and relative to the radius): mean |network| on su
 mean |d error| on near-surface and uniform samples, inside/outside IoU on uniform samples, and a
 symmetric Chamfer distance between marching cubes of the network (64^3) and the mesh.
 
-Command: ``inshade train neural_sdf --mesh PATH --out DIR [--width 32 --layers 3 --steps 3000]
-[--device auto|cpu|cuda[:N]]`` (the fit runs on the device; the signed distances come from the
-mesh on the CPU, and evaluation and export run on the CPU).
+Command: ``inshade train neural_sdf --mesh PATH --out DIR [--preset quick|ship] [--width 32 --layers 3
+--steps 3000] [--device auto|cpu|cuda[:N]]`` (the fit runs on the device; the signed distances come from the
+mesh on the CPU, and evaluation and export run on the CPU). ``--preset ship`` (the default) is what built
+the shipped network SDF (trained/prt_neural_bunny/sdf) from the default mesh; OUT/metrics.json records
+the preset and the resolved settings.
 Without ``--mesh``, the procedural rabbit
 (inshade.mesh.bunny) is generated into /tmp/inshade_mesh/bunny.ply first.
 """
@@ -43,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import math
 import shlex
 import sys
@@ -54,6 +57,7 @@ import torch
 
 from inshade import command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
+from inshade.files import atomic_write
 from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH, bounding_sphere, load_mesh
 from inshade.sdf import f32
 
@@ -69,6 +73,17 @@ ACTIVATIONS = ("softplus", "relu", "leaky_relu", "tanh")
 DEFAULTS = dict(out="/tmp/inshade_neural_sdf", mesh=None, width=32, layers=3, freqs=0, activation="softplus",
                 steps=3000, batch=8192, lr=2e-3, samples=300_000, seed=0, lipschitz_target=4.0,
                 lipschitz_weight=0.05, hit_eps=1e-3, threads=1)
+# --preset: "ship" is what built the shipped network SDF (trained/prt_neural_bunny/sdf, on the
+# procedural rabbit) -- the defaults above; "quick" is a small fit for a smoke run (seconds).
+PRESETS = {"ship": dict(steps=3000, samples=300_000, batch=8192),
+           "quick": dict(steps=100, samples=10_000, batch=4096)}
+SETTINGS = ("width", "layers", "freqs", "activation", "steps", "batch", "lr", "samples", "seed",
+            "lipschitz_target", "lipschitz_weight")
+
+
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to with no other option (one recipe: ``asset`` is ignored)."""
+    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -338,7 +353,7 @@ def train(*, out=DEFAULTS["out"], mesh=None, width=DEFAULTS["width"], layers=DEF
           lipschitz_target=DEFAULTS["lipschitz_target"], lipschitz_weight=DEFAULTS["lipschitz_weight"],
           hit_eps=DEFAULTS["hit_eps"], albedo=(0.8, 0.8, 0.8), command: str | None = None,
           progress: bool | None = None, mc_resolution: int = 64, threads: int | None = DEFAULTS["threads"],
-          preview: bool = False, device="cpu"):
+          preview: bool = False, device="cpu", preset: str | None = None):
     """Fit (on ``device``, a torch.device or its name), evaluate and write the bundle into ``out``
     (+ metrics in it). Returns the Bundle.
     ``threads``: torch intra-op threads while fitting (1 by default: on a shared 2-core machine two
@@ -349,13 +364,13 @@ def train(*, out=DEFAULTS["out"], mesh=None, width=DEFAULTS["width"], layers=DEF
     try:
         return _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, samples, seed,
                       lipschitz_target, lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview,
-                      torch.device(device))
+                      torch.device(device), preset)
     finally:
         torch.set_num_threads(previous)
 
 
 def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, samples, seed, lipschitz_target,
-           lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview, device):
+           lipschitz_weight, hit_eps, albedo, command, progress, mc_resolution, preview, device, preset):
     torch.manual_seed(seed)
     if mesh is None:
         from inshade.mesh import write_bunny
@@ -398,12 +413,17 @@ def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, sample
                     f"1/4 uniform in the bound's cube; exact signed distance (point-cloud-utils)",
         "loss": "L1 on distance / radius + lipschitz_weight * relu(log L - log target)",
         "optimizer": "adam, cosine decay to 2%", **{k: v for k, v in kw.items() if k not in ("out", "mesh")},
+        "preset": preset,
         "device": str(device),
         "torch": torch.__version__,
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
     bundle = module.export(KIND, KIND, provenance=provenance, metrics=metrics)
     bundle.save(Path(out))
+    # metrics.json: the bundle's metrics plus the preset and the settings it resolved to
+    settings = {k: kw[k] for k in SETTINGS}
+    atomic_write(Path(out) / "metrics.json", json.dumps({"command": provenance["command"], "preset": preset,
+                                                         "settings": settings, **metrics}, indent=1) + "\n")
     if preview:
         from inshade.runtime.image_io import write_png
 
@@ -459,16 +479,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="watertight OBJ/PLY/GLB (default: the procedural rabbit, generated into "
                              f"{DEFAULT_MESH})")
     parser.add_argument("--out", default=d["out"], help="bundle folder (default: %(default)s)")
+    parser.add_argument("--preset", default="ship", choices=sorted(PRESETS),
+                        help="ship: what built the shipped network SDF (trained/prt_neural_bunny/sdf, with the "
+                             "default mesh); quick: a small fit in seconds; options given explicitly override "
+                             "the preset (default: %(default)s)")
     add_device_argument(parser)
     parser.add_argument("--width", type=int, default=d["width"], help="hidden width (default: %(default)s)")
     parser.add_argument("--layers", type=int, default=d["layers"], help="hidden layers (default: %(default)s)")
     parser.add_argument("--freqs", type=int, default=d["freqs"],
                         help="frequency-encoding octaves, 0 = plain MLP (default: %(default)s)")
     parser.add_argument("--activation", default=d["activation"], choices=ACTIVATIONS, help="(default: %(default)s)")
-    parser.add_argument("--steps", type=int, default=d["steps"], help="optimizer steps (default: %(default)s)")
-    parser.add_argument("--batch", type=int, default=d["batch"], help="points per step (default: %(default)s)")
+    parser.add_argument("--steps", type=int, help="optimizer steps (default: the preset's)")
+    parser.add_argument("--batch", type=int, help="points per step (default: the preset's)")
     parser.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default: %(default)s)")
-    parser.add_argument("--samples", type=int, default=d["samples"], help="training points (default: %(default)s)")
+    parser.add_argument("--samples", type=int, help="training points (default: the preset's)")
     parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
     parser.add_argument("--lipschitz-target", type=float, default=d["lipschitz_target"],
                         help="the penalty starts above this bound (default: %(default)s)")
@@ -486,9 +510,12 @@ def run(args: argparse.Namespace) -> int:
     kw = {k: getattr(args, k) for k in ("out", "mesh", "width", "layers", "freqs", "activation", "steps", "batch",
                                          "lr", "samples", "seed", "lipschitz_target", "lipschitz_weight", "threads",
                                          "preview")}
+    for k, v in PRESETS[args.preset].items():    # explicit option > the preset's value
+        if kw[k] is None:
+            kw[k] = v
     if kw["steps"] < 0 or kw["width"] < 1 or kw["layers"] < 1 or kw["samples"] < 100:
         raise SystemExit("--steps must be >= 0, --width and --layers >= 1, --samples >= 100")
-    bundle = train(**kw, device=device)
+    bundle = train(**kw, device=device, preset=args.preset)
     m = bundle.meta["metrics"]
     print(f"wrote {bundle.path}: surface |d| {m['surface_abs_mean_rel']:.2e} r, IoU {m['iou_uniform']:.4f}, "
           f"Chamfer {m['chamfer_rel']:.2e} r, Lipschitz bound {m['lipschitz_bound']:.2f} -> step_scale "

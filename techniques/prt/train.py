@@ -19,6 +19,16 @@ Steps, all timed and recorded in ``OUT/metrics.json``:
 ``--device auto|cpu|cuda[:N]`` (resolved before anything else): where step 2 runs -- the SDF
 sphere tracing of the transfer rays (mesh rays are embree's, on the CPU) and the network's
 training; the resolved device is recorded in the transfer bundle's provenance and metrics.
+
+``--workers N`` / ``--ray auto|ADDRESS``: where the ground-truth rays of step 2 are baked, shard by
+shard (inshade/bake.py, docs/cluster.md); the data is bit-identical to an in-process bake.
+
+``--preset quick|ship`` (default ship): the settings below, options given explicitly override them.
+``ship`` is exactly what built the shipped assets: an OUT named like one of them (``prt_creature``,
+``prt_mechanical``, ``prt_mesh``, ``prt_neural_bunny``) takes that asset's recipe, any other OUT the
+base recipe. ``metrics.json`` records the preset and the resolved settings.
+
+    inshade train prt --preset ship --sdf trained/prt_creature/sdf.json --out /tmp/prt_creature
 """
 from __future__ import annotations
 
@@ -31,6 +41,7 @@ from pathlib import Path
 
 from inshade.files import atomic_write
 from inshade import command
+from inshade.bake import BakeError, executor_from_args
 from inshade.devices import DeviceError, resolve_device
 from inshade.lit_settings import lit_settings
 
@@ -50,6 +61,49 @@ PRT_SETTINGS = {
     "storage": {"type": "choice", "default": "auto", "choices": ["auto", "inline", "ubo", "texture"],
                 "codegen": "storage", "label": "weight storage"},
 }
+# The recipes (--preset). SHIP_BASE (the trainer's defaults) built prt_mechanical and prt_mesh;
+# SHIP_ASSETS are what each shipped asset's metrics.json "command" records, verbatim.
+SHIP_BASE = dict(width=64, layers=4, points=40000, dirs=128, steps=16000, batch=512, lr=1e-2, pos_freqs=6,
+                 normal_freqs=4, output="tanh", drop_enclosed=False, seed=0, quality_views=30, quality_size=96,
+                 quality_dirs=512, camera_from=None, title="")
+SHIP_ASSETS = {
+    "prt_creature": {**SHIP_BASE, "points": 60000, "dirs": 256, "steps": 6000, "batch": 4096, "lr": 2e-3,
+                     "camera_from": "trained/sdf_creature/scene.json",
+                     "title": "PRT: the creature SDF with a learnt transfer MLP (k=64)"},
+    "prt_mechanical": {**SHIP_BASE, "quality_dirs": 256, "camera_from": "trained/sdf_mechanical/scene.json",
+                       "title": "PRT: the mechanical SDF with a learnt transfer MLP (k=64)"},
+    "prt_mesh": {**SHIP_BASE,
+                 "title": "PRT: a rasterised mesh (procedural bunny) with a learnt transfer MLP (k=64)"},
+    "prt_neural_bunny": {**SHIP_BASE, "points": 20000, "drop_enclosed": True, "quality_dirs": 256, "quality_size": 64,
+                         "title": "PRT: a neural SDF (MLP fitted to the bunny mesh) with a learnt transfer MLP (k=64)"},
+}
+# a few seconds of data and training, a coarse quality check: tests and trying options out
+QUICK = {**SHIP_BASE, "points": 2000, "dirs": 32, "steps": 300, "quality_views": 2, "quality_size": 32,
+         "quality_dirs": 64}
+PRESETS = ("quick", "ship")
+SETTINGS = tuple(SHIP_BASE)
+
+
+def preset_settings(preset: str, name: str) -> dict:
+    """The settings ``--preset`` gives an asset folder called ``name`` (before explicit options)."""
+    if preset == "quick":
+        return dict(QUICK)
+    if preset == "ship":
+        return dict(SHIP_ASSETS.get(name, SHIP_BASE))
+    raise ValueError(f"--preset: expected one of {', '.join(PRESETS)}, got {preset!r}")
+
+
+def resolve_settings(args: argparse.Namespace) -> dict:
+    """Preset values for the options not given; written back into ``args``, returned."""
+    settings = preset_settings(args.preset, Path(args.out).name)
+    for k in SETTINGS:
+        given = getattr(args, k, None)
+        if given is not None:
+            settings[k] = given
+        setattr(args, k, settings[k])
+    return settings
+
+
 PROGRAMS = {"sdf": "passes/sdf_prt.frag", "neural_sdf": "passes/sdf_prt.frag", "mesh": "passes/mesh_prt.frag"}
 PREVIEW_SIZE = 256
 
@@ -57,12 +111,22 @@ PREVIEW_SIZE = 256
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
     transfer_net.add_arguments(parser)
-    parser.add_argument("--title", default="", help="scene title")
-    parser.add_argument("--camera-from", default=None, help="take camera and bookmarks from this scene.json")
-    parser.add_argument("--quality-views", type=int, default=30, help="orbit views of the quality measurement")
-    parser.add_argument("--quality-size", type=int, default=96, help="square size of the quality renders")
-    parser.add_argument("--quality-dirs", type=int, default=512, help="rays per pixel of the ground truth")
+    parser.add_argument("--preset", choices=PRESETS, default="ship",
+                        help="settings: ship = what built the shipped asset OUT is named after (else the base "
+                             "recipe), quick = seconds; options given explicitly override the preset")
+    parser.add_argument("--title", help="scene title (default: the preset's)")
+    parser.add_argument("--camera-from", default=None, help="take camera and bookmarks from this scene.json "
+                                                            "(default: the preset's)")
+    parser.add_argument("--quality-views", type=int, help="orbit views of the quality measurement (default: the preset's)")
+    parser.add_argument("--quality-size", type=int, help="square size of the quality renders (default: the preset's)")
+    parser.add_argument("--quality-dirs", type=int, help="rays per pixel of the ground truth (default: the preset's)")
     parser.add_argument("--skip-train", action="store_true", help="keep OUT/transfer, redo scene/previews/quality")
+    # the preset fills what is not given explicitly (resolve_settings); the help says so
+    parser.set_defaults(**{k: None for k in SETTINGS})
+    for action in parser._actions:
+        if action.dest in SETTINGS:
+            text = (action.help or "").replace(" (default: %(default)s)", "").replace(" (default: the preset's)", "")
+            action.help = text + " (default: the preset's)%(default).0s"
     return parser
 
 
@@ -113,10 +177,13 @@ def run(args: argparse.Namespace) -> int:
     from inshade.runtime.scene import load_scene
 
     resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work (transfer_net uses it)
+    executor_from_args(args)      # a bad --workers / --ray fails before any work too
     kind, src = _geometry(args)
-    # the device is recorded resolved in the transfer bundle's provenance, not in the recipe
-    command = shlex.join(["inshade", "train", "prt"]
-                         + transfer_net.command_options(args, set(vars(args)) - {"func", "command", "device"}))
+    settings = resolve_settings(args)
+    # the device is recorded resolved in the transfer bundle's provenance, not in the recipe; where
+    # the bake ran (--workers, --ray) does not change the data
+    command = shlex.join(["inshade", "train", "prt"] + transfer_net.command_options(
+        args, set(vars(args)) - {"func", "command", "device", "workers", "ray"}))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     times = {}
@@ -155,7 +222,8 @@ def run(args: argparse.Namespace) -> int:
     for mode in ("diffuse", "glossy"):
         quality[mode].pop("views", None)
     bundle = load(out / "transfer")
-    metrics = {"asset": out.name, "geometry": kind, "command": command, "transfer": bundle.meta.get("metrics", {}),
+    metrics = {"asset": out.name, "geometry": kind, "command": command, "preset": args.preset, "settings": settings,
+               "transfer": bundle.meta.get("metrics", {}),
                "provenance": bundle.meta.get("provenance", {}), "quality": quality, **times}
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=1, sort_keys=True) + "\n")
     print(json.dumps({"quality": {m: quality[m] for m in ("diffuse", "glossy")}, **times}, indent=1))
@@ -163,5 +231,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train prt", __doc__, add_arguments, run, argv, errors=(DeviceError,))
+    return command.main("inshade train prt", __doc__, add_arguments, run, argv, errors=(DeviceError, BakeError))
 

@@ -42,10 +42,10 @@ visibility is embree's (CPU) whatever the device.
 from __future__ import annotations
 
 import copy
-import functools
 import hashlib
 import json
 import math
+import shutil
 import time
 import warnings
 from pathlib import Path
@@ -135,6 +135,20 @@ def _project(visible: torch.Tensor, dirs: torch.Tensor) -> torch.Tensor:
     y = sh_basis(dirs, DEGREE, torch)                                       # [N, D, 16]
     v = visible.to(y.dtype)
     return torch.einsum("nd,ndk->nk", v, y) * (math.pi / dirs.shape[1])
+
+
+def _generator(seed: int, start: int, per: int) -> torch.Generator:
+    """The direction generator of an estimate over points ``start:``, chunked ``per`` points at a
+    time: seeded by ``seed`` and advanced past the draws of the ``start`` points before (one
+    ``hemisphere_directions`` draw per chunk, replayed chunk by chunk). A shard that starts on a
+    chunk boundary thus draws exactly what the unsharded estimate draws for its points, whichever
+    worker runs it, and computes the same chunks: sharded results are bit-identical to one run."""
+    if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or start < 0 or start % per:
+        raise TransferError(f"start: must be a multiple of the chunk ({per} points), got {start!r}")
+    gen = torch.Generator().manual_seed(int(seed))
+    for i in range(0, int(start), per):
+        torch.rand(min(per, start - i), 1, 2, generator=gen, dtype=torch.float64)
+    return gen
 
 
 # ---------------------------------------------------------------------------------------------
@@ -302,10 +316,12 @@ def _shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, r
 
 
 def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool | None = False,
-                 max_steps: int | None = None, chunk_rays: int = CHUNK_RAYS, device="cpu") -> torch.Tensor:
+                 max_steps: int | None = None, chunk_rays: int = CHUNK_RAYS, device="cpu",
+                 start: int = 0) -> torch.Tensor:
     """Ground-truth transfer [N, 16] float32 (on the CPU) at points p [N, 3] with normals nrm [N, 3]
     (any points: surface samples or G-buffer hits) of an SDF module, the shadow rays traced on
-    ``device``; see the module docstring."""
+    ``device``; see the module docstring. ``start``: these points follow ``start`` others of the
+    same estimate (a shard, see ``_generator``)."""
     scene = _check_sdf(sdf)
     device = torch.device(device)
     sdf = _on_device(sdf, device)
@@ -317,8 +333,8 @@ def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool |
     offset = OFFSET_EPS * hit_eps
     center = torch.tensor(scene.center, dtype=torch.float32, device=device)
     radius = float(scene.radius)
-    gen = torch.Generator().manual_seed(int(seed))
     per = max(1, chunk_rays // n_dirs)
+    gen = _generator(seed, start, per)
     out = torch.empty(p.shape[0], DEGREE * DEGREE)
     with torch.no_grad(), _bar(p.shape[0] * n_dirs, "transfer (sdf)", progress) as bar:
         for i in range(0, p.shape[0], per):
@@ -352,9 +368,10 @@ def sample_mesh_surface(mesh, n_points: int, seed: int = 0):
 
 
 def mesh_transfer(mesh, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool | None = False,
-                  chunk_rays: int = CHUNK_RAYS) -> torch.Tensor:
+                  chunk_rays: int = CHUNK_RAYS, start: int = 0) -> torch.Tensor:
     """Ground-truth transfer [N, 16] float32 at points p [N, 3] with normals nrm [N, 3] of a
-    trimesh.Trimesh, by ``mesh.ray.intersects_any`` (embree when available)."""
+    trimesh.Trimesh, by ``mesh.ray.intersects_any`` (embree when available). ``start``: as in
+    ``sdf_transfer``."""
     import trimesh
 
     mesh = _check_mesh(mesh)
@@ -364,8 +381,8 @@ def mesh_transfer(mesh, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool
         warnings.warn("embreex is not installed: trimesh falls back to its pure-Python ray caster, "
                       "which is ~100x slower (pip install embreex)", stacklevel=2)
     offset = MESH_OFFSET * float(np.linalg.norm(mesh.extents))
-    gen = torch.Generator().manual_seed(int(seed))
     per = max(1, chunk_rays // n_dirs)
+    gen = _generator(seed, start, per)
     out = torch.empty(p.shape[0], DEGREE * DEGREE)
     with torch.no_grad(), _bar(p.shape[0] * n_dirs, "transfer (mesh)", progress) as bar:
         for i in range(0, p.shape[0], per):
@@ -425,7 +442,8 @@ def geometry_digest(geometry) -> str:
 
 def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, seed: int = 0,
                   progress: bool | None = None, holdout: int | None = None,
-                  holdout_dirs: int = HOLDOUT_DIRS, device="cpu") -> dict:
+                  holdout_dirs: int = HOLDOUT_DIRS, device="cpu", executor=None,
+                  chunk_rays: int = CHUNK_RAYS) -> dict:
     """Surface samples + ground-truth transfer of an SDF module or a trimesh.Trimesh.
 
     Returns {"position" [N, 3], "normal" [N, 3], "transfer" [N, 16] (float32 tensors; the training
@@ -437,7 +455,13 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     "seconds" (sampling + rays), "ray_seconds", "rays" (all, held-out included),
     "rays_per_second", "cached" (bool)}. With ``cache_dir`` the result is stored as
     ``transfer-<key>.safetensors`` and read back on a later call with the same geometry and
-    settings (seconds/throughput are then the original run's)."""
+    settings (seconds/throughput are then the original run's).
+
+    The rays are a sharded bake (inshade/bake.py; ``executor``: in-process by default, a process
+    pool or Ray): one shard per chunk of ``chunk_rays`` rays, cached in ``transfer-<key>.shards/``
+    while the bake runs (a rerun resumes there; removed once the dataset is written). The shards
+    replay the unsharded estimate's random stream (``_generator``), so the data is bit-identical
+    whatever the executor and to an unsharded run."""
     mesh = _is_mesh(geometry)
     if not mesh:
         _check_sdf(geometry)
@@ -460,19 +484,35 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
         if data.get("key") == key:
             data["cached"] = True
             return data
+    from inshade.bake import IN_PROCESS, run_shards
+
+    executor = executor or IN_PROCESS
     center, radius = geometry_bound(geometry)
     start = time.perf_counter()
     total = n_points + holdout
+    source = geometry                               # as given (CPU): what other processes receive
     if mesh:
         p, nrm = sample_mesh_surface(geometry, total, seed)
-        fn = mesh_transfer
     else:
         geometry = _on_device(geometry, device)     # moved once for sampling and rays
         p, nrm = sample_sdf_surface(geometry, total, seed, device=device)
-        fn = functools.partial(sdf_transfer, device=device)
     ray_start = time.perf_counter()
-    transfer = fn(geometry, p[:n_points], nrm[:n_points], n_dirs=n_dirs, seed=seed, progress=progress)
-    held = fn(geometry, p[n_points:], nrm[n_points:], n_dirs=holdout_dirs, seed=seed + 1, progress=progress)
+    # a GPU worker of Ray sees only the GPU it was given, as cuda:0
+    worker_device = "cuda" if executor.kind == "ray" and device.type == "cuda" else str(device)
+    common = {"geometry": source if executor.remote else geometry, "mesh": mesh,
+              "device": worker_device if executor.remote else device, "threads": torch.get_num_threads(),
+              "chunk_rays": int(chunk_rays)}
+    sets = (("train", p[:n_points], nrm[:n_points], n_dirs, seed),
+            ("heldout", p[n_points:], nrm[n_points:], holdout_dirs, seed + 1))
+    shards = transfer_shards(sets, chunk_rays, num_gpus=0.0 if mesh or device.type == "cpu" else 1.0)
+    shard_dir = Path(cache_dir) / f"transfer-{key}.shards" if cache_dir is not None else None
+    with _bar(n_points * n_dirs + holdout * holdout_dirs, "transfer rays", progress) as bar:
+        results = run_shards(transfer_shard, shards, common, shard_dir, executor,
+                             on_done=lambda s: bar.update(s.args["points"].shape[0] * s.args["n_dirs"]))
+    # copies: Ray hands back read-only arrays
+    parts = {name: [torch.tensor(r["transfer"]) for s, r in zip(shards, results) if s.args["set"] == name]
+             for name, *_ in sets}
+    transfer, held = torch.cat(parts["train"]), torch.cat(parts["heldout"])
     end = time.perf_counter()
     rays = n_points * n_dirs + holdout * holdout_dirs
     data = {"position": p[:n_points].contiguous(), "normal": nrm[:n_points].contiguous(), "transfer": transfer,
@@ -487,7 +527,37 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
             "cached": False}
     if path is not None:
         save_dataset(data, path)
+        shutil.rmtree(shard_dir, ignore_errors=True)    # the dataset file holds them all now
     return data
+
+
+def transfer_shards(sets, chunk_rays: int = CHUNK_RAYS, num_gpus: float = 0.0) -> list:
+    """One ``inshade.bake.Shard`` per chunk of each (name, points, normals, n_dirs, seed) set, in
+    order; a shard's args carry its points, normals and offset into the set (``start``)."""
+    from inshade.bake import Shard
+
+    shards = []
+    for name, p, nrm, n_dirs, seed in sets:
+        per = max(1, int(chunk_rays) // n_dirs)
+        for i in range(0, p.shape[0], per):
+            shards.append(Shard(f"{name}-{i // per:05d}", {
+                "set": name, "start": i, "n_dirs": int(n_dirs), "seed": int(seed),
+                "points": p[i:i + per].numpy(), "normals": nrm[i:i + per].numpy()}, num_gpus))
+    return shards
+
+
+def transfer_shard(common: dict, args: dict) -> dict:
+    """The bake function of ``build_dataset`` (runs in any process): {"transfer": [n, 16] float32}
+    of one shard. Torch's thread count is the driver's, so worker results match in-process ones."""
+    if common["threads"] > 0:
+        torch.set_num_threads(common["threads"])
+    p, nrm = torch.from_numpy(args["points"]), torch.from_numpy(args["normals"])
+    kw = dict(n_dirs=args["n_dirs"], seed=args["seed"], start=args["start"], chunk_rays=common["chunk_rays"])
+    if common["mesh"]:
+        out = mesh_transfer(common["geometry"], p, nrm, **kw)
+    else:
+        out = sdf_transfer(common["geometry"], p, nrm, device=common["device"], **kw)
+    return {"transfer": out.numpy()}
 
 
 def _has_embree() -> bool:

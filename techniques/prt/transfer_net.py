@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import command
+from inshade import bake, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.bundle import Bundle
 from inshade.metrics import psnr_from_mse
@@ -386,6 +386,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                              "dataset and the training settings, so a rerun resumes or finds it done)%(default).0s")
     parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
     add_device_argument(parser)
+    bake.add_arguments(parser)
     parser.add_argument("--threads", type=int, default=d["threads"],
                         help="torch CPU threads; 0 = torch's default (default: %(default)s: on a shared 2-core "
                              "machine two spinning OpenMP threads ran rays and training ~10x slower than one)")
@@ -402,6 +403,7 @@ def run(args: argparse.Namespace) -> int:
     from inshade.techniques.prt.transfer import build_dataset
 
     device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
+    executor = bake.executor_from_args(args)
     for k in ("width", "layers", "points", "dirs", "steps", "batch"):
         if getattr(args, k) < 1:
             raise SystemExit(f"--{k} must be >= 1")
@@ -410,8 +412,9 @@ def run(args: argparse.Namespace) -> int:
     geometry, source = load_geometry(args)
     out = Path(args.out)
     cache = Path(args.cache) if args.cache else out.parent / ".transfer_cache"
-    data = build_dataset(geometry, args.points, args.dirs, cache, args.seed, progress=None, device=device)
-    print(f"data: {args.points} points x {args.dirs} rays, {data['seconds']:.1f} s, "
+    data = build_dataset(geometry, args.points, args.dirs, cache, args.seed, progress=None, device=device,
+                         executor=executor)
+    print(f"data ({bake.describe(executor)}): {args.points} points x {args.dirs} rays, {data['seconds']:.1f} s, "
           f"{data['rays_per_second'] / 1e3:.1f} k rays/s{' (cached)' if data['cached'] else ''}")
     net, frame, metrics = train_transfer(
         data, width=args.width, layers=args.layers, steps=args.steps, batch=args.batch, lr=args.lr,
@@ -422,7 +425,7 @@ def run(args: argparse.Namespace) -> int:
     metrics.update({"data_seconds": data["seconds"], "rays_per_second": data["rays_per_second"],
                     "points": args.points, "dirs": args.dirs})
     # not a wrapper's options; the device goes into the provenance, resolved, not into the recipe
-    own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {"help", "device"}
+    own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {"help", "device", "workers", "ray"}
     argv = ["inshade", "train", "transfer"] + command_options(args, own)
     provenance = {**source, "command": shlex.join(argv), "dataset_key": data["key"],
                   "estimator": "cosine-weighted Fibonacci lattice, per-point Cranley-Patterson shift",
@@ -439,7 +442,7 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv=None) -> int:
     return command.main("python -m inshade.techniques.prt.transfer_net", __doc__, add_arguments, run, argv,
-                        errors=(DeviceError,))
+                        errors=(DeviceError, bake.BakeError))
 
 
 if __name__ == "__main__":

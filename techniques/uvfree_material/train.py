@@ -53,6 +53,19 @@ DEFAULTS = dict(object="rock", config="balanced", preset="ship", seed=0, device=
 BUNDLE = "material"
 
 
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """The settings ``--preset PRESET`` resolves to (what metrics.json records as "settings") for the
+    asset folder ``asset`` (``uvfree_material_<object>_<config>``; default rock, balanced). Levels and
+    table size follow from the mesh and the config; metrics.json records them beside."""
+    name, config = DEFAULTS["object"], DEFAULTS["config"]
+    if asset:
+        name, _, config = asset.removeprefix(f"{KIND}_").rpartition("_")
+    p = PRESETS[preset]
+    return dict(object=name, config=config, resolution=p["resolution"], steps=p["steps"], batch=p["batch"],
+                hidden=list(p["hidden"]), features=FEATURES, seed=DEFAULTS["seed"], lr=DEFAULTS["lr"],
+                mlp_lr=DEFAULTS["mlp_lr"])
+
+
 class TrainError(ValueError):
     """Bad training input; the message names the file or option."""
 
@@ -241,7 +254,11 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     bundle.save(out / BUNDLE)
     memory = memory_report(bundle, tex_res)
     atomic_write(out / "scene.json", json.dumps(scene_description(out.name, name, config), indent=2) + "\n")
-    metrics = {"command": command_line, "preset": preset, "train_seconds": round(seconds, 1),
+    # "settings": what the run resolved (preset + explicit options); tests/test_presets.py holds the
+    # shipped ones equal to preset_settings("ship", asset)
+    settings = dict(object=name, config=config, resolution=resolution, steps=steps, batch=batch,
+                    hidden=list(hidden), features=features, seed=seed, lr=lr, mlp_lr=mlp_lr)
+    metrics = {"command": command_line, "preset": preset, "settings": settings, "train_seconds": round(seconds, 1),
                "train_threads": torch.get_num_threads(), "device": str(device), "levels": levels,
                "table_size": table_size, "features": features, "faces": int(len(faces)), "memory": memory,
                "torch_quality": quality, "history": history}
