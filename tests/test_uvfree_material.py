@@ -6,6 +6,7 @@ bundle's; the trainer's bad inputs are one error line and exit status 2."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -200,8 +201,7 @@ def test_scene_refuses_a_mesh_other_than_the_bundles(asset, tmp_path):
 
 def _train_cli(*args):
     return subprocess.run([sys.executable, "-m", "inshade.cli", "train", "uvfree_material", *args],
-                          capture_output=True, text=True, timeout=300, env={**__import__("os").environ,
-                                                                            "OMP_NUM_THREADS": "1"})
+                          capture_output=True, text=True, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
 
 
 def _quad_mesh(path: Path, uv: bool, faces=((0, 1, 2), (0, 2, 3))):
