@@ -53,15 +53,20 @@ class ArgumentParser(argparse.ArgumentParser):
         self.exit(2, f"inshade: error: {command}{' '.join(message.split())}\n")
 
 
-def _count(text: str) -> int:
-    """--spp: an int >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
+def _int_at_least(minimum: int, not_int: str, too_small: str):
+    """An argparse type: an int >= ``minimum``; the messages end with ``, got VALUE``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{not_int}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{too_small}, got {value}")
+        return value
+    return parse
+
+
+_count = _int_at_least(1, "must be an integer", "must be >= 1")   # --spp
 
 
 def _size(text: str) -> int:
@@ -651,14 +656,8 @@ GL_COMMANDS = ("codegen", "render", "view", "doctor")
 GL_OPTIONS = ("--gl-backend", "--gl-device")
 
 
-def _device_index(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an EGL device index (0, 1, ...), got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an EGL device index (0, 1, ...), got {value}")
-    return value
+_DEVICE_INDEX = "expected an EGL device index (0, 1, ...)"
+_device_index = _int_at_least(0, _DEVICE_INDEX, _DEVICE_INDEX)
 
 
 def _gl_options(p, default) -> None:

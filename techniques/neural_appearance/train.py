@@ -43,6 +43,7 @@ import torch
 from inshade import command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
+from inshade.lit_settings import lit_settings
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 
 from . import KIND, NETWORKS
@@ -442,8 +443,7 @@ def scene_description(mat, name: str) -> dict:
         "environment": {"sky": "studio", "rotation": 0.0, "degree": 4},
         "display": {"mode": "final", "modes": ["final"], "split": 0.5},
         "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
+            **lit_settings("studio"),
             "view": {"type": "choice", "default": "neural", "choices": list(VIEWS), "uniform": "u_na_view",
                      "label": "view"},
             "decoder": {"type": "choice", "default": 32, "choices": [16, 32, 64], "define": "NA_DECODER",
@@ -464,10 +464,6 @@ def scene_description(mat, name: str) -> dict:
                             "label": "error scale"},
             "latent_page": {"type": "int", "default": 0, "min": 0, "max": 2, "uniform": "u_na_latent_page",
                             "label": "latent channels (page)"},
-            "sky": {"type": "choice", "default": "studio", "choices": ["sunset", "overcast", "noon", "studio"],
-                    "environment": "sky", "label": "environment"},
-            "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0,
-                             "environment": "rotation", "label": "env rotation (deg)"},
         },
         "textures": [{"uniform": f"u_na_param{k}", "image": f"param{k}.png", "mipmaps": True, "repeat": True}
                      for k in range(3)],

@@ -39,6 +39,7 @@ from PIL import Image
 from inshade import command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
+from inshade.lit_settings import lit_settings
 from inshade.mesh import MeshError, load_mesh, mesh_uv
 from inshade.mesh_topology import mesh_topology
 from inshade.metrics import psnr
@@ -288,8 +289,7 @@ def scene_description(name: str, object_name: str, config: str) -> dict:
         "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
         "display": {"mode": "final", "modes": ["final"], "split": 0.5},
         "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
+            **lit_settings("studio"),
             "view": {"type": "choice", "default": "split", "choices": list(VIEWS), "uniform": "u_uvf_view",
                      "label": "view (split: left reference, right decoded)"},
             "channel": {"type": "choice", "default": "shaded", "choices": list(CHANNEL_VIEWS),
@@ -304,10 +304,6 @@ def scene_description(name: str, object_name: str, config: str) -> dict:
                             "label": "error scale"},
             "lights": {"type": "int", "default": 2, "min": 0, "max": 4, "uniform": "u_light_count",
                        "label": "point lights"},
-            "sky": {"type": "choice", "default": "studio", "choices": ["sunset", "overcast", "noon", "studio"],
-                    "environment": "sky", "label": "environment"},
-            "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0,
-                             "environment": "rotation", "label": "env rotation (deg)"},
         },
         "requires": {"gl": 330},
         "notes": "decoded | reference: the 'view' setting (channels as debug views); the mesh's uvs feed only "
