@@ -421,9 +421,17 @@ def test_soak_gl_objects_stay_flat(app):
     updates, two resizes (targets reallocated). Live GL names are counted with glIs* before/after."""
     import glfw
 
+    from inshade.viewer.app import PSNR_INTERVAL
+
     _reset(app)
     glfw.set_window_size(app.window, 200, 120)
     app.step(5)
+    # the live PSNR's target is made lazily, at most every PSNR_INTERVAL: make it exist before
+    # counting, so the count does not depend on how fast this machine ran the earlier frames
+    time.sleep(PSNR_INTERVAL)
+    app.drag(1, 0)
+    app.step(1)
+    assert app.renderer._targets.get("stats") is not None
     start = app.gl_object_counts()
     modes = list(UI_MODES)
     t0 = time.perf_counter()
