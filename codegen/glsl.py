@@ -41,9 +41,13 @@ class TextureResource:
     'u4' = unsigned integer R32UI..RGBA32UI, declared ``usampler*``, read with texelFetch, always
     nearest), filter 'nearest'|'linear' (within a level), ``wrap`` 'clamp'|'repeat'.
 
-    ``mips``: levels 1.. of a 2D mip chain (level k is [H >> k, W >> k, C], same dtype), uploaded
-    as given (never GL-built, so torch and GLSL see the same texels); with mips the minification
-    filter picks the nearest level (``textureLod`` at an integer level = bilinear within it)."""
+    ``mips``: levels 1.. of a mip chain (level k is [H >> k, W >> k, C] in 2D, [D >> k, H >> k,
+    W >> k, C] in 3D, floor, at least 1; same dtype), uploaded as given (never GL-built, so torch
+    and GLSL see the same texels); with mips the minification filter picks the nearest level
+    (``textureLod`` at an integer level = bilinear within it; ``texelFetch(t, p, k)`` reads level k).
+
+    ``array``: data [L, H, W, C] is a 2D texture array of L layers (``sampler2DArray`` /
+    ``usampler2DArray``, layer = the third coordinate); mips then halve H and W only, per layer."""
 
     name: str
     data: np.ndarray
@@ -51,14 +55,23 @@ class TextureResource:
     filter: str = "nearest"
     mips: tuple = ()
     wrap: str = "clamp"
+    array: bool = False
 
     def __post_init__(self):
         if self.dtype == "u4" and self.filter != "nearest":
             raise ValueError(f"texture {self.name}: integer (u4) textures are read unfiltered: filter must be 'nearest'")
+        if self.array and np.ndim(self.data) != 4:
+            raise ValueError(f"texture {self.name}: a texture array's data is [L, H, W, C], got {list(np.shape(self.data))}")
 
     @property
     def dims(self) -> int:
-        return self.data.ndim - 1
+        """2 for 2D textures and 2D texture arrays, 3 for 3D textures."""
+        return self.data.ndim - 1 - int(self.array)
+
+    @property
+    def layers(self) -> int:
+        """Layers of a texture array (1 otherwise)."""
+        return self.data.shape[0] if self.array else 1
 
     @property
     def levels(self) -> int:

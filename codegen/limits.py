@@ -7,7 +7,7 @@ generated without a context fits every GL 3.3 driver:
 
     GL_MAX_TEXTURE_SIZE                  1024    width and height of a 2D texture
     GL_MAX_3D_TEXTURE_SIZE                256    each side of a 3D texture
-    GL_MAX_ARRAY_TEXTURE_LAYERS           256    (no generated layout uses array textures)
+    GL_MAX_ARRAY_TEXTURE_LAYERS           256    layers of a 2D texture array
     GL_MAX_UNIFORM_BLOCK_SIZE           16384    bytes of one std140 block (ubo dense layers)
     GL_MAX_FRAGMENT_UNIFORM_BLOCKS         12    blocks one fragment shader may declare
     GL_MAX_FRAGMENT_UNIFORM_COMPONENTS   1024    default-block uniform components (the generated

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from inshade.bundle import Bundle
 
-from . import activations, encodings, latent_pyramid, lookup_array, mesh_features, mlp, proxy, shading_frames  # noqa: F401,E501  (register emitters)
+from . import activations, add, encodings, latent_pyramid, lookup_array, mesh_features, mlp, proxy, shading_frames, sparse_voxels  # noqa: F401,E501  (register emitters)
 from .glsl import EmitContext, PlanRow, TextureResource, UniformBlockResource, blocks
 from .limits import LimitError, limit, source
 from .lookup_array import FILTERS
@@ -145,12 +145,15 @@ def check_limits(resources: list, lines: list[str], limits: dict) -> dict:
     tex3 = [r for r in resources if isinstance(r, TextureResource) and r.dims == 3]
     ubos = [r for r in resources if isinstance(r, UniformBlockResource)]
     samplers = [m.group(2) for line in lines for m in [_SAMPLER.match(line)] if m]
-    side = lambda r: max(r.data.shape[:-1])  # noqa: E731
+    side = lambda r: max(r.data.shape[int(r.array):-1])  # noqa: E731  (an array's layers are no side)
+    layers = [r for r in tex2 if r.array]
     uses = {
         "GL_MAX_TEXTURE_SIZE": (max(tex2, key=side, default=None), max((side(r) for r in tex2), default=0),
                                 "texture side"),
         "GL_MAX_3D_TEXTURE_SIZE": (max(tex3, key=side, default=None), max((side(r) for r in tex3), default=0),
                                    "3D texture side"),
+        "GL_MAX_ARRAY_TEXTURE_LAYERS": (max(layers, key=lambda r: r.data.shape[0], default=None),
+                                        max((r.data.shape[0] for r in layers), default=0), "array layers"),
         "GL_MAX_UNIFORM_BLOCK_SIZE": (max(ubos, key=lambda r: r.nbytes, default=None),
                                       max((r.nbytes for r in ubos), default=0), "uniform block bytes"),
         "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": (None, len(ubos), "uniform blocks"),

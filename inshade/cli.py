@@ -166,9 +166,12 @@ def cmd_codegen(args) -> int:
     tensors = {}
     for res in gen.resources:
         if isinstance(res, TextureResource):
-            manifest["resources"].append({"name": res.name, "kind": f"texture{res.dims}d", "dtype": res.dtype,
-                                          "filter": res.filter, "shape": list(res.data.shape)})
+            kind = "texture2d_array" if res.array else f"texture{res.dims}d"
+            manifest["resources"].append({"name": res.name, "kind": kind, "dtype": res.dtype,
+                                          "filter": res.filter, "shape": list(res.data.shape),
+                                          "mips": [f"{res.name}.mip{k}" for k in range(1, res.levels)]})
             tensors[res.name] = res.data
+            tensors.update({f"{res.name}.mip{k}": m for k, m in enumerate(res.mips, 1)})
         else:
             manifest["resources"].append({"name": res.name, "kind": "uniform_block_std140",
                                           "bytes": res.nbytes})

@@ -84,7 +84,13 @@ class ProgramSpec:
       gets ``uniform int u_sample_index`` (0, 1, 2, ... since the last reset; hash it with the
       pixel: shaders/lib/random.glsl) and the runtime shows the running mean of its samples over
       all attachments, restarting whenever the draw's inputs change (camera, size, settings,
-      weights, program); ``inshade render --spp N`` draws N samples.
+      weights, program); ``inshade render --spp N`` draws N samples;
+    - ``shadows(scene, bundles, values) -> ShadowRequest | None``: shadow maps of directional
+      lights (runtime/shadow.py; ``values`` = the scene's current setting values). Called before
+      every network draw (keep it cheap: cache the caster mesh); the renderer redraws the maps only
+      when the request's key, directions or size change, and binds ``u_shadow_map``,
+      ``u_shadow_matrix`` and ``u_shadow_layers`` of shaders/lib/shadow_map.glsl (None: no layers,
+      ``shadow_visibility`` is 1).
     """
     program: str
     geometry: str = "fullscreen"
@@ -99,6 +105,7 @@ class ProgramSpec:
     environment_degree: int | None = None
     visibility: bool = False
     accumulate: bool = False
+    shadows: Callable | None = None
 
     def __post_init__(self):
         if self.geometry not in GEOMETRIES:

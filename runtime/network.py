@@ -2,6 +2,7 @@
 an evaluator that runs the network over a batch of inputs (parity tests, benchmarks)."""
 from __future__ import annotations
 
+import ctypes
 import logging
 import math
 
@@ -34,8 +35,13 @@ def _check_fits(ctx: moderngl.Context, res) -> None:
     """The driver's own limits, checked before an upload (codegen may have planned with others)."""
     info = ctx.info
     if isinstance(res, TextureResource):
+        if res.array:   # layers have their own limit; H and W are 2D sides
+            cap = int(info["GL_MAX_ARRAY_TEXTURE_LAYERS"])
+            if res.layers > cap:
+                raise LimitError(f"{_describe(res)}: {res.layers} layers; this context's GL_MAX_ARRAY_TEXTURE_LAYERS "
+                                 f"is {cap}")
         name = "GL_MAX_TEXTURE_SIZE" if res.dims == 2 else "GL_MAX_3D_TEXTURE_SIZE"
-        cap, side = int(info[name]), max(res.data.shape[:-1])
+        cap, side = int(info[name]), max(res.data.shape[int(res.array):-1])
         if side > cap:
             raise LimitError(f"{_describe(res)}: a side of {side} texels; this context's {name} is {cap}")
     else:
@@ -123,24 +129,26 @@ _NUMPY_DTYPE = {"f4": np.float32, "f2": np.float16, "u4": np.uint32}   # the byt
 
 def texture_levels(res: TextureResource) -> list[np.ndarray]:
     """The arrays of every level of ``res`` (base first) as GL reads them; ValueError naming the
-    resource and level for a chain that is not a valid 2D mip chain (each level half the previous,
-    floor, at least 1, same channels, nothing after 1x1)."""
+    resource and level for a chain that is not a valid mip chain (each level half the previous in
+    every spatial axis, floor, at least 1; layers of an array kept; same channels; nothing after
+    the 1x1(x1) level)."""
     if res.wrap not in ("clamp", "repeat"):
         raise ValueError(f"texture {res.name}: wrap must be 'clamp' or 'repeat', got {res.wrap!r}")
-    if res.mips and res.dims != 2:
-        raise ValueError(f"texture {res.name}: mips are for 2D textures; this one is {res.dims}D")
+    lead = int(res.array)   # leading axes that do not halve (an array's layers)
+    axes = ("L, " if res.array else "") + ("D, H, W, C" if res.dims == 3 else "H, W, C")
     cast = _NUMPY_DTYPE.get(res.dtype)
     levels = []
     for k, a in enumerate((res.data, *res.mips)):
         a = np.asarray(a)
         if k:
             prev = levels[-1].shape
-            if prev[:2] == (1, 1):
-                raise ValueError(f"texture {res.name}: mip level {k}: the chain already ends at 1x1 (level {k - 1}); "
-                                 f"{len(res.mips) + 1} levels given, at most {k}")
-            want = (max(prev[0] // 2, 1), max(prev[1] // 2, 1), prev[2])
+            if all(n == 1 for n in prev[lead:-1]):
+                raise ValueError(f"texture {res.name}: mip level {k}: the chain already ends at "
+                                 f"{'x'.join(['1'] * res.dims)} (level {k - 1}); {len(res.mips) + 1} levels given, "
+                                 f"at most {k}")
+            want = (*prev[:lead], *(max(n // 2, 1) for n in prev[lead:-1]), prev[-1])
             if a.shape != want:
-                raise ValueError(f"texture {res.name}: mip level {k} must be [H, W, C] = {list(want)} (half of "
+                raise ValueError(f"texture {res.name}: mip level {k} must be [{axes}] = {list(want)} (half of "
                                  f"level {k - 1}, {list(prev)}), got {list(a.shape)}")
             if a.dtype != levels[0].dtype and cast is None:
                 raise ValueError(f"texture {res.name}: mip level {k} is {a.dtype}; level 0 is {levels[0].dtype}")
@@ -152,7 +160,10 @@ def _make_texture(ctx, res: TextureResource):
     levels = texture_levels(res)
     data = levels[0]
     comps = data.shape[-1]
-    if res.dims == 2:
+    if res.array:
+        layers, h, w = data.shape[:3]
+        tex = ctx.texture_array((w, h, layers), comps, data.tobytes(), dtype=res.dtype, alignment=1)
+    elif res.dims == 2:
         h, w = data.shape[:2]
         tex = ctx.texture((w, h), comps, data.tobytes(), dtype=res.dtype, alignment=1)
     else:
@@ -160,18 +171,76 @@ def _make_texture(ctx, res: TextureResource):
         tex = ctx.texture3d((w, h, dpt), comps, data.tobytes(), dtype=res.dtype, alignment=1)
         tex.repeat_z = False
     f = moderngl.LINEAR if res.filter == "linear" else moderngl.NEAREST
-    if len(levels) > 1:
+    if len(levels) > 1 and res.dims == 2 and not res.array and res.dtype != "u4":
         # moderngl has no GL_TEXTURE_MAX_LEVEL setter: build_mipmaps sets base/max level (a chain
         # may stop before 1x1) and allocates the levels, which are then overwritten with ours
         tex.build_mipmaps(0, len(levels) - 1)
         for k, a in enumerate(levels[1:], 1):
             tex.write(a.tobytes(), level=k, alignment=1)
+    elif len(levels) > 1:
+        # moderngl cannot write a level > 0 of a 3D texture or an array, and build_mipmaps'
+        # glGenerateMipmap refuses integer formats: each level is specified directly
+        _upload_levels(ctx, tex, 0x8C1A if res.array else 0x806F if res.dims == 3 else 0x0DE1, levels, res.dtype)
+    if len(levels) > 1:
         # nearest level, bilinear within it: textureLod(t, uv, k) at integer k reads level k only
         tex.filter = (moderngl.LINEAR_MIPMAP_NEAREST if f == moderngl.LINEAR else moderngl.NEAREST_MIPMAP_NEAREST, f)
     else:
         tex.filter = (f, f)
     tex.repeat_x = tex.repeat_y = res.wrap == "repeat"
     return tex
+
+
+# GL enums for _upload_levels: pixel type per dtype, client format per channel count
+_GL_TYPE = {"f4": 0x1406, "f2": 0x140B, "f1": 0x1401, "nu2": 0x1403, "u4": 0x1405}
+_GL_FORMAT = {1: 0x1903, 2: 0x8227, 3: 0x1907, 4: 0x1908}            # GL_RED, GL_RG, GL_RGB, GL_RGBA
+_GL_FORMAT_INT = {1: 0x8D94, 2: 0x8228, 3: 0x8D98, 4: 0x8D99}        # GL_RED_INTEGER ... GL_RGBA_INTEGER
+
+
+def gl_function(ctx, name: str, restype, *argtypes):
+    """A raw GL entry point for the current context: an OSMesa context's own loader, else glvnd's
+    libOpenGL / libGL (which dispatch to the current EGL or GLX context), as context.py does."""
+    proto = ctypes.CFUNCTYPE(restype, *argtypes)
+    loader = ctx.extra.get("loader") if isinstance(ctx.extra, dict) else None
+    if loader is not None:
+        address = loader.load_opengl_function(name)
+        if address:
+            return proto(address)
+    else:
+        for lib in ("libOpenGL.so.0", "libGL.so.1"):
+            try:
+                return proto((name, ctypes.CDLL(lib)))
+            except (OSError, AttributeError):
+                continue
+    raise GLResourceError(f"cannot load the GL entry point {name} (needed to upload mip levels)")
+
+
+def _upload_levels(ctx, tex, target: int, levels: list[np.ndarray], dtype: str) -> None:
+    """Specifies levels 1.. of a 3D texture (target GL_TEXTURE_3D, levels [D, H, W, C]), a 2D array
+    (GL_TEXTURE_2D_ARRAY, [L, H, W, C]) or a 2D texture (GL_TEXTURE_2D, [H, W, C]) with
+    glTexImage3D / 2D in the base level's internal format, and sets GL_TEXTURE_MAX_LEVEL to the
+    last level (a chain may stop early)."""
+    i, u, p = ctypes.c_int, ctypes.c_uint, ctypes.c_void_p
+    if target == 0x0DE1:
+        image2d = gl_function(ctx, "glTexImage2D", None, u, i, i, i, i, i, u, u, p)
+
+        def tex_image(tgt, k, internal_format, w, h, d, border, fmt, typ, pixels):   # d == 1
+            image2d(tgt, k, internal_format, w, h, border, fmt, typ, pixels)
+    else:
+        tex_image = gl_function(ctx, "glTexImage3D", None, u, i, i, i, i, i, i, u, u, p)
+    parameter = gl_function(ctx, "glTexParameteri", None, u, u, i)
+    level_parameter = gl_function(ctx, "glGetTexLevelParameteriv", None, u, i, u, ctypes.POINTER(i))
+    store = gl_function(ctx, "glPixelStorei", None, u, i)
+    bind_buffer = gl_function(ctx, "glBindBuffer", None, u, u)
+    tex.use(location=ctx.default_texture_unit)   # binds it to `target` on moderngl's scratch unit
+    internal = i()
+    level_parameter(target, 0, 0x1003, ctypes.byref(internal))   # GL_TEXTURE_INTERNAL_FORMAT
+    bind_buffer(0x88EC, 0)                                       # no GL_PIXEL_UNPACK_BUFFER: read client memory
+    store(0x0CF5, 1)                                             # GL_UNPACK_ALIGNMENT
+    fmt = (_GL_FORMAT_INT if dtype == "u4" else _GL_FORMAT)[levels[0].shape[-1]]
+    for k, a in enumerate(levels[1:], 1):
+        d, h, w = (1, *a.shape[:2]) if a.ndim == 3 else a.shape[:3]
+        tex_image(target, k, internal.value, w, h, d, 0, fmt, _GL_TYPE[dtype], a.ctypes.data)
+    parameter(target, 0x813D, len(levels) - 1)                   # GL_TEXTURE_MAX_LEVEL
 
 
 class NetworkEvaluator:

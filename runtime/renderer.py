@@ -44,6 +44,7 @@ from .programs import ProgramCache
 from .render import (FullscreenPass, check_gl_error, clear_gl_error, float_target, read_rgba, read_rgba_raw,
                      release_target)
 from .scene import MAX_LIGHTS, NetworkSdfRef, Scene, SceneError, codegen_option_path
+from .shadow import ShadowMaps
 
 VERTEX = "common/fullscreen.vert"
 log = logging.getLogger("inshade")
@@ -118,6 +119,7 @@ class SceneRenderer:
         self.sample_cap = None         # accumulating programs stop adding samples here (None: one per render)
         self._accumulate_pass = None   # passes/accumulate.frag, built on the first accumulated sample
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
+        self.shadow_maps = ShadowMaps(self.ctx)   # ProgramSpec.shadows: GL objects made on first use, then reused
         self._build()
         if scene.mesh is not None:
             self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, visibility=self.spec.visibility)
@@ -347,7 +349,8 @@ class SceneRenderer:
         make_current(self.ctx)
         fbo = self._target("network", width, height, self.spec.attachments)
         uniforms = self._uniforms(self.program, camera, width, height)
-        key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())))
+        shadows = self._sync_shadows()
+        key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())), shadows)
         draw_into = fbo
         if self.spec.accumulate:   # stochastic: one more sample per call into a scratch target, folded into the mean
             if force or key != self._net_key:
@@ -371,6 +374,8 @@ class SceneRenderer:
                     unit += 1
             if "u_env_radiance" in self.program:   # lib/environment: the importance-sampled environment
                 unit = self._sync_environment().bind(self.program, unit)
+            if "u_shadow_map" in self.program or "u_shadow_layers" in self.program:   # lib/shadow_map
+                unit = self.shadow_maps.bind(self.program, unit)
             if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
                 for name, tex in zip([f"u_gbuffer_{n}" for n in self.gbuffer.names], gbuffer):
                     if name in self.program:
@@ -394,6 +399,16 @@ class SceneRenderer:
                 return self._fold_sample(draw_into, width, height)
             self.samples = 1
         return fbo
+
+    def _sync_shadows(self) -> int:
+        """Redraws the shadow maps if the program's request changed; their version (a redraw key)."""
+        if self.spec.shadows is not None:
+            request = self.spec.shadows(self.scene, self.bundles, self.values)
+            if request is None:
+                self.shadow_maps.clear()
+            else:
+                self.shadow_maps.update(request)
+        return self.shadow_maps.version
 
     def _fold_sample(self, sample: moderngl.Framebuffer, width: int, height: int) -> moderngl.Framebuffer:
         """Running mean of every attachment: "network" (mean of n - 1 samples) + ``sample`` -> the
@@ -568,6 +583,7 @@ class SceneRenderer:
         if self.environment is not None:
             self.environment.release()
             self.environment = None
+        self.shadow_maps.release()
         if self.owns_programs:
             for p in programs:
                 if p is not None and not any(p is k for k in keep):
@@ -589,6 +605,7 @@ def check_program_limits(generated, gl: dict, scene) -> None:
                          f"together; GL_MAX_FRAGMENT_UNIFORM_BLOCKS is {cap} (choose storage 'auto', "
                          f"'inline' or 'texture')")
     samplers = sum(isinstance(r, TextureResource) for g in generated for r in g.resources) + len(scene.textures)
+    samplers += scene.spec.shadows is not None   # lib/shadow_map: u_shadow_map
     cap = limit(gl, "GL_MAX_TEXTURE_IMAGE_UNITS")
     if samplers > cap:
         raise SceneError(f"scene '{scene.name}': its networks and textures need {samplers} texture units "

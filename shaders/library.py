@@ -51,6 +51,8 @@ _VERSIONS = {
         "precision highp sampler3D;",
         "precision highp sampler2DArray;",
         "precision highp usampler2D;",
+        "precision highp usampler3D;",
+        "precision highp usampler2DArray;",
     ),
 }
 _TARGET_DEFINES = {"330": "INSHADE_TARGET_330", "450": "INSHADE_TARGET_450", "es300": "INSHADE_TARGET_ES300"}

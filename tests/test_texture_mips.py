@@ -171,15 +171,16 @@ def test_bad_chains_are_refused_naming_resource_and_level(gl, mips, message):
         NetworkResources(gl, _Generated([res]))
 
 
-def test_bad_wrap_dtype_and_3d_mips_are_refused(gl):
+def test_bad_wrap_dtype_and_3d_chain_shape_are_refused(gl):
     base = np.zeros((4, 4, 4), np.uint8)
     with pytest.raises(ValueError, match=r"texture t_u8: mip level 1 is uint16; level 0 is uint8"):
         NetworkResources(gl, _Generated([TextureResource("t_u8", base, "f1", mips=(np.zeros((2, 2, 4), np.uint16),))]))
     with pytest.raises(ValueError, match=r"texture t_wrap: wrap must be 'clamp' or 'repeat', got 'mirror'"):
         NetworkResources(gl, _Generated([TextureResource("t_wrap", base, "f1", wrap="mirror")]))
-    with pytest.raises(ValueError, match=r"texture t_3d: mips are for 2D textures; this one is 3D"):
+    # 3D chains: tests/test_texture_arrays.py
+    with pytest.raises(ValueError, match=r"texture t_3d: mip level 1 must be \[D, H, W, C\] = \[1, 1, 1, 4\]"):
         NetworkResources(gl, _Generated([TextureResource("t_3d", np.zeros((2, 2, 2, 4), np.float16), "f2",
-                                                         mips=(np.zeros((1, 1, 1, 4), np.float16),))]))
+                                                         mips=(np.zeros((1, 1, 4), np.float16),))]))
 
 
 def test_nbytes_counts_every_level():

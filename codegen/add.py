@@ -1,0 +1,34 @@
+"""The residual connection a + b; torch twin in models/add.py.
+
+Input: the node's inputs as they are (separate_inputs), lanes concatenated = [a (n) | b (n)].
+When a and b are two sources that start a vec4 block each, every whole block is one vec4 add and
+the n % 4 tail is added lane by lane (a source's last block may hold another value's lanes, e.g.
+bundle inputs packed side by side, so it is never added whole); otherwise lane by lane.
+"""
+from __future__ import annotations
+
+from .glsl import PlanRow
+from .registry import emitter
+from .values import declare
+
+
+def _as_float(value, i: int) -> str:
+    return value.lane(i) if value.kind == "float" else f"float({value.lane(i)})"
+
+
+@emitter("add", separate_inputs=True)
+def emit_add(ctx, node, srcs, bundle):
+    n = node.out_dim
+    ctx.plan.append(PlanRow(node.id, "add", f"{2 * n}->{n}", flops=n))
+    out = declare(ctx, f"v_{node.id}", n)
+    if len(srcs) == 2 and all(s.dim == n and s.offset % 4 == 0 and s.kind == "float" for s in srcs):
+        a, b = srcs
+        ka, kb = a.offset // 4, b.offset // 4
+        ctx.body += [f"{out.array}[{k}] = {a.array}[{ka + k}] + {b.array}[{kb + k}];" for k in range(n // 4)]
+        first = 4 * (n // 4)
+    else:
+        first = 0
+    lanes = [(v, i) for v in srcs for i in range(v.dim)]
+    for i in range(first, n):
+        ctx.body.append(f"{out.lane(i)} = {_as_float(*lanes[i])} + {_as_float(*lanes[n + i])};")
+    return out

@@ -1,0 +1,17 @@
+// Test pass for the sparse_voxels emitter's fixed functions (codegen/sparse_voxels.py), reached
+// through a generated network chunk with prefix "net": one sample per pixel, one texel in u_inputs
+// (data orientation, small exact integers as floats): (scale, i, j, k) of a cell query.
+// Outputs: 0: (net_voxel_slot(scale, cell), NET_SCALE_MIN, NET_SCALE_MAX, NET_VOXELS);
+//          1: net_voxel_sphere(uint(i)) (the i lane doubles as a slot query).
+// Used by tests/test_sparse_voxels.py.
+#include <network>
+
+uniform sampler2D u_inputs;
+layout(location = 0) out vec4 frag_out[2];
+
+void main() {
+    vec4 a = texelFetch(u_inputs, ivec2(gl_FragCoord.xy), 0);
+    uint slot = net_voxel_slot(int(a.x), ivec3(a.yzw));
+    frag_out[0] = vec4(float(slot), float(NET_SCALE_MIN), float(NET_SCALE_MAX), float(NET_VOXELS));
+    frag_out[1] = net_voxel_sphere(uint(max(a.y, 0.0)));
+}
