@@ -16,4 +16,5 @@ BUILTIN = (
     "di_sdf",
     "neural_appearance",
     "uvfree_material",
+    "appearance_prefilter",
 )

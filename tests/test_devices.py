@@ -101,6 +101,7 @@ MINIMAL_ARGS = {
     "di_sdf": ["--mesh", "no_such.ply", "--out", "{tmp}/di_sdf"],
     "neural_appearance": [],
     "uvfree_material": [],
+    "appearance_prefilter": [],
 }
 TRAINERS = sorted(t.name for t in techniques() if t.train)
 

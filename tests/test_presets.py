@@ -17,10 +17,13 @@ ROOT = Path(__file__).resolve().parents[1]
 TRAINED = ROOT / "trained"
 # Techniques whose shipped assets this file checks (prefix of the folder name -> technique).
 TECHNIQUES = ("neural_image", "di_texture", "di_pbr_set", "di_footprint", "di_brdf", "di_sdf",
-              "neural_appearance", "uvfree_material")
+              "neural_appearance", "uvfree_material", "appearance_prefilter")
 # Folders built outside these trainers: prt_* (techniques/prt, its own preset test), sdf_* (hand-written
 # analytic SDF scenes, no trainer).
 ELSEWHERE = ("prt", "sdf")
+# Techniques with a trainer and presets but no shipped asset yet: appearance_prefilter's ship build
+# (grove, 22 min) draws, but its program takes ~8.5 min to JIT-compile on llvmpipe (issue #14).
+NOT_SHIPPED_YET = ("appearance_prefilter",)
 
 
 def technique_of(folder: str) -> str:
@@ -37,7 +40,7 @@ SHIPPED = sorted(p.name for p in TRAINED.iterdir() if p.is_dir() and technique_o
 
 
 def test_every_technique_has_shipped_assets_checked():
-    assert {technique_of(n) for n in SHIPPED} == set(TECHNIQUES)
+    assert {technique_of(n) for n in SHIPPED} == set(TECHNIQUES) - set(NOT_SHIPPED_YET)
 
 
 @pytest.mark.parametrize("folder", SHIPPED)

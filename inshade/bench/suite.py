@@ -94,6 +94,11 @@ SIZES: dict[str, dict[str, Sizing]] = {
         # the thesis times a 1280x720 query
         "device": Sizing(("--width", "1280", "--height", "720", "--rounds", "15"), 80),
     },
+    "appearance_prefilter": {
+        # needs a trained asset (none is shipped yet): `inshade train appearance_prefilter --preset ship`
+        "cpu": Sizing(("--scales", "3", "4", "--spp", "16", "--rounds", "2"), 60),
+        "device": Sizing(("--scales", "3", "4", "5", "--rounds", "5"), 10),
+    },
 }
 
 
@@ -144,12 +149,19 @@ CLAIMS: dict[str, dict[str, Claim]] = {
         "rate": Claim("Feature hierarchy (Walloner 2024)", "memory, % of the uncompressed textures (features + "
                       "MLP)", "66.6% down to 8.3%"),
     },
+    "appearance_prefilter": {
+        "crossover": Claim("Deep Appearance Prefiltering (Bako et al. 2022), Sec. 6.3", "finest scale at which the "
+                           "prefiltered frame is faster than equal-quality ray tracing", "around scale 5 (GPU beam "
+                           "tracer + TensorRT vs OptiX)", 5.0),
+        "voxel": Claim("Deep Appearance Prefiltering, Sec. 5.4", "bytes per voxel", "just over 3 KB (797 fp32 floats)",
+                       3188.0, higher_better=False),
+    },
 }
 # the paper record behind each claim table (for the summary's links)
 PAPERS = {"prt": papers.LEARNT_TRANSFER, "di_texture": papers.DIFFERENTIABLE_INDIRECTION,
           "di_footprint": papers.DIFFERENTIABLE_INDIRECTION, "di_brdf": papers.DIFFERENTIABLE_INDIRECTION,
           "di_sdf": papers.DIFFERENTIABLE_INDIRECTION, "neural_appearance": papers.NEURAL_APPEARANCE,
-          "uvfree_material": papers.FEATURE_HIERARCHY}
+          "uvfree_material": papers.FEATURE_HIERARCHY, "appearance_prefilter": papers.APPEARANCE_PREFILTERING}
 
 
 def _row(bench: str, key: str, ours: str, value: float | None = None, subject: str = "") -> dict:
@@ -270,9 +282,22 @@ def _uvfree_material(r: Mapping) -> list[dict]:
     return rows
 
 
+def _appearance_prefilter(r: Mapping) -> list[dict]:
+    rows = []
+    for asset, a in r["assets"].items():
+        name = asset.removeprefix("appearance_prefilter_")
+        c = a["crossover_scale"]
+        rows.append(_row("appearance_prefilter", "crossover", "none (ray tracing faster at every scale)" if c is None
+                         else f"scale {c}", None if c is None else float(c), name))
+        per = a["memory"]["bytes_per_voxel"]
+        rows.append(_row("appearance_prefilter", "voxel", f"{per:.0f} B", float(per), name))
+    return rows
+
+
 HEADLINES: dict[str, Callable[[Mapping], list[dict]]] = {
     "mlp": _mlp, "prt": _prt, "di_texture": _di_texture, "di_footprint": _di_footprint, "di_brdf": _di_brdf,
     "di_sdf": _di_sdf, "neural_appearance": _neural_appearance, "uvfree_material": _uvfree_material,
+    "appearance_prefilter": _appearance_prefilter,
 }
 
 
