@@ -37,6 +37,7 @@ CASES = [
     ("uvfree_material_stump_high_quality", {}), ("uvfree_material_stump_low_balanced", {"view": "error"}),
     ("uvfree_material_rock_balanced", {"view": "decoded", "wireframe": "level", "wire_level": 2}),
     ("uvfree_material_fruit_balanced", {"view": "split", "channel": "normal"}),
+    ("appearance_prefilter_grove", {}),
 ]
 
 

@@ -95,8 +95,8 @@ SIZES: dict[str, dict[str, Sizing]] = {
         "device": Sizing(("--width", "1280", "--height", "720", "--rounds", "15"), 80),
     },
     "appearance_prefilter": {
-        # needs a trained asset (none is shipped yet): `inshade train appearance_prefilter --preset ship`
-        "cpu": Sizing(("--scales", "3", "4", "--spp", "16", "--rounds", "2"), 60),
+        "cpu": Sizing(("--assets", "trained/appearance_prefilter_grove", "--scales", "3", "4", "--spp", "16",
+                       "--rounds", "2"), 60),
         "device": Sizing(("--scales", "3", "4", "5", "--rounds", "5"), 10),
     },
 }

@@ -155,11 +155,15 @@ void dap_shade_voxel(DapPixel p, uint slot, bool shadows, inout float lambda[DAP
     vec4 y[DAP_OUT_BLOCKS];
     dap_eval(xu, x, y);
 
+    // the mask lanes as a plain float array: a computed index into it is one scratch load, where a
+    // computed lane of the vec4 array y becomes a select chain per use (minutes of llvmpipe JIT at 8x8)
+    float mask[DAP_TEXELS];
+    for (int k = 0; k < DAP_TEXELS; ++k) mask[k] = y[k / 4][k - (k / 4) * 4];
     float total = 0.0;
     for (int v = 0; v < DAP_MASK; ++v) {
         for (int u = 0; u < DAP_MASK; ++u) {
             bool inside = tu[u] >= 0 && tu[u] < DAP_MASK && tv[v] >= 0 && tv[v] < DAP_MASK;
-            float alpha = inside ? dap_lane(y, tv[v] * DAP_MASK + tu[u]) : 0.0;
+            float alpha = inside ? mask[tv[v] * DAP_MASK + tu[u]] : 0.0;
             int j = v * DAP_MASK + u;
             float weight = (1.0 - lambda[j]) * alpha;
             lambda[j] += weight;
