@@ -254,6 +254,12 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             elif t == "mesh_features":    # per level a barycentric (convex) blend of table rows
                 table = bundle.tensor(n, "table")
                 olo, ohi = np.tile(table.min(0), p["levels"]), np.tile(table.max(0), p["levels"])
+            elif t == "sparse_voxels":    # one latent row per slot, fetched as stored
+                latents = bundle.tensor(n, "latents").astype(np.float64)
+                olo, ohi = latents.min(0), latents.max(0)
+            elif t == "add":              # the sum of the two halves of its input
+                half = n.out_dim
+                olo, ohi = lo[:half] + lo[half:], hi[:half] + hi[half:]
             elif t == "shading_frames":   # unit frame vectors dotted with unit directions
                 olo, ohi = np.full(n.out_dim, -1.0), np.full(n.out_dim, 1.0)
             elif t == "proxy_params":     # weights, slopes (sinh-like of the inputs), alphas, correlation
