@@ -14,6 +14,7 @@ BUILTIN = (
     "di_footprint",
     "di_brdf",
     "di_sdf",
+    "di_shading",
     "neural_appearance",
     "uvfree_material",
     "appearance_prefilter",

@@ -32,6 +32,8 @@ CASES = [
     ("di_footprint", {}), ("di_footprint", {"mode": 1}), ("di_footprint", {"mode": 2}), ("di_footprint", {"mode": 3}),
     ("di_brdf_ggx", {}), ("di_brdf_disney", {}), ("di_brdf_disney", {"lut_filter": "fast"}),
     ("di_sdf", {}),
+    ("di_shading_bricks", {}), ("di_shading_bricks", {"view": 2}), ("di_shading_bricks", {"view": 4}),
+    ("di_shading_bricks", {"view": 5}),
     ("neural_appearance_ceramic", {}), ("neural_appearance_ceramic", {"view": "reference"}),
     ("neural_appearance_brushed_metal", {"view": "split", "lighting": "environment"}),
     ("uvfree_material_stump_high_quality", {}), ("uvfree_material_stump_low_balanced", {"view": "error"}),

@@ -99,6 +99,7 @@ MINIMAL_ARGS = {
     "di_footprint": ["--out", "{tmp}/di_footprint"],
     "di_brdf": ["ggx", "--out", "{tmp}/di_brdf"],
     "di_sdf": ["--mesh", "no_such.ply", "--out", "{tmp}/di_sdf"],
+    "di_shading": ["--out", "{tmp}/di_shading"],
     "neural_appearance": [],
     "uvfree_material": [],
     "appearance_prefilter": [],

@@ -1,0 +1,20 @@
+"""di_shading: the DI footprint sampler trained end to end through the frozen DI Disney decoder
+(a shaded loss blended with the sampler's proxy loss by lambda), on the PBR bricks set on a plane seen
+at grazing angles, next to the independently trained sampler and the appearance-filtered reference."""
+from pathlib import Path
+
+from inshade.papers import DIFFERENTIABLE_INDIRECTION
+from inshade.technique import ProgramSpec, Technique
+
+TECHNIQUE = Technique(
+    name="di_shading",
+    summary="DI footprint sampler + DI Disney decoder optimised end to end",
+    paper=DIFFERENTIABLE_INDIRECTION,
+    kinds=("di_shading", "di_shading_brdf"),
+    programs=(ProgramSpec("passes/shading_plane.frag", geometry="fullscreen", attachments=4),),
+    train="inshade.techniques.di_shading.train",
+    train_help="DI footprint sampler trained end to end through the frozen DI Disney decoder (lambda sweep)",
+    bench="inshade.techniques.di_shading.bench",
+    bench_help="end-to-end vs independent DI sampler + decoder: PSNR / FLIP vs the 16-sample reference, frame time",
+    shaders=Path(__file__).resolve().parent / "shaders",
+)

@@ -1,0 +1,108 @@
+// End-to-end DI shading pipeline (Differentiable Indirection, Datta et al. 2023 §4.3.3): a PBR set
+// sample (PbrSample below, from the DI footprint sampler or from the uncompressed set) on
+// the ground plane y = 0, shaded by one point light + an ambient term, with the learned DI Disney
+// BRDF (the frozen decoder bundle <network_brdf> + lib/di_brdf's glue) or the analytic one
+// (lib/brdf). Torch twins: techniques/di_shading/train.py (plane_geometry, local_frame, shade_di,
+// shade_analytic), same operations in the same order.
+// Tangent space of the plane: x = +u = world +x, y = +v = world -z, z = the normal = world +y.
+// The set's constant Disney parameters: metallic 0, anisotropic 0, subsurface 0, specular 0.5,
+// specular_tint 0, sheen 0, sheen_tint 0.5, clearcoat 0, clearcoat_gloss 1 (train.py CONSTANTS).
+#include <network_brdf>
+#include <lib/colour>
+#include <lib/brdf>
+#include <lib/di_brdf>
+
+// One sample of the 8-lane set (techniques/di_pbr_set LANES), unpacked as lib/pbr_set's
+// pbr_set_unpack does (torch: di_pbr_set/train.py unpack); lib/pbr_set itself pulls in the SH
+// lighting chunks this pass has no use for.
+struct PbrSample {
+    vec3 albedo;      // linear
+    vec3 normal_ts;   // unit, tangent space (x along +u, y along +v, z out)
+    float roughness;
+    float ao;
+};
+
+PbrSample pbr_set_unpack(vec4 a, vec4 b) {
+    PbrSample s;
+    s.albedo = srgb_eotf(clamp(a.xyz, 0.0, 1.0));
+    vec3 n = vec3(a.w, b.x, b.y) * 2.0 - 1.0;
+    float len2 = n.x * n.x + n.y * n.y + n.z * n.z;
+    s.normal_ts = len2 > 1e-12 ? n * inversesqrt(len2) : vec3(0.0, 0.0, 1.0);
+    s.roughness = clamp(b.z, 0.0, 1.0);
+    s.ao = clamp(b.w, 0.0, 1.0);
+    return s;
+}
+
+struct DiShadingGeometry {
+    vec3 l;     // to the light, plane tangent space
+    vec3 v;     // to the eye, plane tangent space
+    float e;    // light intensity / distance^2
+};
+
+DiShadingGeometry di_shading_geometry(vec3 p, vec3 eye, vec3 light, float intensity) {
+    DiShadingGeometry g;
+    vec3 d = light - p;
+    float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    vec3 lw = d * inversesqrt(d2);
+    vec3 vw = eye - p;
+    vw = vw * inversesqrt(vw.x * vw.x + vw.y * vw.y + vw.z * vw.z);
+    g.l = vec3(lw.x, -lw.z, lw.y);
+    g.v = vec3(vw.x, -vw.z, vw.y);
+    g.e = intensity / d2;
+    return g;
+}
+
+// Frame around the tangent-space normal n, tangent from +u (Gram-Schmidt); w -> (w.t, w.b, w.n).
+void di_shading_frame(vec3 n, out vec3 t, out vec3 b) {
+    t = vec3(1.0, 0.0, 0.0) - n * n.x;
+    t = t * inversesqrt(max(t.x * t.x + t.y * t.y + t.z * t.z, 1e-30));
+    b = cross(n, t);
+}
+
+vec3 di_shading_local(vec3 w, vec3 t, vec3 b, vec3 n) {
+    return vec3(w.x * t.x + w.y * t.y + w.z * t.z, w.x * b.x + w.y * b.y + w.z * b.z,
+                w.x * n.x + w.y * n.y + w.z * n.z);
+}
+
+vec3 di_shading_ambient(PbrSample s, float ambient) {
+    return s.albedo * (ambient * s.ao);
+}
+
+vec3 di_shading_learned(PbrSample s, DiShadingGeometry g, float ambient) {
+    vec3 t, b;
+    di_shading_frame(s.normal_ts, t, b);
+    vec4 x[BRDF_IN_BLOCKS];
+    x[0] = vec4(s.roughness, 0.0, 0.0, 0.0);
+    vec4 y[BRDF_OUT_BLOCKS];
+    brdf_eval(x, y);
+    DiDisney d;
+    d.ggx = y[0].xyz;
+    d.smith = y[0].w;
+    d.diff = y[1];
+    d.coef = y[2];
+    d.gloss = y[3].xy;
+    d.sheen_tint = 0.5;
+    d.k = vec3(0.0, 0.02, 0.0);
+    d.albedo = s.albedo;
+    vec3 f = di_disney_brdf(d, di_shading_local(g.l, t, b, s.normal_ts), di_shading_local(g.v, t, b, s.normal_ts));
+    return f * g.e + di_shading_ambient(s, ambient);
+}
+
+vec3 di_shading_analytic(PbrSample s, DiShadingGeometry g, float ambient) {
+    vec3 t, b;
+    di_shading_frame(s.normal_ts, t, b);
+    DisneyMaterial m;
+    m.base_color = s.albedo;
+    m.roughness = s.roughness;
+    m.metallic = 0.0;
+    m.anisotropic = 0.0;
+    m.subsurface = 0.0;
+    m.specular = 0.5;
+    m.specular_tint = 0.0;
+    m.sheen = 0.0;
+    m.sheen_tint = 0.5;
+    m.clearcoat = 0.0;
+    m.clearcoat_gloss = 1.0;
+    vec3 f = disney_brdf(m, di_shading_local(g.l, t, b, s.normal_ts), di_shading_local(g.v, t, b, s.normal_ts));
+    return f * g.e + di_shading_ambient(s, ambient);
+}
