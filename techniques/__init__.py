@@ -15,6 +15,7 @@ BUILTIN = (
     "di_brdf",
     "di_sdf",
     "di_shading",
+    "di_radiance_field",
     "neural_appearance",
     "uvfree_material",
     "appearance_prefilter",

@@ -34,6 +34,8 @@ CASES = [
     ("di_sdf", {}),
     ("di_shading_bricks", {}), ("di_shading_bricks", {"view": 2}), ("di_shading_bricks", {"view": 4}),
     ("di_shading_bricks", {"view": 5}),
+    ("di_radiance_field_trinket", {}), ("di_radiance_field_trinket", {"view": "split"}),
+    ("di_radiance_field_trinket", {"view": "error", "lut_filter": "fast"}),
     ("neural_appearance_ceramic", {}), ("neural_appearance_ceramic", {"view": "reference"}),
     ("neural_appearance_brushed_metal", {"view": "split", "lighting": "environment"}),
     ("uvfree_material_stump_high_quality", {}), ("uvfree_material_stump_low_balanced", {"view": "error"}),

@@ -100,6 +100,7 @@ MINIMAL_ARGS = {
     "di_brdf": ["ggx", "--out", "{tmp}/di_brdf"],
     "di_sdf": ["--mesh", "no_such.ply", "--out", "{tmp}/di_sdf"],
     "di_shading": ["--out", "{tmp}/di_shading"],
+    "di_radiance_field": ["--out", "{tmp}/di_radiance_field"],
     "neural_appearance": [],
     "uvfree_material": [],
     "appearance_prefilter": [],

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TRAINED = ROOT / "trained"
 # Techniques whose shipped assets this file checks (prefix of the folder name -> technique).
 TECHNIQUES = ("neural_image", "di_texture", "di_pbr_set", "di_footprint", "di_brdf", "di_sdf",
-              "neural_appearance", "uvfree_material", "appearance_prefilter", "di_shading")
+              "neural_appearance", "uvfree_material", "appearance_prefilter", "di_shading",
+              "di_radiance_field")
 # Folders built outside these trainers: prt_* (techniques/prt, its own preset test), sdf_* (hand-written
 # analytic SDF scenes, no trainer).
 ELSEWHERE = ("prt", "sdf")
