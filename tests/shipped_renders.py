@@ -25,6 +25,8 @@ CASES = [
     ("prt_creature", {}), ("prt_creature", {"shading": "glossy", "sky": "sunset", "env_rotation": 90.0}),
     ("prt_mechanical", {}), ("prt_neural_bunny", {"shading": "glossy"}),
     ("prt_mesh", {}), ("prt_mesh", {"shading": "glossy", "phong_exponent": 32.0}),
+    ("prt_mesh_texture", {}), ("prt_mesh_texture", {"shading": "glossy"}), ("prt_plants", {"shading": "glossy"}),
+    ("prt_atrium", {}), ("prt_atrium", {"shading": "glossy"}),
     ("di_texture_astronaut", {}), ("di_texture_astronaut", {"lut_filter": "fast"}), ("di_texture_astronaut_12x", {}),
     ("di_texture_chelsea", {}), ("di_texture_coffee", {}),
     ("di_pbr_set_bricks", {}), ("di_pbr_set_bricks", {"view": "split", "lights": 4}),

@@ -79,15 +79,15 @@ SIZES: dict[str, dict[str, Sizing]] = {
     "di_sdf": {
         "cpu": Sizing(("--di-steps", "500", "--mlp-steps", "600", "--mlp-samples", "50000", "--size", "128",
                        "--frames", "3"), 150),
-        "device": Sizing(("--mlp-steps", "2000", "--size", "512", "--frames", "10"), 90),
+        "device": Sizing(("--mlp-steps", "2000", "--size", "512", "--frames", "10"), 60),   # 2000 MLP steps: seconds on a GPU
     },
     "di_radiance_field": {
         "cpu": Sizing(("--quick",), 60),
-        "device": Sizing(("--quick", "--time-size", "2048", "--rounds", "7"), 30),
+        "device": Sizing(("--quick", "--time-size", "2048", "--rounds", "7"), 15),
     },
     "di_shading": {
         "cpu": Sizing(("--time-size", "256", "--repeats", "3"), 30),
-        "device": Sizing(("--time-size", "2048", "--repeats", "10"), 30),
+        "device": Sizing(("--time-size", "2048", "--repeats", "10"), 15),
     },
     "neural_appearance": {
         # ~35 s with Mesa's shader cache warm; a cold cache adds minutes of llvmpipe JIT

@@ -9,16 +9,21 @@ from inshade.technique import ProgramSpec, Technique
 
 def _chunks(scene, bundles, networks, codegen_options):
     """``<prt_network>``: the transfer network's eval function and its frame (codegen.py)."""
-    from .codegen import KINDS, PrtError, prt_chunks
+    from .codegen import KINDS, PrtError, prt_chunks, transfer_frame
 
     found = [(b, n) for b, n in zip(bundles, networks) if b.kind in KINDS]
     if not found:
         kinds = ", ".join(f"{b.name} ({b.kind})" for b in bundles)
         raise ValueError(f"networks: {scene.program} needs a transfer network (bundle kind \"{KINDS[0]}\"); "
                          f"this scene has {kinds or 'none'}")
+    from .regions import RegionError, is_region_bundle, region_chunks
+
     try:
+        if any(is_region_bundle(b) for b, _ in found):   # sub-scene networks selected by region (regions.py)
+            return region_chunks([b for b, _ in found], [n.prefix for _, n in found],
+                                 [transfer_frame(b) for b, _ in found])
         return prt_chunks(found[0][0], prefix=found[0][1].prefix)
-    except PrtError as exc:
+    except (PrtError, RegionError) as exc:
         raise ValueError(f"networks: {exc}") from None
 
 
@@ -49,14 +54,32 @@ UNIFORM_DEFAULTS = {"u_shading": 0, "u_phong_exponent": 16.0, "u_albedo": 1.0, "
 _PRT = dict(bundle_kinds=("prt", "transfer"), uniforms=UNIFORM_DEFAULTS, chunks=_chunks, frame=_frame,
             validate=_validate, environment_degree=4)
 
+
+def _texture_chunks(scene, bundles, networks, codegen_options):
+    """<prt_texture_network> + the network stub of the texture-space PRT pass (texture_codegen.py)."""
+    from .texture_codegen import chunks_hook
+
+    return chunks_hook(scene, bundles, networks, codegen_options)
+
+
+def _texture_validate(scene):
+    from .texture_codegen import validate_hook
+
+    validate_hook(scene)
+
+
 TECHNIQUE = Technique(
     name="prt",
     summary="learnt-transfer PRT: a transfer MLP, diffuse + glossy SH shading on SDFs and meshes",
     paper=LEARNT_TRANSFER,
-    kinds=("prt",),
+    kinds=("prt", "prt_texture"),
     old_kinds={"transfer": "prt"},
     programs=(ProgramSpec("passes/sdf_prt.frag", geometry="sdf", **_PRT),
-              ProgramSpec("passes/mesh_prt.frag", geometry="mesh", **_PRT)),
+              ProgramSpec("passes/mesh_prt.frag", geometry="mesh", **_PRT),
+              # the paper's baseline: transfer baked into a uv texture (texture_prt.py), same shading
+              ProgramSpec("passes/mesh_prt_texture.frag", geometry="mesh", mesh_attributes=("uv",),
+                          **{**_PRT, "bundle_kinds": ("prt_texture",), "chunks": _texture_chunks,
+                             "validate": _texture_validate})),
     train="inshade.techniques.prt.train",
     train_help="a complete PRT asset: ground-truth transfer (cached), transfer MLP, scene, previews, quality",
     bench="inshade.techniques.prt.bench",

@@ -25,7 +25,7 @@ shard (inshade/bake.py, docs/cluster.md); the data is bit-identical to an in-pro
 
 ``--preset quick|ship`` (default ship): the settings below, options given explicitly override them.
 ``ship`` is exactly what built the shipped assets: an OUT named like one of them (``prt_creature``,
-``prt_mechanical``, ``prt_mesh``, ``prt_neural_bunny``) takes that asset's recipe, any other OUT the
+``prt_mechanical``, ``prt_mesh``, ``prt_neural_bunny``, ``prt_plants``) takes that asset's recipe, any other OUT the
 base recipe. ``metrics.json`` records the preset and the resolved settings.
 
     inshade train prt --preset ship --sdf trained/prt_creature/sdf.json --out /tmp/prt_creature
@@ -76,6 +76,11 @@ SHIP_ASSETS = {
                  "title": "PRT: a rasterised mesh (procedural bunny) with a learnt transfer MLP (k=64)"},
     "prt_neural_bunny": {**SHIP_BASE, "points": 20000, "drop_enclosed": True, "quality_dirs": 256, "quality_size": 64,
                          "title": "PRT: a neural SDF (MLP fitted to the bunny mesh) with a learnt transfer MLP (k=64)"},
+    # thin leaves (techniques/prt/plants.py): the creature's recipe with 8 position octaves, the most
+    # the parity envelope allows
+    "prt_plants": {**SHIP_BASE, "points": 60000, "dirs": 256, "steps": 6000, "batch": 4096, "lr": 2e-3,
+                   "pos_freqs": 8, "quality_dirs": 256,
+                   "title": "PRT: a potted plant of thin leaves (analytic SDF) with a learnt transfer MLP (k=64)"},
 }
 # a few seconds of data and training, a coarse quality check: tests and trying options out
 QUICK = {**SHIP_BASE, "points": 2000, "dirs": 32, "steps": 300, "quality_views": 2, "quality_size": 32,
