@@ -35,6 +35,7 @@ import torch
 
 from inshade.codegen.sparse_voxels import index_grid
 from inshade.models.sdf import camera_rays, sh_radiance_t
+from inshade.models.unit_box import unit_box
 
 from . import VIEWS
 
@@ -75,17 +76,6 @@ def _safe(rd):
     return torch.where(rd.abs() < TINY, f32(TINY), rd)
 
 
-def box(ro, rd):
-    """(hit, t0, t1) of the unit box along the rays (dap_box)."""
-    inv = 1.0 / _safe(rd)
-    a = (0.0 - ro) * inv
-    c = (1.0 - ro) * inv
-    lo, hi = torch.minimum(a, c), torch.maximum(a, c)
-    t0 = torch.maximum(torch.maximum(lo[:, 0], lo[:, 1]), lo[:, 2].clamp_min(0.0))
-    t1 = torch.minimum(hi[:, 0], torch.minimum(hi[:, 1], hi[:, 2]))
-    return t1 >= t0, t0, t1
-
-
 def _uniforms(camera, width, height):
     return camera if isinstance(camera, dict) else camera.uniforms(width, height)
 
@@ -111,7 +101,7 @@ def footprint_scale(t0, px, scale_min: int, scale_max: int, force_scale: int = -
 def scale_map(camera, width, height, *, distance, scale_min, scale_max, force_scale=-1):
     """(L [H, W], hit [H, W]) as the `scale` view sees them (image orientation)."""
     ro, rd, px = pixel_rays(camera, width, height, distance)
-    hit, t0, _ = box(ro, rd)
+    hit, t0, _ = unit_box(ro, rd)
     L = footprint_scale(t0, px, scale_min, scale_max, force_scale)
     return L.reshape(height, width).numpy(), hit.reshape(height, width).numpy()
 
@@ -227,7 +217,7 @@ def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int,
     grids = {smax - i: torch.from_numpy(g[..., 0].astype(np.int64))
              for i, g in enumerate(index_grid(cells, smin, smax))}
     ro, rd, px = pixel_rays(camera, width, height, distance)
-    hit, t0, _ = box(ro, rd)
+    hit, t0, _ = unit_box(ro, rd)
     coeffs = torch.as_tensor(np.asarray(sh, np.float32))
     background = sh_radiance_t(coeffs, rd).clamp_min(0.0)
     out = torch.zeros(ro.shape[0], 4)

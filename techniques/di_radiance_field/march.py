@@ -20,23 +20,10 @@ import numpy as np
 import torch
 
 from inshade.models.sdf import camera_rays
+from inshade.models.unit_box import unit_box
 from inshade.sh import sh_basis
 
 STOP = 1e-3       # transmittance that ends a ray (lib/rf_march.glsl RF_STOP)
-TINY = 1e-12
-
-
-def box(ro: torch.Tensor, rd: torch.Tensor):
-    """(t0, t1, hit) of the unit box (dap_box / rf_box)."""
-    tiny = torch.tensor(TINY, dtype=torch.float32)
-    d = torch.where(rd.abs() < tiny, tiny, rd)
-    inv = 1.0 / d
-    a = (0.0 - ro) * inv
-    c = (1.0 - ro) * inv
-    lo, hi = torch.minimum(a, c), torch.maximum(a, c)
-    t0 = torch.maximum(torch.maximum(lo[:, 0], lo[:, 1]), torch.maximum(lo[:, 2], torch.zeros_like(lo[:, 2])))
-    t1 = torch.minimum(hi[:, 0], torch.minimum(hi[:, 1], hi[:, 2]))
-    return t0, t1, t1 >= t0
 
 
 def march(network, uniforms: dict, width: int, height: int, *, step: float, max_steps: int, sigma_scale: float,
@@ -44,7 +31,7 @@ def march(network, uniforms: dict, width: int, height: int, *, step: float, max_
     """[H, W, 4] linear RGBA (row 0 = top) of ``network`` (x [P, 3] -> [P, 13]: colour SH logits,
     sigma / sigma_scale)."""
     ro, rd = camera_rays(uniforms, width, height)
-    t0, t1, hit = box(ro, rd)
+    hit, t0, t1 = unit_box(ro, rd)
     y = sh_basis(rd, 2, xp=torch).float()
     dt = torch.tensor(step, dtype=torch.float32)
     scale = torch.tensor(sigma_scale, dtype=torch.float32)

@@ -30,6 +30,7 @@
 #include <lib/dap_frame>
 #include <lib/spherical_harmonics>
 #include <lib/shadow_map>
+#include <lib/unit_box>
 
 #if !defined(DAP_MASK) || !defined(DAP_BINS) || !defined(DAP_BINS_THETA) || !defined(DAP_BINS_PHI)
 #error "lib/dap_march needs DAP_MASK, DAP_BINS, DAP_BINS_THETA, DAP_BINS_PHI (the record's <dap_config>)"
@@ -64,20 +65,6 @@ struct DapResult {
     vec3 albedo;
 };
 
-// Unit box entry/exit along the ray; false when missed. Zero direction components are replaced by
-// 1e-12 so the slab test stays finite (the torch twin does the same).
-bool dap_box(vec3 ro, vec3 rd, out float t0, out float t1) {
-    vec3 d = vec3(abs(rd.x) < 1e-12 ? 1e-12 : rd.x, abs(rd.y) < 1e-12 ? 1e-12 : rd.y,
-                  abs(rd.z) < 1e-12 ? 1e-12 : rd.z);
-    vec3 inv = 1.0 / d;
-    vec3 a = (vec3(0.0) - ro) * inv;
-    vec3 c = (vec3(1.0) - ro) * inv;
-    vec3 lo = min(a, c);
-    vec3 hi = max(a, c);
-    t0 = max(max(lo.x, lo.y), max(lo.z, 0.0));
-    t1 = min(hi.x, min(hi.y, hi.z));
-    return t1 >= t0;
-}
 
 // The fractional scale L of the pixel's footprint at the box entry (step 2).
 float dap_footprint_scale(float t0, float px, int force_scale) {

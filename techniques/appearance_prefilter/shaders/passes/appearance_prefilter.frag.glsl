@@ -39,7 +39,7 @@ void main() {
     ro = 0.5 + (ro - 0.5) * u_dap_distance;
     vec3 background = max(sh_radiance(rd, u_sh), vec3(0.0));
     float t0, t1;
-    if (!dap_box(ro, rd, t0, t1)) {
+    if (!unit_box(ro, rd, t0, t1)) {
         frag_color = vec4(u_dap_view == DAP_VIEW_PREFILTERED ? background : vec3(0.0), 0.0);
         return;
     }

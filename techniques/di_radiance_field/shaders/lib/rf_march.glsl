@@ -12,6 +12,7 @@
 // RF_SIGMA_SCALE (the networks' density lane is sigma / RF_SIGMA_SCALE: unit scale) and RF_DENSITY_FLOOR
 // (density below it is empty space: DVGO-like low-density threshold).
 #include <lib/spherical_harmonics>
+#include <lib/unit_box>
 
 #if !defined(RF_STEP) || !defined(RF_MAX_STEPS) || !defined(RF_STOP) || !defined(RF_BACKGROUND) || !defined(RF_SIGMA_SCALE) || !defined(RF_DENSITY_FLOOR)
 #error "lib/rf_march needs RF_STEP, RF_MAX_STEPS, RF_STOP, RF_BACKGROUND, RF_SIGMA_SCALE and RF_DENSITY_FLOOR (the record's <rf_config>)"
@@ -20,18 +21,6 @@
 #error "lib/rf_march needs networks 'rfg' and 'rfd' mapping x[3] to colour[12] + density[1]"
 #endif
 
-bool rf_box(vec3 ro, vec3 rd, out float t0, out float t1) {
-    vec3 d = vec3(abs(rd.x) < 1e-12 ? 1e-12 : rd.x, abs(rd.y) < 1e-12 ? 1e-12 : rd.y,
-                  abs(rd.z) < 1e-12 ? 1e-12 : rd.z);
-    vec3 inv = 1.0 / d;
-    vec3 a = (vec3(0.0) - ro) * inv;
-    vec3 c = (vec3(1.0) - ro) * inv;
-    vec3 lo = min(a, c);
-    vec3 hi = max(a, c);
-    t0 = max(max(lo.x, lo.y), max(lo.z, 0.0));
-    t1 = min(hi.x, min(hi.y, hi.z));
-    return t1 >= t0;
-}
 
 // which: 0 = the uncompressed grids (rfg), 1 = the DI cascades (rfd)
 void rf_sample(int which, vec3 x, out vec4 y[4]) {
@@ -46,7 +35,7 @@ void rf_sample(int which, vec3 x, out vec4 y[4]) {
 
 vec4 rf_march(int which, vec3 ro, vec3 rd) {
     float t0, t1;
-    if (!rf_box(ro, rd, t0, t1)) return vec4(RF_BACKGROUND, 1.0);
+    if (!unit_box(ro, rd, t0, t1)) return vec4(RF_BACKGROUND, 1.0);
     float ys[SH_COEFFS];
     sh_basis(rd, ys);
     float dt = RF_STEP;
