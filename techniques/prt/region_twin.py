@@ -1,6 +1,7 @@
 """Torch side of sub-scene PRT (Learnt Transfer, Dhawal et al. 2022 §4.4): training one transfer network per region
 on its cells plus the δ-margin, exporting the set as bundles, and the torch twin of the
-region-selecting pass (shaders/lib/prt_regions.glsl through passes/sdf_prt.frag).
+region-selecting passes (shaders/lib/prt_regions.glsl through passes/sdf_prt.frag and the deferred
+passes/mesh_prt.frag).
 
 - ``region_transfer(region_set, nets, frames, p, n)``: the blended transfer [N, 16] (float32) at
   points p with normals n: regions.py ``blend_weights`` (the shader's weights, bit for bit), each
@@ -8,6 +9,8 @@ region-selecting pass (shaders/lib/prt_regions.glsl through passes/sdf_prt.frag)
   shader's prt_region_blend.
 - ``render_regions(sdf, region_set, nets, frames, uniforms, w, h, sh, shading)``: twin.render
   with that transfer.
+- ``render_gbuffer_regions(position, normal, region_set, nets, frames, uniforms, w, h, sh, shading)``:
+  twin.render_gbuffer (the deferred mesh_prt pass, fed the GL G-buffer) with that transfer.
 - ``load_region_set(bundles)``: (RegionSet, nets, frames) from the scene's bundles.
 - ``train_regions(data, grid, table, delta, band, ...)``: one network per table entry.
 """
@@ -52,6 +55,16 @@ def render_regions(sdf, rs, nets, frames, uniforms: dict, width: int, height: in
                    shading: twin.PrtShading = twin.PrtShading()) -> dict:
     """The sdf_prt pass with a region set's transfer, in torch (see twin.compose for the result)."""
     view = twin.trace_view(sdf, uniforms, width, height)
+    t = region_transfer(rs, nets, frames, view.p, view.n) if view.idx.numel() else torch.zeros(0, 16)
+    return twin.compose(view, t, sh_coeffs, shading)
+
+
+def render_gbuffer_regions(position, normal, rs, nets, frames, uniforms: dict, width: int, height: int, sh_coeffs,
+                           shading: twin.PrtShading = twin.PrtShading()) -> dict:
+    """The mesh_prt pass with a region set's transfer, in torch, fed the G-buffer the GL pass read
+    (runtime/geometry.py MeshGBuffer.read(); as twin.render_gbuffer): the network is selected by the
+    region of each visible surface point, exactly as for SDFs."""
+    view = twin.gbuffer_view(position, normal, uniforms, width, height)
     t = region_transfer(rs, nets, frames, view.p, view.n) if view.idx.numel() else torch.zeros(0, 16)
     return twin.compose(view, t, sh_coeffs, shading)
 
@@ -109,5 +122,5 @@ def export_regions(trained, out_dir, provenance: dict | None = None, name: str =
     return bundles
 
 
-__all__ = ["load_region_set", "region_transfer", "render_regions", "train_regions", "export_regions",
-           "export_transfer"]
+__all__ = ["load_region_set", "region_transfer", "render_regions", "render_gbuffer_regions", "train_regions",
+           "export_regions", "export_transfer"]
