@@ -11,15 +11,22 @@
   The reference view (GL trilinear of RGBA8 + GL mips) is held to the emulated trilinear's bound.
 - The trainer (the quick preset with tiny overrides) end to end through the CLI, and the bench on
   that asset; bad input is one clear error.
+- Device placement without a GPU: `--device` reaches `train_sweep`, which places the mip chain, data,
+  samplers, decoder and every step on it (DeviceSpy: a CPU device that compares unequal to the
+  default one, and a tensor-level record of what was put on it; a mix is the error CUDA raises).
 """
 import json
 import math
+import traceback
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from torch.overrides import TorchFunctionMode
+from torch.utils.weak import WeakTensorKeyDictionary
 
 from inshade.models.lookup_array import LookupArray
 from inshade.techniques.di_footprint import train as fp
@@ -29,6 +36,7 @@ from inshade.techniques.di_shading import train as ds
 from parity import assert_parity, check_parity, parity_settings
 
 VIEW = (64, 32)
+REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -128,7 +136,10 @@ def test_metal_clip_keeps_the_value_and_bounds_the_lobe_gradient(decoder, seed, 
     (g_full,) = torch.autograd.grad(plain.sum(), lanes)
     lobe = g_clip - g_rest
     norm = torch.sqrt((lobe * lobe).sum(-1))
-    assert float(norm.max()) <= bound * (1 + 1e-4) + 1e-6
+    # the lobe is read back as a difference of two float32 gradients: up to a few ulps of the rest's
+    # (|g_rest| reaches ~55 per row: seed 174991 at bound 1e-3 measured 1.2e-6 over a flat 1e-6 slack)
+    slack = 1e-6 + 4 * torch.finfo(torch.float32).eps * torch.sqrt((g_rest * g_rest).sum(-1))
+    assert bool(torch.all(norm <= bound * (1 + 1e-4) + slack))
     if bound >= 1e6:      # a bound nothing reaches: the full gradient
         assert torch.allclose(g_clip, g_full, rtol=1e-4, atol=1e-5)
     else:
@@ -142,7 +153,7 @@ def test_nonfinite_gradient_rows_are_dropped_and_counted():
     y.register_hook(ds._finite_rows(counter))
     w = torch.tensor([1.0, float("nan"), 2.0, float("inf")])[:, None]
     (y * w).sum().backward()
-    assert counter == [2]
+    assert int(counter[0]) == 2
     assert torch.equal(x.grad[:, 0], torch.tensor([1.0, 0.0, 2.0, 0.0]))
 
 
@@ -320,3 +331,145 @@ def test_bad_input_is_one_clear_error(tmp_path, capsys, argv, field):
     err = capsys.readouterr().err.strip().splitlines()
     assert len([line for line in err if line.startswith("inshade: error:")]) == 1
     assert field in err[-1]
+
+
+# device placement ----------------------------------------------------------------------------
+
+def _tensors(x):
+    if isinstance(x, torch.Tensor):
+        yield x
+    elif isinstance(x, (list, tuple)):
+        for v in x:
+            yield from _tensors(v)
+    elif isinstance(x, dict):
+        for v in x.values():
+            yield from _tensors(v)
+
+
+class DeviceSpy(TorchFunctionMode):
+    """A device for a machine without one: `device` is torch.device("cpu", 0), a CPU device that
+    compares unequal to the default torch.device("cpu"). A tensor is placed on it when it comes from
+    .to(device) (a module's .to(device) included), from a factory given device=device, or from an op
+    on a placed tensor; a placed tensor's .device reads `device` (so device=x.device follows it) and
+    .cpu() / .to("cpu") take it back off (as on a device, a tensor's move returns a new tensor and
+    leaves the source where it was; a module moves its parameters themselves); expand_as / view_as /
+    reshape_as follow their first argument only (the other gives a shape). An op that mixes placed
+    and unplaced tensors (0-dim ones aside, which CUDA accepts from the CPU) is recorded in `mixed`:
+    on a real device it is the "Expected all tensors to be on the same device" error."""
+
+    SHAPE_ONLY = ("expand_as", "view_as", "reshape_as")
+    QUERIES = ("_has_compatible_shallow_copy_type",)      # a module's .to asks it of old and new
+
+    def __init__(self):
+        super().__init__()
+        self.device = torch.device("cpu", 0)
+        self.placed = WeakTensorKeyDictionary()
+        self.mixed = []
+
+    def on_device(self, t) -> bool:
+        return t in self.placed
+
+    @staticmethod
+    def _target(func, args, kwargs):
+        name = getattr(func, "__name__", "")
+        if name == "to":
+            return torch._C._nn._parse_to(*args[1:], **kwargs)[0]
+        if name in ("cpu", "cuda"):
+            return torch.device(name)
+        device = kwargs.get("device")
+        return None if device is None else torch.device(device)
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        kwargs = kwargs or {}
+        if getattr(getattr(func, "__self__", None), "__name__", None) == "device" and self.on_device(args[0]):
+            return self.device
+        out = func(*args, **kwargs)
+        if getattr(func, "__name__", "") == "__set__" and isinstance(args[-1], torch.Tensor):
+            if self.on_device(args[-1]):    # x.data = y: x is where y is (a module's .to)
+                self.placed[args[0]] = True
+            else:
+                self.placed.pop(args[0], None)
+            return out
+        target = self._target(func, args, kwargs)
+        if target is not None:
+            placed = target == self.device
+            src = args[0] if args and isinstance(args[0], torch.Tensor) else None
+            if out is src and not isinstance(src, torch.nn.Parameter) and self.on_device(src) != placed:
+                out = src.view(src.shape)   # a move makes a new tensor; the source stays where it was
+        else:
+            inputs = args[:1] if getattr(func, "__name__", "") in self.SHAPE_ONLY else (args, kwargs)
+            tensors = list(_tensors(inputs))
+            placed = any(self.on_device(t) for t in tensors)
+            unplaced = any(t.dim() > 0 and not self.on_device(t) for t in tensors)
+            if placed and unplaced and getattr(func, "__name__", "") not in self.QUERIES:
+                ours = [f for f in traceback.extract_stack() if Path(f.filename).is_relative_to(REPO)
+                        and not {"tests", ".venv"} & set(Path(f.filename).parts)]
+                here = [f"{Path(f.filename).relative_to(REPO)}:{f.lineno} {f.name}" for f in ours]
+                self.mixed.append((getattr(func, "__qualname__", repr(func)), here[-3:]))
+        for t in _tensors(out):
+            if placed:
+                self.placed[t] = True
+            elif target is not None:
+                self.placed.pop(t, None)    # a module's parameters move off the device in place
+        return out
+
+
+def test_device_spy_catches_a_tensor_left_on_the_cpu():
+    """The spy itself: a constant made on the CPU and mixed into a torch.where on the device is
+    reported (what CUDA would refuse); unpack (zero normals' fallback included) makes none."""
+    spy = DeviceSpy()
+    with spy:
+        lanes = _lanes(64, 1).to(spy.device)
+        torch.where(lanes[:, :1] > 0.5, lanes[:, :3], torch.tensor([0.0, 0.0, 1.0]).expand(64, 3))
+        assert len(spy.mixed) == 1 and "where" in spy.mixed[0][0]
+        spy.mixed.clear()
+        lanes[::7, 3] = 0.5
+        lanes[::7, 4:6] = 0.5           # a zero tangent-space normal: the +z fallback
+        s = ds.unpack(lanes)
+        assert spy.on_device(s["normal_ts"]) and not spy.on_device(lanes.cpu())
+        assert not spy.on_device(_lanes(4, 1)) and spy.on_device(lanes) and spy.mixed == []
+        lanes.cpu() + lanes                 # a tensor brought back, then mixed with a placed one
+    assert len(spy.mixed) == 1
+
+
+def test_device_option_places_the_sweep_on_the_device(tmp_path, monkeypatch, capsys):
+    """`--device cuda` (resolved to the spy's device: no GPU here) reaches train_sweep, which places
+    the whole sweep there (data set, references, samplers, decoder, steps, held-out evaluation): no
+    op mixes placed and unplaced tensors, every training step's batch, loss, sampler and decoder
+    parameters are placed, the results come back to the CPU, and the device is recorded. (The
+    batches stay the CPU generator's: the quick preset's bundles are bit-identical to before.)"""
+    spy = DeviceSpy()
+    seen, steps = {}, []
+    real_sweep, real_objective = ds.train_sweep, ds.objective
+
+    def sweep(**kw):
+        seen["device"] = kw.get("device")
+        with spy:
+            runs, decoder, image, info = real_sweep(**kw)
+        seen["results"] = [p for r in runs for p in r.graph.parameters()] + list(decoder.parameters())
+        return runs, decoder, image, info
+
+    def objective(lam, decoder, *a, **k):
+        fn = real_objective(lam, decoder, *a, **k)
+
+        def step(core, b):
+            loss = fn(core, b)
+            steps.append([spy.on_device(t) for t in (loss, b.x, b.proxy, b.ref, b.geo.l, b.geo.v, b.geo.e,
+                                                     *core.parameters(), *decoder.parameters())])
+            return loss
+        return step
+
+    monkeypatch.setattr(ds, "resolve_device", lambda spec: spy.device if spec == "cuda" else None)
+    monkeypatch.setattr(ds, "train_sweep", sweep)
+    monkeypatch.setattr(ds, "objective", objective)
+    out = tmp_path / "on_device"
+    assert ds.main(["-o", str(out), "--device", "cuda", "--size", "32", "--ratio", "2", "--steps", "3",
+                    "--samples", "512", "--views", "1", "--batch", "64", "--lambdas", "0", "0.5"]) == 0
+    assert "trains on the CPU" not in capsys.readouterr().err
+    assert seen["device"] is spy.device
+    assert spy.mixed == []
+    assert len(steps) == 2 * 3 and all(all(s) for s in steps)
+    assert not any(spy.on_device(p) for p in seen["results"])          # back on the CPU for export
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["device"] == "cpu:0"
+    assert json.loads((out / "lambda_050" / "bundle.json").read_text())["provenance"]["device"] == "cpu:0"

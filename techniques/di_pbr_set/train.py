@@ -174,7 +174,7 @@ def unpack(a: torch.Tensor, b: torch.Tensor) -> dict:
     n = torch.stack([a[:, 3], b[:, 0], b[:, 1]], -1) * 2.0 - 1.0
     len2 = _dot(n, n)
     unit = n * torch.rsqrt(torch.clamp(len2, min=1e-30))[:, None]
-    up = torch.tensor([0.0, 0.0, 1.0]).expand_as(n)
+    up = torch.tensor([0.0, 0.0, 1.0], device=n.device).expand_as(n)
     return {"albedo": srgb_eotf_t(torch.clamp(a[:, :3], 0.0, 1.0)),
             "normal_ts": torch.where((len2 > 1e-12)[:, None], unit, up),
             "roughness": torch.clamp(b[:, 2], 0.0, 1.0), "ao": torch.clamp(b[:, 3], 0.0, 1.0)}

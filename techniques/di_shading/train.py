@@ -42,9 +42,14 @@ same steps and seed:
   masked below-horizon branch) has it dropped, and is counted (metrics: nonfinite_gradient_samples);
 - Adam, cosine schedule (lr to 5%), lambda = 0 is the independently trained sampler (baseline).
 
-Command: ``inshade train di_shading -o trained/di_shading_bricks [--preset quick|ship]``. ``--preset
-ship`` is exactly what built trained/di_shading_bricks; ``quick`` (the default) is a small run.
-OUT/metrics.json records the preset, the resolved settings and the lambda sweep.
+Command: ``inshade train di_shading -o trained/di_shading_bricks [--preset quick|ship] [--device
+auto|cpu|cuda[:N]]``. ``--preset ship`` is exactly what built trained/di_shading_bricks; ``quick``
+(the default) is a small run. ``--device`` (inshade/devices.py; auto: CUDA when torch sees one)
+places the training: the mip chain, the data set's proxies and references, the samplers, the frozen
+decoder, every step and the held-out evaluation run there. Random numbers are drawn on seeded CPU
+generators (numpy for the views and pixels, torch for the batches and the initialisation), so every
+device trains on the same data and batches; the samplers and the decoder come back to the CPU for
+export. OUT/metrics.json records the preset, the resolved settings, the device and the lambda sweep.
 """
 from __future__ import annotations
 
@@ -183,7 +188,7 @@ def _dot(a, b):
 
 
 def unpack(lanes: torch.Tensor) -> dict:
-    """lib/pbr_set pbr_set_unpack of 8 lanes [N, 8]."""
+    """lib/pbr_set pbr_set_unpack of 8 lanes [N, 8] (di_pbr_set's `unpack`)."""
     return pbr.unpack(lanes[:, :4], lanes[:, 4:])
 
 
@@ -210,9 +215,9 @@ class Geometry:
 
 
 def plane_geometry(p: torch.Tensor, eye, light=LIGHT_POSITION, intensity=LIGHT_INTENSITY) -> Geometry:
-    """World hit points p [N, 3] on y = 0 -> Geometry (di_shading_geometry)."""
-    eye = torch.as_tensor(eye, dtype=torch.float32)
-    d = torch.tensor(light, dtype=torch.float32) - p
+    """World hit points p [N, 3] on y = 0 -> Geometry (di_shading_geometry), on p's device."""
+    eye = torch.as_tensor(eye, dtype=torch.float32, device=p.device)
+    d = torch.tensor(light, dtype=torch.float32, device=p.device) - p
     d2 = _dot(d, d)
     lw = d * torch.rsqrt(d2)[:, None]
     vw = eye - p
@@ -222,7 +227,7 @@ def plane_geometry(p: torch.Tensor, eye, light=LIGHT_POSITION, intensity=LIGHT_I
 
 
 def _params(roughness: torch.Tensor) -> torch.Tensor:
-    p = torch.zeros(len(roughness), len(brdf.PARAMS))
+    p = torch.zeros(len(roughness), len(brdf.PARAMS), device=roughness.device)
     for k, v in CONSTANTS.items():
         p[:, brdf.PARAMS.index(k)] = v
     p[:, brdf.PARAMS.index("roughness")] = roughness
@@ -247,8 +252,8 @@ def shade_di(lanes: torch.Tensor, geo: Geometry, decoder: GraphModule, ambient: 
     if no_metal:
         dec["ggx"] = torch.full_like(dec["ggx"], 1e6)
     n = len(lanes)
-    extra = {"sheen_tint": torch.full((n,), float(CONSTANTS["sheen_tint"])),
-             "k": torch.tensor(K_EXTRA, dtype=torch.float32).expand(n, 3)}
+    extra = {"sheen_tint": torch.full((n,), float(CONSTANTS["sheen_tint"]), device=lanes.device),
+             "k": torch.tensor(K_EXTRA, dtype=torch.float32, device=lanes.device).expand(n, 3)}
     f = dibrdf.disney_glue(dec, extra, s["albedo"], local(geo.l), local(geo.v))
     return f * geo.e[:, None] + s["albedo"] * (np.float32(ambient) * s["ao"])[:, None]
 
@@ -280,8 +285,9 @@ def display(x: torch.Tensor, exposure: float = EXPOSURE) -> torch.Tensor:
 
 def reference(chain, uv, dx, dy, log2_fp, geo: Geometry) -> torch.Tensor:
     """Appearance filtering: 16 samples uv + a dx + b dy (a, b in SUB), each the proxy trilinear
-    sampler at log2 footprint - 2, shaded with the analytic Disney BRDF; the mean, linear [N, 3]."""
-    acc = torch.zeros(len(uv), 3)
+    sampler at log2 footprint - 2, shaded with the analytic Disney BRDF; the mean, linear [N, 3]
+    (on the device the inputs and `chain` live on)."""
+    acc = torch.zeros(len(uv), 3, device=uv.device)
     for b in SUB:
         for a in SUB:
             lanes = fp.emulated_trilinear(chain, uv + np.float32(a) * dx + np.float32(b) * dy, log2_fp - 2.0)
@@ -347,7 +353,14 @@ def log2_footprint(dx, dy):
 
 def plane_samples(chain, n: int, views: int, seed: int, size=VIEW_SIZE) -> Samples:
     """n hit pixels drawn uniformly from `views` random grazing views (`plane_camera`) at `size`,
-    with their proxy targets and appearance-filtered references (computed once)."""
+    with their proxy targets and appearance-filtered references (computed once): `plane_draw` on
+    the CPU (a numpy generator: the same pixels on every device), then `plane_targets` on the
+    device `chain` lives on."""
+    return plane_targets(chain, plane_draw(n, views, seed, size))
+
+
+def plane_draw(n: int, views: int, seed: int, size=VIEW_SIZE) -> dict:
+    """The pixels of `plane_samples`, on the CPU: {uv (tiled), dx, dy, p, eye} [n, ...]."""
     rng = np.random.default_rng(seed)
     cols = {k: [] for k in ("uv", "dx", "dy", "p", "eye")}
     per = -(-n // views)
@@ -360,7 +373,13 @@ def plane_samples(chain, n: int, views: int, seed: int, size=VIEW_SIZE) -> Sampl
         for k, v in (("uv", uv), ("dx", dx), ("dy", dy), ("p", p)):
             cols[k].append(v.reshape(-1, v.shape[-1])[pick])
         cols["eye"].append(eye.expand(len(pick), 3))
-    c = {k: torch.cat(v)[:n] for k, v in cols.items()}
+    return {k: torch.cat(v)[:n] for k, v in cols.items()}
+
+
+def plane_targets(chain, pixels: dict) -> Samples:
+    """`plane_draw`'s pixels -> Samples: footprints, geometry, references and proxies, computed on
+    the device `chain` lives on (the pixels are moved there)."""
+    c = {k: v.to(chain[0].device) for k, v in pixels.items()}
     lf = log2_footprint(c["dx"], c["dy"])
     geo = plane_geometry(c["p"], c["eye"])
     uv = c["uv"] - torch.floor(c["uv"])
@@ -388,10 +407,11 @@ class Run:
 def _finite_rows(counter: list):
     """Gradient hook: zero the rows (samples) whose gradient is not finite, counting them. The glue's
     masked branches (below-horizon 1 / (n.l + n.v), a ~0 normal's 1 / |n|) can give 0 x inf = NaN
-    through torch.where's backward even where the value is fine."""
+    through torch.where's backward even where the value is fine. The count accumulates as a tensor
+    on the gradient's device (no host sync per step); `int(counter[0])` reads it."""
     def hook(g):
         bad = ~torch.isfinite(g).all(-1, keepdim=True)
-        counter[0] += int(bad.sum())
+        counter[0] = counter[0] + bad.sum()
         return torch.where(bad, torch.zeros_like(g), g)
     return hook
 
@@ -431,9 +451,11 @@ def evaluate(core: GraphModule, s: Samples, decoder: GraphModule) -> dict:
 
 
 def batches(data: Samples, batch: int, seed: int):
+    """Endless batches of `data`: indices drawn on a seeded CPU generator (the same batches on every
+    device), gathered on the device `data` lives on."""
     gen = torch.Generator().manual_seed(seed)
     while True:
-        yield data.index(torch.randint(0, len(data.x), (batch,), generator=gen))
+        yield data.index(torch.randint(0, len(data.x), (batch,), generator=gen).to(data.x.device))
 
 
 def material(size: int) -> np.ndarray:
@@ -446,9 +468,11 @@ def material(size: int) -> np.ndarray:
 def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAULTS["n_cascaded"],
                 steps=DEFAULTS["steps"], lr=DEFAULTS["lr"], batch=DEFAULTS["batch"], samples=DEFAULTS["samples"],
                 views=DEFAULTS["views"], metal_clip=DEFAULTS["metal_clip"], seed=DEFAULTS["seed"],
-                lambdas=LAMBDAS, brdf_folder=DEFAULT_BRDF, progress=None, name="di_shading"):
-    """Train one sampler per lambda (same init, data, batches, steps, seed). Returns
-    (runs, decoder, image, data info)."""
+                lambdas=LAMBDAS, brdf_folder=DEFAULT_BRDF, progress=None, name="di_shading", device=None):
+    """Train one sampler per lambda (same init, data, batches, steps, seed) on `device` (default the
+    CPU; module docstring). Returns (runs, decoder, image, data info), the runs' samplers and the
+    decoder on the CPU."""
+    device = torch.device("cpu") if device is None else torch.device(device)
     for lam in lambdas:
         if not (0.0 <= float(lam) < 1.0):
             raise ShadingError(f"lambdas: {lam!r}: each lambda must be in [0, 1) (lambda = 1 is unstable)")
@@ -457,9 +481,8 @@ def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAU
     if steps < 0 or batch < 1 or samples < 1 or views < 1:
         raise ShadingError("steps >= 0, batch >= 1, samples >= 1 and views >= 1 are required")
     image = material(size)
-    tex = fp.texture_tensor(image)
-    chain = fp.mip_chain(tex)
-    decoder = decoder_graph(brdf_folder)
+    chain = fp.mip_chain(fp.texture_tensor(image).to(device))
+    decoder = decoder_graph(brdf_folder).to(device)
     sizing = fp.plan(size, CHANNELS, ratio, n_cascaded)
     t0 = time.perf_counter()
     data = plane_samples(chain, samples, views, seed)
@@ -469,8 +492,8 @@ def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAU
     for lam in lambdas:
         lam = float(lam)
         torch.manual_seed(seed)
-        core = fp.sampler_graph(size, sizing, image.reshape(-1, CHANNELS).mean(0))
-        ev = held.index(torch.arange(min(4096, len(held.x))))
+        core = fp.sampler_graph(size, sizing, image.reshape(-1, CHANNELS).mean(0)).to(device)  # CPU init
+        ev = held.index(torch.arange(min(4096, len(held.x)), device=device))
 
         def metric(c, ev=ev, lam=lam):
             m = evaluate(c, ev, decoder)
@@ -482,19 +505,20 @@ def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAU
                                 objective=objective(lam, decoder, metal_clip, batch, nonfinite), metric=metric,
                                 progress=progress, desc=f"{name} lambda {lam:g}")
         seconds = time.perf_counter() - t1
+        core = core.to("cpu")             # the result, on the CPU for export
         for p in core.parameters():
             p.requires_grad_(False)
         bundle = core.export(KIND, lambda_folder(lam), provenance={"lambda": lam})
-        q = GraphModule.from_bundle(bundle)
+        q = GraphModule.from_bundle(bundle).to(device)
         m = {"lambda": lam, "train_seconds": round(seconds, 2), **evaluate(q, held, decoder),
-             "nonfinite_gradient_samples": nonfinite[0],
+             "nonfinite_gradient_samples": int(nonfinite[0]),
              "history": [{"step": r["step"], "psnr_shaded": round(r["psnr"], 3)} for r in hist.records]}
         runs.append(Run(lam, core, bundle, hist, m))
     info = {"bytes": sizing.bytes, "n_primary": sizing.n_primary, "n_footprint": sizing.n_footprint,
             "n_cascaded": sizing.n_cascaded, "n_lod": sizing.n_lod,
             "ratio_vs_base": round(fp.texture_bytes(size, CHANNELS, False) / sizing.bytes, 4),
             "data_seconds": round(data_seconds, 2), "samples": len(data.x), "heldout": len(held.x)}
-    return runs, decoder, image, info
+    return runs, decoder.to("cpu"), image, info
 
 
 def best_run(runs):
@@ -630,10 +654,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def run(args, argv=None) -> int:
-    device = resolve_device(args.device)
-    if device.type != "cpu":
-        print("inshade: note: di_shading trains on the CPU (small arrays; the data set is CPU-built)",
-              file=sys.stderr)
+    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     preset = PRESETS[args.preset]
     for k in ("size", "steps", "samples", "views"):
         if getattr(args, k) is None:
@@ -646,11 +667,11 @@ def run(args, argv=None) -> int:
     t0 = time.perf_counter()
     kw = {k: v for k, v in settings.items()}
     kw["metal_clip"] = kw["metal_clip"] or None
-    runs, decoder, image, info = train_sweep(**kw, brdf_folder=args.brdf, name=Path(args.out).name)
+    runs, decoder, image, info = train_sweep(**kw, brdf_folder=args.brdf, name=Path(args.out).name, device=device)
     best = best_run(runs)
     sweep = [{k: v for k, v in r.metrics.items() if k != "history"} for r in runs]
     base = next(r for r in runs if r.lam == 0.0).metrics["psnr_shaded_vs_reference"]
-    metrics = {"command": cmd, "preset": args.preset, "settings": settings, **info,
+    metrics = {"command": cmd, "preset": args.preset, "settings": settings, "device": str(device), **info,
                "lambda_best": best.lam, "sweep": sweep,
                "psnr_gain_best_vs_independent_db": round(best.metrics["psnr_shaded_vs_reference"] - base, 4),
                "psnr_gain_best_vs_independent_percent": round(
@@ -658,7 +679,7 @@ def run(args, argv=None) -> int:
                "train_seconds_total": round(time.perf_counter() - t0, 2),
                "note": "psnr_*: torch, 8-bit samplers, held-out plane pixels, display domain sRGB(clamp(x)); "
                        "the GLSL-rendered numbers are inshade bench di_shading's"}
-    prov = {"command": cmd, "torch": torch.__version__, "device": "cpu",
+    prov = {"command": cmd, "torch": torch.__version__, "device": str(device),
             "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
             "technique": "Differentiable Indirection end-to-end shading (Datta et al. 2023 supp. 1.5): "
                          "footprint sampler trained through the frozen DI Disney decoder"}
