@@ -18,7 +18,7 @@ Steps (times in ``OUT/metrics.json``):
    steps; region sets
    of the ``other_set_widths`` (``OUT/baselines/set_k<w>/region_<i>``, the same split) are
    reported beside them (k = 24: better quality, ~3.5x the JIT of the k = 16 set);
-6. ``OUT/scene.json``, previews (``render_previews``), and the report (regions_bench.run: quality vs ray-cast truth,
+6. ``OUT/scene.json``, previews (train.py ``write_previews``), and the report (regions_bench.run: quality vs ray-cast truth,
    frame times, seam PSNR for all three) -> ``OUT/metrics.json`` and ``--report`` (JSON + md + png).
 
 ``--preset quick`` is seconds of work (tests); ``ship`` built trained/prt_atrium.
@@ -35,6 +35,7 @@ from pathlib import Path
 from inshade import command
 from inshade.devices import DeviceError
 from inshade.files import atomic_write
+from inshade.techniques.prt.train import write_previews
 
 SHIP = dict(points=60000, dirs=128, holdout=3000, holdout_dirs=512, resolution=256, grid=(4, 3), networks=9,
             delta=0.75, band=0.4, region_width=16, other_set_widths=(24,), layers=4, steps=10000, batch=512,
@@ -76,18 +77,6 @@ def scene_dict(networks: list[dict], title: str) -> dict:
             "environment": {"sky": "noon", "rotation": 0.0, "degree": 4},
             "display": {"mode": "final", "modes": ["final"], "split": 0.5},
             "settings": PRT_SETTINGS, "requires": {"gl": 330}}
-
-
-def render_previews(out: Path) -> None:
-    """preview.png / preview_glossy.png of the scene (the GL driver, as train.py's previews)."""
-    from inshade.runtime.headless import render_scene, save_render
-    from inshade.runtime.scene import load_scene
-
-    scene = load_scene(out)
-    for shading, fname in (("diffuse", "preview.png"), ("glossy", "preview_glossy.png")):
-        image, info = render_scene(scene, settings={"shading": shading})
-        save_render(image, info, out / fname)
-        (out / (fname + ".json")).unlink(missing_ok=True)  # the sidecar names local paths
 
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -171,9 +160,7 @@ def run(args) -> int:
     atomic_write(out / "scene.json", json.dumps(scene_dict(
         networks, f"PRT: a procedural atrium, {count} sub-scene transfer networks (k={s['region_width']}) selected "
                   f"by region"), indent=1) + "\n")
-    start = time.perf_counter()
-    render_previews(out)
-    times["preview_seconds"] = time.perf_counter() - start
+    times["preview_seconds"] = write_previews(out)
     start = time.perf_counter()
     report = regions_bench.run_report(out, s, report_dir=Path(args.report) if args.report else None,
                                       baselines=regions_bench.find_baselines(out))

@@ -375,11 +375,8 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from inshade.mesh import load_mesh, obj_text
-    from inshade.runtime.headless import render_scene, save_render
-    from inshade.runtime.scene import load_scene
-    from inshade.techniques.prt.train import _framing_camera
+    from inshade.techniques.prt.train import previews_and_quality, scene_camera
     from inshade.techniques.prt.transfer import geometry_bound
-    from inshade.techniques.prt.twin import quality_orbit
 
     device = resolve_device(args.device)
     out = Path(args.out)
@@ -416,26 +413,12 @@ def run(args: argparse.Namespace) -> int:
                             {"atlas": info, "bake": {k: v for k, v in stats.items() if k != "cached"}, "bleed": bleed},
                             provenance=prov)
     bundle.save(out / "transfer")
-    camera = _framing_camera(*geometry_bound(mesh))
-    bookmarks = {}
-    if settings["camera_from"]:
-        base = json.loads(Path(settings["camera_from"]).read_text())
-        camera, bookmarks = base["camera"], base.get("bookmarks", {})
+    camera, bookmarks = scene_camera(*geometry_bound(mesh), settings["camera_from"])
     scene = scene_dict(out.name, settings["title"] or f"PRT baseline: {out.name}", camera, bookmarks)
     atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
-    loaded = load_scene(out)
-    start = time.perf_counter()
-    for shading, fname in (("diffuse", "preview.png"), ("glossy", "preview_glossy.png")):
-        image, info_r = render_scene(loaded, settings={"shading": shading})
-        save_render(image, info_r, out / fname)
-        (out / (fname + ".json")).unlink(missing_ok=True)  # the sidecar names local paths
-    times["preview_seconds"] = time.perf_counter() - start
-    start = time.perf_counter()
-    quality = quality_orbit(loaded, n_views=settings["quality_views"], size=settings["quality_size"],
-                            n_dirs=settings["quality_dirs"], progress=None)
-    times["quality_seconds"] = time.perf_counter() - start
-    for mode in ("diffuse", "glossy"):
-        quality[mode].pop("views", None)
+    quality, shown = previews_and_quality(out, settings["quality_views"], settings["quality_size"],
+                                          settings["quality_dirs"])
+    times.update(shown)
     metrics = {"asset": out.name, "geometry": "mesh", "technique": "texture-space PRT (baseline)",
                "command": shlex.join(cmd), "preset": args.preset, "settings": settings, "atlas": info,
                "bake": stats, "bleed": bleed, "texture_bytes": texture_bytes(settings["resolution"], settings["bits"]),

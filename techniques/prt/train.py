@@ -158,9 +158,42 @@ def _copy_geometry(kind: str, src: Path, out: Path) -> str:
     return name
 
 
-def _framing_camera(center, radius) -> dict:
+def scene_camera(center, radius, camera_from: str | None) -> tuple[dict, dict]:
+    """(camera, bookmarks): those of the scene.json ``camera_from``, else an orbit framing the bound."""
+    if camera_from:
+        base = json.loads(Path(camera_from).read_text())
+        return base["camera"], base.get("bookmarks", {})
     return {"type": "orbit", "fov_y": 40.0, "target": [float(c) for c in center],
-            "distance": float(radius) * 2.9, "yaw": -30.0, "pitch": -18.0}
+            "distance": float(radius) * 2.9, "yaw": -30.0, "pitch": -18.0}, {}
+
+
+def write_previews(out: Path) -> float:
+    """preview.png / preview_glossy.png of OUT's scene through the GL driver; the seconds it took."""
+    from inshade.runtime.headless import render_scene, save_render
+    from inshade.runtime.scene import load_scene
+
+    start = time.perf_counter()
+    scene = load_scene(out)
+    for shading, fname in (("diffuse", "preview.png"), ("glossy", "preview_glossy.png")):
+        image, info = render_scene(scene, settings={"shading": shading})
+        save_render(image, info, out / fname)
+        (out / (fname + ".json")).unlink(missing_ok=True)  # the sidecar names local paths
+    return time.perf_counter() - start
+
+
+def previews_and_quality(out: Path, views: int, size: int, dirs: int) -> tuple[dict, dict]:
+    """Previews, then the quality orbit of OUT's scene (twin.py quality_orbit, per-view rows dropped):
+    (quality, {"preview_seconds", "quality_seconds"})."""
+    from inshade.runtime.scene import load_scene
+    from inshade.techniques.prt.twin import quality_orbit
+
+    times = {"preview_seconds": write_previews(out)}
+    start = time.perf_counter()
+    quality = quality_orbit(load_scene(out), n_views=views, size=size, n_dirs=dirs, progress=None)
+    times["quality_seconds"] = time.perf_counter() - start
+    for mode in ("diffuse", "glossy"):
+        quality[mode].pop("views", None)
+    return quality, times
 
 
 def scene_dict(kind: str, geometry_name: str, name: str, title: str, camera: dict, bookmarks: dict) -> dict:
@@ -176,10 +209,7 @@ def scene_dict(kind: str, geometry_name: str, name: str, title: str, camera: dic
 
 def run(args: argparse.Namespace) -> int:
     from inshade.bundle import load
-    from inshade.techniques.prt.twin import quality_orbit
     from inshade.techniques.prt.transfer import geometry_bound
-    from inshade.runtime.headless import render_scene, save_render
-    from inshade.runtime.scene import load_scene
 
     resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work (transfer_net uses it)
     executor_from_args(args)      # a bad --workers / --ray fails before any work too
@@ -206,26 +236,11 @@ def run(args: argparse.Namespace) -> int:
             return status
     args.out = final_out
     geometry, _ = transfer_net.load_geometry(args)
-    center, radius = geometry_bound(geometry)
-    camera, bookmarks = _framing_camera(center, radius), {}
-    if args.camera_from:
-        base = json.loads(Path(args.camera_from).read_text())
-        camera, bookmarks = base["camera"], base.get("bookmarks", {})
+    camera, bookmarks = scene_camera(*geometry_bound(geometry), args.camera_from)
     scene = scene_dict(kind, geometry_name, out.name, args.title or f"PRT: {out.name}", camera, bookmarks)
     atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
-    loaded = load_scene(out)
-    start = time.perf_counter()
-    for shading, fname in (("diffuse", "preview.png"), ("glossy", "preview_glossy.png")):
-        image, info = render_scene(loaded, settings={"shading": shading})
-        save_render(image, info, out / fname)
-        (out / (fname + ".json")).unlink(missing_ok=True)  # the sidecar names local paths
-    times["preview_seconds"] = time.perf_counter() - start
-    start = time.perf_counter()
-    quality = quality_orbit(loaded, n_views=args.quality_views, size=args.quality_size, n_dirs=args.quality_dirs,
-                            progress=None)
-    times["quality_seconds"] = time.perf_counter() - start
-    for mode in ("diffuse", "glossy"):
-        quality[mode].pop("views", None)
+    quality, shown = previews_and_quality(out, args.quality_views, args.quality_size, args.quality_dirs)
+    times.update(shown)
     bundle = load(out / "transfer")
     metrics = {"asset": out.name, "geometry": kind, "command": command, "preset": args.preset, "settings": settings,
                "transfer": bundle.meta.get("metrics", {}),
