@@ -18,7 +18,9 @@ from collections.abc import Callable
 def main(prog: str, doc: str | None, add_arguments: Callable, run: Callable, argv=None, *,
          errors: tuple = (), formatter=argparse.HelpFormatter) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``) with ``add_arguments``, call ``run``; an exception
-    of ``errors`` becomes one ``inshade: error:`` line and exit status 2."""
+    of ``errors`` (or a refused asset folder) becomes one ``inshade: error:`` line and exit status 2."""
+    from inshade.asset_folder import OutputExistsError
+
     parser = argparse.ArgumentParser(prog=prog, description=(doc or "").strip().splitlines()[0] if doc else None,
                                      formatter_class=formatter)
     add_arguments(parser)
@@ -27,6 +29,6 @@ def main(prog: str, doc: str | None, add_arguments: Callable, run: Callable, arg
     takes_argv = len(inspect.signature(run).parameters) > 1
     try:
         return int((run(args, argv) if takes_argv else run(args)) or 0)
-    except errors as exc:
+    except (OutputExistsError, *errors) as exc:
         print(f"inshade: error: {exc}", file=sys.stderr)
         return 2

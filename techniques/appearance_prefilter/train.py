@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import bake, command
+from inshade import asset_folder, bake, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 
@@ -205,7 +205,7 @@ def train(settings: dict, *, preset: str, out=None, device="cpu", executor=None,
           command_line=None) -> Path:
     """Bake, fit and write the asset folder; returns it."""
     device = resolve_device(device) if isinstance(device, str) else torch.device(device)
-    out = Path(out or f"trained/{KIND}_{settings['scene']}")
+    out = Path(out) if out else asset_folder.default(f"{KIND}_{settings['scene']}")
     data = bake_data(settings, executor=executor, cache_dir=cache_dir, progress=progress)
     started = time.perf_counter()
     graph, history = fit(data, settings, device=device, progress=progress)
@@ -297,7 +297,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="ship: what built trained/appearance_prefilter_grove; quick: a tiny bake and fit, "
                         "seconds (default: %(default)s)")
     add_device_argument(parser, DEFAULTS["device"])
-    parser.add_argument("--out", help="asset folder (default: trained/appearance_prefilter_<scene>)")
+    asset_folder.add_arguments(parser, f"{KIND}_<scene>")
     parser.add_argument("--scales", type=int, nargs=2, metavar=("S_MIN", "S_MAX"),
                         help="voxel scales, 2^s cells per axis (default: the preset's)")
     parser.add_argument("--views", type=int, help="view directions baked per voxel (default: the preset's)")
@@ -352,6 +352,7 @@ def run(args: argparse.Namespace, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
     executor = bake.executor_from_args(args)
     settings = resolve_settings(args)
+    args.out = str(asset_folder.claim(args.out, f"{KIND}_{settings['scene']}", force=args.force))
     cache = Path(args.cache) if args.cache else Path.home() / ".cache" / "inshade" / KIND
     command_line = shlex.join(["inshade", "train", KIND, *(argv or [])]) if argv else None
     out = train(settings, preset=args.preset, out=args.out, device=device, executor=executor, cache_dir=cache,

@@ -41,8 +41,8 @@ over the ball pixels in the display domain -- linear radiance clamped to [0, 1],
 peak 1; for Disney one row per artist parameter swept 0 -> 1 with the others at brdf.DEFAULTS, and
 the minimum over the row is reported. For GGX the row sweeps alpha_h.
 
-    inshade train di_brdf ggx -o trained/di_brdf_ggx --preset ship
-    inshade train di_brdf disney -o trained/di_brdf_disney --preset ship
+    inshade train di_brdf ggx --force -o trained/di_brdf_ggx --preset ship
+    inshade train di_brdf disney --force -o trained/di_brdf_disney --preset ship
 
 ``--preset ship`` (the default) is exactly what built the shipped assets (PRESETS; Disney: 300 steps at
 batch 2048); ``quick`` is a short run. Options given explicitly override the preset; OUT/metrics.json
@@ -63,7 +63,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_files, atomic_write
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.models import brdf
 from inshade.models import indirection as di
@@ -774,7 +774,7 @@ def _save_encoders(model: DisneyDI, path: Path):
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("which", choices=("ggx", "disney"), help="which learned BRDF to build")
-    p.add_argument("-o", "--out", required=True, help="asset folder to write")
+    asset_folder.add_arguments(p, "di_brdf_<which>")
     p.add_argument("--preset", choices=sorted(PRESETS), default="ship",
                    help="ship: exactly what built trained/di_brdf_<which>; quick: a short run; options given "
                         "explicitly override it (default %(default)s)")
@@ -789,6 +789,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+    args.out = str(asset_folder.claim(args.out, f"di_brdf_{args.which}", force=args.force))
     # explicit option > the preset's value
     settings = {"which": args.which, **PRESETS[args.preset][args.which]}
     for k in ("steps", "batch", "lr", "seed"):

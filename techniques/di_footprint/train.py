@@ -58,7 +58,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import srgb_eotf
 from inshade.models import indirection as di
@@ -557,7 +557,7 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
     p.add_argument("--image", default=d["image"], help="image file or skimage:NAME (default %(default)s)")
-    p.add_argument("-o", "--out", required=True, help="asset folder to write (e.g. trained/di_footprint)")
+    asset_folder.add_arguments(p, "di_footprint")
     p.add_argument("--size", type=int, default=d["size"], help="centre-crop and resize to SIZE^2, a power of two")
     p.add_argument("--ratio", type=float, default=d["ratio"], help="compression vs the RGB8 base level")
     p.add_argument("--n-cascaded", type=int, default=d["n_cascaded"], help="N_c (multiple of 4)")
@@ -577,6 +577,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+    args.out = str(asset_folder.claim(args.out, "di_footprint", force=args.force))
     if args.steps is None:
         args.steps = PRESETS[args.preset]["steps"]
     if args.steps < 0 or args.batch < 1:

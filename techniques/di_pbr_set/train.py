@@ -18,7 +18,7 @@ textures of the same lanes, so the side-by-side view isolates the compression.
   scene.json, preview.png and metrics.json (per-lane-group quality of the GLSL-decoded set,
   ASTC on the same two RGBA textures, and the rendered torus DI vs uncompressed).
 
-Command: ``inshade train di_pbr_set -o trained/di_pbr_set_bricks [--preset quick|ship]`` (``--help`` for
+Command: ``inshade train di_pbr_set --force -o trained/di_pbr_set_bricks [--preset quick|ship]`` (``--help`` for
 options). ``--preset ship`` is exactly what built trained/di_pbr_set_bricks; ``quick`` (the default) trains
 3000 steps. metrics.json records the preset and the resolved settings.
 """
@@ -38,7 +38,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_files, atomic_write
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.lit_settings import lit_settings
 from inshade.metrics import psnr, srgb_oetf
@@ -477,7 +477,7 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
-    p.add_argument("-o", "--out", required=True, help="asset folder to write (e.g. trained/di_pbr_set_bricks)")
+    asset_folder.add_arguments(p, "di_pbr_set_bricks")
     p.add_argument("--size", type=int, default=d["size"], help="texture side in texels (default %(default)s)")
     p.add_argument("--ratio", type=float, default=d["ratio"], help="compression ratio vs 8 lanes x 8 bit "
                    "(default %(default)s)")
@@ -500,6 +500,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+    args.out = str(asset_folder.claim(args.out, "di_pbr_set_bricks", force=args.force))
     if args.steps is None:
         args.steps = PRESETS[args.preset]["steps"]
     if args.steps < 0 or args.batch < 1:

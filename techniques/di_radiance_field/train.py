@@ -1,7 +1,7 @@
 """`inshade train di_radiance_field`: bake the procedural radiance field (field.py), compress it with
 the paper's multi-head DI network (model.py) and write an asset folder.
 
-    inshade train di_radiance_field --preset ship --out trained/di_radiance_field_trinket
+    inshade train di_radiance_field --preset ship --force --out trained/di_radiance_field_trinket
 
 The folder holds:
   - bundle.json + weights.safetensors: the DI network (kind di_radiance_field, prefix rfd), 8-bit
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 
@@ -194,7 +194,7 @@ def write_asset(out, di_bundle, grid_bundle, full_grids, settings: dict, metrics
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
-    p.add_argument("--out", "-o", required=True, help="asset folder to write (e.g. trained/di_radiance_field_trinket)")
+    asset_folder.add_arguments(p, "di_radiance_field_trinket")
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
                    help="ship: what built trained/di_radiance_field_trinket (128^3, 800 steps); quick: a 32^3 "
                         "field, 200 steps; options given explicitly override it (default %(default)s)")
@@ -236,6 +236,7 @@ def resolve(args) -> dict:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)
+    args.out = str(asset_folder.claim(args.out, "di_radiance_field_trinket", force=args.force))
     settings = resolve(args)
     argv = list(sys.argv[1:] if argv is None else argv)
     cmd = shlex.join(["inshade", "train", "di_radiance_field", *argv])

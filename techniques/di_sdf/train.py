@@ -58,7 +58,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.lit_settings import lit_settings
 from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH
@@ -551,7 +551,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
     p.add_argument("--mesh", help="closed triangle mesh (PLY/OBJ/STL/GLB ...; default: the procedural rabbit, "
                    f"generated into {DEFAULT_MESH}, the shipped asset's)")
-    p.add_argument("--out", "-o", required=True, help="asset folder to write (e.g. trained/di_sdf)")
+    asset_folder.add_arguments(p, "di_sdf_<mesh>")
     p.add_argument("--budget-kb", type=float, default=d["budget_kb"], help="bytes of 8-bit cells, KiB (default %(default)s)")
     p.add_argument("--rho", type=float, default=d["rho"], help="N_p / N_c (default %(default)s)")
     p.add_argument("--truncation", type=float, default=d["truncation"],
@@ -575,6 +575,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
+    args.out = str(asset_folder.claim(args.out, f"di_sdf_{Path(args.mesh or DEFAULT_MESH).stem}", force=args.force))
     if args.steps is None:
         args.steps = PRESETS[args.preset]["steps"]
     if args.mesh is None:     # the procedural rabbit (deterministic), as neural_sdf does

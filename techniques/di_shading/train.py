@@ -42,7 +42,7 @@ same steps and seed:
   masked below-horizon branch) has it dropped, and is counted (metrics: nonfinite_gradient_samples);
 - Adam, cosine schedule (lr to 5%), lambda = 0 is the independently trained sampler (baseline).
 
-Command: ``inshade train di_shading -o trained/di_shading_bricks [--preset quick|ship] [--device
+Command: ``inshade train di_shading --force -o trained/di_shading_bricks [--preset quick|ship] [--device
 auto|cpu|cuda[:N]]``. ``--preset ship`` is exactly what built trained/di_shading_bricks; ``quick``
 (the default) is a small run. ``--device`` (inshade/devices.py; auto: CUDA when torch sees one)
 places the training: the mip chain, the data set's proxies and references, the samplers, the frozen
@@ -65,7 +65,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 from inshade.models import brdf
@@ -632,7 +632,7 @@ def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, metrics: 
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
-    p.add_argument("-o", "--out", required=True, help="asset folder to write (e.g. trained/di_shading_bricks)")
+    asset_folder.add_arguments(p, "di_shading_bricks")
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
                    help="ship: exactly what built trained/di_shading_bricks; quick: a small run; options "
                         "given explicitly override it (default %(default)s)")
@@ -655,6 +655,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+    args.out = str(asset_folder.claim(args.out, "di_shading_bricks", force=args.force))
     preset = PRESETS[args.preset]
     for k in ("size", "steps", "samples", "views"):
         if getattr(args, k) is None:

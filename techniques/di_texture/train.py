@@ -29,7 +29,7 @@ Orientation follows techniques/neural_image/train.py: uv (0, 0) is the bottom-le
     result = compress(image, ratio=6)
     result.bundle.save("trained/di_texture_astronaut")
 
-Command: ``inshade train di_texture IMAGE --ratio 6 [--preset quick|ship] -o trained/di_texture_<name>``
+Command: ``inshade train di_texture IMAGE --ratio 6 [--preset quick|ship] --force -o trained/di_texture_<name>``
 (IMAGE a file or ``skimage:NAME``; ``inshade compress`` is the same command). ``--preset ship`` with a
 shipped asset's IMAGE, ``--size`` and ``--ratio`` (SHIP_ASSETS) is exactly what built it; OUT/metrics.json
 records the preset and the resolved settings.
@@ -50,7 +50,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
 from inshade.models import indirection as di
@@ -498,7 +498,7 @@ def write_asset(result: Result, out, title: str, lut_filter: str = "exact") -> P
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = DEFAULTS
     p.add_argument("image", metavar="IMAGE", help="image file (PNG/JPEG/...) or skimage:NAME (e.g. skimage:astronaut)")
-    p.add_argument("-o", "--out", required=True, help="asset folder to write (e.g. trained/di_texture_astronaut)")
+    asset_folder.add_arguments(p, "di_texture_<image>")
     p.add_argument("--ratio", type=float, default=d["ratio"], help="compression ratio vs 8-bit (default %(default)s)")
     p.add_argument("--size", type=int, help="centre-crop to a square and resize to SIZE x SIZE first")
     p.add_argument("--rho", type=float, default=None,
@@ -528,6 +528,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args, argv=None) -> int:
     device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+    args.out = str(asset_folder.claim(args.out, f"di_texture_{Path(args.image.removeprefix('skimage:')).stem}", force=args.force))
     if args.steps is None:
         args.steps = PRESETS[args.preset]["steps"]
     if args.steps < 0 or args.batch < 1:

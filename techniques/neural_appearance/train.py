@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 from inshade.lit_settings import lit_settings
@@ -289,7 +289,7 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
     if resolution < 4 or resolution & (resolution - 1):
         raise ValueError(f"--resolution: must be a power of two >= 4, got {resolution}")
     mat = load_material(material)
-    out = Path(out or f"trained/neural_appearance_{mat.name}")
+    out = Path(out) if out else asset_folder.default(f"neural_appearance_{mat.name}")
     device = resolve_device(device) if isinstance(device, str) else torch.device(device)
     levels = int(math.log2(resolution)) + 1
     config = dict(material=mat.name, resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
@@ -483,7 +483,7 @@ def render_preview(out: Path, spp: int = 4) -> None:
 
 def _command_line(material, preset, out, config) -> str:
     parts = ["inshade", "train", "neural_appearance", "--material", str(material), "--preset", preset]
-    if Path(out) != Path(f"trained/neural_appearance_{Path(str(material)).stem}"):
+    if Path(out) != asset_folder.default(f"neural_appearance_{Path(str(material)).stem}"):
         parts += ["--out", str(out)]
     for key in ("resolution", "steps1", "steps2", "seed"):
         if config[key] != PRESETS[preset].get(key, DEFAULTS.get(key)):
@@ -500,7 +500,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
                         help="ship: what built trained/neural_appearance_*; quick: 32x32, seconds (default: %(default)s)")
     add_device_argument(parser, DEFAULTS["device"])
-    parser.add_argument("--out", help="asset folder (default: trained/neural_appearance_<material>)")
+    asset_folder.add_arguments(parser, "neural_appearance_<material>")
     parser.add_argument("--resolution", type=int, help="finest latent/texture side, a power of two (default: the preset's)")
     parser.add_argument("--steps1", type=int, help="phase 1 (encoder) steps (default: the preset's)")
     parser.add_argument("--steps2", type=int, help="phase 2 (latent fine-tuning) steps (default: the preset's)")
@@ -519,6 +519,8 @@ def run(args: argparse.Namespace) -> int:
         v = getattr(args, name)
         if v is not None and v < 0:
             raise SystemExit(f"--{name}: must be >= 0, got {v}")
+    args.out = str(asset_folder.claim(args.out, f"neural_appearance_{Path(str(args.material)).stem}",
+                                      force=args.force, resume=(CHECKPOINT,)))
     out = train(material=args.material, preset=args.preset, out=args.out, resolution=args.resolution,
                 steps1=args.steps1, steps2=args.steps2, batch=args.batch, seed=args.seed, device=device,
                 checkpoint_every=args.checkpoint_every, restart=args.restart, write_preview=not args.no_preview)

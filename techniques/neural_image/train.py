@@ -19,7 +19,7 @@ arrays of uv, concatenated into a small ReLU MLP: an Instant-NGP-style dense fea
 of existing components), ``frequency_relu`` (NeRF frequency encoding + ReLU MLP) and ``siren``.
 
 Command: ``inshade train neural_image [--preset quick|ship] [--device auto|cpu|cuda[:N]]
-[--out trained/neural_image] [--steps N] [--image NAME] [--seed S] [--size N] [--arch A] [--levels R:C,...]``. ``--preset ship`` (the
+[--out DIR] [--force] [--steps N] [--image NAME] [--seed S] [--size N] [--arch A] [--levels R:C,...]``. ``--preset ship`` (the
 default) is exactly what built ``trained/neural_image``; ``--preset quick`` is the same network
 trained for fewer steps; any option given explicitly overrides the preset's value.
 """
@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.files import atomic_write
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
@@ -68,7 +68,7 @@ PRESETS = {
     "quick": dict(arch="multires", levels="32:4,64:4,256:1", width=32, depth=2, steps=300,
                   batch=65536, grid_bits=8, output_activation="identity"),
 }
-DEFAULTS = dict(out="trained/neural_image", image="astronaut", size=256, seed=0, n_freqs=8,
+DEFAULTS = dict(out=None, image="astronaut", size=256, seed=0, n_freqs=8,
                 omega0=30.0, lr=None, grid_lr=1e-2, preset="ship", **PRESETS["ship"])
 RENDER_PROGRAM = "passes/field2d.frag"
 SETTINGS = ("image", "size", "steps", "seed", "arch", "width", "depth", "n_freqs", "omega0", "output_activation",
@@ -334,7 +334,7 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
         "device": str(device),
     })
     bundle.meta["metrics"] = metrics
-    out = Path(out)
+    out = Path(out) if out else asset_folder.default(f"neural_image_{image}")
     bundle.save(out)
     # metrics.json: the bundle's metrics plus the preset and the settings it resolved to
     # (tests/test_presets.py holds the shipped asset's equal to preset_settings("ship"))
@@ -370,7 +370,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="ship: exactly what built trained/neural_image; quick: the same network, "
                              "fewer steps (default: %(default)s)")
     add_device_argument(parser)
-    parser.add_argument("--out", default=d["out"], help="bundle folder (default: %(default)s)")
+    asset_folder.add_arguments(parser, "neural_image_<image>")
     parser.add_argument("--image", default=d["image"], choices=IMAGES,
                         help="skimage.data photograph (default: %(default)s)")
     parser.add_argument("--size", type=int, default=d["size"], help="target resolution, square (default: %(default)s)")
@@ -409,6 +409,7 @@ def resolve(args: argparse.Namespace) -> dict:
 def run(args: argparse.Namespace) -> int:
     device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
     kw = resolve(args)
+    kw["out"] = str(asset_folder.claim(args.out, f"neural_image_{kw['image']}", force=args.force))
     if kw["steps"] < 0 or kw["size"] < 1:
         raise SystemExit("--steps must be >= 0 and --size >= 1")
     if kw["arch"] == "multires":

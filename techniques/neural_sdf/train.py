@@ -55,7 +55,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH, bounding_sphere, load_mesh
@@ -70,7 +70,7 @@ KIND = "neural_sdf"
 SIGMAS = (0.01, 0.05)            # Gaussian offsets off the surface, x radius
 BOUND_MARGIN = 0.08              # the bound sphere is the mesh's grown by 8% (room for normals, offsets)
 ACTIVATIONS = ("softplus", "relu", "leaky_relu", "tanh")
-DEFAULTS = dict(out="/tmp/inshade_neural_sdf", mesh=None, width=32, layers=3, freqs=0, activation="softplus",
+DEFAULTS = dict(out=None, mesh=None, width=32, layers=3, freqs=0, activation="softplus",
                 steps=3000, batch=8192, lr=2e-3, samples=300_000, seed=0, lipschitz_target=4.0,
                 lipschitz_weight=0.05, hit_eps=1e-3, threads=1)
 # --preset: "ship" is what built the shipped network SDF (trained/prt_neural_bunny/sdf, on the
@@ -347,6 +347,11 @@ def _chamfer(module: NetworkSdfModule, mesh, radius: float, res: int) -> dict:
     return {"chamfer": float(ch), "chamfer_rel": float(ch / radius)}
 
 
+def default_name(mesh) -> str:
+    """The asset folder's name when no --out is given: neural_sdf_<mesh file stem>."""
+    return f"{KIND}_{Path(mesh).stem if mesh else DEFAULT_MESH.stem}"
+
+
 def train(*, out=DEFAULTS["out"], mesh=None, width=DEFAULTS["width"], layers=DEFAULTS["layers"],
           freqs=DEFAULTS["freqs"], activation=DEFAULTS["activation"], steps=DEFAULTS["steps"],
           batch=DEFAULTS["batch"], lr=DEFAULTS["lr"], samples=DEFAULTS["samples"], seed=DEFAULTS["seed"],
@@ -419,7 +424,8 @@ def _train(out, mesh, width, layers, freqs, activation, steps, batch, lr, sample
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
     bundle = module.export(KIND, KIND, provenance=provenance, metrics=metrics)
-    bundle.save(Path(out))
+    out = Path(out) if out else asset_folder.default(default_name(mesh))
+    bundle.save(out)
     # metrics.json: the bundle's metrics plus the preset and the settings it resolved to
     settings = {k: kw[k] for k in SETTINGS}
     atomic_write(Path(out) / "metrics.json", json.dumps({"command": provenance["command"], "preset": preset,
@@ -478,7 +484,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--mesh", default=None,
                         help="watertight OBJ/PLY/GLB (default: the procedural rabbit, generated into "
                              f"{DEFAULT_MESH})")
-    parser.add_argument("--out", default=d["out"], help="bundle folder (default: %(default)s)")
+    asset_folder.add_arguments(parser, "neural_sdf_<mesh>")
     parser.add_argument("--preset", default="ship", choices=sorted(PRESETS),
                         help="ship: what built the shipped network SDF (trained/prt_neural_bunny/sdf, with the "
                              "default mesh); quick: a small fit in seconds; options given explicitly override "
@@ -507,6 +513,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
+    args.out = str(asset_folder.claim(args.out, default_name(args.mesh), force=args.force))
     kw = {k: getattr(args, k) for k in ("out", "mesh", "width", "layers", "freqs", "activation", "steps", "batch",
                                          "lr", "samples", "seed", "lipschitz_target", "lipschitz_weight", "threads",
                                          "preview")}

@@ -1,7 +1,7 @@
 """Build the sub-scene PRT asset (Learnt Transfer, Dhawal et al. 2022 §4.4): the procedural atrium, its transfer
 split into region networks, and the two one-network baselines, in one run.
 
-    python -m inshade.techniques.prt.regions_train --out trained/prt_atrium [--preset ship|quick]
+    python -m inshade.techniques.prt.regions_train --force --out trained/prt_atrium [--preset ship|quick]
 
 Steps (times in ``OUT/metrics.json``):
 
@@ -32,7 +32,7 @@ import shlex
 import time
 from pathlib import Path
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError
 from inshade.files import atomic_write
 from inshade.techniques.prt.train import write_previews
@@ -80,7 +80,7 @@ def scene_dict(networks: list[dict], title: str) -> dict:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default="trained/prt_atrium", help="asset folder (default %(default)s)")
+    asset_folder.add_arguments(p, "prt_atrium")
     p.add_argument("--preset", choices=tuple(PRESETS), default="ship", help="settings (default %(default)s)")
     p.add_argument("--cache", default=None, help="dataset cache (default ~/.cache/inshade/prt_atrium)")
     p.add_argument("--report", default="docs/bench", help="folder of prt_regions.{json,md,png} (default %(default)s)")
@@ -103,7 +103,7 @@ def run(args) -> int:
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     s = preset_settings(args.preset)
-    out = Path(args.out)
+    out = asset_folder.claim(args.out, "prt_atrium", force=args.force)
     out.mkdir(parents=True, exist_ok=True)
     cache = Path(args.cache) if args.cache else Path.home() / ".cache" / "inshade" / "prt_atrium"
     times = {}

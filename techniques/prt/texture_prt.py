@@ -3,7 +3,7 @@ vectors baked into a texture on a uv-mapped mesh, shaded with the same diffuse +
 formulation as the learnt transfer (shaders/lib/prt.glsl). Only where the 16 coefficients come from
 differs: a bilinear texture fetch at the pixel's uv instead of the MLP at (p, n).
 
-    python -m inshade.techniques.prt.texture_prt --mesh trained/prt_mesh/mesh.ply --out trained/prt_mesh_texture
+    python -m inshade.techniques.prt.texture_prt --mesh trained/prt_mesh/mesh.ply --force --out trained/prt_mesh_texture
 
 Steps (timed, recorded in ``OUT/metrics.json`` with the preset and its resolved settings):
 
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, resolve_device
 from inshade.files import atomic_write
 from inshade.techniques.prt.texture_codegen import KIND, PREFIX, PROGRAM
@@ -352,7 +352,7 @@ def scene_dict(name: str, title: str, camera: dict, bookmarks: dict) -> dict:
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--mesh", required=True, help="triangle mesh (OBJ/PLY/GLB); its uv are replaced by an atlas")
-    p.add_argument("--out", required=True, help="asset folder to write")
+    asset_folder.add_arguments(p, "prt_<mesh>_texture")
     p.add_argument("--preset", choices=PRESETS, default="ship",
                    help="settings: ship = what built the shipped asset OUT is named after (else the base recipe), "
                         "quick = seconds; options given explicitly override the preset")
@@ -375,11 +375,12 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     from inshade.mesh import load_mesh, obj_text
-    from inshade.techniques.prt.train import previews_and_quality, scene_camera
+    from inshade.techniques.prt.train import default_name, previews_and_quality, scene_camera
     from inshade.techniques.prt.transfer import geometry_bound
 
     device = resolve_device(args.device)
-    out = Path(args.out)
+    out = asset_folder.claim(args.out, default_name(Path(args.mesh)) + "_texture", force=args.force)
+    args.out = str(out)
     settings = preset_settings(args.preset, out.name)
     for k in SETTINGS:
         given = getattr(args, k, None)

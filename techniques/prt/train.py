@@ -1,8 +1,11 @@
 """`inshade train prt`: build a shipped PRT asset folder from one geometry.
 
-    inshade train prt --sdf trained/sdf_creature/sdf.json --out trained/prt_creature
-    inshade train prt --neural-sdf trained/prt_neural_bunny/sdf --out trained/prt_neural_bunny
-    inshade train prt --mesh trained/prt_mesh/mesh.ply --out trained/prt_mesh
+    inshade train prt --sdf trained/sdf_creature/sdf.json        # -> ./inshade-out/prt_creature
+    inshade train prt --neural-sdf trained/prt_neural_bunny/sdf  # -> ./inshade-out/prt_neural_bunny
+    inshade train prt --mesh trained/prt_mesh/mesh.ply           # -> ./inshade-out/prt_mesh
+
+``--out DIR`` writes elsewhere; a folder that already holds files (a shipped asset) is refused
+unless ``--force``.
 
 Steps, all timed and recorded in ``OUT/metrics.json``:
 
@@ -40,7 +43,7 @@ import time
 from pathlib import Path
 
 from inshade.files import atomic_write
-from inshade import command
+from inshade import asset_folder, command
 from inshade.bake import BakeError, executor_from_args
 from inshade.devices import DeviceError, resolve_device
 from inshade.lit_settings import lit_settings
@@ -115,7 +118,8 @@ PREVIEW_SIZE = 256
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
-    transfer_net.add_arguments(parser)
+    transfer_net.add_arguments(parser, out=False)
+    asset_folder.add_arguments(parser, "prt_<geometry>")
     parser.add_argument("--preset", choices=PRESETS, default="ship",
                         help="settings: ship = what built the shipped asset OUT is named after (else the base "
                              "recipe), quick = seconds; options given explicitly override the preset")
@@ -125,7 +129,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--quality-views", type=int, help="orbit views of the quality measurement (default: the preset's)")
     parser.add_argument("--quality-size", type=int, help="square size of the quality renders (default: the preset's)")
     parser.add_argument("--quality-dirs", type=int, help="rays per pixel of the ground truth (default: the preset's)")
-    parser.add_argument("--skip-train", action="store_true", help="keep OUT/transfer, redo scene/previews/quality")
+    parser.add_argument("--skip-train", action="store_true",
+                        help="keep OUT/transfer, redo scene/previews/quality (an existing OUT: with --force)")
     # the preset fills what is not given explicitly (resolve_settings); the help says so
     parser.set_defaults(**{k: None for k in SETTINGS})
     for action in parser._actions:
@@ -144,6 +149,15 @@ def _geometry(args) -> tuple[str, Path]:
     if not path.exists():
         raise SystemExit(f"inshade train prt: {path}: no such file or folder")
     return kind, path
+
+
+def default_name(src: Path) -> str:
+    """The asset's name when no --out is given: prt_ + the geometry's name (the file's stem, or for
+    a file or bundle called sdf/mesh its folder's name, without an sdf_/prt_ prefix)."""
+    name = src.parent.name if src.stem in ("sdf", "mesh") else src.stem
+    for prefix in ("prt_", "sdf_"):
+        name = name.removeprefix(prefix)
+    return f"prt_{name}"
 
 
 def _copy_geometry(kind: str, src: Path, out: Path) -> str:
@@ -214,11 +228,12 @@ def run(args: argparse.Namespace) -> int:
     resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work (transfer_net uses it)
     executor_from_args(args)      # a bad --workers / --ray fails before any work too
     kind, src = _geometry(args)
+    args.out = str(asset_folder.claim(args.out, default_name(src), force=args.force))
     settings = resolve_settings(args)
     # the device is recorded resolved in the transfer bundle's provenance, not in the recipe; where
     # the bake ran (--workers, --ray) does not change the data
     command = shlex.join(["inshade", "train", "prt"] + transfer_net.command_options(
-        args, set(vars(args)) - {"func", "command", "device", "workers", "ray"}))
+        args, set(vars(args)) - {"func", "command", "device", "workers", "ray", "force"}))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     times = {}

@@ -360,13 +360,16 @@ def load_geometry(args: argparse.Namespace):
     return NetworkSdfModule.from_bundle(load(args.neural_sdf)), {"neural_sdf": str(args.neural_sdf)}
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+def add_arguments(parser: argparse.ArgumentParser, out: bool = True) -> argparse.ArgumentParser:
+    """This module's options (``out``: with its own required ``--out``; a wrapper that writes the
+    bundle inside an asset folder brings its own)."""
     d = DEFAULTS
     geo = parser.add_mutually_exclusive_group(required=True)
     geo.add_argument("--sdf", help="analytic SDF description (e.g. trained/sdf_creature/sdf.json)")
     geo.add_argument("--mesh", help="triangle mesh (OBJ/PLY/GLB), transfer by embree ray casting")
     geo.add_argument("--neural-sdf", help="network-SDF bundle folder")
-    parser.add_argument("--out", required=True, help="bundle folder to write")
+    if out:
+        parser.add_argument("--out", required=True, help="bundle folder to write")
     parser.add_argument("--cache", default=None, help="dataset cache folder (default: OUT/../.transfer_cache)%(default).0s")
     parser.add_argument("--width", type=int, default=d["width"], help="hidden width k (default: %(default)s)")
     parser.add_argument("--layers", type=int, default=d["layers"], help="hidden layers (default: %(default)s)")

@@ -36,7 +36,7 @@ import numpy as np
 import torch
 from PIL import Image
 
-from inshade import command
+from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 from inshade.lit_settings import lit_settings
@@ -202,7 +202,7 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
     batch = batch or p["batch"]
     hidden = tuple(hidden or p["hidden"])
     name = object_name if mesh_path is None else Path(mesh_path).stem
-    out = Path(out or f"trained/{KIND}_{name}_{config}")
+    out = Path(out) if out else asset_folder.default(f"{KIND}_{name}_{config}")
     started = time.perf_counter()
     mesh, textures = prepare_asset(out, object_name=object_name, mesh_path=mesh_path, textures_dir=textures_dir,
                                    resolution=resolution, seed=seed)
@@ -336,7 +336,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="ship: what built trained/uvfree_material_*; quick: 64^2 textures, seconds "
                         "(default: %(default)s)")
     add_device_argument(parser, DEFAULTS["device"])
-    parser.add_argument("--out", help="asset folder (default: trained/uvfree_material_<object>_<config>)")
+    asset_folder.add_arguments(parser, f"{KIND}_<object>_<config>")
     parser.add_argument("--resolution", type=int, help="procedural texture side, a power of two (default: the preset's)")
     parser.add_argument("--steps", type=int, help="training steps (default: the preset's)")
     parser.add_argument("--batch", type=int, help="surface points per step (default: the preset's)")
@@ -370,6 +370,8 @@ def run(args: argparse.Namespace, argv=None) -> int:
             raise TrainError(f"--{name.replace('_', '-')}: must be >= {0 if name == 'steps' else 1}, got {v}")
     if args.textures and not args.mesh:
         raise TrainError("--textures: goes with --mesh")
+    name = args.object if args.mesh is None else Path(args.mesh).stem
+    args.out = str(asset_folder.claim(args.out, f"{KIND}_{name}_{args.config}", force=args.force))
     command_line = shlex.join(["inshade", "train", KIND, *(argv or [])]) if argv else None
     out = train(object_name=args.object, mesh_path=args.mesh, textures_dir=args.textures, config=args.config,
                 preset=args.preset, out=args.out, resolution=args.resolution, steps=args.steps, batch=args.batch,
