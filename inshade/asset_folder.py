@@ -28,22 +28,25 @@ def default(name: str) -> Path:
 
 def add_arguments(parser: argparse.ArgumentParser, name: str) -> None:
     """``-o/--out DIR`` (default ``./inshade-out/<name>``) and ``--force``."""
+    # %(default).0s prints nothing: it only keeps ArgumentDefaultsHelpFormatter from adding "(default: None)"
     parser.add_argument("-o", "--out", metavar="DIR",
                         help=f"asset folder to write (default: {default(name)}); a folder that already "
-                             "holds files is refused unless --force")
+                             "holds files is refused unless --force%(default).0s")
     parser.add_argument("--force", action="store_true",
-                        help="write into --out even if it already holds an asset (its files are replaced)")
+                        help="write into --out even if it already holds an asset (its files are replaced)%(default).0s")
 
 
-def claim(out, name: str, *, force: bool = False, resume: tuple[str, ...] = ()) -> Path:
+def claim(out, name: str, *, force: bool = False, resume: tuple[str, ...] = (), option: str = "--out",
+          force_option: str = "--force") -> Path:
     """The folder to write: ``out``, or ``default(name)`` when ``out`` is empty. Raises
-    ``OutputExistsError`` when it holds files (other than ``resume``) and ``force`` is false."""
+    ``OutputExistsError`` when it holds files (other than ``resume``) and ``force`` is false;
+    ``option`` / ``force_option`` name the caller's spelling of the two in the message."""
     folder = Path(out) if out else default(name)
     if folder.exists() and not folder.is_dir():
-        raise OutputExistsError(f"{folder}: --out: is a file, expected an asset folder")
+        raise OutputExistsError(f"{folder}: {option}: is a file, expected an asset folder")
     held = sorted(p.name for p in folder.iterdir() if p.name not in resume) if folder.is_dir() else []
     if held and not force:
         shown = ", ".join(held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
-        raise OutputExistsError(f"{folder}: --out: already holds an asset ({shown}); choose another --out, "
-                                "or pass --force to write over it")
+        raise OutputExistsError(f"{folder}: {option}: already holds an asset ({shown}); choose another {option}, "
+                                f"or pass {force_option} to write over it")
     return folder
