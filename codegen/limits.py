@@ -14,6 +14,7 @@ generated without a context fits every GL 3.3 driver:
                                                  code declares only samplers there)
     GL_MAX_TEXTURE_IMAGE_UNITS             16    samplers one fragment shader may use
     GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS    48    samplers of one program, all stages
+    GL_MAX_DRAW_BUFFERS                     8    colour outputs of one pass (4 lanes each)
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ GL33_MINIMUMS = {
     "GL_MAX_FRAGMENT_UNIFORM_COMPONENTS": 1024,
     "GL_MAX_TEXTURE_IMAGE_UNITS": 16,
     "GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS": 48,
+    "GL_MAX_DRAW_BUFFERS": 8,
 }
 
 

@@ -66,7 +66,11 @@ def _same(p, d):
     return d
 
 
-ACTIVATIONS = ("relu", "leaky_relu", "sigmoid", "tanh", "softplus", "sin", "exp", "expm1", "identity")
+ACTIVATIONS = ("relu", "leaky_relu", "sigmoid", "tanh", "softplus", "sin", "cos", "exp", "expm1", "identity",
+               "silu", "gelu", "elu", "abs", "clamp", "erf")
+# elementwise too, but defined on part of the line only (x >= 0, x != 0)
+PARTIAL_ELEMENTWISE = ("sqrt", "reciprocal")
+GELU_FORMS = ("none", "tanh")
 
 COMPONENTS: dict[str, ComponentSpec] = {}
 
@@ -84,12 +88,91 @@ _register(ComponentSpec(
     in_dim=lambda p, d: 1 <= d <= MAX_WIDTH,
     category="layer",
 ))
-for _name in ("relu", "sigmoid", "tanh", "softplus", "exp", "expm1", "identity"):
+for _name in ("relu", "sigmoid", "tanh", "exp", "expm1", "identity", "silu", "abs", "erf", *PARTIAL_ELEMENTWISE):
     _register(ComponentSpec(_name, f"elementwise {_name}", {}, out_dim=_same))
 _register(ComponentSpec("leaky_relu", "x if x>0 else slope*x",
                         {"slope": Param(float, 0.01, _finite)}, out_dim=_same))
 _register(ComponentSpec("sin", "sin(omega0 * x), SIREN's activation",
                         {"omega0": Param(float, 1.0, _finite)}, out_dim=_same))
+_register(ComponentSpec("cos", "cos(omega0 * x)", {"omega0": Param(float, 1.0, _finite)}, out_dim=_same))
+_register(ComponentSpec(
+    "softplus", "log(1 + exp(beta x)) / beta; x where beta x > threshold (absent: no threshold)",
+    {"beta": Param(float, 1.0, lambda v: _finite(v) and v > 0, "finite and > 0"),
+     "threshold": Param(float, None, _finite, "finite")}, out_dim=_same))
+_register(ComponentSpec("gelu", "x * Phi(x), Phi by erf ('none') or torch's tanh approximation ('tanh')",
+                        {"approximate": Param(str, "none", lambda v: v in GELU_FORMS, " or ".join(GELU_FORMS))},
+                        out_dim=_same))
+_register(ComponentSpec("elu", "x if x > 0 else alpha (exp(x) - 1)", {"alpha": Param(float, 1.0, _finite)},
+                        out_dim=_same))
+_register(ComponentSpec("clamp", "min(max(x, min), max); either bound may be absent",
+                        {"min": Param(float, None, _finite, "finite"), "max": Param(float, None, _finite, "finite")},
+                        out_dim=_same, extra_checks=lambda p, d: _ordered(p)))
+
+
+def _ordered(p):
+    if p["min"] is None and p["max"] is None:
+        raise ComponentError("clamp: needs min, max or both")
+    if p["min"] is not None and p["max"] is not None and p["min"] > p["max"]:
+        raise ComponentError(f"clamp: min {p['min']} > max {p['max']}")
+
+
+# --- the feature axis: constants, lane selection, branches, reductions, normalisation ----------
+
+_register(ComponentSpec(
+    "affine", "y = x * scale + offset, per lane (folded constants, BatchNorm in eval mode)",
+    {}, out_dim=_same,
+    tensors=lambda p, d: {"scale": TensorSpec((d,), "float32"), "offset": TensorSpec((d,), "float32")},
+    category="layer",
+))
+
+
+def _lanes_check(p, d):
+    bad = [i for i in p["lanes"] if not (isinstance(i, int) and not isinstance(i, bool) and 0 <= i < d)]
+    if bad:
+        raise ComponentError(f"select: lane {bad[0]!r} is not in 0..{d - 1}")
+
+
+_register(ComponentSpec(
+    "select", "y = x[lanes]: lanes of the input in any order, repeats allowed (slices, splits, broadcasts)",
+    {"lanes": Param(list, check=lambda v: 1 <= len(v) <= MAX_WIDTH, doc=f"1..{MAX_WIDTH} lane indices")},
+    out_dim=lambda p, d: len(p["lanes"]), extra_checks=_lanes_check, category="layer",
+))
+for _name, _sym in (("sub", "-"), ("mul", "*"), ("div", "/")):
+    _register(ComponentSpec(
+        _name, f"two branches: input [a (n lanes), b (n lanes)] -> a {_sym} b (n lanes)", {},
+        out_dim=lambda p, d: d // 2, in_dim=lambda p, d: d >= 2 and d % 2 == 0, category="layer"))
+
+COMPARISONS = ("gt", "ge", "lt", "le")
+_register(ComponentSpec(
+    "where", "a comparison choosing between branches: input [a, b, x, y] (n lanes each) -> "
+             "(a op b) ? x : y, op one of gt, ge, lt, le",
+    {"op": Param(str, check=lambda v: v in COMPARISONS, doc=", ".join(COMPARISONS))},
+    out_dim=lambda p, d: d // 4, in_dim=lambda p, d: d >= 4 and d % 4 == 0, category="layer",
+))
+REDUCE_OPS = ("sum", "mean", "norm", "max", "min")
+
+
+def _groups_check(p, d):
+    if d % p["groups"]:
+        raise ComponentError(f"groups: {p['groups']} does not divide the input width {d}")
+
+
+_register(ComponentSpec(
+    "reduce", "the input as `groups` equal runs of lanes, each reduced to one lane by op "
+              "(sum, mean, norm = sqrt of the sum of squares, max, min)",
+    {"op": Param(str, check=lambda v: v in REDUCE_OPS, doc=", ".join(REDUCE_OPS)),
+     "groups": Param(int, 1, _pos_int(MAX_WIDTH))},
+    out_dim=lambda p, d: p["groups"], extra_checks=_groups_check, category="layer",
+))
+_register(ComponentSpec(
+    "layer_norm", "LayerNorm of each of `groups` equal runs of lanes: (x - mean) / sqrt(var + eps), "
+                  "biased variance; then * weight + bias per lane of a run when `affine`",
+    {"eps": Param(float, 1e-5, lambda v: _finite(v) and v >= 0, "finite and >= 0"),
+     "groups": Param(int, 1, _pos_int(MAX_WIDTH)), "affine": Param(bool, True)},
+    out_dim=_same, extra_checks=_groups_check, category="layer",
+    tensors=lambda p, d: ({"weight": TensorSpec((d // p["groups"],), "float32"),
+                           "bias": TensorSpec((d // p["groups"],), "float32")} if p["affine"] else {}),
+))
 
 _register(ComponentSpec(
     "frequency", "NeRF positional encoding: [x] + [sin(2^k pi x), cos(2^k pi x)] for k < n_freqs",
@@ -361,7 +444,7 @@ def resolve_params(node_type: str, params: dict) -> dict:
         raise ComponentError(f"unknown params for {node_type}: {', '.join(extra)}")
     out = {}
     for name, p in spec.params.items():
-        if name not in params:
+        if name not in params or params[name] is None and p.default is None:
             if p.default is ...:
                 raise ComponentError(f"missing param '{name}' for {node_type}")
             out[name] = p.default

@@ -211,9 +211,14 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             if t == "dense":
                 w = bundle.tensor(n, "weight").astype(np.float64)
                 b = bundle.tensor(n, "bias").astype(np.float64) if p["bias"] else np.zeros(n.out_dim)
-                c, r = (lo + hi) / 2, (hi - lo) / 2
-                yc, yr = w @ c + b, np.abs(w) @ r
-                olo, ohi = yc - yr, yc + yr
+                if np.isfinite(lo).all() and np.isfinite(hi).all():
+                    c, r = (lo + hi) / 2, (hi - lo) / 2
+                    yc, yr = w @ c + b, np.abs(w) @ r
+                    olo, ohi = yc - yr, yc + yr
+                else:   # an unbounded input: term by term, a zero weight contributes nothing
+                    wp, wn = np.maximum(w, 0), np.minimum(w, 0)
+                    term = lambda m, v: np.where(m != 0, m * v, 0.0).sum(1)  # noqa: E731
+                    olo, ohi = term(wp, lo) + term(wn, hi) + b, term(wp, hi) + term(wn, lo) + b
                 s = np.abs(w) @ _mag(lo, hi) + np.abs(b)
                 ratio = s / np.maximum(1.0, _min_abs(olo, ohi))
                 i = int(np.nanargmax(np.where(np.isnan(ratio), np.inf, ratio)))
@@ -238,8 +243,52 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                 olo, ohi = 1 / (1 + np.exp(-lo)), 1 / (1 + np.exp(-hi))
             elif t == "tanh":
                 olo, ohi = np.tanh(lo), np.tanh(hi)
-            elif t == "softplus":
-                olo, ohi = np.logaddexp(0, lo), np.logaddexp(0, hi)
+            elif t in _MONOTONE:          # non-decreasing: the ends map to the ends
+                f = _MONOTONE[t](p)
+                olo, ohi = f(lo), f(hi)
+            elif t in _DIPPING:           # a single minimum (value m at x0), increasing beyond it
+                f, x0, m = _DIPPING[t](p)
+                olo = np.where((lo <= x0) & (hi >= x0), m, np.minimum(f(lo), f(hi)))
+                ohi = np.maximum(f(lo), f(hi))
+            elif t == "abs":
+                olo, ohi = _min_abs(lo, hi), _mag(lo, hi)
+                is_exact = src_exact
+            elif t == "clamp":
+                olo, ohi = lo, hi
+                if p["min"] is not None:
+                    olo, ohi = np.maximum(olo, p["min"]), np.maximum(ohi, p["min"])
+                if p["max"] is not None:
+                    olo, ohi = np.minimum(olo, p["max"]), np.minimum(ohi, p["max"])
+                is_exact = src_exact
+            elif t in ("sqrt", "reciprocal"):
+                olo, ohi = _partial(n, t, lo, hi, warn)
+            elif t == "affine":
+                s_, o_ = bundle.tensor(n, "scale").astype(np.float64), bundle.tensor(n, "offset").astype(np.float64)
+                a, b = lo * s_ + o_, hi * s_ + o_
+                olo, ohi = np.minimum(a, b), np.maximum(a, b)
+            elif t == "select":
+                idx = np.asarray(p["lanes"])
+                olo, ohi = lo[idx], hi[idx]
+                is_exact = src_exact
+            elif t in ("sub", "mul", "div"):
+                half = n.out_dim
+                olo, ohi = _binary_range(n, t, (lo[:half], hi[:half]), (lo[half:], hi[half:]), warn)
+            elif t == "where":            # one of the two branches
+                k = n.out_dim
+                olo, ohi = np.minimum(lo[2 * k:3 * k], lo[3 * k:]), np.maximum(hi[2 * k:3 * k], hi[3 * k:])
+            elif t == "reduce":
+                olo, ohi = _reduce_range(p["op"], lo.reshape(p["groups"], -1), hi.reshape(p["groups"], -1))
+            elif t == "layer_norm":       # |(x - mean) / std| <= sqrt(size - 1) for any run
+                size = n.out_dim // p["groups"]
+                w = bundle.tensor(n, "weight").astype(np.float64) if p["affine"] else np.ones(size)
+                b = bundle.tensor(n, "bias").astype(np.float64) if p["affine"] else np.zeros(size)
+                r = math.sqrt(max(size - 1, 0)) * np.abs(w)
+                olo, ohi = np.tile(b - r, p["groups"]), np.tile(b + r, p["groups"])
+                gain = float(np.max(_mag(lo, hi))) / math.sqrt(p["eps"]) if p["eps"] > 0 else math.inf
+                if size > 1 and 5.7e-8 * gain > TOL:
+                    warn(n.id, "layer_norm gain max|x| / sqrt(eps) (a run whose variance nears 0)", gain,
+                         TOL / 5.7e-8, "an ulp of the input is multiplied by 1 / sqrt(var + eps); rows whose "
+                         "features are nearly equal can break the rule", NOTE)
             elif t in ("exp", "expm1"):   # expm1 = exp(x) - 1 in GLSL: the same overflow
                 bound = float(np.max(hi))
                 if bound > EXP_ARG:
@@ -264,11 +313,12 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                 olo, ohi = np.full(n.out_dim, -1.0), np.full(n.out_dim, 1.0)
             elif t == "proxy_params":     # weights, slopes (sinh-like of the inputs), alphas, correlation
                 olo, ohi = _proxy_ranges(p, lo, hi)
-            elif t == "sin":
+            elif t in ("sin", "cos"):     # cos(t) = sin(t + pi/2)
                 w0 = p["omega0"]
                 alo, ahi = np.minimum(w0 * lo, w0 * hi), np.maximum(w0 * lo, w0 * hi)
-                periodic(n.id, f"sin argument |omega0 * x| (omega0 {w0:g})", float(np.max(_mag(alo, ahi))), src_exact)
-                olo, ohi = _sin_range(alo, ahi)
+                periodic(n.id, f"{t} argument |omega0 * x| (omega0 {w0:g})", float(np.max(_mag(alo, ahi))), src_exact)
+                shift = math.pi / 2 if t == "cos" else 0.0
+                olo, ohi = _sin_range(alo + shift, ahi + shift)
             elif t == "frequency":
                 nf, d = p["n_freqs"], n.in_dim
                 parts_lo, parts_hi = ([lo], [hi]) if p["include_input"] else ([], [])
@@ -328,6 +378,68 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             iv[n.id] = (np.asarray(olo, np.float64).reshape(n.out_dim), np.asarray(ohi, np.float64).reshape(n.out_dim))
             exact[n.id] = is_exact
     return Envelope(findings, rng, iv)
+
+
+def _softplus(p):
+    beta, threshold = p["beta"], p["threshold"]
+    if threshold is None:
+        return lambda x: np.logaddexp(0, beta * x) / beta
+    return lambda x: np.where(beta * x > threshold, x, np.logaddexp(0, beta * x) / beta)
+
+
+_MONOTONE = {
+    "softplus": _softplus,
+    "erf": lambda p: np.vectorize(math.erf, otypes=[np.float64]),
+    "elu": lambda p: (lambda x: np.where(x > 0, x, p["alpha"] * np.expm1(np.minimum(x, 0)))),
+}
+_SILU = lambda x: x / (1 + np.exp(-x))  # noqa: E731
+_DIPPING = {   # x0 and the minimum from the closed forms, rounded outwards
+    "silu": lambda p: (_SILU, -1.2784645, -0.2784646),
+    "gelu": lambda p: (lambda x: x * 0.5 * (1 + np.vectorize(math.erf, otypes=[np.float64])(x / math.sqrt(2))), -0.7517916, -0.1700404),
+}
+
+
+def _partial(n: Node, t: str, lo, hi, warn):
+    """sqrt / reciprocal: bounds, and a warning where the input range reaches outside the domain."""
+    if t == "sqrt":
+        if np.any(lo < 0):
+            warn(n.id, "sqrt argument (lowest)", float(np.min(lo)), 0.0, "sqrt of a negative value is NaN")
+        return np.sqrt(np.maximum(lo, 0)), np.sqrt(np.maximum(hi, 0))
+    spans = (lo <= 0) & (hi >= 0)
+    if np.any(spans):
+        warn(n.id, "reciprocal argument range includes 0", float(np.max(_mag(lo, hi))), math.nan,
+             "1 / x is unbounded near 0: no bound downstream")
+    with np.errstate(divide="ignore"):
+        a, b = 1 / lo, 1 / hi
+    return np.where(spans, -np.inf, np.minimum(a, b)), np.where(spans, np.inf, np.maximum(a, b))
+
+
+def _binary_range(n: Node, t: str, a, b, warn):
+    (alo, ahi), (blo, bhi) = a, b
+    if t == "sub":
+        return alo - bhi, ahi - blo
+    if t == "div":
+        spans = (blo <= 0) & (bhi >= 0)
+        if np.any(spans):
+            warn(n.id, "divisor range includes 0", float(np.max(_mag(blo, bhi))), math.nan,
+                 "a / b is unbounded near b = 0: no bound downstream")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            blo, bhi = np.where(spans, -np.inf, 1 / bhi), np.where(spans, np.inf, 1 / blo)
+    with np.errstate(invalid="ignore"):
+        corners = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
+    corners = np.where(np.isnan(corners), np.inf, corners)
+    return corners.min(0), corners.max(0)
+
+
+def _reduce_range(op: str, lo, hi):
+    size = lo.shape[1]
+    if op in ("sum", "mean"):
+        k = 1.0 if op == "sum" else 1.0 / size
+        return lo.sum(1) * k, hi.sum(1) * k
+    if op == "norm":
+        return np.sqrt((_min_abs(lo, hi) ** 2).sum(1)), np.sqrt((_mag(lo, hi) ** 2).sum(1))
+    pick = np.max if op == "max" else np.min
+    return pick(lo, 1), pick(hi, 1)
 
 
 def _proxy_ranges(p: dict, lo: np.ndarray, hi: np.ndarray):

@@ -31,11 +31,30 @@ class Tanh(_Elementwise):
     fn = staticmethod(torch.tanh)
 
 
+def _stable_softplus(x):
+    """The stable form the shader uses too: max(x, 0) + log1p(exp(-|x|))."""
+    return torch.clamp_min(x, 0) + torch.log1p(torch.exp(-x.abs()))
+
+
 @register
-class Softplus(_Elementwise):
+class Softplus(Component):
+    """softplus(x) = log(1 + exp(beta x)) / beta; with ``threshold`` (torch.nn.Softplus's), x where
+    beta x > threshold. Without one (the default, and bundles written before these parameters)
+    the stable form everywhere."""
+
     type = "softplus"
-    # The stable form the shader uses too: max(x, 0) + log1p(exp(-|x|)).
-    fn = staticmethod(lambda x: torch.clamp_min(x, 0) + torch.log1p(torch.exp(-x.abs())))
+
+    def __init__(self, beta: float = 1.0, threshold: float | None = None):
+        super().__init__()
+        self.beta, self.threshold = float(beta), None if threshold is None else float(threshold)
+
+    def params(self):
+        return {"beta": self.beta, **({"threshold": self.threshold} if self.threshold is not None else {})}
+
+    def forward(self, x):
+        if self.threshold is None:
+            return _stable_softplus(x) if self.beta == 1.0 else _stable_softplus(x * self.beta) / self.beta
+        return torch.nn.functional.softplus(x, self.beta, self.threshold)
 
 
 @register
@@ -64,11 +83,8 @@ class LeakyReLU(Component):
         return torch.nn.functional.leaky_relu(x, self.slope)
 
 
-@register
-class Sin(Component):
-    """SIREN's activation sin(omega0 * x)."""
-
-    type = "sin"
+class _Periodic(Component):
+    fn = staticmethod(torch.sin)
 
     def __init__(self, omega0: float = 1.0):
         super().__init__()
@@ -78,7 +94,22 @@ class Sin(Component):
         return {"omega0": self.omega0}
 
     def forward(self, x):
-        return torch.sin(self.omega0 * x)
+        return self.fn(self.omega0 * x)
+
+
+@register
+class Sin(_Periodic):
+    """SIREN's activation sin(omega0 * x)."""
+
+    type = "sin"
+
+
+@register
+class Cos(_Periodic):
+    """cos(omega0 * x)."""
+
+    type = "cos"
+    fn = staticmethod(torch.cos)
 
 
 @register
@@ -87,3 +118,90 @@ class Expm1(_Elementwise):
 
     type = "expm1"
     fn = staticmethod(torch.expm1)
+
+
+@register
+class Abs(_Elementwise):
+    type = "abs"
+    fn = staticmethod(torch.abs)
+
+
+@register
+class Sqrt(_Elementwise):
+    type = "sqrt"
+    fn = staticmethod(torch.sqrt)
+
+
+@register
+class Reciprocal(_Elementwise):
+    """1 / x (a constant divided by a value: the constant is a following affine scale)."""
+
+    type = "reciprocal"
+    fn = staticmethod(torch.reciprocal)
+
+
+@register
+class Erf(_Elementwise):
+    """The error function (ONNX graphs spell GELU with it)."""
+
+    type = "erf"
+    fn = staticmethod(torch.erf)
+
+
+@register
+class SiLU(_Elementwise):
+    """x * sigmoid(x), as x / (1 + exp(-x))."""
+
+    type = "silu"
+    fn = staticmethod(torch.nn.functional.silu)
+
+
+@register
+class GELU(Component):
+    """x * Phi(x): ``approximate`` "none" (erf) or "tanh", as torch.nn.GELU."""
+
+    type = "gelu"
+
+    def __init__(self, approximate: str = "none"):
+        super().__init__()
+        self.approximate = approximate
+
+    def params(self):
+        return {"approximate": self.approximate}
+
+    def forward(self, x):
+        return torch.nn.functional.gelu(x, approximate=self.approximate)
+
+
+@register
+class ELU(Component):
+    """x if x > 0 else alpha (exp(x) - 1)."""
+
+    type = "elu"
+
+    def __init__(self, alpha: float = 1.0):
+        super().__init__()
+        self.alpha = float(alpha)
+
+    def params(self):
+        return {"alpha": self.alpha}
+
+    def forward(self, x):
+        return torch.nn.functional.elu(x, self.alpha)
+
+
+@register
+class Clamp(Component):
+    """clamp(x, min, max); either bound may be absent (None)."""
+
+    type = "clamp"
+
+    def __init__(self, min: float | None = None, max: float | None = None):  # noqa: A002  (torch's names)
+        super().__init__()
+        self.min, self.max = (None if v is None else float(v) for v in (min, max))
+
+    def params(self):
+        return {k: v for k, v in (("min", self.min), ("max", self.max)) if v is not None}
+
+    def forward(self, x):
+        return torch.clamp(x, self.min, self.max)

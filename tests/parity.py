@@ -33,7 +33,8 @@ from inshade.codegen import generate
 from inshade.codegen.glsl import blocks
 from inshade.components import ACTIVATIONS
 from inshade.models import GraphModule
-from inshade.models.activations import Exp, Expm1, Identity, LeakyReLU, ReLU, Sigmoid, Sin, Softplus, Tanh
+from inshade.models.activations import (ELU, GELU, Abs, Clamp, Cos, Erf, Exp, Expm1, Identity, LeakyReLU, ReLU,
+                                        Sigmoid, SiLU, Sin, Softplus, Tanh)
 from inshade.models.mlp import Dense
 
 TOL = 1e-5
@@ -184,16 +185,25 @@ class MLPSpec:
 
 
 _ACT = {"relu": ReLU, "leaky_relu": LeakyReLU, "sigmoid": Sigmoid, "tanh": Tanh, "softplus": Softplus,
-        "sin": Sin, "exp": Exp, "expm1": Expm1, "identity": Identity}
+        "sin": Sin, "cos": Cos, "exp": Exp, "expm1": Expm1, "identity": Identity, "silu": SiLU, "gelu": GELU,
+        "elu": ELU, "abs": Abs, "clamp": Clamp, "erf": Erf}
 assert set(_ACT) == set(ACTIVATIONS)
+_PARAMETRISED = ("leaky_relu", "sin", "cos", "softplus", "gelu", "elu", "clamp")
 
 
 def activation_specs():
     """Every activation type, with its parameters (omega0 <= 30: see the module docstring)."""
+    bound = st.one_of(st.none(), st.floats(-2.0, 2.0, width=32))
     return st.one_of(
-        st.sampled_from([(a, {}) for a in ACTIVATIONS if a not in ("leaky_relu", "sin")]),
+        st.sampled_from([(a, {}) for a in ACTIVATIONS if a not in _PARAMETRISED]),
         st.builds(lambda s: ("leaky_relu", {"slope": s}), st.floats(-1.0, 1.0, width=32)),
-        st.builds(lambda w: ("sin", {"omega0": w}), st.sampled_from([1.0, 3.0, 7.5, 30.0])),
+        st.builds(lambda t, w: (t, {"omega0": w}), st.sampled_from(["sin", "cos"]), st.sampled_from([1.0, 3.0, 7.5, 30.0])),
+        st.builds(lambda b, t: ("softplus", {"beta": b, "threshold": t}), st.sampled_from([1.0, 0.5, 2.0, 10.0]),
+                  st.sampled_from([None, 20.0, 1.0])),
+        st.builds(lambda a: ("gelu", {"approximate": a}), st.sampled_from(["none", "tanh"])),
+        st.builds(lambda a: ("elu", {"alpha": a}), st.sampled_from([1.0, 0.5, 1.6732632])),
+        st.builds(lambda lo, hi: ("clamp", {"min": lo, "max": max(lo, hi) if lo is not None else hi}),
+                  bound, st.floats(-2.0, 2.0, width=32)),
     )
 
 
@@ -235,7 +245,7 @@ def _init_dense(layer: Dense, next_act: tuple[str, dict] | None, gen: torch.Gene
     n = w.shape[1]
     name, params = next_act or ("identity", {})
     with torch.no_grad():
-        if name == "sin":          # SIREN init: omega0 * W x stays O(1) per unit of input
+        if name in ("sin", "cos"):   # SIREN init: omega0 * W x stays O(1) per unit of input
             bound = math.sqrt(6.0 / n) / params["omega0"]
         elif name in ("exp", "expm1"):   # row L1 norm <= 0.25: exp chains stay below ~2 (no overflow)
             bound = 0.25 / n

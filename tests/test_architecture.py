@@ -55,7 +55,7 @@ def _module_files() -> dict[str, Path]:
 def _torch_free_steps() -> list[str]:
     """Python statements, each one entry point; run in order in one interpreter."""
     files = _module_files()
-    steps = ["import inshade.runtime"]
+    steps = ["import inshade", "import inshade; inshade.export; inshade.check", "import inshade.runtime"]
     steps += [f"import {m}" for m in sorted(files) if m.startswith("inshade.runtime.")]
     steps += ["import inshade.codegen"]
     steps += [f"import {m}" for m in sorted(files) if m.startswith("inshade.codegen.")]
@@ -117,6 +117,17 @@ def test_torch_free_imports():
             report.append(f"{step!r} imports torch via:\n    " + "\n    ".join(alone["chain"]))
     raise AssertionError("torch was imported by the torch-free side:\n" + "\n".join(report or [
         f"(only in combination) first after {result['culprit']!r}, via:\n    " + "\n    ".join(result["chain"])]))
+
+
+def test_runtime_never_imports_onnx():
+    """ONNX import is an optional extra (inshade convert): the runtime, codegen and CLI parser do
+    not load onnx or onnxruntime."""
+    steps = [s for s in _torch_free_steps()]
+    code = ("import json, sys\n" + "\n".join(f"exec({s!r}, {{}})" for s in steps) +
+            "\nprint(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in ('onnx', 'onnxruntime'))))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert json.loads(proc.stdout.strip().splitlines()[-1]) == []
 
 
 # --- import cycles ----------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.codegen import generate
+from inshade.components import ACTIVATIONS
 from inshade.codegen.glsl import blocks, mat4
 from inshade.codegen.mlp import WeightTexture, choose_storage, pack, std140
 from inshade.models import GraphModule, mlp_graph
@@ -52,16 +53,22 @@ def test_random_mlp_parity(gl, gl_limits, storage, data):
                  what=f"{storage} {spec}")
 
 
-@pytest.mark.parametrize("act", ["relu", "leaky_relu", "sigmoid", "tanh", "softplus", "sin", "exp", "identity"])
+DEEP_PARAMS = {"leaky_relu": {"slope": -0.3}, "sin": {"omega0": 30.0}, "cos": {"omega0": 30.0},
+               "softplus": {"beta": 2.0, "threshold": 20.0}, "gelu": {"approximate": "none"}, "elu": {"alpha": 0.7},
+               "clamp": {"min": -0.5, "max": 0.25}}
+
+
+@pytest.mark.parametrize("act", [a for a in ACTIVATIONS if a != "expm1"] + ["softplus_plain", "gelu_tanh"])
 def test_every_activation_deep(gl, act):
     """Each activation alone through 4 hidden layers of odd widths (several blocks, padding)."""
-    params = {"leaky_relu": {"slope": -0.3}, "sin": {"omega0": 30.0}}.get(act, {})
+    act, params = {"softplus_plain": ("softplus", {}), "gelu_tanh": ("gelu", {"approximate": "tanh"})}.get(
+        act, (act, DEEP_PARAMS.get(act, {})))
     spec = MLPSpec([3, 2], [13, 7, 22, 5], [(act, params)] * 4, 6, None, 1, [True] * 5, seed=7)
     bundle = build_mlp(spec).export("mlp")
     x = spec_inputs(spec, 256)
     # also large inputs: the activations must stay finite and match (softplus/tanh/sigmoid
     # forms that cannot overflow), except where the generator's small-range promise is the point.
-    if act not in ("exp", "sin"):
+    if act not in ("exp", "sin", "cos"):
         x = np.concatenate([x, 40.0 * x], 0)
     check_parity(gl, bundle, x, storage="inline")
 

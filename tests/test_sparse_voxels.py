@@ -1,5 +1,5 @@
-"""The `add` (residual connection) and `sparse_voxels` components (models/add.py, models/sparse_voxels.py,
-codegen/add.py, codegen/sparse_voxels.py): GLSL against torch through the real driver (tests/parity.py
+"""The `add` (residual connection) and `sparse_voxels` components (models/binary.py, models/sparse_voxels.py,
+codegen/binary.py, codegen/sparse_voxels.py): GLSL against torch through the real driver (tests/parity.py
 rule for add; exact for the voxel lookups: texelFetch of the very values torch indexes), the fixed
 grid functions P_voxel_slot / P_voxel_sphere over every cell of every scale (and outside them)
 against numpy, the component specs and every bad-table error.
@@ -18,7 +18,7 @@ from inshade.codegen.limits import LimitError
 from inshade.codegen.sparse_voxels import index_grid
 from inshade.components import ComponentError, check_node, check_voxel_tables, resolve_params
 from inshade.models import GraphModule
-from inshade.models.add import Add
+from inshade.models.binary import Add
 from inshade.models.mlp import Dense
 from inshade.models.sparse_voxels import SparseVoxels
 

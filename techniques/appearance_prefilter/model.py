@@ -45,7 +45,7 @@ import torch
 
 from inshade.models import GraphModule
 from inshade.models.activations import ReLU, Sigmoid
-from inshade.models.add import Add
+from inshade.models.binary import Add
 from inshade.models.encodings import Frequency
 from inshade.models.mlp import Dense
 from inshade.models.sparse_voxels import SparseVoxels

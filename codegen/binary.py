@@ -1,0 +1,37 @@
+"""Two branches combined lane by lane: a + b (residual connections), a - b, a * b, a / b; torch
+twin in models/binary.py.
+
+Input: the node's inputs as they are (separate_inputs), lanes concatenated = [a (n) | b (n)].
+When a and b are two sources that start a vec4 block each, every whole block is one vec4 op and
+the n % 4 tail is done lane by lane (a source's last block may hold another value's lanes, e.g.
+bundle inputs packed side by side, so it is never used whole); otherwise lane by lane.
+"""
+from __future__ import annotations
+
+from .glsl import PlanRow
+from .registry import emitter
+from .values import declare
+
+SYMBOLS = {"add": "+", "sub": "-", "mul": "*", "div": "/"}
+
+
+def _as_float(value, i: int) -> str:
+    return value.lane(i) if value.kind == "float" else f"float({value.lane(i)})"
+
+
+@emitter(*SYMBOLS, separate_inputs=True)
+def emit_binary(ctx, node, srcs, bundle):
+    n, op = node.out_dim, SYMBOLS[node.type]
+    ctx.plan.append(PlanRow(node.id, node.type, f"{2 * n}->{n}", flops=n))
+    out = declare(ctx, f"v_{node.id}", n)
+    if len(srcs) == 2 and all(s.dim == n and s.offset % 4 == 0 and s.kind == "float" for s in srcs):
+        a, b = srcs
+        ka, kb = a.offset // 4, b.offset // 4
+        ctx.body += [f"{out.array}[{k}] = {a.array}[{ka + k}] {op} {b.array}[{kb + k}];" for k in range(n // 4)]
+        first = 4 * (n // 4)
+    else:
+        first = 0
+    lanes = [(v, i) for v in srcs for i in range(v.dim)]
+    for i in range(first, n):
+        ctx.body.append(f"{out.lane(i)} = {_as_float(*lanes[i])} {op} {_as_float(*lanes[n + i])};")
+    return out

@@ -1,0 +1,126 @@
+"""``inshade.export``: the torch.onnx.export of shaders. A user's torch module becomes a bundle
+folder (bundle.json + weights.safetensors) whose GLSL is checked against the module through the
+GL driver before anything is written.
+
+    import inshade
+    net = torch.nn.Sequential(torch.nn.Linear(2, 64), torch.nn.ReLU(), torch.nn.Linear(64, 3))
+    inshade.export(net, torch.rand(16, 2), "my_net", as_="image")
+    # max |glsl - source| = 1.2e-07 (rule 1e-05): ok
+    # inshade render my_net -o shot.png
+"""
+from __future__ import annotations
+
+import datetime
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .lowering import ConvertError, Lowering
+from .shown_as import SHOWN_AS, apply_shown_as
+
+KIND = "network"   # bundles of a user's own network (no technique's)
+
+
+def export(module, example_input, folder, *, name: str | None = None, input_names=None, output_names=None,
+           check: bool = True, as_: str | None = None, force: bool = False, quiet: bool = False,
+           limits: dict | None = None):
+    """Capture ``module`` on ``example_input`` (a [batch, features] tensor, or a tuple of them, one
+    per input), lower it onto bundle components, check its GLSL against the module through the GL
+    driver (unless ``check=False``), and write the bundle into ``folder`` (refused if it holds
+    files, unless ``force``). ``as_``: what the network is, for ``inshade render`` / ``view``
+    ("image": uv -> colour; "sdf": xyz -> distance; "field": xyz + direction -> rgb + density).
+    ``limits``: the GL limits the GLSL must fit (e.g. a target GPU's; default: this driver's).
+    Returns the saved ``Bundle``. Raises ``ConvertError`` (one line) for what cannot be lowered."""
+    import torch
+
+    from inshade import asset_folder
+
+    from .torch_module import TRACE_BATCH, TorchLowering, capture
+
+    if not isinstance(module, torch.nn.Module):
+        raise ConvertError(f"module: expected a torch.nn.Module, got {type(module).__name__}")
+    if as_ is not None and as_ not in SHOWN_AS:
+        raise ConvertError(f"as_: {as_!r} is not one of {', '.join(SHOWN_AS)}")
+    examples = list(example_input) if isinstance(example_input, (tuple, list)) else [example_input]
+    for i, x in enumerate(examples):
+        if not isinstance(x, torch.Tensor) or x.ndim < 2 or not x.is_floating_point():
+            what = f"a {x.ndim}-D {x.dtype} tensor" if isinstance(x, torch.Tensor) else type(x).__name__
+            raise ConvertError(f"example_input[{i}]: expected a [batch, features] float tensor, got {what}")
+    if len({len(x) for x in examples}) != 1:
+        raise ConvertError("example_input: every input needs the same number of rows (the batch)")
+    names = list(input_names or (["x"] if len(examples) == 1 else [f"x{i}" for i in range(len(examples))]))
+    if len(names) != len(examples):
+        raise ConvertError(f"input_names: {len(names)} names for {len(examples)} inputs")
+    folder = Path(folder)
+    asset_folder.claim(folder, folder.name, force=force, option="folder", force_option="force=True")
+
+    # the trace batch: the example's rows, repeated to TRACE_BATCH (the batch axis is found by its size)
+    trace = [x.detach().float().cpu()[torch.arange(TRACE_BATCH) % len(x)] for x in examples]
+    gm, consts, user = capture(module, tuple(trace))
+    lowering = Lowering()
+    specs = [(n, tuple(int(d) for d in x.shape[1:]), "generic") for n, x in zip(names, examples)]
+    outputs = TorchLowering(lowering, consts, TRACE_BATCH).run(gm, user, specs)
+    flat = _flat(outputs)
+    out_names = list(output_names or (["y"] if len(flat) == 1 else [f"y{i}" for i in range(len(flat))]))
+    if len(out_names) != len(flat):
+        raise ConvertError(f"output_names: {len(out_names)} names for {len(flat)} outputs")
+    for out_name, f in zip(out_names, flat):
+        if not hasattr(f, "lanes"):
+            raise ConvertError(f"output {out_name!r} is a constant (it does not depend on the input)")
+        lowering.output(out_name, f)
+    provenance = {"source": "torch", "module": type(module).__qualname__, "exported_by": "inshade.export",
+                  "torch": torch.__version__,
+                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+    bundle = lowering.bundle(KIND, name or folder.name, provenance)
+    if as_ is not None:
+        bundle = apply_shown_as(bundle, as_)
+    finish(bundle, module, [x.detach().float().cpu().numpy() for x in examples], folder, check=check, force=force,
+           quiet=quiet, limits=limits)
+    return bundle
+
+
+def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, quiet: bool, limits=None):
+    """Check (through the GL driver, against ``source``), record the check, write the bundle.
+    ``limits``: GL limits to plan the GLSL against (default: the driver's)."""
+    from inshade import asset_folder
+    from inshade.codegen import generate
+    from inshade.codegen.limits import limit
+
+    from .check import check as run_check, check_inputs
+
+    if limits is None and check:
+        from inshade.runtime.context import gl_info, shared_context
+
+        limits = gl_info(shared_context())
+    lanes = 4 * limit(limits or {}, "GL_MAX_DRAW_BUFFERS")
+    if bundle.out_dim > lanes:
+        raise ConvertError(f"outputs: {bundle.out_dim} lanes in all; a pass writes at most {lanes} "
+                           f"(4 per draw buffer, GL_MAX_DRAW_BUFFERS {lanes // 4}): split the network")
+    if limits is not None:
+        try:
+            generate(bundle, limits=limits)
+        except ValueError as exc:   # LimitError: a grid or a layer past the limits
+            raise ConvertError(f"the generated GLSL does not fit the GL limits: {exc}") from None
+    if check:
+        shapes = [np.shape(e)[1:] for e in examples]
+        x = check_inputs(np.concatenate([np.asarray(e, np.float32).reshape(len(e), -1) for e in examples], 1))
+        try:
+            result = run_check(source, bundle, x, shapes=shapes, limits=limits)
+        except ValueError as exc:
+            raise ConvertError(f"the generated GLSL cannot run here: {exc}") from None
+        if not quiet:
+            print(result.line(), file=sys.stderr)
+        if not result.ok:
+            raise ConvertError(f"{result.line()}; nothing written (check=False / --no-check writes it anyway)")
+        bundle.meta["provenance"]["check"] = result.record()
+    asset_folder.claim(folder, folder.name, force=force, option="folder", force_option="force=True")
+    bundle.save(folder)
+
+
+def _flat(outputs) -> list:
+    if isinstance(outputs, dict):
+        return [v for item in outputs.values() for v in _flat(item)]
+    if isinstance(outputs, (tuple, list)):
+        return [v for item in outputs for v in _flat(item)]
+    return [outputs]

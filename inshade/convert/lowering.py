@@ -1,0 +1,433 @@
+"""Lowering a captured network onto bundle components (numpy only: shared by the torch and ONNX
+importers).
+
+An importer walks its graph once and calls these methods; what comes out is a ``Bundle``. Every
+tensor the network computes is a ``Feat``: its shape with the batch axis held at size 1, and for
+each element the *lane* that holds it. A lane is one float of a bundle value (an input port or a
+node's output), numbered globally. Layout operations (view, permute, slice, cat, expand, ...)
+only rearrange the lane array and emit nothing; a node is emitted only where a value is computed,
+and a ``select`` node only where a computation needs lanes in an order no value has. Constants
+(parameters, buffers, literals) stay numpy arrays until an operation combines them with a Feat:
+then they become weights (dense), per-lane scales (affine) or cells (lookup arrays).
+
+What a shader cannot do is refused with ``ConvertError`` before anything is written: the
+importer adds the op, the module path and the user's source line to the message.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from inshade.bundle import FORMAT, MAX_INPUT_DIM, VERSION, Bundle
+from inshade.components import COMPONENTS, MAX_WIDTH
+
+
+class ConvertError(ValueError):
+    """A network (or a part of it) that cannot become a bundle; the message is one line."""
+
+
+@dataclass(frozen=True)
+class Feat:
+    """A computed tensor: ``lanes`` has the tensor's shape with the batch axis (``batch``) at size 1;
+    ``pending`` is a scalar multiply not yet emitted (sin / cos take it as their omega0)."""
+    lanes: np.ndarray
+    batch: int
+    pending: float | None = None
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(self.lanes.shape)
+
+    @property
+    def rank(self) -> int:
+        return self.lanes.ndim
+
+
+@dataclass
+class Lowering:
+    """Builds a bundle graph. ``lane_value[i]`` / ``lane_index[i]``: the value and lane of global
+    lane i."""
+    nodes: list = field(default_factory=list)
+    tensors: dict = field(default_factory=dict)
+    inputs: list = field(default_factory=list)
+    outputs: list = field(default_factory=list)
+    values: dict = field(default_factory=dict)       # value id -> (first global lane, width)
+    lane_value: list = field(default_factory=list)
+    lane_index: list = field(default_factory=list)
+    _counts: dict = field(default_factory=dict)
+
+    # --- values --------------------------------------------------------------------------
+    def _new_value(self, vid: str, width: int) -> np.ndarray:
+        if width > MAX_WIDTH:
+            raise ConvertError(f"a value {width} lanes wide; the widest a bundle takes is {MAX_WIDTH}")
+        base = len(self.lane_value)
+        self.values[vid] = (base, width)
+        self.lane_value += [vid] * width
+        self.lane_index += list(range(width))
+        return np.arange(base, base + width)
+
+    def _id(self, kind: str) -> str:
+        k = self._counts.get(kind, 0)
+        self._counts[kind] = k + 1
+        return f"{kind}{k}"
+
+    def input(self, name: str, dim: int, semantic: str = "generic") -> Feat:
+        if dim > MAX_INPUT_DIM:
+            raise ConvertError(f"input {name!r}: {dim} lanes wide; an input takes at most {MAX_INPUT_DIM}")
+        self.inputs.append({"name": name, "dim": int(dim), "semantic": semantic})
+        return Feat(self._new_value(name, dim).reshape(1, dim), 0)
+
+    def _sources(self, lanes: np.ndarray) -> list[str]:
+        """The node inputs whose concatenation is exactly ``lanes`` (whole values in order), else
+        one ``select`` node over the values involved."""
+        lanes = np.asarray(lanes, np.int64).reshape(-1)
+        out, i = [], 0
+        while i < len(lanes):
+            vid = self.lane_value[lanes[i]]
+            base, width = self.values[vid]
+            if lanes[i] != base or i + width > len(lanes) or not np.array_equal(lanes[i:i + width],
+                                                                                np.arange(base, base + width)):
+                break
+            out.append(vid)
+            i += width
+        if i == len(lanes):
+            return out
+        involved = list(dict.fromkeys(self.lane_value[k] for k in lanes))
+        offsets, at = {}, 0
+        for vid in involved:
+            offsets[vid] = at
+            at += self.values[vid][1]
+        picks = [offsets[self.lane_value[k]] + self.lane_index[k] for k in lanes]
+        return [self._node("select", involved, {"lanes": picks}, len(picks))]
+
+    def _node(self, kind: str, sources: list[str], params: dict, width: int, tensors: dict | None = None) -> str:
+        vid = self._id(kind)
+        self.nodes.append({"id": vid, "type": kind, "inputs": list(sources), "params": params})
+        for slot, a in (tensors or {}).items():
+            self.tensors[f"{vid}.{slot}"] = np.ascontiguousarray(a, np.float32)
+        self._new_value(vid, width)
+        return vid
+
+    def _emit(self, kind: str, feat_lanes: np.ndarray, params: dict, width: int, tensors=None) -> np.ndarray:
+        """A node over the given lanes (flattened); its output lanes."""
+        vid = self._node(kind, self._sources(feat_lanes), params, width, tensors)
+        base, _ = self.values[vid]
+        return np.arange(base, base + width)
+
+    def resolve(self, f: Feat) -> Feat:
+        """``f`` with its pending scalar multiply emitted."""
+        if f.pending is None:
+            return f
+        return self._elementwise_affine(Feat(f.lanes, f.batch), np.float32(f.pending), np.float32(0.0))
+
+    # --- elementwise -----------------------------------------------------------------------
+    def unary(self, f: Feat, kind: str, params: dict | None = None) -> Feat:
+        """An elementwise component, applied once to each distinct lane."""
+        if kind in ("sin", "cos") and f.pending is not None and not params:
+            params = {"omega0": float(f.pending)}
+            f = Feat(f.lanes, f.batch)
+        f = self.resolve(f)
+        if kind == "identity":
+            return f
+        uniq, inverse = np.unique(f.lanes, return_inverse=True)
+        out = self._emit(kind, uniq, dict(params or {}), len(uniq))
+        return Feat(out[inverse].reshape(f.shape), f.batch)
+
+    def scale(self, f: Feat, c: float) -> Feat:
+        """f * c for a scalar c: kept pending (sin / cos fold it into omega0), emitted otherwise."""
+        if f.pending is None:
+            return Feat(f.lanes, f.batch, float(np.float32(c)))
+        return Feat(self.resolve(f).lanes, f.batch, float(np.float32(c)))
+
+    def affine(self, f: Feat, scale, offset) -> Feat:
+        """f * scale + offset, scale and offset broadcast against f (they may widen it)."""
+        return self._elementwise_affine(self.resolve(f), np.asarray(scale, np.float32), np.asarray(offset, np.float32))
+
+    def _elementwise_affine(self, f: Feat, scale: np.ndarray, offset: np.ndarray) -> Feat:
+        shape = self.broadcast_shape(f, scale.shape, offset.shape)
+        lanes = np.broadcast_to(f.lanes, shape)
+        s, o = (np.broadcast_to(_constant_in(a, f.batch, len(shape)), shape) for a in (scale, offset))
+        if s.size and np.all(s == s.flat[0]) and np.all(o == o.flat[0]):   # uniform: once per distinct lane
+            uniq, inverse = np.unique(lanes, return_inverse=True)
+            out = self._emit("affine", uniq, {}, len(uniq),
+                             {"scale": np.full(len(uniq), s.flat[0]), "offset": np.full(len(uniq), o.flat[0])})
+            return Feat(out[inverse].reshape(shape), f.batch)
+        out = self._emit("affine", lanes, {}, lanes.size, {"scale": s.reshape(-1), "offset": o.reshape(-1)})
+        return Feat(out.reshape(shape), f.batch)
+
+    def binary(self, op: str, a: Feat, b: Feat) -> Feat:
+        """a op b of two computed tensors, broadcast against each other."""
+        a, b = self.resolve(a), self.resolve(b)
+        if a.batch != b.batch and a.rank == b.rank:
+            raise ConvertError(f"{op} of two tensors whose batch axes differ ({a.batch} and {b.batch})")
+        rank = max(a.rank, b.rank)
+        batch = a.batch + rank - a.rank
+        if b.batch + rank - b.rank != batch:
+            raise ConvertError(f"{op}: the batch axes of the two operands do not line up")
+        try:
+            shape = np.broadcast_shapes(a.shape, b.shape)
+        except ValueError:
+            raise ConvertError(f"{op}: shapes {list(a.shape)} and {list(b.shape)} do not broadcast") from None
+        la, lb = (np.broadcast_to(x.lanes.reshape((1,) * (rank - x.rank) + x.shape), shape).reshape(-1) for x in (a, b))
+        out = self._emit(op, np.concatenate([la, lb]), {}, la.size)
+        return Feat(out.reshape(shape), batch)
+
+    def where(self, op: str, a, b, x, y) -> Feat:
+        """(a op b) ? x : y, each a Feat or a constant, broadcast together."""
+        feats = [self.resolve(v) for v in (a, b, x, y) if isinstance(v, Feat)]
+        like = feats[0]
+        parts = [self.resolve(v) if isinstance(v, Feat) else self.constant(like, v) for v in (a, b, x, y)]
+        rank = max(p.rank for p in parts)
+        shape = np.broadcast_shapes(*(p.shape for p in parts))
+        lanes = [np.broadcast_to(p.lanes.reshape((1,) * (rank - p.rank) + p.shape), shape).reshape(-1) for p in parts]
+        out = self._emit("where", np.concatenate(lanes), {"op": op}, lanes[0].size)
+        return Feat(out.reshape(shape), like.batch + rank - like.rank)
+
+    def constant(self, like: Feat, values) -> Feat:
+        """A constant as lanes, shaped like ``like`` but for its own sizes (1 on the batch axis):
+        0 * x + c of one lane x of ``like`` (finite inputs give exactly c)."""
+        values = _constant_in(np.asarray(values, np.float32), like.batch, like.rank)
+        lane = np.asarray(like.lanes).reshape(-1)[:1]
+        src = np.broadcast_to(lane, values.size)
+        out = self._emit("affine", src, {}, values.size, {"scale": np.zeros(values.size), "offset": values.reshape(-1)})
+        return Feat(out.reshape(values.shape), like.batch)
+
+    @staticmethod
+    def broadcast_shape(f: Feat, *shapes) -> tuple:
+        rank = max([f.rank, *(len(s) for s in shapes)])
+        if rank != f.rank:
+            raise ConvertError(f"a constant of rank {rank} widens a rank-{f.rank} tensor past its batch axis")
+        try:
+            return np.broadcast_shapes(f.shape, *shapes)
+        except ValueError:
+            raise ConvertError(f"shapes {list(f.shape)} and {[list(s) for s in shapes]} do not broadcast") from None
+
+    # --- layers ----------------------------------------------------------------------------
+    def dense(self, f: Feat, weight: np.ndarray, bias: np.ndarray | None) -> Feat:
+        """y = x W^T + b over the last axis of a [B, in] tensor (or W x over [in, B], batch last)."""
+        f = self.resolve(f)
+        weight = np.asarray(weight, np.float32)
+        if f.rank != 2:
+            raise ConvertError(f"a linear layer on a rank-{f.rank} tensor (shape {list(f.shape)}): inshade "
+                               "lowers it on [batch, features] only; flatten the other axes first")
+        feature_axis = 1 - f.batch
+        if weight.ndim != 2 or weight.shape[1] != f.shape[feature_axis]:
+            raise ConvertError(f"linear layer: weight {list(weight.shape)} does not take "
+                               f"{f.shape[feature_axis]} features")
+        lanes = f.lanes.reshape(-1)
+        tensors = {"weight": weight}
+        if bias is not None:
+            tensors["bias"] = np.broadcast_to(np.asarray(bias, np.float32), (weight.shape[0],))
+        out = self._emit("dense", lanes, {"out": int(weight.shape[0]), "bias": bias is not None},
+                         weight.shape[0], tensors)
+        return Feat(out.reshape((1, -1) if f.batch == 0 else (-1, 1)), f.batch)
+
+    def reduce(self, f: Feat, op: str, axes, keepdim: bool) -> Feat:
+        f = self.resolve(f)
+        axes = sorted({a % f.rank for a in axes})
+        if f.batch in axes:
+            raise ConvertError(f"{op} over the batch axis mixes the batch (one pixel's value would depend on others)")
+        keep = [a for a in range(f.rank) if a not in axes]
+        moved = np.transpose(f.lanes, keep + axes)
+        groups = int(np.prod([f.shape[a] for a in keep]))
+        out = self._emit("reduce", moved, {"op": op, "groups": groups}, groups)
+        kept_shape = [f.shape[a] for a in keep]
+        lanes = out.reshape(kept_shape)
+        if keepdim:
+            lanes = lanes.reshape([1 if a in axes else f.shape[a] for a in range(f.rank)])
+            return Feat(lanes, f.batch)
+        return Feat(lanes, keep.index(f.batch))
+
+    def layer_norm(self, f: Feat, dims: int, weight, bias, eps: float) -> Feat:
+        """LayerNorm over the last ``dims`` axes."""
+        f = self.resolve(f)
+        if f.batch >= f.rank - dims:
+            raise ConvertError("layer_norm over the batch axis mixes the batch")
+        size = int(np.prod(f.shape[f.rank - dims:]))
+        groups = f.lanes.size // size
+        tensors = {}
+        if weight is not None or bias is not None:
+            tensors["weight"] = np.ones(size) if weight is None else np.asarray(weight, np.float32).reshape(-1)
+            tensors["bias"] = np.zeros(size) if bias is None else np.asarray(bias, np.float32).reshape(-1)
+        out = self._emit("layer_norm", f.lanes, {"eps": float(eps), "groups": groups, "affine": bool(tensors)},
+                         f.lanes.size, tensors)
+        return Feat(out.reshape(f.shape), f.batch)
+
+    def lookup(self, coords: Feat, cells: np.ndarray) -> np.ndarray:
+        """One multilinear lookup per position of ``coords`` (its last axis the d coordinates in
+        [0, 1], x fastest) into ``cells`` [N_{d-1}..N_0, C]; returns lanes [positions..., C] (batch
+        axis kept at size 1)."""
+        coords = self.resolve(coords)
+        d, channels = coords.shape[-1], cells.shape[-1]
+        resolution = [int(n) for n in reversed(cells.shape[:-1])]
+        points = coords.lanes.reshape(-1, d)
+        out = np.zeros((len(points), channels), np.int64)
+        for p, lanes in enumerate(points):
+            for c0 in range(0, channels, 64):   # a lookup array holds at most 64 channels
+                part = cells[..., c0:c0 + 64]
+                out[p, c0:c0 + part.shape[-1]] = self._emit(
+                    "lookup_array", lanes, {"resolution": resolution, "channels": int(part.shape[-1]), "bits": 32,
+                                            "baked": "none"}, part.shape[-1], {"cells": part})
+        return out.reshape(*coords.shape[:-1], channels)
+
+    # --- outputs and the bundle ------------------------------------------------------------
+    def output(self, name: str, f: Feat, semantic: str = "generic") -> None:
+        f = self.resolve(f)
+        if f.rank > 2 or f.rank == 2 and f.batch != 0:
+            raise ConvertError(f"output {name!r}: shape {list(f.shape)} with the batch on axis {f.batch}; an "
+                               "output is [batch, features] or [batch]")
+        if any(o["name"] == name for o in self.outputs):
+            raise ConvertError(f"output {name!r} is named twice")
+        sources = self._sources(f.lanes)
+        if len(sources) == 1:
+            vid = sources[0]
+        else:   # several whole values side by side: one identity node concatenates them
+            vid = self._node("identity", sources, {}, f.lanes.size)
+        self.outputs.append({"name": name, "node": vid, "semantic": semantic})
+
+    def bundle(self, kind: str, name: str, provenance: dict, render: dict | None = None) -> Bundle:
+        used = self._live()
+        meta = {"format": FORMAT, "version": VERSION, "kind": kind, "name": name, "inputs": self.inputs,
+                "nodes": [n for n in self.nodes if n["id"] in used], "outputs": self.outputs,
+                "provenance": provenance, "metrics": {}}
+        if render:
+            meta["render"] = render
+        tensors = {k: v for k, v in self.tensors.items() if k.split(".")[0] in used}
+        return Bundle(meta, tensors)
+
+    def _live(self) -> set[str]:
+        """Nodes an output depends on (a value computed and never used is dropped)."""
+        by_id = {n["id"]: n for n in self.nodes}
+        live, stack = set(), [o["node"] for o in self.outputs]
+        while stack:
+            vid = stack.pop()
+            if vid in live or vid not in by_id:
+                continue
+            live.add(vid)
+            stack += by_id[vid]["inputs"]
+        return live
+
+
+# --- layout: only the lane array changes (shared by the importers) -------------------------
+
+def reshape(f: Feat, shape, batch_size: int) -> Feat:
+    """``f`` viewed as ``shape`` (the full shape: ``batch_size`` on its batch axis). The batch
+    axis must keep the elements before it, else rows would mix."""
+    before = int(np.prod(f.shape[:f.batch]))
+    picks = [a for a, n in enumerate(shape) if n == batch_size and int(np.prod(shape[:a])) == before]
+    if not picks or len(picks) > 1 and batch_size != 1:
+        raise ConvertError(f"reshape to {list(shape)} merges or splits the batch axis (one pixel's values "
+                           "would mix with another's)")
+    b = picks[0]
+    lanes = f.lanes.reshape([1 if a == b else n for a, n in enumerate(shape)])
+    return Feat(lanes, b, f.pending)
+
+
+def permute(f: Feat, dims) -> Feat:
+    dims = [d % f.rank for d in dims]
+    return Feat(np.transpose(f.lanes, dims), dims.index(f.batch), f.pending)
+
+
+def unsqueeze(f: Feat, dim: int) -> Feat:
+    dim = dim % (f.rank + 1)
+    return Feat(np.expand_dims(f.lanes, dim), f.batch + (dim <= f.batch), f.pending)
+
+
+def squeeze(f: Feat, dims=None) -> Feat:
+    """Size-1 axes removed (``dims``, or every one but the batch axis)."""
+    if dims is None:
+        dims = [a for a in range(f.rank) if f.shape[a] == 1 and a != f.batch]
+    dims = [d % f.rank for d in ([dims] if isinstance(dims, int) else dims)]
+    dims = [d for d in dims if f.shape[d] == 1 and d != f.batch]
+    lanes = np.squeeze(f.lanes, tuple(dims)) if dims else f.lanes
+    return Feat(lanes, f.batch - sum(d < f.batch for d in dims), f.pending)
+
+
+def slice_axis(f: Feat, dim: int, start, end, step, batch_size: int) -> Feat:
+    dim = dim % f.rank
+    if dim == f.batch:
+        if (start in (None, 0)) and (end is None or end >= batch_size) and step in (None, 1):
+            return f
+        raise ConvertError("slices the batch axis (rows of the batch are pixels: each is computed alone)")
+    index = [slice(None)] * f.rank
+    index[dim] = slice(start, end, step)
+    return Feat(f.lanes[tuple(index)], f.batch, f.pending)
+
+
+def take(f: Feat, dim: int, index) -> Feat:
+    """Elements at constant integer ``index`` (an int drops the axis) along a non-batch axis."""
+    dim = dim % f.rank
+    if dim == f.batch:
+        raise ConvertError("indexes the batch axis (rows of the batch are pixels: each is computed alone)")
+    lanes = np.take(f.lanes, index, axis=dim)
+    return Feat(lanes, f.batch - (dim < f.batch and np.ndim(index) == 0), f.pending)
+
+
+def expand(f: Feat, shape) -> Feat:
+    """``f`` broadcast to the full ``shape`` (new leading axes allowed)."""
+    lead = len(shape) - f.rank
+    batch = f.batch + lead
+    target = [1 if a == batch else n for a, n in enumerate(shape)]
+    return Feat(np.broadcast_to(f.lanes.reshape((1,) * lead + f.shape), target), batch, f.pending)
+
+
+def grid_cells(grid: np.ndarray, zeros: bool, align_corners: bool):
+    """(cells [N_{d-1}..N_0, C], per-axis coordinate scale s) such that the lookup array at
+    u = s g + 1/2 samples what grid_sample samples at g: the unnormalised coordinate is
+    (g + 1) / 2 (N - 1) (align_corners) or ((g + 1) N - 1) / 2, clipped to [0, N - 1] (border);
+    for zeros the cells get a ring of zeros and the coordinate shifts by one cell."""
+    if grid.ndim not in (4, 5) or grid.shape[0] != 1:
+        raise ConvertError(f"grid_sample: grid of shape {list(grid.shape)}; expected [1, C, H, W] or [1, C, D, H, W]")
+    cells = np.moveaxis(grid[0], 0, -1).astype(np.float32)    # [(D,) H, W, C]
+    d = cells.ndim - 1
+    if zeros:
+        cells = np.pad(cells, [(1, 1)] * d + [(0, 0)])
+    scale = []
+    for n in (grid.shape[-1 - k] for k in range(d)):          # N_0 = W, N_1 = H, N_2 = D
+        if zeros:
+            scale.append((n - 1) / (2 * (n + 1)) if align_corners else n / (2 * (n + 1)))
+        else:
+            scale.append(0.5 if align_corners else (n / (2 * (n - 1)) if n > 1 else 0.0))
+    return cells, scale
+
+
+def grid_sample(L: Lowering, grid: np.ndarray, coords: Feat, zeros: bool, align_corners: bool) -> Feat:
+    """grid_sample (bilinear) of a constant grid [1, C, (D,) H, W] at computed coordinates
+    [1, (Do,) Ho, Wo, d] whose batch axis is one of the spatial ones; out [1, C, (Do,) Ho, Wo]."""
+    if coords.batch == 0:
+        raise ConvertError("grid_sample with the batch on the grid's first axis: sample one shared grid with "
+                           "coordinates shaped [1, ..., batch, ..., 2]")
+    cells, scale = grid_cells(grid, zeros, align_corners)
+    if coords.shape[-1] != len(scale):
+        raise ConvertError(f"grid_sample: {coords.shape[-1]} coordinates for a {len(scale)}D grid")
+    u = L.affine(coords, np.asarray(scale, np.float32), np.float32(0.5))
+    lanes = np.moveaxis(L.lookup(u, cells), -1, 1)    # [1, (Do,) Ho, Wo, C] -> [1, C, (Do,) Ho, Wo]
+    return Feat(lanes, coords.batch + 1)
+
+
+def const_against(c, f: Feat, batch_size: int) -> np.ndarray:
+    """A constant combined with ``f``. Graphs often build one as wide as the batch (ones_like(x),
+    torch.ones(x.shape[0], 1)): such a constant is one row, if every row is the same."""
+    a = np.asarray(c, np.float32)
+    if a.ndim == f.rank and a.shape[f.batch] == batch_size and batch_size > 1:
+        first = np.take(a, [0], axis=f.batch)
+        if not np.array_equal(np.broadcast_to(first, a.shape), a):
+            raise ConvertError("a constant that differs from row to row of the batch (one pixel's value would "
+                               "depend on its index in the batch)")
+        a = first
+    return a
+
+
+def _constant_in(a: np.ndarray, batch: int, rank: int) -> np.ndarray:
+    """A constant broadcast against a rank-``rank`` tensor must not vary along its batch axis."""
+    full = a.reshape((1,) * (rank - a.ndim) + a.shape)
+    if full.shape[batch] != 1:
+        raise ConvertError(f"a constant of shape {list(a.shape)} varies along the batch axis (one pixel's value "
+                           "would depend on its index in the batch)")
+    return full
+
+
+def component_types() -> list[str]:
+    """The bundle component types an importer may emit."""
+    return sorted(COMPONENTS)

@@ -1,0 +1,578 @@
+"""An ONNX file -> bundle (``inshade convert model.onnx -o folder``), read with the ``onnx`` package
+(the ``onnx`` extra) and lowered op by op (lowering.py); onnxruntime is the reference its GLSL is
+checked against. Opsets 13 and newer; a static or symbolic batch axis (axis 0 of every input).
+
+Nodes whose inputs are all constants (initializers, Constant, Shape of a computed value) are
+evaluated by onnx's reference evaluator and stay constants, so the shape arithmetic exporters
+emit around Reshape costs nothing.
+"""
+from __future__ import annotations
+
+import datetime
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .lowering import (ConvertError, Feat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
+                       squeeze, take, unsqueeze)
+
+MIN_OPSET = 13
+SYMBOLIC_BATCH = 97   # the batch size a symbolic batch axis stands for while shapes are computed
+_FLOAT = 1            # TensorProto.FLOAT
+
+
+def _onnx():
+    try:
+        import onnx
+    except ImportError:
+        raise ConvertError("reading ONNX needs the onnx package: pip install -e '.[onnx]'") from None
+    return onnx
+
+
+def load_model(path):
+    """The ModelProto of ``path`` (or ``path`` itself when it is one), checked: ConvertError naming
+    the file for one that is not a readable ONNX model or uses an opset below 13."""
+    onnx = _onnx()
+    if not isinstance(path, (str, Path)):
+        model, where = path, "<model>"
+    else:
+        where = str(path)
+        if not Path(path).is_file():
+            raise ConvertError(f"{where}: no such file")
+        try:
+            model = onnx.load(str(path))
+        except Exception as exc:   # protobuf raises DecodeError and others for a file that is not ONNX
+            raise ConvertError(f"{where}: not an ONNX model ({type(exc).__name__}: {str(exc)[:120]})") from None
+    opset = next((o.version for o in model.opset_import if o.domain in ("", "ai.onnx")), None)
+    if opset is None or opset < MIN_OPSET:
+        raise ConvertError(f"{where}: opset_import: opset {opset}; inshade reads opsets {MIN_OPSET} and newer "
+                           "(onnx.version_converter can upgrade it)")
+    others = sorted({n.domain for n in model.graph.node if n.domain not in ("", "ai.onnx")})
+    if others:
+        raise ConvertError(f"{where}: a node of domain {others[0]!r}: only the standard ONNX operators are lowered")
+    return model, where, opset
+
+
+@dataclass(frozen=True)
+class Condition:
+    op: str
+    a: object
+    b: object
+
+
+class OnnxLowering:
+    def __init__(self, model, where: str, opset: int):
+        onnx = _onnx()
+        from onnx import numpy_helper
+
+        self.model, self.where, self.opset = model, where, opset
+        self.graph = model.graph
+        self.L = Lowering()
+        self.env: dict[str, object] = {i.name: numpy_helper.to_array(i) for i in self.graph.initializer}
+        self.helper, self.numpy_helper = onnx.helper, numpy_helper
+        self.batch = SYMBOLIC_BATCH
+
+    def input_specs(self) -> list[tuple[str, int, int | None]]:
+        """(name, width, static batch or None) of every graph input that is not an initializer."""
+        out = []
+        for inp in self.graph.input:
+            if inp.name in self.env:
+                continue
+            t = inp.type.tensor_type
+            field = f"{self.where}: graph.input {inp.name!r}"
+            if t.elem_type != _FLOAT:
+                raise ConvertError(f"{field}: element type {self.helper.tensor_dtype_to_string(t.elem_type)}; "
+                                   "inputs must be float32")
+            dims = list(t.shape.dim)
+            if len(dims) != 2 or not dims[1].HasField("dim_value"):
+                shape = [d.dim_value if d.HasField("dim_value") else (d.dim_param or "?") for d in dims]
+                raise ConvertError(f"{field}: shape {shape}; inputs must be [batch, features] with a fixed "
+                                   "feature count")
+            out.append((inp.name, int(dims[1].dim_value), int(dims[0].dim_value) if dims[0].HasField("dim_value")
+                        else None))
+        return out
+
+    def run(self) -> list[tuple[str, Feat]]:
+        specs = self.input_specs()
+        statics = {b for _, _, b in specs if b is not None}
+        if len(statics) > 1:
+            raise ConvertError(f"{self.where}: graph.input: inputs with different fixed batch sizes {sorted(statics)}")
+        if statics:
+            self.batch = statics.pop()
+        for name, dim, _ in specs:
+            self.env[name] = self.L.input(_port_name(name), dim)
+        for node in self.graph.node:
+            self._node(node)
+        outs = []
+        for o in self.graph.output:
+            v = self.env.get(o.name)
+            if not isinstance(v, Feat):
+                raise ConvertError(f"{self.where}: graph.output {o.name!r} is a constant (it does not depend on "
+                                   "the input)")
+            outs.append((o.name, v))
+        return outs
+
+    def _node(self, node) -> None:
+        ins = [self.env[n] if n else None for n in node.input]
+        attrs = {a.name: self.helper.get_attribute_value(a) for a in node.attribute}
+        label = f"{self.where}: node {node.name or node.output[0]!r} ({node.op_type})"
+        self.current = node
+        if not any(isinstance(v, (Feat, Condition)) for v in ins):
+            results = self._evaluate(node, ins, label)
+        else:
+            handler = HANDLERS.get(node.op_type)
+            if handler is None:
+                raise ConvertError(f"{label}: no shader lowering (see inshade convert --ops)")
+            try:
+                results = handler(self, ins, attrs)
+            except ConvertError as exc:
+                raise ConvertError(f"{label}: {exc}") from None
+            results = results if isinstance(results, tuple) else (results,)
+        for name, value in zip(node.output, results):
+            if name:
+                self.env[name] = value
+
+    def _evaluate(self, node, ins, label):
+        """A node of constants, by onnx's reference evaluator (Constant nodes directly)."""
+        if node.op_type == "Constant":
+            value = next(iter(node.attribute))
+            v = self.helper.get_attribute_value(value)
+            return (self.numpy_helper.to_array(v) if hasattr(v, "dims") else np.asarray(v),)
+        from onnx.reference import ReferenceEvaluator
+
+        h = self.helper
+        feeds = {f"i{k}": np.asarray(v) for k, v in enumerate(ins) if v is not None}
+        inputs = [h.make_tensor_value_info(f"i{k}", h.np_dtype_to_tensor_dtype(np.asarray(v).dtype), None)
+                  for k, v in enumerate(ins) if v is not None]
+        outputs = [h.make_tensor_value_info(f"o{k}", 0, None) for k in range(len(node.output))]
+        copy = h.make_node(node.op_type, [f"i{k}" if v is not None else "" for k, v in enumerate(ins)],
+                           [o.name for o in outputs], **{a.name: h.get_attribute_value(a) for a in node.attribute})
+        graph = h.make_graph([copy], "constant", inputs, outputs)
+        model = h.make_model(graph, opset_imports=list(self.model.opset_import))
+        try:
+            return tuple(ReferenceEvaluator(model).run(None, feeds))
+        except Exception as exc:
+            raise ConvertError(f"{label}: evaluating it on constants failed ({type(exc).__name__}: "
+                               f"{str(exc)[:120]})") from None
+
+    # helpers for handlers
+    def full_shape(self, f: Feat) -> list[int]:
+        return [self.batch if a == f.batch else n for a, n in enumerate(f.shape)]
+
+    def const(self, v, what: str) -> np.ndarray:
+        if isinstance(v, (Feat, Condition)):
+            raise ConvertError(f"{what} must be a constant")
+        return np.asarray(v)
+
+    def ints(self, v, what: str) -> list[int]:
+        return [int(i) for i in np.asarray(self.const(v, what)).reshape(-1)]
+
+
+def _port_name(name: str) -> str:
+    """An ONNX value name as a bundle port name (identifier, <= 48 characters)."""
+    clean = "".join(ch if ch.isalnum() or ch == "_" else "_" for ch in name) or "x"
+    return ("x_" + clean if not (clean[0].isalpha() or clean[0] == "_") else clean)[:48]
+
+
+# --- handlers: (O, inputs, attributes) -> output(s) --------------------------------------------
+
+def _unary(kind, **fixed):
+    return lambda O, ins, a: O.L.unary(ins[0], kind, dict(fixed))
+
+
+def _arith(op):
+    def lower(O, ins, attrs):
+        a, b = ins
+        L = O.L
+        if isinstance(a, Feat) and isinstance(b, Feat):
+            return L.binary(op, a, b)
+        f, c = (a, b) if isinstance(a, Feat) else (b, a)
+        c = const_against(np.asarray(c, np.float32), f, O.batch)
+        if op == "mul" and c.size == 1 and c.ndim <= f.rank:
+            return L.scale(f, float(c.reshape(())))
+        if op == "mul":
+            return L.affine(f, c, 0.0)
+        if op == "add":
+            return L.affine(f, 1.0, c)
+        if op == "sub":
+            return L.affine(f, 1.0, -c) if f is a else L.affine(f, -1.0, c)
+        if f is a:
+            return L.affine(f, np.float32(1.0) / c, 0.0)
+        return L.affine(L.unary(f, "reciprocal"), c, 0.0)
+    return lower
+
+
+def _gemm(O, ins, attrs):
+    a, b = ins[0], ins[1]
+    c = ins[2] if len(ins) > 2 else None
+    if not isinstance(a, Feat) or isinstance(b, Feat) or isinstance(c, Feat):
+        raise ConvertError("Gemm of a computed A with constant B and C is lowered")
+    if attrs.get("transA", 0):
+        a = permute(a, [1, 0])
+    w = np.asarray(b, np.float32)
+    w = w if attrs.get("transB", 0) else w.T
+    alpha, beta = float(attrs.get("alpha", 1.0)), float(attrs.get("beta", 1.0))
+    if alpha != 1.0:
+        w = (w * np.float32(alpha)).astype(np.float32)
+    bias = None if c is None else (np.asarray(c, np.float32) * np.float32(beta)).reshape(-1)
+    if bias is not None and bias.size not in (1, w.shape[0]):
+        raise ConvertError(f"Gemm: C of {bias.size} values for {w.shape[0]} outputs (a per-row C mixes the batch)")
+    return O.L.dense(a, w, bias)
+
+
+def _matmul(O, ins, attrs):
+    a, b = ins
+    if isinstance(a, Feat) and not isinstance(b, Feat):
+        w = np.asarray(b, np.float32)
+        if w.ndim == 1:
+            return squeeze(O.L.dense(a, w.reshape(1, -1), None), -1)
+        if w.ndim != 2:
+            raise ConvertError(f"MatMul by a constant of rank {w.ndim}")
+        return O.L.dense(a, w.T, None)
+    if not isinstance(a, Feat) and isinstance(b, Feat) and b.rank == 2 and b.batch == 1:
+        return O.L.dense(b, np.asarray(a, np.float32), None)
+    raise ConvertError("MatMul of two computed values (only products with a constant are lowered)")
+
+
+def _clip(O, ins, attrs):
+    lo = ins[1] if len(ins) > 1 else attrs.get("min")
+    hi = ins[2] if len(ins) > 2 else attrs.get("max")
+    params = {k: float(np.asarray(O.const(v, f"Clip {k}")).reshape(())) for k, v in (("min", lo), ("max", hi))
+              if v is not None}
+    return O.L.unary(ins[0], "clamp", params) if params else ins[0]
+
+
+def _pow(O, ins, attrs):
+    e = float(np.asarray(O.const(ins[1], "Pow exponent")).reshape(()))
+    f, L = ins[0], O.L
+    table = {1.0: lambda: f, 2.0: lambda: L.binary("mul", f, f), 3.0: lambda: L.binary("mul", L.binary("mul", f, f), f),
+             0.5: lambda: L.unary(f, "sqrt"), -1.0: lambda: L.unary(f, "reciprocal"),
+             -0.5: lambda: L.unary(L.unary(f, "sqrt"), "reciprocal")}
+    if e not in table:
+        raise ConvertError(f"power {e:g}: lowered are 1, 2, 3, 0.5, -1 and -0.5")
+    return table[e]()
+
+
+def _leaky_relu(O, ins, attrs):
+    return O.L.unary(ins[0], "leaky_relu", {"slope": float(attrs.get("alpha", 0.01))})
+
+
+def _elu(O, ins, attrs):
+    return O.L.unary(ins[0], "elu", {"alpha": float(attrs.get("alpha", 1.0))})
+
+
+def _selu(O, ins, attrs):
+    out = O.L.unary(ins[0], "elu", {"alpha": float(attrs.get("alpha", 1.67326319217681884765625))})
+    return O.L.affine(out, float(attrs.get("gamma", 1.05070102214813232421875)), 0.0)
+
+
+def _gelu(O, ins, attrs):
+    return O.L.unary(ins[0], "gelu", {"approximate": attrs.get("approximate", b"none").decode()
+                                      if isinstance(attrs.get("approximate"), bytes) else attrs.get("approximate", "none")})
+
+
+def _hard_sigmoid(O, ins, attrs):
+    y = O.L.affine(ins[0], np.float32(attrs.get("alpha", 0.2)), np.float32(attrs.get("beta", 0.5)))
+    return O.L.unary(y, "clamp", {"min": 0.0, "max": 1.0})
+
+
+def _hard_swish(O, ins, attrs):
+    return O.L.binary("mul", ins[0], _hard_sigmoid(O, ins, {"alpha": 1 / 6, "beta": 0.5}))
+
+
+def _mish(O, ins, attrs):
+    return O.L.binary("mul", ins[0], O.L.unary(O.L.unary(ins[0], "softplus"), "tanh"))
+
+
+def _identity(O, ins, attrs):
+    return ins[0]
+
+
+def _dropout(O, ins, attrs):
+    if len(ins) > 2 and ins[2] is not None and bool(np.asarray(O.const(ins[2], "training_mode"))):
+        raise ConvertError("Dropout in training mode is random")
+    return ins[0], None
+
+
+def _cast(O, ins, attrs):
+    if attrs.get("to") not in (1, 10, 11):   # float, float16, double
+        raise ConvertError(f"Cast to {O.helper.tensor_dtype_to_string(attrs.get('to'))}: shader values are float32")
+    return ins[0]
+
+
+def _compare(op):
+    return lambda O, ins, attrs: Condition(op, ins[0], ins[1])
+
+
+def _where(O, ins, attrs):
+    cond, x, y = ins
+    if isinstance(cond, Condition):
+        return O.L.where(cond.op, cond.a, cond.b, x, y)
+    if not isinstance(cond, Feat):
+        return O.L.where("gt", np.asarray(cond, np.float32), np.float32(0.5), x, y)
+    raise ConvertError("Where with a condition that is not a comparison (Greater, Less, ...) of values")
+
+
+def _concat(O, ins, attrs):
+    feats = [O.L.resolve(v) for v in ins if isinstance(v, Feat)]
+    like = feats[0]
+    axis = int(attrs["axis"]) % like.rank
+    if axis == like.batch:
+        raise ConvertError("concatenates along the batch axis")
+    parts = []
+    for v in ins:
+        if isinstance(v, Feat):
+            parts.append(O.L.resolve(v).lanes)
+        elif np.size(v):
+            parts.append(O.L.constant(like, const_against(np.asarray(v, np.float32), like, O.batch)).lanes)
+    return Feat(np.concatenate(parts, axis), like.batch)
+
+
+def _slice(O, ins, attrs):
+    f = ins[0]
+    starts, ends = O.ints(ins[1], "Slice starts"), O.ints(ins[2], "Slice ends")
+    axes = O.ints(ins[3], "Slice axes") if len(ins) > 3 and ins[3] is not None else list(range(len(starts)))
+    steps = O.ints(ins[4], "Slice steps") if len(ins) > 4 and ins[4] is not None else [1] * len(starts)
+    for s, e, a, st in zip(starts, ends, axes, steps):
+        a = a % f.rank
+        n = O.batch if a == f.batch else f.shape[a]
+        s, e = _clip_index(s, n, st), _clip_index(e, n, st)
+        if a == f.batch:
+            if s == 0 and e >= n and st == 1:
+                continue
+            raise ConvertError("slices the batch axis (rows of the batch are pixels: each is computed alone)")
+        f = slice_axis(f, a, s, e if e >= 0 else None, st, O.batch)
+    return f
+
+
+def _clip_index(i: int, n: int, step: int) -> int:
+    """An ONNX Slice bound clamped as the spec says ([0, n] forwards, [-1, n - 1] backwards)."""
+    i = i + n if i < 0 else i
+    return int(min(max(i, 0), n)) if step > 0 else int(min(max(i, -1), n - 1))
+
+
+def _split(O, ins, attrs):
+    f = ins[0]
+    axis = int(attrs.get("axis", 0)) % f.rank
+    if axis == f.batch:
+        raise ConvertError("splits the batch axis")
+    n = f.shape[axis]
+    if len(ins) > 1 and ins[1] is not None:
+        sizes = O.ints(ins[1], "Split split")
+    elif "split" in attrs:
+        sizes = [int(s) for s in attrs["split"]]
+    else:
+        parts = int(attrs.get("num_outputs", 0)) or len(O.current.output)
+        size = -(-n // parts)
+        sizes = [min(size, n - k * size) for k in range(parts)]
+    bounds = np.cumsum([0, *sizes])
+    return tuple(slice_axis(f, axis, int(a), int(b), 1, O.batch) for a, b in zip(bounds[:-1], bounds[1:]))
+
+
+def _axes(O, ins, attrs, name):
+    if len(ins) > 1 and ins[1] is not None:
+        return O.ints(ins[1], f"{name} axes")
+    return [int(a) for a in attrs.get("axes", [])]
+
+
+def _squeeze(O, ins, attrs):
+    axes = _axes(O, ins, attrs, "Squeeze")
+    return squeeze(ins[0], axes or None)
+
+
+def _unsqueeze(O, ins, attrs):
+    f = ins[0]
+    axes = _axes(O, ins, attrs, "Unsqueeze")
+    rank = f.rank + len(axes)
+    for a in sorted(x % rank for x in axes):
+        f = unsqueeze(f, a)
+    return f
+
+
+def _reshape(O, ins, attrs):
+    f = ins[0]
+    target = O.ints(ins[1], "Reshape shape")
+    full = O.full_shape(f)
+    allowzero = int(attrs.get("allowzero", 0))
+    shape = [full[i] if (t == 0 and not allowzero) else t for i, t in enumerate(target)]
+    if -1 in shape:
+        known = int(np.prod([s for s in shape if s != -1]))
+        shape[shape.index(-1)] = int(np.prod(full)) // max(known, 1)
+    return reshape(f, shape, O.batch)
+
+
+def _flatten(O, ins, attrs):
+    f = ins[0]
+    full = O.full_shape(f)
+    axis = int(attrs.get("axis", 1)) % (f.rank + 1) if f.rank else 0
+    return reshape(f, [int(np.prod(full[:axis])), int(np.prod(full[axis:]))], O.batch)
+
+
+def _transpose(O, ins, attrs):
+    f = ins[0]
+    return permute(f, attrs.get("perm", list(reversed(range(f.rank)))))
+
+
+def _gather(O, ins, attrs):
+    f, idx = ins
+    indices = np.asarray(O.const(idx, "Gather indices")).astype(np.int64)
+    axis = int(attrs.get("axis", 0)) % f.rank
+    n = f.shape[axis]
+    return take(f, axis, np.where(indices < 0, indices + n, indices))
+
+
+def _expand(O, ins, attrs):
+    f = ins[0]
+    target = O.ints(ins[1], "Expand shape")
+    full = O.full_shape(f)
+    rank = max(len(target), f.rank)
+    a = [1] * (rank - len(full)) + full
+    b = [1] * (rank - len(target)) + target
+    shape = [x if y == 1 else y for x, y in zip(a, b)]
+    return expand(f, shape)
+
+
+def _shape(O, ins, attrs):
+    full = np.asarray(O.full_shape(ins[0]), np.int64)
+    start, end = attrs.get("start", 0), attrs.get("end", None)
+    return full[start:end]
+
+
+def _layer_norm(O, ins, attrs):
+    f = ins[0]
+    axis = int(attrs.get("axis", -1)) % f.rank
+    scale = O.const(ins[1], "LayerNormalization Scale") if len(ins) > 1 and ins[1] is not None else None
+    bias = O.const(ins[2], "LayerNormalization B") if len(ins) > 2 and ins[2] is not None else None
+    return O.L.layer_norm(f, f.rank - axis, scale, bias, float(attrs.get("epsilon", 1e-5))), None, None
+
+
+def _batch_norm(O, ins, attrs):
+    if attrs.get("training_mode", 0):
+        raise ConvertError("BatchNormalization in training mode normalises over the batch (it mixes pixels)")
+    f = ins[0]
+    scale, bias, mean, var = (np.asarray(O.const(v, "BatchNormalization parameters"), np.float64) for v in ins[1:5])
+    inv = 1.0 / np.sqrt(var + float(attrs.get("epsilon", 1e-5)))
+    shape = [1] * f.rank
+    shape[1] = -1
+    return O.L.affine(f, (scale * inv).astype(np.float32).reshape(shape),
+                      (bias - mean * scale * inv).astype(np.float32).reshape(shape))
+
+
+def _grid_sample(O, ins, attrs):
+    grid, coords = ins[0], ins[1]
+    if isinstance(grid, Feat) or not isinstance(coords, Feat):
+        raise ConvertError("GridSample of a constant X at computed coordinates is lowered")
+    mode = attrs.get("mode", b"bilinear")
+    mode = mode.decode() if isinstance(mode, bytes) else mode
+    padding = attrs.get("padding_mode", b"zeros")
+    padding = padding.decode() if isinstance(padding, bytes) else padding
+    if mode not in ("bilinear", "linear"):
+        raise ConvertError(f"GridSample mode {mode!r}: bilinear is lowered")
+    if padding not in ("zeros", "border"):
+        raise ConvertError(f"GridSample padding_mode {padding!r}: 'zeros' and 'border' are lowered")
+    return grid_sample(O.L, np.asarray(grid, np.float32), coords, padding == "zeros", bool(attrs.get("align_corners", 0)))
+
+
+def _reduce(op):
+    def lower(O, ins, attrs):
+        f = ins[0]
+        axes = _axes(O, ins, attrs, "Reduce")
+        if not axes:
+            if attrs.get("noop_with_empty_axes", 0):
+                return f
+            axes = list(range(f.rank))
+        return O.L.reduce(f, op, axes, bool(attrs.get("keepdims", 1)))
+    return lower
+
+
+def _softmax(O, ins, attrs):
+    f, L = ins[0], O.L
+    axis = int(attrs.get("axis", -1)) % f.rank
+    if axis == f.batch:
+        raise ConvertError("softmax over the batch axis mixes the batch")
+    top = L.reduce(f, "max", [axis], True)
+    e = L.unary(L.binary("sub", f, top), "exp")
+    return L.binary("div", e, L.reduce(e, "sum", [axis], True))
+
+
+HANDLERS = {
+    "Gemm": _gemm, "MatMul": _matmul, "Add": _arith("add"), "Sub": _arith("sub"), "Mul": _arith("mul"),
+    "Div": _arith("div"), "Relu": _unary("relu"), "LeakyRelu": _leaky_relu, "Sigmoid": _unary("sigmoid"),
+    "Tanh": _unary("tanh"), "Softplus": _unary("softplus"), "Elu": _elu, "Selu": _selu, "Gelu": _gelu,
+    "Erf": _unary("erf"), "Sin": _unary("sin"), "Cos": _unary("cos"), "Exp": _unary("exp"), "Abs": _unary("abs"),
+    "Sqrt": _unary("sqrt"), "Reciprocal": _unary("reciprocal"), "Neg": lambda O, ins, a: O.L.affine(ins[0], -1.0, 0.0),
+    "Clip": _clip, "Pow": _pow, "HardSigmoid": _hard_sigmoid, "HardSwish": _hard_swish, "Mish": _mish,
+    "Identity": _identity, "Dropout": _dropout, "Cast": _cast,
+    "Greater": _compare("gt"), "GreaterOrEqual": _compare("ge"), "Less": _compare("lt"),
+    "LessOrEqual": _compare("le"), "Where": _where,
+    "Concat": _concat, "Slice": _slice, "Split": _split, "Squeeze": _squeeze, "Unsqueeze": _unsqueeze,
+    "Reshape": _reshape, "Flatten": _flatten, "Transpose": _transpose, "Gather": _gather, "Expand": _expand,
+    "Shape": _shape, "LayerNormalization": _layer_norm, "BatchNormalization": _batch_norm,
+    "GridSample": _grid_sample, "ReduceSum": _reduce("sum"), "ReduceMean": _reduce("mean"),
+    "ReduceMax": _reduce("max"), "ReduceMin": _reduce("min"), "ReduceL2": _reduce("norm"), "Softmax": _softmax,
+}
+
+
+# --- the command ---------------------------------------------------------------------------
+
+def to_bundle(source, *, name: str | None = None, as_: str | None = None):
+    """(bundle, model, where) of an ONNX file or ModelProto."""
+    from .shown_as import apply_shown_as
+
+    model, where, opset = load_model(source)
+    lowering = OnnxLowering(model, where, opset)
+    outs = lowering.run()
+    for out_name, f in outs:
+        lowering.L.output(_port_name(out_name), f)
+    onnx = _onnx()
+    provenance = {"source": "onnx", "file": where, "opset": opset, "producer": model.producer_name or "",
+                  "onnx": onnx.__version__,
+                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+    default = Path(where).stem if where != "<model>" else (model.graph.name or "model")
+    bundle = lowering.L.bundle("network", name or _port_name(default), provenance)
+    if as_ is not None:
+        bundle = apply_shown_as(bundle, as_)
+    return bundle, model, lowering
+
+
+def convert(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
+            force: bool = False, quiet: bool = False, example=None):
+    """An ONNX file (or ModelProto) -> a bundle folder, its GLSL checked against onnxruntime on
+    ``example`` ([N, in_dim], default uniform [-1, 1]) plus random rows in its range."""
+    from inshade import asset_folder
+
+    from .export import finish
+
+    folder = Path(folder)
+    asset_folder.claim(folder, folder.name, force=force, option="-o")
+    bundle, model, lowering = to_bundle(source, name=name, as_=as_)
+    if example is None:
+        example = np.random.default_rng(0).uniform(-1, 1, (64, bundle.in_dim)).astype(np.float32)
+    finish(bundle, model, [np.asarray(example, np.float32)], folder, check=check, force=force, quiet=quiet)
+    return bundle
+
+
+def run_onnxruntime(source, parts: list[np.ndarray]) -> list[np.ndarray]:
+    """The model's outputs on ``parts`` (one array per graph input) by onnxruntime (CPU), in chunks
+    of a fixed batch size when the model has one."""
+    try:
+        import onnxruntime as ort
+    except ImportError:
+        raise ConvertError("checking against onnxruntime needs it: pip install -e '.[onnx]'") from None
+    model, where, _ = load_model(source)
+    session = ort.InferenceSession(model.SerializeToString(), providers=["CPUExecutionProvider"])
+    names = [i.name for i in session.get_inputs()]
+    fixed = session.get_inputs()[0].shape[0]
+    n = len(parts[0])
+    step = fixed if isinstance(fixed, int) and fixed > 0 else n
+    chunks = []
+    for start in range(0, n, step):
+        feed = {}
+        for name, p in zip(names, parts):
+            rows = p[start:start + step]
+            if len(rows) < step:   # a fixed batch: pad the last chunk with copies of its first row
+                rows = np.concatenate([rows, np.repeat(rows[:1], step - len(rows), 0)])
+            feed[name] = np.ascontiguousarray(rows, np.float32)
+        chunks.append([o[:min(step, n - start)] for o in session.run(None, feed)])
+    return [np.concatenate([c[k] for c in chunks]) for k in range(len(chunks[0]))]
