@@ -127,16 +127,17 @@ def _user_errors():
 
 # codegen ---------------------------------------------------------------------------------
 def cmd_codegen(args) -> int:
-    from safetensors.numpy import save_file
-
     from inshade import bundle as bundle_mod
-    from inshade.codegen import generate
-    from inshade.codegen.glsl import TextureResource
-    from inshade.files import atomic_files
-    from inshade.shaders import flatten
 
     if args.output is not None:
         check_output(args.output)
+    if Path(args.bundle).suffix.lower() == ".onnx":   # converted in memory (inshade convert writes it)
+        from inshade.convert.onnx_model import to_bundle
+
+        scene, b = None, to_bundle(args.bundle)[0]
+        if args.network is not None:
+            raise UserError(f"{args.bundle}: --network picks a network of an asset; this is an ONNX file")
+        return _codegen(args, b, args.prefix)
     src = _resolve(args.bundle)
     scene, nets = _asset_networks(src)
     prefix = args.prefix
@@ -149,7 +150,17 @@ def cmd_codegen(args) -> int:
         chosen = _pick_network(args.bundle, scene, nets, args.network)
         bpath = chosen[2]
         prefix = prefix or chosen[1]
-    b = bundle_mod.load(bpath)
+    return _codegen(args, bundle_mod.load(bpath), prefix)
+
+
+def _codegen(args, b, prefix) -> int:
+    from safetensors.numpy import save_file
+
+    from inshade.codegen import generate
+    from inshade.codegen.glsl import TextureResource
+    from inshade.files import atomic_files
+    from inshade.shaders import flatten
+
     limits = {}
     if args.storage == "auto" and not args.no_gl:
         from inshade.runtime.context import gl_info, shared_context
@@ -160,7 +171,7 @@ def cmd_codegen(args) -> int:
     if args.output is None:
         return 0
     out = Path(args.output)
-    manifest = {"bundle": str(b.path), "bundle_digest": b.digest(), "function": gen.function,
+    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(), "function": gen.function,
                 "in_dim": gen.in_dim, "out_dim": gen.out_dim, "target": args.target,
                 "plan": gen.plan.to_dict(), "resources": []}
     tensors = {}
@@ -584,6 +595,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-gl", action="store_true", help="'auto' uses default limits instead of a live context")
     p.set_defaults(func=cmd_codegen)
 
+    from inshade.convert.commands import add_parsers as add_convert_parsers
+
+    add_convert_parsers(sub)
+
     p = sub.add_parser("info", help="describe a bundle or an asset",
                        description="Validate and describe a bundle, or an asset: its scene, the --set settings "
                                    "it takes (types, ranges, defaults) and every bundle it uses. Long training "
@@ -655,7 +670,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 # GL backend and device: global options (before the command, or after it for the commands that
 # make a GL context; bench and train take them anywhere among their own options)
-GL_COMMANDS = ("codegen", "render", "view", "doctor")
+GL_COMMANDS = ("codegen", "render", "view", "doctor", "convert", "eval")
 GL_OPTIONS = ("--gl-backend", "--gl-device")
 
 

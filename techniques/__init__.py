@@ -19,4 +19,5 @@ BUILTIN = (
     "neural_appearance",
     "uvfree_material",
     "appearance_prefilter",
+    "imported",
 )

@@ -56,7 +56,7 @@ def scaled_errors(glsl: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(glsl) == np.isfinite(ref), np.where(np.isfinite(err), err, 0.0), np.inf)
 
 
-def evaluate(bundle, inputs: np.ndarray, *, storage: str = "auto", ctx=None, limits=None):
+def evaluate(bundle, inputs: np.ndarray, *, storage: str = "auto", ctx=None, limits=None, lut_filter: str = "exact"):
     """(outputs [N, out_dim] of the bundle's GLSL through the driver, GL_RENDERER, storage used);
     the GLSL planned against ``limits`` (default: the driver's)."""
     from inshade.codegen import generate
@@ -64,7 +64,7 @@ def evaluate(bundle, inputs: np.ndarray, *, storage: str = "auto", ctx=None, lim
     from inshade.runtime.network import NetworkEvaluator
 
     ctx = shared_context() if ctx is None else ctx
-    generated = generate(bundle, storage=storage, limits=gl_info(ctx) if limits is None else limits)
+    generated = generate(bundle, storage=storage, lut_filter=lut_filter, limits=gl_info(ctx) if limits is None else limits)
     ev = NetworkEvaluator(ctx, generated)
     try:
         out = ev(np.asarray(inputs, np.float32))

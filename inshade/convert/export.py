@@ -19,7 +19,7 @@ import numpy as np
 from .lowering import ConvertError, Lowering
 from .shown_as import SHOWN_AS, apply_shown_as
 
-KIND = "network"   # bundles of a user's own network (no technique's)
+KIND = "imported"   # the kind of a user's own network (techniques/imported draws the 3D ones)
 
 
 def export(module, example_input, folder, *, name: str | None = None, input_names=None, output_names=None,
@@ -73,19 +73,21 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
                   "torch": torch.__version__,
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
-    if as_ is not None:
-        bundle = apply_shown_as(bundle, as_)
-    finish(bundle, module, [x.detach().float().cpu().numpy() for x in examples], folder, check=check, force=force,
-           quiet=quiet, limits=limits)
-    return bundle
+    return finish(bundle, module, [x.detach().float().cpu().numpy() for x in examples], folder, check=check,
+                  force=force, quiet=quiet, limits=limits, as_=as_)
 
 
-def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, quiet: bool, limits=None):
-    """Check (through the GL driver, against ``source``), record the check, write the bundle.
-    ``limits``: GL limits to plan the GLSL against (default: the driver's)."""
+def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, quiet: bool, limits=None,
+           as_: str | None = None):
+    """Check (through the GL driver, against ``source``), record the check, make the bundle what
+    ``as_`` says, write it (and its scene.json for 3D). ``limits``: GL limits to plan the GLSL
+    against (default: the driver's). Returns the written bundle."""
+    import json
+
     from inshade import asset_folder
     from inshade.codegen import generate
     from inshade.codegen.limits import limit
+    from inshade.files import atomic_write
 
     from .check import check as run_check, check_inputs
 
@@ -102,9 +104,10 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
             generate(bundle, limits=limits)
         except ValueError as exc:   # LimitError: a grid or a layer past the limits
             raise ConvertError(f"the generated GLSL does not fit the GL limits: {exc}") from None
+    flat = np.concatenate([np.asarray(e, np.float32).reshape(len(e), -1) for e in examples], 1)
     if check:
         shapes = [np.shape(e)[1:] for e in examples]
-        x = check_inputs(np.concatenate([np.asarray(e, np.float32).reshape(len(e), -1) for e in examples], 1))
+        x = check_inputs(flat)
         try:
             result = run_check(source, bundle, x, shapes=shapes, limits=limits)
         except ValueError as exc:
@@ -114,8 +117,14 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
         if not result.ok:
             raise ConvertError(f"{result.line()}; nothing written (check=False / --no-check writes it anyway)")
         bundle.meta["provenance"]["check"] = result.record()
+    scene = None
+    if as_ is not None:
+        bundle, scene = apply_shown_as(bundle, as_, flat)
     asset_folder.claim(folder, folder.name, force=force, option="folder", force_option="force=True")
     bundle.save(folder)
+    if scene is not None:
+        atomic_write(folder / "scene.json", json.dumps(scene, indent=1) + "\n")
+    return bundle
 
 
 def _flat(outputs) -> list:

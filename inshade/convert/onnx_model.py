@@ -82,8 +82,8 @@ class OnnxLowering:
             t = inp.type.tensor_type
             field = f"{self.where}: graph.input {inp.name!r}"
             if t.elem_type != _FLOAT:
-                raise ConvertError(f"{field}: element type {self.helper.tensor_dtype_to_string(t.elem_type)}; "
-                                   "inputs must be float32")
+                name = self.helper.tensor_dtype_to_string(t.elem_type).removeprefix("TensorProto.")
+                raise ConvertError(f"{field}: element type {name}; inputs must be float32")
             dims = list(t.shape.dim)
             if len(dims) != 2 or not dims[1].HasField("dim_value"):
                 shape = [d.dim_value if d.HasField("dim_value") else (d.dim_param or "?") for d in dims]
@@ -297,7 +297,8 @@ def _dropout(O, ins, attrs):
 
 def _cast(O, ins, attrs):
     if attrs.get("to") not in (1, 10, 11):   # float, float16, double
-        raise ConvertError(f"Cast to {O.helper.tensor_dtype_to_string(attrs.get('to'))}: shader values are float32")
+        name = O.helper.tensor_dtype_to_string(attrs.get("to")).removeprefix("TensorProto.")
+        raise ConvertError(f"Cast to {name}: shader values are float32")
     return ins[0]
 
 
@@ -516,10 +517,8 @@ HANDLERS = {
 
 # --- the command ---------------------------------------------------------------------------
 
-def to_bundle(source, *, name: str | None = None, as_: str | None = None):
-    """(bundle, model, where) of an ONNX file or ModelProto."""
-    from .shown_as import apply_shown_as
-
+def to_bundle(source, *, name: str | None = None):
+    """(bundle, model, lowering) of an ONNX file or ModelProto."""
     model, where, opset = load_model(source)
     lowering = OnnxLowering(model, where, opset)
     outs = lowering.run()
@@ -530,9 +529,7 @@ def to_bundle(source, *, name: str | None = None, as_: str | None = None):
                   "onnx": onnx.__version__,
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     default = Path(where).stem if where != "<model>" else (model.graph.name or "model")
-    bundle = lowering.L.bundle("network", name or _port_name(default), provenance)
-    if as_ is not None:
-        bundle = apply_shown_as(bundle, as_)
+    bundle = lowering.L.bundle("imported", name or _port_name(default), provenance)
     return bundle, model, lowering
 
 
@@ -546,11 +543,16 @@ def convert(source, folder, *, name: str | None = None, as_: str | None = None, 
 
     folder = Path(folder)
     asset_folder.claim(folder, folder.name, force=force, option="-o")
-    bundle, model, lowering = to_bundle(source, name=name, as_=as_)
+    bundle, model, lowering = to_bundle(source, name=name)
     if example is None:
         example = np.random.default_rng(0).uniform(-1, 1, (64, bundle.in_dim)).astype(np.float32)
-    finish(bundle, model, [np.asarray(example, np.float32)], folder, check=check, force=force, quiet=quiet)
-    return bundle
+    example = np.asarray(example, np.float32)
+    if example.ndim != 2 or example.shape[1] != bundle.in_dim:
+        raise ConvertError(f"example: shape {list(example.shape)}; the model takes [N, {bundle.in_dim}] "
+                           "(its inputs side by side)")
+    bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
+    parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_)
 
 
 def run_onnxruntime(source, parts: list[np.ndarray]) -> list[np.ndarray]:

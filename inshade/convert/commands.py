@@ -1,0 +1,141 @@
+"""The command-line side of the ways in: ``inshade convert`` (ONNX -> bundle, ``--ops``) and
+``inshade eval`` (a bundle's GLSL on a batch from the shell). Parsers only at import: torch, onnx
+and GL load when a command runs."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+SOURCES = {".onnx": "ONNX"}
+
+
+def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
+    from inshade.codegen import FILTERS, STORAGE_MODES
+
+    from .shown_as import SHOWN_AS
+
+    p = sub.add_parser("convert", help="an ONNX file -> a bundle, checked against onnxruntime",
+                       description="Convert a network file into a bundle folder (bundle.json + weights.safetensors): "
+                                   "each op is lowered onto inshade's components, the GLSL is run through the GL "
+                                   "driver on sample inputs and compared with onnxruntime (max |glsl - source| "
+                                   "under 1e-5 * max(1, |source|)), then the folder is written. Torch modules go in "
+                                   "from Python: inshade.export(module, example_input, folder). --ops lists what "
+                                   "each source can hold.")
+    p.add_argument("source", nargs="?", metavar="MODEL", help="model.onnx (opsets 13 and newer)")
+    p.add_argument("-o", "--output", metavar="FOLDER", help="bundle folder to write (refused if it holds files, "
+                                                            "unless --force)")
+    p.add_argument("--as", dest="as_", choices=SHOWN_AS,
+                   help="what the network is, so `inshade render` / `view` can draw it (image: uv -> colour)")
+    p.add_argument("--name", help="bundle name (default: the file's stem)")
+    p.add_argument("--example", metavar="INPUTS.npy",
+                   help="[N, inputs] float32 rows for the check (default: 64 uniform rows in [-1, 1]); random rows "
+                        "in their range are added")
+    p.add_argument("--no-check", action="store_true", help="write without running the GLSL against the source")
+    p.add_argument("--force", action="store_true", help="write into a folder that already holds files")
+    p.add_argument("--ops", action="store_true", help="list the operations each source lowers, and exit")
+    p.set_defaults(func=cmd_convert)
+
+    p = sub.add_parser("eval", help="run a bundle's GLSL on inputs.npy through the GL driver",
+                       description="Evaluate a bundle's generated GLSL on a batch through the GL driver (the "
+                                   "same pass the parity tests use): INPUTS.npy [N, inputs] float32 -> "
+                                   "OUTPUTS.npy [N, outputs] float32, outputs concatenated in the bundle's order.")
+    p.add_argument("bundle", metavar="BUNDLE", help="bundle folder, or an asset with one network")
+    p.add_argument("inputs", metavar="INPUTS.npy", help="[N, inputs] array (.npy, read without pickles)")
+    p.add_argument("-o", "--output", required=True, metavar="OUTPUTS.npy", help="file to write")
+    p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
+    p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
+    p.set_defaults(func=cmd_eval)
+
+
+def cmd_convert(args) -> int:
+    from .lowering import ConvertError
+
+    if args.ops:
+        print(ops_text())
+        return 0
+    if args.source is None or args.output is None:
+        raise ConvertError("convert: give MODEL and -o FOLDER (or --ops)")
+    source = Path(args.source)
+    kind = SOURCES.get(source.suffix.lower())
+    if kind is None:
+        raise ConvertError(f"{source}: unknown model format {source.suffix or '(no suffix)'!r} "
+                           f"(inshade convert reads {', '.join(SOURCES)}; torch modules: inshade.export)")
+    example = _read_npy(args.example) if args.example else None
+    from .onnx_model import convert
+
+    bundle = convert(source, args.output, name=args.name, as_=args.as_, check=not args.no_check, force=args.force,
+                     quiet=args.quiet, example=example)
+    if not args.quiet:
+        print(f"wrote {args.output}: {len(bundle.nodes)} nodes, {bundle.in_dim} -> {bundle.out_dim} lanes",
+              file=sys.stderr)
+    return 0
+
+
+def _read_npy(path):
+    import numpy as np
+
+    from .lowering import ConvertError
+
+    try:
+        return np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:   # missing, empty, not a plain .npy array (pickles refused)
+        raise ConvertError(f"{path}: cannot read as a .npy array ({exc})") from None
+
+
+def cmd_eval(args) -> int:
+    import numpy as np
+
+    from inshade.bundle import load
+    from inshade.files import atomic_files
+
+    from .check import evaluate
+    from .lowering import ConvertError
+
+    bundle = load(args.bundle)
+    x = _read_npy(args.inputs)
+    if x.ndim != 2 or x.shape[1] != bundle.in_dim or x.dtype.kind not in "fiu":
+        raise ConvertError(f"{args.inputs}: shape {list(x.shape)} ({x.dtype}); {bundle.name} takes "
+                           f"[N, {bundle.in_dim}] numbers")
+    out, renderer, storage = evaluate(bundle, x.astype(np.float32), storage=args.storage, lut_filter=args.lut_filter)
+    with atomic_files(args.output) as tmp:
+        with open(tmp, "wb") as f:
+            np.save(f, out)
+    if not args.quiet:
+        print(f"wrote {args.output}: [{out.shape[0]}, {out.shape[1]}] ({renderer}, storage {storage})", file=sys.stderr)
+    return 0
+
+
+def ops_text() -> str:
+    """What each source lowers (``inshade convert --ops``)."""
+    from inshade.components import COMPONENTS
+
+    from .onnx_model import HANDLERS as ONNX_OPS
+
+    lines = ["torch modules (inshade.export; ATen ops as torch.export records them):"]
+    try:
+        from .torch_module import HANDLERS as TORCH_OPS
+        lines += _wrap(sorted(TORCH_OPS))
+    except ImportError:
+        lines.append("  (torch is not installed: pip install -e '.[train]')")
+    lines += ["  plus any op whose inputs are all constants (evaluated by torch at export)",
+              "", "ONNX (inshade convert model.onnx; opsets 13 and newer):"]
+    lines += _wrap(sorted(ONNX_OPS))
+    lines += ["  plus any node whose inputs are all constants (evaluated by onnx's reference evaluator)",
+              "", "bundle components they lower to:"]
+    lines += _wrap(sorted(COMPONENTS))
+    lines += ["", "refused: ops that mix the batch (reductions, softmax or BatchNorm statistics over it), "
+              "data-dependent control flow, outputs wider than 4 x GL_MAX_DRAW_BUFFERS lanes, grids past the GL "
+              "limits, products of two computed tensors"]
+    return "\n".join(lines)
+
+
+def _wrap(names: list[str], width: int = 100) -> list[str]:
+    lines, line = [], " "
+    for name in names:
+        if len(line) + len(name) + 2 > width:
+            lines.append(line.rstrip(", "))
+            line = " "
+        line += f" {name},"
+    lines.append(line.rstrip(","))
+    return lines
