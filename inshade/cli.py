@@ -20,6 +20,8 @@ log = logging.getLogger("inshade")
 # Benchmarks of shared machinery (not of one technique); technique benches and trainers come
 # from the technique registry (inshade/technique.py). name -> (module, help)
 SHARED_BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak"),
+                  "export": ("inshade.bench.export", "inshade.export / convert: export + check time, ONNX import "
+                                                     "time, export peak memory"),
                   "suite": ("inshade.bench.suite", "every bench, sized by --preset cpu|device, and a one-page "
                                                    "summary against the papers (docs/bench/<renderer>/)")}
 ALIASES = {"compress": ("train", "di_texture")}   # `inshade compress ...` = `inshade train di_texture ...`

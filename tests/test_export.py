@@ -207,3 +207,22 @@ def test_export_keeps_the_module_mode_and_weights():
     with torch.no_grad():
         assert torch.equal(module(example), y0)
     assert np.isfinite(y0.numpy()).all()
+
+
+def test_an_exported_bundle_takes_every_codegen_path_and_info(tmp_path, capsys):
+    """codegen in every storage and target, info with the envelope, from the CLI."""
+    from inshade.cli import main
+    from inshade.codegen import STORAGE_MODES, TARGETS
+
+    module, example = ZOO["grid_texture"]
+    inshade.export(module, example, tmp_path / "b", check=False, as_="image")
+    for storage in STORAGE_MODES:
+        for target in TARGETS:
+            out = tmp_path / f"{storage}_{target}.glsl"
+            assert main(["codegen", str(tmp_path / "b"), "--storage", storage, "--target", target, "-o", str(out),
+                         "--no-gl"]) == 0, (storage, target)
+            assert "void net_eval(" in out.read_text()
+    capsys.readouterr()
+    assert main(["info", str(tmp_path / "b")]) == 0
+    text = capsys.readouterr().out
+    assert "lookup_array" in text and "parity envelope" in text

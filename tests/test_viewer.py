@@ -602,3 +602,27 @@ def test_uvfree_material_views_channels_and_overlay_in_the_window(app):
         assert app.open(ASSET)
         app.step(3)
     _reset(app)
+
+
+@pytest.mark.parametrize("as_", ["image", "sdf", "field"])
+def test_exported_networks_open_in_the_window(app, tmp_path, as_):
+    """A user's own network, exported with as_=..., opens and draws in the window like a shipped asset.
+    (Exported in another process, as a user does before `inshade view`: the export's check makes its
+    own headless context current, which this window's context must not share a process with.)"""
+    import sys
+
+    name = {"image": "siren", "sdf": "sdf", "field": "nerf"}[as_]
+    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import inshade; from zoo import zoo; "
+            f"m, x = zoo()[{name!r}]; inshade.export(m, x, {str(tmp_path / as_)!r}, as_={as_!r}, quiet=True)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    try:
+        assert app.open(tmp_path / as_), app.messages[-1:]
+        app.step(3)
+        expected = _encode(app.renderer.read())
+        pixels = _scene_pixels(app, app.read_window())
+        assert np.abs(pixels - expected).max() <= 1 and pixels.std() > 5
+    finally:
+        assert app.open(ASSET)
+        app.step(3)
+    _reset(app)

@@ -24,13 +24,14 @@ KIND = "imported"   # the kind of a user's own network (techniques/imported draw
 
 def export(module, example_input, folder, *, name: str | None = None, input_names=None, output_names=None,
            check: bool = True, as_: str | None = None, force: bool = False, quiet: bool = False,
-           limits: dict | None = None):
+           limits: dict | None = None, check_storage: str = "auto"):
     """Capture ``module`` on ``example_input`` (a [batch, features] tensor, or a tuple of them, one
     per input), lower it onto bundle components, check its GLSL against the module through the GL
     driver (unless ``check=False``), and write the bundle into ``folder`` (refused if it holds
     files, unless ``force``). ``as_``: what the network is, for ``inshade render`` / ``view``
     ("image": uv -> colour; "sdf": xyz -> distance; "field": xyz + direction -> rgb + density).
-    ``limits``: the GL limits the GLSL must fit (e.g. a target GPU's; default: this driver's).
+    ``limits``: the GL limits the GLSL must fit (e.g. a target GPU's; default: this driver's);
+    ``check_storage``: the dense weight placement the check compiles (codegen's storage modes).
     Returns the saved ``Bundle``. Raises ``ConvertError`` (one line) for what cannot be lowered."""
     import torch
 
@@ -74,11 +75,11 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
     return finish(bundle, module, [x.detach().float().cpu().numpy() for x in examples], folder, check=check,
-                  force=force, quiet=quiet, limits=limits, as_=as_)
+                  force=force, quiet=quiet, limits=limits, as_=as_, check_storage=check_storage)
 
 
 def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, quiet: bool, limits=None,
-           as_: str | None = None):
+           as_: str | None = None, check_storage: str = "auto"):
     """Check (through the GL driver, against ``source``), record the check, make the bundle what
     ``as_`` says, write it (and its scene.json for 3D). ``limits``: GL limits to plan the GLSL
     against (default: the driver's). Returns the written bundle."""
@@ -109,7 +110,7 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
         shapes = [np.shape(e)[1:] for e in examples]
         x = check_inputs(flat)
         try:
-            result = run_check(source, bundle, x, shapes=shapes, limits=limits)
+            result = run_check(source, bundle, x, shapes=shapes, limits=limits, storage=check_storage)
         except ValueError as exc:
             raise ConvertError(f"the generated GLSL cannot run here: {exc}") from None
         if not quiet:
