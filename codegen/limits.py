@@ -33,7 +33,14 @@ GL33_MINIMUMS = {
 
 class LimitError(ValueError):
     """A network (or one of its GL resources) does not fit the context's limits. The message
-    names the node or resource, the limit and both values."""
+    names the node or resource, the limit and both values; planned against a GL 3.3 minimum, it
+    says how to plan against a real machine's limits instead."""
+
+    def __init__(self, message: str):
+        if "GL 3.3 minimum" in message:
+            message += ("; these are GL 3.3's minimums: generate(..., limits=\"query\") plans with this machine's "
+                        "(inshade codegen does when it can make a context), limits={...} with another's")
+        super().__init__(message)
 
 
 def limit(limits: dict, name: str) -> int:

@@ -413,6 +413,8 @@ def _parse_graph(meta, where):
     for i, p in enumerate(_req(meta, "outputs", list, where, "outputs")):
         f = f"outputs[{i}]"
         name = _req(p, "name", str, where, f + ".name")
+        if not _ID.match(name) or any(o.name == name for o in outputs):
+            raise BundleError(where, f + ".name", f"invalid or repeated name {name!r} (outputs are found by name)")
         node = _req(p, "node", str, where, f + ".node")
         if node not in dims:
             raise BundleError(where, f + ".node", f"'{node}' is not a node or input")

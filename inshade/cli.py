@@ -43,6 +43,9 @@ def benches() -> dict:
     return out
 
 
+STDOUT = "-"   # -o -: standard output, where the format allows
+
+
 class UserError(Exception):
     """Input the user can fix; reported in one line with exit status 2."""
 
@@ -115,7 +118,8 @@ def _one_line(text: str) -> str:
 
 
 def _write_error(path, e: OSError) -> UserError:
-    return UserError(f"{path}: cannot write ({e.strerror or e})")
+    """The error of a write that failed, naming the file that failed (one of a group, maybe)."""
+    return UserError(f"{e.filename or path}: cannot write ({e.strerror or e})")
 
 
 def _user_errors():
@@ -131,7 +135,7 @@ def _user_errors():
 def cmd_codegen(args) -> int:
     from inshade import bundle as bundle_mod
 
-    if args.output is not None:
+    if args.output not in (None, STDOUT):
         check_output(args.output)
     if Path(args.bundle).suffix.lower() == ".onnx":   # converted in memory (inshade convert writes it)
         from inshade.convert.onnx_model import to_bundle
@@ -143,6 +147,20 @@ def cmd_codegen(args) -> int:
     src = _resolve(args.bundle)
     scene, nets = _asset_networks(src)
     prefix = args.prefix
+    if args.program:
+        return _codegen_program(args, src)
+    if args.network == "all":
+        if scene is None or not nets:
+            raise UserError(f"{src}: --network all: needs an asset with networks (a folder with scene.json)")
+        if args.output == STDOUT and len(nets) > 1:
+            raise UserError(f"-o -: {len(nets)} networks would share standard output; write to a file (-o net.glsl "
+                            "becomes net.PREFIX.glsl per network)")
+        for role, net_prefix, bpath in nets:
+            print(f"== network {net_prefix} ({role}, {Path(bpath).name})")
+            out = args.output if args.output in (None, STDOUT) else str(
+                Path(args.output).with_name(f"{Path(args.output).stem}.{net_prefix}{Path(args.output).suffix}"))
+            _codegen(args, bundle_mod.load(bpath), net_prefix, out)
+        return 0
     if scene is None:
         if args.network is not None:
             raise UserError(f"{src}: --network picks a network of an asset (a folder with scene.json); "
@@ -152,56 +170,112 @@ def cmd_codegen(args) -> int:
         chosen = _pick_network(args.bundle, scene, nets, args.network)
         bpath = chosen[2]
         prefix = prefix or chosen[1]
-    return _codegen(args, bundle_mod.load(bpath), prefix)
+    return _codegen(args, bundle_mod.load(bpath), prefix, args.output)
 
 
-def _codegen(args, b, prefix) -> int:
-    from safetensors.numpy import save_file
+def _resource_manifest(resources) -> tuple[list, dict]:
+    """(manifest entries, {name: array}) of generated GL resources, for a .resources.safetensors."""
+    import numpy as np
 
-    from inshade.codegen import generate
     from inshade.codegen.glsl import TextureResource
-    from inshade.files import atomic_files
-    from inshade.shaders import flatten
 
-    limits = {}
-    if args.storage == "auto" and not args.no_gl:
-        from inshade.runtime.context import gl_info, shared_context
-        limits = gl_info(shared_context())
-    gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
-                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits)
-    print(gen.plan.report())
-    if args.output is None:
-        return 0
-    out = Path(args.output)
-    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(), "function": gen.function,
-                "in_dim": gen.in_dim, "out_dim": gen.out_dim, "target": args.target,
-                "plan": gen.plan.to_dict(), "resources": []}
-    tensors = {}
-    for res in gen.resources:
+    entries, tensors = [], {}
+    for res in resources:
         if isinstance(res, TextureResource):
             kind = "texture2d_array" if res.array else f"texture{res.dims}d"
-            manifest["resources"].append({"name": res.name, "kind": kind, "dtype": res.dtype,
-                                          "filter": res.filter, "shape": list(res.data.shape),
-                                          "mips": [f"{res.name}.mip{k}" for k in range(1, res.levels)]})
+            entries.append({"name": res.name, "kind": kind, "dtype": res.dtype, "filter": res.filter,
+                            "shape": list(res.data.shape), "mips": [f"{res.name}.mip{k}" for k in range(1, res.levels)]})
             tensors[res.name] = res.data
             tensors.update({f"{res.name}.mip{k}": m for k, m in enumerate(res.mips, 1)})
         else:
-            manifest["resources"].append({"name": res.name, "kind": "uniform_block_std140",
-                                          "bytes": res.nbytes})
-            tensors[res.name] = __import__("numpy").frombuffer(res.data, "uint8")
+            entries.append({"name": res.name, "kind": "uniform_block_std140", "bytes": res.nbytes})
+            tensors[res.name] = np.frombuffer(res.data, "uint8")
+    return entries, tensors
+
+
+def _write_group(out: Path, text: str, manifest: dict, tensors: dict, extra: dict | None = None) -> list[Path]:
+    """out (text), out.json (manifest), out's .resources.safetensors (when there are tensors) and any
+    ``extra`` {path: text}: all together or none."""
+    from safetensors.numpy import save_file
+
+    from inshade.files import atomic_files
+
     rpath = out.with_suffix(".resources.safetensors")
     if tensors:
         manifest["resources_file"] = rpath.name
-    # the GLSL, its manifest and its resources appear together or not at all
-    paths = [out, out.with_suffix(out.suffix + ".json")] + ([rpath] if tensors else [])
+    extra = extra or {}
+    paths = [out, out.with_suffix(out.suffix + ".json"), *extra] + ([rpath] if tensors else [])
     try:
         with atomic_files(*paths) as temps:
-            temps[0].write_text(flatten("network", chunks={"network": gen.chunk}))
+            temps[0].write_text(text)
             temps[1].write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+            for tmp, body in zip(temps[2:], extra.values()):
+                tmp.write_text(body)
             if tensors:
-                save_file(tensors, str(temps[2]))
+                save_file(tensors, str(temps[-1]))
     except OSError as e:
         raise _write_error(out, e) from None
+    return paths
+
+
+def _codegen_program(args, src: Path) -> int:
+    """--program: the scene's whole pass, includes resolved, and what to bind to it."""
+    import numpy as np
+
+    from inshade.runtime.context import shared_context
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene import load_scene
+
+    if args.output in (None, STDOUT):
+        raise UserError("--program: give -o PASS.frag (the vertex stage, manifest and resources go beside it)")
+    check_output(args.output)
+    scene = load_scene(src)
+    renderer = SceneRenderer(scene, shared_context(), settings={"storage": args.storage})
+    sources = renderer.assembled()
+    width, height = scene.size
+    uniforms = {}
+    for name, value in renderer.uniform_values(scene.make_camera(), width, height).items():
+        uniforms[name] = (np.frombuffer(value, np.float32).tolist() if isinstance(value, (bytes, bytearray))
+                          else list(value) if isinstance(value, tuple) else value)
+    entries, tensors = _resource_manifest([r for g in renderer.generated for r in g.resources])
+    out = Path(args.output)
+    vert = out.with_suffix(".vert") if out.suffix == ".frag" else out.with_name(out.stem + ".vert" + out.suffix)
+    manifest = {"scene": str(src), "program": scene.program, "vertex_shader": vert.name,
+                "size": [width, height], "uniforms": uniforms, "resources": entries,
+                "note": "a fullscreen triangle (the vertex stage) drawing the fragment stage; bind the resources "
+                        "under their names and set the uniforms (values of the scene's default view and settings)"}
+    paths = _write_group(out, sources["fragment"], manifest, tensors, {vert: sources["vertex"]})
+    renderer.release()
+    for p in paths:
+        print(f"wrote {p}", file=sys.stderr)
+    return 0
+
+
+def _codegen(args, b, prefix, output) -> int:
+    from inshade.codegen import generate
+    from inshade.shaders import flatten
+
+    limits = "query" if not args.no_gl else {}   # plan against this machine's limits when it can make a context
+    gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
+                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits)
+    if output == STDOUT:   # the GLSL alone on stdout; the plan goes to stderr
+        if gen.resources:
+            raise UserError(f"-o -: this GLSL binds {len(gen.resources)} resources "
+                            f"({', '.join(r.name for r in gen.resources)}) that standard output cannot carry; "
+                            "write to a file (-o net.glsl) or use --storage inline")
+        print(gen.plan.report(), file=sys.stderr)
+        sys.stdout.write(flatten("network", chunks={"network": gen.chunk}))
+        return 0
+    print(gen.plan.report())
+    if output is None:
+        return 0
+    out = Path(output)
+    entries, tensors = _resource_manifest(gen.resources)
+    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(),
+                "function": gen.function, "in_dim": gen.in_dim, "out_dim": gen.out_dim, "target": args.target,
+                "plan": gen.plan.to_dict(), "resources": entries}
+    # the GLSL, its manifest and its resources appear together or not at all
+    _write_group(out, flatten("network", chunks={"network": gen.chunk}), manifest, tensors)
     print(f"wrote {out} ({len(gen.resources)} resources)", file=sys.stderr)
     return 0
 
@@ -362,9 +436,10 @@ def cmd_info(args) -> int:
     for role, prefix, path in nets:
         b = bundle_mod.load(path)
         envelope = analyse(b)
-        for line in format_findings(envelope, notes=False):   # warnings only; the full list: --json
-            if line.startswith("warning:"):
-                log.warning("%s: %s", b.path or b.name, line)
+        if args.json:   # the description on stdout is JSON: its warnings are said on stderr too
+            for line in format_findings(envelope, notes=False):
+                if line.startswith("warning:"):
+                    log.warning("%s: %s", b.path or b.name, line)
         loaded.append((role, prefix, b, envelope))
     if scene is None:
         _, _, b, envelope = loaded[0]
@@ -402,29 +477,43 @@ def cmd_info(args) -> int:
 
 # render -----------------------------------------------------------------------------------
 def cmd_render(args) -> int:
+    if args.output == STDOUT:   # a PNG on stdout (no sidecar: there is no file to put it beside)
+        with tempfile.TemporaryDirectory() as tmp:
+            image, _ = _render(args, str(Path(tmp) / "stdout.png"))
+            sys.stdout.buffer.write(Path(image).read_bytes())
+            sys.stdout.buffer.flush()
+        log.info("wrote a PNG to standard output (no sidecar)")
+        return 0
+    for p in _render(args, args.output):
+        print(f"wrote {p}", file=sys.stderr)
+    return 0
+
+
+def _render(args, output) -> tuple:
+    """Render as the options say into ``output`` (an image path; None with --from); the paths written."""
     from inshade.runtime.headless import (IMAGE_SUFFIXES, render_bundle, render_from_sidecar, render_scene,
                                           save_render)
 
-    if args.output is not None:
-        suffix = Path(args.output).suffix.lower()
+    if output is not None:
+        suffix = Path(output).suffix.lower()
         if suffix not in IMAGE_SUFFIXES:
-            raise UserError(f"{args.output}: -o: unknown image type {suffix or '(none)'!r}; use .png or .exr")
-        check_output(args.output)
-        check_output(str(args.output) + ".json", "-o (its .json sidecar)")
+            raise UserError(f"{output}: -o: unknown image type {suffix or '(none)'!r}; use .png or .exr")
+        check_output(output)
+        check_output(str(output) + ".json", "-o (its .json sidecar)")
     if args.from_ is not None:
         if args.bundle is not None:
             raise UserError("render: give either an ASSET or --from SIDECAR, not both")
         if args.spp is not None:
             raise UserError("render: --from re-renders the spp its sidecar records; drop --spp")
         image, info, record = render_from_sidecar(args.from_)
-        out = args.output
+        out = output
         if out is None:  # shot.png.json -> shot.from.png
             image_path = Path(str(args.from_)[:-5] if str(args.from_).endswith(".json") else args.from_)
             out = image_path.with_name(image_path.stem + ".from" + (image_path.suffix or ".png"))
             check_output(out)
         paths = _save(save_render, image, info, out)
     else:
-        if args.bundle is None or args.output is None:
+        if args.bundle is None or output is None:
             raise UserError("render: needs an ASSET and -o IMAGE (or --from SIDECAR)")
         src = _resolve(args.bundle)
         settings = _settings(args)
@@ -437,10 +526,8 @@ def cmd_render(args) -> int:
             image, info = render_bundle(src, width=args.width, height=args.height,
                                         storage=settings.get("storage", "auto"),
                                         lut_filter=settings.get("lut_filter", "exact"), spp=args.spp or 1)
-        paths = _save(save_render, image, info, args.output)
-    for p in paths if isinstance(paths, (list, tuple)) else [paths]:
-        print(f"wrote {p}", file=sys.stderr)
-    return 0
+        paths = _save(save_render, image, info, output)
+    return tuple(paths) if isinstance(paths, (list, tuple)) else (paths,)
 
 
 def _save(save_render, image, info, out):
@@ -473,11 +560,9 @@ def _settings(args) -> dict:
 
 # view -------------------------------------------------------------------------------------
 def cmd_view(args) -> int:
-    try:
-        from inshade.viewer.app import NoDisplayError, ViewerApp
-    except ImportError as e:
-        raise UserError(f"inshade view needs the [view] extra ({e.name}); install it with: "
-                        "pip install -e '.[view]'") from None
+    import imgui_bundle  # noqa: F401  (a missing view extra is said before the display is looked for)
+
+    from inshade.viewer.app import NoDisplayError, ViewerApp
     size = (args.width, args.height)
     settings = {"storage": args.storage} if args.storage else None
     try:
@@ -557,14 +642,7 @@ def _mount(sub, name: str, table: dict, help_: str) -> None:
 
 
 def _run_module(args) -> int:
-    try:
-        mod = importlib.import_module(args.module)
-    except ImportError as e:
-        if (e.name or "").startswith("inshade"):
-            raise
-        raise UserError(f"{args.module} needs an optional dependency ({e.name}); "
-                        "install it with: pip install -e '.[train,bench]'") from None
-    return mod.main(args.rest)
+    return importlib.import_module(args.module).main(args.rest)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -586,15 +664,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("bundle",
                    help="bundle folder (bundle.json + weights.safetensors), or an asset folder / shipped asset name")
     p.add_argument("--network", metavar="PREFIX",
-                   help="the asset's network to generate, by its prefix (needed when it has several)")
-    p.add_argument("-o", "--output", help="GLSL file to write")
+                   help="the asset's network to generate, by its prefix (needed when it has several); 'all' "
+                        "generates each (-o net.glsl writes net.PREFIX.glsl per network)")
+    p.add_argument("--program", action="store_true",
+                   help="write the asset's whole pass instead: its fragment stage with every include resolved "
+                        "(-o PASS.frag), the vertex stage beside it, and a .json of the uniforms and resources to bind")
+    p.add_argument("-o", "--output", help="GLSL file to write (- : the GLSL alone on standard output, the plan on "
+                                          "stderr; only for code that binds no resources)")
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
     p.add_argument("--target", choices=TARGETS, default="330", help="GLSL target")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")
     p.add_argument("--prefix", help="name prefix of the generated symbols (default: the network's prefix in "
                                     "the asset's scene.json, else net)")
-    p.add_argument("--no-gl", action="store_true", help="'auto' uses default limits instead of a live context")
+    p.add_argument("--no-gl", action="store_true", help="plan against GL 3.3's minimum limits instead of this "
+                                                          "machine's (no GL context is made)")
     p.set_defaults(func=cmd_codegen)
 
     from inshade.convert.commands import add_parsers as add_convert_parsers
@@ -617,7 +701,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("bundle", nargs="?", metavar="ASSET",
                    help="asset folder (scene.json, or a bundle with a 'render' field), scene.json, bundle, "
                         "or the name of a shipped asset (e.g. prt_creature); `inshade info ASSET` lists its settings")
-    p.add_argument("-o", "--output", help="image path (.png or .exr); with --from defaults to <shot>.from.png")
+    p.add_argument("-o", "--output", help="image path (.png or .exr; - : a PNG on standard output, no sidecar); "
+                                          "with --from defaults to <shot>.from.png")
     p.add_argument("--from", dest="from_", metavar="SIDECAR",
                    help="re-render exactly what a screenshot's JSON sidecar (shot.png.json) describes")
     p.add_argument("--width", type=_size)
@@ -635,7 +720,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "scene picker listing trained/. Needs a display: on a headless machine use "
                                    "xvfb-run. Keys: 1-5 display modes, T neural/reference, F frame, Home reset, "
                                    "F12 screenshot, Esc quit.")
-    p.add_argument("asset", nargs="?", help="asset folder or shipped asset name (default: the first scene in trained/)")
+    p.add_argument("asset", nargs="?", help="asset folder or shipped asset name (default: none: choose one in the scene list)")
     p.add_argument("--width", type=_size, default=1280)
     p.add_argument("--height", type=_size, default=800)
     p.add_argument("--storage", choices=STORAGE_MODES, help="override the scene's weight storage")
@@ -767,6 +852,14 @@ def _main(argv) -> int:
         return int(args.func(args) or 0)
     except _user_errors() as e:
         print(f"inshade: error: {_one_line(str(e))}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as e:   # an optional extra that is not installed (a runtime-only install)
+        if (e.name or "inshade").startswith("inshade"):
+            raise
+        from inshade.extras import missing_line
+
+        command = " ".join(rest[:2]) if rest and rest[0] in tables else getattr(args, "command", None)
+        print(f"inshade: error: {missing_line(e.name, command)}", file=sys.stderr)
         return 2
     except BrokenPipeError:   # stdout closed (`| head`): main() ends quietly
         raise

@@ -1,7 +1,7 @@
 """Progress of long work (training loops, data generation), on a TTY or off it.
 
 On a TTY: a tqdm bar (transient, ``leave=False``). Off a TTY (logs, CI, ``nohup``): a plain line on
-stderr every ``interval`` seconds (default 30, or ``INSHADE_PROGRESS_INTERVAL``) with step/total,
+stderr every ``interval`` seconds (default 10, or ``INSHADE_PROGRESS_INTERVAL``) with step/total,
 the latest postfix the caller set (a loss, a PSNR), the elapsed time and an ETA, and one closing
 line if any was written. Short work off a TTY stays silent. ``enabled=False`` silences both.
 
@@ -19,12 +19,12 @@ import os
 import sys
 import time
 
-DEFAULT_INTERVAL = 30.0
+DEFAULT_INTERVAL = 10.0
 INTERVAL_ENV = "INSHADE_PROGRESS_INTERVAL"
 
 
 def default_interval() -> float:
-    """Seconds between off-TTY lines: ``INSHADE_PROGRESS_INTERVAL`` if set (and valid), else 30."""
+    """Seconds between off-TTY lines: ``INSHADE_PROGRESS_INTERVAL`` if set (and valid), else 10."""
     try:
         value = float(os.environ.get(INTERVAL_ENV, DEFAULT_INTERVAL))
     except ValueError:
@@ -155,5 +155,73 @@ class Progress:
 
 
 def progress(iterable=None, **kwargs) -> Progress:
-    """``Progress(iterable, **kwargs)``: tqdm on a TTY, a line every ~30 s off it."""
+    """``Progress(iterable, **kwargs)``: tqdm on a TTY, a line every ~10 s off it."""
     return Progress(iterable, **kwargs)
+
+
+# ---------------------------------------------------------------------------------------------
+# waiting on one long call (a driver's shader JIT): a watcher process, since the call holds the GIL
+
+WAIT_QUIET_S = 2.0      # say nothing for a wait shorter than this
+WAIT_LINE_S = 10.0      # off a TTY: a line this often
+
+_WATCHER = r"""
+import os, sys, time
+what, quiet, every, tty = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4] == "1"
+start = time.monotonic()
+frames = "|/-\\"
+shown, k = 0.0, 0
+time.sleep(quiet)
+while True:
+    now = time.monotonic() - start
+    if tty:
+        os.write(2, f"\r{frames[k % 4]} {what}: {now:.0f} s".encode())
+        k += 1
+        time.sleep(0.25)
+    else:
+        if now - shown >= every or shown == 0.0:
+            os.write(2, f"inshade: still {what} ({now:.0f} s)\n".encode())
+            shown = now
+        time.sleep(0.5)
+"""
+
+
+class waiting:
+    """``with waiting("compiling 64x4 inline network"): draw()``: while the body runs, a spinner
+    with the elapsed seconds on a TTY, or a line every 10 s off it (nothing for the first 2 s).
+    Python threads cannot run while a GL call holds the GIL, so a small watcher process prints;
+    it is stopped when the body returns. ``seconds`` holds the body's wall time afterwards."""
+
+    def __init__(self, what: str, *, stream=None, enabled: bool = True, quiet: float = WAIT_QUIET_S,
+                 every: float = WAIT_LINE_S):
+        self.what, self.enabled, self.quiet, self.every = what, enabled, quiet, every
+        self.stream = sys.stderr if stream is None else stream
+        self.seconds = 0.0
+        self._proc = None
+
+    def __enter__(self):
+        import subprocess
+
+        self.start = time.perf_counter()
+        if self.enabled:
+            isatty = getattr(self.stream, "isatty", None)
+            tty = bool(isatty and isatty())
+            try:
+                self.stream.flush()
+                self._tty = tty
+                self._proc = subprocess.Popen([sys.executable, "-c", _WATCHER, self.what, str(self.quiet),
+                                               str(self.every), "1" if tty else "0"],
+                                              stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+            except OSError:   # no watcher (e.g. a process limit): the wait is just silent
+                self._proc = None
+        return self
+
+    def __exit__(self, *exc):
+        self.seconds = time.perf_counter() - self.start
+        if self._proc is not None:
+            self._proc.kill()
+            self._proc.wait()
+            if self._tty and self.seconds >= self.quiet:
+                self.stream.write("\r\x1b[K")   # clear the spinner's line
+                self.stream.flush()
+        return False

@@ -59,6 +59,15 @@ class ProgramCache:
         program, self.last_compile_seconds = self._programs[key]
         return program
 
+    def key_of(self, program: moderngl.Program) -> str:
+        """A stable name of ``program``'s sources (both stages' assembly keys), '' if not cached here."""
+        import hashlib
+
+        for key, (cached, _) in self._programs.items():
+            if cached is program:
+                return hashlib.sha256(repr(key).encode()).hexdigest()[:24]
+        return ""
+
     def discard(self, program: moderngl.Program) -> None:
         """Drop ``program`` from the cache and release it (a hot-reloaded program replaced it)."""
         for key, (cached, _) in list(self._programs.items()):

@@ -19,7 +19,6 @@ import hashlib
 import json
 import logging
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -32,6 +31,7 @@ from inshade.codegen.network import generate
 from inshade.codegen.network_sdf import network_sdf_chunks
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunks
 from inshade.codegen.spherical_harmonics import sh_chunks
+from inshade.progress import format_seconds
 from inshade.technique import FrameInputs
 
 from .context import GLContextError, gl_info, make_current, shared_context
@@ -189,6 +189,9 @@ class SceneRenderer:
             raise SceneError(f"scene '{self.scene.name}': network {primary.name!r} has no output {name!r} "
                              f"(outputs: {', '.join(p.name for p in primary.outputs)})")
         defines.update(FIELD_OUT_OFFSET=lanes[0], FIELD_OUT_DIM=lanes[1])
+        port = next(p for p in primary.outputs if p.name == name)
+        if port.semantic == SRGB_SEMANTIC:   # the network outputs sRGB-encoded colour: decoded for display
+            defines["FIELD_OUT_SRGB"] = 1
         return defines
 
     def _build(self, bundles=None) -> str:
@@ -203,7 +206,9 @@ class SceneRenderer:
             chunks.update(geometry)
             generated = generated + extra   # GL resources of a network SDF bind like a network's
             check_program_limits(generated, self.gl, self.scene)
-            program = self.cache.get(VERTEX, self.scene.program, defines=self._defines(bundles), chunks=chunks)
+            defines = self._defines(bundles)
+            program = self.cache.get(VERTEX, self.scene.program, defines=defines, chunks=chunks)
+            self._sources = (defines, chunks)
         except Exception as exc:
             self.error = exc
             raise
@@ -231,6 +236,20 @@ class SceneRenderer:
         self.generated, self.bundles = generated, bundles
         self._net_key = None
         return outcome
+
+    def assembled(self) -> dict:
+        """The scene pass as the driver compiles it, every include resolved: {"vertex": source,
+        "fragment": source} (``inshade codegen ASSET --program``)."""
+        from inshade.shaders import assemble
+
+        defines, chunks = self._sources
+        return {"vertex": assemble(VERTEX, defines=defines, chunks=chunks).source,
+                "fragment": assemble(self.scene.program, defines=defines, chunks=chunks).source}
+
+    def uniform_values(self, camera, width: int, height: int) -> dict:
+        """The scene pass's uniforms as this renderer sets them for ``camera`` at this size (bytes
+        values are float32 arrays), without samplers."""
+        return self._uniforms(self.program, camera, width, height)
 
     def set_setting(self, name: str, value) -> str:
         """Change one setting: "uniform" (takes effect next frame) or what a rebuild did."""
@@ -382,23 +401,66 @@ class SceneRenderer:
                         tex.use(location=unit)
                         self.program[name].value = unit
                         unit += 1
-            announce = self.first_draw_pending and self.gl.get("software") and first_draw_message(
-                self.generated, self.gl.get("renderer", ""))
-            if announce:   # software renderers JIT here: say so before a silent wait (once per program)
-                log.info("%s", announce)
-            start = time.perf_counter()
-            self._net_pass.render(draw_into, uniforms=uniforms)
-            if self.first_draw_pending:
-                self.ctx.finish()
-                self.first_draw_seconds = time.perf_counter() - start
-                self.first_draw_pending = False
-                if announce and sys.stderr.isatty():
-                    log.info("... compiled in %.1f s", self.first_draw_seconds)
+            self._draw_timed(draw_into, uniforms, width * height, key)
             self._net_key = key
             if self.spec.accumulate:
                 return self._fold_sample(draw_into, width, height)
             self.samples = 1
         return fbo
+
+    def _draw_timed(self, target, uniforms, pixels: int, view_key) -> None:
+        """The scene pass, with what to expect said first: on a software renderer the first draw of
+        a program JIT-compiles it (the message says what happened last time on this machine, and a
+        watcher process shows the seconds going by); a view whose last draw took minutes is warned
+        about before it starts. Times are kept in runtime/draw_history.py."""
+        from inshade.progress import waiting
+
+        from . import draw_history
+
+        renderer, program_key = self.gl.get("renderer", ""), self.cache.key_of(self.program)
+        view = f"{program_key}:{hash_values(self.values)}"   # a frame's time depends on the settings too
+        frame = draw_history.lookup(renderer, view) if program_key else {}
+        estimate = frame["frame_s"] * pixels / frame["pixels"] if frame.get("frame_s") and frame.get("pixels") else 0.0
+        announce, cached = self._first_draw_note()
+        if announce:
+            log.info("%s", announce)
+        if estimate >= SLOW_FRAME_S and view_key != self._net_key:
+            log.warning("this view took about %s to draw last time at these settings (scaled to this size)",
+                        format_seconds(estimate))
+        what = "compiling" if announce and announce.startswith("compiling") else "drawing"
+        with waiting(f"{what} {self.scene.name}", enabled=bool(announce) or estimate >= SLOW_FRAME_S) as w:
+            self._net_pass.render(target, uniforms=uniforms)
+            if self.first_draw_pending or w.enabled:
+                self.ctx.finish()
+        if self.first_draw_pending:
+            self.first_draw_seconds = w.seconds
+            self.first_draw_pending = False
+            if announce and w.seconds >= 2.0:
+                log.info("compiled and drawn in %s%s", format_seconds(w.seconds),
+                         " (Mesa's shader cache did not have it)" if cached else "")
+            if program_key and self.gl.get("software"):
+                draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3),
+                                     shader_cache=draw_history.shader_cache_on())
+        elif w.enabled or w.seconds >= 1.0:   # a slow frame is remembered, to warn next time
+            if program_key:
+                draw_history.record(renderer, view, frame_s=round(w.seconds, 3), pixels=pixels)
+
+    def _first_draw_note(self) -> tuple[str | None, bool]:
+        """(what the pending first draw will do on a software renderer, or None; whether Mesa's
+        shader cache had this program last time)."""
+        from . import draw_history
+
+        if not (self.first_draw_pending and self.gl.get("software")):
+            return None, False
+        renderer, program_key = self.gl.get("renderer", ""), self.cache.key_of(self.program)
+        past = draw_history.lookup(renderer, program_key) if program_key else {}
+        cached = draw_history.shader_cache_on() and past.get("shader_cache") is True
+        return first_draw_message(self.generated, renderer, past.get("first_draw_s"), cached), cached
+
+    @property
+    def first_draw_note(self) -> str | None:
+        """What the next draw is about to do (a JIT compile, and what it took last time), or None."""
+        return self._first_draw_note()[0]
 
     def _sync_shadows(self) -> int:
         """Redraws the shadow maps if the program's request changed; their version (a redraw key)."""
@@ -591,6 +653,14 @@ class SceneRenderer:
         self.program = None
 
 
+SRGB_SEMANTIC = "srgb"   # an output port whose values are sRGB-encoded (e.g. fitted to sRGB pixels)
+SLOW_FRAME_S = 30.0   # a view whose last draw took this long is warned about before it starts
+
+
+def hash_values(values) -> str:
+    return hashlib.sha256(repr(sorted((k, repr(v)) for k, v in dict(values).items())).encode()).hexdigest()[:16]
+
+
 def check_program_limits(generated, gl: dict, scene) -> None:
     """What the scene's networks need together, checked before compiling: codegen plans each
     network against the limits alone, but one program holds them all (e.g. six networks of three
@@ -612,10 +682,13 @@ def check_program_limits(generated, gl: dict, scene) -> None:
                          f"together; GL_MAX_TEXTURE_IMAGE_UNITS is {cap}")
 
 
-def first_draw_message(generated, renderer: str = "") -> str | None:
-    """What a software renderer's first draw of these networks is about to do, from their plans:
-    "compiling 64x4 inline network (llvmpipe JIT, first run only; cached afterwards)", WIDTHxLAYERS
-    = widest dense layer x dense layers. None when no network has a dense layer."""
+def first_draw_message(generated, renderer: str = "", previous: float | None = None,
+                       shader_cache: bool = False) -> str | None:
+    """What a software renderer's first draw of these networks is about to do, from their plans
+    and what this machine recorded (``previous``: the seconds of the last first draw of this
+    program, None if never; ``shader_cache``: it was compiled with Mesa's shader cache on, and the
+    cache is on now): "compiling a network of 4 dense layers up to 64 wide (inline) (llvmpipe JIT at
+    the first draw: seconds to minutes; ...)". None when no network has a dense layer."""
     nets = []
     for g in generated:
         plan = getattr(g, "plan", None)
@@ -624,12 +697,17 @@ def first_draw_message(generated, renderer: str = "") -> str | None:
             continue
         dims = [int(d) for r in dense for d in str(r.shape).split("->")[-1:]]
         storage = "+".join(sorted({r.storage for r in dense}))
-        nets.append(f"{max(dims)}x{len(dense)} {storage}")
+        nets.append(f"{len(dense)} dense layers up to {max(dims)} wide ({storage})")
     if not nets:
         return None
-    what = f"{nets[0]} network" if len(nets) == 1 else f"networks {', '.join(nets)}"
+    what = f"a network of {nets[0]}" if len(nets) == 1 else f"{len(nets)} networks: {'; '.join(nets)}"
     name = str(renderer).split(" ")[0] or "software renderer"
-    return f"compiling {what} ({name} JIT, first run only; cached afterwards)"
+    if previous is not None and shader_cache:
+        return f"drawing {what} (compiled before on this machine; Mesa's shader cache should make it quick)"
+    if previous is not None:
+        return f"compiling {what} ({name} JIT at the first draw; {format_seconds(previous)} last time)"
+    return (f"compiling {what} ({name} JIT at the first draw: seconds to minutes; Mesa's shader cache keeps "
+            "it for later runs)")
 
 
 def _rotated_map_sh(coeffs: np.ndarray, rotation_deg: float) -> np.ndarray:

@@ -223,6 +223,19 @@ def test_dangling_output(bundle_dir):
     _expect(bundle_dir, JSON_NAME, "outputs[0].node", "not a node")
 
 
+def test_two_outputs_of_one_name(bundle_dir, capsys):
+    """load, and so info / codegen / render, refuse it: outputs are found by name."""
+    from inshade.cli import main
+
+    meta = _meta(bundle_dir)
+    meta["outputs"].append(dict(meta["outputs"][0]))
+    _write_meta(bundle_dir, meta)
+    _expect(bundle_dir, JSON_NAME, "outputs[1].name", "invalid or repeated name")
+    for argv in (["info", str(bundle_dir)], ["codegen", str(bundle_dir), "--no-gl"]):
+        assert main(argv) == 2
+        assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize("dup", ["l0", "uv"])
 def test_duplicate_ids(bundle_dir, dup):
     meta = _meta(bundle_dir)

@@ -255,3 +255,56 @@ def test_render_scene_settings_from_the_command_line(tmp_path, capsys):
     capsys.readouterr()
     assert main(["-q", "render", str(asset), "--set", "bogus=1", "-o", str(a)]) == 2
     assert "unknown setting 'bogus'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["view", "trained/neural_image"], "inshade: error: inshade view needs imgui-bundle (not installed): pip install -e '.[view]'"),
+    (["bench", "mlp", "--quick", "--out", "{tmp}/b"], "inshade: error: inshade bench mlp needs torch (not installed): pip install -e '.[bench]'"),
+    (["train", "neural_image", "--out", "{tmp}/t"], "inshade: error: inshade train neural_image needs torch (not installed): pip install -e '.[train]'"),
+    (["convert", "{tmp}/m.onnx", "-o", "{tmp}/c"], "inshade: error: reading ONNX needs the onnx package: pip install -e '.[onnx]'"),
+])
+def test_a_missing_extra_is_one_line_naming_it(argv, line, tmp_path):
+    """A runtime-only install (pip install -e .): the optional modules are blocked in a fresh interpreter."""
+    import subprocess
+    import sys
+
+    (tmp_path / "m.onnx").write_bytes(b"x")
+    code = ("import sys\nfor m in ('imgui_bundle', 'torch', 'onnx', 'onnxruntime'): sys.modules[m] = None\n"
+            "from inshade.cli import main\nsys.exit(main(sys.argv[1:]))")
+    proc = subprocess.run([sys.executable, "-c", code, *[a.format(tmp=tmp_path) for a in argv]], capture_output=True,
+                          text=True, timeout=120, cwd=REPO)
+    lines = [x for x in proc.stderr.splitlines() if not x.startswith("inshade: OpenGL context")]
+    assert proc.returncode == 2 and lines == [line], proc.stderr[-2000:]
+    assert not (tmp_path / "b").exists() and not (tmp_path / "t").exists() and not (tmp_path / "c").exists()
+
+
+def test_dash_output_streams_to_stdout(tmp_path, capfdbinary):
+    """-o - : codegen the GLSL alone (the plan on stderr), render a PNG (no sidecar), eval a .npy; a
+    GLSL that binds resources cannot go there (one line). Nothing named '-' is written."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    from inshade.cli import main
+
+    from inshade.models import mlp_graph
+
+    asset = REPO / "trained" / "neural_image"
+    mlp = tmp_path / "mlp"
+    mlp_graph(2, [8], 3).export("demo", "demo").save(mlp)
+    capfdbinary.readouterr()
+    assert main(["codegen", str(mlp), "--storage", "inline", "--no-gl", "-o", "-"]) == 0
+    out, err = capfdbinary.readouterr()
+    assert b"void net_eval(" in out and b"plan for" not in out and b"plan for" in err
+    assert main(["codegen", str(asset), "--storage", "texture", "--no-gl", "-o", "-"]) == 2
+    out, err = capfdbinary.readouterr()
+    assert out == b"" and err.count(b"\n") == 1 and b"-o -: this GLSL binds" in err
+    assert main(["-q", "render", str(asset), "-o", "-", "--width", "32", "--height", "32"]) == 0
+    out, _ = capfdbinary.readouterr()
+    assert Image.open(io.BytesIO(out)).size == (32, 32)
+    np.save(tmp_path / "x.npy", np.random.default_rng(0).random((5, 2), np.float32))
+    assert main(["-q", "eval", str(asset), str(tmp_path / "x.npy"), "-o", "-"]) == 0
+    out, _ = capfdbinary.readouterr()
+    assert np.load(io.BytesIO(out)).shape == (5, 3)
+    assert not (REPO / "-").exists() and not Path("-").exists()

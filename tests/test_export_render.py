@@ -104,3 +104,19 @@ def test_nerf_field(gl, tmp_path):
     ref = march(module, field_settings(bundle), scene.make_camera().uniforms(SIZE, SIZE), SIZE, SIZE)[..., :3]
     assert ref.std() > 0.01, "the field should not be empty"
     assert psnr(shot, ref) >= 50.0, psnr(shot, ref)
+
+
+def test_an_srgb_output_is_decoded_for_display(gl, tmp_path):
+    """A network fitted to sRGB pixels says so (semantics={"y": "srgb"}): the display decodes its colour
+    to linear, so the PNG shows the photograph, not a washed-out one."""
+    from inshade.metrics import srgb_eotf
+
+    net, uv, _ = fitted_siren(steps=60)
+    inshade.export(net, uv, tmp_path / "s", as_="image", semantics={"y": "srgb"}, quiet=True)
+    shot = _render(tmp_path / "s", tmp_path)
+    ys = (SIZE - 0.5 - np.arange(SIZE)) / SIZE
+    xs = (np.arange(SIZE) + 0.5) / SIZE
+    grid = torch.from_numpy(np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2).astype(np.float32))
+    with torch.no_grad():
+        ref = srgb_eotf(np.clip(net(grid).numpy(), 0, 1)).reshape(SIZE, SIZE, 3)
+    assert psnr(shot, ref) >= 50.0, psnr(shot, ref)

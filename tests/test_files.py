@@ -73,3 +73,46 @@ def test_failing_codegen_resources_leave_no_glsl(tmp_path, monkeypatch, capsys):
     assert cli.main(["-q", "codegen", str(bundle), "--storage", "texture", "--no-gl", "-o", str(out)]) == 0
     assert _names(out.parent) == ["net.glsl", "net.glsl.json", "net.resources.safetensors"]
     assert json.loads((out.parent / "net.glsl.json").read_text())["resources_file"] == "net.resources.safetensors"
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
+def test_files_get_the_mode_the_umask_gives(tmp_path, umask):
+    """Not the temporary's private 0600: another user, a web server or a build step can read them."""
+    import os
+
+    old = os.umask(umask)
+    try:
+        atomic_write(tmp_path / "a.txt", "x")
+        with atomic_files(tmp_path / "b.glsl", tmp_path / "sub" / "c.json") as (b, c):
+            b.write_text("b")
+            c.write_text("c")
+    finally:
+        os.umask(old)
+    for name in ("a.txt", "b.glsl", "sub/c.json"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~umask, name
+
+
+def test_a_group_member_that_is_a_folder_leaves_nothing_and_is_named(tmp_path, capsys):
+    """`inshade codegen --storage texture -o out/net.glsl` where out/net.resources.safetensors is a folder:
+    none of the three files appears, and the error names the resources file."""
+    from inshade import cli
+    from inshade.models import mlp_graph
+
+    bundle = tmp_path / "b"
+    mlp_graph(2, [8], 3).export("demo", "demo").save(bundle)
+    out = tmp_path / "out" / "net.glsl"
+    (tmp_path / "out" / "net.resources.safetensors").mkdir(parents=True)
+    assert cli.main(["-q", "codegen", str(bundle), "--storage", "texture", "--no-gl", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"inshade: error: {out.parent / 'net.resources.safetensors'}: cannot write (is a folder)"], err
+    assert _names(out.parent) == ["net.resources.safetensors"]
+
+
+def test_a_created_folder_is_said_once(tmp_path, caplog):
+    import logging
+
+    with caplog.at_level(logging.INFO, logger="inshade"):
+        atomic_write(tmp_path / "new" / "deeper" / "a.txt", "x")
+        atomic_write(tmp_path / "new" / "deeper" / "b.txt", "x")
+    said = [r.getMessage() for r in caplog.records if "created folder" in r.getMessage()]
+    assert said == [f"created folder {tmp_path / 'new' / 'deeper'}"]

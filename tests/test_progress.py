@@ -1,4 +1,4 @@
-"""inshade/progress.py: tqdm on a TTY, a line every ~30 s off it, silence when disabled."""
+"""inshade/progress.py: tqdm on a TTY, a line every ~10 s off it, silence when disabled; waiting on one long call."""
 from __future__ import annotations
 
 import io
@@ -88,9 +88,9 @@ def test_interval_from_environment(monkeypatch):
     monkeypatch.setenv("INSHADE_PROGRESS_INTERVAL", "5")
     assert default_interval() == 5.0
     monkeypatch.setenv("INSHADE_PROGRESS_INTERVAL", "nonsense")
-    assert default_interval() == 30.0
+    assert default_interval() == 10.0
     monkeypatch.delenv("INSHADE_PROGRESS_INTERVAL")
-    assert default_interval() == 30.0
+    assert default_interval() == 10.0
 
 
 @pytest.mark.parametrize("seconds, text", [(12.34, "12.3 s"), (65, "1:05"), (3723, "1:02:03"),
@@ -111,8 +111,37 @@ def test_first_draw_message_from_the_plan():
     net = gen(("frequency", "2->34", "-"), ("dense", "34->64", "inline"), ("relu", "64", "-"),
               ("dense", "64->64", "inline"), ("dense", "64->64", "inline"), ("dense", "64->3", "inline"))
     llvmpipe = "llvmpipe (LLVM 15.0.6, 256 bits)"
-    assert first_draw_message([net], llvmpipe) == \
-        "compiling 64x4 inline network (llvmpipe JIT, first run only; cached afterwards)"
+    assert first_draw_message([net], llvmpipe) == (
+        "compiling a network of 4 dense layers up to 64 wide (inline) (llvmpipe JIT at the first draw: seconds to "
+        "minutes; Mesa's shader cache keeps it for later runs)")
     mixed = gen(("dense", "66->128", "texture"), ("dense", "128->16", "inline"))
-    assert first_draw_message([net, mixed], llvmpipe).startswith("compiling networks 64x4 inline, 128x2 inline+texture")
+    assert first_draw_message([net, mixed], llvmpipe).startswith(
+        "compiling 2 networks: 4 dense layers up to 64 wide (inline); 2 dense layers up to 128 wide (inline+texture)")
     assert first_draw_message([gen(("lookup_array", "2->4", "-"))], llvmpipe) is None
+    # what this machine recorded: said, not promised
+    assert first_draw_message([net], llvmpipe, 85.2, shader_cache=True) == (
+        "drawing a network of 4 dense layers up to 64 wide (inline) (compiled before on this machine; Mesa's shader "
+        "cache should make it quick)")
+    assert first_draw_message([net], llvmpipe, 85.2, shader_cache=False).endswith("(llvmpipe JIT at the first draw; "
+                                                                                 "1:25 last time)")
+
+
+def test_waiting_speaks_only_for_long_waits_and_stops():
+    """The watcher process prints while a call holds the GIL; nothing for a short wait."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent("""
+        import sys, time
+        from inshade.progress import waiting
+        with waiting("compiling x", quiet=0.3, every=0.5) as w:
+            time.sleep(float(sys.argv[1]))   # stands for a GL call holding the GIL
+        print("done", round(w.seconds, 1))
+    """)
+    short = subprocess.run([sys.executable, "-c", code, "0.1"], capture_output=True, text=True, timeout=60)
+    assert short.stderr == "" and short.stdout.startswith("done")
+    long = subprocess.run([sys.executable, "-c", code, "1.6"], capture_output=True, text=True, timeout=60)
+    lines = long.stderr.splitlines()
+    assert 2 <= len(lines) <= 4 and all(x.startswith("inshade: still compiling x (") for x in lines), lines
+    assert long.stdout.startswith("done 1.6")

@@ -589,6 +589,9 @@ def test_uvfree_material_views_channels_and_overlay_in_the_window(app):
     try:
         assert app.open(ROOT / "trained" / "uvfree_material_stump_low_balanced"), app.messages[-1:]
         app.step(3)
+        # long setting labels: either a usable widget beside each, or the label above a full-width widget
+        from inshade.viewer.ui import WIDGET_MIN
+        assert app.labels_on_top or app.panel_width - app.label_width >= WIDGET_MIN
         pictures = {}
         for name, value in [("view", "split"), ("view", "error"), ("view", "decoded"), ("channel", "normal"),
                             ("wireframe", "triangles"), ("wireframe", "level")]:

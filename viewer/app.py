@@ -124,6 +124,7 @@ class ViewerApp:
         self.frames = 0
         self.max_spp = int(max_spp)
         self.label_width = 0.0            # widest label of the side panel (measured by ui.draw)
+        self.labels_on_top = False        # long setting labels drawn above their widgets (ui.draw decides)
         self.flash_text, self._flash_until = None, 0.0
         self._psnr_key = None
         self._psnr_time = 0.0
@@ -133,10 +134,11 @@ class ViewerApp:
         self._held = set()
         self._closed = False
         self.last_window = None
-        if source is None and self.scene_paths:
-            source = self.scene_paths[0]
         if source is not None:
             self.open(source)
+        elif self.scene_paths:   # no scene chosen: the picker, not the first (maybe slowest) scene
+            self.messages.append("choose a scene in the list (its first draw may take a while on a software "
+                                 "renderer: the driver compiles it)")
 
     # scenes -------------------------------------------------------------------------------------
     def _current(self) -> None:

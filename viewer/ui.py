@@ -14,12 +14,17 @@ from inshade.runtime.labels import layout as label_layout
 RED = ImVec4(1.0, 0.35, 0.3, 1.0)
 YELLOW = ImVec4(1.0, 0.85, 0.3, 1.0)
 GREY = ImVec4(0.65, 0.65, 0.65, 1.0)
+WIDGET_MIN = 140.0   # window units: a widget narrower than this beside its label gets the label above it
 
 
 def draw(app) -> None:
     """The side panel (fixed at the left, ``app.panel_width`` wide) and overlays."""
     width, height = app.window_size
     app.label_width = _label_width(app)
+    # a label too long to leave a usable widget beside it goes on its own line above the widget
+    app.labels_on_top = app.panel_width - app.label_width < WIDGET_MIN
+    if app.labels_on_top:
+        app.label_width = _label_width(app, settings=False)
     imgui.set_next_window_pos(ImVec2(0, 0))
     imgui.set_next_window_size(ImVec2(app.panel_width, height))
     flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
@@ -39,7 +44,8 @@ def draw(app) -> None:
     if app.renderer is not None and not app.compiling:
         _labels(app)
     if app.compiling:
-        _overlay(app, "compiling the network program...\n(llvmpipe JIT-compiles at the first draw)")
+        note = app.renderer.first_draw_note if app.renderer is not None else None
+        _overlay(app, "compiling the network program...\n" + (note or "(the driver compiles it at the first draw)"))
     elif app.flash_shown:
         _overlay(app, app.flash_shown, name="##flash", colour=YELLOW)
 
@@ -89,12 +95,23 @@ def setting_widget(setting) -> tuple[str, str, list]:
     return "slider", label, []
 
 
-def _label_width(app) -> float:
-    """Width of the longest label of the side panel's widgets (window units)."""
+def _label_width(app, settings: bool = True) -> float:
+    """Width of the longest label of the side panel's widgets (window units); ``settings``: the
+    scene settings' labels too."""
     labels = ["display", "scene", "split", "labels"]
-    if app.scene is not None:
+    if settings and app.scene is not None:
         labels += [setting_widget(s)[1] for s in app.scene.settings.values() if s.exposed]
     return max(imgui.calc_text_size(t).x for t in labels)
+
+
+def _widget_label(app, label: str, key: str) -> tuple[str, bool]:
+    """The label to give a setting's widget: itself, or (labels on top) the label drawn on its own
+    line and a hidden one, the widget then spanning the panel (True: pop the item width after)."""
+    if not app.labels_on_top:
+        return label, False
+    imgui.text(label)
+    imgui.push_item_width(-1)
+    return f"##{key}", True
 
 
 def _labels(app) -> None:
@@ -223,17 +240,21 @@ def _settings(app) -> None:
             imgui.text_disabled(shown_value)
             imgui.same_line(0.0, -1.0)
             imgui.text(label)
-        elif kind == "slider" and s.type == "float":
-            changed, new = imgui.slider_float(label, float(value), float(s.min), float(s.max), "%.3g")
-        elif kind == "slider":
-            changed, new = imgui.slider_int(label, int(value), int(s.min), int(s.max))
         elif kind == "checkbox":
             changed, new = imgui.checkbox(label, bool(value))
         else:
-            values = [v for v, _ in pairs]
-            index = values.index(value) if value in values else 0
-            changed, index = imgui.combo(label, index, [name for _, name in pairs])
-            new = values[index]
+            shown_label, pop = _widget_label(app, label, s.name)
+            if kind == "slider" and s.type == "float":
+                changed, new = imgui.slider_float(shown_label, float(value), float(s.min), float(s.max), "%.3g")
+            elif kind == "slider":
+                changed, new = imgui.slider_int(shown_label, int(value), int(s.min), int(s.max))
+            else:
+                values = [v for v, _ in pairs]
+                index = values.index(value) if value in values else 0
+                changed, index = imgui.combo(shown_label, index, [name for _, name in pairs])
+                new = values[index]
+            if pop:
+                imgui.pop_item_width()
         if imgui.is_item_hovered(imgui.HoveredFlags_.allow_when_disabled) and (s.label or s.name) != label:
             imgui.set_tooltip(s.label or s.name)
         if changed:
@@ -245,10 +266,12 @@ def _compare(app) -> None:
         return
     psnr = app.psnr
     text = "-" if psnr is None else ("inf" if math.isinf(psnr) else f"{psnr:.2f} dB")
-    imgui.text(f"PSNR (this view, linear): {text}")
+    imgui.text(f"PSNR of this view: {text}")
+    imgui.text_colored(GREY, "  the window's pixels vs the reference,\n  linear, as framed and sized now")
     trained = app.renderer.bundles[0].meta.get("metrics", {}).get("psnr_linear")
     if trained is not None:
-        imgui.text_colored(GREY, f"training metric: {trained:.2f} dB")
+        imgui.text_colored(GREY, f"PSNR at training: {trained:.2f} dB\n  the whole image at its own size\n"
+                                 "  (a different measurement: zoom, framing\n  and resampling change this view's)")
 
 
 def _performance(app) -> None:

@@ -28,6 +28,9 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     p.add_argument("--as", dest="as_", choices=SHOWN_AS,
                    help="what the network is, so `inshade render` / `view` can draw it (image: uv -> colour)")
     p.add_argument("--name", help="bundle name (default: the file's stem)")
+    p.add_argument("--semantic", action="append", metavar="PORT=SEMANTIC",
+                   help="a port's semantic, e.g. --semantic rgb=srgb for colour fitted to sRGB pixels (the "
+                        "display decodes it); repeatable")
     p.add_argument("--example", metavar="INPUTS.npy",
                    help="[N, inputs] float32 rows for the check (default: 64 uniform rows in [-1, 1]); random rows "
                         "in their range are added")
@@ -42,7 +45,7 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
                                    "OUTPUTS.npy [N, outputs] float32, outputs concatenated in the bundle's order.")
     p.add_argument("bundle", metavar="BUNDLE", help="bundle folder, or an asset with one network")
     p.add_argument("inputs", metavar="INPUTS.npy", help="[N, inputs] array (.npy, read without pickles)")
-    p.add_argument("-o", "--output", required=True, metavar="OUTPUTS.npy", help="file to write")
+    p.add_argument("-o", "--output", required=True, metavar="OUTPUTS.npy", help="file to write (- : standard output)")
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.set_defaults(func=cmd_eval)
@@ -64,8 +67,14 @@ def cmd_convert(args) -> int:
     example = _read_npy(args.example) if args.example else None
     from .onnx_model import convert
 
+    semantics = {}
+    for item in args.semantic or []:
+        port, sep, semantic = item.partition("=")
+        if not sep or not port or not semantic:
+            raise ConvertError(f"--semantic {item!r}: expected PORT=SEMANTIC, e.g. rgb=srgb")
+        semantics[port] = semantic
     bundle = convert(source, args.output, name=args.name, as_=args.as_, check=not args.no_check, force=args.force,
-                     quiet=args.quiet, example=example)
+                     quiet=args.quiet, example=example, semantics=semantics)
     if not args.quiet:
         print(f"wrote {args.output}: {len(bundle.nodes)} nodes, {bundle.in_dim} -> {bundle.out_dim} lanes",
               file=sys.stderr)
@@ -98,6 +107,10 @@ def cmd_eval(args) -> int:
         raise ConvertError(f"{args.inputs}: shape {list(x.shape)} ({x.dtype}); {bundle.name} takes "
                            f"[N, {bundle.in_dim}] numbers")
     out, renderer, storage = evaluate(bundle, x.astype(np.float32), storage=args.storage, lut_filter=args.lut_filter)
+    if args.output == "-":   # the .npy bytes on standard output
+        np.save(sys.stdout.buffer, out)
+        sys.stdout.buffer.flush()
+        return 0
     with atomic_files(args.output) as tmp:
         with open(tmp, "wb") as f:
             np.save(f, out)

@@ -17,21 +17,23 @@ from pathlib import Path
 import numpy as np
 
 from .lowering import ConvertError, Lowering
-from .shown_as import SHOWN_AS, apply_shown_as
+from .shown_as import SHOWN_AS, apply_shown_as, with_semantics
 
 KIND = "imported"   # the kind of a user's own network (techniques/imported draws the 3D ones)
 
 
 def export(module, example_input, folder, *, name: str | None = None, input_names=None, output_names=None,
            check: bool = True, as_: str | None = None, force: bool = False, quiet: bool = False,
-           limits: dict | None = None, check_storage: str = "auto"):
+           limits: dict | None = None, check_storage: str = "auto", semantics: dict | None = None):
     """Capture ``module`` on ``example_input`` (a [batch, features] tensor, or a tuple of them, one
     per input), lower it onto bundle components, check its GLSL against the module through the GL
     driver (unless ``check=False``), and write the bundle into ``folder`` (refused if it holds
     files, unless ``force``). ``as_``: what the network is, for ``inshade render`` / ``view``
     ("image": uv -> colour; "sdf": xyz -> distance; "field": xyz + direction -> rgb + density).
     ``limits``: the GL limits the GLSL must fit (e.g. a target GPU's; default: this driver's);
-    ``check_storage``: the dense weight placement the check compiles (codegen's storage modes).
+    ``check_storage``: the dense weight placement the check compiles (codegen's storage modes);
+    ``semantics``: {port name: semantic}, e.g. ``{"y": "srgb"}`` for colour fitted to sRGB pixels
+    (the display decodes it to linear).
     Returns the saved ``Bundle``. Raises ``ConvertError`` (one line) for what cannot be lowered."""
     import torch
 
@@ -75,11 +77,11 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
     return finish(bundle, module, [x.detach().float().cpu().numpy() for x in examples], folder, check=check,
-                  force=force, quiet=quiet, limits=limits, as_=as_, check_storage=check_storage)
+                  force=force, quiet=quiet, limits=limits, as_=as_, check_storage=check_storage, semantics=semantics)
 
 
 def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, quiet: bool, limits=None,
-           as_: str | None = None, check_storage: str = "auto"):
+           as_: str | None = None, check_storage: str = "auto", semantics: dict | None = None):
     """Check (through the GL driver, against ``source``), record the check, make the bundle what
     ``as_`` says, write it (and its scene.json for 3D). ``limits``: GL limits to plan the GLSL
     against (default: the driver's). Returns the written bundle."""
@@ -121,6 +123,8 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
     scene = None
     if as_ is not None:
         bundle, scene = apply_shown_as(bundle, as_, flat)
+    if semantics:
+        bundle = with_semantics(bundle, semantics)
     asset_folder.claim(folder, folder.name, force=force, option="folder", force_option="force=True")
     bundle.save(folder)
     if scene is not None:

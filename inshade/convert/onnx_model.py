@@ -534,7 +534,7 @@ def to_bundle(source, *, name: str | None = None):
 
 
 def convert(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
-            force: bool = False, quiet: bool = False, example=None):
+            force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None):
     """An ONNX file (or ModelProto) -> a bundle folder, its GLSL checked against onnxruntime on
     ``example`` ([N, in_dim], default uniform [-1, 1]) plus random rows in its range."""
     from inshade import asset_folder
@@ -552,7 +552,7 @@ def convert(source, folder, *, name: str | None = None, as_: str | None = None, 
                            "(its inputs side by side)")
     bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
     parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_)
+    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_, semantics=semantics)
 
 
 def run_onnxruntime(source, parts: list[np.ndarray]) -> list[np.ndarray]:

@@ -136,3 +136,16 @@ def _field(bundle: Bundle, example) -> tuple[Bundle, dict]:
                    networks=[{"bundle": ".", "prefix": "net"}])
     return Bundle(meta, bundle.tensors), scene
 
+
+
+def with_semantics(bundle: Bundle, semantics: dict) -> Bundle:
+    """The bundle with the ports named in ``semantics`` ({name: semantic}) given those semantics."""
+    meta = dict(bundle.meta)
+    ports = {p["name"]: p for p in (*meta["inputs"], *meta["outputs"])}
+    for name, semantic in semantics.items():
+        if name not in ports:
+            raise ConvertError(f"semantics: no port named {name!r} (ports: {', '.join(ports)})")
+        if not isinstance(semantic, str) or not semantic:
+            raise ConvertError(f"semantics: {name}: a semantic is a word (e.g. srgb, uv, position), got {semantic!r}")
+        ports[name]["semantic"] = semantic
+    return Bundle(meta, bundle.tensors)

@@ -17,7 +17,10 @@
 // Defines (set by runtime/headless.py from the bundle's `render` field):
 //   FIELD_OUT_OFFSET  first lane of the shown output in the network's concatenated outputs
 //   FIELD_OUT_DIM     its width: 1 (grey), 3 (rgb, alpha = 1) or 4 (rgba)
+//   FIELD_OUT_SRGB    defined when the output's semantic is "srgb": its colour is sRGB-encoded (a
+//                     network fitted to sRGB pixels) and is decoded to linear here, as textures are
 #include <network>
+#include <lib/colour>
 
 #ifndef FIELD_OUT_OFFSET
 #define FIELD_OUT_OFFSET 0
@@ -55,5 +58,8 @@ void main() {
 #else
     frag_color = vec4(field_lane(y, FIELD_OUT_OFFSET), field_lane(y, FIELD_OUT_OFFSET + 1),
                       field_lane(y, FIELD_OUT_OFFSET + 2), field_lane(y, FIELD_OUT_OFFSET + 3));
+#endif
+#ifdef FIELD_OUT_SRGB
+    frag_color.rgb = srgb_eotf(clamp(frag_color.rgb, 0.0, 1.0));
 #endif
 }

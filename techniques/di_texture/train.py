@@ -50,6 +50,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
+from inshade.progress import default_interval
 from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
@@ -390,6 +391,9 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
     finish_at = steps - int(round(finish * steps))
     lbfgs = finish_optimizer == "lbfgs" and finish_at < steps
     t0 = time.perf_counter()
+    if progress is not False:
+        print(f"{name}: training {steps} steps ({sizing.n_primary}^2 primary, {sizing.n_cascaded}^2 cascaded; "
+              f"progress every {default_interval():g} s)", file=sys.stderr, flush=True)
     history = di.train_cascade(core, on_device(di.image_sampler(flipped, batch, seed=seed), device),
                                finish_at if lbfgs else steps,
                                lr=lr, schedule=schedule, seed=seed, eval_set=eval_on_device, clip_primary=clip_primary,
@@ -438,6 +442,9 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
               "output": graph.outputs[0][0]} if decode else None
     bundle = graph.export(KIND, name, provenance=prov, metrics=metrics, render=render)
     if gl_metrics:
+        if progress is not False:
+            print(f"{name}: decoding through the GLSL (exact and fast lookups) for its PSNR", file=sys.stderr,
+                  flush=True)
         metrics.update(decoded_metrics(bundle, image, decode))
         bundle = graph.export(KIND, name, provenance=prov, metrics=metrics, render=render)
     return Result(graph, bundle, history, image, metrics)

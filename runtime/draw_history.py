@@ -1,0 +1,57 @@
+"""What this machine took to draw a program before: the first draw (where a software driver JIT-
+compiles the shader) and a frame, by renderer and program key, kept in
+``$INSHADE_CACHE_DIR/draws.json`` (default ``~/.cache/inshade``). It lets a message say what to
+expect ("85 s last time") instead of guessing, and warn before a view known to take minutes.
+
+A history that cannot be read or written is ignored (it is a hint, never a reason to fail)."""
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path
+
+log = logging.getLogger("inshade")
+MAX_ENTRIES = 2000
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("INSHADE_CACHE_DIR") or Path.home() / ".cache" / "inshade")
+
+
+def _path() -> Path:
+    return cache_dir() / "draws.json"
+
+
+def _read() -> dict:
+    try:
+        data = json.loads(_path().read_text())
+        return data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def lookup(renderer: str, key: str) -> dict:
+    """What was recorded for ``key`` on ``renderer`` (``first_draw_s``, ``frame_s``, ``pixels``), or {}."""
+    entry = _read().get(f"{renderer}|{key}")
+    return entry if isinstance(entry, dict) else {}
+
+
+def record(renderer: str, key: str, **values) -> None:
+    from inshade.files import atomic_write
+
+    data = _read()
+    name = f"{renderer}|{key}"
+    data[name] = {**(data.get(name) if isinstance(data.get(name), dict) else {}), **values}
+    if len(data) > MAX_ENTRIES:   # the oldest entries go first (dicts keep insertion order)
+        data = dict(list(data.items())[-MAX_ENTRIES:])
+    try:
+        _path().parent.mkdir(parents=True, exist_ok=True)   # a cache of ours: made without a word
+        atomic_write(_path(), json.dumps(data, indent=0, sort_keys=False) + "\n")
+    except OSError as exc:
+        log.debug("draw history not written (%s)", exc)
+
+
+def shader_cache_on() -> bool:
+    """Mesa keeps compiled shaders between runs unless MESA_SHADER_CACHE_DISABLE says not to."""
+    return os.environ.get("MESA_SHADER_CACHE_DISABLE", "").lower() not in ("1", "true", "yes")
