@@ -143,7 +143,7 @@ def cmd_codegen(args) -> int:
         scene, b = None, to_bundle(args.bundle)[0]
         if args.network is not None:
             raise UserError(f"{args.bundle}: --network picks a network of an asset; this is an ONNX file")
-        return _codegen(args, b, args.prefix)
+        return _codegen(args, b, args.prefix, args.output)
     src = _resolve(args.bundle)
     scene, nets = _asset_networks(src)
     prefix = args.prefix

@@ -142,30 +142,69 @@ def font_size(width: int, height: int) -> int:
     return int(min(24, max(11, round(min(width, height) * 0.06))))
 
 
-def draw_on_png(path, labels, camera) -> None:
-    """Draw ``labels`` onto the 8-bit PNG at ``path`` (white text with a dark outline, white lines)."""
+MIN_FONT = 8   # px: labels shrink to fit the picture and each other, down to this
+
+
+def split_labels(left: str, right: str, setting: str = "view", value: str = "split", at: float = 0.5,
+                 divider: bool = True) -> list[dict]:
+    """scene.json ``"labels"`` of a side-by-side view drawn by the scene pass at ``at`` of the width:
+    what each side shows, and (``divider``) the line between them."""
+    when = {setting: value}
+    out = [{"text": left, "at": [at / 2, 0.95], "when": when}, {"text": right, "at": [(1 + at) / 2, 0.95], "when": when}]
+    if divider:
+        out.insert(0, {"line": [[at, 0.0], [at, 1.0]], "when": when})
+    return out
+
+
+def fit_texts(items, width: int, height: int, size: int):
+    """(font, [(x, y, text, anchor, box)]) of the laid-out text items: the largest font size from
+    ``size`` down to MIN_FONT at which every text fits inside the picture (moved in from its edges)
+    and no two texts overlap (at MIN_FONT they are drawn however they fall)."""
     from PIL import Image, ImageDraw, ImageFont
+
+    draw = ImageDraw.Draw(Image.new("L", (1, 1)))
+    texts = [item for item in items if item[0] == "text"]
+    for k in range(size, MIN_FONT - 1, -1):
+        font = ImageFont.load_default(size=k)
+        placed = []
+        for _, x, y, text, align in texts:
+            anchor = {"left": "lm", "center": "mm", "right": "rm"}[align]
+            box = draw.textbbox((x, y), text, font=font, anchor=anchor, stroke_width=1)
+            dx = max(0.0, 1.0 - box[0]) - max(0.0, box[2] - (width - 1))   # keep the text inside the image
+            dy = max(0.0, 1.0 - box[1]) - max(0.0, box[3] - (height - 1))
+            moved = (box[0] + dx, box[1] + dy, box[2] + dx, box[3] + dy)
+            placed.append((x + dx, y + dy, text, anchor, moved))
+        fits = all(b[4][0] >= 0 and b[4][2] <= width and b[4][1] >= 0 and b[4][3] <= height for b in placed)
+        apart = all(not _overlap(a[4], b[4]) for i, a in enumerate(placed) for b in placed[i + 1:])
+        if fits and apart:
+            break
+    return font, placed
+
+
+def _overlap(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def draw_on_png(path, labels, camera) -> None:
+    """Draw ``labels`` onto the 8-bit PNG at ``path`` (white text with a dark outline, white lines),
+    the text size shrunk until the texts fit the picture and each other (``fit_texts``)."""
+    from PIL import Image, ImageDraw
 
     with Image.open(path) as im:
         im.load()
         image = im.copy()
     w, h = image.size
     draw = ImageDraw.Draw(image)
-    size = font_size(w, h)
-    font = ImageFont.load_default(size=size)
     white = (255, 255, 255, 255) if image.mode == "RGBA" else (255, 255, 255)
     dark = (0, 0, 0, 255) if image.mode == "RGBA" else (0, 0, 0)
-    for item in layout(labels, camera, w, h):
+    items = layout(labels, camera, w, h)
+    for item in items:
         if item[0] == "line":
             x0, y0, x1, y1 = item[1:]
             draw.line([(x0, y0), (x1, y1)], fill=white, width=1)
-            continue
-        _, x, y, text, align = item
-        anchor = {"left": "lm", "center": "mm", "right": "rm"}[align]
-        box = draw.textbbox((x, y), text, font=font, anchor=anchor, stroke_width=1)
-        dx = max(0.0, 1.0 - box[0]) - max(0.0, box[2] - (w - 1))   # keep the text inside the image
-        dy = max(0.0, 1.0 - box[1]) - max(0.0, box[3] - (h - 1))
-        draw.text((x + dx, y + dy), text, font=font, anchor=anchor, fill=white, stroke_width=1, stroke_fill=dark)
+    font, placed = fit_texts(items, w, h, font_size(w, h))
+    for x, y, text, anchor, _ in placed:
+        draw.text((x, y), text, font=font, anchor=anchor, fill=white, stroke_width=1, stroke_fill=dark)
     image.save(path, format="PNG")
 
 

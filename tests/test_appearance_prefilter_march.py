@@ -302,17 +302,20 @@ def test_march_with_the_sun_shadow_map_matches_torch(coarse, camera, sun, force)
     assert (np.abs(ref - lit_ref) > 1e-3).any(), "shadows change nothing"
 
 
-@parity_settings(4)
+@parity_settings(2)   # each example is a full march (the view colours what the pixel covers)
 @given(camera=cameras, eye=st.floats(1.5, 12.0), force=st.sampled_from([-1, -1, 3]))
 def test_scale_view_shows_the_footprint_scale(blended, camera, eye, force):
+    """The scale each pixel marched at, as a ramp on what it covers (red / coverage = (L - S_MIN) /
+    (S_MAX - S_MIN)), over black; nothing outside the box."""
     distance = max(1.0, eye / camera.distance)
-    glsl, ref, _ = blended.draw(camera, _unit([0, 1, 0]), distance=distance, force_scale=force, view="scale")
+    glsl, ref, alternatives = blended.draw(camera, _unit([0, 1, 0]), distance=distance, force_scale=force, view="scale")
+    _check(glsl, ref, alternatives, f"scale view, scale {force}", 0.002)
     L, hit = march.scale_map(camera, W, H, distance=distance, scale_min=2, scale_max=5, force_scale=force)
-    np.testing.assert_array_equal(glsl[..., 3] == 1.0, hit)
-    assert hit.any()
-    shown = 2.0 + glsl[..., 0] * 3.0   # red = (L - S_MIN) / (S_MAX - S_MIN)
-    np.testing.assert_allclose(shown[hit], L[hit], rtol=0, atol=1e-4)
-    np.testing.assert_allclose(glsl, ref, rtol=0, atol=1e-5)
+    assert (glsl[~hit] == 0.0).all()
+    covered = hit & (glsl[..., 3] > 0.05)
+    assert covered.any()
+    shown = 2.0 + glsl[..., 0] / glsl[..., 3] * 3.0   # red = coverage x (L - S_MIN) / (S_MAX - S_MIN)
+    np.testing.assert_allclose(shown[covered], L[covered], rtol=0, atol=2e-3)
 
 
 def test_coverage_saturates_behind_opaque_voxels(coarse):

@@ -308,3 +308,43 @@ def test_dash_output_streams_to_stdout(tmp_path, capfdbinary):
     out, _ = capfdbinary.readouterr()
     assert np.load(io.BytesIO(out)).shape == (5, 3)
     assert not (REPO / "-").exists() and not Path("-").exists()
+
+
+def test_codegen_network_all_and_program(tmp_path, capsys):
+    """--network all: one GLSL per network of an asset (prt_atrium has nine); --program: the whole pass with
+    every include resolved, the vertex stage, and the uniforms and resources to bind, which glslang takes."""
+    import json
+    import shutil
+    import subprocess
+
+    from inshade.cli import main
+
+    assert main(["-q", "codegen", "prt_atrium", "--network", "all", "--no-gl", "-o", str(tmp_path / "a.glsl")]) == 0
+    glsl = sorted(p.name for p in tmp_path.glob("a.*.glsl"))
+    assert len(glsl) == 9 and all("void region_" in (tmp_path / g).read_text() for g in glsl)
+    assert main(["codegen", "prt_atrium", "--network", "all", "-o", "-", "--no-gl"]) == 2
+    assert "-o -: 9 networks would share standard output" in capsys.readouterr().err
+    assert main(["-q", "codegen", "prt_creature", "--program", "-o", str(tmp_path / "pass.frag")]) == 0
+    frag, vert = (tmp_path / "pass.frag").read_text(), (tmp_path / "pass.vert").read_text()
+    assert "#include" not in frag and "void main()" in frag and "transfer_eval(" in frag
+    manifest = json.loads((tmp_path / "pass.frag.json").read_text())
+    assert manifest["vertex_shader"] == "pass.vert" and "u_inv_view_proj" in manifest["uniforms"]
+    for path in (tmp_path / "pass.frag", tmp_path / "pass.vert"):
+        proc = subprocess.run([shutil.which("glslangValidator"), str(path)], capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stdout[-2000:]
+    assert vert
+
+
+def test_generate_plans_with_the_machines_limits_when_asked(gl_limits):
+    """GL 3.3's 16 KiB uniform block refuses a 64-wide layer; limits="query" takes this machine's, and the
+    refusal says so."""
+    from inshade.codegen import generate
+    from inshade.codegen.limits import LimitError
+    from inshade.models import mlp_graph
+
+    bundle = mlp_graph(2, [64] * 3, 3).export("m")
+    with pytest.raises(LimitError, match=r"GL 3\.3 minimum.*limits=\"query\"\) plans with this machine's"):
+        generate(bundle, storage="ubo")
+    if gl_limits["GL_MAX_UNIFORM_BLOCK_SIZE"] >= 16640:
+        g = generate(bundle, storage="ubo", limits="query")
+        assert g.plan.limits["GL_MAX_UNIFORM_BLOCK_SIZE"]["source"] == "context"

@@ -67,11 +67,11 @@ def build(recipe) -> GraphModule:
             groups = int(rng.choice([k for k in range(1, w + 1) if w % k == 0]))
             src = g.add(f"f{i}", Reduce(recipe["reduce"], groups), h)
         elif step == "layer_norm":
-            # spread offsets keep every run's variance away from 0, where LayerNorm amplifies an ulp of
-            # its input by up to 1 / sqrt(eps) (the envelope's note): a conditioning limit of fp32
-            h = g.add(f"s{i}", Affine(np.ones(w), np.linspace(-4, 4, w) if w > 1 else np.zeros(1)), h)
+            # offsets spread within each run keep its variance away from 0, where LayerNorm amplifies an
+            # ulp of its input by up to 1 / sqrt(eps) (the envelope's note): a conditioning limit of fp32
             groups = int(rng.choice([k for k in range(1, w + 1) if w % k == 0]))
             size = w // groups
+            h = g.add(f"s{i}", Affine(np.ones(w), np.tile(np.linspace(-4, 4, size) if size > 1 else [0.0], groups)), h)
             weight, bias = ((rng.uniform(-2, 2, size), rng.uniform(-1, 1, size)) if recipe["affine_ln"]
                             else (None, None))
             src = g.add(f"f{i}", LayerNorm(size, 1e-5, groups, weight, bias), h)

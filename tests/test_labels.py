@@ -93,3 +93,51 @@ def test_labels_setting_does_not_change_the_float_image(gl):
     a, _ = render_scene(GGX, width=256, height=16)
     b, _ = render_scene(GGX, width=256, height=16, settings={"labels": False})
     assert np.array_equal(a, b)
+
+
+def _label_scenes():
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "trained"
+    return sorted(p.parent.name for p in root.glob("*/scene.json") if json.loads(p.read_text()).get("labels"))
+
+
+@pytest.mark.parametrize("asset", _label_scenes())
+def test_shipped_labels_fit_at_256(asset):
+    """At 256x256 every combination of the settings a scene's labels depend on lays its texts out
+    inside the picture and apart from each other (the size shrinks to fit)."""
+    import itertools
+    import json
+    from pathlib import Path
+
+    from inshade.runtime.labels import MIN_FONT, active, fit_texts, font_size, layout, parse_labels
+    from inshade.runtime.scene import load_scene
+
+    folder = Path(__file__).resolve().parents[1] / "trained" / asset
+    scene = load_scene(folder)
+    labels = parse_labels(json.loads((folder / "scene.json").read_text())["labels"])
+    names = sorted({n for lab in labels for n, _ in lab.when})
+    choices = [sorted({v for lab in labels for n, vals in lab.when if n == name for v in vals}, key=str) for name in names]
+    for combo in itertools.product(*choices):
+        values = {**dict(zip(names, combo)), "labels": True}
+        items = layout(active(labels, values, "final"), scene.make_camera(), 256, 256)
+        font, placed = fit_texts(items, 256, 256, font_size(256, 256))
+        boxes = [p[4] for p in placed]
+        assert all(0 <= b[0] and b[2] <= 256 and 0 <= b[1] and b[3] <= 256 for b in boxes), (combo, boxes)
+        assert all(not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3])
+                   for i, a in enumerate(boxes) for b in boxes[i + 1:]), (combo, font.size, placed)
+        assert font.size >= MIN_FONT
+
+
+def test_split_views_say_which_side_is_which():
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "trained"
+    for path in root.glob("*/scene.json"):
+        scene = json.loads(path.read_text())
+        choices = scene.get("settings", {}).get("view", {}).get("choices", [])
+        if "split" in choices:
+            texts = [lab for lab in scene.get("labels", []) if "text" in lab and lab.get("when", {}).get("view") == "split"]
+            assert len(texts) >= 2, f"{path.parent.name}: a split view without labels"

@@ -224,11 +224,8 @@ def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int,
     if view == "prefiltered":
         out[:, :3] = background
     L = footprint_scale(t0, px, smin, smax, force_scale)
-    if view == "scale":
-        x = (L - float(smin)) / float(max(smax - smin, 1))
-        ramp = torch.stack([x, 1.0 - (2.0 * x - 1.0).abs(), 1.0 - x], -1)
-        out[hit] = torch.cat([ramp[hit], torch.ones(int(hit.sum()), 1)], -1)
-        return out.reshape(height, width, 4).numpy()
+    x = (L - float(smin)) / float(max(smax - smin, 1))
+    ramp = torch.stack([x, 1.0 - (2.0 * x - 1.0).abs(), 1.0 - x], -1)   # the scale view's colours
     idx = hit.nonzero().squeeze(1)
     if idx.numel():
         pix = _Pixels(ro[idx], rd[idx], px, t0[idx], sun_dir, sun_radiance, sh, bins_theta, bins_phi)
@@ -254,7 +251,7 @@ def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int,
             cov = torch.where(blend, cov * (1.0 - f) + res["hi"][1] * f, cov)
             alb = torch.where(blend[:, None], alb * (1.0 - fb) + res["hi"][2] * fb, alb)
         colour = {"prefiltered": rad + (1.0 - cov[:, None]) * background[idx],
-                  "coverage": cov[:, None].expand(-1, 3), "albedo": alb}[view]
+                  "coverage": cov[:, None].expand(-1, 3), "albedo": alb, "scale": cov[:, None] * ramp[idx]}[view]
         out[idx] = torch.cat([colour, cov[:, None]], -1)
     return out.reshape(height, width, 4).numpy()
 

@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from inshade import asset_folder, command
+from inshade.runtime.labels import split_labels
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 
@@ -90,6 +91,7 @@ def scene_dict(name: str, title: str, grid_folder: str = "grid", lut_filter: str
         "camera": orbit_camera(),
         "bookmarks": {"front": orbit_camera(0.0, -10.0), "top": orbit_camera(20.0, -70.0)},
         "settings": settings,
+        "labels": split_labels("uncompressed", "DI", divider=False),   # the pass draws its own divider
         "requires": {"gl": 330},
         "notes": "view: uncompressed (the grids, shipped downsampled to keep the asset small) | di | split | "
                  "error (|di - uncompressed| x error_scale)",

@@ -43,6 +43,7 @@ import torch
 from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
+from inshade.runtime.labels import split_labels
 from inshade.lit_settings import lit_settings
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 
@@ -431,7 +432,8 @@ def scene_description(mat, name: str) -> dict:
         "program": "passes/mesh_neural_appearance.frag", "size": [384, 288],
         "networks": [{"bundle": folder, "prefix": prefix} for folder, prefix in NETWORKS],
         "mesh": {"shape": "teapot", "segments": 12},
-        "camera": {"type": "orbit", "fov_y": 35.0, "target": [0.0, 1.2, 0.0], "distance": 8.5, "yaw": 30.0,
+        # the spout's tip inside a square picture too (the teapot is wider than tall)
+        "camera": {"type": "orbit", "fov_y": 35.0, "target": [0.35, 1.15, 0.0], "distance": 10.4, "yaw": 30.0,
                    "pitch": -22.0},
         "bookmarks": {
             "close-up": {"type": "orbit", "fov_y": 35.0, "target": [0.6, 1.6, 1.2], "distance": 3.0, "yaw": 20.0,
@@ -442,10 +444,11 @@ def scene_description(mat, name: str) -> dict:
                    {"type": "directional", "direction": [-0.6, 0.5, 0.3], "intensity": 1.5}],
         "environment": {"sky": "studio", "rotation": 0.0, "degree": 4},
         "display": {"mode": "final", "modes": ["final"], "split": 0.5},
+        "labels": split_labels("reference", "neural"),
         "settings": {
             **lit_settings("studio"),
             "view": {"type": "choice", "default": "neural", "choices": list(VIEWS), "uniform": "u_na_view",
-                     "label": "view"},
+                     "label": "view (split: left reference, right neural)"},
             "decoder": {"type": "choice", "default": 32, "choices": [16, 32, 64], "define": "NA_DECODER",
                         "label": "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64"},
             "lighting": {"type": "choice", "default": "lights", "choices": list(LIGHTING),

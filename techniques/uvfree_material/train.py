@@ -39,6 +39,7 @@ from PIL import Image
 from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
+from inshade.runtime.labels import split_labels
 from inshade.lit_settings import lit_settings
 from inshade.mesh import MeshError, load_mesh, mesh_uv
 from inshade.mesh_topology import mesh_topology
@@ -288,6 +289,7 @@ def scene_description(name: str, object_name: str, config: str) -> dict:
                    {"type": "point", "position": [-3.0, 1.5, 1.5], "intensity": 6.0}],
         "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
         "display": {"mode": "final", "modes": ["final"], "split": 0.5},
+        "labels": split_labels("reference", "decoded"),
         "settings": {
             **lit_settings("studio"),
             "view": {"type": "choice", "default": "split", "choices": list(VIEWS), "uniform": "u_uvf_view",

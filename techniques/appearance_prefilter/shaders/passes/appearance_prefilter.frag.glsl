@@ -5,8 +5,9 @@
 // The technique record (techniques/appearance_prefilter/__init__.py) generates <dap_config>
 // (DAP_MASK, DAP_BINS, DAP_BINS_THETA, DAP_BINS_PHI from the bundle's render metadata) and asks for
 // the sun's shadow map (ProgramSpec.shadows; u_dap_shadows 0 or no map: no global shadows).
-// u_dap_view (VIEWS in the record): prefiltered | scale (L as a ramp: red = (L - S_MIN) / (S_MAX -
-// S_MIN), alpha 1 on the box) | coverage (mean Lambda as grey) | albedo (coverage-weighted albedo).
+// u_dap_view (VIEWS in the record): prefiltered | scale (the scale L each pixel marched at, as a ramp
+// x = (L - S_MIN) / (S_MAX - S_MIN) from blue (coarsest) through green to red (finest), on what the
+// pixel covers, over black) | coverage (mean Lambda as grey) | albedo (coverage-weighted albedo).
 // Lighting: the scene's first directional light (E_sun = its intensity, white) and the SH
 // environment u_sh. Linear radiance; alpha = mean coverage.
 #include <lib/camera>
@@ -45,10 +46,6 @@ void main() {
     }
     float px = 2.0 / (u_proj[1][1] * u_size.y);
     float L = dap_footprint_scale(t0, px, u_dap_force_scale);
-    if (u_dap_view == DAP_VIEW_SCALE) {
-        frag_color = vec4(dap_ramp((L - float(DAP_SCALE_MIN)) / float(max(DAP_SCALE_MAX - DAP_SCALE_MIN, 1))), 1.0);
-        return;
-    }
     vec3 sun_dir = vec3(0.0, 1.0, 0.0);
     vec3 sun = vec3(0.0);
     for (int i = 0; i < INSHADE_MAX_LIGHTS; ++i) {
@@ -76,5 +73,8 @@ void main() {
     vec3 colour = a.radiance + (1.0 - a.coverage) * background;
     if (u_dap_view == DAP_VIEW_COVERAGE) colour = vec3(a.coverage);
     if (u_dap_view == DAP_VIEW_ALBEDO) colour = a.albedo;
+    if (u_dap_view == DAP_VIEW_SCALE) {
+        colour = a.coverage * dap_ramp((L - float(DAP_SCALE_MIN)) / float(max(DAP_SCALE_MAX - DAP_SCALE_MIN, 1)));
+    }
     frag_color = vec4(colour, a.coverage);
 }

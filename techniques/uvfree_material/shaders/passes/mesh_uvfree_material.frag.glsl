@@ -8,7 +8,8 @@
 // u_uvf_channel (CHANNEL_VIEWS): shaded, or one channel group as stored (albedo sRGB-encoded,
 // normal n * 0.5 + 0.5, roughness, metallic, AO as grey), shown so the display's sRGB encoding
 // puts the stored value on screen. u_uvf_wireframe: off | triangles (face boundaries) | level
-// (boundaries of the sub-triangles of level u_uvf_wire_level), found from the neighbours' ids.
+// (boundaries of the sub-triangles of level u_uvf_wire_level), found from the neighbours' ids
+// (only between cells three or more pixels across: finer than that, the overlay fades out).
 // UVF_DECODER 0 (the scene setting "decoder": off) compiles the decoder out: the reference-only
 // shader, for timing the decode (a software rasteriser may run both sides of a uniform branch).
 // Linear radiance; alpha 1 on the mesh, 0 in the background (the environment).
@@ -53,16 +54,26 @@ uvec4 uvf_cell(ivec2 px, int level) {
     return uvec4(k, uvec2(w[0]), uint(w[1].x > w[0].x));   // upright: w[1] = w[0] + (1, 0)
 }
 
+bool uvf_same(uvec4 a, uvec4 b) {
+    return u_uvf_wireframe == 1 ? a.x == b.x : a == b;
+}
+
+// A boundary between this pixel's cell and the next pixel's (+x or +y), drawn only where this
+// pixel's cell also holds the two previous pixels: cells narrower than three pixels draw no lines,
+// so a level finer than the screen resolves fades out instead of covering the surface.
 bool uvf_edge(ivec2 px) {
     if (u_uvf_wireframe == 0) return false;
     int level = u_uvf_wireframe == 1 ? 0 : u_uvf_wire_level;
     uvec4 here = uvf_cell(px, level);
     ivec2 size = ivec2(u_size);
     for (int d = 0; d < 2; ++d) {
-        ivec2 q = px + (d == 0 ? ivec2(1, 0) : ivec2(0, 1));
-        if (q.x >= size.x || q.y >= size.y || texelFetch(u_gbuffer_position, q, 0).w == 0.0) continue;
-        uvec4 there = uvf_cell(q, level);
-        if (u_uvf_wireframe == 1 ? here.x != there.x : here != there) return true;
+        ivec2 step = d == 0 ? ivec2(1, 0) : ivec2(0, 1);
+        ivec2 q = px + step;
+        ivec2 b = px - 2 * step;
+        if (q.x >= size.x || q.y >= size.y || b.x < 0 || b.y < 0) continue;
+        if (texelFetch(u_gbuffer_position, q, 0).w == 0.0 || texelFetch(u_gbuffer_position, b, 0).w == 0.0) continue;
+        if (!uvf_same(here, uvf_cell(q, level)) && uvf_same(here, uvf_cell(px - step, level))
+            && uvf_same(here, uvf_cell(b, level))) return true;
     }
     return false;
 }
