@@ -89,7 +89,7 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
         merged.setdefault(component, {})[option] = value
     options = resolve_options(merged)
     storage, lut_filter = options["dense"]["storage"], options["lookup_array"]["filter"]
-    if limits == "query":   # this machine's (a headless context: the GL runtime, imported only here)
+    if limits == "query":   # this machine's (a headless context: the GL runtime, loaded only here)
         from inshade.runtime.context import gl_info, shared_context
 
         limits = gl_info(shared_context())

@@ -19,7 +19,6 @@ import hashlib
 import json
 import logging
 import math
-import time
 from pathlib import Path
 
 import moderngl

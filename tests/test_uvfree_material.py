@@ -149,8 +149,9 @@ def test_pass_decodes_the_visibility_buffer_points_like_torch(asset, graph):
                          + [{"view": "decoded", "wireframe": w} for w in ("triangles", "level")])
 def test_every_view_channel_and_overlay_draws(asset, settings):
     r = _renderer(asset, **settings)
+    size = 4 * W if settings.get("wireframe") else W   # the overlay draws cells three pixels or more across
     try:
-        r.render_network(r.scene.make_camera(), W, H)
+        r.render_network(r.scene.make_camera(), size, size)
         image = r.read("network")
     finally:
         r.release()
@@ -162,19 +163,25 @@ def test_every_view_channel_and_overlay_draws(asset, settings):
 
 
 def test_wireframe_level_refines_the_triangle_overlay(asset):
+    """A level's sub-triangles draw more edges than the faces while the screen resolves them; a level
+    finer than the pixels fades out instead of covering the surface (cells under three pixels draw
+    no lines)."""
     def edges(**s):
         r = _renderer(asset, view="decoded", channel="albedo", **s)
         try:
-            r.render_network(r.scene.make_camera(), W, H)
+            r.render_network(r.scene.make_camera(), 4 * W, 4 * H)
             plain = r.read("network")[..., :3].copy()
         finally:
             r.release()
         return plain
 
     base = edges(wireframe="off")
+    covered = (np.abs(base).max(-1) > 0).sum()
     tri = (np.abs(edges(wireframe="triangles") - base).max(-1) > 1e-4).sum()
-    fine = (np.abs(edges(wireframe="level", wire_level=3) - base).max(-1) > 1e-4).sum()
+    fine = (np.abs(edges(wireframe="level", wire_level=1) - base).max(-1) > 1e-4).sum()
+    finest = (np.abs(edges(wireframe="level", wire_level=7) - base).max(-1) > 1e-4).sum()
     assert 0 < tri < fine, (tri, fine)
+    assert finest < fine and finest < 0.2 * covered, (finest, fine, covered)
 
 
 def test_scene_refuses_a_mesh_other_than_the_bundles(asset, tmp_path):

@@ -184,6 +184,58 @@ class Lowering:
         out = self._emit("where", np.concatenate(lanes), {"op": op}, lanes[0].size)
         return Feat(out.reshape(shape), like.batch + rank - like.rank)
 
+    def arithmetic(self, op: str, a, b, batch_size: int) -> Feat:
+        """a op b (add, sub, mul, div) of two computed tensors, or of one and a constant (numpy,
+        broadcast; a constant as wide as the batch is one row). A scalar multiply is kept pending
+        (sin / cos take it as their omega0); x / c is x * (1 / c), within an ulp of a division."""
+        if isinstance(a, Feat) and isinstance(b, Feat):
+            return self.binary(op, a, b)
+        f, c = (a, b) if isinstance(a, Feat) else (b, a)
+        c = const_against(np.asarray(c, np.float32), f, batch_size)
+        if op == "mul" and c.size == 1 and c.ndim <= f.rank:
+            return self.scale(f, float(c.reshape(())))
+        if op == "mul":
+            return self.affine(f, c, 0.0)
+        if op == "add":
+            return self.affine(f, 1.0, c)
+        if op == "sub":
+            return self.affine(f, 1.0, -c) if f is a else self.affine(f, -1.0, c)
+        if f is a:
+            return self.affine(f, np.float32(1.0) / c, 0.0)
+        return self.affine(self.unary(f, "reciprocal"), c, 0.0)   # c / x
+
+    def power(self, f: Feat, exponent: float) -> Feat:
+        """f ** exponent for the exponents a shader has exact forms of."""
+        table = {1.0: lambda: f, 2.0: lambda: self.binary("mul", f, f),
+                 3.0: lambda: self.binary("mul", self.binary("mul", f, f), f), 0.5: lambda: self.unary(f, "sqrt"),
+                 -1.0: lambda: self.unary(f, "reciprocal"),
+                 -0.5: lambda: self.unary(self.unary(f, "sqrt"), "reciprocal")}
+        if float(exponent) not in table:
+            raise ConvertError(f"power {exponent:g}: lowered are 1, 2, 3, 0.5, -1 and -0.5")
+        return table[float(exponent)]()
+
+    def softmax(self, f: Feat, axis: int) -> Feat:
+        """exp(x - max) / sum, over a feature axis, in the order torch and onnxruntime compute it."""
+        axis = axis % f.rank
+        if axis == f.batch:
+            raise ConvertError("softmax over the batch axis mixes the batch (one pixel's value would depend on all "
+                               "the others)")
+        top = self.reduce(f, "max", [axis], True)
+        e = self.unary(self.binary("sub", f, top), "exp")
+        return self.binary("div", e, self.reduce(e, "sum", [axis], True))
+
+    def batch_norm(self, f: Feat, weight, bias, mean, var, eps: float) -> Feat:
+        """BatchNorm with running statistics (eval / inference) as a per-channel affine (axis 1)."""
+        if f.rank < 2:
+            raise ConvertError("BatchNorm of a tensor without a channel axis")
+        inv = 1.0 / np.sqrt(np.asarray(var, np.float64) + eps)
+        w = np.ones_like(inv) if weight is None else np.asarray(weight, np.float64)
+        b = np.zeros_like(inv) if bias is None else np.asarray(bias, np.float64)
+        shape = [1] * f.rank
+        shape[1] = -1
+        return self.affine(f, (w * inv).astype(np.float32).reshape(shape),
+                           (b - np.asarray(mean, np.float64) * w * inv).astype(np.float32).reshape(shape))
+
     def constant(self, like: Feat, values) -> Feat:
         """A constant as lanes, shaped like ``like`` but for its own sizes (1 on the batch axis):
         0 * x + c of one lane x of ``like`` (finite inputs give exactly c)."""

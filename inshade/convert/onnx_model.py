@@ -184,22 +184,8 @@ def _unary(kind, **fixed):
 def _arith(op):
     def lower(O, ins, attrs):
         a, b = ins
-        L = O.L
-        if isinstance(a, Feat) and isinstance(b, Feat):
-            return L.binary(op, a, b)
-        f, c = (a, b) if isinstance(a, Feat) else (b, a)
-        c = const_against(np.asarray(c, np.float32), f, O.batch)
-        if op == "mul" and c.size == 1 and c.ndim <= f.rank:
-            return L.scale(f, float(c.reshape(())))
-        if op == "mul":
-            return L.affine(f, c, 0.0)
-        if op == "add":
-            return L.affine(f, 1.0, c)
-        if op == "sub":
-            return L.affine(f, 1.0, -c) if f is a else L.affine(f, -1.0, c)
-        if f is a:
-            return L.affine(f, np.float32(1.0) / c, 0.0)
-        return L.affine(L.unary(f, "reciprocal"), c, 0.0)
+        return O.L.arithmetic(op, a if isinstance(a, Feat) else np.asarray(a, np.float32),
+                              b if isinstance(b, Feat) else np.asarray(b, np.float32), O.batch)
     return lower
 
 
@@ -244,14 +230,7 @@ def _clip(O, ins, attrs):
 
 
 def _pow(O, ins, attrs):
-    e = float(np.asarray(O.const(ins[1], "Pow exponent")).reshape(()))
-    f, L = ins[0], O.L
-    table = {1.0: lambda: f, 2.0: lambda: L.binary("mul", f, f), 3.0: lambda: L.binary("mul", L.binary("mul", f, f), f),
-             0.5: lambda: L.unary(f, "sqrt"), -1.0: lambda: L.unary(f, "reciprocal"),
-             -0.5: lambda: L.unary(L.unary(f, "sqrt"), "reciprocal")}
-    if e not in table:
-        raise ConvertError(f"power {e:g}: lowered are 1, 2, 3, 0.5, -1 and -0.5")
-    return table[e]()
+    return O.L.power(ins[0], float(np.asarray(O.const(ins[1], "Pow exponent")).reshape(())))
 
 
 def _leaky_relu(O, ins, attrs):
@@ -451,13 +430,8 @@ def _layer_norm(O, ins, attrs):
 def _batch_norm(O, ins, attrs):
     if attrs.get("training_mode", 0):
         raise ConvertError("BatchNormalization in training mode normalises over the batch (it mixes pixels)")
-    f = ins[0]
     scale, bias, mean, var = (np.asarray(O.const(v, "BatchNormalization parameters"), np.float64) for v in ins[1:5])
-    inv = 1.0 / np.sqrt(var + float(attrs.get("epsilon", 1e-5)))
-    shape = [1] * f.rank
-    shape[1] = -1
-    return O.L.affine(f, (scale * inv).astype(np.float32).reshape(shape),
-                      (bias - mean * scale * inv).astype(np.float32).reshape(shape))
+    return O.L.batch_norm(ins[0], scale, bias, mean, var, float(attrs.get("epsilon", 1e-5)))
 
 
 def _grid_sample(O, ins, attrs):
@@ -488,13 +462,7 @@ def _reduce(op):
 
 
 def _softmax(O, ins, attrs):
-    f, L = ins[0], O.L
-    axis = int(attrs.get("axis", -1)) % f.rank
-    if axis == f.batch:
-        raise ConvertError("softmax over the batch axis mixes the batch")
-    top = L.reduce(f, "max", [axis], True)
-    e = L.unary(L.binary("sub", f, top), "exp")
-    return L.binary("div", e, L.reduce(e, "sum", [axis], True))
+    return O.L.softmax(ins[0], int(attrs.get("axis", -1)))
 
 
 HANDLERS = {

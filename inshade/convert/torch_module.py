@@ -398,24 +398,9 @@ def _dropout(T, node, f, p=0.5, train=False, *args):
 
 def _arith(op):
     def lower(T, node, a, b, alpha=1, **_):
-        L = T.L
         if op in ("add", "sub") and alpha != 1:
             b = _arith("mul")(T, node, b, alpha)
-        if isinstance(a, Feat) and isinstance(b, Feat):
-            return L.binary(op, a, b)
-        f, c = (a, b) if isinstance(a, Feat) else (b, a)
-        c = const_against(_np(c), f, T.batch)
-        if op == "mul" and c.size == 1 and c.ndim <= f.rank:
-            return L.scale(f, float(c.reshape(())))    # kept pending: sin / cos take it as omega0
-        if op == "mul":
-            return L.affine(f, c, 0.0)
-        if op == "add":
-            return L.affine(f, 1.0, c)
-        if op == "sub":
-            return L.affine(f, 1.0, -c) if f is a else L.affine(f, -1.0, c)
-        if f is a:   # x / c, as x * (1 / c): within an ulp of torch's division
-            return L.affine(f, np.float32(1.0) / c.astype(np.float32), 0.0)
-        return L.affine(L.unary(f, "reciprocal"), c, 0.0)   # c / x
+        return T.L.arithmetic(op, a if isinstance(a, Feat) else _np(a), b if isinstance(b, Feat) else _np(b), T.batch)
     return lower
 
 
@@ -436,20 +421,7 @@ def _neg(T, node, f):
 def _pow(T, node, f, exponent):
     if isinstance(exponent, Feat) or not isinstance(f, Feat):
         raise ConvertError("only a value raised to a constant power is lowered")
-    e = float(exponent)
-    if e == 1:
-        return f
-    if e == 2:
-        return T.L.binary("mul", f, f)
-    if e == 3:
-        return T.L.binary("mul", T.L.binary("mul", f, f), f)
-    if e == 0.5:
-        return T.L.unary(f, "sqrt")
-    if e == -1:
-        return T.L.unary(f, "reciprocal")
-    if e == -0.5:
-        return T.L.unary(T.L.unary(f, "sqrt"), "reciprocal")
-    raise ConvertError(f"power {e:g}: lowered are 1, 2, 3, 0.5, -1 and -0.5")
+    return T.L.power(f, float(exponent))
 
 
 def _unary(kind, **fixed):
@@ -562,16 +534,8 @@ def _batch_norm(T, node, f, weight, bias, mean, var, training, momentum, eps, *a
 
 
 def _bn_eval(T, f, weight, bias, mean, var, eps):
-    if f.rank < 2:
-        raise ConvertError("BatchNorm of a tensor without a channel axis")
-    inv = 1.0 / np.sqrt(_np(var).astype(np.float64) + eps)
-    w = np.ones_like(inv) if weight is None else _np(weight).astype(np.float64)
-    b = np.zeros_like(inv) if bias is None else _np(bias).astype(np.float64)
-    scale = (w * inv).astype(np.float32)
-    offset = (b - _np(mean).astype(np.float64) * w * inv).astype(np.float32)
-    shape = [1] * f.rank
-    shape[1] = -1   # torch's channel axis
-    return T.L.affine(f, scale.reshape(shape), offset.reshape(shape))
+    return T.L.batch_norm(f, None if weight is None else _np(weight), None if bias is None else _np(bias),
+                          _np(mean), _np(var), eps)
 
 
 def _bn_no_training(T, node, f, weight, bias, mean, var, momentum, eps):
@@ -603,14 +567,7 @@ def _norm(T, node, f, p=2, dims=None, keepdim=False, *_, dtype=None):
 
 
 def _softmax(T, node, f, dim, *_):
-    dim = dim % f.rank
-    if dim == f.batch:
-        raise ConvertError("softmax over the batch axis mixes the batch (one pixel's value would depend on all "
-                           "the others)")
-    L = T.L
-    top = L.reduce(f, "max", [dim], True)
-    e = L.unary(L.binary("sub", f, top), "exp")
-    return L.binary("div", e, L.reduce(e, "sum", [dim], True))
+    return T.L.softmax(f, dim)
 
 
 def _grid_sample(T, node, grid, coords, mode=0, padding=0, align_corners=False):

@@ -233,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
     # the device is recorded resolved in the transfer bundle's provenance, not in the recipe; where
     # the bake ran (--workers, --ray) does not change the data
     command = shlex.join(["inshade", "train", "prt"] + transfer_net.command_options(
-        args, set(vars(args)) - {"func", "command", "device", "workers", "ray", "force", "recorded_command"}))
+        args, set(vars(args)) - {"func", "command", "device", "workers", "ray", "force"}))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     times = {}
@@ -243,7 +243,6 @@ def run(args: argparse.Namespace) -> int:
         args.cache = str(Path.home() / ".cache" / "inshade" / "transfer")
     final_out = args.out
     args.out = str(out / "transfer")
-    args.recorded_command = command
     if not args.skip_train:
         start = time.perf_counter()
         status = transfer_net.run(args)

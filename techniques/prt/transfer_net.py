@@ -429,9 +429,8 @@ def run(args: argparse.Namespace) -> int:
                     "points": args.points, "dirs": args.dirs})
     # not a wrapper's options; the device goes into the provenance, resolved, not into the recipe
     own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {"help", "device", "workers", "ray"}
-    # the command that ran: the asset builder's (inshade train prt) when it called this, else this module's
-    command = getattr(args, "recorded_command", None) or shlex.join(
-        ["python", "-m", "inshade.techniques.prt.transfer_net"] + command_options(args, own))
+    # this module's own command, every option written out (the asset's metrics.json holds the builder's)
+    command = shlex.join(["python", "-m", "inshade.techniques.prt.transfer_net"] + command_options(args, own))
     provenance = {**source, "command": command, "dataset_key": data["key"],
                   "estimator": "cosine-weighted Fibonacci lattice, per-point Cranley-Patterson shift",
                   "loss": "l1 on transfer / scale", "optimizer": "adam, cosine decay to 5%",
