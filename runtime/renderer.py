@@ -434,6 +434,7 @@ class SceneRenderer:
         if self.first_draw_pending:
             self.first_draw_seconds = w.seconds
             self.first_draw_pending = False
+            _DRAWN.add(program_key)
             if announce and w.seconds >= 2.0:
                 log.info("compiled and drawn in %s%s", format_seconds(w.seconds),
                          " (Mesa's shader cache did not have it)" if cached else "")
@@ -452,6 +453,8 @@ class SceneRenderer:
         if not (self.first_draw_pending and self.gl.get("software")):
             return None, False
         renderer, program_key = self.gl.get("renderer", ""), self.cache.key_of(self.program)
+        if program_key in _DRAWN:   # this process drew it already: the driver has it, nothing to say
+            return None, False
         past = draw_history.lookup(renderer, program_key) if program_key else {}
         cached = draw_history.shader_cache_on() and past.get("shader_cache") is True
         return first_draw_message(self.generated, renderer, past.get("first_draw_s"), cached), cached
@@ -652,6 +655,7 @@ class SceneRenderer:
         self.program = None
 
 
+_DRAWN: set[str] = set()   # program keys this process has drawn (their first draw is said once)
 SRGB_SEMANTIC = "srgb"   # an output port whose values are sRGB-encoded (e.g. fitted to sRGB pixels)
 SLOW_FRAME_S = 30.0   # a view whose last draw took this long is warned about before it starts
 

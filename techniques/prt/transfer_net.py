@@ -438,7 +438,9 @@ def run(args: argparse.Namespace) -> int:
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     name = getattr(getattr(geometry, "scene", None), "name", "") or "transfer"
     export_transfer(net, frame, out, metrics, provenance, name=f"{name}_transfer")
-    print(f"wrote {out}: k={args.width}, {metrics['train_seconds']:.1f} s training; held-out L1 "
+    resumed = (f" (went on from step {metrics['resumed_from']} of a checkpoint)"
+               if metrics["resumed_from"] else "")
+    print(f"wrote {out}: k={args.width}, {metrics['train_seconds']:.1f} s training{resumed}; held-out L1 "
           f"{metrics['heldout_l1']:.5f}, transfer PSNR {metrics['heldout_psnr']:.2f} dB, diffuse PSNR "
           f"{metrics['heldout_diffuse_psnr']:.2f} dB ({EVAL_SKY} sky)")
     return 0
