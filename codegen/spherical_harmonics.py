@@ -7,7 +7,7 @@ constant. Programs pass it through `chunks=sh_chunks(degree)`. numpy only (no to
 """
 from __future__ import annotations
 
-from inshade.sh import SH_TERMS, _check_degree, band_of, lambert_bands, monomials
+from inshade.sh import SH_TERMS, _check_degree, background_bands, band_of, lambert_bands, monomials
 
 from .glsl import flt
 
@@ -15,7 +15,7 @@ SH_CHUNK = "sh_basis"
 
 
 def sh_chunk(degree: int = 4) -> str:
-    """GLSL defining SH_DEGREE, SH_COEFFS, SH_LAMBERT[SH_DEGREE], SH_BAND[SH_COEFFS] and
+    """GLSL defining SH_DEGREE, SH_COEFFS, SH_LAMBERT[SH_DEGREE], SH_BAND[SH_COEFFS], SH_BACKGROUND[SH_DEGREE] and
     `void sh_basis(vec3 d, out float y[SH_COEFFS])` (d must be unit length)."""
     degree = _check_degree(degree)
     k = degree * degree
@@ -27,6 +27,8 @@ def sh_chunk(degree: int = 4) -> str:
         "// Clamped-cosine (Lambert) band factors A_l: irradiance = sum A_l L_lm Y_lm (not / pi).",
         f"const float SH_LAMBERT[SH_DEGREE] = float[SH_DEGREE]({', '.join(flt(a) for a in lambert_bands(degree))});",
         f"const int SH_BAND[SH_COEFFS] = int[SH_COEFFS]({', '.join(str(int(b)) for b in band_of(degree))});",
+        "// Band factors of the environment shown as a background (inshade.sh.background_bands: a Hann window).",
+        f"const float SH_BACKGROUND[SH_DEGREE] = float[SH_DEGREE]({', '.join(flt(a) for a in background_bands(degree))});",
         "",
         "void sh_basis(vec3 d, out float y[SH_COEFFS]) {",
     ]

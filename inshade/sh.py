@@ -401,6 +401,15 @@ def lambert_bands(degree: int = 4) -> np.ndarray:
     return out
 
 
+def background_bands(degree: int = 4) -> np.ndarray:
+    """Per-band factors [degree] of the environment as a background is shown: a Hann window
+    w_l = (1 + cos(pi l / degree)) / 2. The truncated series rings (the studio preset at degree 4
+    goes negative over ~30% of the sphere, shown black where clamped); the window keeps it smooth and
+    almost non-negative. Lighting uses the coefficients as they are."""
+    degree = _check_degree(degree)
+    return 0.5 * (1.0 + np.cos(np.pi * np.arange(degree) / degree))
+
+
 def phong_bands(exponent: float, degree: int = 4) -> np.ndarray:
     """Per-band factors [degree] of the normalised Phong lobe (s+1)/(2pi) max(cos a, 0)^s
     (integrates to 1, so band 0 is 1): Lambda_l = (s + 1) M_l(s). s = 1 gives lambert_bands/pi.

@@ -266,17 +266,31 @@ def sh_radiance_t(coeffs: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
     return acc
 
 
+def sh_background_t(coeffs: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
+    """``sh_background`` of lib/spherical_harmonics.glsl: the environment as a background (Hann-
+    windowed bands, clamped at 0), float32, sequential accumulation."""
+    from inshade.sh import background_bands
+
+    degree = int(round(math.sqrt(coeffs.shape[0])))
+    y = sh_basis(d, degree, torch)
+    w = background_bands(degree)[band_of(degree)].astype(np.float32)
+    acc = torch.zeros(d.shape[0], 3)
+    for i in range(coeffs.shape[0]):
+        acc = acc + coeffs[i] * (float(w[i]) * y[:, i:i + 1])
+    return acc.clamp_min(0.0)
+
+
 def render(scene, uniforms: dict, width: int, height: int, sh_coeffs) -> dict:
     """The sdf_diffuse pass in torch. ``scene``: an SdfScene, or an SDF module with ``.scene`` and
     ``.albedo`` (models/network_sdf.py NetworkSdfModule); ``uniforms``: the camera's (``camera.uniforms(w, h)``);
     ``sh_coeffs``: float32 [K, 3] radiance SH (``codegen.sdf.environment_sh``). Returns
     {"rgba": [H, W, 4] linear float32 (alpha 1), "hit": [H, W] bool, "t": [H, W]}:
-    hit -> albedo * sh_irradiance(n) / pi, miss -> max(sh_radiance(rd), 0) (the environment)."""
+    hit -> albedo * sh_irradiance(n) / pi, miss -> sh_background(rd) (the environment)."""
     sdf = scene if isinstance(scene, torch.nn.Module) else SdfModule(scene)
     coeffs = torch.as_tensor(np.asarray(sh_coeffs, np.float32))
     ro, rd = camera_rays(uniforms, width, height)
     hit, t = trace(sdf, ro, rd)
-    out = sh_radiance_t(coeffs, rd).clamp_min(0.0)
+    out = sh_background_t(coeffs, rd)
     with torch.no_grad():
         if hit.any():
             idx = hit.nonzero().squeeze(1)

@@ -18,7 +18,7 @@ from inshade.codegen.network_sdf import NETWORK_CHUNK, NetworkSdfScene, network_
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh
 from inshade.models import GraphModule, mlp_graph
 from inshade.models.network_sdf import NetworkSdfModule
-from inshade.models.sdf import INV_PI, SdfModule, camera_rays, normals, sh_irradiance_t, sh_radiance_t, trace
+from inshade.models.sdf import INV_PI, SdfModule, camera_rays, normals, sh_background_t, sh_irradiance_t, trace
 from inshade.sdf import parse_sdf
 
 from parity import assert_parity, parity_settings, run_sample_pass
@@ -68,7 +68,7 @@ def reference_render(sdf, uniforms, size, sh):
     coeffs = torch.from_numpy(sh)
     ro, rd = camera_rays(uniforms, size, size)
     hit, t = trace(sdf, ro, rd)
-    out = sh_radiance_t(coeffs, rd).clamp_min(0.0)
+    out = sh_background_t(coeffs, rd)
     with torch.no_grad():
         idx = hit.nonzero().squeeze(1)
         p = ro[idx] + rd[idx] * t[idx, None]

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunk, sdf_chunks
-from inshade.models.sdf import SdfModule, camera_rays, gradient, normals, render, sh_radiance_t
+from inshade.models.sdf import SdfModule, camera_rays, gradient, normals, render, sh_background_t
 from inshade.sdf import SdfError, load_sdf, parse_sdf
 from parity import run_sample_pass
 
@@ -184,7 +184,7 @@ def test_render_glsl_vs_torch(gl, name):
     # hit masks: the GLSL pass writes alpha 1 everywhere, so its misses are the pixels showing the
     # environment colour the torch reference computes for that ray
     _, rd = camera_rays(cam.uniforms(size, size), size, size)
-    env = sh_radiance_t(torch.from_numpy(sh), rd).clamp_min(0.0).numpy().reshape(size, size, 3)
+    env = sh_background_t(torch.from_numpy(sh), rd).numpy().reshape(size, size, 3)
     gl_hit = np.abs(image[..., :3] - env).max(-1) > 1e-5
     hit = ref["hit"]
     pad = np.pad(hit, 1, mode="edge")

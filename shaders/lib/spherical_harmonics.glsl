@@ -44,3 +44,9 @@ vec3 sh_convolved(vec3 d, in vec3 coeffs[SH_COEFFS], in float bands[SH_DEGREE]) 
     }
     return acc;
 }
+
+// The environment as a background at direction d: the series smoothed by SH_BACKGROUND (a Hann
+// window, so a truncated environment does not ring into black bands), clamped at 0.
+vec3 sh_background(vec3 d, in vec3 coeffs[SH_COEFFS]) {
+    return max(sh_convolved(d, coeffs, SH_BACKGROUND), vec3(0.0));
+}

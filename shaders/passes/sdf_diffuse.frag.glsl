@@ -23,6 +23,6 @@ void main() {
         vec3 n = sdf_normal(p);
         frag_color = vec4(scene_albedo(p) * sh_irradiance(n, u_sh) * SDF_INV_PI, 1.0);
     } else {
-        frag_color = vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 1.0);
+        frag_color = vec4(sh_background(rd, u_sh), 1.0);
     }
 }

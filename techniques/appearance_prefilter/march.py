@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from inshade.codegen.sparse_voxels import index_grid
-from inshade.models.sdf import camera_rays, sh_radiance_t
+from inshade.models.sdf import camera_rays, sh_background_t, sh_radiance_t
 from inshade.models.unit_box import unit_box
 
 from . import VIEWS
@@ -219,7 +219,7 @@ def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int,
     ro, rd, px = pixel_rays(camera, width, height, distance)
     hit, t0, _ = unit_box(ro, rd)
     coeffs = torch.as_tensor(np.asarray(sh, np.float32))
-    background = sh_radiance_t(coeffs, rd).clamp_min(0.0)
+    background = sh_background_t(coeffs, rd)
     out = torch.zeros(ro.shape[0], 4)
     if view == "prefiltered":
         out[:, :3] = background

@@ -237,7 +237,7 @@ def render_gbuffer(gbuffer, uniforms: dict, width: int, height: int, sh, *, grap
     tangent in data orientation) the GL pass used: linear RGBA [H, W, 4], image orientation.
     ``graph``: the DI GraphModule (views "di"/"split"); ``set8``: the two RGBA8 images
     (views "uncompressed"/"split")."""
-    from inshade.models.sdf import camera_rays, sh_radiance_t
+    from inshade.models.sdf import camera_rays, sh_background_t
 
     def flat(x):
         return torch.from_numpy(np.ascontiguousarray(np.asarray(x, np.float32)[::-1]).reshape(-1, 4))
@@ -245,7 +245,7 @@ def render_gbuffer(gbuffer, uniforms: dict, width: int, height: int, sh, *, grap
     pos, nrm, uvs, tan = (flat(x) for x in gbuffer[:4])
     _, rd = camera_rays(uniforms, width, height)
     sh = torch.as_tensor(np.asarray(sh, np.float32))
-    out = torch.clamp(sh_radiance_t(sh, rd), min=0.0)
+    out = sh_background_t(sh, rd)
     hit = pos[:, 3] != 0.0
     idx = hit.nonzero().squeeze(1)
     if idx.numel():

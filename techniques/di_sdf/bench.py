@@ -106,11 +106,11 @@ def mesh_ground_truth(mesh, uniforms: dict, size: int, sh: np.ndarray) -> dict:
     import trimesh
 
     from inshade.techniques.di_sdf.train import ALBEDO
-    from inshade.models.sdf import INV_PI, camera_rays, sh_irradiance_t, sh_radiance_t
+    from inshade.models.sdf import INV_PI, camera_rays, sh_background_t, sh_irradiance_t
 
     ro, rd = camera_rays(uniforms, size, size)
     coeffs = torch.from_numpy(np.asarray(sh, np.float32))
-    out = sh_radiance_t(coeffs, rd).clamp_min(0.0).numpy()
+    out = sh_background_t(coeffs, rd).numpy()
     loc, ray, tri = mesh.ray.intersects_location(ro.numpy().astype(np.float64), rd.numpy().astype(np.float64),
                                                  multiple_hits=False)
     hit = np.zeros(size * size, bool)

@@ -519,7 +519,7 @@ def render_module(module, uniforms, size, sh) -> dict:
     coeffs = torch.as_tensor(np.asarray(sh, np.float32))
     ro, rd = sdf_mod.camera_rays(uniforms, size, size)
     hit, t = sdf_mod.trace(module, ro, rd)
-    out = sdf_mod.sh_radiance_t(coeffs, rd).clamp_min(0.0)
+    out = sdf_mod.sh_background_t(coeffs, rd)
     with torch.no_grad():
         if hit.any():
             idx = hit.nonzero().squeeze(1)

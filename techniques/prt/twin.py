@@ -33,7 +33,7 @@ from inshade.techniques.prt.codegen import PRT_DEGREE, SHADING_MODES, light_matr
 from inshade.sdf import SdfScene, f32
 from inshade.sh import band_of, sh_basis
 
-from inshade.models.sdf import SdfModule, camera_rays, normals, sh_radiance_t, trace
+from inshade.models.sdf import SdfModule, camera_rays, normals, sh_background_t, trace
 from inshade.techniques.prt.transfer_net import TransferFrame, evaluate_transfer
 
 INV_PI = f32(1.0 / math.pi)
@@ -158,12 +158,13 @@ def trace_view(sdf, uniforms: dict, width: int, height: int) -> View:
 
 
 def compose(view: View, transfer: torch.Tensor, sh_coeffs, shading: PrtShading, m: torch.Tensor | None = None) -> dict:
-    """Shade a traced view given the transfer [M, 16] at its hits; misses show max(L(rd), 0).
+    """Shade a traced view given the transfer [M, 16] at its hits; misses show the background
+    (sh_background: the environment, Hann-windowed).
     Returns {"rgba": [H, W, 4] float32, "hit": [H, W] bool, "t": [H, W], "transfer": [H, W, 16]}."""
     coeffs = torch.as_tensor(np.asarray(sh_coeffs, np.float32))
     m = light_matrix_t(coeffs) if m is None and shading.mode == "glossy" else m
     with torch.no_grad():
-        out = sh_radiance_t(coeffs, view.rd).clamp_min(0.0)
+        out = sh_background_t(coeffs, view.rd)
         if view.idx.numel():
             albedo = view.albedo * f32(shading.albedo)
             out[view.idx] = prt_shade(transfer, albedo, view.n, view.rd[view.idx], coeffs, m, shading)

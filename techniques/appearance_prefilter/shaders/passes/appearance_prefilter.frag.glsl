@@ -38,7 +38,7 @@ void main() {
     vec3 ro, rd;
     camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     ro = 0.5 + (ro - 0.5) * u_dap_distance;
-    vec3 background = max(sh_radiance(rd, u_sh), vec3(0.0));
+    vec3 background = sh_background(rd, u_sh);
     float t0, t1;
     if (!unit_box(ro, rd, t0, t1)) {
         frag_color = vec4(u_dap_view == DAP_VIEW_PREFILTERED ? background : vec3(0.0), 0.0);

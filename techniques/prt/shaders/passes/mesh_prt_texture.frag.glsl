@@ -28,7 +28,7 @@ void main() {
     vec3 ro, rd;
     camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     if (!covered) {
-        frag_color = u_prt_debug > 0 ? vec4(0.0) : vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 1.0);
+        frag_color = u_prt_debug > 0 ? vec4(0.0) : vec4(sh_background(rd, u_sh), 1.0);
         return;
     }
     vec4 tr[PRT_BLOCKS];

@@ -38,6 +38,6 @@ void main() {
     } else if (u_prt_debug > 0) {
         frag_color = vec4(0.0);
     } else {
-        frag_color = vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 1.0);
+        frag_color = vec4(sh_background(rd, u_sh), 1.0);
     }
 }

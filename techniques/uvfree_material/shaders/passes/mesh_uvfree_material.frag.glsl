@@ -85,7 +85,7 @@ void main() {
     vec3 ro, rd;
     camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     if (!covered) {
-        frag_color = vec4(max(sh_radiance(rd, u_sh), vec3(0.0)), 0.0);
+        frag_color = vec4(sh_background(rd, u_sh), 0.0);
         return;
     }
     vec4 tangent = texelFetch(u_gbuffer_tangent, px, 0);
