@@ -89,6 +89,7 @@ LAMBDAS = (0.0, 0.1, 0.25, 0.5)
 LIGHT_POSITION = (0.0, 0.6, -5.0)
 LIGHT_INTENSITY = 20.0
 AMBIENT = 0.08
+MIN_NV = 0.05   # lib/di_shading DI_SHADING_MIN_NV: the least n.v a set normal shades with
 EXPOSURE = 1.0
 # the set's constant Disney parameters (brdf.PARAMS order; roughness comes from the set)
 CONSTANTS = {"metallic": 0.0, "anisotropic": 0.0, "subsurface": 0.0, "specular": 0.5, "specular_tint": 0.0,
@@ -192,6 +193,15 @@ def unpack(lanes: torch.Tensor) -> dict:
     return pbr.unpack(lanes[:, :4], lanes[:, 4:])
 
 
+def visible_normal(normal_ts: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """di_shading_visible_normal: a normal with n.v < MIN_NV bent toward the eye v (n + v (MIN_NV - n.v),
+    normalised), so a bumpy sample seen at grazing angles does not shade as its unlit back."""
+    nv = _dot(normal_ts, v)
+    m = normal_ts + v * (np.float32(MIN_NV) - nv)[:, None]
+    bent = m * torch.rsqrt(_dot(m, m))[:, None]
+    return torch.where((nv >= np.float32(MIN_NV))[:, None], normal_ts, bent)
+
+
 def local_frame(normal_ts: torch.Tensor):
     """di_shading_frame: an orthonormal frame around the tangent-space normal, tangent from +u."""
     t = torch.zeros_like(normal_ts)
@@ -237,7 +247,7 @@ def _params(roughness: torch.Tensor) -> torch.Tensor:
 def shade_analytic(lanes: torch.Tensor, geo: Geometry, ambient: float = AMBIENT) -> torch.Tensor:
     """di_shading_analytic: analytic Disney (models/brdf.py) of the unpacked lanes, linear [N, 3]."""
     s = unpack(lanes)
-    local = local_frame(s["normal_ts"])
+    local = local_frame(visible_normal(s["normal_ts"], geo.v))
     f = brdf.disney(local(geo.l), local(geo.v), s["albedo"], _params(s["roughness"]))
     return f * geo.e[:, None] + s["albedo"] * (np.float32(ambient) * s["ao"])[:, None]
 
@@ -247,7 +257,7 @@ def shade_di(lanes: torch.Tensor, geo: Geometry, decoder: GraphModule, ambient: 
     """di_shading_learned: the frozen DI Disney decoder + glue (di_brdf `disney_glue`), linear [N, 3].
     `no_metal`: the GGX lobe D_m G_m set to ~0 (ggx denominators 1e6), for the metallic-path split."""
     s = unpack(lanes)
-    local = local_frame(s["normal_ts"])
+    local = local_frame(visible_normal(s["normal_ts"], geo.v))
     dec = split_decoders(decoder(s["roughness"][:, None]))
     if no_metal:
         dec["ggx"] = torch.full_like(dec["ggx"], 1e6)

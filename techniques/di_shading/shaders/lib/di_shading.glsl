@@ -2,8 +2,8 @@
 // sample (PbrSample below, from the DI footprint sampler or from the uncompressed set) on
 // the ground plane y = 0, shaded by one point light + an ambient term, with the learned DI Disney
 // BRDF (the frozen decoder bundle <network_brdf> + lib/di_brdf's glue) or the analytic one
-// (lib/brdf). Torch twins: techniques/di_shading/train.py (plane_geometry, local_frame, shade_di,
-// shade_analytic), same operations in the same order.
+// (lib/brdf). Torch twins: techniques/di_shading/train.py (plane_geometry, visible_normal, local_frame,
+// shade_di, shade_analytic), same operations in the same order.
 // Tangent space of the plane: x = +u = world +x, y = +v = world -z, z = the normal = world +y.
 // The set's constant Disney parameters: metallic 0, anisotropic 0, subsurface 0, specular 0.5,
 // specular_tint 0, sheen 0, sheen_tint 0.5, clearcoat 0, clearcoat_gloss 1 (train.py CONSTANTS).
@@ -59,6 +59,19 @@ void di_shading_frame(vec3 n, out vec3 t, out vec3 b) {
     b = cross(n, t);
 }
 
+// A set normal that faces away from the eye (a bumpy sample seen at grazing angles) would shade
+// as its unlit back, a black speckle the filtered reference never shows; it is bent toward the
+// eye until n.v = DI_SHADING_MIN_NV before normalising, as renderers do with normal maps.
+#define DI_SHADING_MIN_NV 0.05
+vec3 di_shading_visible_normal(vec3 n, vec3 v) {
+    float nv = n.x * v.x + n.y * v.y + n.z * v.z;
+    if (nv >= DI_SHADING_MIN_NV) {
+        return n;
+    }
+    vec3 m = n + v * (DI_SHADING_MIN_NV - nv);
+    return m * inversesqrt(m.x * m.x + m.y * m.y + m.z * m.z);
+}
+
 vec3 di_shading_local(vec3 w, vec3 t, vec3 b, vec3 n) {
     return vec3(w.x * t.x + w.y * t.y + w.z * t.z, w.x * b.x + w.y * b.y + w.z * b.z,
                 w.x * n.x + w.y * n.y + w.z * n.z);
@@ -69,8 +82,9 @@ vec3 di_shading_ambient(PbrSample s, float ambient) {
 }
 
 vec3 di_shading_learned(PbrSample s, DiShadingGeometry g, float ambient) {
+    vec3 n = di_shading_visible_normal(s.normal_ts, g.v);
     vec3 t, b;
-    di_shading_frame(s.normal_ts, t, b);
+    di_shading_frame(n, t, b);
     vec4 x[BRDF_IN_BLOCKS];
     x[0] = vec4(s.roughness, 0.0, 0.0, 0.0);
     vec4 y[BRDF_OUT_BLOCKS];
@@ -84,13 +98,14 @@ vec3 di_shading_learned(PbrSample s, DiShadingGeometry g, float ambient) {
     d.sheen_tint = 0.5;
     d.k = vec3(0.0, 0.02, 0.0);
     d.albedo = s.albedo;
-    vec3 f = di_disney_brdf(d, di_shading_local(g.l, t, b, s.normal_ts), di_shading_local(g.v, t, b, s.normal_ts));
+    vec3 f = di_disney_brdf(d, di_shading_local(g.l, t, b, n), di_shading_local(g.v, t, b, n));
     return f * g.e + di_shading_ambient(s, ambient);
 }
 
 vec3 di_shading_analytic(PbrSample s, DiShadingGeometry g, float ambient) {
+    vec3 n = di_shading_visible_normal(s.normal_ts, g.v);
     vec3 t, b;
-    di_shading_frame(s.normal_ts, t, b);
+    di_shading_frame(n, t, b);
     DisneyMaterial m;
     m.base_color = s.albedo;
     m.roughness = s.roughness;
@@ -103,6 +118,6 @@ vec3 di_shading_analytic(PbrSample s, DiShadingGeometry g, float ambient) {
     m.sheen_tint = 0.5;
     m.clearcoat = 0.0;
     m.clearcoat_gloss = 1.0;
-    vec3 f = disney_brdf(m, di_shading_local(g.l, t, b, s.normal_ts), di_shading_local(g.v, t, b, s.normal_ts));
+    vec3 f = disney_brdf(m, di_shading_local(g.l, t, b, n), di_shading_local(g.v, t, b, n));
     return f * g.e + di_shading_ambient(s, ambient);
 }
