@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from inshade.sdf import DEFAULT_ALBEDO, SdfScene, f32
-from inshade.sh import lambert_bands, band_of, sh_basis
+from inshade.sh import background_bands, band_of, lambert_bands, sh_basis
 
 INV_PI = f32(1.0 / math.pi)
 
@@ -246,15 +246,21 @@ def trace(sdf: SdfModule, ro: torch.Tensor, rd: torch.Tensor):
     return hit, t
 
 
-def sh_irradiance_t(coeffs: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
-    """``sh_irradiance`` of lib/spherical_harmonics.glsl in float32 (sequential accumulation)."""
+def sh_convolved_t(coeffs: torch.Tensor, d: torch.Tensor, bands) -> torch.Tensor:
+    """``sh_convolved`` of lib/spherical_harmonics.glsl in float32 (sequential accumulation):
+    sum bands[l] c_lm Y_lm(d) with per-band factors ``bands`` [degree]."""
     degree = int(round(math.sqrt(coeffs.shape[0])))
-    y = sh_basis(n, degree, torch)
-    a = lambert_bands(degree)[band_of(degree)].astype(np.float32)
-    acc = torch.zeros(n.shape[0], 3)
+    y = sh_basis(d, degree, torch)
+    a = np.asarray(bands, np.float32)[band_of(degree)]
+    acc = torch.zeros(d.shape[0], 3)
     for i in range(coeffs.shape[0]):
         acc = acc + coeffs[i] * (float(a[i]) * y[:, i:i + 1])
     return acc
+
+
+def sh_irradiance_t(coeffs: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
+    """``sh_irradiance`` of lib/spherical_harmonics.glsl in float32 (sequential accumulation)."""
+    return sh_convolved_t(coeffs, n, lambert_bands(int(round(math.sqrt(coeffs.shape[0])))))
 
 
 def sh_radiance_t(coeffs: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
@@ -269,15 +275,8 @@ def sh_radiance_t(coeffs: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
 def sh_background_t(coeffs: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
     """``sh_background`` of lib/spherical_harmonics.glsl: the environment as a background (Hann-
     windowed bands, clamped at 0), float32, sequential accumulation."""
-    from inshade.sh import background_bands
-
-    degree = int(round(math.sqrt(coeffs.shape[0])))
-    y = sh_basis(d, degree, torch)
-    w = background_bands(degree)[band_of(degree)].astype(np.float32)
-    acc = torch.zeros(d.shape[0], 3)
-    for i in range(coeffs.shape[0]):
-        acc = acc + coeffs[i] * (float(w[i]) * y[:, i:i + 1])
-    return acc.clamp_min(0.0)
+    bands = background_bands(int(round(math.sqrt(coeffs.shape[0]))))
+    return sh_convolved_t(coeffs, d, bands).clamp_min(0.0)
 
 
 def render(scene, uniforms: dict, width: int, height: int, sh_coeffs) -> dict:
