@@ -1,4 +1,4 @@
-"""UV-free hashed per-triangle feature hierarchy (Walloner 2024, notes/003.md §2): the torch
+"""UV-free hashed per-triangle feature hierarchy (Walloner 2024): the torch
 twin of codegen/mesh_features.py and shaders/lib/mesh_features.glsl.
 
 A surface point is (triangle k, barycentrics t0, t1); t2 = 1 - t0 - t1; t_i belongs to face

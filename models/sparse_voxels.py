@@ -1,4 +1,4 @@
-"""Sparse multi-scale voxel latents (Deep Appearance Prefiltering, notes/004.md §2): the torch twin
+"""Sparse multi-scale voxel latents (Deep Appearance Prefiltering, Bako et al. 2022): the torch twin
 of codegen/sparse_voxels.py.
 
 One table over all scales: row (slot) r holds the voxel cells[r] = (scale, i, j, k), covering

@@ -35,7 +35,7 @@ from inshade.techniques.appearance_prefilter import march
 W = H = 32
 MASK, BT, BP = 4, 2, 4
 BINS = BT * BP
-PSNR_MIN = 50.0   # the target for the march against its torch reference
+PSNR_MIN = 50.0   # the march against its torch reference
 
 
 @pytest.fixture(scope="module", autouse=True)

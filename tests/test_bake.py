@@ -198,7 +198,7 @@ def test_shipped_assets_record_their_ship_preset(name):
         assert scene["camera"] == json.loads((ROOT / s["camera_from"]).read_text())["camera"]
 
 
-def test_the_issue_recipe_is_the_creatures():
+def test_the_ship_recipe_is_the_creatures():
     s = prt_train.preset_settings("ship", "prt_creature")
     assert (s["points"], s["dirs"], s["steps"], s["batch"], s["lr"]) == (60000, 256, 6000, 4096, 2e-3)
     assert prt_train.preset_settings("ship", "my_asset") == prt_train.SHIP_BASE

@@ -39,7 +39,7 @@ def test_presets_cover_every_registered_bench():
     assert set(suite.CLAIMS) == names
 
 
-def test_device_preset_fits_the_issues_minutes():
+def test_device_preset_fits_its_minutes():
     total = sum(sizes["device"].budget_s for sizes in suite.SIZES.values())
     assert total <= 60 * suite.DEVICE_MINUTES, total
 

@@ -29,7 +29,7 @@ import inshade.techniques.di_radiance_field as record
 from inshade.techniques.di_radiance_field import field, march, model, train
 
 W = H = 40
-PSNR_MIN = 50.0   # the target for the march against its torch twin
+PSNR_MIN = 50.0   # the march against its torch twin
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -53,7 +53,7 @@ def test_zoo_exports_and_matches_torch_in_every_storage(gl, name, tmp_path, caps
         assert_parity(out, ref, what=f"{name} {storage}")
 
 
-def test_zoo_covers_every_op_the_issue_names():
+def test_zoo_covers_every_op_export_supports():
     used = set()
     for module, example in ZOO.values():
         trace = example[torch.arange(TRACE_BATCH) % len(example)]

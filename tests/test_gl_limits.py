@@ -1,4 +1,4 @@
-"""GL limits are part of codegen's plan (issue "Nothing silent, nothing partial", part 1).
+"""GL limits are part of codegen's plan (nothing silent, nothing partial).
 
 For each limit a network depends on, a bundle that exceeds it (a limit lowered on purpose through
 ``limits=``, or llvmpipe's real one) either renders correctly in a layout that fits (exact path:

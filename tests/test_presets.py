@@ -1,4 +1,4 @@
-"""Presets, not hidden recipes (issue #15): every shipped asset records the preset that built it and
+"""Presets, not hidden recipes: every shipped asset records the preset that built it and
 the settings that preset resolved to, and those settings are what the trainer's `--preset ship`
 gives today -- so the README's rebuild command (`inshade train NAME --preset ship ...`) rebuilds the
 asset with the same recipe. A new asset without the fields fails here.

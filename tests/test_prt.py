@@ -3,7 +3,7 @@
 toolkit, scene/renderer integration (settings, errors, network SDF geometry).
 
 Tolerances: the transfer network at the shader's own hit points and normals (debug views 5/6):
-|glsl - torch| <= 1e-4 (the issue's target; the network alone agrees to ~1e-6, tests/parity.py).
+|glsl - torch| <= 1e-4 (the network alone agrees to ~1e-6, tests/parity.py).
 Images: PSNR >= 50 dB over all pixels of a 48x48 render, linear float, peak 1 (as tests/test_sdf.py:
 silhouette pixels whose hit status differs between the executors are inside that budget).
 Random untrained transfer networks (transfer_graph(width=16)): parity does not need training.
@@ -236,7 +236,7 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
 # GLSL vs torch ---------------------------------------------------------------------------------------
 def test_transfer_at_hit_points_glsl_vs_torch(gl, cache, prt_scene):
     """The network in the shader at the shader's own hit points and normals vs the torch network
-    at those points: <= 1e-4 (issue target)."""
+    at those points: <= 1e-4."""
     from inshade.techniques.prt.transfer_net import evaluate_transfer
 
     folder, graph, frame = prt_scene
@@ -636,7 +636,7 @@ def test_bench_prt_quick_writes_reports(tmp_path):
     assert (tmp_path / "prt.png").stat().st_size > 0
 
 
-# The issue's quality targets for k=64 (diffuse >= 45 dB, glossy >= 38 dB against the per-pixel
+# The quality targets for k=64 (diffuse >= 45 dB, glossy >= 38 dB against the per-pixel
 # ground-truth transfer render, surface pixels), re-measured on the shipped assets with a small
 # orbit (3 views, 48², 256 ground-truth rays: estimator noise ~51 dB diffuse) to keep CI fast; the
 # 30-view numbers are in each asset's metrics.json.

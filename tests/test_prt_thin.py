@@ -1,4 +1,4 @@
-"""Thin geometry (issue 18 part 3): the SDF shadow-ray schemes of techniques/prt/transfer.py and the
+"""Thin geometry: the SDF shadow-ray schemes of techniques/prt/transfer.py and the
 study / sampling helpers of techniques/prt/thin.py.
 
 - the default scheme is the shipped estimator's (bit-identical), and thin.py's study traces exactly

@@ -1,4 +1,4 @@
-"""The interactive viewer (issue 5): camera math, scene files, and the window app under Xvfb.
+"""The interactive viewer: camera math, scene files, and the window app under Xvfb.
 
 The window tests start their own Xvfb on a free display number (Xvfb is a test requirement:
 they fail, saying to install xvfb, where it is missing). One app at 320x240 is shared by the module, with
@@ -526,7 +526,7 @@ def test_side_panel_fits_its_longest_label(app):
 
 @pytest.mark.parametrize("scene", [p.name for p in list_scenes(ROOT / "trained")])
 def test_every_shipped_scene_opens_and_draws(app, scene):
-    """Issue 5's promise: every asset in trained/ opens in the window and shows a picture."""
+    """The promise: every asset in trained/ opens in the window and shows a picture."""
     try:
         assert app.open(ROOT / "trained" / scene), app.messages[-1:]
         app.step(3)

@@ -32,7 +32,7 @@ from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, cl
 DEFAULT_OUT = "bench-out/mlp"
 MODES = ("inline", "ubo", "texture")
 PARITY_TOL = 1e-4
-# Targets from the issue (on the 2-core llvmpipe machine).
+# Targets on the 2-core llvmpipe machine.
 TARGET_SPEEDUP = 3.0          # GLSL throughput >= 3x torch CPU ...
 TARGET_WIDTHS = (16, 64)      # ... for widths 16-64 ...
 TARGET_DEPTHS = (3, 4)        # ... and depth 3-4
@@ -245,7 +245,7 @@ def _best(entry: dict):
 
 
 def evaluate_targets(networks: list[dict], peak: dict) -> list[dict]:
-    """The issue's targets; `met` is None when this run did not measure what a target needs."""
+    """The targets; `met` is None when this run did not measure what a target needs."""
     lo, hi = TARGET_WIDTHS
     scope = [n for n in networks if lo <= n["width"] <= hi and n["depth"] in TARGET_DEPTHS]
     out = []

@@ -37,7 +37,7 @@ from inshade import command, papers
 from inshade.bench.harness import BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot, write_report
 
 PRESETS = ("cpu", "device")
-DEVICE_MINUTES = 8          # the bound for the device preset, all benches together
+DEVICE_MINUTES = 8          # the device preset's budget, all benches together
 NAME = "suite"              # this bench's own name in the bench table (it does not run itself)
 
 

@@ -1,4 +1,4 @@
-"""appearance_prefilter: Deep Appearance Prefiltering (Bako et al. 2022, notes/004.md): a scene
+"""appearance_prefilter: Deep Appearance Prefiltering (Bako et al. 2022): a scene
 voxelised at several scales, one latent per voxel (an auto-decoder: learned embeddings in place of
 the paper's CNN encoders) and residual MLP decoders for coverage, albedo, phase and phase slice;
 a full-screen pass marches each pixel's beam through the scale its footprint asks for.

@@ -1,4 +1,4 @@
-"""The appearance-prefiltering decoders (Bako et al. 2022, notes/004.md §2.4, §3.3) as one GraphModule,
+"""The appearance-prefiltering decoders (Bako et al. 2022) as one GraphModule,
 so the bundle/codegen pipeline runs them unchanged.
 
 Inputs: ``slot`` (1 uint lane: the voxel's row), ``view`` (3: w in world, from the voxel toward the

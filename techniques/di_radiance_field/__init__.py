@@ -1,6 +1,6 @@
 """di_radiance_field: a voxel radiance field (density + SH colour grids) compressed by a multi-head
 DI cascade and volume-rendered by ray marching through 3D textures (Differentiable Indirection,
-Datta et al. 2023, §4.4 / supp. §1.7; notes/000.md §2.7).
+Datta et al. 2023, §4.4 / supp. §1.7).
 
 The field (field.py) is procedural: a soft analytic SDF scene baked into a density grid (sigma) and
 a 12-channel colour grid (degree-1 SH logits of a view-dependent colour, colour = sigmoid(sum_k c_k

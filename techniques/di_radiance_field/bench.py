@@ -331,7 +331,7 @@ def markdown(r: dict) -> str:
              f"march through the float32 grids, {r['render']['views']} orbit views at {r['render']['size']}², step "
              f"{r['render']['step']:.5f} (one voxel), exact lookups; PSNR on linear RGB (peak 1, background included), "
              "FLIP (LDR) on sRGB. MB count cells (8-bit primaries, fp32 cascaded arrays).", "",
-             f"Target (issue 17): >= 35 dB at 10x overall (the 10x density / 10x colour pair): "
+             f"Target: >= 35 dB at 10x overall (the 10x density / 10x colour pair): "
              f"**{'met' if r['target']['met'] else 'not met'}**.", ""]
     lines += markdown_table(
         ["density x", "colour x", "overall x", "density MB (Np/Nc)", "colour MB (Np/Nc)", "PSNR dB (min)", "FLIP"],

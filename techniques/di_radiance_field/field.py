@@ -11,8 +11,8 @@ Density (DVGO-like softness): sigma = SIGMA_SCALE * sigmoid(-sdf / eps), eps = S
 the grid (eps = SOFTNESS / (N - 1)); sigma is stored directly (non-negative, world units^-1: the
 march's alpha over a step dt is 1 - exp(-sigma dt)).
 
-Colour: the paper's DVGO with the RGB MLP replaced by "PE + summation + sigmoid" (notes/000.md
-§2.7): per voxel 4 SH coefficients (bands l = 0, 1; inshade.sh basis, index l^2 + l + m) per RGB,
+Colour: the paper's DVGO with the RGB MLP replaced by "PE + summation + sigmoid" (Datta
+et al. 2023, §4.4): per voxel 4 SH coefficients (bands l = 0, 1; inshade.sh basis, index l^2 + l + m) per RGB,
 colour(d) = sigmoid(sum_k c_k Y_k(d)) for the ray direction d. The baked logit is
     logit(albedo) + sheen * dot(-d, n)
 (n the SDF's unit gradient: brighter where the surface faces the eye, a view-dependent tint),

@@ -17,7 +17,7 @@ Sizes count cells only (indirection.array_bytes): a field's uncompressed bytes a
 (float32, the paper's DVGO grids), a head's compressed bytes Np^3 x 3 x 1 + Nc^3 x C x 4; a ratio r
 sets the budget uncompressed / r, filled near the paper's rho (``plan``).
 
-Training one head (notes/000.md §2.7): targets are trilinear samples of the target grid at
+Training one head (Datta et al. 2023, §4.4): targets are trilinear samples of the target grid at
 DVGO-like points -- ``shell_fraction`` of each batch jittered inside voxels of the soft surface shell
 (field.shell_mask: where rays see colour and the density's edge), the rest uniform in the box; MAE,
 Adam with a cosine schedule, the primary's half-cell gradient clip; the cascaded array starts as the

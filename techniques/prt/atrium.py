@@ -6,7 +6,7 @@ two colonnades of seven columns along x at z = +-3.5 carrying arched beams (a bo
 cylinders along z), covered walks (a roof slab between each colonnade and its outer wall), outer
 walls at z = +-6, coloured banners hanging from the beams into the courtyard (the cloth), a
 fountain (basin, rim, bowl) and four bushes in the courtyard (the plants). Its bound radius is
-10.5 x scale: 6x prt_creature's 1.75 (the issue asks for at least 4x today's PRT assets).
+10.5 x scale: 6x prt_creature's 1.75 (at least 4x the other PRT assets).
 ``FLOOR_PLAN`` is the (x0, z0, x1, z1) rectangle regions.py splits at scale 1.
 
 ``python -m inshade.techniques.prt.atrium OUT.json [scale]`` writes it (atomically). numpy only.

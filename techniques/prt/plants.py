@@ -1,4 +1,4 @@
-"""A plants-like analytic SDF for learnt transfer on thin geometry (issue 18 part 3; the paper's
+"""A plants-like analytic SDF for learnt transfer on thin geometry (the paper's
 weakest scenes are PLANTS and DINING-TABLE): a potted plant of three whorls of thin leaves (rounded
 boxes 0.024 thick, i.e. 24 hit_eps, tilted up, five per whorl by polar repetition), a stem, a
 terracotta pot with soil, on a round floor slab. Deterministic JSON (inshade/sdf.py format).

@@ -1,4 +1,4 @@
-"""Thin geometry for learnt transfer (issue 18 part 3): how the shadow-ray scheme changes the
+"""Thin geometry for learnt transfer: how the shadow-ray scheme changes the
 ground truth, and training points sampled near occluders.
 
 - ``shadow_study(sdf, n_points, n_dirs, schemes)``: the transfer of ``n_points`` surface samples

@@ -231,9 +231,9 @@ def run(args: argparse.Namespace) -> int:
     args.out = str(asset_folder.claim(args.out, default_name(src), force=args.force))
     settings = resolve_settings(args)
     # the device is recorded resolved in the transfer bundle's provenance, not in the recipe; where
-    # the bake ran (--workers, --ray) does not change the data
+    # the bake ran (--workers, --ray) and where it is cached (--cache, --checkpoint) change nothing
     command = shlex.join(["inshade", "train", "prt"] + transfer_net.command_options(
-        args, set(vars(args)) - {"func", "command", "device", "workers", "ray", "force"}))
+        args, set(vars(args)) - {"func", "command", "device", "workers", "ray", "force", "cache", "checkpoint"}))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     times = {}

@@ -427,8 +427,10 @@ def run(args: argparse.Namespace) -> int:
         drop_enclosed=args.drop_enclosed, device=device)
     metrics.update({"data_seconds": data["seconds"], "rays_per_second": data["rays_per_second"],
                     "points": args.points, "dirs": args.dirs})
-    # not a wrapper's options; the device goes into the provenance, resolved, not into the recipe
-    own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {"help", "device", "workers", "ray"}
+    # not a wrapper's options; the device goes into the provenance, resolved, not into the recipe; where
+    # data and checkpoints are cached changes nothing in the result and names one machine's folders
+    own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {
+        "help", "device", "workers", "ray", "cache", "checkpoint"}
     # this module's own command, every option written out (the asset's metrics.json holds the builder's)
     command = shlex.join(["python", "-m", "inshade.techniques.prt.transfer_net"] + command_options(args, own))
     provenance = {**source, "command": command, "dataset_key": data["key"],

@@ -17,7 +17,7 @@ from inshade.papers import FEATURE_HIERARCHY
 from inshade.technique import ProgramSpec, Technique
 
 KIND = "uvfree_material"
-# u_uvf_view / u_uvf_channel (shaders/lib/uvf_views.glsl UVF_VIEW_* / UVF_CHANNEL_*), in order
+# u_uvf_view / u_uvf_channel (passes/mesh_uvfree_material.frag.glsl UVF_VIEW_* / UVF_CHANNEL_*), in order
 VIEWS = ("decoded", "reference", "split", "error")
 CHANNEL_VIEWS = ("shaded", "albedo", "normal", "roughness", "metallic", "ao")
 WIREFRAME = ("off", "triangles", "level")

@@ -1,4 +1,4 @@
-// The prefiltered march of Deep Appearance Prefiltering (notes/004.md §1, §4): one beam per pixel
+// The prefiltered march of Deep Appearance Prefiltering (Bako et al. 2022): one beam per pixel
 // through one scale of the sparse voxel grid, front to back, with the coverage-mask transmittance
 // model. Torch twin (same steps, same float32 formulas): techniques/appearance_prefilter/march.py.
 //
