@@ -33,7 +33,7 @@ import numpy as np
 
 from inshade import command
 from inshade.bench.harness import (BenchError, WallClock, atomic_write, interleave, machine, machine_markdown,
-                                   markdown_table, matplotlib_pyplot, measure, write_report)
+                                   markdown_table, matplotlib_pyplot, write_report)
 
 STEM = "di_radiance_field"
 
