@@ -17,12 +17,15 @@ each is imported as a package (its parent folder joins ``sys.path``) and must de
 """
 from __future__ import annotations
 
+import hashlib
 import importlib
 import os
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 PLUGINS_ENV = "INSHADE_TECHNIQUES"
 # What a program draws over; the runtime sets up the matching pass (runtime/scene.py GEOMETRIES).
@@ -119,6 +122,46 @@ class ProgramSpec:
         if bad:
             raise TechniqueError(f"program {self.program}: unknown mesh attribute {bad[0]!r} "
                                  f"(known: {', '.join(MESH_ATTRIBUTES)})")
+
+
+@dataclass
+class ShadowRequest:
+    """What to shadow: a caster mesh (``vertices`` float32 [V, 3], ``faces`` uint32 [F, 3]), light
+    ``directions`` float32 [L, 3] (unit, from the scene toward the light), the map's side ``size``
+    in texels, and a hashable ``key`` naming the mesh (the same key = the same mesh: not re-uploaded;
+    None = a digest of the arrays)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    directions: np.ndarray
+    size: int = 1024
+    key: Hashable = None
+
+    def __post_init__(self):
+        self.vertices = np.ascontiguousarray(self.vertices, np.float32)
+        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3 or not len(self.vertices):
+            raise ValueError(f"ShadowRequest.vertices: expected [V, 3] with V >= 1, got {list(self.vertices.shape)}")
+        if not np.isfinite(self.vertices).all():
+            raise ValueError("ShadowRequest.vertices: not finite")
+        faces = np.asarray(self.faces)
+        if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+            raise ValueError(f"ShadowRequest.faces: expected integer [F, 3], got {faces.dtype} {list(faces.shape)}")
+        if faces.size and (faces.min() < 0 or faces.max() >= len(self.vertices)):
+            raise ValueError(f"ShadowRequest.faces: indices must lie in 0..{len(self.vertices) - 1}")
+        self.faces = np.ascontiguousarray(faces, np.uint32)
+        self.directions = np.ascontiguousarray(self.directions, np.float32)
+        if self.directions.ndim != 2 or self.directions.shape[1] != 3 or not len(self.directions):
+            raise ValueError(f"ShadowRequest.directions: expected [L, 3] with L >= 1, "
+                             f"got {list(self.directions.shape)}")
+        norms = np.linalg.norm(self.directions.astype(np.float64), axis=1)
+        if not (np.abs(norms - 1.0) < 1e-3).all():
+            raise ValueError(f"ShadowRequest.directions: must be unit vectors, got lengths {norms.round(4).tolist()}")
+        if isinstance(self.size, bool) or not isinstance(self.size, (int, np.integer)) or self.size < 1:
+            raise ValueError(f"ShadowRequest.size: must be an int >= 1, got {self.size!r}")
+        self.size = int(self.size)
+        if self.key is None:
+            self.key = hashlib.sha1(self.vertices.tobytes() + self.faces.tobytes()).hexdigest()
+        hash(self.key)   # TypeError here, not later, for an unhashable key
 
 
 @dataclass(frozen=True)

@@ -19,73 +19,26 @@ Conventions (shared by the GL pass, the GLSL chunk and the numpy twin):
 
 GL objects (created on the first ``update``, reused while size and layer count stay the same):
 the R32F array ``u_shadow_map`` (size x size x L, NEAREST, clamp), a scratch R32F texture + depth
-renderbuffer + framebuffer, the depth program and the caster's vertex/index buffers + vertex array.
+renderbuffer + framebuffer, the depth program (PROGRAM's chunks through ``assemble``) and the
+caster's vertex/index buffers + vertex array.
 """
 from __future__ import annotations
 
 import ctypes
-import hashlib
-from collections.abc import Hashable
-from dataclasses import dataclass
 
 import moderngl
 import numpy as np
 
+from inshade.technique import ShadowRequest
+
+from .programs import ProgramCache
 from .render import check_gl_error, clear_gl_error
 
 # the light frame's up vector switches away from +y near the poles (same rule as the GLSL side)
 POLE = 0.999
 PAD = 1.01           # the fitted sphere is 1% larger than the caster's: vertices stay strictly inside
 
-_VERTEX = """#version 330
-uniform mat4 u_matrix;
-in vec3 in_position;
-void main() { gl_Position = u_matrix * vec4(in_position, 1.0); }
-"""
-_FRAGMENT = """#version 330
-out float out_depth;
-void main() { out_depth = gl_FragCoord.z; }   // window depth: clip z * 0.5 + 0.5 (orthographic)
-"""
-
-
-@dataclass
-class ShadowRequest:
-    """What to shadow: a caster mesh (``vertices`` float32 [V, 3], ``faces`` uint32 [F, 3]), light
-    ``directions`` float32 [L, 3] (unit, from the scene toward the light), the map's side ``size``
-    in texels, and a hashable ``key`` naming the mesh (the same key = the same mesh: not re-uploaded;
-    None = a digest of the arrays)."""
-
-    vertices: np.ndarray
-    faces: np.ndarray
-    directions: np.ndarray
-    size: int = 1024
-    key: Hashable = None
-
-    def __post_init__(self):
-        self.vertices = np.ascontiguousarray(self.vertices, np.float32)
-        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3 or not len(self.vertices):
-            raise ValueError(f"ShadowRequest.vertices: expected [V, 3] with V >= 1, got {list(self.vertices.shape)}")
-        if not np.isfinite(self.vertices).all():
-            raise ValueError("ShadowRequest.vertices: not finite")
-        faces = np.asarray(self.faces)
-        if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
-            raise ValueError(f"ShadowRequest.faces: expected integer [F, 3], got {faces.dtype} {list(faces.shape)}")
-        if faces.size and (faces.min() < 0 or faces.max() >= len(self.vertices)):
-            raise ValueError(f"ShadowRequest.faces: indices must lie in 0..{len(self.vertices) - 1}")
-        self.faces = np.ascontiguousarray(faces, np.uint32)
-        self.directions = np.ascontiguousarray(self.directions, np.float32)
-        if self.directions.ndim != 2 or self.directions.shape[1] != 3 or not len(self.directions):
-            raise ValueError(f"ShadowRequest.directions: expected [L, 3] with L >= 1, "
-                             f"got {list(self.directions.shape)}")
-        norms = np.linalg.norm(self.directions.astype(np.float64), axis=1)
-        if not (np.abs(norms - 1.0) < 1e-3).all():
-            raise ValueError(f"ShadowRequest.directions: must be unit vectors, got lengths {norms.round(4).tolist()}")
-        if isinstance(self.size, bool) or not isinstance(self.size, (int, np.integer)) or self.size < 1:
-            raise ValueError(f"ShadowRequest.size: must be an int >= 1, got {self.size!r}")
-        self.size = int(self.size)
-        if self.key is None:
-            self.key = hashlib.sha1(self.vertices.tobytes() + self.faces.tobytes()).hexdigest()
-        hash(self.key)   # TypeError here, not later, for an unhashable key
+PROGRAM = ("common/shadow_depth.vert", "passes/shadow_depth.frag")   # the depth pass's chunks
 
 
 def light_frame(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,7 +115,7 @@ class ShadowMaps:
         self.version = 0
         self._state = None           # (key, directions bytes, size) last drawn
         self._mesh_key = None
-        self._program = self._vao = self._buffers = None
+        self._programs = self._program = self._vao = self._buffers = None
         self._scratch = None         # (colour texture, depth renderbuffer, framebuffer)
 
     # drawing ---------------------------------------------------------------------------------------
@@ -173,7 +126,8 @@ class ShadowMaps:
         self._check_limits(request)
         clear_gl_error(self.ctx, "drawing shadow maps")
         if self._program is None:
-            self._program = self.ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
+            self._programs = ProgramCache(self.ctx)
+            self._program = self._programs.get(*PROGRAM)
         if request.key != self._mesh_key or self._vao is None:
             self._upload_mesh(request)
         layers, size = len(request.directions), request.size
@@ -301,6 +255,6 @@ class ShadowMaps:
         self._release_mesh()
         self._release_maps()
         if self._program is not None:
-            self._program.release()
-            self._program = None
+            self._programs.release()
+            self._program = self._programs = None
         self.layers, self._state = 0, None

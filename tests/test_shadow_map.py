@@ -23,8 +23,8 @@ from inshade.bundle import Bundle
 from inshade.runtime.network import gl_function
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
-from inshade.runtime.shadow import (ShadowMaps, ShadowRequest, bounding_sphere, light_frame, light_matrices,
-                                    shadow_visibility_np)
+from inshade.runtime.shadow import ShadowMaps, bounding_sphere, light_frame, light_matrices, shadow_visibility_np
+from inshade.technique import ShadowRequest
 
 from parity import parity_settings
 

@@ -118,7 +118,7 @@ def _shadows(scene, bundles, values):
 
     import numpy as np
 
-    from inshade.runtime.shadow import ShadowRequest
+    from inshade.technique import ShadowRequest
 
     from .grid import caster_cubes
 
