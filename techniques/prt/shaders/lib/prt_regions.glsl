@@ -2,7 +2,9 @@
 // cell of a floor-plan grid (PRT_REGION_TABLE), and mixed with a neighbouring cell's network within
 // a band along the cell sides where the two differ, so no seam shows (bilinear at corners).
 // Included by the generated <prt_network> of a region set (techniques/prt/regions.py region_chunks),
-// which defines PRT_REGION_* before and prt_region_blend after it. Torch twin, same float32 operations:
+// which defines PRT_REGION_* before it: the grid, the table and PRT_REGION_TERMS, one
+// PRT_REGION_TERM(index, eval function, centre, inv_radius, scale) per network in order. Torch twin,
+// same float32 operations:
 // techniques/prt/regions.py blend_weights + techniques/prt/region_twin.py region_transfer.
 
 // Own-network weight along one axis from the in-cell coordinate f: 1/2 on the cell side, 1 at
@@ -54,9 +56,21 @@ float prt_region_weight(int r, in int nets[4], in float w[4]) {
     return wr;
 }
 
-// Defined after this file by the generated chunk: sum over networks r (in order) of
-// weight_r * network_r(p, n), each network's code appearing once.
-void prt_region_blend(vec3 p, vec3 n, in int nets[4], in float w[4], out vec4 t[4]);
+// Network I's share of the blend (EVAL its eval function, its frame CENTER, INV_RADIUS, SCALE): run
+// only where its weight is above 0 (a dynamic branch), in its own frame.
+#define PRT_REGION_TERM(I, EVAL, CENTER, INV_RADIUS, SCALE) wr = prt_region_weight(I, nets, w); if (wr > 0.0) { x[0] = vec4((p - CENTER) * INV_RADIUS, n.x); x[1] = vec4(n.y, n.z, 0.0, 0.0); EVAL(x, y); for (int b = 0; b < 4; ++b) { t[b] = t[b] + wr * (y[b] * SCALE); } }
+
+// The blended transfer at world p, normal n: each network's code once, accumulated in network
+// order (region_twin.region_transfer).
+void prt_region_blend(vec3 p, vec3 n, in int nets[4], in float w[4], out vec4 t[4]) {
+    vec4 x[PRT_NET_IN_BLOCKS];
+    vec4 y[PRT_NET_OUT_BLOCKS];
+    for (int b = 0; b < 4; ++b) {
+        t[b] = vec4(0.0);
+    }
+    float wr;
+    PRT_REGION_TERMS
+}
 
 // PRT_NET_EVAL of a region set: x holds the world position and the normal (identity frame).
 void prt_regions_eval(in vec4 x[PRT_NET_IN_BLOCKS], out vec4 y[PRT_NET_OUT_BLOCKS]) {
