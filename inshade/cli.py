@@ -896,7 +896,9 @@ def _interrupted(signum, frame) -> None:
     Unwinding instead would release GL objects while the driver's threads may still be drawing
     them, which crashes llvmpipe now and then (SIGSEGV)."""
     from inshade.files import remove_temporaries
+    from inshade.progress import stop_watchers
 
+    stop_watchers()
     remove_temporaries()
     for stream in (sys.stdout, sys.stderr):
         try:

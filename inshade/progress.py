@@ -168,11 +168,12 @@ WAIT_LINE_S = 10.0      # off a TTY: a line this often
 _WATCHER = r"""
 import os, sys, time
 what, quiet, every, tty = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4] == "1"
+parent = int(sys.argv[5])
 start = time.monotonic()
 frames = "|/-\\"
 shown, k = 0.0, 0
 time.sleep(quiet)
-while True:
+while os.getppid() == parent:   # a parent gone without stopping us (killed, os._exit): stop too
     now = time.monotonic() - start
     if tty:
         os.write(2, f"\r{frames[k % 4]} {what}: {now:.0f} s".encode())
@@ -184,6 +185,18 @@ while True:
             shown = now
         time.sleep(0.5)
 """
+
+
+_WATCHERS: set = set()   # the watcher processes running now
+
+
+def stop_watchers() -> None:
+    """Stop every watcher now: for an exit that skips ``waiting.__exit__`` (Ctrl+C's os._exit),
+    so no watcher outlives its process holding its stderr open."""
+    for proc in list(_WATCHERS):
+        proc.kill()
+        proc.wait()
+    _WATCHERS.clear()
 
 
 class waiting:
@@ -210,8 +223,9 @@ class waiting:
                 self.stream.flush()
                 self._tty = tty
                 self._proc = subprocess.Popen([sys.executable, "-c", _WATCHER, self.what, str(self.quiet),
-                                               str(self.every), "1" if tty else "0"],
+                                               str(self.every), "1" if tty else "0", str(os.getpid())],
                                               stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+                _WATCHERS.add(self._proc)
             except OSError:   # no watcher (e.g. a process limit): the wait is just silent
                 self._proc = None
         return self
@@ -221,6 +235,7 @@ class waiting:
         if self._proc is not None:
             self._proc.kill()
             self._proc.wait()
+            _WATCHERS.discard(self._proc)
             if self._tty and self.seconds >= self.quiet:
                 self.stream.write("\r\x1b[K")   # clear the spinner's line
                 self.stream.flush()

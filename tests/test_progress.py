@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io
+import time
 
 import pytest
 
@@ -145,3 +146,26 @@ def test_waiting_speaks_only_for_long_waits_and_stops():
     lines = long.stderr.splitlines()
     assert 2 <= len(lines) <= 4 and all(x.startswith("inshade: still compiling x (") for x in lines), lines
     assert long.stdout.startswith("done 1.6")
+
+
+@pytest.mark.parametrize("leave", ["from inshade.progress import stop_watchers; stop_watchers(); os._exit(130)",
+                                   "os._exit(130)", "os.kill(os.getpid(), signal.SIGKILL)"],
+                         ids=["ctrl-c", "os-exit", "killed"])
+def test_a_watcher_never_outlives_its_process(leave):
+    """Ctrl+C leaves through os._exit, which skips the watcher's stop: the watcher is stopped
+    first, and one left behind by any other exit stops itself when its parent is gone, so nobody
+    reading the command's stderr waits on a pipe it still holds."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent(f"""
+        import os, signal, time
+        from inshade.progress import waiting
+        with waiting("compiling x", quiet=0.2, every=0.3):
+            time.sleep(0.6)
+            {leave}
+    """)
+    start = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode in (130, -9) and time.monotonic() - start < 20, done.stderr
