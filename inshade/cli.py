@@ -24,7 +24,6 @@ SHARED_BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage
                                                      "time, export peak memory"),
                   "suite": ("inshade.bench.suite", "every bench, sized by --preset cpu|device, and a one-page "
                                                    "summary against the papers (docs/bench/<renderer>/)")}
-ALIASES = {"compress": ("train", "di_texture")}   # `inshade compress ...` = `inshade train di_texture ...`
 
 
 def trainers() -> dict:
@@ -32,6 +31,14 @@ def trainers() -> dict:
     from inshade import technique
 
     return {t.name: (t.train, t.train_help or t.summary) for t in technique.techniques() if t.train}
+
+
+def aliases() -> dict:
+    """command -> ("train", name): a technique's own top-level name for its trainer
+    (``Technique.train_alias``, e.g. `inshade compress ...` runs a texture trainer)."""
+    from inshade import technique
+
+    return {t.train_alias: ("train", t.name) for t in technique.techniques() if t.train and t.train_alias}
 
 
 def benches() -> dict:
@@ -738,7 +745,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_doctor)
 
-    for alias, (command, name) in ALIASES.items():
+    for alias, (command, name) in aliases().items():
         p = sub.add_parser(alias, help=f"same as `inshade {command} {name}`",
                            description=f"Same as `inshade {command} {name}`; try `inshade {command} {name} --help`.")
         p.add_argument("rest", nargs=argparse.REMAINDER, help="its options")
@@ -747,7 +754,7 @@ def build_parser() -> argparse.ArgumentParser:
     _mount(sub, "bench", benches(), "benchmarks (write JSON + markdown + plot)")
     _mount(sub, "train", trainers(), "build trained/ assets")
     for name, p in sub.choices.items():   # -q also after the command (`inshade render x -q ...`);
-        if name not in ("bench", "train", *ALIASES):   # SUPPRESS keeps a -q given before it
+        if name not in ("bench", "train", *aliases()):   # SUPPRESS keeps a -q given before it
             p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                            help="only errors on stderr")
         if name in GL_COMMANDS:
@@ -834,8 +841,8 @@ def _main(argv) -> int:
     # (so its --help is its own), after the global ones.
     lead = _leading_options(argv)
     rest = argv[len(lead):]
-    if rest and rest[0] in ALIASES:
-        rest = [*ALIASES[rest[0]], *rest[1:]]
+    if rest and rest[0] in aliases():
+        rest = [*aliases()[rest[0]], *rest[1:]]
     tables = {"train": trainers, "bench": benches}
     if len(rest) >= 2 and rest[0] in tables and rest[1] in tables[rest[0]]():
         # the module parses its own options (and --help); the global ones are taken out first

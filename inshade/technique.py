@@ -181,6 +181,7 @@ class Technique:
     programs: tuple[ProgramSpec, ...] = ()
     train: str | None = None
     train_help: str = ""
+    train_alias: str | None = None   # a top-level command that is `inshade train NAME` (e.g. compress)
     bench: str | None = None
     bench_help: str = ""
     shaders: Path | None = None
@@ -188,6 +189,9 @@ class Technique:
     def __post_init__(self):
         if not self.name.isidentifier():
             raise TechniqueError(f"technique name must be an identifier, got {self.name!r}")
+        if self.train_alias is not None and not (self.train and self.train_alias.isidentifier()):
+            raise TechniqueError(f"technique {self.name!r}: train_alias needs a trainer and an identifier, "
+                                 f"got {self.train_alias!r}")
 
 
 _REGISTRY: dict[str, Technique] = {}
@@ -212,6 +216,9 @@ def register(technique: Technique) -> Technique:
         if kinds:
             raise TechniqueError(f"technique {technique.name!r}: bundle kind {sorted(kinds)[0]!r} already "
                                  f"belongs to {other.name!r}")
+        if technique.train_alias and technique.train_alias in (other.name, other.train_alias):
+            raise TechniqueError(f"technique {technique.name!r}: train_alias {technique.train_alias!r} already "
+                                 f"names {other.name!r}")
     _REGISTRY[technique.name] = technique
     return technique
 

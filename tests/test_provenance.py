@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from inshade.cli import ALIASES, trainers
+from inshade.cli import aliases, trainers
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -51,8 +51,8 @@ def test_recorded_command_parses_with_todays_cli(command, where):
     else:
         assert argv[0] == "inshade", f"{where}: {command}"
         words = argv[1:]
-        if words[0] in ALIASES:
-            words = [*ALIASES[words[0]], *words[1:]]
+        if words[0] in aliases():
+            words = [*aliases()[words[0]], *words[1:]]
         assert words[0] == "train" and words[1] in trainers(), f"{where}: no command `inshade {' '.join(words[:2])}`"
         module, rest = trainers()[words[1]][0], words[2:]
     parser = argparse.ArgumentParser(prog=module)

@@ -53,6 +53,10 @@ def test_registering_a_program_or_kind_twice_is_an_error():
         technique.register(technique.Technique("dup", "x", programs=(technique.ProgramSpec("passes/sdf_prt.frag"),)))
     with pytest.raises(technique.TechniqueError, match="bundle kind 'prt' already belongs"):
         technique.register(technique.Technique("dup", "x", kinds=("prt",)))
+    with pytest.raises(technique.TechniqueError, match="train_alias 'compress' already names 'di_texture'"):
+        technique.register(technique.Technique("dup", "x", train="dup.train", train_alias="compress"))
+    with pytest.raises(technique.TechniqueError, match="train_alias needs a trainer"):
+        technique.Technique("dup", "x", train_alias="dup")
     with pytest.raises(technique.TechniqueError, match="geometry"):
         technique.ProgramSpec("passes/x.frag", geometry="voxels")
     assert "dup" not in [t.name for t in technique.techniques()]
@@ -67,14 +71,15 @@ def test_a_scene_whose_program_no_technique_draws_is_one_error(tmp_path):
 
 
 def test_runtime_names_no_technique():
-    """The runtime, viewer, shader resolver and codegen hold no technique name and import no
-    technique module: they ask the registry. ("sdf" is also a geometry every runtime draws,
-    so it is not searched for as a word.)"""
+    """The runtime, viewer, shader resolver, codegen and the CLI hold no technique name and import
+    no technique module: they ask the registry (a trainer's top-level alias such as `compress`
+    comes from its record). ("sdf" is also a geometry every runtime draws, so it is not searched
+    for as a word.)"""
     names = [t.name for t in technique.techniques() if t.name not in technique.GEOMETRIES]
     pattern = re.compile(r"\b(" + "|".join(map(re.escape, names)) + r")\b")
     found = []
     for folder in RUNTIME_DIRS:
-        for path in sorted((ROOT / folder).rglob("*.py")):
+        for path in [*sorted((ROOT / folder).rglob("*.py")), *([ROOT / "inshade/cli.py"] * (folder == "runtime"))]:
             text = path.read_text()
             found += [f"{path.relative_to(ROOT)}: {m}" for m in pattern.findall(text)]
             if "inshade.techniques" in text:
@@ -96,6 +101,8 @@ def test_toy_technique_trains_renders_and_is_listed(tmp_path):
     for t in ("neural_image", "prt", "di_texture"):
         assert t in listed
     assert "toy_rings" not in _cli("train", "--help").stdout   # only where it is registered
+    alias = _cli("rings", "--help", env_extra=env)                # its record's train_alias
+    assert alias.returncode == 0 and "--seed" in alias.stdout, alias.stderr
 
     asset = tmp_path / "toy"
     made = _cli("train", "toy_rings", "-o", str(asset), env_extra=env)

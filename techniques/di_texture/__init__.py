@@ -10,6 +10,7 @@ TECHNIQUE = Technique(
     kinds=("di_texture",),
     train="inshade.techniques.di_texture.train",
     train_help="compress an image into a DI texture asset (IMAGE or skimage:NAME)",
+    train_alias="compress",
     bench="inshade.techniques.di_texture.bench",
     bench_help="DI texture compression vs ASTC / BC1 / BC7: PSNR, FLIP, bits per pixel",
 )

@@ -32,5 +32,6 @@ TECHNIQUE = Technique(
                           chunks=palette_chunk, frame=tint, validate=check),),
     train="toy_rings.train",
     train_help="write the toy_rings asset (a random 2 -> 3 sine network)",
+    train_alias="rings",
     shaders=Path(__file__).resolve().parent / "shaders",
 )
