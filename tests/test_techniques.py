@@ -89,6 +89,17 @@ def test_runtime_names_no_technique():
     assert not found, "technique names in the runtime:\n" + "\n".join(found)
 
 
+def test_packaging_names_no_technique():
+    """pyproject.toml and setup.py name no technique: setup.py finds every technique folder, so
+    adding one needs no packaging edit."""
+    names = [t.name for t in technique.techniques() if t.name not in technique.GEOMETRIES]
+    pattern = re.compile(r"\b(" + "|".join(map(re.escape, names)) + r")\b")
+    for name in ("pyproject.toml", "setup.py"):
+        assert not pattern.findall((ROOT / name).read_text()), name
+    folders = {d.name for d in (ROOT / "techniques").iterdir() if (d / "__init__.py").is_file()}
+    assert {t.name for t in technique.techniques() if t.name != "toy_rings"} <= folders
+
+
 def test_toy_technique_trains_renders_and_is_listed(tmp_path):
     """One folder, registered through INSHADE_TECHNIQUES: `inshade train --help` lists it,
     `inshade train toy_rings` writes its asset, `inshade render` draws it, and the pixels equal a
