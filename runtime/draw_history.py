@@ -23,10 +23,18 @@ def _path() -> Path:
     return cache_dir() / "draws.json"
 
 
+_MEMO: dict = {}   # the file as last read, by (path, mtime, size): a frame asks without re-reading
+
+
 def _read() -> dict:
+    path = _path()
     try:
-        data = json.loads(_path().read_text())
-        return data if isinstance(data, dict) else {}
+        st = path.stat()
+        stamp = (str(path), st.st_mtime_ns, st.st_size)
+        if _MEMO.get("stamp") != stamp:
+            data = json.loads(path.read_text())
+            _MEMO.update(stamp=stamp, data=data if isinstance(data, dict) else {})
+        return _MEMO["data"]
     except (OSError, ValueError):
         return {}
 
@@ -40,7 +48,7 @@ def lookup(renderer: str, key: str) -> dict:
 def record(renderer: str, key: str, **values) -> None:
     from inshade.files import atomic_write
 
-    data = _read()
+    data = dict(_read())   # the memo stays as read; the file is the record
     name = f"{renderer}|{key}"
     data[name] = {**(data.get(name) if isinstance(data.get(name), dict) else {}), **values}
     if len(data) > MAX_ENTRIES:   # the oldest entries go first (dicts keep insertion order)

@@ -109,6 +109,7 @@ class SceneRenderer:
         self.first_draw_seconds = None  # wall time of the first network draw (llvmpipe JITs there)
         self.first_draw_pending = True
         self.program = None
+        self.program_key = ""          # a stable name of the program's sources (the draw history's key)
         self.generated = []
         self.resources: list[NetworkResources] = []
         self._net_pass = None
@@ -228,6 +229,7 @@ class SceneRenderer:
             if self.program is not None and self.owns_programs:
                 self.cache.discard(self.program)
             self.program = program
+            self.program_key = self.cache.key_of(program)
             self._net_pass = FullscreenPass(self.ctx, program)
             self.first_draw_pending = True
         elif self.bundles is not bundles:
@@ -416,7 +418,7 @@ class SceneRenderer:
 
         from . import draw_history
 
-        renderer, program_key = self.gl.get("renderer", ""), self.cache.key_of(self.program)
+        renderer, program_key = self.gl.get("renderer", ""), self.program_key
         view = f"{program_key}:{hash_values(self.values)}"   # a frame's time depends on the settings too
         frame = draw_history.lookup(renderer, view) if program_key else {}
         estimate = frame["frame_s"] * pixels / frame["pixels"] if frame.get("frame_s") and frame.get("pixels") else 0.0
@@ -436,8 +438,10 @@ class SceneRenderer:
             self.first_draw_pending = False
             _DRAWN.add(program_key)
             if announce and w.seconds >= 2.0:
+                # a first draw far past this view's known frame time was a compile the cache missed
+                missed = cached and w.seconds > 3.0 * estimate
                 log.info("compiled and drawn in %s%s", format_seconds(w.seconds),
-                         " (Mesa's shader cache did not have it)" if cached else "")
+                         " (Mesa's shader cache did not have it)" if missed else "")
             if program_key and self.gl.get("software"):
                 draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3),
                                      shader_cache=draw_history.shader_cache_on())
@@ -452,7 +456,7 @@ class SceneRenderer:
 
         if not (self.first_draw_pending and self.gl.get("software")):
             return None, False
-        renderer, program_key = self.gl.get("renderer", ""), self.cache.key_of(self.program)
+        renderer, program_key = self.gl.get("renderer", ""), self.program_key
         if program_key in _DRAWN:   # this process drew it already: the driver has it, nothing to say
             return None, False
         past = draw_history.lookup(renderer, program_key) if program_key else {}

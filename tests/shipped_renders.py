@@ -102,6 +102,7 @@ def render_case(asset: str, settings: dict) -> np.ndarray:
 def main(argv=None) -> int:
     import json
 
+    from inshade.files import atomic_write
     from inshade.runtime.context import shared_context
 
     argv = sys.argv[1:] if argv is None else argv
@@ -123,7 +124,7 @@ def main(argv=None) -> int:
     tmp = RECORD.with_name(RECORD.name + ".tmp.npz")
     np.savez_compressed(tmp, **images)
     tmp.replace(RECORD)
-    MADE_BY.write_text(json.dumps(made_by, indent=1) + "\n")
+    atomic_write(MADE_BY, json.dumps(made_by, indent=1) + "\n")
     print(f"wrote {RECORD} and {MADE_BY.name} ({made_by['gl_renderer']})", file=sys.stderr)
     return 0
 
