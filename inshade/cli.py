@@ -238,13 +238,15 @@ def _codegen_program(args, src: Path) -> int:
     check_output(args.output)
     scene = load_scene(src)
     renderer = SceneRenderer(scene, shared_context(), settings={"storage": args.storage})
-    sources = renderer.assembled()
-    width, height = scene.size
-    uniforms = {}
-    for name, value in renderer.uniform_values(scene.make_camera(), width, height).items():
-        uniforms[name] = (np.frombuffer(value, np.float32).tolist() if isinstance(value, (bytes, bytearray))
-                          else list(value) if isinstance(value, tuple) else value)
-    entries, tensors = _resource_manifest([r for g in renderer.generated for r in g.resources])
+    try:
+        sources = renderer.assembled()
+        width, height = scene.size
+        values = renderer.uniform_values(scene.make_camera(), width, height)
+        entries, tensors = _resource_manifest([r for g in renderer.generated for r in g.resources])
+    finally:
+        renderer.release()
+    uniforms = {name: (np.frombuffer(value, np.float32).tolist() if isinstance(value, (bytes, bytearray))
+                       else list(value) if isinstance(value, tuple) else value) for name, value in values.items()}
     out = Path(args.output)
     vert = out.with_suffix(".vert") if out.suffix == ".frag" else out.with_name(out.stem + ".vert" + out.suffix)
     manifest = {"scene": str(src), "program": scene.program, "vertex_shader": vert.name,
@@ -252,7 +254,6 @@ def _codegen_program(args, src: Path) -> int:
                 "note": "a fullscreen triangle (the vertex stage) drawing the fragment stage; bind the resources "
                         "under their names and set the uniforms (values of the scene's default view and settings)"}
     paths = _write_group(out, sources["fragment"], manifest, tensors, {vert: sources["vertex"]})
-    renderer.release()
     for p in paths:
         print(f"wrote {p}", file=sys.stderr)
     return 0
@@ -657,7 +658,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ap = ArgumentParser(prog="inshade", description="Run PyTorch-trained networks in OpenGL shaders. "
                         "An ASSET is a folder (scene.json and/or a bundle) or the name of a shipped one "
-                        f"(looked up in $INSHADE_ASSETS, then trained/), e.g. `inshade render prt_creature -o x.png`.")
+                        "(looked up in $INSHADE_ASSETS, then trained/), e.g. `inshade render prt_creature -o x.png`.")
     ap.add_argument("-q", "--quiet", action="store_true", help="only errors on stderr")
     _gl_options(ap, None)
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)
