@@ -11,12 +11,18 @@ Networks (Real-Time Neural Appearance Models §2; sizes from the paper):
   ``sampler_isotropic``: the same with the isotropic proxy (3 raw outputs), the paper's baseline;
 - ``encoder`` (training only): k(x) (the material's per-texel parameters, LEAN-prefiltered for
   coarse levels) -> MLP 2x64 -> z.
+
+``export_graphs`` gives the bundle graphs of a trained material; ``decoder_loss`` and
+``sampler_loss`` are what the networks are fit with (§3.5).
 """
 from __future__ import annotations
+
+import math
 
 import torch
 
 from inshade.models.graph import GraphModule
+from inshade.models.proxy_lobe import cosine_direction
 from inshade.models.registry import TORCH_COMPONENTS
 
 LATENT = 8
@@ -95,3 +101,58 @@ class NeuralMaterial(torch.nn.Module):
         cls = TORCH_COMPONENTS["latent_pyramid"]
         self.pyramid = cls.from_arrays([t.detach().cpu().numpy() for t in levels_data], precision="f16")
         return self.pyramid
+
+
+def export_graphs(model: NeuralMaterial) -> dict[str, GraphModule]:
+    """The bundle graphs of a trained material (on the CPU), by asset folder: the latent pyramid,
+    the decoders with their expm1 and the samplers."""
+    graphs = {"latents": latents_graph(model.pyramid)}
+    for name, dec in model.decoders.items():
+        graphs[f"decoder_{name}"] = finish_decoder(dec)
+    graphs.update(model.samplers.items())
+    return graphs
+
+
+# ---------------------------------------------------------------------------------------------
+# losses
+
+def decoder_loss(model: NeuralMaterial, z, light, view, target) -> tuple[torch.Tensor, dict]:
+    x = torch.cat([z, light, view], -1)
+    goal = torch.log1p(torch.clamp(target, min=0))
+    losses = {name: (dec(x) - goal).abs().mean() for name, dec in model.decoders.items()}
+    return sum(losses.values()), {k: float(v.detach()) for k, v in losses.items()}
+
+
+def sampler_loss(model: NeuralMaterial, z, view, samples: int, gen) -> tuple[torch.Tensor, dict]:
+    """KL(decoder || proxy) up to a constant, per (z, view): -E_m[(p / m) log q] with directions
+    from the mixture m = (q + cosine) / 2, p the 3x64 decoder's luminance normalised per pair by
+    its own estimate; latents and the decoder detached (§3.5)."""
+    from inshade.models.proxy_lobe import proxy_pdf, proxy_sample
+
+    z = z.detach()
+    n = z.shape[0]
+    zz = z.repeat_interleave(samples, 0)
+    vv = view.repeat_interleave(samples, 0)
+    u = torch.rand(n * samples, 3, generator=gen).to(z.device)
+    dec = model.decoders["3x64"]
+    out = {}
+    total = 0.0
+    for name, smp in model.samplers.items():
+        params = smp(torch.cat([z, view], -1)).repeat_interleave(samples, 0)
+        with torch.no_grad():
+            from_proxy = proxy_sample(params.detach(), vv, u)
+            cos = cosine_direction(u[:, 1].double(), u[:, 2].double()).float()
+            pick = (torch.arange(n * samples, device=z.device) % 2 == 0)[:, None]
+            light = torch.where(pick, from_proxy, cos)
+            light = torch.nn.functional.normalize(light, dim=-1)
+            f = torch.expm1(dec(torch.cat([zz, light, vv], -1))).clamp(min=0).mean(-1)
+            f = torch.where(light[:, 2] > 0, f, torch.zeros_like(f))
+            q_det = proxy_pdf(params.detach(), vv, light)
+            m = 0.5 * q_det + 0.5 * torch.clamp(light[:, 2], min=0) / math.pi
+            w = torch.where(m > 0, f / m.clamp(min=1e-12), torch.zeros_like(f)).reshape(n, samples)
+            w = w / w.mean(1, keepdim=True).clamp(min=1e-12)
+        q = proxy_pdf(params, vv, light).clamp(min=1e-12)
+        loss = -(w.reshape(-1) * torch.log(q)).mean()
+        out[name] = float(loss.detach())
+        total = total + loss
+    return total, out

@@ -43,15 +43,13 @@ import torch
 from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
-from inshade.runtime.labels import split_labels
-from inshade.lit_settings import lit_settings
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 
 from . import KIND, NETWORKS
-from inshade.models.latent_pyramid import LatentPyramid, bilinear_repeat
-from inshade.models.proxy_lobe import cosine_direction
+from inshade.models.latent_pyramid import LatentPyramid
 
-from .model import LATENT, NeuralMaterial, finish_decoder, latents_graph
+from .data import Targets, direction_pairs, draw_levels, scene_description
+from .model import LATENT, NeuralMaterial, decoder_loss, export_graphs, sampler_loss
 
 PRESETS = {
     "ship": dict(resolution=512, steps1=5000, steps2=10000, batch=4096, sampler_batch=512, sampler_samples=8,
@@ -75,141 +73,6 @@ def preset_settings(preset: str, asset: str | None = None) -> dict:
                 footprint_samples=p["footprint_samples"], seed=DEFAULTS["seed"], lr=DEFAULTS["lr"],
                 latent_lr=DEFAULTS["latent_lr"], level_scale=DEFAULTS["level_scale"],
                 mollify_degrees=DEFAULTS["mollify_degrees"])
-
-
-# ---------------------------------------------------------------------------------------------
-# samples
-
-def draw_levels(n: int, levels: int, scale: float, gen: torch.Generator) -> torch.Tensor:
-    """Integer levels in [0, levels) from a truncated exponential favouring fine levels (§3.3)."""
-    p = torch.exp(-torch.arange(levels, dtype=torch.float64) / scale)
-    return torch.multinomial(p / p.sum(), n, replacement=True, generator=gen)
-
-
-def _uniform_hemisphere(u1, u2):
-    z = u1
-    r, phi = torch.sqrt(torch.clamp(1 - z * z, min=0)), 2 * math.pi * u2
-    return torch.stack([r * torch.cos(phi), r * torch.sin(phi), z], -1)
-
-
-def half_difference_pairs(n: int, gen: torch.Generator):
-    """(light, view) from uniformly sampled half and difference vectors (Rusinkiewicz 1998)."""
-    u = torch.rand(n, 4, generator=gen, dtype=torch.float64)
-    h = _uniform_hemisphere(u[:, 0], u[:, 1])
-    d = _uniform_hemisphere(u[:, 2], u[:, 3])
-    # frame around h: rotate (0, 0, 1) onto h
-    t = torch.nn.functional.normalize(torch.cross(torch.tensor([0.0, 1.0, 0.0], dtype=h.dtype).expand_as(h), h,
-                                                  dim=-1) + torch.tensor([1e-9, 0, 0], dtype=h.dtype), dim=-1)
-    b = torch.cross(h, t, dim=-1)
-    light = d[:, :1] * t + d[:, 1:2] * b + d[:, 2:] * h
-    view = 2 * (light * h).sum(-1, keepdim=True) * h - light
-    return light, view
-
-
-def direction_pairs(n: int, gen: torch.Generator):
-    """n (light, view) pairs above the horizon: half half/difference, half cosine x cosine."""
-    lights, views, have = [], [], 0
-    while have < n:
-        m = 2 * (n - have) + 64
-        l1, v1 = half_difference_pairs(m // 2, gen)
-        u = torch.rand(m - m // 2, 4, generator=gen, dtype=torch.float64)
-        l2, v2 = cosine_direction(u[:, 0], u[:, 1]), cosine_direction(u[:, 2], u[:, 3])
-        light, view = torch.cat([l1, l2]), torch.cat([v1, v2])
-        ok = (light[:, 2] > 1e-4) & (view[:, 2] > 1e-4)
-        lights.append(light[ok])
-        views.append(view[ok])
-        have += int(ok.sum())
-    light = torch.cat(lights)[:n]
-    view = torch.cat(views)[:n]
-    perm = torch.randperm(n, generator=gen)
-    return light[perm].float(), view[perm].float()
-
-
-def jitter_cone(d: torch.Tensor, angle: float, gen: torch.Generator) -> torch.Tensor:
-    """Directions drawn uniformly in a cone of half-angle ``angle`` (radians) around d."""
-    if angle <= 0:
-        return d
-    u = torch.rand(d.shape[0], 2, generator=gen).to(d.device)    # drawn on the CPU generator, used on d's device
-    cos_max = math.cos(angle)
-    z = 1 - u[:, 0] * (1 - cos_max)
-    r, phi = torch.sqrt(torch.clamp(1 - z * z, min=0)), 2 * math.pi * u[:, 1]
-    helper = torch.where(d[:, 2:].abs() < 0.9, torch.tensor([0.0, 0.0, 1.0], device=d.device),
-                         torch.tensor([1.0, 0.0, 0.0], device=d.device))
-    t = torch.nn.functional.normalize(torch.cross(helper.expand_as(d), d, dim=-1), dim=-1)
-    b = torch.cross(d, t, dim=-1)
-    return (r * torch.cos(phi))[:, None] * t + (r * torch.sin(phi))[:, None] * b + z[:, None] * d
-
-
-class Targets:
-    """Prefiltered, mollified reference values (§3.3, §3.4) from the material's level-0 textures."""
-
-    def __init__(self, material, raw: np.ndarray, device):
-        from .reference import reflectance
-
-        self.material = material
-        self.reflectance = reflectance
-        self.texels = torch.from_numpy(np.ascontiguousarray(raw)).float().to(device)
-        self.size = raw.shape[0]
-
-    def __call__(self, uv, level, light, view, samples: int, cone: float, gen) -> torch.Tensor:
-        n = uv.shape[0]
-        k = torch.where(level == 0, torch.ones_like(level), torch.full_like(level, samples))
-        reps = int(k.max())
-        total = torch.zeros(n, 3, device=uv.device)
-        for s in range(reps):
-            active = (k > s).nonzero(as_tuple=True)[0]
-            sigma = (0.4 * 2.0 ** level[active].float() / self.size)[:, None]
-            offset = torch.randn(active.numel(), 2, generator=gen).to(uv.device) * sigma
-            offset = torch.where(level[active, None] == 0, torch.zeros_like(offset), offset)
-            p = bilinear_repeat(self.texels, uv[active] + offset)
-            l_jit = jitter_cone(light[active], cone, gen)
-            total[active] += self.reflectance(p, l_jit, view[active], self.material)
-        return total / k[:, None].float()
-
-
-# ---------------------------------------------------------------------------------------------
-# losses
-
-def decoder_loss(model: NeuralMaterial, z, light, view, target) -> tuple[torch.Tensor, dict]:
-    x = torch.cat([z, light, view], -1)
-    goal = torch.log1p(torch.clamp(target, min=0))
-    losses = {name: (dec(x) - goal).abs().mean() for name, dec in model.decoders.items()}
-    return sum(losses.values()), {k: float(v.detach()) for k, v in losses.items()}
-
-
-def sampler_loss(model: NeuralMaterial, z, view, samples: int, gen) -> tuple[torch.Tensor, dict]:
-    """KL(decoder || proxy) up to a constant, per (z, view): -E_m[(p / m) log q] with directions
-    from the mixture m = (q + cosine) / 2, p the 3x64 decoder's luminance normalised per pair by
-    its own estimate; latents and the decoder detached (§3.5)."""
-    from inshade.models.proxy_lobe import proxy_pdf, proxy_sample
-
-    z = z.detach()
-    n = z.shape[0]
-    zz = z.repeat_interleave(samples, 0)
-    vv = view.repeat_interleave(samples, 0)
-    u = torch.rand(n * samples, 3, generator=gen).to(z.device)
-    dec = model.decoders["3x64"]
-    out = {}
-    total = 0.0
-    for name, smp in model.samplers.items():
-        params = smp(torch.cat([z, view], -1)).repeat_interleave(samples, 0)
-        with torch.no_grad():
-            from_proxy = proxy_sample(params.detach(), vv, u)
-            cos = cosine_direction(u[:, 1].double(), u[:, 2].double()).float()
-            pick = (torch.arange(n * samples, device=z.device) % 2 == 0)[:, None]
-            light = torch.where(pick, from_proxy, cos)
-            light = torch.nn.functional.normalize(light, dim=-1)
-            f = torch.expm1(dec(torch.cat([zz, light, vv], -1))).clamp(min=0).mean(-1)
-            f = torch.where(light[:, 2] > 0, f, torch.zeros_like(f))
-            q_det = proxy_pdf(params.detach(), vv, light)
-            m = 0.5 * q_det + 0.5 * torch.clamp(light[:, 2], min=0) / math.pi
-            w = torch.where(m > 0, f / m.clamp(min=1e-12), torch.zeros_like(f)).reshape(n, samples)
-            w = w / w.mean(1, keepdim=True).clamp(min=1e-12)
-        q = proxy_pdf(params, vv, light).clamp(min=1e-12)
-        loss = -(w.reshape(-1) * torch.log(q)).mean()
-        out[name] = float(loss.detach())
-        total = total + loss
-    return total, out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -399,11 +262,7 @@ def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, history, sec
     provenance = {"command": command_line, "preset": preset, "material": mat.name, **config,
                   "torch": torch.__version__, "device": str(device),
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-    cpu = model.to("cpu")
-    graphs = {"latents": latents_graph(cpu.pyramid)}
-    for name, dec in cpu.decoders.items():
-        graphs[f"decoder_{name}"] = finish_decoder(dec)
-    graphs.update(cpu.samplers.items())
+    graphs = export_graphs(model.to("cpu"))
     sizes = {}
     for folder, _prefix in NETWORKS:
         bundle = graphs[folder].export(KIND, folder, provenance=provenance)
@@ -420,59 +279,6 @@ def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, history, sec
                "train_seconds": round(seconds, 1), "train_threads": torch.get_num_threads(), "device": str(device),
                "bundle_bytes": sizes, "history": history}
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
-
-
-def scene_description(mat, name: str) -> dict:
-    """The asset's scene: the teapot under two lights and the studio environment."""
-    from . import LIGHTING, SAMPLING, VIEWS
-
-    return {
-        "format": "inshade.scene", "version": 1, "name": name,
-        "title": f"neural appearance: {mat.name} (latent pyramid + MLP decoder) on the Utah teapot",
-        "program": "passes/mesh_neural_appearance.frag", "size": [384, 288],
-        "networks": [{"bundle": folder, "prefix": prefix} for folder, prefix in NETWORKS],
-        "mesh": {"shape": "teapot", "segments": 12},
-        # the spout's tip inside a square picture too (the teapot is wider than tall)
-        "camera": {"type": "orbit", "fov_y": 35.0, "target": [0.35, 1.15, 0.0], "distance": 10.4, "yaw": 30.0,
-                   "pitch": -22.0},
-        "bookmarks": {
-            "close-up": {"type": "orbit", "fov_y": 35.0, "target": [0.6, 1.6, 1.2], "distance": 3.0, "yaw": 20.0,
-                         "pitch": -20.0},
-            "far": {"type": "orbit", "fov_y": 35.0, "target": [0.0, 1.2, 0.0], "distance": 24.0, "yaw": 30.0,
-                    "pitch": -22.0}},
-        "lights": [{"type": "point", "position": [4.0, 6.0, 5.0], "intensity": 60.0},
-                   {"type": "directional", "direction": [-0.6, 0.5, 0.3], "intensity": 1.5}],
-        "environment": {"sky": "studio", "rotation": 0.0, "degree": 4},
-        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "labels": split_labels("reference", "neural"),
-        "settings": {
-            **lit_settings("studio"),
-            "view": {"type": "choice", "default": "neural", "choices": list(VIEWS), "uniform": "u_na_view",
-                     "label": "view (split: left reference, right neural)"},
-            "decoder": {"type": "choice", "default": 32, "choices": [16, 32, 64], "define": "NA_DECODER",
-                        "label": "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64"},
-            "lighting": {"type": "choice", "default": "lights", "choices": list(LIGHTING),
-                         "uniform": "u_na_lighting", "label": "lighting (environment: Monte Carlo, accumulated)"},
-            "sampling": {"type": "choice", "default": "learned", "choices": list(SAMPLING),
-                         "uniform": "u_na_sampling", "label": "BRDF sampling"},
-            "mis": {"type": "bool", "default": True, "uniform": "u_na_mis", "label": "MIS with the environment"},
-            "latent_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                              "codegen": "latent_pyramid.filter",
-                              "label": "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)"},
-            "lights": {"type": "int", "default": 2, "min": 0, "max": 4, "uniform": "u_light_count",
-                       "label": "lights"},
-            "level_bias": {"type": "float", "default": 0.0, "min": -4.0, "max": 4.0, "uniform": "u_na_level_bias",
-                           "label": "pyramid level bias"},
-            "error_scale": {"type": "float", "default": 4.0, "min": 0.0, "max": 64.0, "uniform": "u_na_error_scale",
-                            "label": "error scale"},
-            "latent_page": {"type": "int", "default": 0, "min": 0, "max": 2, "uniform": "u_na_latent_page",
-                            "label": "latent channels (page)"},
-        },
-        "textures": [{"uniform": f"u_na_param{k}", "image": f"param{k}.png", "mipmaps": True, "repeat": True}
-                     for k in range(3)],
-        "requires": {"gl": 330},
-        "notes": "neural | reference: the 'view' setting; environment lighting accumulates (inshade render --spp N)",
-    }
 
 
 def render_preview(out: Path, spp: int = 4) -> None:
