@@ -18,6 +18,9 @@ import torch
 from inshade.sdf import parse_sdf
 from inshade.techniques.prt import thin
 from inshade.techniques.prt import transfer as T
+from inshade.techniques.prt.transfer_directions import hemisphere_directions
+from inshade.techniques.prt.transfer_inputs import TransferError
+from inshade.techniques.prt.transfer_surface import sample_sdf_surface
 from inshade.techniques.prt.twin import sdf_module
 
 HIT = 1e-3
@@ -46,14 +49,14 @@ def test_sdf_transfer_is_the_studied_scheme(mech_points, shadow):
     sdf, p, n = mech_points
     got = T.sdf_transfer(sdf, p, n, n_dirs=64, seed=3, shadow=shadow)
     off, thr = T.SHADOW_SCHEMES[shadow]
-    dirs = T.hemisphere_directions(n, 64, torch.Generator().manual_seed(3))
+    dirs = hemisphere_directions(n, 64, torch.Generator().manual_seed(3))
     ref, _, _ = thin.scheme_transfer(sdf, p, n, dirs, (off, thr, T.SHADOW_STEPS, 0.9, False))
     assert torch.equal(got, ref)
 
 
 def test_default_scheme_is_the_shipped_estimator():
     assert T.DEFAULT_SHADOW == "offset4" and T.SHADOW_SCHEMES["offset4"] == (T.OFFSET_EPS, 1.0)
-    with pytest.raises(T.TransferError, match="shadow: must be one of"):
+    with pytest.raises(TransferError, match="shadow: must be one of"):
         T.sdf_transfer(sdf_module(parse_sdf(SLOT)), torch.zeros(1, 3), torch.tensor([[0.0, 1.0, 0.0]]), shadow="x")
 
 
@@ -64,7 +67,7 @@ def test_fine_scheme_keeps_a_thin_slot_open(mech_points):
     sdf, _, _ = mech_points
     p = torch.tensor([[0.095, 0.0, 0.0]])
     n = torch.tensor([[0.0, 1.0, 0.0]])
-    dirs = T.hemisphere_directions(n, 4096, torch.Generator().manual_seed(5))
+    dirs = hemisphere_directions(n, 4096, torch.Generator().manual_seed(5))
     coarse = T.sdf_transfer(sdf, p, n, n_dirs=4096, seed=5)
     fine = T.sdf_transfer(sdf, p, n, n_dirs=4096, seed=5, shadow="fine")
     assert float(coarse[0, 0]) == 0.0
@@ -83,7 +86,7 @@ def test_fine_scheme_keeps_a_thin_slot_open(mech_points):
 def test_near_occluder_sampling_prefers_contact_regions(mech_points):
     sdf, _, _ = mech_points
     delta = 0.03
-    uni_p, uni_n = T.sample_sdf_surface(sdf, 3000, seed=1)
+    uni_p, uni_n = sample_sdf_surface(sdf, 3000, seed=1)
     near_p, near_n = thin.sample_near_occluders(sdf, 3000, seed=1, boost=3.0, delta=delta)
     share = lambda p, n: float((thin.occluder_proximity(sdf, p, n, delta) > 0.2).float().mean())  # noqa: E731
     assert share(near_p, near_n) > 1.5 * share(uni_p, uni_n) > 0
@@ -103,7 +106,7 @@ def test_plants_sdf_is_the_shipped_geometry_and_has_thin_leaves():
     assert json.loads(shipped.read_text()) == plants_sdf()
     assert 2 * LEAF[1] < 30 * HIT
     sdf = sdf_module(parse_sdf(plants_sdf()))
-    p, n = T.sample_sdf_surface(sdf, 2000, seed=2, resolution=64)
+    p, n = sample_sdf_surface(sdf, 2000, seed=2, resolution=64)
     with torch.no_grad():
         # a probe 30 hit_eps behind the surface leaves the solid somewhere: the leaves
         behind = sdf(p - n * (30 * HIT))
@@ -121,5 +124,5 @@ def test_build_dataset_traces_the_chosen_scheme(tmp_path):
     assert torch.equal(fine["transfer"], expect)
     assert torch.equal(default["transfer"], T.sdf_transfer(sdf, default["position"], default["normal"], n_dirs=16,
                                                            seed=0))
-    with pytest.raises(T.TransferError, match="shadow: must be one of"):
+    with pytest.raises(TransferError, match="shadow: must be one of"):
         T.build_dataset(sdf, 10, 4, shadow="nope")

@@ -21,9 +21,11 @@ import pytest
 import torch
 
 from inshade.models.sdf import SdfModule
-from inshade.techniques.prt.transfer import (TransferError, build_dataset, hemisphere_directions, load_dataset,
-                                     mesh_transfer, sample_mesh_surface, sample_sdf_surface, sdf_transfer,
-                                     sphere_directions)
+from inshade.techniques.prt.transfer import build_dataset, mesh_transfer, sdf_transfer
+from inshade.techniques.prt.transfer_dataset import load_dataset
+from inshade.techniques.prt.transfer_directions import hemisphere_directions, sphere_directions
+from inshade.techniques.prt.transfer_inputs import TransferError
+from inshade.techniques.prt.transfer_surface import sample_mesh_surface, sample_sdf_surface
 from inshade.techniques.prt.transfer_net import (TransferFrame, evaluate_transfer, export_transfer, main,
                                          train_transfer, transfer_metrics)
 from inshade.sdf import parse_sdf

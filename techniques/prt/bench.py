@@ -223,7 +223,7 @@ def rays_per_second(args) -> list[dict]:
     thread (what ``inshade train prt`` uses: on 2 shared cores two threads ran ~10x slower)."""
     import torch
 
-    from inshade.techniques.prt import transfer
+    from inshade.techniques.prt import transfer, transfer_surface
     from inshade.runtime.scene import load_scene
 
     torch.set_num_threads(1)
@@ -232,7 +232,7 @@ def rays_per_second(args) -> list[dict]:
     for path in _sdf_assets(args.asset_list):
         scene = load_scene(path)
         sdf = _sdf_module(scene)
-        p, n = transfer.sample_sdf_surface(sdf, args.rays, seed=0)
+        p, n = transfer_surface.sample_sdf_surface(sdf, args.rays, seed=0)
         dirs = 256
         start = time.perf_counter()
         transfer.sdf_transfer(sdf, p, n, n_dirs=dirs, seed=0)
@@ -245,7 +245,7 @@ def rays_per_second(args) -> list[dict]:
 
         from inshade.mesh import load_mesh
         mesh = load_mesh(mesh_path)
-        p, n = transfer.sample_mesh_surface(mesh, args.rays, seed=0)
+        p, n = transfer_surface.sample_mesh_surface(mesh, args.rays, seed=0)
         dirs = 256
         start = time.perf_counter()
         transfer.mesh_transfer(mesh, p, n, n_dirs=dirs, seed=0)

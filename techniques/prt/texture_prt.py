@@ -194,7 +194,8 @@ def bake(mesh, resolution: int, n_dirs: int = 256, seed: int = 0, gutter: float 
     """The transfer texture [N, N, 16] float32 (image layout: row iy, column ix) of a uv-mapped
     mesh, and bake statistics. Cells no filter footprint reaches stay 0. ``cache_dir``: the
     table is stored there keyed by mesh + settings and read back by a later call."""
-    from inshade.techniques.prt.transfer import MESH_OFFSET, VERSION as TRANSFER_VERSION, geometry_digest, mesh_transfer
+    from inshade.techniques.prt.transfer import MESH_OFFSET, VERSION as TRANSFER_VERSION, mesh_transfer
+    from inshade.techniques.prt.transfer_dataset import geometry_digest
     from inshade.mesh import mesh_uv
 
     n = _positive(resolution, "resolution", 2)
@@ -376,7 +377,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from inshade.mesh import load_mesh, obj_text
     from inshade.techniques.prt.train import default_name, previews_and_quality, scene_camera
-    from inshade.techniques.prt.transfer import geometry_bound
+    from inshade.techniques.prt.transfer_dataset import geometry_bound
 
     device = resolve_device(args.device)
     out = asset_folder.claim(args.out, default_name(Path(args.mesh)) + "_texture", force=args.force)

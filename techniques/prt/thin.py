@@ -28,6 +28,8 @@ import numpy as np
 import torch
 
 from inshade.techniques.prt import transfer as T
+from inshade.techniques.prt.transfer_directions import hemisphere_directions, project_visibility
+from inshade.techniques.prt.transfer_surface import sample_sdf_surface
 
 # (offset in hit_eps units, shadow hit threshold in hit_eps units, step cap, step scale, escape): with
 # escape the origin also moves out by max(0, -sdf(p)) (a sample still inside the solid after its
@@ -80,7 +82,7 @@ def scheme_transfer(sdf, p, n, dirs, scheme):
         occ, und = shadow_trace(sdf, o, dirs.reshape(-1, 3), center, float(scene.radius), step_scale,
                                 eps * hit_eps, steps)
     occ, und = occ.reshape(dirs.shape[:2]), und.reshape(dirs.shape[:2])
-    return T._project(~occ, dirs), occ, und
+    return project_visibility(~occ, dirs), occ, und
 
 
 def _diffuse(t, env):
@@ -97,7 +99,7 @@ def shadow_study(sdf, n_points: int = 400, n_dirs: int = 128, schemes=None, seed
     from inshade.codegen.sdf import environment_sh
 
     schemes = schemes or SCHEMES
-    p, n = T.sample_sdf_surface(sdf, n_points, seed=seed)
+    p, n = sample_sdf_surface(sdf, n_points, seed=seed)
     # samples the Newton projection left inside the solid (|d| up to hit_eps at creases, where the
     # normal is unreliable too) have no well-defined truth: the reference would start inside
     with torch.no_grad():
@@ -105,7 +107,7 @@ def shadow_study(sdf, n_points: int = 400, n_dirs: int = 128, schemes=None, seed
     dropped = int((~good).sum())
     p, n = p[good], n[good]
     n_points = int(p.shape[0])
-    dirs = T.hemisphere_directions(n, n_dirs, torch.Generator().manual_seed(seed))
+    dirs = hemisphere_directions(n, n_dirs, torch.Generator().manual_seed(seed))
     env = np.asarray(environment_sh("noon", 0.0, 4), np.float64)
     start = time.perf_counter()
     ref, occ_r, und_r = scheme_transfer(sdf, p, n, dirs, REFERENCE)
@@ -138,7 +140,7 @@ def occluder_proximity(sdf, p, n, delta: float) -> torch.Tensor:
 def sample_near_occluders(sdf, n_points: int, seed: int = 0, boost: float = 3.0, delta: float | None = None):
     """(p, n) float32: see the module docstring; ``delta`` defaults to 3% of the bound radius."""
     delta = float(delta if delta is not None else 0.03 * float(sdf.scene.radius))
-    p, n = T.sample_sdf_surface(sdf, 4 * n_points, seed=seed)
+    p, n = sample_sdf_surface(sdf, 4 * n_points, seed=seed)
     w = (1.0 + boost * occluder_proximity(sdf, p, n, delta)).double().numpy()
     rng = np.random.default_rng(seed)
     keep = np.sort(rng.choice(len(w), size=n_points, replace=False, p=w / w.sum()))

@@ -223,7 +223,7 @@ def scene_dict(kind: str, geometry_name: str, name: str, title: str, camera: dic
 
 def run(args: argparse.Namespace) -> int:
     from inshade.bundle import load
-    from inshade.techniques.prt.transfer import geometry_bound
+    from inshade.techniques.prt.transfer_dataset import geometry_bound
 
     resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work (transfer_net uses it)
     executor_from_args(args)      # a bad --workers / --ray fails before any work too

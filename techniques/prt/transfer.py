@@ -1,15 +1,9 @@
 """Ground-truth transfer for the learnt-transfer network (Learnt Transfer, Dhawal et al. 2022): surface samples and
 T_k(p, n) = integral V(p, w) max(0, w.n) y_k(w) dw by casting visibility rays.
 
-``y_k`` is ``inshade.sh.sh_basis`` (real orthonormal, index l*l + l + m), degree 4 (16 lanes).
-
-Estimator: cosine-weighted hemisphere samples about n, so every ray counts and
-``T_k ~ (pi / D) sum_d V_d y_k(w_d)`` (the clamped cosine is the sampling density, pdf cos/pi).
-The D samples are a 2D Fibonacci lattice in the unit square, shifted per point by a random
-Cranley-Patterson offset (mod 1), mapped to the disk (r = sqrt(u)) and lifted to the hemisphere
-in an orthonormal frame about n. Stratified, unbiased, and decorrelated between neighbouring
-points (no coherent banding for a network to learn). Unoccluded, the estimate is exact for band 0
-(pi * 0.2821) and within ~1/D of ``lambert_bands`` x basis for the other bands.
+The estimator's ray directions and their SH projection: techniques/prt/transfer_directions.py; the
+surface samples: transfer_surface.py; the input checks and ``TransferError``: transfer_inputs.py; a
+dataset's bound, digest and file: transfer_dataset.py. This module casts the rays and builds datasets.
 
 Visibility:
 
@@ -24,12 +18,6 @@ Visibility:
 - meshes (``trimesh.Trimesh``): ``mesh.ray.intersects_any`` (embree when ``trimesh.ray.has_embree``)
   from ``p + n * offset`` (``offset = MESH_OFFSET * bounding-box diagonal``).
 
-Surface samples: meshes with ``trimesh.sample.sample_surface`` (area weighted) and barycentric-
-interpolated, normalised vertex normals (what the rasteriser interpolates). SDFs: marching cubes
-over the bound, area-weighted samples of that mesh, Newton-projected onto the zero set, kept inside
-the bound sphere, normals by the SDF's own estimator (``sdf.normals`` if it has one, else the
-central differences of ``models.sdf.normals``, as the shader computes them: n is a network input).
-
 ``build_dataset`` caches (safetensors, keyed by a hash of geometry + settings) and records the
 measured throughput (``rays_per_second``) in the dataset's metadata.
 
@@ -41,10 +29,8 @@ visibility is embree's (CPU) whatever the device.
 """
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
-import math
 import shutil
 import time
 import warnings
@@ -53,10 +39,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade.files import atomic_files
-from inshade.sh import sh_basis
+from inshade.techniques.prt.transfer_dataset import geometry_bound, geometry_digest, load_dataset, save_dataset
+from inshade.techniques.prt.transfer_directions import DEGREE, chunk_generator, hemisphere_directions, project_visibility
+from inshade.techniques.prt.transfer_inputs import (TransferError, check_count, check_mesh, check_points, check_sdf,
+                                                    is_mesh)
+from inshade.techniques.prt.transfer_surface import sample_mesh_surface, sample_sdf_surface, sdf_on_device
 
-DEGREE = 4
 VERSION = 1                 # of the estimator; part of the cache key
 OFFSET_EPS = 4.0            # SDF shadow-ray origin offset, in units of the scene's hit_eps
 # SDF shadow-ray schemes: (origin offset, hit threshold), both in units of the scene's hit_eps.
@@ -71,142 +59,6 @@ SHADOW_STEPS = 160          # SDF shadow-ray step cap
 MESH_OFFSET = 1e-4          # mesh shadow-ray origin offset, fraction of the bounding-box diagonal
 HOLDOUT_DIRS = 1024        # rays per held-out sample (the reference the network is measured against)
 CHUNK_RAYS = 1 << 20        # rays per batch (memory ~100 bytes/ray at peak)
-GOLDEN = (1.0 + math.sqrt(5.0)) / 2.0
-
-
-class TransferError(ValueError):
-    """Bad input to transfer data generation; the message names the argument or file."""
-
-
-# ---------------------------------------------------------------------------------------------
-# directions
-
-def _rotation(gen: torch.Generator) -> torch.Tensor:
-    """A uniformly random rotation matrix (unit quaternion from 4 normals), float64."""
-    q = torch.randn(4, generator=gen, dtype=torch.float64)
-    w, x, y, z = (q / q.norm()).tolist()
-    return torch.tensor([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]],
-                        dtype=torch.float64)
-
-
-def sphere_directions(n: int, seed: int = 0) -> torch.Tensor:
-    """``n`` unit directions [n, 3] float32: a spherical Fibonacci set (equal-area, low
-    discrepancy), randomly rotated by ``seed`` so repeated estimates are independent."""
-    if not isinstance(n, (int, np.integer)) or n < 1:
-        raise TransferError(f"n: must be a positive int, got {n!r}")
-    i = torch.arange(n, dtype=torch.float64) + 0.5
-    z = 1.0 - 2.0 * i / n
-    r = torch.sqrt((1.0 - z * z).clamp_min(0.0))
-    phi = 2.0 * math.pi * torch.remainder(i / GOLDEN, 1.0)
-    d = torch.stack([r * torch.cos(phi), r * torch.sin(phi), z], -1)
-    d = d @ _rotation(torch.Generator().manual_seed(int(seed))).T
-    return (d / d.norm(dim=-1, keepdim=True)).float()
-
-
-def _lattice(n: int) -> torch.Tensor:
-    """2D Fibonacci lattice [n, 2] in [0, 1)^2 (float64)."""
-    i = torch.arange(n, dtype=torch.float64)
-    return torch.stack([(i + 0.5) / n, torch.remainder(i / GOLDEN, 1.0)], -1)
-
-
-def _frame(nrm: torch.Tensor):
-    """Orthonormal tangents (t, b) of unit normals [N, 3] (Duff et al. 2017, branchless)."""
-    x, y, z = nrm.unbind(-1)
-    s = torch.where(z >= 0, torch.ones_like(z), -torch.ones_like(z))
-    a = -1.0 / (s + z)
-    b = x * y * a
-    t = torch.stack([1.0 + s * x * x * a, s * b, -s * x], -1)
-    bt = torch.stack([b, s + y * y * a, -y], -1)
-    return t, bt
-
-
-def hemisphere_directions(nrm: torch.Tensor, n_dirs: int, gen: torch.Generator) -> torch.Tensor:
-    """Cosine-weighted stratified directions [N, n_dirs, 3] about unit normals [N, 3] (see the
-    module docstring); float32."""
-    lat = _lattice(n_dirs)[None]                                            # [1, D, 2]
-    shift = torch.rand(nrm.shape[0], 1, 2, generator=gen, dtype=torch.float64)
-    u = torch.remainder(lat + shift, 1.0)                                   # [N, D, 2]
-    r = torch.sqrt(u[..., 0])
-    phi = 2.0 * math.pi * u[..., 1]
-    lx, ly = r * torch.cos(phi), r * torch.sin(phi)
-    lz = torch.sqrt((1.0 - u[..., 0]).clamp_min(0.0))
-    n64 = nrm.double()
-    t, b = _frame(n64)
-    d = lx[..., None] * t[:, None] + ly[..., None] * b[:, None] + lz[..., None] * n64[:, None]
-    return d.float()
-
-
-def _project(visible: torch.Tensor, dirs: torch.Tensor) -> torch.Tensor:
-    """(pi / D) sum_d V_d y_k(w_d): visible [N, D] bool, dirs [N, D, 3] -> [N, 16] float32."""
-    y = sh_basis(dirs, DEGREE, torch)                                       # [N, D, 16]
-    v = visible.to(y.dtype)
-    return torch.einsum("nd,ndk->nk", v, y) * (math.pi / dirs.shape[1])
-
-
-def _generator(seed: int, start: int, per: int) -> torch.Generator:
-    """The direction generator of an estimate over points ``start:``, chunked ``per`` points at a
-    time: seeded by ``seed`` and advanced past the draws of the ``start`` points before (one
-    ``hemisphere_directions`` draw per chunk, replayed chunk by chunk). A shard that starts on a
-    chunk boundary thus draws exactly what the unsharded estimate draws for its points, whichever
-    worker runs it, and computes the same chunks: sharded results are bit-identical to one run."""
-    if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or start < 0 or start % per:
-        raise TransferError(f"start: must be a multiple of the chunk ({per} points), got {start!r}")
-    gen = torch.Generator().manual_seed(int(seed))
-    for i in range(0, int(start), per):
-        torch.rand(min(per, start - i), 1, 2, generator=gen, dtype=torch.float64)
-    return gen
-
-
-# ---------------------------------------------------------------------------------------------
-# input checks
-
-def _check_points(p, nrm, where: str = "points"):
-    if not isinstance(p, torch.Tensor):
-        p = torch.as_tensor(np.asarray(p, np.float32))
-    if not isinstance(nrm, torch.Tensor):
-        nrm = torch.as_tensor(np.asarray(nrm, np.float32))
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise TransferError(f"{where}: positions must be [N, 3], got shape {tuple(p.shape)}")
-    if nrm.shape != p.shape:
-        raise TransferError(f"{where}: normals must match positions [N, 3], got {tuple(nrm.shape)} "
-                            f"for {tuple(p.shape)}")
-    p, nrm = p.detach().float(), nrm.detach().float()
-    bad = ~(torch.isfinite(p).all(-1) & torch.isfinite(nrm).all(-1))
-    if bad.any():
-        raise TransferError(f"{where}: {int(bad.sum())} point(s) have NaN/inf position or normal "
-                            f"(first at index {int(bad.nonzero()[0])})")
-    length = nrm.norm(dim=-1)
-    if (length < 1e-6).any():
-        raise TransferError(f"{where}: normal at index {int((length < 1e-6).nonzero()[0])} is zero")
-    return p, nrm / length[:, None]
-
-
-def _check_count(v, name: str) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-        raise TransferError(f"{name}: must be a positive int, got {v!r}")
-    return int(v)
-
-
-def _check_sdf(sdf):
-    scene = getattr(sdf, "scene", None)
-    if not callable(sdf) or scene is None or not all(hasattr(scene, a) for a in ("trace", "center", "radius")):
-        raise TransferError(f"geometry: not an SDF module (needs __call__(p) and .scene with "
-                            f"trace/center/radius): {type(sdf).__name__}")
-    return scene
-
-
-def _check_mesh(mesh):
-    import trimesh
-
-    if not isinstance(mesh, trimesh.Trimesh):
-        raise TransferError(f"geometry: expected a trimesh.Trimesh, got {type(mesh).__name__}")
-    if len(mesh.faces) == 0:
-        raise TransferError("mesh: has no faces")
-    if not np.isfinite(mesh.vertices).all():
-        raise TransferError("mesh: vertices contain NaN/inf")
-    return mesh
 
 
 def _bar(total, desc, progress, unit="ray"):
@@ -217,87 +69,7 @@ def _bar(total, desc, progress, unit="ray"):
 
 
 # ---------------------------------------------------------------------------------------------
-# SDF geometry
-
-def _sdf_normals(sdf, p: torch.Tensor) -> torch.Tensor:
-    own = getattr(sdf, "normals", None)
-    if callable(own):
-        return own(p)
-    from inshade.models.sdf import normals
-
-    return normals(sdf, p)
-
-
-def _eval_chunked(sdf, p: torch.Tensor, chunk: int = 1 << 18, device=None) -> torch.Tensor:
-    """sdf(p) chunk by chunk, evaluated on ``device`` (default p's), returned on p's device."""
-    with torch.no_grad():
-        return torch.cat([sdf(p[i:i + chunk].to(device or p.device)).to(p.device)
-                          for i in range(0, p.shape[0], chunk)])
-
-
-def _on_device(sdf, device: torch.device):
-    """The SDF module with its tensors on ``device``: itself when they are there already (or it has
-    none, as an analytic SdfModule), else a moved copy (the caller's module stays where it is)."""
-    if not isinstance(sdf, torch.nn.Module):
-        return sdf
-    probe = torch.empty(0, device=device).device        # "cuda" -> "cuda:<current>", as tensors report it
-    tensors = [*sdf.parameters(), *sdf.buffers()]
-    if all(t.device == probe for t in tensors):
-        return sdf
-    return copy.deepcopy(sdf).to(probe)
-
-
-def sample_sdf_surface(sdf, n_points: int, seed: int = 0, resolution: int = 128, newton: int = 4,
-                       device="cpu"):
-    """``n_points`` surface samples (p [N, 3], unit normals [N, 3], float32) of an SDF module,
-    area weighted: marching cubes at ``resolution`` over the bound's box, area-weighted samples of
-    that mesh, ``newton`` Newton steps p -= d * n onto the zero set (n: the SDF's normal estimator,
-    not autograd: hard booleans and box corners have NaN autograd gradients); only points inside
-    the bound sphere with |d| < hit_eps are kept. SDF evaluations run on ``device``; the samples
-    come back on the CPU."""
-    import trimesh
-    from skimage.measure import marching_cubes
-
-    scene = _check_sdf(sdf)
-    n_points = _check_count(n_points, "n_points")
-    device = torch.device(device)
-    sdf = _on_device(sdf, device)
-    c = np.asarray(scene.center, np.float64)
-    r = float(scene.radius)
-    axis = np.linspace(-r, r, resolution)
-    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3) + c
-    d = _eval_chunked(sdf, torch.from_numpy(grid).float(), device=device).reshape(resolution, resolution, resolution)
-    d = d.numpy()
-    if not (d.min() < 0.0 < d.max()):
-        raise TransferError(f"{getattr(scene, 'path', None) or 'sdf'}: no surface inside the bound "
-                            f"(distances in [{d.min():.3g}, {d.max():.3g}])")
-    step = 2.0 * r / (resolution - 1)
-    verts, faces, _, _ = marching_cubes(d, 0.0, spacing=(step, step, step))
-    mesh = trimesh.Trimesh(verts + (c - r), faces, process=False)
-    hit_eps = float(scene.trace["hit_eps"])
-    rng = np.random.default_rng(seed)
-    kept_p, kept_n, have = [], [], 0
-    for _ in range(8):              # top up: some samples land outside the bound or off the surface
-        want = int((n_points - have) * 1.3) + 64
-        pts, _ = trimesh.sample.sample_surface(mesh, want, seed=rng)
-        p = torch.from_numpy(np.asarray(pts, np.float32)).to(device)
-        with torch.no_grad():
-            for _ in range(newton):
-                p = p - sdf(p)[:, None] * _sdf_normals(sdf, p)
-            dist = sdf(p).cpu()
-            nrm = _sdf_normals(sdf, p).cpu()
-        p = p.cpu()
-        inside = (p.double() - torch.from_numpy(c)).norm(dim=-1) < r
-        ok = inside & (dist.abs() < hit_eps) & torch.isfinite(nrm).all(-1) & torch.isfinite(p).all(-1)
-        kept_p.append(p[ok])
-        kept_n.append(nrm[ok])
-        have += int(ok.sum())
-        if have >= n_points:
-            break
-    if have < n_points:
-        raise TransferError(f"sdf: only {have} of {n_points} surface samples projected onto the surface")
-    return torch.cat(kept_p)[:n_points].contiguous(), torch.cat(kept_n)[:n_points].contiguous()
-
+# SDFs
 
 def _shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, radius: float,
                   step_scale: float, hit_eps: float, max_steps: int) -> torch.Tensor:
@@ -329,12 +101,12 @@ def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool |
     """Ground-truth transfer [N, 16] float32 (on the CPU) at points p [N, 3] with normals nrm [N, 3]
     (any points: surface samples or G-buffer hits) of an SDF module, the shadow rays traced on
     ``device``; see the module docstring. ``start``: these points follow ``start`` others of the
-    same estimate (a shard, see ``_generator``). ``shadow``: a ``SHADOW_SCHEMES`` name."""
-    scene = _check_sdf(sdf)
+    same estimate (a shard, see ``chunk_generator``). ``shadow``: a ``SHADOW_SCHEMES`` name."""
+    scene = check_sdf(sdf)
     device = torch.device(device)
-    sdf = _on_device(sdf, device)
-    p, nrm = _check_points(p, nrm)
-    n_dirs = _check_count(n_dirs, "n_dirs")
+    sdf = sdf_on_device(sdf, device)
+    p, nrm = check_points(p, nrm)
+    n_dirs = check_count(n_dirs, "n_dirs")
     if shadow not in SHADOW_SCHEMES:
         raise TransferError(f"shadow: must be one of {list(SHADOW_SCHEMES)}, got {shadow!r}")
     tr = scene.trace
@@ -344,7 +116,7 @@ def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool |
     center = torch.tensor(scene.center, dtype=torch.float32, device=device)
     radius = float(scene.radius)
     per = max(1, chunk_rays // n_dirs)
-    gen = _generator(seed, start, per)
+    gen = chunk_generator(seed, start, per)
     out = torch.empty(p.shape[0], DEGREE * DEGREE)
     with torch.no_grad(), _bar(p.shape[0] * n_dirs, "transfer (sdf)", progress) as bar:
         for i in range(0, p.shape[0], per):
@@ -353,29 +125,13 @@ def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool |
             o = (pc + nc * offset)[:, None].expand_as(dirs).reshape(-1, 3)
             occ = _shadow_trace(sdf, o.to(device), dirs.reshape(-1, 3).to(device), center, radius, step_scale,
                                 threshold, steps).cpu()
-            out[i:i + per] = _project(~occ.reshape(dirs.shape[:2]), dirs)
+            out[i:i + per] = project_visibility(~occ.reshape(dirs.shape[:2]), dirs)
             bar.update(dirs.shape[0] * n_dirs)
     return out
 
 
 # ---------------------------------------------------------------------------------------------
 # meshes
-
-def sample_mesh_surface(mesh, n_points: int, seed: int = 0):
-    """Area-weighted samples (p [N, 3], unit normals [N, 3], float32) of a trimesh.Trimesh; the
-    normals are the barycentric interpolation of the vertex normals, normalised."""
-    import trimesh
-
-    mesh = _check_mesh(mesh)
-    n_points = _check_count(n_points, "n_points")
-    pts, fi, bary = trimesh.sample.sample_surface(mesh, n_points, seed=int(seed), return_barycentric=True)
-    vn = np.asarray(mesh.vertex_normals, np.float64)[mesh.faces[fi]]        # [N, 3 corners, 3]
-    nrm = np.einsum("nc,ncx->nx", np.asarray(bary, np.float64), vn)
-    length = np.linalg.norm(nrm, axis=-1, keepdims=True)
-    # a degenerate interpolation (opposing vertex normals) falls back to the face normal
-    nrm = np.where(length > 1e-8, nrm / np.maximum(length, 1e-30), mesh.face_normals[fi])
-    return torch.from_numpy(np.asarray(pts, np.float32)), torch.from_numpy(nrm.astype(np.float32))
-
 
 def mesh_transfer(mesh, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool | None = False,
                   chunk_rays: int = CHUNK_RAYS, start: int = 0) -> torch.Tensor:
@@ -384,15 +140,15 @@ def mesh_transfer(mesh, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool
     ``sdf_transfer``."""
     import trimesh
 
-    mesh = _check_mesh(mesh)
-    p, nrm = _check_points(p, nrm)
-    n_dirs = _check_count(n_dirs, "n_dirs")
+    mesh = check_mesh(mesh)
+    p, nrm = check_points(p, nrm)
+    n_dirs = check_count(n_dirs, "n_dirs")
     if not trimesh.ray.has_embree:
         warnings.warn("embreex is not installed: trimesh falls back to its pure-Python ray caster, "
                       "which is ~100x slower (pip install embreex)", stacklevel=2)
     offset = MESH_OFFSET * float(np.linalg.norm(mesh.extents))
     per = max(1, chunk_rays // n_dirs)
-    gen = _generator(seed, start, per)
+    gen = chunk_generator(seed, start, per)
     out = torch.empty(p.shape[0], DEGREE * DEGREE)
     with torch.no_grad(), _bar(p.shape[0] * n_dirs, "transfer (mesh)", progress) as bar:
         for i in range(0, p.shape[0], per):
@@ -401,54 +157,13 @@ def mesh_transfer(mesh, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool
             o = (pc + nc * offset)[:, None].expand_as(dirs).reshape(-1, 3)
             occ = mesh.ray.intersects_any(o.numpy().astype(np.float64), dirs.reshape(-1, 3).numpy().astype(np.float64))
             occ = torch.from_numpy(np.asarray(occ, bool)).reshape(dirs.shape[:2])
-            out[i:i + per] = _project(~occ, dirs)
+            out[i:i + per] = project_visibility(~occ, dirs)
             bar.update(dirs.shape[0] * n_dirs)
     return out
 
 
 # ---------------------------------------------------------------------------------------------
 # datasets
-
-def _is_mesh(geometry) -> bool:
-    try:
-        import trimesh
-    except ImportError:  # pragma: no cover
-        return False
-    return isinstance(geometry, trimesh.Trimesh)
-
-
-def geometry_bound(geometry) -> tuple[tuple[float, float, float], float]:
-    """(center, radius) of the sphere the network's positions are normalised by: the SDF scene's
-    bound, or a mesh's bounding-box centre and the distance to its farthest vertex."""
-    if _is_mesh(geometry):
-        c = np.asarray(geometry.bounds, np.float64).mean(0)
-        r = float(np.linalg.norm(np.asarray(geometry.vertices) - c, axis=-1).max())
-        return tuple(float(x) for x in c), r
-    scene = _check_sdf(geometry)
-    return tuple(float(x) for x in scene.center), float(scene.radius)
-
-
-def geometry_digest(geometry) -> str:
-    """sha256 of what the transfer depends on: mesh vertices + faces, or the SDF scene
-    (description tree, bound, trace settings) and any tensors of the SDF module (neural SDFs)."""
-    h = hashlib.sha256()
-    if _is_mesh(geometry):
-        h.update(b"mesh")
-        h.update(np.ascontiguousarray(geometry.vertices, np.float64).tobytes())
-        h.update(np.ascontiguousarray(geometry.faces, np.int64).tobytes())
-        return h.hexdigest()
-    scene = _check_sdf(geometry)
-    h.update(b"sdf")
-    h.update(type(geometry).__name__.encode())
-    h.update(repr(getattr(scene, "root", None)).encode())
-    h.update(json.dumps({"center": list(scene.center), "radius": scene.radius,
-                         "trace": dict(scene.trace)}, sort_keys=True).encode())
-    if isinstance(geometry, torch.nn.Module):
-        for name, t in sorted(geometry.state_dict().items()):
-            h.update(name.encode())
-            h.update(t.detach().cpu().contiguous().numpy().tobytes())
-    return h.hexdigest()
-
 
 def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, seed: int = 0,
                   progress: bool | None = None, holdout: int | None = None,
@@ -470,16 +185,16 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     The rays are a sharded bake (inshade/bake.py; ``executor``: in-process by default, a process
     pool or Ray): one shard per chunk of ``chunk_rays`` rays, cached in ``transfer-<key>.shards/``
     while the bake runs (a rerun resumes there; removed once the dataset is written). The shards
-    replay the unsharded estimate's random stream (``_generator``), so the data is bit-identical
+    replay the unsharded estimate's random stream (``chunk_generator``), so the data is bit-identical
     whatever the executor and to an unsharded run. ``shadow``: the SDF shadow-ray scheme
     (``SHADOW_SCHEMES``; part of the cache key unless it is the default)."""
-    mesh = _is_mesh(geometry)
+    mesh = is_mesh(geometry)
     if not mesh:
-        _check_sdf(geometry)
-    n_points = _check_count(n_points, "n_points")
-    n_dirs = _check_count(n_dirs, "n_dirs")
-    holdout = min(2000, max(1, n_points // 20)) if holdout is None else _check_count(holdout, "holdout")
-    holdout_dirs = _check_count(holdout_dirs, "holdout_dirs")
+        check_sdf(geometry)
+    n_points = check_count(n_points, "n_points")
+    n_dirs = check_count(n_dirs, "n_dirs")
+    holdout = min(2000, max(1, n_points // 20)) if holdout is None else check_count(holdout, "holdout")
+    holdout_dirs = check_count(holdout_dirs, "holdout_dirs")
     settings = {"version": VERSION, "n_points": n_points, "n_dirs": n_dirs, "seed": int(seed),
                 "holdout": holdout, "holdout_dirs": holdout_dirs,
                 "offset": MESH_OFFSET if mesh else OFFSET_EPS, "shadow_steps": SHADOW_STEPS}
@@ -509,7 +224,7 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     if mesh:
         p, nrm = sample_mesh_surface(geometry, total, seed)
     else:
-        geometry = _on_device(geometry, device)     # moved once for sampling and rays
+        geometry = sdf_on_device(geometry, device)     # moved once for sampling and rays
         p, nrm = sample_sdf_surface(geometry, total, seed, device=device)
     ray_start = time.perf_counter()
     # a GPU worker of Ray sees only the GPU it was given, as cuda:0
@@ -580,46 +295,3 @@ def _has_embree() -> bool:
     import trimesh
 
     return bool(trimesh.ray.has_embree)
-
-
-TENSORS = ("position", "normal", "transfer", "heldout_position", "heldout_normal", "heldout_transfer")
-
-
-def save_dataset(data: dict, path) -> Path:
-    """Writes a dataset (tensors + JSON metadata in the safetensors header) atomically."""
-    from safetensors.torch import save_file
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    meta = {k: v for k, v in data.items() if k not in TENSORS and k != "cached"}
-    with atomic_files(path) as tmp:
-        save_file({k: data[k].contiguous() for k in TENSORS if k in data}, str(tmp),
-                  metadata={"format": "inshade.transfer_data", "meta": json.dumps(meta, sort_keys=True)})
-    return path
-
-
-def load_dataset(path) -> dict:
-    """Reads a dataset written by ``save_dataset`` (TransferError naming the file if it is not one)."""
-    from safetensors import safe_open
-
-    path = Path(path)
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            header = f.metadata() or {}
-            if header.get("format") != "inshade.transfer_data":
-                raise TransferError(f"{path}: format: not an inshade transfer dataset")
-            data = json.loads(header["meta"])
-            for k in TENSORS:
-                if k in f.keys():
-                    data[k] = f.get_tensor(k).float()
-    except TransferError:
-        raise
-    except Exception as exc:  # safetensors raises several types for corrupt files
-        raise TransferError(f"{path}: unreadable transfer dataset ({exc})") from None
-    missing = [k for k in TENSORS[:3] if k not in data]
-    if missing:
-        raise TransferError(f"{path}: {missing[0]}: missing")
-    n = data["position"].shape[0]
-    if data["normal"].shape != (n, 3) or data["transfer"].shape != (n, DEGREE * DEGREE):
-        raise TransferError(f"{path}: transfer: shapes do not match ({n} points)")
-    return data

@@ -339,7 +339,7 @@ def load_geometry(args: argparse.Namespace):
 
         return SdfModule(load_sdf(args.sdf)), {"sdf": str(args.sdf)}
     if args.mesh:
-        from inshade.techniques.prt.transfer import TransferError
+        from inshade.techniques.prt.transfer_inputs import TransferError
 
         import trimesh
 
