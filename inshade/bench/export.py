@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
 
 DEFAULT_OUT = "bench-out/export"
@@ -210,3 +211,25 @@ def plot(r: dict, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, format="png", dpi=120)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {"export_check": Claim("none (inshade's own targets)", "inshade.export + check of a 64x4 MLP, "
+                                                                "cold shader compile", "under 5 s (our target)",
+                                5.0, higher_better=False)}
+
+
+def headlines(r: dict) -> list[dict]:
+    e, t, o, m = r["export"], r["export_texture"], r["onnx"], r["memory"]
+    return [claim_row(CLAIMS, "export", "export_check", f"{e['median_s']:.1f} s (check storage {e['storage']}), "
+                      f"{t['median_s']:.1f} s (texture); ONNX import {o['import_s'] * 1e3:.0f} ms; memory "
+                      f"{m['over_params']:.2f}x the parameters", e["median_s"], "64x4 MLP")]
+
+
+SUITE = SuiteEntry(sizes={
+    # the ONNX check compiles a 512-wide network cold on llvmpipe: about a minute of it
+    "cpu": Sizing(("--repeats", "2"), 180),
+    "device": Sizing(("--repeats", "3"), 20),
+}, claims=CLAIMS, headlines=headlines)

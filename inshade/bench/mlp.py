@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
 
@@ -356,3 +357,26 @@ def plot(result: dict, path: Path) -> None:
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {"speedup": Claim("none (inshade's own targets)", "generated GLSL MLP vs torch on the CPU",
+                           "GLSL >= 3x torch CPU (our target)", 3.0)}
+
+
+def headlines(r: dict) -> list[dict]:
+    best = []
+    for net in r["networks"]:
+        mode, m = max(net["modes"].items(), key=lambda kv: kv[1]["speedup_vs_torch"])
+        best.append((net["name"], mode, m["speedup_vs_torch"]))
+    worst = min(best, key=lambda b: b[2])
+    return [claim_row(CLAIMS, "mlp", "speedup", ", ".join(f"{n}: {s:.1f}x ({m})" for n, m, s in best), worst[2],
+                      "slowest network")]
+
+
+SUITE = SuiteEntry(sizes={
+    "cpu": Sizing(("--size", "256", "--repeats", "5", "--depths", "3", "--storage", "inline,texture",
+                   "--sgemm-size", "1024"), 60),
+    "device": Sizing(("--size", "1024", "--repeats", "5", "--clock", "auto"), 25),
+}, claims=CLAIMS, headlines=headlines)

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot, write_report
 from inshade.files import atomic_write
 
@@ -354,3 +355,34 @@ def plot(r: dict, path: Path, images: dict) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {
+    "crossover": Claim("Deep Appearance Prefiltering (Bako et al. 2022), Sec. 6.3", "finest scale at which the "
+                       "prefiltered frame is faster than equal-quality ray tracing", "around scale 5 (GPU beam "
+                       "tracer + TensorRT vs OptiX)", 5.0),
+    "voxel": Claim("Deep Appearance Prefiltering, Sec. 5.4", "bytes per voxel", "just over 3 KB (797 fp32 floats)",
+                   3188.0, higher_better=False),
+}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    for asset, a in r["assets"].items():
+        name = asset.removeprefix("appearance_prefilter_")
+        c = a["crossover_scale"]
+        rows.append(claim_row(CLAIMS, "appearance_prefilter", "crossover", "none (ray tracing faster at every scale)"
+                              if c is None else f"scale {c}", None if c is None else float(c), name))
+        per = a["memory"]["bytes_per_voxel"]
+        rows.append(claim_row(CLAIMS, "appearance_prefilter", "voxel", f"{per:.0f} B", float(per), name))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={
+    "cpu": Sizing(("--assets", "trained/appearance_prefilter_grove", "--scales", "3", "4", "--spp", "16",
+                   "--rounds", "2"), 60),
+    "device": Sizing(("--scales", "3", "4", "5", "--rounds", "5"), 10),
+}, claims=CLAIMS, headlines=headlines)

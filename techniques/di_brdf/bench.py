@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row, ratio_verdict
 from inshade.bench.harness import (BenchError, Ratio, add_clock_argument, clock_for, clock_record, interleave,
                                    machine, machine_markdown, markdown_table, matplotlib_pyplot,
                                    paired_difference, paired_ratio, write_report)
@@ -190,3 +191,28 @@ def plot(result: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {"disney4": Claim("Differentiable Indirection (Datta et al. 2023), Table 1",
+                           "Disney BRDF cost (minus the diffuse base), analytic / learned, 4 lights, hardware "
+                           "filtering", "0.742 / 0.255 ms: 2.9x on a mobile RTX 3070 Ti at 4K", 0.742 / 0.255)}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    for model in ("disney",):
+        for row in r["models"].get(model, {}).get("rows", []):
+            if row["filter"] == "fast" and row["lights"] == 4:
+                rows.append(claim_row(CLAIMS, "di_brdf", "disney4", f"{ratio_verdict(row['speedup'])}; analytic "
+                                      f"{row['analytic_minus_base_ms']:.3f} ms, learned "
+                                      f"{row['learned_minus_base_ms']:.3f} ms at {r['size']}²",
+                                      row["speedup"]["median"], model))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={
+    "cpu": Sizing((), 30),
+    "device": Sizing(("--size", "2880", "--rounds", "15"), 25),   # 2880^2 ~ the paper's 4K pixel count (Table 1)
+}, claims=CLAIMS, headlines=headlines)

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, atomic_path, machine, machine_markdown, matplotlib_pyplot,
                                    write_report)
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
@@ -409,3 +410,23 @@ def plot(result: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {"trilinear": Claim("Differentiable Indirection (Datta et al. 2023), Fig. 12",
+                             "DI footprint sampler PSNR minus GL trilinear's (RGB8 + mips), vs supersampled truth (dB)",
+                             "quality 'much superior to 1-spp ASTC' at 12x (no number in the text)")}
+
+
+def headlines(r: dict) -> list[dict]:
+    by = {row["mode"]: row for row in r["rows"]}
+    di = by["di"]
+    gl = next(row for row in r["rows"] if row["label"].startswith("GL trilinear (RGB8"))
+    gap = di["psnr_vs_truth"] - gl["psnr_vs_truth"]
+    return [claim_row(CLAIMS, "di_footprint", "trilinear", f"{gap:+.2f} dB: DI {di['psnr_vs_truth']:.2f} dB in "
+                      f"{di['bytes']} B, trilinear {gl['psnr_vs_truth']:.2f} dB in {gl['bytes']} B", gap)]
+
+
+SUITE = SuiteEntry(sizes={"cpu": Sizing(("--ss", "8"), 30), "device": Sizing((), 45)},
+                   claims=CLAIMS, headlines=headlines)

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, WallClock, atomic_write, interleave, machine, machine_markdown,
                                    markdown_table, matplotlib_pyplot, write_report)
 
@@ -388,3 +389,27 @@ def plot(r: dict, path: Path, images: dict) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {"10x": Claim("Differentiable Indirection (Datta et al. 2023), Sec. 6.0.3 / Fig. 7",
+                       "PSNR of DI renders vs the uncompressed-grid renders at ~10x overall (dB)",
+                       "density to 10x, RGB to 100x 'without losing significant details' (no number in the text)")}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    for x in r["rows"]:
+        if x["density_ratio"] == 10 and x["colour_ratio"] == 10:
+            flip = "" if x["flip_mean"] is None else f", FLIP {x['flip_mean']:.4f}"
+            rows.append(claim_row(CLAIMS, "di_radiance_field", "10x", f"{x['psnr_mean']:.2f} dB (min "
+                                  f"{x['psnr_min']:.2f}){flip} at {x['overall_ratio']:.1f}x overall, "
+                                  f"{r['field']['grid']}³", x["psnr_mean"]))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={"cpu": Sizing(("--quick",), 60),
+                          "device": Sizing(("--quick", "--time-size", "2048", "--rounds", "7"), 15)},
+                   claims=CLAIMS, headlines=headlines)

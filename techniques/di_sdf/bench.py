@@ -377,3 +377,38 @@ def plot(result: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row   # imported here: the entry is one block
+
+CLAIMS = {"mlp": Claim("Differentiable Indirection (Datta et al. 2023), Fig. 8 / 14c",
+                       "surface error of the MLP SDF / the DI-SDF's at equal bytes (> 1: DI better)",
+                       "'compares favourably with MRHE at equal parameter count' (MRHE, not an MLP; no number in "
+                       "the text)")}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    for budget in r["budgets"]:
+        di = next(x for x in budget["rows"] if x["method"] == "DI-SDF (exact)")
+        mlp = next((x for x in budget["rows"] if x.get("kind") == "neural_sdf" and "surface_mae" in x), None)
+        if mlp is None:
+            rows.append(claim_row(CLAIMS, "di_sdf", "mlp", f"no MLP at {budget['di_bytes']} B (skipped); DI MAE/r "
+                                  f"{di['surface_mae_per_radius']:.2e}, IoU {di['iou']:.3f}", None,
+                                  f"{budget['di_bytes']} B"))
+            continue
+        ratio = mlp["surface_mae"] / di["surface_mae"]
+        rows.append(claim_row(CLAIMS, "di_sdf", "mlp", f"{ratio:.1f}x: MAE/r DI {di['surface_mae_per_radius']:.2e} vs "
+                              f"{mlp['method']} {mlp['surface_mae_per_radius']:.2e}; IoU {di['iou']:.3f} vs "
+                              f"{mlp['iou']:.3f}", ratio, f"{budget['di_bytes']} B"))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={
+    "cpu": Sizing(("--di-steps", "500", "--mlp-steps", "600", "--mlp-samples", "50000", "--size", "128",
+                   "--frames", "3"), 150),
+    # 2000 MLP steps: seconds on a GPU
+    "device": Sizing(("--mlp-steps", "2000", "--size", "512", "--frames", "10"), 60),
+}, claims=CLAIMS, headlines=headlines)

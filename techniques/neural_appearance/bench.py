@@ -32,6 +32,7 @@ import numpy as np
 
 from inshade import command
 from inshade.files import atomic_write
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row, ratio_verdict
 from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, interleave, machine,
                                    machine_markdown, markdown_table, matplotlib_pyplot, paired_ratio, write_report)
 
@@ -331,3 +332,35 @@ def plot(r: dict, path: Path) -> None:
     fig.savefig(path, format="png")
     plt.close(fig)
 
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {
+    "2x16": Claim("Real-Time Neural Appearance Models (2024), Figs. 15-16", "2x16 decoder vs the reference "
+                  "material (speed-up)", "4.14x, full frame, RTX 4090", 4.14),
+    "2x32": Claim("Real-Time Neural Appearance Models, Table 5", "2x32 decoder vs the reference material "
+                  "shading (speed-up)", "9.06x, material shading, RTX 4090", 9.06),
+    "3x64": Claim("Real-Time Neural Appearance Models, Table 5", "3x64 decoder vs the reference material "
+                  "shading (speed-up)", "2.30x, material shading, RTX 4090", 2.30),
+}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    for asset, a in r["assets"].items():
+        speed = a["speed"]["speedup_vs_reference"]
+        for decoder in ("2x16", "2x32", "3x64"):
+            if decoder in speed:
+                rows.append(claim_row(CLAIMS, "neural_appearance", decoder, f"{ratio_verdict(speed[decoder])} at "
+                                      f"{a['speed']['size']}²", speed[decoder]["median"],
+                                      asset.removeprefix("neural_appearance_")))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={
+    # ~35 s with Mesa's shader cache warm; a cold cache adds minutes of llvmpipe JIT
+    "cpu": Sizing(("--assets", "trained/neural_appearance_ceramic", "--size", "256", "--quality-size", "64",
+                   "--quality-spp", "2", "--sampler-frames", "4", "--rounds", "3", "--warmup", "1"), 90),
+    "device": Sizing(("--size", "2048", "--rounds", "15"), 50),
+}, claims=CLAIMS, headlines=headlines)

@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, WallClock, add_clock_argument, clock_for, clock_record, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
 from inshade.techniques.prt.codegen import KINDS
@@ -342,3 +343,35 @@ def plot(result: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {
+    "fps": Claim("Learnt Transfer (Dhawal et al. 2022), Table 2", "k=64 transfer net on an analytic SDF, "
+                 "FPS at 1024² (ours scaled by pixel count)", "173.6-320.1 FPS on an RTX 3090", 173.6),
+    "torch": Claim("Learnt Transfer, Table 4", "GLSL vs the torch/CUDA path, k=64 (speed-up)",
+                   "GLSL 64.4 vs CUDA 55.1 FPS: 1.17x", 64.4 / 55.1),
+}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    sdf = [f for f in r["frames"] if f["k"] == 64 and f["geometry"] == "analytic SDF"]
+    for shading in sorted({f["shading"] for f in sdf}):
+        f = max((f for f in sdf if f["shading"] == shading), key=lambda f: f["size"])
+        fps_1024 = f["fps"] * (f["size"] / 1024) ** 2
+        scaled = f" ({fps_1024:.1f} at 1024²)" if f["size"] != 1024 else ""
+        rows.append(claim_row(CLAIMS, "prt", "fps", f"{f['fps']:.1f} FPS at {f['size']}²{scaled}, {f['asset']}",
+                              fps_1024, shading))
+    for t in r["torch"]:
+        rows.append(claim_row(CLAIMS, "prt", "torch", f"{t['speedup']:.1f}x at {t['size']}² ({t['asset']}, torch on "
+                                                      f"{t['torch_threads']} CPU threads)", t["speedup"], t["shading"]))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={
+    "cpu": Sizing(("--assets", "trained/prt_creature,trained/prt_mesh", "--sizes", "64:512",
+                   "--repeats", "3", "--rays", "500"), 60),
+    "device": Sizing(("--sizes", "64:512,1024;128:1024;256:512", "--repeats", "10", "--torch-size", "256"), 75),
+}, claims=CLAIMS, headlines=headlines)

@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, interleave, machine,
                                    machine_markdown, markdown_table, matplotlib_pyplot, paired_ratio, write_report)
 from inshade.files import atomic_write
@@ -632,3 +633,41 @@ def plot(r: dict, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, format="png")
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
+
+CLAIMS = {
+    "ms": Claim("Feature hierarchy (Walloner 2024)", "decode cost (decoded minus textured frame), ms per "
+                "1280x720 (ours scaled by pixel count)", "5-12 ms per 1280x720 query, RTX 2080 Ti (CUDA)", 12.0,
+                higher_better=False),
+    "rate": Claim("Feature hierarchy (Walloner 2024)", "memory, % of the uncompressed textures (features + "
+                  "MLP)", "66.6% down to 8.3%"),
+}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    for asset, a in r["assets"].items():
+        d = a["decode"]
+        ms = 1e3 * (d["ms"]["decoded"]["median_s"] - d["ms"]["reference"]["median_s"])
+        per_720p = ms * 1280 * 720 / (d["width"] * d["height"])
+        name = asset.removeprefix("uvfree_material_")
+        rows.append(claim_row(CLAIMS, "uvfree_material", "ms", f"{per_720p:.2f} ms ({ms:.2f} ms at "
+                              f"{d['width']}x{d['height']}, {d['coverage']:.0%} covered)", per_720p, name))
+        m = a["memory"]
+        albedo = next(q["albedo_psnr"] for q in a["quality"] if q["view"] == "all")
+        rows.append(claim_row(CLAIMS, "uvfree_material", "rate", f"{m['rate_features_mlp']:.1%} at albedo "
+                              f"{albedo:.2f} dB ({m['rate_all']:.1%} with owner tables)", 100 * m["rate_features_mlp"],
+                              name))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={
+    "cpu": Sizing(("--assets", "trained/uvfree_material_fruit_balanced", "--quality-size", "128",
+                   "--width", "512", "--height", "384", "--rounds", "5", "--warmup", "1",
+                   "--codecs", "BC1,BC7,ASTC 6x6,ASTC 8x8"), 90),
+    # the thesis times a 1280x720 query
+    "device": Sizing(("--width", "1280", "--height", "720", "--rounds", "15"), 80),
+}, claims=CLAIMS, headlines=headlines)
