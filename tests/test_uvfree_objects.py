@@ -1,8 +1,8 @@
-"""The UV-free material's procedural objects (techniques/uvfree_material/objects.py): deterministic
-meshes and textures, sane ranges, the low/high stump pair sharing one texture set and uv layout,
-uv seams that weld into closed outward-wound surfaces, the OBJ + PNG round trip through
-``inshade.mesh.load_mesh``, and ``sample_textures`` against GL's own lookup of the written PNGs as
-the renderer uploads them (``runtime/renderer.py _scene_texture``)."""
+"""The UV-free material's procedural objects (techniques/uvfree_material/objects.py, procedural.py,
+object_textures.py): deterministic meshes and textures, sane ranges, the low/high stump pair
+sharing one texture set and uv layout, uv seams that weld into closed outward-wound surfaces, the
+OBJ + PNG round trip through ``inshade.mesh.load_mesh``, and ``sample_textures`` against GL's own
+lookup of the written PNGs as the renderer uploads them (``runtime/renderer.py _scene_texture``)."""
 from __future__ import annotations
 
 import numpy as np
@@ -14,9 +14,10 @@ from hypothesis.extra import numpy as hnp
 
 from inshade.mesh import edge_defects, load_mesh, mesh_uv, vertex_tangents
 from inshade.metrics import srgb_eotf, srgb_oetf
+from inshade.techniques.uvfree_material.object_textures import read_textures, sample_textures, write_object
 from inshade.techniques.uvfree_material.objects import (
-    FILES, OBJECTS, TEXTURES, ObjectError, TexturedObject, make_object, normal_from_height, read_textures,
-    sample_textures, write_object)
+    FILES, OBJECTS, TEXTURES, ObjectError, TexturedObject, make_object)
+from inshade.techniques.uvfree_material.procedural import normal_from_height
 from parity import parity_settings
 
 RES = 64          # small textures: generation is then dominated by the (fixed-size) meshes

@@ -48,6 +48,7 @@ from inshade.metrics import psnr
 from . import objects
 from .memory import memory_report, reference_bytes
 from .model import CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, material_graph
+from .object_textures import sample_textures, write_object
 
 PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096, hidden=(32, 32)),
            "ship": dict(resolution=512, steps=3000, batch=1 << 14, hidden=HIDDEN)}
@@ -135,7 +136,7 @@ class SurfaceSampler:
 
 
 def targets(textures: dict, uv: np.ndarray) -> np.ndarray:
-    looked = objects.sample_textures(textures, uv)
+    looked = sample_textures(textures, uv)
     return np.concatenate([looked[k] for k in objects.TEXTURES], 1)
 
 
@@ -147,7 +148,7 @@ def prepare_asset(out: Path, *, object_name: str | None, mesh_path, textures_dir
     stored textures)."""
     out.mkdir(parents=True, exist_ok=True)
     if mesh_path is None:
-        objects.write_object(objects.make_object(object_name, resolution, seed), out)
+        write_object(objects.make_object(object_name, resolution, seed), out)
     else:
         try:
             mesh = load_mesh(mesh_path)
