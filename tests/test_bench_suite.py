@@ -1,10 +1,13 @@
-"""`inshade bench suite`: preset tables that cover every registered bench and parse with each
-bench's own options, the renderer slug, a tiny suite (one real bench, fakes for the rest) that
-writes its summary, and a failing bench recorded without stopping the suite."""
+"""`inshade bench suite`: every registered bench declares its suite entry (sizes per preset that
+parse with the bench's own options, claims, headline rows), the suite names no bench, the renderer
+slug, a tiny suite (one real bench, fakes for the rest) that writes its summary, a failing bench
+recorded without stopping the suite, and a plug-in technique's bench sized, run and summarised from
+its own folder."""
 import argparse
 import importlib
 import json
 import os
+import re
 import shutil
 import sys
 import time
@@ -12,10 +15,13 @@ from pathlib import Path
 
 import pytest
 
+from inshade import technique
 from inshade.bench import suite
+from inshade.bench.entry import PRESETS, Sizing, SuiteEntry
 from inshade.cli import main as cli_main
 
 REPO = Path(__file__).resolve().parents[1]
+PLUGINS = Path(__file__).resolve().parent / "plugins"
 FAKE_GL = {"vendor": "Test", "renderer": "Fake GPU 9000/PCIe/SSE2", "version": "4.5", "glsl_version": "4.50",
            "software": False}
 
@@ -27,20 +33,37 @@ def test_slug_of_renderer_strings():
     assert suite.slug(" /x") == "unknown-renderer"
 
 
-def test_presets_cover_every_registered_bench():
-    # a technique registered with a bench but without sizes here (or a summary row) fails this
+def test_every_registered_bench_declares_its_suite_entry():
+    # a technique registered with a bench whose module declares no SUITE (sizes for both presets,
+    # claims, a headline parser) fails this
     names = set(suite.registered())
     assert "suite" not in names and "mlp" in names
-    assert set(suite.SIZES) == names, "inshade/bench/suite.py SIZES must size exactly the registered benches"
-    assert set(suite.HEADLINES) == names, "inshade/bench/suite.py HEADLINES must read every registered bench"
-    for name, sizes in suite.SIZES.items():
-        assert set(sizes) == set(suite.PRESETS), name
-        assert all(s.budget_s > 0 for s in sizes.values()), name
-    assert set(suite.CLAIMS) == names
+    for name, module in suite.registered().items():
+        found = suite.entry(name)
+        assert isinstance(found, SuiteEntry), f"{module} must declare SUITE = SuiteEntry(...)"
+        assert set(found.sizes) == set(PRESETS), name
+        assert all(s.budget_s > 0 for s in found.sizes.values()), name
+        assert found.claims, name
+    assert suite.entry("nope") is None
+
+
+def test_suite_names_no_bench():
+    # each bench's sizes, claims and headline parser live in its own module, its paper in its record
+    text = (REPO / "inshade" / "bench" / "suite.py").read_text()
+    names = {t.name for t in technique.techniques()} | set(suite.registered())
+    found = sorted(n for n in names if re.search(rf"\b{re.escape(n)}\b", text))
+    assert not found, f"inshade/bench/suite.py names {found}"
+
+
+def test_a_suite_entry_checks_its_sizes():
+    with pytest.raises(ValueError, match="unknown preset 'gpu'"):
+        SuiteEntry(sizes={"gpu": Sizing((), 1)}, headlines=lambda r: [])
+    with pytest.raises(ValueError, match="budget > 0"):
+        SuiteEntry(sizes={"cpu": Sizing((), 0)}, headlines=lambda r: [])
 
 
 def test_device_preset_fits_its_minutes():
-    total = sum(sizes["device"].budget_s for sizes in suite.SIZES.values())
+    total = sum(suite.entry(name).sizes["device"].budget_s for name in suite.registered())
     assert total <= 60 * suite.DEVICE_MINUTES, total
 
 
@@ -50,12 +73,12 @@ def test_preset_command_lines_parse_with_each_bench(preset):
     for name, module in suite.registered().items():
         parser = argparse.ArgumentParser(prog=name)
         importlib.import_module(module).add_arguments(parser)
-        args = parser.parse_args([*suite.SIZES[name][preset].argv, "--out", "x"])
+        args = parser.parse_args([*suite.entry(name).sizes[preset].argv, "--out", "x"])
         assert args.out == "x", name
 
 
-REPORTS = sorted([REPO / "docs" / "bench" / f"{name}.json" for name in suite.HEADLINES]
-                 + [p for p in (REPO / "docs" / "bench").glob("*/*.json") if p.stem in suite.HEADLINES])
+REPORTS = sorted([REPO / "docs" / "bench" / f"{name}.json" for name in suite.registered()]
+                 + [p for p in (REPO / "docs" / "bench").glob("*/*.json") if p.stem in suite.registered()])
 
 
 @pytest.mark.parametrize("path", REPORTS, ids=lambda p: str(p.relative_to(REPO / "docs" / "bench")))
@@ -100,11 +123,11 @@ def test_tiny_suite_writes_the_summary_and_records_failures(tmp_path, gl, capsys
     def silent(argv):
         return 0
 
-    plan = {"mlp": suite.Sizing(("--quick",), 60),
-            "di_brdf": suite.Sizing((), 5),
-            "prt": suite.Sizing((), 5),
-            "di_sdf": suite.Sizing(("--frames", "1"), 5),
-            "neural_appearance": suite.Sizing((), 5),
+    plan = {"mlp": Sizing(("--quick",), 60),
+            "di_brdf": Sizing((), 5),
+            "prt": Sizing((), 5),
+            "di_sdf": Sizing(("--frames", "1"), 5),
+            "neural_appearance": Sizing((), 5),
             "newcomer": None}
     mains = {"mlp": mlp.main, "di_brdf": _fake_bench("di_brdf", REPO / "docs/bench/di_brdf.json"),
              "prt": broken, "di_sdf": refuses, "neural_appearance": silent}
@@ -154,7 +177,7 @@ def test_an_option_the_bench_rejects_is_its_error_line(tmp_path):
 
 
 def test_summary_names_the_renderer_and_the_budget(tmp_path):
-    plan = {"di_brdf": suite.Sizing((), 1)}
+    plan = {"di_brdf": Sizing((), 1)}
     shutil.copy(REPO / "docs/bench/di_brdf.json", tmp_path / "source.json")
     result = suite.run_suite(tmp_path, plan, {"di_brdf": _fake_bench("di_brdf", tmp_path / "source.json")},
                              preset="device", gl=FAKE_GL, log=lambda text: None)
@@ -185,3 +208,33 @@ def test_a_ratio_without_finite_bounds_reads_as_unknown():
            "speedup": {"median": 1.2, "low": None, "high": None, "verdict": "no difference"}}
     rows = suite.headlines("di_brdf", {"size": 256, "models": {"disney": {"rows": [row]}}})
     assert rows[0]["ours"].startswith("1.20x (?-?, no difference)") and rows[0]["ours_value"] == 1.2
+
+
+@pytest.fixture
+def toy_rings(monkeypatch):
+    """The toy_rings plug-in (tests/plugins/toy_rings: record, trainer, bench), registered for one test."""
+    monkeypatch.syspath_prepend(str(PLUGINS))
+    toy = importlib.import_module("toy_rings")
+    technique.register(toy.TECHNIQUE)
+    yield toy
+    technique.unregister("toy_rings")
+
+
+def test_a_plug_in_bench_is_planned_run_and_summarised_from_its_folder(toy_rings, tmp_path, gl, capsys):
+    from toy_rings import bench
+
+    assert suite.entry("toy_rings") is bench.SUITE
+    assert suite.plan_for("cpu", ["toy_rings"]) == {"toy_rings": bench.SUITE.sizes["cpu"]}
+    assert cli_main(["bench", "suite", "--preset", "device", "--dry-run"]) == 0
+    assert "inshade bench toy_rings --size 256" in capsys.readouterr().out
+
+    out = tmp_path / "suite"
+    assert cli_main(["bench", "suite", "--preset", "cpu", "--only", "toy_rings", "--out", str(out)]) == 0
+    saved = json.loads((out / "summary.json").read_text())
+    assert [(b["name"], b["status"], b["argv"]) for b in saved["benches"]] == [
+        ("toy_rings", "ok", ["--size", "16", "--repeats", "2", "--out", str(out)])]
+    [row] = saved["headlines"]
+    assert row["bench"] == "toy_rings" and row["paper_says"] == "a million pixels a second"
+    assert row["ours_over_paper"] == pytest.approx(row["ours_value"] / 1e6)
+    md = (out / "summary.md").read_text()
+    assert "Sine rings, a toy (inshade tests)" in md and "`inshade bench toy_rings --size 16 --repeats 2`" in md
