@@ -1,5 +1,5 @@
 """Torch reference for network SDFs: any graph with 3 inputs and 1 output (an MLP fitted to a
-mesh, techniques/neural_sdf/train.py; a lookup-array cascade, Differentiable Indirection) used as a scene
+mesh, models/mlp_sdf_fit.py; a lookup-array cascade, Differentiable Indirection) used as a scene
 by models/sdf.py's ``trace`` / ``normals`` / ``render`` and, after export, by the GLSL of
 codegen/network_sdf.py (the same operations in the same float32 order).
 

@@ -213,10 +213,10 @@ def test_cli_reports_bad_input(tmp_path, capsys):
 
 def test_bench_equal_bytes_width():
     from inshade.techniques.di_sdf.bench import mlp_params, mlp_width_for_bytes
-    from inshade.techniques.neural_sdf import train as neural_sdf
+    from inshade.models.mlp_sdf import build
 
     for width, layers in ((7, 2), (38, 3), (71, 3)):
-        g = neural_sdf.build(width, layers)
+        g = build(width, layers)
         assert mlp_params(width, layers) == sum(p.numel() for p in g.parameters())
     w = mlp_width_for_bytes(TINY_BUDGET, 3)
     assert 4 * mlp_params(w, 3) <= TINY_BUDGET < 4 * mlp_params(w + 1, 3)

@@ -97,7 +97,7 @@ def _model_matrix():
 
 
 def test_gbuffer_on_surface_first_hit_and_normals(gl, small_bunny):
-    from inshade.techniques.neural_sdf.train import signed_distance
+    from inshade.models.mlp_sdf_fit import signed_distance
     from inshade.models.sdf import camera_rays
     from inshade.runtime.camera import OrbitCamera
     from inshade.runtime.geometry import MeshGBuffer

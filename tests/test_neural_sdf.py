@@ -226,7 +226,7 @@ def test_lipschitz_bound_holds(widths, act, freqs, seed):
     """The bound from the weights is >= every observed |grad| (autograd at random points)."""
     from inshade.models import activations as A
     from inshade.models import encodings as E
-    from inshade.techniques.neural_sdf.train import lipschitz_bound
+    from inshade.models.mlp_sdf import lipschitz_bound
 
     torch.manual_seed(seed)
     comp = {"relu": A.ReLU, "softplus": A.Softplus, "tanh": A.Tanh, "leaky_relu": lambda: A.LeakyReLU(0.2)}[act]
@@ -241,7 +241,7 @@ def test_lipschitz_bound_holds(widths, act, freqs, seed):
 
 def test_frequency_encoding_constant_is_tight():
     from inshade.models.encodings import Frequency
-    from inshade.techniques.neural_sdf.train import _activation_lipschitz
+    from inshade.models.mlp_sdf import _activation_lipschitz
 
     enc = Frequency(3)
     x = torch.zeros(1, 3, requires_grad=True)
@@ -252,7 +252,7 @@ def test_frequency_encoding_constant_is_tight():
 
 def test_lipschitz_bound_unbounded_cases():
     from inshade.models.activations import Exp
-    from inshade.techniques.neural_sdf.train import lipschitz_bound
+    from inshade.models.mlp_sdf import lipschitz_bound
 
     assert lipschitz_bound(mlp_graph(3, [8], 1, activation=Exp())) == math.inf
     g = GraphModule([("x", 3)])
@@ -264,7 +264,7 @@ def test_lipschitz_bound_unbounded_cases():
 
 
 def test_trace_settings_from_bound():
-    from inshade.techniques.neural_sdf.train import trace_settings
+    from inshade.models.mlp_sdf import trace_settings
 
     t = trace_settings(2.5, radius=2.0, hit_eps=1e-3)
     assert t["step_scale"] == np.float32(0.4) and t["hit_eps"] == np.float32(2e-3) and 64 <= t["max_steps"] <= 512
@@ -289,7 +289,7 @@ def tiny_fit(tmp_path_factory):
 
 def test_neural_sdf_fit_bundle_and_metrics(tiny_fit):
     from inshade import bundle as bundle_io
-    from inshade.techniques.neural_sdf.train import lipschitz_bound
+    from inshade.models.mlp_sdf import lipschitz_bound
 
     bundle, _ = tiny_fit
     loaded = bundle_io.load(bundle.path)
@@ -354,7 +354,7 @@ def test_cli_rejects_open_mesh(tmp_path):
 
 @pytest.mark.parametrize("freqs", [0, 2])
 def test_fold_beta_is_the_same_function_in_plain_softplus(freqs):
-    from inshade.techniques.neural_sdf.train import SmoothReLU, build, fold_beta, lipschitz_bound
+    from inshade.models.mlp_sdf import SmoothReLU, build, fold_beta, lipschitz_bound
 
     torch.manual_seed(1)
     g = build(16, 3, freqs=freqs)

@@ -44,7 +44,6 @@ resolved settings.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import datetime
 import json
 import math
@@ -67,6 +66,7 @@ from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models.mlp import Dense
 from inshade.models.network_sdf import NetworkSdfModule
+from inshade.models.threads import torch_threads
 
 KIND = "di_sdf"
 RENDER_PROGRAM = "passes/sdf_diffuse.frag"
@@ -362,20 +362,6 @@ def sdf_metrics(sdf, ev: EvalSet, normal_eps: float, radius: float) -> dict:
 
 # ---------------------------------------------------------------------------------------------
 # fit
-
-@contextlib.contextmanager
-def torch_threads(n: int | None):
-    """Run torch ops on ``n`` intra-op threads, restoring the setting after. The lookups here are
-    many small ops (a few thousand points each): on the shared 2-core machine, with other
-    processes busy, a 2-thread torch.floor on 4096 values took 2 ms against 28 us on one thread."""
-    old = torch.get_num_threads()
-    if n:
-        torch.set_num_threads(int(n))
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
-
 
 @dataclass
 class Result:
