@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from inshade.techniques.uvfree_material import bench
+from inshade.techniques.uvfree_material import bench, bench_measure
 from inshade.techniques.uvfree_material.train import train
 
 from parity import parity_settings
@@ -33,7 +33,7 @@ def report(asset, tmp_path_factory):
     from inshade.codecs import CodecError
 
     out = tmp_path_factory.mktemp("uvf_bench_out")
-    real = bench.roundtrip
+    real = bench_measure.roundtrip
 
     def roundtrip(codec, img8):
         if codec == "BC7":
@@ -41,7 +41,7 @@ def report(asset, tmp_path_factory):
         return real(codec, img8)
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(bench, "roundtrip", roundtrip)
+        mp.setattr(bench_measure, "roundtrip", roundtrip)
         assert bench.main(["--assets", str(asset), "--out", str(out), "--quality-size", "48", "--width", "64",
                            "--height", "48", "--rounds", "3", "--warmup", "0", "--codecs", CODECS]) == 0
     return out
@@ -86,7 +86,7 @@ def test_bench_codec_rows(report, asset):
     assert rows["BC1"]["bytes"] == 3 * texels // 2
     assert rows["ASTC 4x4"]["bytes"] == 3 * texels
     assert rows["ASTC 12x12"]["bytes"] == 3 * 16 * blocks12
-    fine, coarse = (bench.pooled(rows[c]["quality"]) for c in ("ASTC 4x4", "ASTC 12x12"))
+    fine, coarse = (bench_measure.pooled(rows[c]["quality"]) for c in ("ASTC 4x4", "ASTC 12x12"))
     assert fine["albedo_psnr"] > coarse["albedo_psnr"] and fine["normal_mean_deg"] < coarse["normal_mean_deg"]
     e = a["equal_bytes"]["astc_features_mlp"]
     nb = a["memory"]["neural_bytes"]
@@ -100,7 +100,7 @@ def test_bench_quality_agrees_with_torch_evaluation(report, asset):
     encoding would move albedo by several dB and the normal angle by degrees."""
     a = json.loads((report / "uvfree_material.json").read_text())["assets"][asset.name]
     torch_q = json.loads((asset / "metrics.json").read_text())["torch_quality"]
-    q = bench.pooled(a["quality"])
+    q = bench_measure.pooled(a["quality"])
     assert abs(q["albedo_psnr"] - torch_q["psnr_albedo"]) < 1.0, (q, torch_q)
     assert abs(q["normal_mean_deg"] - torch_q["normal_mean_deg"]) < 0.35 * torch_q["normal_mean_deg"] + 0.2
     assert 0 < q["albedo_flip"] < 1 and q["normal_p95_deg"] >= q["normal_mean_deg"]
@@ -124,12 +124,12 @@ def test_group_metrics_psnr_of_a_known_offset(seed, offset):
     rng = np.random.default_rng(seed)
     mask = rng.random((24, 32)) < 0.6
     mask[0, 0] = True
-    ref = {g: rng.uniform(0.3, 0.7, (24, 32, 3)) for g in bench.GROUPS}
+    ref = {g: rng.uniform(0.3, 0.7, (24, 32, 3)) for g in bench_measure.GROUPS}
     for g in ("roughness", "metallic", "ao"):
         ref[g] = np.repeat(ref[g][..., :1], 3, -1)
     test = {g: v + (offset if g != "normal" else 0.0) for g, v in ref.items()}
     test = {g: np.where(mask[..., None], v, rng.random(v.shape)) for g, v in test.items()}   # background: noise
-    row = bench.group_metrics(_images(test, mask), _images(ref, mask), ("default",))
+    row = bench_measure.group_metrics(_images(test, mask), _images(ref, mask), ("default",))
     want = -20 * math.log10(offset)
     for g in ("albedo", "shaded", "roughness", "metallic", "ao"):
         assert row[f"{g}_psnr"] == pytest.approx(want, abs=2e-3), g
@@ -147,7 +147,7 @@ def test_normal_angles_recovers_a_rotation(n, a, angle):
     axis = np.cross(n, a) / np.linalg.norm(np.cross(n, a))   # perpendicular to n
     t = math.radians(angle)
     m = n * math.cos(t) + np.cross(axis, n) * math.sin(t)     # Rodrigues, axis . n = 0
-    got = bench.normal_angles((m * 0.5 + 0.5)[None], (n * 0.5 + 0.5)[None])
+    got = bench_measure.normal_angles((m * 0.5 + 0.5)[None], (n * 0.5 + 0.5)[None])
     assert got[0] == pytest.approx(angle, abs=1e-4)
 
 
@@ -157,13 +157,13 @@ def test_equal_bytes_targets_and_beating_astc():
 
     rows = [row("BC1", 100, 30.0), row("ASTC 6x6", 180, 33.0), row("ASTC 8x8", 220, 31.0),
             {"codec": "BC7", "available": False, "reason": "x"}]
-    e = bench.equal_bytes(200, 32.0, rows)
+    e = bench_measure.equal_bytes(200, 32.0, rows)
     assert [c["codec"] for c in e["codecs"]] == ["ASTC 6x6", "ASTC 8x8"]   # a tie: both
     assert [c["neural_beats"] for c in e["codecs"]] == [False, True] and not e["above_every_codec"]
-    assert [c["codec"] for c in bench.equal_bytes(90, 32.0, rows)["codecs"]] == ["BC1"]
-    assert [c["codec"] for c in bench.equal_bytes(90, 32.0, rows, astc_only=True)["codecs"]] == ["ASTC 6x6"]
-    assert bench.equal_bytes(900, "inf", rows)["above_every_codec"]
-    assert bench.equal_bytes(100, 30.0, rows[-1:]) is None
+    assert [c["codec"] for c in bench_measure.equal_bytes(90, 32.0, rows)["codecs"]] == ["BC1"]
+    assert [c["codec"] for c in bench_measure.equal_bytes(90, 32.0, rows, astc_only=True)["codecs"]] == ["ASTC 6x6"]
+    assert bench_measure.equal_bytes(900, "inf", rows)["above_every_codec"]
+    assert bench_measure.equal_bytes(100, 30.0, rows[-1:]) is None
 
     def asset(config, db, rate, eb):
         return {"config": config, "quality": [{"albedo_psnr": db}], "equal_bytes": eb,
@@ -175,10 +175,10 @@ def test_equal_bytes_targets_and_beating_astc():
                   "astc_features_mlp": None, "astc_with_owner_tables": None}),
               "uvfree_material_rock_memory": asset("memory", 40.0, 0.1, {
                   "astc_features_mlp": None, "astc_with_owner_tables": None})}
-    t = bench.targets(assets)
+    t = bench_measure.targets(assets)
     assert [(x["config"], x["met"], x["met_with_owner_tables"]) for x in t] == [("memory", True, False),
                                                                               ("quality", False, False)]
-    m = bench.beats_astc(assets)
+    m = bench_measure.beats_astc(assets)
     assert m["astc_features_mlp"] == {"met": True, "assets": ["uvfree_material_stump_high_memory"]}
     assert m["astc_with_owner_tables"] == {"met": False, "assets": []}
 
@@ -220,13 +220,13 @@ def test_codec_round_trips_are_shared_by_texture_content(asset, tmp_path, monkey
     from PIL import Image
 
     calls = []
-    real = bench.roundtrip
-    monkeypatch.setattr(bench, "roundtrip", lambda codec, img8: calls.append(codec) or real(codec, img8))
+    real = bench_measure.roundtrip
+    monkeypatch.setattr(bench_measure, "roundtrip", lambda codec, img8: calls.append(codec) or real(codec, img8))
     memo = {}
-    first = bench.compressed_asset(asset, tmp_path / "a", "BC1", memo)
-    second = bench.compressed_asset(asset, tmp_path / "b", "BC1", memo)
+    first = bench_measure.compressed_asset(asset, tmp_path / "a", "BC1", memo)
+    second = bench_measure.compressed_asset(asset, tmp_path / "b", "BC1", memo)
     assert first == second and calls == ["BC1"] * 3
-    for k in bench.TEXTURES:
+    for k in bench_measure.TEXTURES:
         a, b = (np.asarray(Image.open(tmp_path / x / f"{k}.png")) for x in "ab")
         orig = np.asarray(Image.open(asset / f"{k}.png").convert("RGB"))
         assert np.array_equal(a, b) and a.shape == orig.shape and not np.array_equal(a, orig)
