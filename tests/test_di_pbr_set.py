@@ -26,6 +26,7 @@ from hypothesis import strategies as st
 
 from inshade.codegen.sdf import environment_sh
 from inshade.codegen.spherical_harmonics import sh_chunks
+from inshade.models import pbr_lanes
 from inshade.techniques.di_pbr_set import train as P
 from parity import TOL, parity_settings, run_sample_pass
 
@@ -69,7 +70,7 @@ def test_pbr_set_shading_parity(gl, seed, lights, sky):
     out = _glsl_shade(gl, lanes[:, :4].numpy(), lanes[:, 4:].numpy(), p.numpy(), ng.numpy(), tangent.numpy(),
                       rd.numpy(), sh, lights)
     with torch.no_grad():
-        ref = P.shade(P.unpack(lanes[:, :4], lanes[:, 4:]), p, ng, tangent, rd, torch.from_numpy(sh), lights).numpy()
+        ref = P.shade(pbr_lanes.unpack(lanes[:, :4], lanes[:, 4:]), p, ng, tangent, rd, torch.from_numpy(sh), lights).numpy()
     assert np.isfinite(out).all() and ref.max() > 0.05
     err = np.abs(out - ref) / np.maximum(1.0, np.abs(ref))
     assert err.max() <= TOL, f"max scaled error {err.max():.3g} at {np.unravel_index(err.argmax(), err.shape)}"
@@ -78,14 +79,14 @@ def test_pbr_set_shading_parity(gl, seed, lights, sky):
 def test_unpack_decodes_lanes():
     a = torch.tensor([[0.0, 0.5, 1.0, 0.5], [0.2, 0.2, 0.2, 0.5]])
     b = torch.tensor([[0.5, 1.0, 0.3, 0.7], [0.5, 0.5, 1.5, -0.2]])   # 2nd: zero-length normal, out-of-range lanes
-    s = P.unpack(a, b)
+    s = pbr_lanes.unpack(a, b)
     assert torch.allclose(s["normal_ts"], torch.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]))
     assert torch.allclose(s["albedo"][0], torch.tensor([0.0, 0.21404114, 1.0]), atol=1e-6)
     assert s["roughness"].tolist() == pytest.approx([0.3, 1.0]) and s["ao"].tolist() == pytest.approx([0.7, 0.0])
 
 
 def test_bricks_material_tiles_and_is_8bit():
-    s = P.bricks(64)
+    s = pbr_lanes.bricks(64)
     assert s.shape == (64, 64, 8) and s.dtype == np.float32
     assert np.array_equal(np.round(s * 255) / 255, s), "lanes must be 8-bit values"
     n = s[..., 3:6] * 2 - 1
@@ -96,9 +97,9 @@ def test_bricks_material_tiles_and_is_8bit():
     wrap_v = np.abs(s[0] - s[-1]).mean()
     inner_v = np.abs(s[1:] - s[:-1]).mean()
     assert wrap_u < 2 * inner_u and wrap_v < 2 * inner_v
-    assert np.array_equal(P.bricks(64), s), "not deterministic"
-    with pytest.raises(P.PbrSetError, match="multiple"):
-        P.bricks(60)
+    assert np.array_equal(pbr_lanes.bricks(64), s), "not deterministic"
+    with pytest.raises(pbr_lanes.PbrSetError, match="multiple"):
+        pbr_lanes.bricks(60)
 
 
 @pytest.fixture(scope="module")
@@ -174,12 +175,12 @@ def test_network_with_wrong_outputs_is_one_compile_error(gl, asset, tmp_path):
     from inshade.shaders import ShaderCompileError
     from inshade.runtime.renderer import SceneRenderer
     from inshade.runtime.scene import load_scene
-    from inshade.techniques.di_texture.train import compress
+    from inshade.models.texture_cascade import compress
 
     out, _ = asset
     bad = tmp_path / "rgb"
     shutil.copytree(out, bad)
-    rgb = compress(np.random.default_rng(0).random((48, 48, 3)), 2, steps=1, gl_metrics=False, decode=False)
+    rgb = compress(np.random.default_rng(0).random((48, 48, 3)), 2, steps=1, decode=False)
     rgb.bundle.save(bad)
     with pytest.raises(ShaderCompileError, match="8-lane"):
         SceneRenderer(load_scene(bad), gl).release()
@@ -200,7 +201,7 @@ def test_shipped_asset_renders_and_matches_torch(gl):
     and its recorded GLSL decode quality is what the bundle decodes to now."""
     from inshade.bundle import load
     from inshade.models.graph import GraphModule
-    from inshade.techniques.di_texture.train import glsl_decode
+    from inshade.runtime.network import evaluate_on_pixels
 
     folder = Path(__file__).resolve().parents[1] / "trained" / "di_pbr_set_bricks"
     m = json.loads((folder / "metrics.json").read_text())
@@ -211,5 +212,5 @@ def test_shipped_asset_renders_and_matches_torch(gl):
     err = np.abs(views["di"] - ref) / np.maximum(1.0, np.abs(ref))
     assert err.max() <= TOL
     size = m["texture"]["width"]
-    q = P.lane_metrics(glsl_decode(bundle, size, "exact"), P.bricks(size))
+    q = P.lane_metrics(evaluate_on_pixels(bundle, size, "exact"), pbr_lanes.bricks(size))
     assert q == pytest.approx(m["di_glsl_exact"], abs=1e-3)
