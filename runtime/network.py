@@ -9,9 +9,11 @@ import math
 import moderngl
 import numpy as np
 
-from inshade.codegen.glsl import TextureResource, UniformBlockResource
 from inshade.bundle import UINT_INPUT_RANGE
+from inshade.codegen import generate
+from inshade.codegen.glsl import TextureResource, UniformBlockResource
 from inshade.codegen.limits import LimitError
+from inshade.pixels import pixel_uvs
 
 from .programs import ProgramCache
 from .render import FullscreenPass, float_target, read_rgba_raw, upload_float_texture
@@ -324,3 +326,18 @@ class NetworkEvaluator:
                 a.release()
             self._fbo.release()
         self.pass_.vao.release()
+
+
+def evaluate_on_pixels(bundle, size: int, lut_filter: str = "exact", ctx=None) -> np.ndarray:
+    """A 2D field bundle decoded by its generated GLSL through the driver (passes/evaluate.frag)
+    at the pixel centres of a ``size`` x ``size`` picture: [H, W, out] float32, image orientation
+    (``inshade.pixels``)."""
+    from .context import shared_context
+
+    ctx = shared_context() if ctx is None else ctx
+    ev = NetworkEvaluator(ctx, generate(bundle, lut_filter=lut_filter), width=min(size, 1024))
+    try:
+        out = ev(pixel_uvs(size, size).reshape(-1, 2))
+    finally:
+        ev.release()
+    return out.reshape(size, size, -1)

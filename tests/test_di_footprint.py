@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 
 from inshade.techniques.di_footprint import bench
 from inshade.techniques.di_footprint import train as fp
-from inshade.techniques.di_texture import train as tc
+from inshade.models import footprint_sampler as sampler
+from inshade.models import texture_cascade as tc
 
 from parity import assert_parity
 
@@ -44,12 +45,12 @@ def trained():
 
 def test_mip_chain_box_means():
     tex = torch.from_numpy(_texture())
-    chain = fp.mip_chain(tex, round_bits=None)
+    chain = sampler.mip_chain(tex, round_bits=None)
     assert [c.shape[0] for c in chain] == [32, 16, 8, 4, 2, 1]
     for c in chain[1:]:
         assert torch.allclose(c.mean((0, 1)), tex.mean((0, 1)), atol=1e-6)
     assert torch.allclose(chain[1][0, 0], tex[:2, :2].reshape(-1, 3).mean(0))
-    q = fp.mip_chain(tex)    # 8-bit levels
+    q = sampler.mip_chain(tex)    # 8-bit levels
     assert all(torch.equal(torch.round(c * 255) / 255, c) for c in q)
 
 
@@ -57,35 +58,35 @@ def test_mip_chain_box_means():
 @given(st.integers(0, 5), st.integers(0, 2 ** 31 - 1))
 def test_integer_lod_is_bilinear_of_that_level(level, seed):
     tex = torch.from_numpy(_texture())
-    chain = fp.mip_chain(tex)
+    chain = sampler.mip_chain(tex)
     gen = torch.Generator().manual_seed(seed)
     uv = torch.rand(64, 2, generator=gen) * 4 - 2         # any real uv: GL_REPEAT
     lf = torch.full((64,), level - math.log2(SIZE))
-    out = fp.emulated_trilinear(chain, uv, lf)
-    assert torch.allclose(out, fp.bilinear_repeat(chain[level], uv), atol=1e-6)
+    out = sampler.emulated_trilinear(chain, uv, lf)
+    assert torch.allclose(out, sampler.bilinear_repeat(chain[level], uv), atol=1e-6)
 
 
 def test_lod_clamps_like_gl():
     tex = torch.from_numpy(_texture())
-    chain = fp.mip_chain(tex)
+    chain = sampler.mip_chain(tex)
     uv = torch.rand(32, 2)
-    mag = fp.emulated_trilinear(chain, uv, torch.full((32,), -20.0))
-    assert torch.allclose(mag, fp.bilinear_repeat(chain[0], uv), atol=1e-6)
-    far = fp.emulated_trilinear(chain, uv, torch.full((32,), 20.0))
+    mag = sampler.emulated_trilinear(chain, uv, torch.full((32,), -20.0))
+    assert torch.allclose(mag, sampler.bilinear_repeat(chain[0], uv), atol=1e-6)
+    far = sampler.emulated_trilinear(chain, uv, torch.full((32,), 20.0))
     assert torch.allclose(far, chain[-1].reshape(1, 3).expand(32, 3), atol=1e-6)
-    half = fp.emulated_trilinear(chain, uv, torch.full((32,), 2.5 - math.log2(SIZE)))
-    mix = 0.5 * (fp.bilinear_repeat(chain[2], uv) + fp.bilinear_repeat(chain[3], uv))
+    half = sampler.emulated_trilinear(chain, uv, torch.full((32,), 2.5 - math.log2(SIZE)))
+    mix = 0.5 * (sampler.bilinear_repeat(chain[2], uv) + sampler.bilinear_repeat(chain[3], uv))
     assert torch.allclose(half, mix, atol=1e-6)
 
 
 def test_footprint_distribution_half_in_lod0_and_stratified_uv():
     gen = torch.Generator().manual_seed(0)
-    lf = fp.sample_log2_footprint(200_000, 256, gen)
-    frac0 = float((fp.gl_lod(lf, 256) <= 0).float().mean())     # lambda <= 0: LOD 0
-    assert abs(frac0 - fp.P_LOD0) < 0.01
-    assert fp.footprint_exponent(256) == pytest.approx(8.0)
+    lf = sampler.sample_log2_footprint(200_000, 256, gen)
+    frac0 = float((sampler.gl_lod(lf, 256) <= 0).float().mean())     # lambda <= 0: LOD 0
+    assert abs(frac0 - sampler.P_LOD0) < 0.01
+    assert sampler.footprint_exponent(256) == pytest.approx(8.0)
     tex = torch.from_numpy(_texture())
-    x, y = next(fp.footprint_sampler(tex, SIZE * SIZE, seed=3))
+    x, y = next(sampler.footprint_sampler(tex, SIZE * SIZE, seed=3))
     cells = (x[:, 1] * SIZE).floor() * SIZE + (x[:, 0] * SIZE).floor()
     assert torch.equal(torch.sort(cells).values, torch.arange(SIZE * SIZE, dtype=torch.float32))
     assert y.shape == (SIZE * SIZE, 3)
@@ -95,7 +96,7 @@ def test_footprint_distribution_half_in_lod0_and_stratified_uv():
 
 @pytest.mark.parametrize("ratio", [3, 6, 12])
 def test_plan_fits_budget(ratio):
-    s = fp.plan(256, 3, ratio)
+    s = sampler.plan(256, 3, ratio)
     assert s.bytes <= 256 * 256 * 3 / ratio
     assert s.n_primary % 8 == 0 and s.n_cascaded % 4 == 0
     assert s.n_lod == 9 and s.n_footprint == 4 * s.n_lod
@@ -103,25 +104,25 @@ def test_plan_fits_budget(ratio):
 
 
 def test_bad_input_is_one_clear_error():
-    with pytest.raises(fp.FootprintError, match="cannot be met"):
-        fp.plan(32, 3, 50)
-    with pytest.raises(fp.FootprintError, match="power of two"):
-        fp.plan(48, 3, 2)
-    with pytest.raises(fp.FootprintError, match="multiple of 4"):
-        fp.plan(256, 3, 6, n_cascaded=6)
-    with pytest.raises(fp.FootprintError, match="power of two.*--size"):
+    with pytest.raises(sampler.FootprintError, match="cannot be met"):
+        sampler.plan(32, 3, 50)
+    with pytest.raises(sampler.FootprintError, match="power of two"):
+        sampler.plan(48, 3, 2)
+    with pytest.raises(sampler.FootprintError, match="multiple of 4"):
+        sampler.plan(256, 3, 6, n_cascaded=6)
+    with pytest.raises(sampler.FootprintError, match="power of two.*--size"):
         fp.load_texture("skimage:chelsea", 48)              # square after --size, but 48 is no power of two
     with pytest.raises(tc.CompressionError, match="not square"):
         fp.load_texture("skimage:chelsea", None)
     with pytest.raises(tc.CompressionError):
         fp.load_texture("skimage:nonexistent_image", 32)
-    with pytest.raises(fp.FootprintError, match="expected"):
+    with pytest.raises(sampler.FootprintError, match="expected"):
         fp.train_sampler(np.zeros((32, 16, 3), np.float32), 1.5)
-    assert issubclass(fp.FootprintError, ValueError)
+    assert issubclass(sampler.FootprintError, ValueError)
 
 
 def test_cli_rejects_bad_steps(tmp_path):
-    with pytest.raises(fp.FootprintError, match="--steps"):
+    with pytest.raises(sampler.FootprintError, match="--steps"):
         fp.main(["--out", str(tmp_path / "x"), "--steps", "-1"])
 
 
@@ -152,14 +153,14 @@ def _eroded_hit(inputs):
 def _camera():
     from inshade.runtime.camera import camera_from_dict
 
-    return camera_from_dict(fp.CAMERA)
+    return camera_from_dict(sampler.CAMERA)
 
 
 def test_di_pass_matches_torch_on_the_shaders_inputs(gl, trained):
     tex = np.ascontiguousarray(trained.image[::-1])
     r = bench.PlaneRenderer(gl, trained.bundle, tex, "exact")
     try:
-        colour, inputs = r.render("di", _camera(), *VIEW, 1.0, fp.EXTENT)
+        colour, inputs = r.render("di", _camera(), *VIEW, 1.0, sampler.EXTENT)
     finally:
         r.release()
     hit = inputs[..., 3] > 0.5
@@ -181,13 +182,13 @@ def test_emulated_trilinear_matches_gl(gl, trained):
     tex = np.ascontiguousarray(trained.image[::-1])
     r = bench.PlaneRenderer(gl, trained.bundle, tex, "exact")
     try:
-        colour, inputs = r.render("explicit_lod", _camera(), *VIEW, 1.0, fp.EXTENT)
+        colour, inputs = r.render("explicit_lod", _camera(), *VIEW, 1.0, sampler.EXTENT)
     finally:
         r.release()
     mask = _eroded_hit(inputs)
-    chain = fp.mip_chain(torch.from_numpy(tex))
+    chain = sampler.mip_chain(torch.from_numpy(tex))
     x = torch.from_numpy(np.ascontiguousarray(inputs[..., :3][mask]))
-    emulated = fp.emulated_trilinear(chain, x[:, :2], x[:, 2]).numpy()
+    emulated = sampler.emulated_trilinear(chain, x[:, :2], x[:, 2]).numpy()
     gl_encoded = bench.encoded(colour[mask])
     err = np.abs(gl_encoded - emulated)
     assert err.max() <= 3 * 2 ** -8 + 2 / 255
@@ -198,7 +199,7 @@ def test_gl_modes_render_and_differ(gl, trained):
     tex = np.ascontiguousarray(trained.image[::-1])
     r = bench.PlaneRenderer(gl, trained.bundle, tex, "exact")
     try:
-        out = {m: r.render(m, _camera(), *VIEW, 1.0, fp.EXTENT)[0] for m in ("trilinear", "bilinear")}
+        out = {m: r.render(m, _camera(), *VIEW, 1.0, sampler.EXTENT)[0] for m in ("trilinear", "bilinear")}
     finally:
         r.release()
     for img in out.values():

@@ -29,7 +29,7 @@ from torch.overrides import TorchFunctionMode
 from torch.utils.weak import WeakTensorKeyDictionary
 
 from inshade.models.lookup_array import LookupArray
-from inshade.techniques.di_footprint import train as fp
+from inshade.models import footprint_sampler as fp
 from inshade.techniques.di_shading import bench
 from inshade.techniques.di_shading import train as ds
 

@@ -3,10 +3,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from inshade.metrics import psnr
-from inshade.techniques.di_texture import train as tc
+from inshade.models import texture_cascade as tc
+from inshade.runtime.network import evaluate_on_pixels
+from inshade.techniques.di_texture import train as trainer
 
 ROOT = Path(__file__).resolve().parents[1]
 ASSETS = ["di_texture_astronaut", "di_texture_chelsea", "di_texture_coffee", "di_texture_astronaut_12x"]
@@ -36,7 +37,7 @@ def test_ratio_that_cannot_be_met():
 
 
 def test_tiny_compression_improves_and_glsl_matches_torch(gl, tmp_path):
-    result = tc.compress(_tiny_image(), 3, steps=120, batch=1024)
+    result = tc.compress(_tiny_image(), 3, steps=120, batch=1024, measure=trainer.decoded_metrics)
     m = result.metrics
     assert m["psnr_quantised"] > m["psnr_step0"] + 5
     assert m["ratio"] >= 3
@@ -45,7 +46,7 @@ def test_tiny_compression_improves_and_glsl_matches_torch(gl, tmp_path):
     b = result.bundle
     assert b.kind == "di_texture" and b.inputs[0].semantic == "uv" and b.outputs[0].dim == 3
     assert all(b.node(n).params["bits"] == 8 for n in ("primary", "cascaded"))
-    out = tc.write_asset(result, tmp_path / "tiny", "tiny")
+    out = trainer.write_asset(result, tmp_path / "tiny", "tiny")
     for f in ("bundle.json", "weights.safetensors", "scene.json", "preview.png", "reference.png"):
         assert (out / f).is_file()
 
@@ -54,7 +55,7 @@ def test_finish_optimizer_lbfgs_and_paper_protocol():
     """"lbfgs" finishes better than "adam" at the same budget; finish 0 (the paper's protocol)
     ignores the finish optimiser; an unknown one is one clear error."""
     img = _tiny_image()
-    run = lambda **kw: tc.compress(img, 3, steps=80, batch=512, gl_metrics=False, **kw).metrics
+    run = lambda **kw: tc.compress(img, 3, steps=80, batch=512, **kw).metrics
     adam, lbfgs = run(finish_optimizer="adam"), run(finish_optimizer="lbfgs")
     assert lbfgs["finish_optimizer"] == "lbfgs" and lbfgs["finish_steps"] == 40
     assert lbfgs["psnr_float"] > adam["psnr_float"]
@@ -62,7 +63,7 @@ def test_finish_optimizer_lbfgs_and_paper_protocol():
     assert paper[0]["psnr_quantised"] == paper[1]["psnr_quantised"]
     assert paper[0]["history"][-1]["step"] == 80
     with pytest.raises(tc.CompressionError, match="unknown finish optimizer"):
-        tc.compress(img, 3, steps=1, finish_optimizer="sgd", gl_metrics=False)
+        tc.compress(img, 3, steps=1, finish_optimizer="sgd")
 
 
 # bad input: handled with a note, or one clear error --------------------------------------
@@ -143,7 +144,7 @@ def test_shipped_asset_renders_like_torch(gl, name):
     image, _ = render_scene(folder, width=64, height=64, settings={"lut_filter": "fast"})
     assert np.isfinite(image).all()
     size = m["width"]
-    fast = tc.glsl_decode(b, size, "fast")
+    fast = evaluate_on_pixels(b, size, "fast")
     ref8 = tc.to_srgb8(tc.load_image(b.meta["provenance"]["image"].replace("skimage.data.", "skimage:"), size)[0], False)
     assert psnr(tc.to_srgb8(fast, True), ref8, 255.0) == pytest.approx(m["psnr_srgb8_glsl_fast"], abs=0.05)
     assert m["psnr_srgb8_glsl_exact"] - m["psnr_srgb8_glsl_fast"] < 4.0

@@ -18,7 +18,8 @@ from PIL import Image
 from inshade.bundle import load
 from inshade.models.graph import GraphModule
 from inshade.techniques.neural_image.train import main as train_main
-from inshade.techniques.neural_image.train import pixel_uvs, predict
+from inshade.pixels import pixel_uvs
+from inshade.techniques.neural_image.train import predict
 from inshade.runtime.context import gl_info, shared_context
 from inshade.runtime.headless import RenderSpecError, render_bundle, save_render
 from inshade.runtime.image_io import read_exr, write_png

@@ -60,7 +60,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from inshade.techniques.di_footprint.train import FootprintError
+    from inshade.models.footprint_sampler import FootprintError
 
     return command.main("inshade bench di_footprint", __doc__, add_arguments, run, argv,
                         errors=(BenchError, FootprintError))
@@ -224,11 +224,12 @@ def _asset(args):
     """(bundle, image [N, N, k] sRGB-encoded row 0 = top, scene, origin)."""
     from inshade.bundle import load
     from inshade.techniques.di_footprint import train as fp
+    from inshade.models import footprint_sampler as sampler
     from inshade.runtime.scene import load_scene
 
     path = Path(args.asset) if args.asset else None
     if not args.quick and path is not None and args.asset != DEFAULT_ASSET and not (path / "bundle.json").is_file():
-        raise fp.FootprintError(f"{path}: no di_footprint asset here (bundle.json); train one with "
+        raise sampler.FootprintError(f"{path}: no di_footprint asset here (bundle.json); train one with "
                                 f"`inshade train di_footprint --out {path}` or omit --asset")
     if not args.quick and path is not None and (path / "bundle.json").is_file():
         from PIL import Image
@@ -250,7 +251,7 @@ def _asset(args):
 def run(args) -> int:
     import torch
 
-    from inshade.techniques.di_footprint import train as fp
+    from inshade.models import footprint_sampler as sampler
     from inshade.runtime.context import gl_info, shared_context
 
     if args.quick:
@@ -296,17 +297,17 @@ def run(args) -> int:
     hit = inputs[..., 3] > 0.5
     parity = float(np.max(np.abs(renders["di"][..., :ref.shape[-1]][hit] - ref[hit]))) if hit.any() else 0.0
     # the emulated sampler (torch) at the shader's own (uv, footprint): how close GL's trilinear is to it
-    chain = fp.mip_chain(torch.from_numpy(tex.astype(np.float32)))
+    chain = sampler.mip_chain(torch.from_numpy(tex.astype(np.float32)))
     x = torch.from_numpy(np.ascontiguousarray(inputs[..., :3].reshape(-1, 3), np.float32))
-    emulated = fp.emulated_trilinear(chain, x[:, :2], x[:, 2]).numpy().reshape(h, w, -1)
+    emulated = sampler.emulated_trilinear(chain, x[:, :2], x[:, 2]).numpy().reshape(h, w, -1)
 
     k = image.shape[2]
     m = bundle.meta["metrics"]
     size = image.shape[0]
     bytes_di = int(m["bytes"])
-    memory = {"di": bytes_di, "di_fast": bytes_di, "trilinear": fp.texture_bytes(size, k, True),
-              "anisotropic": fp.texture_bytes(size, k, True), "bilinear": fp.texture_bytes(size, k, False),
-              "explicit_lod": fp.texture_bytes(size, k, True)}
+    memory = {"di": bytes_di, "di_fast": bytes_di, "trilinear": sampler.texture_bytes(size, k, True),
+              "anisotropic": sampler.texture_bytes(size, k, True), "bilinear": sampler.texture_bytes(size, k, False),
+              "explicit_lod": sampler.texture_bytes(size, k, True)}
     labels = {"di": "DI footprint sampler (exact LUT path)", "di_fast": "DI footprint sampler (hardware filtering)",
               "trilinear": "GL trilinear (RGB8 + mips)",
               "anisotropic": f"GL anisotropic {min(MAX_ANISOTROPY, ctx.max_anisotropy):g}x (RGB8 + mips)",
@@ -320,7 +321,7 @@ def run(args) -> int:
                      "bytes": memory[key], "draw_seconds": round(seconds[key], 4)})
     rows.append({"mode": "emulated_trilinear", "label": "emulated trilinear (torch, the DI training target)",
                  "psnr_vs_truth": round(psnr8(emulated, truth, mask), 3),
-                 "bytes": fp.texture_bytes(size, k, True), "draw_seconds": None})
+                 "bytes": sampler.texture_bytes(size, k, True), "draw_seconds": None})
     result = {
         "benchmark": "footprint", "origin": origin,
         "machine": machine(gl, max_anisotropy=float(ctx.max_anisotropy)),

@@ -140,7 +140,7 @@ def emulated_views(folder: Path, inputs, derivs, positions, eye):
 
     from inshade.bundle import load
     from inshade.models.graph import GraphModule
-    from inshade.techniques.di_footprint import train as fp
+    from inshade.models import footprint_sampler as fp
     from inshade.techniques.di_shading import train as ds
 
     lanes = np.concatenate([np.asarray(Image.open(folder / f"set{i}.png").convert("RGBA"), np.float32) / 255.0

@@ -73,9 +73,10 @@ from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models.lookup_array import LookupArray
 from inshade.models.mlp import Dense
-from inshade.techniques.di_brdf import train as dibrdf
-from inshade.techniques.di_footprint import train as fp
-from inshade.techniques.di_pbr_set import train as pbr
+from inshade.models.disney_glue import disney_glue
+from inshade.models.display import srgb_display
+from inshade.models import footprint_sampler as fp
+from inshade.models import pbr_lanes
 
 KIND = "di_shading"
 DECODER_KIND = "di_shading_brdf"
@@ -190,7 +191,7 @@ def _dot(a, b):
 
 def unpack(lanes: torch.Tensor) -> dict:
     """lib/pbr_set pbr_set_unpack of 8 lanes [N, 8] (di_pbr_set's `unpack`)."""
-    return pbr.unpack(lanes[:, :4], lanes[:, 4:])
+    return pbr_lanes.unpack(lanes[:, :4], lanes[:, 4:])
 
 
 def visible_normal(normal_ts: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
@@ -264,7 +265,7 @@ def shade_di(lanes: torch.Tensor, geo: Geometry, decoder: GraphModule, ambient: 
     n = len(lanes)
     extra = {"sheen_tint": torch.full((n,), float(CONSTANTS["sheen_tint"]), device=lanes.device),
              "k": torch.tensor(K_EXTRA, dtype=torch.float32, device=lanes.device).expand(n, 3)}
-    f = dibrdf.disney_glue(dec, extra, s["albedo"], local(geo.l), local(geo.v))
+    f = disney_glue(dec, extra, s["albedo"], local(geo.l), local(geo.v))
     return f * geo.e[:, None] + s["albedo"] * (np.float32(ambient) * s["ao"])[:, None]
 
 
@@ -290,7 +291,7 @@ def shade_di_clipped(lanes, geo, decoder, bound: float | None):
 
 def display(x: torch.Tensor, exposure: float = EXPOSURE) -> torch.Tensor:
     """sRGB(clamp(exposure x, 0, 1)): the domain of the shaded loss, PSNR and FLIP."""
-    return dibrdf.srgb_display(x * np.float32(exposure))
+    return srgb_display(x * np.float32(exposure))
 
 
 def reference(chain, uv, dx, dy, log2_fp, geo: Geometry) -> torch.Tensor:
@@ -472,7 +473,7 @@ def material(size: int) -> np.ndarray:
     """The bricks set [N, N, 8] (sRGB albedo, normal, roughness, AO), row 0 = top."""
     if size < 32 or size & (size - 1):
         raise ShadingError(f"size: {size} must be a power of two >= 32 (a full mip chain; bricks courses)")
-    return pbr.bricks(size)
+    return pbr_lanes.bricks(size)
 
 
 def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAULTS["n_cascaded"],

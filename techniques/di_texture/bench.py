@@ -120,7 +120,7 @@ def di_bundles(name: str, image: np.ndarray, args) -> list[tuple[object, str]]:
     ``di_texture_<image>_*``, e.g. ``di_texture_astronaut_12x``) that match the size, and one trained here for
     each extra ratio."""
     from inshade import bundle as bundle_mod
-    from inshade.techniques.di_texture import train as tc
+    from inshade.models import texture_cascade as tc
 
     found = []
     root = Path(args.assets) if args.assets else None
@@ -133,14 +133,15 @@ def di_bundles(name: str, image: np.ndarray, args) -> list[tuple[object, str]]:
         if b.kind == tc.KIND and (m.get("width"), m.get("height")) == image.shape[1::-1]:
             found.append((b, str(folder)))
     for r in args.ratio_list:
-        res = tc.compress(image, r, steps=args.steps, gl_metrics=False, name=f"di_{name}_{r:g}x",
+        res = tc.compress(image, r, steps=args.steps, name=f"di_{name}_{r:g}x",
                           provenance={"command": f"inshade bench di_texture (ratio {r:g}, {args.steps} steps)"})
         found.append((res.bundle, f"trained in this run ({args.steps} steps)"))
     return found
 
 
 def di_entries(name, image, img8, flip, args) -> list[dict]:
-    from inshade.techniques.di_texture import train as tc
+    from inshade.models import texture_cascade as tc
+    from inshade.runtime.network import evaluate_on_pixels
 
     out = []
     for b, origin in di_bundles(name, image, args):
@@ -148,7 +149,7 @@ def di_entries(name, image, img8, flip, args) -> list[dict]:
         linear = bool(b.meta.get("render"))
         torch_out = tc.torch_decode(b, image.shape[0])
         for f in ("exact", "fast"):
-            dec = tc.glsl_decode(b, image.shape[0], f)
+            dec = evaluate_on_pixels(b, image.shape[0], f)
             test = tc.to_srgb8(dec, linear)
             if test.shape[-1] == 1:
                 test = np.repeat(test, 3, -1)
@@ -169,7 +170,7 @@ def di_entries(name, image, img8, flip, args) -> list[dict]:
 # run
 
 def run(args) -> int:
-    from inshade.techniques.di_texture import train as tc
+    from inshade.models import texture_cascade as tc
     from inshade.runtime.context import gl_info, shared_context
 
     if args.quick:

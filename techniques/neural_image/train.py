@@ -40,6 +40,7 @@ from inshade import asset_folder, command
 from inshade.files import atomic_write
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
+from inshade.pixels import pixel_uvs
 from inshade.models import activations as _act
 from inshade.models import encodings as _enc
 from inshade.models.graph import GraphModule
@@ -121,15 +122,6 @@ def load_target(image: str = "astronaut", size: int = 256) -> np.ndarray:
         linear = skimage.transform.resize(linear, (size, size), order=1, anti_aliasing=s > size,
                                           mode="edge")
     return np.clip(linear, 0.0, 1.0).astype(np.float32)
-
-
-def pixel_uvs(width: int, height: int) -> np.ndarray:
-    """Pixel-centre uvs ``[H, W, 2]`` float32 in image orientation (row 0 = top); see the module
-    docstring. Computed in float32 as the shader does: ``gl_FragCoord.xy / size``."""
-    x = (np.arange(width, dtype=np.float32) + np.float32(0.5)) / np.float32(width)
-    y = (np.arange(height, dtype=np.float32)[::-1] + np.float32(0.5)) / np.float32(height)
-    u, v = np.meshgrid(x, y)
-    return np.stack([u, v], -1).astype(np.float32)
 
 
 # ---------------------------------------------------------------------------------------------
