@@ -1,10 +1,10 @@
-"""DI-SDF (techniques/di_sdf/train.py): signed distances from a mesh vs closed forms, sizing, a tiny fit, the
-generated ``scene_sdf`` (exact LUT path) vs torch under the parity rule, the hardware-filtered path
-within its documented bound, the sdf_diffuse render of the asset vs the torch reference renderer,
-and bad input.
+"""DI-SDF (techniques/di_sdf/: data.py, model.py, train.py): signed distances from a mesh vs closed
+forms, sizing, a tiny fit, the generated ``scene_sdf`` (exact LUT path) vs torch under the parity
+rule, the hardware-filtered path within its documented bound, the sdf_diffuse render of the asset vs
+the torch reference renderer, and bad input.
 
 Tolerances: exact path, tests/parity.py's rule (1e-5 * max(1, |d|), world units). Fast path:
-``di_sdf.fast_path_bound`` (the lookup-array bound of tests/test_lookup_array.py carried through
+model.py ``fast_path_bound`` (the lookup-array bound of tests/test_lookup_array.py carried through
 the cascade, times the bound radius). Renders at 48x48: PSNR >= 50 dB (linear, peak 1) over the
 pixels where both executors hit or both miss; hit masks may differ only on a silhouette (as
 tests/test_sdf.py).
@@ -21,6 +21,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.codegen.network_sdf import network_sdf_chunks
+from inshade.techniques.di_sdf import data as di_data
+from inshade.techniques.di_sdf import model as di_model
 from inshade.techniques.di_sdf import train as di_sdf
 
 from parity import assert_parity, parity_settings, run_sample_pass
@@ -57,7 +59,7 @@ def test_signed_distance_matches_box_closed_form():
     half = np.array([0.5, 0.3, 0.4])
     box = trimesh.creation.box(extents=2 * half)
     band = 0.15
-    query = di_sdf.DistanceQuery(box, band, seed=0, surface_samples=20000)
+    query = di_data.DistanceQuery(box, band, seed=0, surface_samples=20000)
     p = np.random.default_rng(0).uniform(-0.8, 0.8, (4000, 3))
     exact = _box_sdf(p, half)
     got = query(p)
@@ -67,8 +69,8 @@ def test_signed_distance_matches_box_closed_form():
 
 
 def test_samples_are_truncated_and_in_the_cube(capsule):
-    frame = di_sdf.mesh_frame(capsule)
-    s = di_sdf.make_samples(capsule, frame, 5000, 0.1, seed=3)
+    frame = di_data.mesh_frame(capsule)
+    s = di_data.make_samples(capsule, frame, 5000, 0.1, seed=3)
     assert s.q.dtype == np.float32 and np.abs(s.q).max() <= 1.0
     assert np.abs(s.d).max() <= 0.1 + 1e-7
     assert 0.0 < (np.abs(s.d[s.near]) < 0.1).mean() and (s.d[~s.near] == 0.1).mean() > 0.5
@@ -79,11 +81,11 @@ def test_samples_are_truncated_and_in_the_cube(capsule):
 
 def test_sizing_and_budget_errors():
     for kb in (13, 48, 200):
-        s = di_sdf.plan(kb * 1024)
+        s = di_model.plan(kb * 1024)
         assert s.n_primary % 8 == 0 and s.n_cascaded % 4 == 0
         assert s.bytes == 3 * s.n_primary ** 3 + s.n_cascaded ** 3 <= kb * 1024
-    with pytest.raises(di_sdf.DiSdfError, match="budget"):
-        di_sdf.plan(1000)
+    with pytest.raises(di_data.DiSdfError, match="budget"):
+        di_model.plan(1000)
 
 
 # --- the fit -----------------------------------------------------------------------------------
@@ -98,7 +100,7 @@ def test_tiny_fit(tiny):
     assert b.meta["render"]["sdf"]["radius"] == pytest.approx(result.frame.radius)
     assert {b.node(k).params["bits"] for k in ("primary", "cascaded")} == {8}
     # the truncation band is a property of the array: every cell (so every distance) is in it
-    cells = di_sdf.sdf_module(b).graph.nodes["cascaded"].table()
+    cells = di_model.sdf_module(b).graph.nodes["cascaded"].table()
     assert float(cells.detach().abs().max()) <= m["truncation"] + 1e-6
     scene = json.loads((out / "scene.json").read_text())
     assert scene["sdf"] == {"network": "."} and (out / "preview.png").is_file()
@@ -128,10 +130,10 @@ def test_scene_sdf_exact_path_parity(gl, tiny, capsule, seed):
     frame = result.frame
     rng = np.random.default_rng(seed)
     # the whole bound cube, plus points near the surface where the field is not flat
-    near = di_sdf.make_samples(capsule, frame, 256, 0.1, uniform_fraction=0.0, seed=seed).q
+    near = di_data.make_samples(capsule, frame, 256, 0.1, uniform_fraction=0.0, seed=seed).q
     q = np.concatenate([rng.uniform(-1.0, 1.0, (256, 3)), near])
     p = frame.world(q).astype(np.float32)
-    module = di_sdf.sdf_module(result.bundle)
+    module = di_model.sdf_module(result.bundle)
     with torch.no_grad():
         ref = module(torch.from_numpy(p)).numpy()
     assert_parity(_glsl_sdf(gl, result.bundle, p, "exact"), ref, what="DI-SDF scene_sdf, exact path")
@@ -142,7 +144,7 @@ def test_scene_sdf_fast_path_within_bound(gl, tiny):
     p = result.frame.world(np.random.default_rng(5).uniform(-1.0, 1.0, (1024, 3))).astype(np.float32)
     exact = _glsl_sdf(gl, result.bundle, p, "exact").astype(np.float64)
     fast = _glsl_sdf(gl, result.bundle, p, "fast").astype(np.float64)
-    bound = di_sdf.fast_path_bound(result.bundle) + 1e-5 * np.maximum(1.0, np.abs(exact))
+    bound = di_model.fast_path_bound(result.bundle) + 1e-5 * np.maximum(1.0, np.abs(exact))
     err = np.abs(fast - exact)
     assert np.isfinite(fast).all() and (err <= bound).all(), f"max err {err.max():.3g} > bound {bound.max():.3g}"
 
@@ -164,7 +166,7 @@ def test_asset_renders_like_torch(gl, tiny):
         sh = r.environment_sh()
     finally:
         r.release()
-    ref = di_sdf.render_module(di_sdf.sdf_module(result.bundle), cam.uniforms(size, size), size, sh)
+    ref = di_sdf.render_module(di_model.sdf_module(result.bundle), cam.uniforms(size, size), size, sh)
     from inshade.models.sdf import camera_rays, sh_background_t
 
     _, rd = camera_rays(cam.uniforms(size, size), size, size)
@@ -188,19 +190,19 @@ def test_asset_renders_like_torch(gl, tiny):
 def test_bad_meshes_one_clear_error(tmp_path, capsule):
     import trimesh
 
-    with pytest.raises(di_sdf.DiSdfError, match="no such file"):
-        di_sdf.load_mesh(tmp_path / "nope.ply")
+    with pytest.raises(di_data.DiSdfError, match="no such file"):
+        di_data.load_mesh(tmp_path / "nope.ply")
     junk = tmp_path / "junk.ply"
     junk.write_bytes(b"ply\nthis is not a mesh\n")
-    with pytest.raises(di_sdf.DiSdfError, match=str(junk).replace("\\", "\\\\")):
-        di_sdf.load_mesh(junk)
+    with pytest.raises(di_data.DiSdfError, match=str(junk).replace("\\", "\\\\")):
+        di_data.load_mesh(junk)
     open_mesh = capsule.copy()
     open_mesh.update_faces(np.arange(len(open_mesh.faces)) > 10)
     path = tmp_path / "open.ply"
     open_mesh.export(path)
-    with pytest.raises(di_sdf.DiSdfError, match="not watertight"):
-        di_sdf.load_mesh(path)
-    with pytest.raises(di_sdf.DiSdfError, match="truncation"):
+    with pytest.raises(di_data.DiSdfError, match="not watertight"):
+        di_data.load_mesh(path)
+    with pytest.raises(di_data.DiSdfError, match="truncation"):
         di_sdf.fit(trimesh.creation.icosphere(1), TINY_BUDGET, truncation=0.0, progress=False)
 
 
@@ -234,7 +236,7 @@ def test_bench_ground_truth_is_the_mesh():
 
     size = 32
     mesh = trimesh.creation.icosphere(4, radius=0.6)
-    cam = camera_from_dict(di_sdf.orbit_camera(di_sdf.Frame((0.0, 0.0, 0.0), 1.0)))
+    cam = camera_from_dict(di_sdf.orbit_camera(di_data.Frame((0.0, 0.0, 0.0), 1.0)))
     u = cam.uniforms(size, size)
     gt = mesh_ground_truth(mesh, u, size, environment_sh("noon"))
     ro, rd = camera_rays(u, size, size)

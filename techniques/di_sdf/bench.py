@@ -104,7 +104,7 @@ def mesh_ground_truth(mesh, uniforms: dict, size: int, sh: np.ndarray) -> dict:
     import torch
     import trimesh
 
-    from inshade.techniques.di_sdf.train import ALBEDO
+    from inshade.techniques.di_sdf.model import ALBEDO
     from inshade.models.sdf import INV_PI, camera_rays, sh_background_t, sh_irradiance_t
 
     ro, rd = camera_rays(uniforms, size, size)
@@ -213,7 +213,7 @@ def on_disk(bundle, workdir: Path) -> Path:
 def model_entry(name, bundle, nbytes, mesh_radius, ev, gt, ctx, view, args, workdir: Path, **settings) -> dict:
     import torch
 
-    from inshade.techniques.di_sdf.train import sdf_metrics
+    from inshade.techniques.di_sdf.data import sdf_metrics
     from inshade.models.network_sdf import NetworkSdfModule
 
     module = NetworkSdfModule.from_bundle(bundle)
@@ -239,7 +239,8 @@ def model_entry(name, bundle, nbytes, mesh_radius, ev, gt, ctx, view, args, work
 def run(args) -> int:
     from inshade.codegen.sdf import environment_sh
     from inshade.mesh import bounding_sphere, write_bunny
-    from inshade.techniques.di_sdf import train as di_sdf
+    from inshade.techniques.di_sdf.data import Frame, eval_set, load_mesh
+    from inshade.techniques.di_sdf.model import fast_path_bound
     from inshade.runtime.camera import camera_from_dict
     from inshade.runtime.context import gl_info, shared_context
     from inshade.runtime.image_io import write_png
@@ -254,17 +255,17 @@ def run(args) -> int:
     if args.mesh == DEFAULT_MESH and not Path(DEFAULT_MESH).is_file():   # not run from the repository root
         from inshade.mesh import DEFAULT_OUT as generated
         args.mesh = str(write_bunny(generated))
-    mesh = di_sdf.load_mesh(args.mesh)
+    mesh = load_mesh(args.mesh)
     ctx = shared_context()
     info = gl_info(ctx)
     args.timer = clock_for(ctx, args.clock, software=info["software"])
     print(f"GL_RENDERER: {info['renderer']}", file=sys.stderr)
     center, mesh_radius = bounding_sphere(mesh)
-    view = di_sdf.Frame(tuple(float(c) for c in center), float(mesh_radius) * 1.1)
+    view = Frame(tuple(float(c) for c in center), float(mesh_radius) * 1.1)
     cam = camera(view)
     uniforms = camera_from_dict(cam).uniforms(args.size, args.size)
     sh = environment_sh(SKY, 0.0)
-    ev = di_sdf.eval_set(mesh, view)
+    ev = eval_set(mesh, view)
     gt = mesh_ground_truth(mesh, uniforms, args.size, sh)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -286,7 +287,7 @@ def run(args) -> int:
                                 lut_filter=f)
                 m = bundle.meta["metrics"]
                 e.update(n_primary=m["n_primary"], n_cascaded=m["n_cascaded"], origin=origin,
-                         fast_path_bound=di_sdf.fast_path_bound(bundle))
+                         fast_path_bound=fast_path_bound(bundle))
                 rows.append(e)
             width = mlp_width_for_bytes(nbytes, args.mlp_layers)
             if width > args.mlp_max_width:

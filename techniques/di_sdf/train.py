@@ -1,36 +1,13 @@
 """DI-SDF: a truncated signed distance field learned from a mesh as a Differentiable Indirection
 cascade (Differentiable Indirection, Datta et al. 2023 §4.1 and supp. §1.6).
 
-    3D primary array (N_p³ × 3 channels, identity ramp, triangle F, 8-bit)
-      -> 3D cascaded array (N_c³ × 1 channel: truncated distance, 8-bit)
+The cascade, its bundle graph and the truncation band are techniques/di_sdf/model.py; the samples,
+their signed distances and the metrics techniques/di_sdf/data.py. Training: L1 loss, Adam with a
+cosine schedule, the primary's half-cell gradient clip (notes §4.3), 8-bit export; the byte budget
+is solved by ``indirection.size_cascade``.
 
-The bundle graph is ``q -> to_unit -> primary -> cascaded``: ``q = (p - center) / radius`` is the
-network-SDF contract (models/network_sdf.py, codegen/network_sdf.py: the graph sees the bound
-sphere's unit ball, its output times ``radius`` is the world distance) and ``to_unit`` is a fixed
-dense node ``0.5 q + 0.5`` that maps the cube [-1, 1]³ around that ball to the arrays' [0, 1]³.
-
-Truncation (the band is ``truncation`` = τ, in normalised units, i.e. a fraction of the bound
-radius; default 0.1): the target is ``clamp(d / radius, -τ, τ)``. The paper truncates to ±1 (a
-sign field: only the zero crossing is learned); a linear band of a few primary cells keeps what a
-sphere tracer and central-difference normals need -- distances near the surface -- and is the
-paper's choice in the limit τ -> 0. After training the cascaded cells are clamped to [-τ, τ], so
-every interpolated distance lies in the band too: the tracer (lib/sdf.glsl ``sdf_trace``) then
-never steps more than ``τ · radius · step_scale``, i.e. its step is ``min(d, τ) · step_scale``
-by construction, and stays inside the bound sphere. Far from the surface the field is flat at
-+τ (steps of τ, ~2/τ of them across the bound), so ``max_steps`` is sized from τ (``trace_settings``).
-
-Samples (paper: 1e9 near-surface + 2e7 uniform; here 4e5 by default: 12 s on the 2 shared cores
-when quiet, 40 s under load, for a 40k-face mesh): surface points
-pushed along a Gaussian (σ drawn from ``near_sigmas``, in normalised units) plus uniform points in
-the cube. Signed distance: exact point-triangle distance to the candidate faces of the k nearest
-dense surface samples (scipy cKDTree, queried only within the band -- points with no sample
-closer than τ plus the sample spacing are beyond the band and get ±τ), sign from ray parity
-through embree (``trimesh`` with ``embreex``). The cascaded array starts from the nearest
-training sample's truncated distance at each cell (KD-tree, the paper's init); the primary is the
-identity ramp. L1 loss, Adam with a cosine schedule, the primary's half-cell gradient clip
-(notes §4.3), 8-bit export; the byte budget is solved by ``indirection.size_cascade``.
-
-    from inshade.techniques.di_sdf.train import fit, load_mesh
+    from inshade.techniques.di_sdf.data import load_mesh
+    from inshade.techniques.di_sdf.train import fit
     result = fit(load_mesh("bunny.ply"), budget_bytes=64 * 1024)
     result.bundle.save("trained/di_sdf")
 
@@ -64,9 +41,12 @@ from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH
 
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
-from inshade.models.mlp import Dense
 from inshade.models.network_sdf import NetworkSdfModule
 from inshade.models.threads import torch_threads
+
+from .data import (MARGIN, NEAR_SIGMAS, UNIFORM_FRACTION, DiSdfError, DistanceQuery, Frame, check_mesh, eval_set,
+                   load_mesh, make_samples, mesh_frame, nearest_init, sample_batches, sdf_metrics)
+from .model import ALBEDO, RHO, export_graph, plan, sdf_module, trace_settings
 
 KIND = "di_sdf"
 RENDER_PROGRAM = "passes/sdf_diffuse.frag"
@@ -77,287 +57,17 @@ RENDER_PROGRAM = "passes/sdf_diffuse.frag"
 # fold of the primary that maps free space onto the inside -- with it the floater is gone, at
 # surface MAE 1.05e-3 vs 0.85e-3 of the radius, IoU 0.9918 vs 0.9928 (lr 3e-3 also removes it,
 # at 1.30e-3 / 0.9887 in 1500 steps).
-DEFAULTS = dict(budget_kb=64.0, rho=2.0, truncation=0.1, steps=1500, lr=1e-2, batch=16384, schedule="cosine",
-                samples=400_000, uniform_fraction=0.25, near_sigmas=(0.005, 0.02, 0.05), margin=1.1, seed=0,
+DEFAULTS = dict(budget_kb=64.0, rho=RHO, truncation=0.1, steps=1500, lr=1e-2, batch=16384, schedule="cosine",
+                samples=400_000, uniform_fraction=UNIFORM_FRACTION, near_sigmas=NEAR_SIGMAS, margin=MARGIN, seed=0,
                 clip_primary="auto", monotonicity=0.2)
 # --preset: "ship" is what built trained/di_sdf; "quick" keeps the 1500-step default.
 PRESETS = {"quick": dict(steps=1500), "ship": dict(steps=3000)}
 SETTINGS = ("budget_kb", "rho", "truncation", "steps", "lr", "batch", "samples", "schedule", "monotonicity", "seed")
-ALBEDO = (0.8, 0.8, 0.8)
-KNN = 8                     # candidate faces per query point (from the k nearest surface samples)
-SURFACE_SAMPLES = 200_000   # dense surface sample for the distance queries
 
 
 def preset_settings(preset: str, asset: str | None = None) -> dict:
     """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
     return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
-
-
-class DiSdfError(ValueError):
-    """A mesh or a setting DI-SDF cannot use; the message names the file / option."""
-
-
-# ---------------------------------------------------------------------------------------------
-# mesh and its frame
-
-def load_mesh(path):
-    """A closed triangle mesh from a file (inshade.mesh.load_mesh); one DiSdfError naming the file."""
-    from inshade.mesh import MeshError, load_mesh as _load
-
-    try:
-        return check_mesh(_load(path, require_watertight=True), str(path))
-    except MeshError as e:
-        raise DiSdfError(str(e)) from None
-
-
-def check_mesh(mesh, where: str = "mesh"):
-    import trimesh
-
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise DiSdfError(f"{where}: no triangles")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise DiSdfError(f"{where}: vertices are not finite")
-    if not mesh.is_watertight:
-        raise DiSdfError(f"{where}: not watertight ({len(mesh.faces)} faces); a signed distance needs a closed "
-                         "surface (repair it, e.g. trimesh.repair.fill_holes, or remesh)")
-    if mesh.volume < 0:
-        mesh = mesh.copy()
-        mesh.invert()
-    return mesh
-
-
-@dataclass(frozen=True)
-class Frame:
-    """The bound sphere: ``center`` and ``radius`` (world); q = (p - center) / radius."""
-
-    center: tuple
-    radius: float
-
-    def normalise(self, p):
-        return (np.asarray(p, np.float64) - np.asarray(self.center)) / self.radius
-
-    def world(self, q):
-        return np.asarray(self.center) + np.asarray(q, np.float64) * self.radius
-
-
-def mesh_frame(mesh, margin: float = DEFAULTS["margin"]) -> Frame:
-    """Centre of the bounding box; radius = margin * the farthest vertex (float32-rounded)."""
-    c = mesh.bounds.mean(0)
-    r = float(np.linalg.norm(mesh.vertices - c, axis=1).max()) * float(margin)
-    return Frame(tuple(float(np.float32(x)) for x in c), float(np.float32(r)))
-
-
-# ---------------------------------------------------------------------------------------------
-# samples and signed distance
-
-class DistanceQuery:
-    """Signed distance to a closed mesh, exact within ``band`` (world units), ±band beyond it."""
-
-    def __init__(self, mesh, band: float, seed: int = 0, surface_samples: int = SURFACE_SAMPLES):
-        import trimesh
-        from scipy.spatial import cKDTree
-
-        self.mesh = mesh
-        pts, self.faces = trimesh.sample.sample_surface(mesh, surface_samples, seed=seed)
-        self.tree = cKDTree(pts)
-        # Mean spacing of the surface sample; a point within `band` of the surface has a sample
-        # within band + a few spacings, so the bounded query finds it.
-        spacing = math.sqrt(mesh.area / surface_samples)
-        self.band = float(band)
-        self.reach = self.band + 4.0 * spacing
-
-    def __call__(self, points: np.ndarray, chunk: int = 65536) -> np.ndarray:
-        import trimesh
-
-        from inshade.progress import progress as progress_bar
-
-        points = np.asarray(points, np.float64)
-        out = np.full(len(points), self.band)
-        starts = range(0, len(points), chunk)
-        for s in progress_bar(starts, desc="signed distance", enabled=len(starts) >= 4):
-            q = points[s:s + chunk]
-            dist, idx = self.tree.query(q, k=KNN, distance_upper_bound=self.reach, workers=-1)
-            near = np.isfinite(dist[:, 0])
-            d = np.full(len(q), self.band)
-            if near.any():
-                qq, ii = q[near], idx[near]
-                ii = np.where(ii < self.tree.n, ii, ii[:, :1])        # pad misses with the nearest
-                tri = self.mesh.triangles[self.faces[ii.reshape(-1)]]
-                rep = np.repeat(qq, KNN, 0)
-                cp = trimesh.triangles.closest_point(tri, rep)
-                d[near] = np.minimum(np.linalg.norm(cp - rep, axis=1).reshape(-1, KNN).min(1), self.band)
-            inside = self.mesh.ray.contains_points(q)
-            out[s:s + chunk] = np.where(inside, -d, d)
-        return out
-
-
-@dataclass
-class Samples:
-    q: np.ndarray        # float32 [N, 3] normalised positions in [-1, 1]^3
-    d: np.ndarray        # float32 [N] truncated distance, normalised units, in [-τ, τ]
-    near: np.ndarray     # bool [N]: a near-surface sample (else uniform)
-    seconds: float = 0.0
-
-
-def make_samples(mesh, frame: Frame, n: int, truncation: float, *, uniform_fraction: float = DEFAULTS["uniform_fraction"],
-                 near_sigmas=DEFAULTS["near_sigmas"], seed: int = 0, query: DistanceQuery | None = None) -> Samples:
-    """``n`` training samples: (1 - uniform_fraction) near the surface (surface points plus a
-    Gaussian offset, σ drawn per point from ``near_sigmas``, normalised units), the rest uniform in
-    the cube [-1, 1]^3; targets clamp(d / radius, -τ, τ)."""
-    import trimesh
-
-    t0 = time.perf_counter()
-    rng = np.random.default_rng(seed)
-    query = query or DistanceQuery(mesh, truncation * frame.radius, seed)
-    n_near = int(round(n * (1.0 - uniform_fraction)))
-    surf, _ = trimesh.sample.sample_surface(mesh, n_near, seed=seed + 1)
-    sig = np.asarray(near_sigmas, np.float64)[rng.integers(0, len(near_sigmas), n_near)] * frame.radius
-    near_p = surf + rng.normal(size=(n_near, 3)) * sig[:, None]
-    q = np.concatenate([frame.normalise(near_p), rng.uniform(-1.0, 1.0, (n - n_near, 3))])
-    q = np.clip(q, -1.0, 1.0)
-    d = query(frame.world(q)) / frame.radius
-    near = np.arange(n) < n_near
-    return Samples(q.astype(np.float32), np.clip(d, -truncation, truncation).astype(np.float32), near,
-                   time.perf_counter() - t0)
-
-
-def sample_batches(samples: Samples, batch: int, seed: int = 0, device="cpu"):
-    """Endless (x in [0, 1]^3, target [B, 1]) batches on ``device``: epochs over the samples in a
-    seeded random order (drawn on a CPU generator, then moved: the same order on every device)."""
-    x = torch.from_numpy(samples.q * np.float32(0.5) + np.float32(0.5)).to(device)
-    y = torch.from_numpy(samples.d)[:, None].to(device)
-    gen = torch.Generator().manual_seed(seed)
-    while True:
-        order = torch.randperm(len(x), generator=gen).to(device)
-        for s in range(0, len(x) - batch + 1 if len(x) >= batch else 1, batch):
-            idx = order[s:s + batch]
-            yield x[idx], y[idx]
-
-
-def nearest_init(samples: Samples):
-    """The paper's cascaded init: at each cell point x in [0, 1]^3 (the primary is the identity
-    ramp, so x is also a position), the truncated distance of the nearest training sample."""
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(samples.q * 0.5 + 0.5)
-
-    def target(x):
-        _, i = tree.query(np.asarray(x, np.float64), k=1, workers=-1)
-        return samples.d[i][:, None]
-    return target
-
-
-# ---------------------------------------------------------------------------------------------
-# sizing, graph, trace settings
-
-def plan(budget_bytes: float, rho: float = DEFAULTS["rho"]) -> di.Sizing:
-    """Largest 8-bit 3D/3ch -> 3D/1ch cascade within the budget (N_p multiple of 8, N_c of 4)."""
-    try:
-        return di.size_cascade(int(budget_bytes), float(rho), primary_dims=3, primary_channels=3,
-                               cascaded_dims=3, cascaded_channels=1)
-    except ValueError as e:
-        raise DiSdfError(f"--budget-kb {budget_bytes / 1024:g}: {e}") from None
-
-
-def to_unit_node() -> Dense:
-    """Fixed affine q in [-1, 1]^3 -> x = 0.5 q + 0.5 in [0, 1]^3 (exact in float32)."""
-    d = Dense(3, 3, bias=True)
-    with torch.no_grad():
-        d.linear.weight.copy_(torch.eye(3) * 0.5)
-        d.linear.bias.fill_(0.5)
-    return d
-
-
-def export_graph(core: GraphModule) -> GraphModule:
-    """The bundle graph q -> to_unit -> primary -> cascaded (the trained arrays, shared)."""
-    g = GraphModule([("q", 3, "position")])
-    g.add("to_unit", to_unit_node(), "q")
-    g.add("primary", core.nodes["primary"], "to_unit")
-    g.add("cascaded", core.nodes["cascaded"], "primary")
-    g.output("distance", "cascaded", "sdf")
-    for p in g.parameters():
-        p.requires_grad_(False)
-    return g
-
-
-def trace_settings(frame: Frame, truncation: float, n_primary: int, step_scale: float = 0.8) -> dict:
-    """Sphere tracing for a truncated field. Steps are at most τ·radius·step_scale; crossing the
-    bound (diameter 2 radius) flat at +τ takes 2 / (τ step_scale) steps, plus 48 to converge (grazing
-    rays approach slowly). hit_eps: a twentieth of a primary cell; normal_eps: half a primary cell (the
-    field is trilinear per cell: a smaller step sees cell facets, a larger one blurs detail)."""
-    cell = 2.0 / (n_primary - 1) * frame.radius
-    return {"max_steps": int(min(1024, math.ceil(2.0 / (truncation * step_scale)) + 48)),
-            "step_scale": step_scale, "hit_eps": 0.05 * cell, "normal_eps": 0.5 * cell}
-
-
-def fast_path_bound(bundle) -> float:
-    """World-space bound on |fast - exact| of ``scene_sdf`` (hardware-filtered lookups): the
-    lookup-array bound of tests/test_lookup_array.py, ``3 * 2^-8 * D + 2^-9 * scale`` per 3D array
-    (D its largest adjacent-cell difference), with the primary's error e_k on channel k carried
-    through the cascaded array's slope along axis k, ``D_c * (N_c - 1)``:
-
-        e = 3 * 2^-8 * D_c + 2^-9 * s_c + sum_k D_c * (N_c - 1) * (3 * 2^-8 * D_p,k + 2^-9 * s_p,k)
-
-    times the bound radius."""
-    from inshade.bundle import Bundle
-
-    g = GraphModule.from_bundle(Bundle(bundle.meta, bundle.tensors))
-    tp = g.nodes["primary"].table().detach().double().numpy()
-    tc = g.nodes["cascaded"].table().detach().double().numpy()
-    d_p = np.array([max(float(np.abs(np.diff(tp[..., k], axis=a)).max()) for a in range(3)) for k in range(3)])
-    d_c = max(float(np.abs(np.diff(tc[..., 0], axis=a)).max()) for a in range(3))
-    s_p = bundle.tensors["primary.scale"].astype(np.float64)
-    (s_c,) = bundle.tensors["cascaded.scale"].astype(np.float64)
-    n_c = bundle.node("cascaded").params["resolution"][0]
-    e_p = 3 * 2.0 ** -8 * d_p + 2.0 ** -9 * s_p
-    e = 3 * 2.0 ** -8 * d_c + 2.0 ** -9 * s_c + float(np.sum(d_c * (n_c - 1) * e_p))
-    return e * float(bundle.meta["render"]["sdf"]["radius"])
-
-
-def sdf_module(bundle) -> NetworkSdfModule:
-    """The torch scene of an exported DI-SDF bundle (trace/center/radius from render.sdf)."""
-    return NetworkSdfModule.from_bundle(bundle)
-
-
-# ---------------------------------------------------------------------------------------------
-# metrics (shared with the MLP SDF comparison in techniques/di_sdf/bench.py)
-
-@dataclass
-class EvalSet:
-    surface: np.ndarray          # world points on the mesh [S, 3]
-    surface_normals: np.ndarray  # their face normals [S, 3]
-    uniform: np.ndarray          # world points uniform in the bound cube [U, 3]
-    inside: np.ndarray           # bool [U]: inside the mesh
-
-
-def eval_set(mesh, frame: Frame, n_surface: int = 20000, n_uniform: int = 100000, seed: int = 123) -> EvalSet:
-    import trimesh
-
-    pts, fid = trimesh.sample.sample_surface(mesh, n_surface, seed=seed)
-    u = frame.world(np.random.default_rng(seed).uniform(-1.0, 1.0, (n_uniform, 3)))
-    return EvalSet(pts.astype(np.float32), mesh.face_normals[fid].astype(np.float32), u.astype(np.float32),
-                   mesh.ray.contains_points(u))
-
-
-def sdf_metrics(sdf, ev: EvalSet, normal_eps: float, radius: float) -> dict:
-    """Surface error (mean and 95th percentile |d| at mesh surface points, world units and per
-    bound radius), IoU of inside (d < 0) on uniform points in the bound cube, and the normal angle
-    error (degrees; central differences with ``normal_eps``, as the shader) at the surface points.
-    ``sdf``: any p [N, 3] -> d [N] torch callable (NetworkSdfModule, SdfModule)."""
-    from inshade.models.sdf import normals
-
-    with torch.no_grad():
-        surf = torch.from_numpy(ev.surface)
-        d_s = sdf(surf).double().numpy()
-        d_u = sdf(torch.from_numpy(ev.uniform)).numpy()
-        n = normals(sdf, surf, normal_eps).double().numpy()
-    pred_in = d_u < 0
-    iou = float((pred_in & ev.inside).sum() / max(1, (pred_in | ev.inside).sum()))
-    cos = np.clip((n * ev.surface_normals).sum(1), -1.0, 1.0)
-    ang = np.degrees(np.arccos(np.where(np.isfinite(cos), cos, -1.0)))
-    return {"surface_mae": float(np.abs(d_s).mean()), "surface_p95": float(np.percentile(np.abs(d_s), 95)),
-            "surface_mae_per_radius": float(np.abs(d_s).mean() / radius), "iou": iou,
-            "normal_deg_mean": float(ang.mean()), "normal_deg_median": float(np.median(ang))}
 
 
 # ---------------------------------------------------------------------------------------------
