@@ -17,6 +17,7 @@ import pytest
 import torch
 
 from inshade.models import brdf
+from inshade.models.display import srgb_display
 from inshade.techniques.di_brdf import train as D
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
@@ -97,7 +98,7 @@ def test_ggx_ball_terms_reproduce_the_ball_render(lights):
     want = ref[m][:, 0]
     assert float(((got - want).abs() / want.abs().clamp_min(1.0)).max()) < 2e-3
     # and the display-domain twin agrees with material_balls.display
-    disp = D.srgb_display(got)
+    disp = srgb_display(got)
     assert np.allclose(disp.numpy(), mb.display(got.numpy()), atol=1e-5)
 
 

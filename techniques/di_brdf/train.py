@@ -13,7 +13,7 @@ that saturate to white (pooled ball PSNR 39.3 dB, worst ball 34.1 at 1500 steps)
 loss on the dim highlights the balls show (47.5 / 41.7 dB at 8000 steps, ~75 s on one core).
 
 Disney. Albedo factored out (paper Eq. 3; exact, models/brdf.py `disney_pq`), then five runtime
-lookups (decoders) and ~70 FLOPs of glue (shaders/lib/di_brdf.glsl, torch `disney_glue`):
+lookups (decoders) and ~70 FLOPs of glue (shaders/lib/di_brdf.glsl, torch models/disney_glue.py):
 
 | decoder | array | queried with | holds |
 |---|---|---|---|
@@ -66,6 +66,8 @@ from inshade.files import atomic_files, atomic_write
 from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.models import brdf
+from inshade.models.disney_glue import disney_glue
+from inshade.models.display import srgb_display
 from inshade.models import indirection as di
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
@@ -199,12 +201,6 @@ def ggx_metrics(g: GraphModule, cols: int = SWEEP_COLUMNS, size: int = 64) -> di
             "psnr_balls_all_pixels": mb.ball_psnr(got, ref, inside),
             "psnr_function_tonemapped": di.psnr(tm(p), tm(y)),
             "psnr_function_raw_peak_max": di.psnr(p, y, float(y.max()))}
-
-
-def srgb_display(radiance: torch.Tensor) -> torch.Tensor:
-    """Torch twin of `material_balls.display`: clamp to [0, 1], sRGB-encode (differentiable)."""
-    x = radiance.clamp(0.0, 1.0)
-    return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(0.0031308) ** (1.0 / 2.4) - 0.055)
 
 
 def ggx_ball_terms(P: torch.Tensor, lights: int = mb.MAX_LIGHTS):
@@ -374,35 +370,6 @@ class DisneyDI(torch.nn.Module):
     def forward(self, l, v, base_color, params):
         dec = self.decode(self.encode(params))
         return disney_glue(dec, self.extras(params), base_color, l, v)
-
-
-def disney_glue(dec: dict, extra: dict, albedo, l, v):
-    """shaders/lib/di_brdf.glsl `di_disney_brdf`, operation for operation."""
-    g, k, f, c, e = dec["ggx"], dec["smith"][..., 0], dec["diff"], dec["coef"], dec["gloss"]
-    st, kk = extra["sheen_tint"], extra["k"]
-    h = l + v
-    h = h * torch.rsqrt(h[..., 0] * h[..., 0] + h[..., 1] * h[..., 1] + h[..., 2] * h[..., 2])[..., None]
-    nl, nv, nh = l[..., 2], v[..., 2], h[..., 2]
-    hl = h[..., 0] * l[..., 0] + h[..., 1] * l[..., 1] + h[..., 2] * l[..., 2]
-    fl, fv, s = brdf.pow5(1.0 - nl), brdf.pow5(1.0 - nv), brdf.pow5(1.0 - hl)
-    t = hl * hl
-    flv = fl * fv
-    w = 1.0 / (nl + nv) - 0.5
-    fd = nl * (f[..., 0] * ((1.0 - 0.5 * fl) * (1.0 - 0.5 * fv)) + f[..., 1] * (2.0 * t * (fl + fv - flv))
-               + f[..., 2] * ((1.0 - fl) * (1.0 - fv) * w + 0.5) + f[..., 3] * (t * (fl + fv - 2.0 * flv) * w))
-    den = g[..., 0] * (h[..., 0] * h[..., 0]) + g[..., 1] * (h[..., 1] * h[..., 1]) + g[..., 2] * (nh * nh)
-    dg = 1.0 / (den * den) * (nl / (nl * (1.0 - k) + k)) * (1.0 / (4.0 * (nv * (1.0 - k) + k)))
-    kc = c[..., 3]
-    gc = (nl / (nl * (1.0 - kc) + kc)) * (1.0 / (4.0 * (nv * (1.0 - kc) + kc)))
-    dc = 1.0 / (e[..., 0] * (1.0 - nh * nh) + e[..., 1])
-    fc = 0.04 + 0.96 * s
-    lum = torch.clamp(albedo[..., 0] * 0.2126 + albedo[..., 1] * 0.7152 + albedo[..., 2] * 0.0722, min=0.0001)
-    sn = s * nl
-    p = c[..., 0] * lum * fd + c[..., 2] * st * sn + (c[..., 0] * kk[..., 0] + c[..., 1] * lum) * (1.0 - s) * dg
-    q = (c[..., 2] - c[..., 2] * st) * sn + (c[..., 0] * kk[..., 1] * (1.0 - s) + s) * dg + kk[..., 2] * fc * dc * gc
-    out = albedo / lum[..., None] * p[..., None] + q[..., None]
-    above = (nl > 0.0) & (nv > 0.0)
-    return torch.where(above[..., None], out, torch.zeros_like(out))
 
 
 def disney_samples(n: int, seed: int = 0, device=None):

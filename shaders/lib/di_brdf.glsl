@@ -1,5 +1,5 @@
 // Learned Disney BRDF glue (Differentiable Indirection, Datta et al. 2023 supp. 1.2); the torch twin is
-// techniques/di_brdf/train.py `disney_glue` (same operations, same order). The five runtime lookups
+// models/disney_glue.py `disney_glue` (same operations, same order). The five runtime lookups
 // (decoders) arrive already evaluated in DiDisney; this is the arithmetic that combines them:
 //   Disney(x, A) = (A / lum(A)) p + q                                        (paper Eq. 3)
 //   p = c_d lum f_d + c_s st S nl + (c_d k_m0 + c_m lum)(1 - S) D_m G_m
