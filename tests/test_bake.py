@@ -19,7 +19,7 @@ from inshade.bake import BakeError, Executor, Shard, run_shards
 from inshade.models.sdf import SdfModule
 from inshade.sdf import parse_sdf
 from inshade.techniques.prt import train as prt_train
-from inshade.techniques.prt import transfer_net
+from inshade.techniques.prt import transfer_training
 from inshade.techniques.prt.transfer import build_dataset, mesh_transfer, sdf_transfer
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -172,7 +172,7 @@ ASSETS = sorted(prt_train.SHIP_ASSETS)
 
 
 def test_ship_base_is_the_trainers_defaults():
-    for k, v in transfer_net.DEFAULTS.items():
+    for k, v in transfer_training.DEFAULTS.items():
         if k in prt_train.SHIP_BASE:
             assert prt_train.SHIP_BASE[k] == v, k
 

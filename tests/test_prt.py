@@ -24,7 +24,7 @@ from inshade.techniques.prt.codegen import (SHADING_MODES, light_matrix, light_m
 from inshade.codegen.sdf import environment_sh
 from inshade.techniques.prt.twin import (PrtShading, compose, image_metrics, light_matrix_t, phong_bands_f32, prt_glossy,
                                 quality_orbit, render, trace_view)
-from inshade.techniques.prt.transfer_net import TransferFrame, transfer_graph
+from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 from inshade.sh import (convolve_zonal, lambert_bands, phong_bands, sh_evaluate, sh_product, triple_product_tensor)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -237,7 +237,7 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
 def test_transfer_at_hit_points_glsl_vs_torch(gl, cache, prt_scene):
     """The network in the shader at the shader's own hit points and normals vs the torch network
     at those points: <= 1e-4."""
-    from inshade.techniques.prt.transfer_net import evaluate_transfer
+    from inshade.techniques.prt.transfer_model import evaluate_transfer
 
     folder, graph, frame = prt_scene
     images, _, _, _, _ = _gl_render(gl, cache, folder, [{"debug": d} for d in (5, 6, 1, 2, 3, 4)])
@@ -538,7 +538,7 @@ def _gl_mesh(gl, cache, folder, settings_seq, size=SIZE):
 
 
 def test_mesh_transfer_at_gbuffer_points_glsl_vs_torch(gl, cache, mesh_scene):
-    from inshade.techniques.prt.transfer_net import evaluate_transfer
+    from inshade.techniques.prt.transfer_model import evaluate_transfer
 
     folder, graph, frame = mesh_scene
     out, _, _ = _gl_mesh(gl, cache, folder, [{"debug": d} for d in (1, 2, 3, 4)])

@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 
 from inshade.techniques.prt import regions
 from inshade.techniques.prt.region_twin import load_region_set, region_transfer, render_regions
-from inshade.techniques.prt.transfer_net import TransferFrame, transfer_graph
+from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
 SIZE = 48
 SDF_SCENE = {  # a floor slab with a few blobs across the grid's cell sides (occlusion on both sides)
@@ -363,7 +363,7 @@ def test_region_chunk_declares_each_network_once():
 # the asset builder's recipe ---------------------------------------------------------------------------
 def test_builder_presets_and_the_baseline_width():
     from inshade.techniques.prt import regions_train
-    from inshade.techniques.prt.transfer_net import transfer_graph
+    from inshade.techniques.prt.transfer_model import transfer_graph
 
     with pytest.raises(SystemExit) as exit_:
         regions_train.main(["--help"])

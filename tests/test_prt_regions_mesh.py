@@ -23,7 +23,7 @@ import torch
 
 from inshade.techniques.prt import regions
 from inshade.techniques.prt.region_twin import load_region_set, region_transfer, render_gbuffer_regions
-from inshade.techniques.prt.transfer_net import evaluate_transfer
+from inshade.techniques.prt.transfer_model import evaluate_transfer
 from inshade.techniques.prt.twin import PrtShading
 
 from test_prt_regions import SETTINGS, SLANT, TOP, region_bundles

@@ -202,7 +202,7 @@ def _scene_error(folder, pattern):
 def test_wrong_bundle_or_mesh_is_one_clear_error(gl, atlas_mesh, tmp_path):
     from inshade.runtime.renderer import SceneRenderer
     from inshade.runtime.scene import load_scene
-    from inshade.techniques.prt.transfer_net import TransferFrame, transfer_graph
+    from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
     src, _ = atlas_mesh
     # a learnt transfer network on the texture pass: named at build time

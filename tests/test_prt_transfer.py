@@ -1,5 +1,5 @@
 """Ground-truth transfer (techniques/prt/transfer.py) and the transfer network's training
-(techniques/prt/transfer_net.py): estimator vs closed forms, SDF vs mesh visibility, the cache, training,
+(techniques/prt/transfer_training.py): estimator vs closed forms, SDF vs mesh visibility, the cache, training,
 checkpoints, export, bad input.
 
 Closed forms: unoccluded, T_k(n) = A_l y_k(n) (``lambert_bands``). A point on a plane under a
@@ -26,8 +26,9 @@ from inshade.techniques.prt.transfer_dataset import load_dataset
 from inshade.techniques.prt.transfer_directions import hemisphere_directions, sphere_directions
 from inshade.techniques.prt.transfer_inputs import TransferError
 from inshade.techniques.prt.transfer_surface import sample_mesh_surface, sample_sdf_surface
-from inshade.techniques.prt.transfer_net import (TransferFrame, evaluate_transfer, export_transfer, main,
-                                         train_transfer, transfer_metrics)
+from inshade.techniques.prt.transfer_model import TransferFrame, evaluate_transfer, export_transfer
+from inshade.techniques.prt.transfer_net import main
+from inshade.techniques.prt.transfer_training import train_transfer, transfer_metrics
 from inshade.sdf import parse_sdf
 from inshade.sh import band_of, lambert_bands, sh_basis
 
@@ -334,7 +335,7 @@ def test_neural_sdf_geometry_through_the_cli(tmp_path):
 def test_drop_enclosed_removes_fully_occluded_samples():
     """--drop-enclosed: samples whose every ray is blocked (band 0 exactly 0) leave training and
     the held-out set; partly occluded ones stay."""
-    from inshade.techniques.prt.transfer_net import _without_enclosed
+    from inshade.techniques.prt.transfer_training import _without_enclosed
 
     t = torch.rand(6, 16) + 0.1
     t[[1, 4], :] = 0.0

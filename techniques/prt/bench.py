@@ -96,7 +96,7 @@ def _bundle_of_width(trained, width: int, seed: int = 0):
     """The trained bundle when it has this width, else an untrained one of the same design."""
     import torch
 
-    from inshade.techniques.prt.transfer_net import TransferFrame, transfer_graph
+    from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
     if _width_of(trained) == width:
         return trained, "trained"
@@ -189,7 +189,7 @@ def torch_comparison(path: str, args, ctx, cache) -> dict:
 
     from inshade.techniques.prt import twin as prt
     from inshade.models.graph import GraphModule
-    from inshade.techniques.prt.transfer_net import TransferFrame
+    from inshade.techniques.prt.transfer_model import TransferFrame
     from inshade.runtime.renderer import SceneRenderer
     from inshade.runtime.scene import load_scene
 

@@ -5,7 +5,7 @@ and the light matrix computed on the CPU once per lighting.
   (codegen/network.py, ``<network>`` or ``<network_PREFIX>``) and defines what
   ``shaders/lib/prt.glsl`` needs to call it: ``PRT_NET_EVAL`` (the eval function), the position
   normalisation ``PRT_CENTER`` / ``PRT_INV_RADIUS`` and the output scale ``PRT_SCALE`` of the
-  bundle's ``render.transfer`` record (techniques/prt/transfer_net.py ``TransferFrame``: same float32
+  bundle's ``render.transfer`` record (techniques/prt/transfer_model.py ``TransferFrame``: same float32
   numbers, ``inv_radius = f32(1 / f32(radius))``).
 - ``light_matrix(env_sh)`` -> [3, 16, 16]: ``M_c[k][i] = sum_j tau_ijk L_jc`` (Gaunt tensor,
   inshade.sh.triple_product_tensor), so the projection of (lighting x transfer) is ``H_c = M_c T``.

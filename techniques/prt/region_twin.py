@@ -5,7 +5,7 @@ passes/mesh_prt.frag).
 
 - ``region_transfer(region_set, nets, frames, p, n)``: the blended transfer [N, 16] (float32) at
   points p with normals n: regions.py ``blend_weights`` (the shader's weights, bit for bit), each
-  network with its own frame (transfer_net.evaluate_transfer), summed in network order as the
+  network with its own frame (transfer_model.evaluate_transfer), summed in network order as the
   shader's prt_region_blend.
 - ``render_regions(sdf, region_set, nets, frames, uniforms, w, h, sh, shading)``: twin.render
   with that transfer.
@@ -21,7 +21,8 @@ import torch
 
 from inshade.models.graph import GraphModule
 from inshade.techniques.prt import regions, twin
-from inshade.techniques.prt.transfer_net import TransferFrame, evaluate_transfer, export_transfer, train_transfer
+from inshade.techniques.prt.transfer_model import TransferFrame, evaluate_transfer, export_transfer
+from inshade.techniques.prt.transfer_training import train_transfer
 
 
 def load_region_set(bundles):

@@ -98,7 +98,8 @@ def run(args) -> int:
     from inshade.techniques.prt.atrium import FLOOR_PLAN, atrium
     from inshade.techniques.prt.region_twin import export_regions, train_regions
     from inshade.techniques.prt.regions_data import scene_dataset
-    from inshade.techniques.prt.transfer_net import export_transfer, train_transfer
+    from inshade.techniques.prt.transfer_model import export_transfer
+    from inshade.techniques.prt.transfer_training import train_transfer
 
     if args.threads > 0:
         torch.set_num_threads(args.threads)

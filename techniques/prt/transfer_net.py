@@ -1,17 +1,9 @@
 """The learnt-transfer network (Learnt Transfer, Dhawal et al. 2022): sigma(p, n) -> 16 SH coefficients of transfer.
 
-Contract shared by training (this module), codegen and the PRT shaders:
-
-- bundle kind ``"transfer"``; inputs ``position`` (3, semantic "position") and ``normal``
-  (3, semantic "normal"); one output ``transfer`` (degree**2 lanes, semantic "sh_transfer");
-- the position fed to the network is normalised to the unit ball of the geometry's bound:
-  ``q = (p - center) * (1 / radius)`` (float32 reciprocal, computed once);
-- the network's raw output times ``scale`` is the transfer vector
-  ``T_k(p, n) = integral V(w) max(0, w.n) y_k(w) dw`` (real orthonormal SH, inshade/sh.py).
-  With a tanh output the targets are divided by ``scale`` for training, because tanh cannot
-  reach the unoccluded band-1 value 2pi/3 * sqrt(3/4pi) ~ 1.023;
-- all of that lives in ``bundle.meta["render"]["transfer"]``:
-  ``{"center": [x, y, z], "radius": r, "scale": s, "degree": 4}``.
+The command line that bakes ground-truth transfer data (techniques/prt/transfer.py ``build_dataset``)
+for an SDF, a mesh or a network SDF, trains the network on it (techniques/prt/transfer_training.py)
+and writes its bundle (techniques/prt/transfer_model.py, where the bundle's contract is):
+python -m inshade.techniques.prt.transfer_net. `inshade train prt` runs it first, then builds the asset.
 """
 from __future__ import annotations
 
@@ -19,306 +11,18 @@ import argparse
 import datetime
 import hashlib
 import json
-import math
 import shlex
 import sys
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from inshade import bake, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
-from inshade.bundle import Bundle
-from inshade.metrics import psnr_from_mse
-from inshade.sdf import f32
 
-from inshade.models.activations import LeakyReLU
-from inshade.models.checkpoint import read_checkpoint, write_checkpoint
-from inshade.models.encodings import Frequency
-from inshade.models.graph import GraphModule
-from inshade.models.registry import TORCH_COMPONENTS
+from inshade.techniques.prt.transfer_model import export_transfer
+from inshade.techniques.prt.transfer_training import DEFAULTS, EVAL_SKY, train_transfer, training_config
 
-KIND = "prt"
-
-
-@dataclass(frozen=True)
-class TransferFrame:
-    """How positions are normalised and outputs scaled (bundle.meta["render"]["transfer"])."""
-
-    center: tuple[float, float, float]
-    radius: float
-    scale: float = 1.0
-    degree: int = 4
-
-    def to_dict(self) -> dict:
-        return {"center": [f32(c) for c in self.center], "radius": f32(self.radius),
-                "scale": f32(self.scale), "degree": int(self.degree)}
-
-    @classmethod
-    def from_bundle(cls, bundle: Bundle) -> "TransferFrame":
-        meta = (bundle.meta.get("render") or {}).get("transfer")
-        if not isinstance(meta, dict):
-            raise ValueError(f"{bundle.path}: render.transfer: missing (not a transfer bundle?)")
-        return cls(tuple(float(c) for c in meta["center"]), float(meta["radius"]),
-                   float(meta.get("scale", 1.0)), int(meta.get("degree", 4)))
-
-    @property
-    def inv_radius(self) -> float:
-        return f32(1.0 / float(np.float32(self.radius)))
-
-    def normalise(self, p: torch.Tensor) -> torch.Tensor:
-        """(p - center) * (1 / radius), in float32 as the shader computes it."""
-        return (p.float() - torch.tensor(self.center, dtype=torch.float32)) * self.inv_radius
-
-
-def transfer_graph(width: int = 64, layers: int = 4, pos_freqs: int = 6, normal_freqs: int = 4,
-                   degree: int = 4, output: str = "tanh", slope: float = 0.01) -> GraphModule:
-    """Frequency-encoded position and normal -> ``layers`` hidden leaky-ReLU layers of ``width``
-    -> degree**2 outputs (tanh or identity)."""
-    if output not in ("tanh", "identity"):
-        raise ValueError(f"output activation must be 'tanh' or 'identity', not {output!r}")
-    g = GraphModule([("position", 3, "position"), ("normal", 3, "normal")])
-    src = [g.add("enc_p", Frequency(pos_freqs), "position"), g.add("enc_n", Frequency(normal_freqs), "normal")]
-    for i in range(layers):
-        src = g.add(f"a{i}", LeakyReLU(slope), g.dense(f"l{i}", src, width))
-    src = g.dense(f"l{layers}", src, degree * degree)
-    if output == "tanh":
-        src = g.add("out_act", TORCH_COMPONENTS["tanh"](), src)
-    g.output("transfer", src, "sh_transfer")
-    return g
-
-
-def evaluate_transfer(net: GraphModule, frame: TransferFrame, p: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
-    """Transfer vectors [N, degree**2] at points p [N, 3] with unit normals n [N, 3]."""
-    y = net(torch.cat([frame.normalise(p), n.float()], -1))
-    return y * frame.scale if frame.scale != 1.0 else y
-
-
-# =============================================================================================
-# Training (data: techniques/prt/transfer.py build_dataset), held-out evaluation, export, command line.
-#
-# Output range: with the tanh output the targets are divided by TANH_SCALE = 1.25, so the largest
-# transfer value that exists (the unoccluded band-1 lobe along n, 2pi/3 * sqrt(3/4pi) ~ 1.023;
-# every |T_k| is at most that) maps to 0.82, where tanh still has slope 0.33. The scale is fixed,
-# not fitted to the data, so bundles of different scenes read alike.
-#
-# Held-out metrics (on points never trained on): transfer L1 (mean over the 16 lanes), transfer
-# PSNR (peak 1), and diffuse PSNR: the radiance a white Lambertian surface shows under the noon sky,
-# sum_k T_k L_k / pi per RGB channel (peak 1, what the PRT pass displays at albedo 1 and exposure 1).
-
-TANH_SCALE = 1.25
-EVAL_SKY = "noon"
-# Defaults chosen on trained/sdf_creature (k=64, 40000 x 128-ray samples, held-out diffuse PSNR
-# against 1024-ray references, one thread on the shared 2-core machine): more, smaller steps win
-# per second: batch 4096 x 4000 steps lr 5e-3: 45.6 dB / 247 s; 1024 x 8000, 5e-3: 47.8 dB / 218 s;
-# 1024 x 8000, 1e-2: 48.7 dB / 230 s; 512 x 16000, 5e-3: 49.1 dB / 270 s; 512 x 16000, 1e-2:
-# 49.4 dB / 206 s (8 position octaves instead of 6: 48.9 dB). The estimator's own noise at 128
-# rays is ~46 dB diffuse per sample; the network averages it out over neighbouring samples.
-DEFAULTS = dict(width=64, layers=4, points=40000, dirs=128, steps=16000, batch=512, lr=1e-2,
-                pos_freqs=6, normal_freqs=4, output="tanh", holdout=0.05, seed=0, threads=1)
-
-
-def _psnr(err_sq_mean: float, peak: float = 1.0) -> float:
-    return 99.0 if err_sq_mean <= 1e-10 * peak * peak else psnr_from_mse(err_sq_mean, peak)
-
-
-def diffuse_radiance(transfer: torch.Tensor, sky: str = EVAL_SKY) -> torch.Tensor:
-    """sum_k T_k L_k / pi [N, 3]: a white Lambertian surface's radiance under procedural ``sky``."""
-    from inshade.codegen.sdf import environment_sh
-
-    coeffs = torch.from_numpy(environment_sh(sky, 0.0, int(round(math.sqrt(transfer.shape[1])))))
-    return (transfer.double() @ coeffs.double()) * (1.0 / math.pi)
-
-
-def transfer_metrics(pred: torch.Tensor, target: torch.Tensor, sky: str = EVAL_SKY) -> dict:
-    """L1 / PSNR of transfer vectors and PSNR of the diffuse shading they give under ``sky``."""
-    pred, target = pred.double(), target.double()
-    diff = diffuse_radiance(pred, sky) - diffuse_radiance(target, sky)
-    return {"l1": float((pred - target).abs().mean()),
-            "psnr": _psnr(float(((pred - target) ** 2).mean())),
-            "diffuse_psnr": _psnr(float((diff ** 2).mean())),
-            "diffuse_mae": float(diff.abs().mean())}
-
-
-def split(n: int, holdout: float, seed: int):
-    """(train, held-out) index tensors: a seeded permutation, the last ``holdout`` fraction held out."""
-    perm = torch.randperm(n, generator=torch.Generator().manual_seed(int(seed) + 7919))
-    k = min(n - 1, max(1, int(round(n * holdout))))
-    return perm[: n - k], perm[n - k:]
-
-
-def _config(width, layers, pos_freqs, normal_freqs, output, steps, batch, lr, seed, drop_enclosed=False) -> dict:
-    config = {"width": width, "layers": layers, "pos_freqs": pos_freqs, "normal_freqs": normal_freqs,
-              "output": output, "steps": steps, "batch": batch, "lr": lr, "seed": seed}
-    if drop_enclosed:
-        config["drop_enclosed"] = True
-    return config
-
-
-def _save_checkpoint(path: Path, net, opt, step: int, config: dict) -> None:
-    tensors = {f"net.{k}": v for k, v in net.state_dict().items()}
-    for i, p in enumerate(opt.param_groups[0]["params"]):
-        st = opt.state.get(p, {})
-        for name in ("exp_avg", "exp_avg_sq"):
-            if name in st:
-                tensors[f"adam.{i}.{name}"] = st[name]
-        if "step" in st:
-            tensors[f"adam.{i}.step"] = torch.as_tensor(st["step"], dtype=torch.float32).reshape(1)
-    write_checkpoint(path, "transfer", tensors, config, step=step)
-
-
-def _load_checkpoint(path: Path, net, opt, config: dict) -> int:
-    """Restores net + Adam state; returns the steps done. ValueError if the file is not a
-    checkpoint of this configuration (resuming another run's weights would be silent garbage)."""
-    tensors, header = read_checkpoint(path, "transfer", config, "use another --checkpoint or delete it")
-    net.load_state_dict({k[4:]: v for k, v in tensors.items() if k.startswith("net.")})
-    for i, p in enumerate(opt.param_groups[0]["params"]):
-        if f"adam.{i}.exp_avg" in tensors:   # moments beside their parameter (any device); step stays on the CPU
-            opt.state[p] = {"step": tensors[f"adam.{i}.step"].reshape(()).clone(),
-                            "exp_avg": tensors[f"adam.{i}.exp_avg"].to(p.device, copy=True),
-                            "exp_avg_sq": tensors[f"adam.{i}.exp_avg_sq"].to(p.device, copy=True)}
-    return int(header["step"])
-
-
-def _check_dataset(dataset) -> None:
-    if not isinstance(dataset, dict):
-        raise ValueError(f"dataset: expected the dict of models.transfer.build_dataset, got {type(dataset).__name__}")
-    for k, width in (("position", 3), ("normal", 3), ("transfer", None)):
-        t = dataset.get(k)
-        if not isinstance(t, torch.Tensor) or t.ndim != 2 or (width and t.shape[1] != width):
-            raise ValueError(f"dataset: {k}: expected a [N, {width or 'K'}] tensor")
-        if not torch.isfinite(t).all():
-            raise ValueError(f"dataset: {k}: contains NaN/inf")
-    n = dataset["position"].shape[0]
-    if dataset["normal"].shape[0] != n or dataset["transfer"].shape[0] != n or n < 2:
-        raise ValueError("dataset: position/normal/transfer must have the same N >= 2 rows")
-    if "center" not in dataset or "radius" not in dataset:
-        raise ValueError("dataset: center/radius: missing (the bound the positions are normalised by)")
-
-
-def _without_enclosed(dataset: dict) -> dict:
-    """Drop samples whose every visibility ray is blocked (band-0 transfer exactly 0): surfaces
-    enclosed inside the geometry, e.g. the internal shells an MLP SDF grows. No camera outside
-    can see them, and near a visible crease they teach the network a false black."""
-    out = dict(dataset)
-    for prefix in ("", "heldout_"):
-        if prefix + "transfer" not in dataset:
-            continue
-        keep = dataset[prefix + "transfer"][:, 0] > 0
-        for k in ("position", "normal", "transfer"):
-            out[prefix + k] = dataset[prefix + k][keep]
-    return out
-
-
-def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int = DEFAULTS["steps"],
-                   batch: int = DEFAULTS["batch"], lr: float = DEFAULTS["lr"], seed: int = 0,
-                   checkpoint=None, progress: bool | None = True, pos_freqs: int = DEFAULTS["pos_freqs"],
-                   normal_freqs: int = DEFAULTS["normal_freqs"], output: str = DEFAULTS["output"],
-                   holdout: float = DEFAULTS["holdout"], checkpoint_every: int | None = None,
-                   until: int | None = None, drop_enclosed: bool = False, device="cpu"):
-    """Fits ``transfer_graph`` to a dataset (techniques/prt/transfer.py ``build_dataset``).
-
-    L1 loss on transfer / scale, Adam at ``lr`` with a cosine decay to 5%, ``batch`` random
-    training points a step (drawn from a generator seeded by (seed, step), so a resumed run
-    draws the same batches as an uninterrupted one). ``checkpoint``: a safetensors path, written
-    every ``checkpoint_every`` steps (default steps/10) and at the end; if it exists the run
-    resumes from it. Held out: the dataset's ``heldout_*`` samples when it has them (build_dataset
-    casts them with many rays), else a seeded ``holdout`` fraction of its points. ``until``: stop once that many steps are done (a time-boxed run; call again
-    with the same checkpoint to go on). Returns (GraphModule, TransferFrame, metrics) with held-out metrics
-    (``heldout_*``, see ``transfer_metrics``) before and after training.
-
-    ``device`` (a torch.device or its name): where the network, the data and the steps live. The
-    initial weights and the batch indices are drawn on CPU generators and moved, so a seed starts
-    and samples alike on every device; metrics are computed on the CPU and the returned network
-    is on the CPU.
-    """
-    device = torch.device(device)
-    _check_dataset(dataset)
-    degree = int(round(math.sqrt(dataset["transfer"].shape[1])))
-    scale = TANH_SCALE if output == "tanh" else 1.0
-    frame = TransferFrame(tuple(float(c) for c in dataset["center"]), float(dataset["radius"]), scale, degree)
-    config = _config(width, layers, pos_freqs, normal_freqs, output, steps, batch, lr, seed, drop_enclosed)
-    if drop_enclosed:
-        dataset = _without_enclosed(dataset)
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(seed)
-        net = transfer_graph(width, layers, pos_freqs, normal_freqs, degree, output)
-    net.to(device)
-    x = torch.cat([frame.normalise(dataset["position"]), dataset["normal"].float()], -1)
-    y = dataset["transfer"].float() * (1.0 / scale)
-    if "heldout_transfer" in dataset:      # separate samples with a many-ray reference
-        x_tr, y_tr = x, y
-        x_ho = torch.cat([frame.normalise(dataset["heldout_position"]), dataset["heldout_normal"].float()], -1)
-        t_ho = dataset["heldout_transfer"].float()
-    else:
-        tr, ho = split(x.shape[0], holdout, seed)
-        x_tr, y_tr, x_ho = x[tr], y[tr], x[ho]
-        t_ho = dataset["transfer"][ho].float()
-    x_tr, y_tr, x_ho = x_tr.to(device), y_tr.to(device), x_ho.to(device)
-
-    def heldout():
-        with torch.no_grad():
-            return transfer_metrics((net(x_ho) * scale).cpu(), t_ho)
-
-    opt = torch.optim.Adam(net.parameters(), lr=lr)
-    sched = lambda s: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0)))  # noqa: E731
-    start_step = 0
-    ckpt = Path(checkpoint) if checkpoint is not None else None
-    before = heldout()
-    if ckpt is not None and ckpt.is_file():
-        start_step = _load_checkpoint(ckpt, net, opt, config)
-    every = checkpoint_every or max(1, steps // 10)
-    from inshade.progress import progress as progress_bar
-
-    stop = steps if until is None else max(start_step, min(int(until), steps))
-    bar = progress_bar(range(start_step, stop), desc=f"transfer k={width}", enabled=progress,
-                       initial=start_step, total=steps)
-    start = time.perf_counter()
-    acc, count, train_l1 = 0.0, 0, float("nan")
-    n_tr = x_tr.shape[0]
-    for step in bar:
-        for g in opt.param_groups:
-            g["lr"] = lr * sched(step)
-        gen = torch.Generator().manual_seed(int(seed) * 1_000_003 + step)
-        idx = torch.randint(0, n_tr, (min(batch, n_tr),), generator=gen).to(device)
-        loss = (net(x_tr[idx]) - y_tr[idx]).abs().mean()
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        acc, count = acc + float(loss.detach()), count + 1
-        if (step + 1) % 100 == 0 or step + 1 == stop:
-            train_l1 = acc / count * scale
-            bar.set_postfix(l1=f"{train_l1:.4f}")
-            acc, count = 0.0, 0
-        if ckpt is not None and ((step + 1) % every == 0 or step + 1 == stop):
-            _save_checkpoint(ckpt, net, opt, step + 1, config)
-    seconds = time.perf_counter() - start
-    after = heldout()
-    metrics = {f"heldout_{k}": round(v, 6) for k, v in after.items()}
-    metrics.update({f"heldout_{k}_step0": round(v, 6) for k, v in before.items()})
-    metrics.update({"train_l1": round(train_l1, 6) if math.isfinite(train_l1) else None,
-                    "train_seconds": round(seconds, 2), "steps": stop, "resumed_from": start_step,
-                    "params": int(sum(p.numel() for p in net.parameters())),
-                    "n_train": int(n_tr), "n_heldout": int(x_ho.shape[0]), "eval_sky": EVAL_SKY,
-                    "device": str(device)})
-    net.cpu().eval()
-    return net, frame, {k: v for k, v in metrics.items() if v is not None}
-
-
-def export_transfer(net: GraphModule, frame: TransferFrame, out_dir, metrics: dict | None = None,
-                    provenance: dict | None = None, name: str = "transfer") -> Bundle:
-    """Writes the bundle (kind "transfer", ``render.transfer`` = the frame) into ``out_dir``."""
-    bundle = net.export(KIND, name, provenance=provenance or {}, metrics=metrics or {},
-                        render={"transfer": frame.to_dict()})
-    bundle.save(out_dir)
-    return bundle
-
-
-# ---------------------------------------------------------------------------------------------
-# command line: python -m inshade.techniques.prt.transfer_net (`inshade train prt` runs it first, then builds the asset)
 
 def command_options(args: argparse.Namespace, names) -> list[str]:
     """The options of ``args`` named in ``names`` as a re-runnable argv (flags only when set)."""
@@ -397,7 +101,7 @@ def add_arguments(parser: argparse.ArgumentParser, out: bool = True) -> argparse
 
 
 def _run_hash(data: dict, args: argparse.Namespace) -> str:
-    config = _config(args.width, args.layers, args.pos_freqs, args.normal_freqs, args.output, args.steps,
+    config = training_config(args.width, args.layers, args.pos_freqs, args.normal_freqs, args.output, args.steps,
                      args.batch, args.lr, args.seed, args.drop_enclosed)
     return hashlib.sha256((data["key"] + json.dumps(config, sort_keys=True)).encode()).hexdigest()[:16]
 

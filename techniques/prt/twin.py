@@ -34,7 +34,7 @@ from inshade.sdf import SdfScene, f32
 from inshade.sh import band_of, sh_basis
 
 from inshade.models.sdf import SdfModule, camera_rays, normals, sh_background_t, trace
-from inshade.techniques.prt.transfer_net import TransferFrame, evaluate_transfer
+from inshade.techniques.prt.transfer_model import TransferFrame, evaluate_transfer
 
 INV_PI = f32(1.0 / math.pi)
 MESH_ALBEDO = (0.8, 0.8, 0.8)   # passes/mesh_prt.frag MESH_ALBEDO

@@ -27,7 +27,7 @@ uniform mat4 u_prt_light[3 * PRT_BLOCKS * PRT_BLOCKS];
 const float PRT_INV_PI = 0.318309873;  // float32(1 / pi), as techniques/prt/twin.py INV_PI
 
 // The network's transfer at p with unit normal n: position normalised to the bound's unit ball,
-// output times the bundle's scale (techniques/prt/transfer_net.py evaluate_transfer).
+// output times the bundle's scale (techniques/prt/transfer_model.py evaluate_transfer).
 void prt_transfer(vec3 p, vec3 n, out vec4 t[PRT_BLOCKS]) {
     vec3 q = (p - PRT_CENTER) * PRT_INV_RADIUS;
     vec4 x[PRT_NET_IN_BLOCKS];
