@@ -1,6 +1,6 @@
-"""A DI-compressed PBR texture set on a lit mesh (techniques/di_pbr_set/train.py, lib/pbr_set.glsl,
-passes/mesh_pbr_set.frag): the material, the shading parity, the whole pass against its torch
-twin, the asset's scene and its errors.
+"""A DI-compressed PBR texture set on a lit mesh (techniques/di_pbr_set, models/pbr_lanes.py,
+lib/pbr_set.glsl, passes/mesh_pbr_set.frag): the material, the shading parity, the whole pass
+against its torch twin, the asset's scene and its errors.
 
 Tolerances:
 - lib/pbr_set.glsl vs torch at random inputs: the parity rule |glsl - torch| <= 1e-5 max(1, |torch|)
@@ -27,6 +27,7 @@ from hypothesis import strategies as st
 from inshade.codegen.sdf import environment_sh
 from inshade.codegen.spherical_harmonics import sh_chunks
 from inshade.models import pbr_lanes
+from inshade.techniques.di_pbr_set import render, report
 from inshade.techniques.di_pbr_set import train as P
 from parity import TOL, parity_settings, run_sample_pass
 
@@ -38,8 +39,8 @@ def _glsl_shade(gl, a, b, p, ng, tangent, rd, sh, lights):
     rows[:, 0:4], rows[:, 4:8], rows[:, 8:11], rows[:, 12:15], rows[:, 16:20], rows[:, 20:23] = a, b, p, ng, tangent, rd
     return run_sample_pass(gl, "passes/pbr_set_eval_test.frag", rows, 6, chunks=sh_chunks(SH_DEGREE),
                            uniforms={"u_sh": np.asarray(sh, np.float32).tobytes(), "u_light_count": lights,
-                                     "u_lights": np.asarray(P.LIGHTS, np.float32).tobytes(),
-                                     "u_scene_light_count": len(P.LIGHTS)})[0][:, :3]
+                                     "u_lights": np.asarray(render.LIGHTS, np.float32).tobytes(),
+                                     "u_scene_light_count": len(render.LIGHTS)})[0][:, :3]
 
 
 def _unit(x):
@@ -62,7 +63,7 @@ def _random_surface(seed: int, n: int):
 
 
 @parity_settings(max_examples=3)
-@given(seed=st.integers(0, 2 ** 31 - 1), lights=st.integers(0, len(P.LIGHTS)),
+@given(seed=st.integers(0, 2 ** 31 - 1), lights=st.integers(0, len(render.LIGHTS)),
        sky=st.sampled_from(["studio", "noon", "sunset"]))
 def test_pbr_set_shading_parity(gl, seed, lights, sky):
     lanes, p, ng, tangent, rd = _random_surface(seed, 512)
@@ -70,7 +71,8 @@ def test_pbr_set_shading_parity(gl, seed, lights, sky):
     out = _glsl_shade(gl, lanes[:, :4].numpy(), lanes[:, 4:].numpy(), p.numpy(), ng.numpy(), tangent.numpy(),
                       rd.numpy(), sh, lights)
     with torch.no_grad():
-        ref = P.shade(pbr_lanes.unpack(lanes[:, :4], lanes[:, 4:]), p, ng, tangent, rd, torch.from_numpy(sh), lights).numpy()
+        ref = render.shade(pbr_lanes.unpack(lanes[:, :4], lanes[:, 4:]), p, ng, tangent, rd, torch.from_numpy(sh),
+                           lights).numpy()
     assert np.isfinite(out).all() and ref.max() > 0.05
     err = np.abs(out - ref) / np.maximum(1.0, np.abs(ref))
     assert err.max() <= TOL, f"max scaled error {err.max():.3g} at {np.unravel_index(err.argmax(), err.shape)}"
@@ -129,15 +131,15 @@ def test_pass_matches_torch_twin(gl, asset):
     from PIL import Image
 
     out, _ = asset
-    views = P.render_views(out, size=48, ctx=gl)
+    views = render.render_views(out, size=48, ctx=gl)
     graph = GraphModule.from_bundle(load(out))
     set8 = tuple(np.asarray(Image.open(out / f"set{i}.png")) for i in range(2))
     covered = views["_gbuffer"][0][::-1, :, 3] != 0
     assert 0.15 < covered.mean() < 0.9
     refs = {}
-    for view in P.VIEWS:
-        refs[view] = P.render_gbuffer(views["_gbuffer"], views["_uniforms"], 48, 48, views["_sh"], graph=graph,
-                                      set8=set8, view=view, light_count=P.DEFAULTS["lights"])
+    for view in render.VIEWS:
+        refs[view] = render.render_gbuffer(views["_gbuffer"], views["_uniforms"], 48, 48, views["_sh"], graph=graph,
+                                           set8=set8, view=view, light_count=P.DEFAULTS["lights"])
     err = np.abs(views["di"] - refs["di"]) / np.maximum(1.0, np.abs(refs["di"]))
     assert err.max() <= TOL, f"DI view: max scaled error {err.max():.3g}"
     diff = np.abs(views["uncompressed"] - refs["uncompressed"])[covered]
@@ -206,11 +208,11 @@ def test_shipped_asset_renders_and_matches_torch(gl):
     folder = Path(__file__).resolve().parents[1] / "trained" / "di_pbr_set_bricks"
     m = json.loads((folder / "metrics.json").read_text())
     bundle = load(folder)
-    views = P.render_views(folder, views=("di",), size=40, ctx=gl)
-    ref = P.render_gbuffer(views["_gbuffer"], views["_uniforms"], 40, 40, views["_sh"],
-                           graph=GraphModule.from_bundle(bundle), view="di", light_count=P.DEFAULTS["lights"])
+    views = render.render_views(folder, views=("di",), size=40, ctx=gl)
+    ref = render.render_gbuffer(views["_gbuffer"], views["_uniforms"], 40, 40, views["_sh"],
+                                graph=GraphModule.from_bundle(bundle), view="di", light_count=P.DEFAULTS["lights"])
     err = np.abs(views["di"] - ref) / np.maximum(1.0, np.abs(ref))
     assert err.max() <= TOL
     size = m["texture"]["width"]
-    q = P.lane_metrics(evaluate_on_pixels(bundle, size, "exact"), pbr_lanes.bricks(size))
+    q = report.lane_metrics(evaluate_on_pixels(bundle, size, "exact"), pbr_lanes.bricks(size))
     assert q == pytest.approx(m["di_glsl_exact"], abs=1e-3)

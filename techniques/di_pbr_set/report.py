@@ -1,0 +1,85 @@
+"""How good a compressed PBR set is, and the asset's report: per-lane-group quality of a decoded
+set, ASTC on the same two RGBA8 textures, the rendered mesh's PSNR, and the markdown table."""
+from __future__ import annotations
+
+import numpy as np
+
+from inshade.metrics import psnr, srgb_oetf
+from inshade.models.pbr_lanes import CHANNELS, LANES
+
+ASTC_BLOCKS = (4, 5, 6, 8)
+
+
+def lane_metrics(test: np.ndarray, ref: np.ndarray) -> dict:
+    """Per lane group: PSNR of the 8-bit values (albedo in sRGB-encoded bytes, as texture codecs
+    are scored) and, for the normal, the mean / 99th-percentile angle between decoded normals."""
+    t8 = np.round(np.clip(test, 0.0, 1.0) * 255.0)
+    r8 = np.round(np.clip(ref, 0.0, 1.0) * 255.0)
+    out = {}
+    for name, (first, width) in LANES.items():
+        out[f"psnr_{name}"] = round(psnr(t8[..., first:first + width], r8[..., first:first + width], 255.0), 3)
+    nt, nr = test[..., 3:6] * 2.0 - 1.0, ref[..., 3:6] * 2.0 - 1.0
+    cos = np.sum(nt * nr, -1) / np.maximum(np.linalg.norm(nt, axis=-1) * np.linalg.norm(nr, axis=-1), 1e-12)
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    out["normal_mean_deg"] = round(float(angle.mean()), 3)
+    out["normal_p99_deg"] = round(float(np.percentile(angle, 99)), 3)
+    out["psnr_all_lanes"] = round(psnr(t8, r8, 255.0), 3)
+    return out
+
+
+def astc_rows(set8: tuple[np.ndarray, np.ndarray], ref: np.ndarray) -> list[dict]:
+    """ASTC (LDR, the benchmark's quality) on the same two RGBA8 textures, per block size."""
+    from inshade.codecs import ASTC_QUALITY, CodecError, astc_roundtrip
+
+    rows = []
+    raw = ref.shape[0] * ref.shape[1] * CHANNELS
+    for block in ASTC_BLOCKS:
+        try:
+            decoded, nbytes = zip(*(astc_roundtrip(img, block) for img in set8))
+        except CodecError as exc:
+            rows.append({"codec": f"ASTC {block}x{block}", "available": False, "reason": str(exc)})
+            continue
+        test = np.concatenate(decoded, -1).astype(np.float32) / 255.0
+        rows.append({"codec": f"ASTC {block}x{block}", "available": True, "bytes": int(sum(nbytes)),
+                     "ratio": round(raw / sum(nbytes), 3), "settings": f"2 RGBA textures, quality {ASTC_QUALITY:g}",
+                     **lane_metrics(test, ref)})
+    return rows
+
+
+def render_psnr(test: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
+    """PSNR over mesh pixels of display values (linear clamped to [0, 1], sRGB-encoded, 8-bit)."""
+    a = np.round(srgb_oetf(np.clip(test[..., :3], 0, 1)) * 255.0)
+    b = np.round(srgb_oetf(np.clip(ref[..., :3], 0, 1)) * 255.0)
+    return psnr(a, b, 255.0, mask=mask)
+
+
+def markdown(metrics: dict) -> str:
+    """The asset's quality table: DI (GLSL-decoded, both LUT paths) against ASTC on the same lanes."""
+    t = metrics["texture"]
+    lines = [f"# PBR set (8 lanes) compressed with DI: {t['width']}x{t['height']}", "",
+             f"- GL_RENDERER: `{metrics.get('gl_renderer', 'n/a')}`",
+             "- PSNR of 8-bit lane values (albedo sRGB-encoded) against the uncompressed set; normal: "
+             "angle between decoded and original normals", ""]
+    head = "| codec | bytes | ratio | albedo dB | normal dB | normal mean / p99 deg | roughness dB | AO dB | all lanes dB |"
+    lines += [head, "|---" * (head.count("|") - 1) + "|"]
+
+    def row(name, nbytes, ratio, q):
+        return (f"| {name} | {nbytes} | {ratio:.2f} | {q['psnr_albedo']:.2f} | {q['psnr_normal']:.2f} | "
+                f"{q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f} | {q['psnr_roughness']:.2f} | "
+                f"{q['psnr_ao']:.2f} | {q['psnr_all_lanes']:.2f} |")
+
+    for key, label in (("di_glsl_exact", "DI (GLSL exact)"), ("di_glsl_fast", "DI (GLSL fast)"), ("di_torch", "DI (torch)")):
+        if key in metrics:
+            lines.append(row(label, t["bytes"], t["ratio"], metrics[key]))
+    for a in metrics.get("astc", []):
+        lines.append(row(a["codec"], a["bytes"], a["ratio"], a) if a["available"]
+                     else f"| {a['codec']} | unavailable: {a['reason']} |||||||")
+    lines.append("")
+    device = metrics.get("device", "cpu")
+    lines.append(f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, {t['train_seconds']:.0f} s "
+                 f"training on {'1 CPU thread' if device == 'cpu' else device}.")
+    if "render" in metrics:
+        r = metrics["render"]
+        lines.append(f"Rendered torus ({r['size']}^2, {r['lights']} lights + environment): DI vs uncompressed "
+                     f"{r['psnr_di_vs_uncompressed']:.2f} dB over {r['covered_pixels']} mesh pixels (display sRGB 8-bit).")
+    return "\n".join(lines) + "\n"
