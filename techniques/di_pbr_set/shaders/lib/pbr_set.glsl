@@ -1,11 +1,11 @@
 // A PBR texture set (Differentiable Indirection, Datta et al. 2023 4.2.1: "for PBR textures k includes albedo, normal, AO, roughness")
-// shaded on a mesh. Eight lanes, in techniques/di_pbr_set/train.py LANES order, as two vec4:
+// shaded on a mesh. Eight lanes, in models/pbr_lanes.py LANES order, as two vec4:
 //   a = (albedo.rgb [sRGB-encoded], normal.x), b = (normal.y, normal.z, roughness, ao)
 // with the tangent-space normal stored as 0.5 + 0.5 n (x along +u, y along +v, z out). The
 // compressed set (the DI bundle) and the uncompressed one (two RGBA8 textures of the same lanes)
 // feed the same pbr_set_shade, so a side-by-side view differs by the compression alone.
 // Shading: lib/pbr_shading with metallic 0 (the set has no metallic lane).
-// techniques/di_pbr_set/train.py (unpack, shade) is the torch twin: same operations in the same order.
+// Torch twin, same operations in the same order: models/pbr_lanes.py unpack, techniques/di_pbr_set/render.py shade.
 #include <lib/colour>
 #include <lib/pbr_shading>
 

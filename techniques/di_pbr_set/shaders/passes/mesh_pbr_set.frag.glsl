@@ -5,7 +5,7 @@
 // u_pbr_view: 0 the uncompressed set (u_pbr_set0/1: RGBA8 textures of the same lanes, bilinear,
 // repeat), 1 the DI-compressed set, 2 side by side (left half uncompressed, right half DI).
 // The texture repeats: the network is evaluated at fract(uv), the textures wrap in hardware.
-// Torch twin: techniques/di_pbr_set/train.py render_gbuffer (fed the same G-buffer).
+// Torch twin: techniques/di_pbr_set/render.py render_gbuffer (fed the same G-buffer).
 #include <network>
 #include <lib/camera>
 #include <lib/gbuffer>
