@@ -40,7 +40,8 @@ import numpy as np
 import torch
 
 from inshade.techniques.prt.transfer_dataset import geometry_bound, geometry_digest, load_dataset, save_dataset
-from inshade.techniques.prt.transfer_directions import DEGREE, chunk_generator, hemisphere_directions, project_visibility
+from inshade.techniques.prt.transfer_directions import (DEGREE, chunk_generator, hemisphere_directions,
+                                                        project_visibility)
 from inshade.techniques.prt.transfer_inputs import (TransferError, check_count, check_mesh, check_points, check_sdf,
                                                     is_mesh)
 from inshade.techniques.prt.transfer_surface import sample_mesh_surface, sample_sdf_surface, sdf_on_device
