@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.shaders.library import add_search_provider
+
 PLUGINS_ENV = "INSHADE_TECHNIQUES"
 # What a program draws over; the runtime sets up the matching pass (runtime/scene.py GEOMETRIES).
 GEOMETRIES = ("fullscreen", "sdf", "mesh")
@@ -301,3 +303,6 @@ def current_kind(kind: str) -> str:
 def shader_roots() -> list[Path]:
     """The technique shader folders, in registration order (the chunk resolver searches them)."""
     return [t.shaders for t in techniques() if t.shaders is not None]
+
+
+add_search_provider(shader_roots)     # technique chunks resolve by name wherever programs are assembled

@@ -5,8 +5,9 @@ is a relative path without the ``.glsl`` suffix: ``lib/colour`` is ``shaders/lib
 Generated code (a network) arrives as an in-memory chunk that takes priority over files.
 
 Chunk files are looked up on a search path: this shared library first, then folders added with
-``add_search_path`` (e.g. test fixtures), then each registered technique's ``shaders/`` folder
-(inshade/technique.py). A name found in two folders is an error, never a silent shadow.
+``add_search_path`` (e.g. test fixtures), then the folders each added provider names (the
+technique registry adds one: every registered technique's ``shaders/`` folder). The library asks
+no one else; a name found in two folders is an error, never a silent shadow.
 
 Rules the resolver enforces, so that every program is assembled the same way on every driver:
 
@@ -37,6 +38,7 @@ from pathlib import Path
 
 LIBRARY_DIR = Path(__file__).resolve().parent
 _EXTRA_ROOTS: list[Path] = []
+_ROOT_PROVIDERS: list = []     # callables -> [Path]: searched after _EXTRA_ROOTS, in order
 HEADER = "<header>"
 LINE_STRIDE = 1_000_000
 
@@ -193,11 +195,16 @@ def add_search_path(folder) -> None:
         _EXTRA_ROOTS.append(folder)
 
 
-def search_path() -> list[Path]:
-    """Folders chunk names resolve in: the shared library, added folders, technique folders."""
-    from inshade.technique import shader_roots
+def add_search_provider(provider) -> None:
+    """Let chunk names resolve in the folders ``provider()`` returns, asked at each lookup (after
+    the shared library and added folders): a registry whose folders can grow registers itself."""
+    if provider not in _ROOT_PROVIDERS:
+        _ROOT_PROVIDERS.append(provider)
 
-    return [LIBRARY_DIR, *_EXTRA_ROOTS, *shader_roots()]
+
+def search_path() -> list[Path]:
+    """Folders chunk names resolve in: the shared library, added folders, providers' folders."""
+    return [LIBRARY_DIR, *_EXTRA_ROOTS, *(root for provider in _ROOT_PROVIDERS for root in provider())]
 
 
 def find_chunk(name: str) -> Path | None:
