@@ -1,12 +1,12 @@
-"""Learned BRDFs (techniques/di_brdf/train.py): GGX and Disney cascades train, export and render; the
-material-ball pass (shaders/passes/material_balls.frag.glsl) agrees with its torch twin
-(techniques/di_brdf/material_balls.py) for the analytic and the learned BRDF; the Disney factorisation keeps
-the paper's quality bar at its exact initialisation.
+"""Learned BRDFs (techniques/di_brdf: model.py, data.py, render.py, train.py): GGX and Disney
+cascades train, export and render; the material-ball pass (shaders/passes/material_balls.frag.glsl)
+agrees with its torch twin (techniques/di_brdf/material_balls.py) for the analytic and the learned
+BRDF; the Disney factorisation keeps the paper's quality bar at its exact initialisation.
 
 Tolerances. Renders, exact LUT path: |glsl - torch| <= 1e-5 max(1, |torch|) per pixel (tests/parity.py
 rule; both float32, same operations) on pixels both sides cover; the coverage masks may differ on
 at most 1% of pixels (a silhouette pixel whose x^2 + y^2 lands on the other side of R^2 after an
-FMA contraction). Quality: the Fig. 11 sweep min PSNR >= 35 dB (display domain, techniques/di_brdf/train.py).
+FMA contraction). Quality: the Fig. 11 sweep min PSNR >= 35 dB (display domain, techniques/di_brdf/render.py).
 """
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ import torch
 
 from inshade.models import brdf
 from inshade.models.display import srgb_display
-from inshade.techniques.di_brdf import train as D
+from inshade.techniques.di_brdf import data, render, train
+from inshade.techniques.di_brdf import model as nets
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
 from parity import assert_parity
@@ -62,14 +63,14 @@ def _tonemapped_psnr(g, x, y):
 
 def test_ggx_trains_and_quantises():
     from inshade.models import indirection as di
-    x, y = D.ggx_eval_set(4096)
-    before = _tonemapped_psnr(D.ggx_cascade(), x, y)
-    balls_before = D.ggx_metrics(D.ggx_cascade())["psnr_balls_all_pixels"]
-    g, hist, _ = D.train_ggx(steps=80, batch=1024, lr=1e-2)
+    x, y = data.ggx_eval_set(4096)
+    before = _tonemapped_psnr(nets.ggx_cascade(), x, y)
+    balls_before = render.ggx_metrics(nets.ggx_cascade())["psnr_balls_all_pixels"]
+    g, hist, _ = train.train_ggx(steps=80, batch=1024, lr=1e-2)
     after = _tonemapped_psnr(g, x, y)
     assert after > before + 5.0, (before, after)
     # the display-domain loss is what moves the balls (quantised, all ball pixels)
-    balls_after = D.ggx_metrics(g)["psnr_balls_all_pixels"]
+    balls_after = render.ggx_metrics(g)["psnr_balls_all_pixels"]
     assert balls_after > balls_before + 5.0, (balls_before, balls_after)
     assert hist.psnr[-1] > hist.psnr[0] + 5.0, hist.psnr
     prim, casc = g.nodes["primary"], g.nodes["cascaded"]
@@ -84,17 +85,18 @@ def test_ggx_ball_terms_reproduce_the_ball_render(lights):
     """The training samples' geometry (`ggx_ball_terms`: n.h and n.l I / d^2 per light) gives the
     radiance `material_balls.render` shades at the same ball points. Tolerance 2e-3 relative: the two
     compute n.h in different orders, and GGX near its peak amplifies an ulp of n.h (see below)."""
-    cols, px = D.SWEEP_COLUMNS, 24
+    cols, px = data.SWEEP_COLUMNS, 24
     w, h = cols * px, px
-    sa = D.ggx_shade(D.analytic_d)
+    sa = render.ggx_shade(nets.analytic_d)
     sa.cols = cols
     ref = torch.from_numpy(mb.render(w, h, cols, 1, sa, lights))
     geo = mb.ball_geometry(w, h, cols, 1)
     m = geo["inside"]
-    lo, hi = D.GGX_ALPHA_RANGE
+    lo, hi = data.GGX_ALPHA_RANGE
     a = lo + (hi - lo) * geo["col"][m].float() / (cols - 1)
-    nh, wt = D.ggx_ball_terms(geo["P"][m], lights)
-    got = (wt * (D.GGX_KD * 0.5 * brdf.INV_PI + D.GGX_KS * D.analytic_d(a[:, None].expand_as(nh), nh))).sum(-1)
+    nh, wt = data.ggx_ball_terms(geo["P"][m], lights)
+    d = nets.analytic_d(a[:, None].expand_as(nh), nh)
+    got = (wt * (data.GGX_KD * 0.5 * brdf.INV_PI + data.GGX_KS * d)).sum(-1)
     want = ref[m][:, 0]
     assert float(((got - want).abs() / want.abs().clamp_min(1.0)).max()) < 2e-3
     # and the display-domain twin agrees with material_balls.display
@@ -103,8 +105,8 @@ def test_ggx_ball_terms_reproduce_the_ball_render(lights):
 
 
 def test_ggx_ball_sampler_spans_the_ball_row():
-    a, nh, w = next(D.ggx_ball_sampler(4096, seed=3))
-    lo, hi = D.GGX_ALPHA_RANGE
+    a, nh, w = next(data.ggx_ball_sampler(4096, seed=3))
+    lo, hi = data.GGX_ALPHA_RANGE
     assert a.min() >= lo and a.max() <= hi and a.max() - a.min() > 0.8 * (hi - lo)
     assert nh.shape == w.shape == (4096, mb.MAX_LIGHTS) and (nh >= 0).all() and (nh <= 1).all()
     assert (w >= 0).all()
@@ -114,17 +116,17 @@ def test_ggx_ball_sampler_spans_the_ball_row():
 
 def test_ggx_asset_glsl_matches_torch(gl, tmp_path):
     out = tmp_path / "di_brdf_ggx"
-    m = D.build_ggx(out, steps=40, batch=512, ball_px=16, gl_metrics=False)
+    m = train.build_ggx(out, steps=40, batch=512, ball_px=16, gl_metrics=False)
     assert {"psnr_balls_mean", "psnr_function_tonemapped", "train_seconds"} <= set(m)
     for f in ("bundle.json", "weights.safetensors", "scene.json", "preview.png"):
         assert (out / f).is_file()
     from inshade.bundle import load
     bundle = load(out)
-    cols, px = D.SWEEP_COLUMNS, 16
+    cols, px = data.SWEEP_COLUMNS, 16
     w, h = 2 * cols * px, px
     glsl, _ = _render_scene(out, {"view": 2, "lights": 4}, w, h)
     q = GraphModule.from_bundle(bundle)
-    sa, sl = D.ggx_shade(D.analytic_d), D.ggx_shade(D.learned_d(q))
+    sa, sl = render.ggx_shade(nets.analytic_d), render.ggx_shade(nets.learned_d(q))
     sa.cols = sl.cols = cols
     ref = mb.render(w, h, cols, 1, lambda s, l, v, k: torch.where((s["side"] == 1)[..., None], sl(s, l, v, k),
                                                                   sa(s, l, v, k)), 4, 2)
@@ -145,29 +147,29 @@ def test_disney_factorised_decoders_meet_the_sweep_bar():
     """At the exact initialisation (identity encoders, decoders = targets at their cells) the
     approximations left are the Schlick-Smith G, the dropped r^2 diffuse terms and bilinear
     decoders between cells; the sweep already clears 35 dB."""
-    model = D.DisneyDI()
-    base, params = D.sweep_grid(5)
-    g = D.disney_graph(model, base, params)
-    sweep = D.sweep_psnr(g, 5, len(brdf.PARAMS), size=12, lights=2)
+    model = nets.DisneyDI()
+    base, params = data.sweep_grid(5)
+    g = nets.disney_graph(model, base, params)
+    sweep = render.sweep_psnr(g, 5, len(brdf.PARAMS), size=12, lights=2)
     assert min(v["min"] for v in sweep.values()) >= 35.0, sweep
 
 
 def test_disney_glue_matches_module():
     """Exported graph + glue == DisneyDI.forward (the bundle holds what the module computes)."""
     torch.manual_seed(0)
-    model = D.DisneyDI()
+    model = nets.DisneyDI()
     with torch.no_grad():
         for e in model.encoders.values():
             e.cells.add_(0.05 * torch.randn_like(e.cells))
-    base, params = D.sweep_grid(4)
-    g = D.disney_graph(model, base, params)
+    base, params = data.sweep_grid(4)
+    g = nets.disney_graph(model, base, params)
     gen = torch.Generator().manual_seed(3)
     l = brdf.uniform_hemisphere(base.shape[0] * base.shape[1], gen, 0.1).reshape(*base.shape[:2], 3)
     v = brdf.uniform_hemisphere(base.shape[0] * base.shape[1], gen, 0.1).reshape(*base.shape[:2], 3)
     rows, cols = base.shape[:2]
     grid = torch.stack(torch.meshgrid(torch.arange(cols) / (cols - 1), torch.arange(rows) / (rows - 1),
                                       indexing="xy"), -1)
-    shade = D.graph_shade(g)
+    shade = render.graph_shade(g)
     with torch.no_grad():
         via_graph = shade({"grid": grid.reshape(-1, 2)}, l.reshape(-1, 3), v.reshape(-1, 3), 0, True)
         direct = model(l.reshape(-1, 3), v.reshape(-1, 3), base.reshape(-1, 3), params.reshape(-1, 10))
@@ -176,37 +178,37 @@ def test_disney_glue_matches_module():
 
 def test_disney_asset_glsl_matches_torch(gl, tmp_path):
     out = tmp_path / "di_brdf_disney"
-    m = D.build_disney(out, steps=3, batch=256, samples=2048, ball_px=8, gl_metrics=False)
+    m = train.build_disney(out, steps=3, batch=256, samples=2048, ball_px=8, gl_metrics=False)
     assert m["sweep_min_psnr"] > 30.0
     for f in ("bundle.json", "weights.safetensors", "scene.json", "preview.png", "encoders.safetensors"):
         assert (out / f).is_file()
     from inshade.bundle import load
     g = GraphModule.from_bundle(load(out))
-    cols, rows, px = D.SWEEP_COLUMNS, len(brdf.PARAMS), 8
+    cols, rows, px = data.SWEEP_COLUMNS, len(brdf.PARAMS), 8
     for view, halves in (("split", 2), ("diffuse", 1)):
         w, h = cols * px * halves, rows * px
-        glsl, renderer = _render_scene(out, {"view": D.VIEWS[view], "lights": 3}, w, h)
-        ref = D.disney_render(g, view, cols, rows, px, lights=3)
+        glsl, renderer = _render_scene(out, {"view": render.VIEWS[view], "lights": 3}, w, h)
+        ref = render.disney_render(g, view, cols, rows, px, lights=3)
         _compare(glsl, ref, w, h, cols, rows, halves, f"Disney balls ({view}) on {renderer}")
 
 
 def test_encoders_file_round_trips(tmp_path):
     from safetensors.numpy import load_file
-    model = D.DisneyDI()
-    D._save_encoders(model, tmp_path / "enc.safetensors")
+    model = nets.DisneyDI()
+    train._save_encoders(model, tmp_path / "enc.safetensors")
     t = load_file(str(tmp_path / "enc.safetensors"))
-    assert t["E_m.cells"].shape == (D.ENCODER_SIZE, D.ENCODER_SIZE, 2)
-    assert t["E_g.cells"].shape == (D.ENCODER_SIZE, 1)
+    assert t["E_m.cells"].shape == (nets.ENCODER_SIZE, nets.ENCODER_SIZE, 2)
+    assert t["E_g.cells"].shape == (nets.ENCODER_SIZE, 1)
 
 
 # --- bad input ---------------------------------------------------------------------------------
 
 def test_bad_settings_are_clear_errors(tmp_path):
-    p = D.add_arguments(argparse.ArgumentParser())
+    p = train.add_arguments(argparse.ArgumentParser())
     for argv in (["ggx", "-o", str(tmp_path / "x"), "--steps", "-1"],
                  ["disney", "-o", str(tmp_path / "x"), "--lr", "0"]):
-        with pytest.raises(D.BrdfTrainingError, match="--steps must be >= 0"):
-            D.run(p.parse_args(argv), argv)
+        with pytest.raises(train.BrdfTrainingError, match="--steps must be >= 0"):
+            train.run(p.parse_args(argv), argv)
     with pytest.raises(ValueError, match="lights must be in 1..4"):
         mb.render(8, 8, 1, 1, lambda *a: None, lights=5)
 
@@ -216,7 +218,7 @@ def test_bad_settings_are_clear_errors(tmp_path):
 def test_cli_builds_an_asset_the_bench_times(gl, tmp_path, capsys):
     from inshade.techniques.di_brdf import bench
 
-    assert D.main(["ggx", "-o", str(tmp_path / "di_brdf_ggx"), "--steps", "5", "--batch", "64", "--no-gl"]) == 0
+    assert train.main(["ggx", "-o", str(tmp_path / "di_brdf_ggx"), "--steps", "5", "--batch", "64", "--no-gl"]) == 0
     assert "GGX ball PSNR" in capsys.readouterr().out
     out = tmp_path / "bench"
     assert bench.main(["--assets", str(tmp_path), "--out", str(out), "--size", "32", "--rounds", "1",

@@ -14,7 +14,7 @@ BALL_RADIUS; its normal is (x, y, sqrt(R^2 - x^2 - y^2)) / R, the view direction
 cell units relative to the ball centre, intensity); radiance = sum_i f(l_i, v) E_i / |L_i - P|^2.
 
 Ball (col, row) reads its material at the grid coordinate (col / (cols - 1), row / (rows - 1)):
-exactly the cell corners of a [cols, rows] lookup array (techniques/di_brdf/train.py's material textures).
+exactly the cell corners of a [cols, rows] lookup array (techniques/di_brdf/model.py's `material_textures`).
 """
 from __future__ import annotations
 

@@ -26,7 +26,7 @@ lookups (decoders) and ~70 FLOPs of glue (shaders/lib/di_brdf.glsl, torch models
 The denominators of D_m and D_c are learned, not D (paper: "we learn the reciprocal of the output
 which has bounded range"). The encoders E_* are DI primary arrays (64x64 / 64, 2 or 1 channels,
 sinusoid F as the paper uses for Disney) run offline: they turn artist-parameter textures into
-latent textures (`encode`). Three scalars per texel need no lookup and are stored in the latent
+latent textures (`DisneyDI.encode`). Three scalars per texel need no lookup and are stored in the latent
 textures as the analytic pre-computation (0.04 specular specular_tint, 0.04 specular
 (1 - specular_tint), clearcoat / 4, and sheen_tint): the paper leaves this part open.
 
@@ -35,7 +35,7 @@ then encoders + decoders are trained end to end with L1 on the tone-mapped radia
 random (l, v, material) samples (uniform hemispheres, exponential-like roughness and clearcoat
 roughness, uniform other parameters and albedo), Adam, cosine schedule.
 
-Quality (the paper's Fig. 6 / Fig. 11 protocol, `sweep_psnr`): material balls rendered with the
+Quality (the paper's Fig. 6 / Fig. 11 protocol, render.py `sweep_psnr`): material balls rendered with the
 learned and the analytic BRDF (techniques/di_brdf/material_balls.py, the lights of the shipped scene), PSNR
 over the ball pixels in the display domain -- linear radiance clamped to [0, 1], sRGB-encoded,
 peak 1; for Disney one row per artist parameter swept 0 -> 1 with the others at brdf.DEFAULTS, and
@@ -47,6 +47,10 @@ the minimum over the row is reported. For GGX the row sweeps alpha_h.
 ``--preset ship`` (the default) is exactly what built the shipped assets (PRESETS; Disney: 300 steps at
 batch 2048); ``quick`` is a short run. Options given explicitly override the preset; OUT/metrics.json
 records the preset and the resolved settings.
+
+The cascades, the Disney module and the asset's graph are in model.py; the samples, the ball-row
+terms and the sweep grid in data.py; the ball renders and their PSNRs (torch and GLSL) in render.py;
+this module trains, writes the asset folder and is the command line.
 """
 from __future__ import annotations
 
@@ -66,20 +70,17 @@ from inshade.files import atomic_files, atomic_write
 from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.models import brdf
-from inshade.models.disney_glue import disney_glue
-from inshade.models.display import srgb_display
 from inshade.models import indirection as di
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
-from inshade.models.indirection import make_array
-from inshade.models.lookup_array import LookupArray
-from inshade.models.mlp import Dense
+
+from .data import (GGX_ALPHA_RANGE, SWEEP_COLUMNS, disney_samples, ggx_ball_display, ggx_ball_sampler, ggx_sampler,
+                   sweep_grid)
+from .model import ENCODERS, GGX_INIT_CAP, DisneyDI, analytic_d, disney_graph, ggx_cascade, learned_d
+from .render import VIEWS, disney_render, ggx_metrics, ggx_shade, glsl_psnr, sweep_psnr
 
 PROGRAM = "passes/material_balls.frag"
 GGX_KIND, DISNEY_KIND = "di_brdf_ggx", "di_brdf_disney"
-# Fig. 6-style GGX balls: f = n.l (GGX_KD base / pi + GGX_KS D), alpha_h swept over the columns.
-GGX_KD, GGX_KS = 0.5, 0.25
-GGX_ALPHA_RANGE = (0.1, 1.0)
 # lr 2e-2 vs 1e-2 (clamped init, 8000 steps, seeds 0/1/2): pooled ball PSNR 49.1/48.9/47.6 vs
 # 47.2/50.9/47.8 dB, worst ball 44.2/46.4/42.2 vs 41.4/46.0/41.9; 16000 steps added ~0.5 dB.
 GGX_DEFAULTS = dict(steps=8000, batch=4096, lr=2e-2, schedule="cosine", seed=0)
@@ -88,12 +89,6 @@ GGX_DEFAULTS = dict(steps=8000, batch=4096, lr=2e-2, schedule="cosine", seed=0)
 # steps: tone-mapped function PSNR 35.9 dB, -3.9 dB without the term), small enough not to pull
 # the balls (1e-2 cost ~1.4 dB pooled).
 GGX_FUNCTION_WEIGHT = 1e-3
-# Cascaded init: D at the cells, clamped where the balls saturate (key light: radiance ~ 2 n.l x
-# GGX_KS D, white from D ~ 2). Versus the paper's constant 0.5 it starts the primary in the right
-# basin: pooled ball PSNR over seeds 0/1/2 47.2/50.9/47.8 dB vs 47.0/43.4/40.7 dB (8000 steps),
-# and the cap keeps the 8-bit cascaded range (and so its step) small; a cap of 4 or 8 did worse.
-GGX_INIT_CAP = 2.0
-GGX_CASCADED_INIT = "clamped_d"
 DISNEY_DEFAULTS = dict(steps=400, batch=4096, lr=3e-3, schedule="cosine", seed=0, samples=1 << 17)
 # --preset, per BRDF: "ship" is what built trained/di_brdf_<which> (GGX: GGX_DEFAULTS; Disney: 300
 # steps at batch 2048, not DISNEY_DEFAULTS' 400 x 4096); "quick" a short run.
@@ -101,12 +96,6 @@ PRESETS = {"ship": {"ggx": dict(steps=8000, batch=4096, lr=2e-2, seed=0),
                     "disney": dict(steps=300, batch=2048, lr=3e-3, samples=1 << 17, seed=0)},
            "quick": {"ggx": dict(steps=500, batch=4096, lr=2e-2, seed=0),
                      "disney": dict(steps=60, batch=2048, lr=3e-3, samples=1 << 15, seed=0)}}
-ENCODER_SIZE = 64
-DECODER_SIZE = 16
-SWEEP_COLUMNS = 8
-# Views of the material-ball pass (BRDF_VIEW define), mirrored in the GLSL.
-VIEWS = {"analytic": 0, "learned": 1, "split": 2, "diffuse": 3}
-MODELS = {"ggx": 1, "disney": 2}
 
 
 class BrdfTrainingError(ValueError):
@@ -120,131 +109,9 @@ def preset_settings(preset: str, asset: str | None = None) -> dict:
     return {"which": which, **PRESETS[preset][which]}
 
 
-# =============================================================================================
-# GGX
-def ggx_sampler(batch: int, seed: int = 0, device=None):
-    """Endless ((alpha_h, h_z), D) batches: h_z of a cosine-hemisphere direction, alpha_h exponential-like.
-    Drawn on a seeded CPU generator (the same numbers on every device), D computed on `device`."""
-    gen = torch.Generator().manual_seed(seed)
-    while True:
-        a = brdf.exponential_like(batch, gen, 3.0).to(device)
-        hz = brdf.cosine_hemisphere(batch, gen)[:, 2].to(device)
-        yield torch.stack([a, hz], -1), brdf.ggx_d(hz, a)[:, None]
-
-
-def ggx_eval_set(n: int = 1 << 15, seed: int = 1234):
-    gen = torch.Generator().manual_seed(seed)
-    a = brdf.exponential_like(n, gen, 3.0)
-    hz = brdf.cosine_hemisphere(n, gen)[:, 2]
-    return torch.stack([a, hz], -1), brdf.ggx_d(hz, a)[:, None]
-
-
-def ggx_init_cells(x: torch.Tensor) -> torch.Tensor:
-    """Cascaded-array init at the cell points x = (alpha_h, n.h) [P, 2] (what the identity primary
-    reads there): D clamped to GGX_INIT_CAP (alpha_h floored so that D(0, 1) = 0/0 is the cap)."""
-    return analytic_d(x[:, 0].clamp_min(1e-2), x[:, 1]).clamp(max=GGX_INIT_CAP)[:, None]
-
-
-def ggx_cascade(cascaded_init: str = GGX_CASCADED_INIT) -> GraphModule:
-    """16x16x2 primary (identity ramp, triangle F) -> 8x8x1 cascaded, both 8-bit. `cascaded_init`
-    "clamped_d" (default, `ggx_init_cells`) or "constant" (the paper's 0.5)."""
-    init, args = {"clamped_d": ("downsample", {"target": ggx_init_cells}),
-                  "constant": ("constant", {"value": 0.5})}[cascaded_init]
-    return di.cascade(2, 1, 16, 8, primary_bits=8, cascaded_bits=8, cascaded_init=init,
-                      cascaded_init_args=args, input_name="x", input_semantic="alpha_h, n.h",
-                      output_name="d", output_semantic="ggx_d")
-
-
-def analytic_d(alpha_h, nh):
-    return brdf.ggx_d(nh, alpha_h)
-
-
-def learned_d(g: GraphModule):
-    """D from a (quantised) GGX cascade, called like `analytic_d`."""
-    return lambda alpha_h, nh: g(torch.stack([alpha_h, nh], -1))[..., 0]
-
-
-def ggx_shade(d_fn):
-    """Fig. 6 GGX ball shading with D given by `d_fn(alpha_h, nh)` (`analytic_d` or `learned_d`)."""
-    def shade(sel, l, v, k):
-        lo, hi = GGX_ALPHA_RANGE
-        cols = shade.cols
-        a = lo + (hi - lo) * (sel["col"].float() / float(max(cols - 1, 1)))
-        h = brdf.half_vector(l, v)
-        d = d_fn(a, h[..., 2])
-        f = l[..., 2] * (GGX_KD * 0.5 * brdf.INV_PI + GGX_KS * d)
-        f = torch.where((l[..., 2] > 0.0) & (v[..., 2] > 0.0), f, torch.zeros_like(f))
-        return f[..., None].expand(-1, 3)
-    return shade
-
-
-def ggx_render(d_fn, cols: int = SWEEP_COLUMNS, size: int = 64, lights: int = 1) -> np.ndarray:
-    shade = ggx_shade(d_fn)
-    shade.cols = cols
-    return mb.render(size * cols, size, cols, 1, shade, lights)
-
-
-def ggx_metrics(g: GraphModule, cols: int = SWEEP_COLUMNS, size: int = 64) -> dict:
-    """PSNR of the 8-bit GGX cascade: Fig. 6 ball row (display domain, per ball and mean) and the
-    function itself on the sampling distribution (x / (1 + x) tone-mapped D, and raw D with peak max D)."""
-    q = di.quantised_copy(g, 8)
-    ref = ggx_render(analytic_d, cols, size)
-    got = ggx_render(learned_d(q), cols, size)
-    inside, ids = mb.ball_masks(size * cols, size, cols, 1)
-    per_ball = [mb.ball_psnr(got, ref, inside & (ids == c)) for c in range(cols)]
-    x, y = ggx_eval_set()
-    with torch.no_grad():
-        p = q(x)
-    tm = lambda t: t / (1.0 + t)  # noqa: E731
-    return {"psnr_balls_mean": float(np.mean(per_ball)), "psnr_balls_min": float(np.min(per_ball)),
-            "psnr_balls": [round(v, 3) for v in per_ball],
-            "psnr_balls_all_pixels": mb.ball_psnr(got, ref, inside),
-            "psnr_function_tonemapped": di.psnr(tm(p), tm(y)),
-            "psnr_function_raw_peak_max": di.psnr(p, y, float(y.max()))}
-
-
-def ggx_ball_terms(P: torch.Tensor, lights: int = mb.MAX_LIGHTS):
-    """Per ball point P [B, 3] (cell units, ball at the origin, viewer along +z as in
-    `material_balls.render`): n.h [B, lights] and the light weights w [B, lights] =
-    n.l * intensity / dist^2 (0 where n.l <= 0 or n.v <= 0), so that a ball pixel's linear radiance
-    is sum_k w_k (GGX_KD / (2 pi) + GGX_KS D(alpha_h, n.h_k)) -- `ggx_shade` summed over the lights."""
-    n = P / mb.BALL_RADIUS
-    lt = torch.tensor(mb.LIGHTS[:lights], dtype=torch.float32, device=P.device)
-    d = lt[None, :, :3] - P[:, None]
-    dist2 = (d * d).sum(-1)
-    l = d * torch.rsqrt(dist2)[..., None]
-    h = l + torch.tensor([0.0, 0.0, 1.0], device=P.device)
-    h = h * torch.rsqrt((h * h).sum(-1))[..., None]
-    nl = (n[:, None] * l).sum(-1)
-    lit = (nl > 0.0) & (n[:, None, 2] > 0.0)
-    w = torch.where(lit, nl * lt[None, :, 3] / dist2, torch.zeros_like(nl))
-    return (n[:, None] * h).sum(-1).clamp(0.0, 1.0), w
-
-
-def ggx_ball_sampler(batch: int, seed: int = 0, device=None):
-    """Endless (alpha_h [B], n.h [B, L], w [B, L]) batches distributed like the Fig. 6 ball pixels:
-    alpha_h uniform over GGX_ALPHA_RANGE (continuous, not just the 8 columns), a point uniform over
-    the ball's disk, the first 1..MAX_LIGHTS scene lights (the viewer's light-count setting).
-    Drawn on a seeded CPU generator (the same numbers on every device), computed on `device`."""
-    gen = torch.Generator().manual_seed(seed)
-    lo, hi = GGX_ALPHA_RANGE
-    r2 = mb.BALL_RADIUS * mb.BALL_RADIUS
-    while True:
-        u_a, u_rho, u_phi = (torch.rand(batch, generator=gen).to(device) for _ in range(3))
-        count = torch.randint(1, mb.MAX_LIGHTS + 1, (batch, 1), generator=gen).to(device)
-        a = lo + (hi - lo) * u_a
-        rho = torch.sqrt(r2 * u_rho)
-        phi = 2.0 * math.pi * u_phi
-        x, y = rho * torch.cos(phi), rho * torch.sin(phi)
-        P = torch.stack([x, y, torch.sqrt((r2 - x * x - y * y).clamp_min(0.0))], -1)
-        nh, w = ggx_ball_terms(P)
-        yield a, nh, w * (torch.arange(mb.MAX_LIGHTS, device=device)[None] < count)
-
-
-def ggx_ball_display(d_fn, a, nh, w) -> torch.Tensor:
-    """Display-domain value (`srgb_display`) of ball samples, D given by `d_fn(alpha_h, n.h)`."""
-    d = d_fn(a[:, None].expand_as(nh), nh)
-    return srgb_display((w * (GGX_KD * 0.5 * brdf.INV_PI + GGX_KS * d)).sum(-1))
+# training
+def _tonemap(x):
+    return x / (1.0 + x.abs())
 
 
 def ggx_loss(g: GraphModule, ball, fn):
@@ -282,114 +149,6 @@ def train_ggx(steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=GGX_D
                             objective=lambda cascade, b: ggx_loss(cascade, *b), metric=metric,
                             progress=progress, desc="di_brdf_ggx")
     return g.to("cpu"), hist, time.perf_counter() - t0
-
-
-# =============================================================================================
-# Disney: encoders, decoders, glue
-
-def _sqrt_pi_axay(r, an):
-    ax, ay = brdf.aniso_alphas(r, an)
-    k = torch.sqrt(math.pi * ax * ay)
-    return ax, ay, k
-
-
-def target_ggx(x):
-    """(roughness, anisotropic) [P, 2] -> (d0, d1, d2) with D_m = 1 / (d0 hx^2 + d1 hy^2 + d2 nh^2)^2."""
-    ax, ay, k = _sqrt_pi_axay(x[:, 0], x[:, 1])
-    return torch.stack([k / (ax * ax), k / (ay * ay), k], -1)
-
-
-def target_smith(x):
-    """Initial Schlick-Smith k = alpha / 2 (alpha = sqrt(ax ay)); training refines it."""
-    ax, ay = brdf.aniso_alphas(x[:, 0], x[:, 1])
-    return (0.5 * torch.sqrt(ax * ay))[:, None]
-
-
-def target_diff(x):
-    """(roughness, subsurface) -> f_i for g = (B0, B1, S0 w + 1/2, S1 w): bilinear in the inputs,
-    hence exact on a 16x16 grid (Li's r^2 terms are left to training)."""
-    r, ss = x[:, 0], x[:, 1]
-    return torch.stack([(1.0 - ss) * brdf.INV_PI, (1.0 - ss) * r * brdf.INV_PI,
-                        1.25 * brdf.INV_PI * ss, 1.25 * brdf.INV_PI * ss * r], -1)
-
-
-def target_coef(x):
-    m, sh = x[:, 0], x[:, 1]
-    return torch.stack([1.0 - m, m, (1.0 - m) * sh, torch.full_like(m, 0.5 * brdf.CLEARCOAT_ALPHA)], -1)
-
-
-def target_gloss(x):
-    g = x[:, 0]
-    ag = (1.0 - g) * 0.1 + g * 0.001
-    ag2 = ag * ag
-    lg = torch.log(ag2)
-    return torch.stack([-math.pi * lg, math.pi * lg * ag2 / (ag2 - 1.0)], -1)
-
-
-# name: (encoder inputs (PARAMS names), decoder resolution, channels, exact/initial target)
-DECODERS = {
-    "ggx": (("roughness", "anisotropic"), [16, 16], 3, target_ggx),
-    "smith": (("roughness", "anisotropic"), [16, 16], 1, target_smith),
-    "diff": (("roughness", "subsurface"), [16, 16], 4, target_diff),
-    "coef": (("metallic", "sheen"), [16, 16], 4, target_coef),
-    "gloss": (("clearcoat_gloss",), [16], 2, target_gloss),
-}
-# decoders sharing a latent share an encoder
-ENCODERS = {"m": ("roughness", "anisotropic"), "d": ("roughness", "subsurface"), "c": ("metallic", "sheen"),
-            "g": ("clearcoat_gloss",)}
-DECODER_ENCODER = {"ggx": "m", "smith": "m", "diff": "d", "coef": "c", "gloss": "g"}
-
-
-class DisneyDI(torch.nn.Module):
-    """Encoders (offline primaries) + decoders (runtime cascaded arrays) + the glue."""
-
-    def __init__(self, encoder_size: int = ENCODER_SIZE):
-        super().__init__()
-        self.encoders = torch.nn.ModuleDict({
-            k: make_array([encoder_size] * len(ins), len(ins), init="ramp", nonlinearity="sinusoid",
-                          frequency=math.pi)
-            for k, ins in ENCODERS.items()})
-        self.decoders = torch.nn.ModuleDict({
-            k: make_array(res, ch, init="downsample", target=fn) for k, (ins, res, ch, fn) in DECODERS.items()})
-
-    def encode(self, params: torch.Tensor) -> dict:
-        """Artist parameters [..., 10] -> latent codes per encoder (what the latent textures hold)."""
-        return {k: self.encoders[k](torch.stack([params[..., brdf.PARAMS.index(n)] for n in ins], -1))
-                for k, ins in ENCODERS.items()}
-
-    def decode(self, z: dict) -> dict:
-        return {k: self.decoders[k](z[DECODER_ENCODER[k]]) for k in DECODERS}
-
-    def extras(self, params):
-        """The per-texel scalars stored beside the latents (no lookup needed)."""
-        p = lambda n: params[..., brdf.PARAMS.index(n)]  # noqa: E731
-        return {"sheen_tint": p("sheen_tint"),
-                "k": torch.stack([brdf.R0 * p("specular") * p("specular_tint"),
-                                  brdf.R0 * p("specular") * (1.0 - p("specular_tint")), 0.25 * p("clearcoat")], -1)}
-
-    def forward(self, l, v, base_color, params):
-        dec = self.decode(self.encode(params))
-        return disney_glue(dec, self.extras(params), base_color, l, v)
-
-
-def disney_samples(n: int, seed: int = 0, device=None):
-    """(l, v, base_color, params, target rgb): the paper's distributions (supp. 1.2), drawn on a
-    seeded CPU generator (the same numbers on every device); all on `device`, the target computed there."""
-    gen = torch.Generator().manual_seed(seed)
-    l = brdf.uniform_hemisphere(n, gen, 0.01)
-    v = brdf.uniform_hemisphere(n, gen, 0.01)
-    base = torch.rand(n, 3, generator=gen)
-    params = torch.rand(n, len(brdf.PARAMS), generator=gen)
-    params[:, brdf.PARAMS.index("roughness")] = brdf.exponential_like(n, gen, 2.0)
-    params[:, brdf.PARAMS.index("clearcoat_gloss")] = 1.0 - brdf.exponential_like(n, gen, 2.0)
-    l, v, base, params = (t.to(device) for t in (l, v, base, params))
-    with torch.no_grad():
-        target = brdf.disney(l, v, base, params)
-    return l, v, base, params, target
-
-
-def _tonemap(x):
-    return x / (1.0 + x.abs())
 
 
 def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"], lr=DISNEY_DEFAULTS["lr"],
@@ -430,169 +189,9 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
     return model.to("cpu"), history, time.perf_counter() - t0
 
 
-# =============================================================================================
-# Disney: sweep grid, material/latent textures, bundle
-
-def sweep_grid(cols: int = SWEEP_COLUMNS, base_color=brdf.DEFAULT_BASE_COLOR):
-    """Fig. 11 grid: row i sweeps PARAMS[i] over linspace(0, 1, cols), the others at DEFAULTS.
-    Returns (base [rows, cols, 3], params [rows, cols, 10]); row 0 is drawn at the bottom."""
-    rows = len(brdf.PARAMS)
-    base, params = brdf.material(batch=(rows, cols), base_color=base_color)
-    vals = torch.linspace(0, 1, cols)
-    for i in range(rows):
-        params[i, :, i] = vals
-    return base, params
-
-
-def material_textures(model: DisneyDI, base, params) -> dict:
-    """Latent + parameter textures over the grid, [rows, cols, 4] each (the lookup-array layout
-    [N_1, N_0, C] of a [cols, rows] array). lat_a..lat_g feed the decoders; par0..par3 are the
-    artist-parameter textures the analytic shader reads."""
-    with torch.no_grad():
-        z = model.encode(params)
-        ex = model.extras(params)
-    zero = torch.zeros_like(base[..., 0])
-    p = lambda n: params[..., brdf.PARAMS.index(n)]  # noqa: E731
-    return {
-        "lat_a": torch.stack([z["m"][..., 0], z["m"][..., 1], ex["sheen_tint"], ex["k"][..., 2]], -1),
-        "lat_b": torch.stack([z["d"][..., 0], z["d"][..., 1], ex["k"][..., 0], ex["k"][..., 1]], -1),
-        "lat_c": torch.stack([z["c"][..., 0], z["c"][..., 1], base[..., 0], base[..., 1]], -1),
-        "lat_g": torch.stack([z["g"][..., 0], base[..., 2], zero, zero], -1),
-        "par0": torch.stack([base[..., 0], base[..., 1], base[..., 2], p("roughness")], -1),
-        "par1": torch.stack([p("metallic"), p("anisotropic"), p("subsurface"), p("specular")], -1),
-        "par2": torch.stack([p("specular_tint"), p("sheen"), p("sheen_tint"), p("clearcoat")], -1),
-        "par3": torch.stack([p("clearcoat_gloss"), zero, zero, zero], -1),
-    }
-
-
-# Output lanes of the Disney bundle (mirrored by DI_* defines in passes/material_balls.frag).
-DISNEY_OUTPUTS = (("ggx", 3), ("smith", 1), ("diff", 4), ("coef", 4), ("gloss", 2), ("lat_a", 4), ("lat_b", 4),
-                  ("lat_c", 4), ("lat_g", 4), ("par0", 4), ("par1", 4), ("par2", 4), ("par3", 4))
-DECODER_SOURCE = {"ggx": "lat_a", "smith": "lat_a", "diff": "lat_b", "coef": "lat_c", "gloss": "lat_g"}
-
-
-def disney_graph(model: DisneyDI, base, params) -> GraphModule:
-    """The asset's graph: input the ball-grid coordinate; latent/parameter textures (32-bit lookup
-    arrays over the grid) and the five decoders (32-bit, as the paper's full-precision 12 KB)."""
-    rows, cols = base.shape[:2]
-    g = GraphModule([("grid", 2, "ball grid coordinate")])
-    tex = material_textures(model, base, params)
-    for name, t in tex.items():
-        g.add(name, LookupArray([cols, rows], 4, 32, init=t.clone()), "grid")
-    for src in sorted(set(DECODER_SOURCE.values())):
-        # lookup arrays take exactly d-wide inputs: a one-hot dense node picks the latent lanes
-        # (inline constants of 0 and 1, which GLSL compilers fold away)
-        width = len(DECODERS[next(k for k, s in DECODER_SOURCE.items() if s == src)][1])
-        pick = Dense(4, width, bias=False)
-        with torch.no_grad():
-            pick.linear.weight.zero_()
-            for i in range(width):
-                pick.linear.weight[i, i] = 1.0
-        g.add(f"z_{src}", pick, src)
-    for name in DECODERS:
-        dec = model.decoders[name]
-        g.add(name, LookupArray(dec.resolution, dec.channels, 32, init=dec.table().detach().clone()),
-              f"z_{DECODER_SOURCE[name]}")
-    for name, _ in DISNEY_OUTPUTS:
-        g.output(name, name, name)
-    for p in g.parameters():
-        p.requires_grad_(False)
-    return g
-
-
-def graph_shade(g: GraphModule):
-    """Disney ball shading through the exported graph (what the GLSL evaluates): learned or analytic."""
-    def lanes(sel):
-        with torch.no_grad():
-            y = g(sel["grid"])
-        out, off = {}, 0
-        for name, w in DISNEY_OUTPUTS:
-            out[name] = y[..., off:off + w]
-            off += w
-        return out
-
-    def shade(sel, l, v, k, learned):
-        y = lanes(sel)
-        if learned:
-            dec = {n: y[n] for n in DECODERS}
-            extra = {"sheen_tint": y["lat_a"][..., 2], "k": torch.stack(
-                [y["lat_b"][..., 2], y["lat_b"][..., 3], y["lat_a"][..., 3]], -1)}
-            albedo = torch.stack([y["lat_c"][..., 2], y["lat_c"][..., 3], y["lat_g"][..., 1]], -1)
-            return disney_glue(dec, extra, albedo, l, v)
-        par = torch.cat([y["par0"], y["par1"], y["par2"], y["par3"]], -1)
-        return brdf.disney(l, v, par[..., :3], par[..., 3:13])
-    return shade
-
-
-def disney_render(g: GraphModule, view: str, cols: int, rows: int, size: int, lights: int = 1) -> np.ndarray:
-    shade = graph_shade(g)
-    halves = 2 if view == "split" else 1
-
-    def fn(sel, l, v, k):
-        if view == "split":
-            learned = sel["side"] == 1
-            a, b = shade(sel, l, v, k, False), shade(sel, l, v, k, True)
-            return torch.where(learned[..., None], b, a)
-        if view == "diffuse":
-            with torch.no_grad():   # the baseline: albedo n.l / pi
-                par = g(sel["grid"])
-            off = sum(w for n, w in DISNEY_OUTPUTS[:DISNEY_OUTPUTS.index(("par0", 4))])
-            return par[..., off:off + 3] * (l[..., 2:3].clamp(min=0.0) * brdf.INV_PI)
-        return shade(sel, l, v, k, view == "learned")
-    return mb.render(size * cols * halves, size * rows, cols, rows, fn, lights, halves)
-
-
-def sweep_psnr(g: GraphModule, cols: int, rows: int, size: int = 32, lights: int = 2) -> dict:
-    """Per artist parameter (row): min and mean ball PSNR (display domain) learned vs analytic."""
-    ref = disney_render(g, "analytic", cols, rows, size, lights)
-    got = disney_render(g, "learned", cols, rows, size, lights)
-    inside, ids = mb.ball_masks(size * cols, size * rows, cols, rows)
-    out = {}
-    for r in range(rows):
-        vals = [mb.ball_psnr(got, ref, inside & (ids == r * cols + c)) for c in range(cols)]
-        out[brdf.PARAMS[r]] = {"min": round(min(vals), 3), "mean": round(float(np.mean(vals)), 3),
-                               "per_ball": [round(v, 2) for v in vals]}
-    return out
-
-
-def glsl_psnr(folder, model: str, lut_filter: str, ball_px: int) -> dict:
-    """Quality from the shader's own output: the asset's material-ball pass rendered through the GL
-    driver with the analytic and the learned BRDF (2 lights), ball PSNR in the display domain;
-    Disney: min per row (artist parameter), GGX: per ball. Also returns GL_RENDERER."""
-    from inshade.runtime.camera import camera_from_dict
-    from inshade.runtime.render import read_rgba
-    from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
-
-    scene = load_scene(folder)
-    cols = scene.settings["cols"].default
-    rows = scene.settings["rows"].default
-    w, h = cols * ball_px, rows * ball_px
-    cam = camera_from_dict({"type": "plane2d", "aspect": w / h})
-    imgs = {}
-    for view in ("analytic", "learned"):
-        r = SceneRenderer(scene, settings={"view": VIEWS[view], "lut_filter": lut_filter, "lights": 2})
-        try:
-            imgs[view] = read_rgba(r.render_network(cam, w, h))[..., :3]
-            renderer = r.gl["renderer"]
-        finally:
-            r.release()
-    inside, ids = mb.ball_masks(w, h, cols, rows)
-    per = [[mb.ball_psnr(imgs["learned"], imgs["analytic"], inside & (ids == rr * cols + c)) for c in range(cols)]
-           for rr in range(rows)]
-    out = {"gl_renderer": renderer, "lut_filter": lut_filter}
-    if model == "disney":
-        out["rows_min"] = {brdf.PARAMS[rr]: round(min(per[rr]), 3) for rr in range(rows)}
-        out["min"] = min(out["rows_min"].values())
-    else:
-        out["per_ball"] = [round(v, 3) for v in per[0]]
-        out["mean"], out["min"] = float(np.mean(per[0])), float(np.min(per[0]))
-        out["all_pixels"] = mb.ball_psnr(imgs["learned"], imgs["analytic"], inside)
-    return out
-
-
-# =============================================================================================
 # assets
+MODELS = {"ggx": 1, "disney": 2}
+
 
 def scene_dict(name: str, title: str, model: str, size, cols: int, rows: int, ball_px: int) -> dict:
     return {
@@ -736,9 +335,7 @@ def _save_encoders(model: DisneyDI, path: Path):
         save_file(tensors, str(tmp), metadata={"inputs": json.dumps(ENCODERS)})
 
 
-# =============================================================================================
 # command line
-
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("which", choices=("ggx", "disney"), help="which learned BRDF to build")
     asset_folder.add_arguments(p, "di_brdf_<which>")
@@ -788,4 +385,3 @@ def run(args, argv=None) -> int:
 
 def main(argv=None) -> int:
     return command.main("inshade train di_brdf", __doc__, add_arguments, run, argv, errors=(DeviceError,))
-
