@@ -38,15 +38,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from inshade.files import atomic_write
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
+from inshade.trainer import Run, Trainer, setting
 from inshade.metrics import psnr, srgb_eotf
 from inshade.models import indirection as di
 from inshade.models.texture_cascade import (DEFAULTS as CASCADE_DEFAULTS, FIELD_PROGRAM, FINISH_OPTIMIZERS,
@@ -54,24 +53,37 @@ from inshade.models.texture_cascade import (DEFAULTS as CASCADE_DEFAULTS, FIELD_
                                             torch_decode)
 
 RENDER_PROGRAM = FIELD_PROGRAM
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a di_texture run is built from (metrics.json records it)."""
+    image: str = setting(None, "image file (PNG/JPEG/...) or skimage:NAME (e.g. skimage:astronaut)",
+                         positional="IMAGE")
+    size: int | None = setting(None, "centre-crop to a square and resize to SIZE x SIZE first")
+    ratio: float = setting(CASCADE_DEFAULTS["ratio"], "compression ratio vs 8-bit")
+    rho: float | None = setting(CASCADE_DEFAULTS["rho"],
+                                "N_p / N_c (None: the largest primary next to an N_c = 4 cascaded array)")
+    steps: int = setting(1500, "training steps")
+    lr: float = setting(CASCADE_DEFAULTS["lr"], "Adam learning rate")
+    batch: int = setting(CASCADE_DEFAULTS["batch"], "samples per step")
+    schedule: str = setting(CASCADE_DEFAULTS["schedule"], "learning-rate schedule", choices=sorted(di.SCHEDULES))
+    finish: float = setting(CASCADE_DEFAULTS["finish"], "fraction of the steps trained last on texel centres "
+                            "with the squared error (0: the paper's stratified L1 throughout)")
+    finish_optimizer: str = setting(CASCADE_DEFAULTS["finish_optimizer"], "finish phase: minibatch Adam under "
+                                    "the same schedule, or full-batch L-BFGS on all texel centres with the same "
+                                    "sample budget", choices=FINISH_OPTIMIZERS)
+    seed: int = setting(CASCADE_DEFAULTS["seed"], "random seed")
+
+
 # Training lengths: "quick" runs in a couple of minutes on one CPU thread; "ship" is what the
 # trained/ assets use (12000 steps, ~10 min a 256^2 texture on one thread of the 2-core machine).
-PRESETS = {"quick": dict(steps=1500), "ship": dict(steps=12000)}
-# The inputs of each shipped asset (IMAGE, --size, --ratio beside --preset ship): preset_settings() adds them.
+PRESETS = {"quick": {}, "ship": dict(steps=12000)}
+# The inputs of each shipped asset (IMAGE, --size, --ratio beside --preset ship).
 SHIP_ASSETS = {"di_texture_astronaut": dict(image="skimage:astronaut", size=256, ratio=6.0),
                "di_texture_astronaut_12x": dict(image="skimage:astronaut", size=256, ratio=12.0),
                "di_texture_chelsea": dict(image="skimage:chelsea", size=256, ratio=6.0),
                "di_texture_coffee": dict(image="skimage:coffee", size=256, ratio=6.0)}
-SETTINGS = ("image", "size", "ratio", "rho", "steps", "lr", "batch", "schedule", "finish", "finish_optimizer", "seed")
-DEFAULTS = {**CASCADE_DEFAULTS, "steps": PRESETS["quick"]["steps"]}
-
-
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to (what metrics.json records as "settings") for the
-    shipped asset folder name ``asset`` (its image, size and ratio; None: no image, the default ratio)."""
-    inputs = SHIP_ASSETS[asset] if asset else dict(image=None, size=None)
-    return {k: inputs.get(k, PRESETS[preset].get(k, DEFAULTS.get(k))) for k in SETTINGS}
-
 
 
 def decoded_metrics(bundle, image: np.ndarray, linear: bool, filters=("exact", "fast"), progress=None) -> dict:
@@ -148,64 +160,31 @@ def write_asset(result: Result, out, title: str, lut_filter: str = "exact") -> P
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    d = DEFAULTS
-    p.add_argument("image", metavar="IMAGE", help="image file (PNG/JPEG/...) or skimage:NAME (e.g. skimage:astronaut)")
-    asset_folder.add_arguments(p, "di_texture_<image>")
-    p.add_argument("--ratio", type=float, default=d["ratio"], help="compression ratio vs 8-bit (default %(default)s)")
-    p.add_argument("--size", type=int, help="centre-crop to a square and resize to SIZE x SIZE first")
-    p.add_argument("--rho", type=float, default=None,
-                   help="N_p / N_c (default: largest primary next to an N_c = 4 cascaded array)")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="training length: " + ", ".join(f"{k} = {v['steps']} steps" for k, v in PRESETS.items())
-                        + "; ship with IMAGE, --size and --ratio of a shipped asset is exactly what built it "
-                        "(README) (default %(default)s)")
-    p.add_argument("--steps", type=int, help="training steps (overrides --preset)")
-    p.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default %(default)s)")
-    p.add_argument("--batch", type=int, default=d["batch"], help="samples per step (default %(default)s)")
-    p.add_argument("--schedule", choices=sorted(di.SCHEDULES), default=d["schedule"])
-    p.add_argument("--finish", type=float, default=d["finish"],
-                   help="fraction of the steps trained last on texel centres with the squared error "
-                        "(0: the paper's stratified L1 throughout; default %(default)s)")
-    p.add_argument("--finish-optimizer", choices=FINISH_OPTIMIZERS, default=d["finish_optimizer"],
-                   help="finish phase: minibatch Adam under the same schedule, or full-batch L-BFGS on all "
-                        "texel centres with the same sample budget (default %(default)s)")
-    p.add_argument("--seed", type=int, default=d["seed"])
+def extra_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lut-filter", choices=("exact", "fast"), default="exact",
                    help="the scene's default LUT path (default %(default)s)")
     p.add_argument("--title", help="scene title")
     p.add_argument("--no-gl", action="store_true", help="skip the GLSL-decoded metrics (no GL context)")
-    add_device_argument(p)
-    return p
 
 
-def run(args, argv=None) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    args.out = str(asset_folder.claim(args.out, f"di_texture_{Path(args.image.removeprefix('skimage:')).stem}", force=args.force))
-    if args.steps is None:
-        args.steps = PRESETS[args.preset]["steps"]
-    if args.steps < 0 or args.batch < 1:
+def check(s: Settings) -> None:
+    if s.steps < 0 or s.batch < 1:
         raise CompressionError("--steps must be >= 0 and --batch >= 1")
-    image, notes, source = load_image(args.image, args.size)
+
+
+def train(run: Run) -> int:
+    s, args = run.settings, run.args
+    image, notes, source = load_image(s.image, s.size)
     for n in notes:
         print(f"inshade: note: {n}", file=sys.stderr)
-    argv = list(sys.argv[1:] if argv is None else argv)
-    command = shlex.join(["inshade", "train", "di_texture", *argv])
-    name = Path(args.out).name
-    result = compress(image, args.ratio, rho=args.rho, steps=args.steps, lr=args.lr, batch=args.batch,
-                      schedule=args.schedule, seed=args.seed, finish=args.finish,
-                      finish_optimizer=args.finish_optimizer, measure=None if args.no_gl else decoded_metrics,
-                      name=name, device=device,
-                      provenance={"command": command, "image": source, "image_notes": notes})
+    result = compress(image, s.ratio, rho=s.rho, steps=s.steps, lr=s.lr, batch=s.batch, schedule=s.schedule,
+                      seed=s.seed, finish=s.finish, finish_optimizer=s.finish_optimizer,
+                      measure=None if args.no_gl else decoded_metrics, name=run.out.name, device=run.device,
+                      provenance={"command": run.command, "image": source, "image_notes": notes})
     title = args.title or f"DI texture: {source}, {result.metrics['ratio']:.2f}x"
-    out = write_asset(result, args.out, title, args.lut_filter)
+    out = write_asset(result, run.out, title, args.lut_filter)
     m = result.metrics
-    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
-    # assets' equal to preset_settings("ship", asset)) and the bundle's metrics without the loss history
-    settings = {k: getattr(args, k) for k in SETTINGS}
-    atomic_write(out / "metrics.json", json.dumps({"command": command, "preset": args.preset, "settings": settings,
-                                                   **{k: v for k, v in m.items() if k != "history"}},
-                                                  indent=1) + "\n")
+    run.write_metrics({k: v for k, v in m.items() if k != "history"})
     gl = (f", GLSL exact {m['psnr_srgb8_glsl_exact']:.2f} dB / fast {m['psnr_srgb8_glsl_fast']:.2f} dB"
           if "psnr_srgb8_glsl_exact" in m else "")
     print(f"wrote {out}: {m['ratio']:.2f}x ({m['bytes']} bytes, N_p {m['n_primary']}, N_c {m['n_cascaded']}), "
@@ -214,6 +193,7 @@ def run(args, argv=None) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train di_texture", __doc__, add_arguments, run, argv, errors=(DeviceError,))
-
+TRAINER = Trainer("di_texture", __doc__, Settings, PRESETS, train,
+                  folder=lambda s: f"di_texture_{Path(s.image.removeprefix('skimage:')).stem}",
+                  ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check, errors=(CompressionError,))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

@@ -1,0 +1,200 @@
+"""The trainer contract: a technique's settings are one typed dataclass, its presets are data, and
+this layer makes the rest -- the ``inshade train NAME`` options, ``--preset`` and ``--device``,
+the asset folder (``-o``/``--force``), the recorded command line, ``metrics.json`` and the
+one-line errors.
+
+    @dataclass(frozen=True)
+    class Settings:
+        image: str = setting(None, "image file or skimage:NAME", positional="IMAGE")
+        ratio: float = setting(6.0, "compression ratio vs 8-bit")
+        steps: int = setting(1500, "training steps")
+
+    TRAINER = Trainer("di_texture", __doc__, Settings, presets={"quick": {}, "ship": {"steps": 12000}},
+                      train=build, folder=lambda s: f"di_texture_{s.image}")
+    add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
+
+Resolution, one rule for every trainer: an option given on the command line wins, else the
+preset's value, else the field's default. ``preset_settings(preset, asset)`` is what ``--preset
+PRESET`` resolves to with no other option (plus a shipped asset's own inputs, ``ship_assets``):
+what a shipped asset's ``metrics.json`` records, so ``--preset ship`` with those inputs rebuilds it.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import shlex
+import sys
+import types
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from inshade import asset_folder, command
+from inshade.devices import DeviceError, add_device_argument
+from inshade.files import atomic_write
+
+PRESETS = ("quick", "ship")
+
+
+def setting(default, help: str, *, choices=None, positional: str | None = None, flag: str | None = None,
+            metavar: str | None = None):
+    """A settings field: its default, its ``--help`` line, the values it may take, and how the
+    command line spells it (``positional="IMAGE"``: a positional argument; ``flag``: another
+    option name than ``--field-name``)."""
+    return field(default=default, metadata={"help": help, "choices": choices, "positional": positional,
+                                            "flag": flag, "metavar": metavar})
+
+
+def _scalar(annotation) -> tuple[type, bool, bool]:
+    """(element type, optional, a sequence) of a field annotation such as ``int | None`` or
+    ``tuple[float, ...]``."""
+    args = typing.get_args(annotation)
+    optional = type(None) in args
+    if optional:
+        annotation = next(a for a in args if a is not type(None))
+    origin = typing.get_origin(annotation)
+    if origin in (tuple, list):
+        return typing.get_args(annotation)[0], optional, True
+    if origin in (typing.Union, types.UnionType):
+        raise TypeError(f"setting type {annotation!r}: one type (optionally | None) per setting")
+    return annotation, optional, False
+
+
+@dataclass(frozen=True)
+class Run:
+    """One resolved training run, handed to the technique's ``train``."""
+    settings: object                  # the technique's Settings instance
+    preset: str
+    device: object                    # torch.device (resolved before any work)
+    out: Path                         # the claimed asset folder
+    command: str                      # the command line as the user would type it again
+    args: argparse.Namespace          # the parsed options (the technique's extra options too)
+
+    def record(self) -> dict:
+        """What metrics.json records about the run: command, preset and resolved settings."""
+        return {"command": self.command, "preset": self.preset, "settings": dataclasses.asdict(self.settings)}
+
+    def write_metrics(self, metrics: Mapping, name: str = "metrics.json") -> Path:
+        """``out/metrics.json``: the run's record, then ``metrics`` (written atomically)."""
+        path = self.out / name
+        atomic_write(path, json.dumps({**self.record(), **metrics}, indent=1) + "\n")
+        return path
+
+
+@dataclass(frozen=True)
+class Trainer:
+    """A technique's trainer: settings, presets and the function that trains and writes."""
+    name: str                                        # inshade train NAME
+    doc: str | None                                  # the module docstring: the --help description
+    settings: type                                   # a dataclass of setting(...) fields
+    presets: Mapping[str, Mapping]                   # preset -> the fields it sets
+    train: Callable[[Run], int | None]               # trains, writes run.out, prints its summary
+    folder: Callable[[object], str]                  # settings -> the default asset folder's name
+    default_preset: str = "quick"
+    ship_assets: Mapping[str, Mapping] = field(default_factory=dict)   # shipped folder -> its inputs
+    extra_arguments: Callable[[argparse.ArgumentParser], None] | None = None   # options that are not settings
+    check: Callable[[object], None] | None = None    # raises the technique's error for a bad setting
+    errors: tuple = ()                               # exceptions that become `inshade: error:` lines
+
+    def __post_init__(self):
+        names = {f.name for f in dataclasses.fields(self.settings)}
+        for preset, values in self.presets.items():
+            unknown = set(values) - names
+            if unknown:
+                raise TypeError(f"{self.name}: preset {preset!r} sets unknown settings {sorted(unknown)}")
+        if self.default_preset not in self.presets:
+            raise TypeError(f"{self.name}: default preset {self.default_preset!r} is not one of {list(self.presets)}")
+
+    # -- resolution --------------------------------------------------------------------------
+
+    def defaults(self, preset: str) -> dict:
+        """Every setting's value under ``preset`` with no option given."""
+        if preset not in self.presets:
+            raise ValueError(f"--preset: {preset!r} is not one of {', '.join(self.presets)}")
+        return {f.name: self.presets[preset].get(f.name, f.default) for f in dataclasses.fields(self.settings)}
+
+    def preset_settings(self, preset: str, asset: str | None = None) -> dict:
+        """What ``--preset PRESET`` resolves to (what metrics.json records as "settings") for the
+        shipped asset folder ``asset`` (its own inputs from ``ship_assets``)."""
+        values = {**self.defaults(preset), **(self.ship_assets[asset] if asset else {})}
+        return json.loads(json.dumps(values))     # as metrics.json holds them (a tuple reads back as a list)
+
+    def resolve(self, args: argparse.Namespace):
+        """The Settings instance of parsed ``args``: option given, else preset, else default."""
+        values = self.defaults(args.preset)
+        for f in dataclasses.fields(self.settings):
+            given = getattr(args, f.name)
+            if given is not None:
+                values[f.name] = tuple(given) if isinstance(given, list) else given
+        settings = self.settings(**values)
+        if self.check is not None:
+            self.check(settings)
+        return settings
+
+    # -- command line ------------------------------------------------------------------------
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+        hints = typing.get_type_hints(self.settings)
+        shown = {p: self.defaults(p) for p in self.presets}
+        for f in dataclasses.fields(self.settings):
+            meta = f.metadata
+            kind, optional, sequence = _scalar(hints[f.name])
+            per_preset = {p: v[f.name] for p, v in shown.items()}
+            default = per_preset[self.default_preset]
+            if len(set(map(repr, per_preset.values()))) > 1:
+                told = "; ".join(f"{p}: {_shown(v)}" for p, v in per_preset.items())
+            else:
+                told = f"default {_shown(default)}"
+            required = meta["positional"] and f.default is None
+            kw = dict(help=meta["help"] if required else f"{meta['help']} ({told})", default=None,
+                      choices=meta["choices"])
+            if meta["metavar"]:
+                kw["metavar"] = meta["metavar"]
+            if kind is bool:
+                kw.pop("choices")
+                kw["action"] = argparse.BooleanOptionalAction
+            else:
+                kw["type"] = kind
+                if sequence:
+                    kw["nargs"] = "+"
+            if meta["positional"]:
+                kw.pop("default")
+                if not required:
+                    kw["nargs"] = "?"
+                parser.add_argument(f.name, metavar=meta["positional"], **kw)
+            else:
+                parser.add_argument(meta["flag"] or "--" + f.name.replace("_", "-"), dest=f.name, **kw)
+        parser.add_argument("--preset", choices=list(self.presets), default=self.default_preset,
+                            help=f"{self.preset_help()} (default %(default)s)")
+        asset_folder.add_arguments(parser, f"{self.name}_<name>")
+        add_device_argument(parser)
+        if self.extra_arguments is not None:
+            self.extra_arguments(parser)
+        return parser
+
+    def preset_help(self) -> str:
+        parts = [f"{p} = " + (", ".join(f"{k} {_shown(v)}" for k, v in values.items()) or "the defaults")
+                 for p, values in self.presets.items()]
+        return "settings by name: " + "; ".join(parts) + "; an option given explicitly wins"
+
+    def run(self, args: argparse.Namespace, argv: list[str]) -> int:
+        from inshade.devices import resolve_device
+
+        device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+        settings = self.resolve(args)
+        out = asset_folder.claim(args.out, self.folder(settings), force=args.force)
+        run = Run(settings, args.preset, device, out, shlex.join(["inshade", "train", self.name, *argv]), args)
+        return int(self.train(run) or 0)
+
+    def main(self, argv=None) -> int:
+        argv = list(sys.argv[1:] if argv is None else argv)
+        return command.main(f"inshade train {self.name}", self.doc, self.add_arguments,
+                            lambda args: self.run(args, argv), argv, errors=(DeviceError, *self.errors))
+
+
+def _shown(value) -> str:
+    if isinstance(value, float) and value.is_integer() and abs(value) >= 1:
+        return f"{value:g}"
+    return str(value)

@@ -1,0 +1,82 @@
+"""The trainer contract (inshade/trainer.py): typed settings and presets as data make the options,
+the resolution (given option > preset > default), the recorded settings and the errors."""
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+
+import pytest
+
+from inshade.trainer import Run, Trainer, setting
+
+
+@dataclass(frozen=True)
+class Toy:
+    source: str = setting(None, "what to fit", positional="SOURCE")
+    steps: int = setting(100, "training steps")
+    lr: float = setting(1e-2, "learning rate")
+    width: int | None = setting(None, "hidden width (None: from the budget)")
+    shape: str = setting("ring", "what to draw", choices=("ring", "disc"))
+    lambdas: tuple[float, ...] = setting((0.0, 0.5), "weights to sweep")
+    mips: bool = setting(True, "train with mips")
+
+
+def _trainer(runs: list, **kw) -> Trainer:
+    def train(run: Run) -> int:
+        runs.append(run)
+        run.write_metrics({"psnr": 30.0})
+        return 0
+
+    return Trainer("toy", "A toy trainer.\n\nMore.", Toy, {"quick": {}, "ship": {"steps": 900, "lr": 1e-3}},
+                   train, folder=lambda s: f"toy_{s.source}", ship_assets={"toy_a": {"source": "a"}}, **kw)
+
+
+def test_given_option_wins_over_preset_over_default(tmp_path):
+    runs: list[Run] = []
+    t = _trainer(runs)
+    assert t.main(["x", "--preset", "ship", "--lr", "0.5", "--lambdas", "1", "2", "--no-mips",
+                   "-o", str(tmp_path / "out"), "--device", "cpu"]) == 0
+    s = runs[0].settings
+    assert (s.steps, s.lr, s.lambdas, s.mips, s.width, s.shape) == (900, 0.5, (1.0, 2.0), False, None, "ring")
+    record = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert record["preset"] == "ship" and record["psnr"] == 30.0
+    assert record["command"].startswith("inshade train toy x --preset ship --lr 0.5")
+    assert record["settings"] == {"source": "x", "steps": 900, "lr": 0.5, "width": None, "shape": "ring",
+                                  "lambdas": [1.0, 2.0], "mips": False}
+
+
+def test_preset_settings_is_what_the_preset_resolves_to():
+    t = _trainer([])
+    assert t.preset_settings("quick") == {"source": None, "steps": 100, "lr": 1e-2, "width": None, "shape": "ring",
+                                          "lambdas": [0.0, 0.5], "mips": True}
+    assert t.preset_settings("ship", "toy_a")["source"] == "a" and t.preset_settings("ship")["steps"] == 900
+    args = t.add_arguments(argparse.ArgumentParser()).parse_args(["y", "--preset", "ship"])
+    assert vars(t.resolve(args)) == {**t.preset_settings("ship"), "source": "y", "lambdas": (0.0, 0.5)}
+
+
+def test_help_shows_each_presets_value():
+    text = _trainer([]).add_arguments(argparse.ArgumentParser()).format_help()
+    assert "quick: 100; ship: 900" in text and "default ring" in text and "--no-mips" in text
+
+
+def test_bad_settings_and_refused_folders_are_one_line(tmp_path, capsys):
+    def check(s):
+        if s.steps < 1:
+            raise ValueError("--steps must be >= 1")
+
+    runs: list[Run] = []
+    t = _trainer(runs, check=check, errors=(ValueError,))
+    assert t.main(["x", "--steps", "0", "-o", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip() == "inshade: error: --steps must be >= 1"
+    (tmp_path / "held").mkdir()
+    (tmp_path / "held" / "bundle.json").write_text("{}")
+    assert t.main(["x", "-o", str(tmp_path / "held"), "--device", "cpu"]) == 2
+    assert "already holds an asset" in capsys.readouterr().err and runs == []
+    with pytest.raises(SystemExit):
+        t.main(["x", "--shape", "square"])
+
+
+def test_a_preset_naming_an_unknown_setting_is_refused():
+    with pytest.raises(TypeError, match="unknown settings"):
+        Trainer("toy", None, Toy, {"quick": {"stepz": 1}}, lambda run: 0, folder=lambda s: "toy")
