@@ -51,6 +51,65 @@ class Paper:
         return f"{self.title} ({', '.join([self.venue, *ids])})"
 
 
+# The generated chunk of a program's declared choices (ProgramSpec.choices): the pass includes it.
+CHOICES_CHUNK = "choices"
+
+
+@dataclass(frozen=True)
+class Choice:
+    """An enumeration a program reads as an int, declared once.
+
+    ``target`` is the uniform (or ``#define``) a scene setting binds, ``prefix`` the GLSL name
+    prefix, ``values`` the names in index order (a sequence) or ``{name: index}`` (a mapping, for
+    indices with gaps or an offset). The runtime writes ``#define PREFIX_NAME index`` for each into
+    the chunk ``<choices>`` and sets the uniform (or define) to the declared index of the
+    setting's value, so the Python table, the GLSL names and the scene cannot disagree.
+    """
+    target: str
+    prefix: str
+    values: tuple
+    indices: tuple = field(init=False, default=())   # each value's int, in ``values`` order
+
+    def __post_init__(self):
+        where = f"choice {self.target!r}"
+        if isinstance(self.values, str):
+            raise TechniqueError(f"{where}: values must be a sequence or a mapping of names, got {self.values!r}")
+        table = dict(self.values) if isinstance(self.values, Mapping) else {v: i for i, v in enumerate(self.values)}
+        if not (isinstance(self.target, str) and self.target.isidentifier()):
+            raise TechniqueError(f"{where}: target must be a uniform or define name, got {self.target!r}")
+        if not (isinstance(self.prefix, str) and self.prefix.isidentifier() and self.prefix.isupper()):
+            raise TechniqueError(f"{where}: prefix must be an upper-case GLSL name, got {self.prefix!r}")
+        if not table:
+            raise TechniqueError(f"{where}: needs at least one value")
+        for name, index in table.items():
+            if not (isinstance(name, str) and name.isidentifier() and name.islower()):
+                raise TechniqueError(f"{where}: values must be lower-case identifiers, got {name!r}")
+            if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+                raise TechniqueError(f"{where}: {name!r}: index must be an int >= 0, got {index!r}")
+        if len(set(table.values())) != len(table):
+            raise TechniqueError(f"{where}: two values share an index: {table}")
+        object.__setattr__(self, "values", tuple(table))
+        object.__setattr__(self, "indices", tuple(table.values()))
+
+    def index(self, value: str) -> int:
+        """The int ``value`` drives (ValueError if it is not declared)."""
+        return self.indices[self.values.index(value)]
+
+    def defines(self) -> dict[str, int]:
+        """{GLSL name: index}, e.g. {"PBR_VIEW_DI": 1}."""
+        return {f"{self.prefix}_{v.upper()}": i for v, i in zip(self.values, self.indices)}
+
+
+def choice_chunks(spec: ProgramSpec) -> dict[str, str]:
+    """``{"choices": source}``: the ``#define`` lines of the program's declared choices ({} if none)."""
+    if not spec.choices:
+        return {}
+    lines = [f"// {spec.program}'s choices (generated from its ProgramSpec.choices)"]
+    for choice in spec.choices:
+        lines += [f"#define {name} {index}" for name, index in choice.defines().items()]
+    return {CHOICES_CHUNK: "\n".join(lines) + "\n"}
+
+
 @dataclass(frozen=True)
 class FrameInputs:
     """What a program's per-frame hook sees: the scene, the current setting values, and the
@@ -95,7 +154,11 @@ class ProgramSpec:
       every network draw (keep it cheap: cache the caster mesh); the renderer redraws the maps only
       when the request's key, directions or size change, and binds ``u_shadow_map``,
       ``u_shadow_matrix`` and ``u_shadow_layers`` of shaders/lib/shadow_map.glsl (None: no layers,
-      ``shadow_visibility`` is 1).
+      ``shadow_visibility`` is 1);
+    - ``choices``: the program's enumerations (``Choice``: a uniform or define, a GLSL prefix, the
+      values in index order). The runtime generates the chunk ``<choices>`` (``#define
+      PREFIX_VALUE index`` each) for the pass to include, checks that a scene setting bound to the
+      target names only declared values, and sets the declared index.
     """
     program: str
     geometry: str = "fullscreen"
@@ -111,6 +174,7 @@ class ProgramSpec:
     visibility: bool = False
     accumulate: bool = False
     shadows: Callable | None = None
+    choices: tuple[Choice, ...] = ()
 
     def __post_init__(self):
         if self.geometry not in GEOMETRIES:
@@ -124,6 +188,23 @@ class ProgramSpec:
         if bad:
             raise TechniqueError(f"program {self.program}: unknown mesh attribute {bad[0]!r} "
                                  f"(known: {', '.join(MESH_ATTRIBUTES)})")
+        self._check_choices()
+
+    def _check_choices(self):
+        if not all(isinstance(c, Choice) for c in self.choices):
+            raise TechniqueError(f"program {self.program}: choices must be Choice records")
+        targets = [c.target for c in self.choices]
+        twice = sorted({t for t in targets if targets.count(t) > 1})
+        if twice:
+            raise TechniqueError(f"program {self.program}: two choices drive {twice[0]!r}")
+        names = [name for c in self.choices for name in c.defines()]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise TechniqueError(f"program {self.program}: two choices generate {twice[0]}")
+
+    def choice(self, target: str) -> Choice | None:
+        """The declared choice a setting bound to ``target`` drives, or None."""
+        return next((c for c in self.choices if c.target == target), None)
 
 
 @dataclass

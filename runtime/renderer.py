@@ -31,7 +31,7 @@ from inshade.codegen.network_sdf import network_sdf_chunks
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunks
 from inshade.codegen.spherical_harmonics import sh_chunks
 from inshade.progress import format_seconds
-from inshade.technique import FrameInputs
+from inshade.technique import FrameInputs, choice_chunks
 
 from .context import GLContextError, gl_info, make_current, shared_context
 from .display import DisplayMode, glsl_chunk, parse_mode
@@ -159,8 +159,9 @@ class SceneRenderer:
 
     def _geometry_chunks(self, bundles) -> tuple[dict, list]:
         """Chunks for the scene's geometry and shading besides the networks': the SDF (analytic, or
-        a network SDF with its Generated, returned to get GL resources), the SH basis, and what the
-        program's technique generates (``ProgramSpec.chunks``, e.g. PRT's <prt_network>)."""
+        a network SDF with its Generated, returned to get GL resources), the SH basis, the
+        program's declared choices (<choices>) and what its technique generates
+        (``ProgramSpec.chunks``, e.g. PRT's <prt_network>)."""
         chunks, extra = {}, []
         sdf = self.scene.sdf
         if isinstance(sdf, NetworkSdfRef):
@@ -171,6 +172,7 @@ class SceneRenderer:
             chunks.update(sdf_chunks(sdf))
         if self.scene.lit:
             chunks.update(sh_chunks(int(self.scene.environment["degree"])))
+        chunks.update(choice_chunks(self.spec))
         if self.spec.chunks is not None:
             try:
                 chunks.update(self.spec.chunks(self.scene, bundles, self.scene.networks, self._codegen_options()))
@@ -179,7 +181,8 @@ class SceneRenderer:
         return chunks, extra
 
     def _defines(self, bundles) -> dict:
-        defines = {s.target: self.values[n] for n, s in self.scene.settings.items() if s.binding == "define"}
+        defines = {s.target: self.values[n] if s.declared is None else s.index(self.values[n])
+                   for n, s in self.scene.settings.items() if s.binding == "define"}
         if not bundles:
             return defines
         primary, ref = bundles[0], self.scene.networks[0]
@@ -336,8 +339,8 @@ class SceneRenderer:
                 v = self.values[name]
                 if isinstance(v, bool):
                     v = int(v)
-                elif s.type == "choice":   # a choice drives an int uniform: its index in the choices
-                    v = s.choices.index(v)
+                elif s.type == "choice":   # a choice drives an int uniform: its (declared) index
+                    v = s.index(v)
                 out[s.target] = v
         if "u_lights" in program:   # lib/lights.glsl: the scene's lights
             from .scene import light_uniforms

@@ -42,7 +42,10 @@ The environment of SDF and mesh scenes may also be an equirectangular map,
 ``"environment": {"map": "env.exr", "rotation": 0}`` (projected to SH at load time; a bad map is one
 SceneError naming the file), selected by ``"sky": "map"``.
 
-A choice setting bound to a uniform sets the index of its value in ``choices``.
+A choice setting bound to a uniform sets the index of its value in ``choices``, unless the program
+declares that uniform's values (``ProgramSpec.choices``): then the setting may list only declared
+values (any subset, any order) and sets the declared index; a define-bound or int setting of a
+declared choice holds declared indices only.
 
 A folder with only a bundle (no scene.json) is still a scene: it is derived from the bundle's
 ``render`` field (the format before scenes existed). Every problem is one ``SceneError`` naming the
@@ -110,6 +113,15 @@ class Setting:
     choices: tuple = ()
     label: str = ""
     exposed: bool = True      # shown in the UI (built-in codegen options are hidden unless declared)
+    declared: technique.Choice | None = None   # the program's choice this setting drives (ProgramSpec.choices)
+
+    def index(self, value) -> int:
+        """The int a choice value sets on the program: the declared index of a value the program
+        declares (an int value of a declared choice is that index already), else its place in
+        ``choices``."""
+        if self.declared is None:
+            return self.choices.index(value)
+        return value if isinstance(value, int) else self.declared.index(value)
 
     def check(self, value, where: str = "setting"):
         """Validate and normalise a value for this setting (SceneError if it does not fit)."""
@@ -543,6 +555,7 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
     if not isinstance(requires, dict):
         raise SceneError("requires: must be an object, e.g. {\"gl\": 330, \"extensions\": []}")
     settings = _settings(data.get("settings", {}), "settings")
+    _bind_declared_choices(settings, spec)
     if sdf is not None or mesh is not None:
         _check_sky_settings(settings, environment_map is not None)
     textures = _textures(data.get("textures", []), root)
@@ -839,6 +852,34 @@ def _settings(data, where: str) -> dict:
         setting.default = setting.check(s["default"], f"{w}.default:")
         out[name] = setting
     return out
+
+
+def _bind_declared_choices(settings: dict, spec: technique.ProgramSpec) -> None:
+    """Settings bound to a uniform or define the program declares a choice for
+    (``ProgramSpec.choices``) name only declared values and drive the declared index: a choice
+    lists declared names (or declared indices: the index form of a define), an int setting's
+    range holds declared indices only."""
+    for name, s in settings.items():
+        choice = spec.choice(s.target) if s.binding in ("uniform", "define") else None
+        if choice is None:
+            continue
+        w = f"settings.{name}"
+        known = ", ".join(choice.values)
+        if s.type == "choice":
+            bad = [c for c in s.choices if c not in choice.values
+                   and not (type(c) is int and c in choice.indices)]
+            if bad:
+                raise SceneError(f"{w}.choices: {bad[0]!r} is not a {s.target} value of {spec.program} "
+                                 f"(known: {known})")
+        elif s.type == "int":
+            bad = [i for i in range(int(s.min), int(s.max) + 1) if i not in choice.indices]
+            if bad:
+                raise SceneError(f"{w}: {bad[0]} is not a {s.target} index of {spec.program} "
+                                 f"(known: {', '.join(f'{v} {i}' for v, i in zip(choice.values, choice.indices))})")
+        else:
+            raise SceneError(f"{w}.type: {s.target} is a choice of {spec.program} ({known}): "
+                             f"a {s.type} setting cannot drive it")
+        s.declared = choice
 
 
 def _where(bundle) -> str:
