@@ -1,4 +1,5 @@
-"""End-to-end DI shading pipeline (techniques/di_shading: train.py, bench.py, passes/shading_plane.frag).
+"""End-to-end DI shading pipeline (techniques/di_shading: model.py, data.py, train.py, bench.py,
+passes/shading_plane.frag).
 
 - The frozen decoder bundle: its 1D latent row equals the di_brdf_disney encoders' 2D lookup at the
   set's constant parameters, and its decoders are the shipped ones (exact lookups).
@@ -31,6 +32,8 @@ from torch.utils.weak import WeakTensorKeyDictionary
 from inshade.models.lookup_array import LookupArray
 from inshade.models import footprint_sampler as fp
 from inshade.techniques.di_shading import bench
+from inshade.techniques.di_shading import data as plane
+from inshade.techniques.di_shading import model as shading
 from inshade.techniques.di_shading import train as ds
 
 from parity import assert_parity, check_parity, parity_settings
@@ -41,7 +44,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def decoder():
-    return ds.decoder_graph()
+    return shading.decoder_graph()
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +63,7 @@ def _lanes(n, seed):
 def _geometry(n, seed):
     gen = torch.Generator().manual_seed(seed)
     p = torch.stack([torch.rand(n, generator=gen) * 6 - 3, torch.zeros(n), -torch.rand(n, generator=gen) * 6], -1)
-    return ds.plane_geometry(p, torch.tensor(fp.CAMERA["position"], dtype=torch.float32))
+    return shading.plane_geometry(p, torch.tensor(fp.CAMERA["position"], dtype=torch.float32))
 
 
 # the frozen decoder --------------------------------------------------------------------------
@@ -68,7 +71,7 @@ def _geometry(n, seed):
 @settings(max_examples=10, deadline=None)
 @given(st.integers(0, 2 ** 31 - 1))
 def test_decoder_latents_are_the_encoders_at_the_constants(decoder, seed):
-    cells = ds._load_cells(ds.REPO / ds.DEFAULT_BRDF / "encoders.safetensors")
+    cells = shading._load_cells(shading.REPO / shading.DEFAULT_BRDF / "encoders.safetensors")
     gen = torch.Generator().manual_seed(seed)
     r = torch.rand(256, 1, generator=gen)
     e_m = LookupArray([64, 64], 2, 32, init=cells["E_m.cells"])
@@ -85,7 +88,7 @@ def test_decoders_are_the_shipped_ones(decoder):
     from inshade import bundle as bundle_io
     from inshade.models.graph import GraphModule
 
-    src = GraphModule.from_bundle(bundle_io.load(ds.REPO / ds.DEFAULT_BRDF))
+    src = GraphModule.from_bundle(bundle_io.load(shading.REPO / shading.DEFAULT_BRDF))
     for name in ("ggx", "smith", "diff", "coef", "gloss"):
         assert torch.equal(decoder.nodes[name].table(), src.nodes[name].table())
     assert not any(p.requires_grad for p in decoder.parameters())
@@ -96,12 +99,12 @@ def test_decoders_are_the_shipped_ones(decoder):
 def test_di_disney_tracks_the_analytic_disney(decoder):
     """The bricks set's texels shaded on plane points: DI decoder vs analytic Disney, display domain.
     The shipped decoder measured 48 dB here; 38 dB fails a broken glue / frame / constant."""
-    image = ds.material(32)
+    image = plane.material(32)
     lanes = torch.from_numpy(image.reshape(-1, 8))
     geo = _geometry(len(lanes), 3)
     with torch.no_grad():
-        a = ds.display(ds.shade_analytic(lanes, geo))
-        b = ds.display(ds.shade_di(lanes, geo, decoder))
+        a = shading.display(shading.shade_analytic(lanes, geo))
+        b = shading.display(shading.shade_di(lanes, geo, decoder))
     assert 0.05 < float(a.mean()) < 0.9
     mse = float(torch.mean((a - b) ** 2))
     assert 10 * math.log10(1.0 / mse) > 38.0
@@ -118,8 +121,8 @@ def test_reference_of_a_constant_set_is_one_shading():
     uv = torch.rand(n, 2, generator=gen) * 4
     dx, dy = torch.rand(n, 2, generator=gen) * 0.1, torch.rand(n, 2, generator=gen) * 0.1
     geo = _geometry(n, 2)
-    got = ds.reference(chain, uv, dx, dy, ds.log2_footprint(dx, dy), geo)
-    want = ds.shade_analytic(tex[0, 0].expand(n, 8), geo)
+    got = shading.reference(chain, uv, dx, dy, plane.log2_footprint(dx, dy), geo)
+    want = shading.shade_analytic(tex[0, 0].expand(n, 8), geo)
     assert torch.allclose(got, want, rtol=1e-5, atol=1e-6)
 
 
@@ -128,11 +131,11 @@ def test_reference_of_a_constant_set_is_one_shading():
 def test_metal_clip_keeps_the_value_and_bounds_the_lobe_gradient(decoder, seed, bound):
     lanes = _lanes(128, seed).requires_grad_()
     geo = _geometry(128, seed + 1)
-    clipped = ds.shade_di_clipped(lanes, geo, decoder, bound)
-    plain = ds.shade_di(lanes, geo, decoder)
+    clipped = shading.shade_di_clipped(lanes, geo, decoder, bound)
+    plain = shading.shade_di(lanes, geo, decoder)
     assert torch.allclose(clipped, plain, rtol=1e-5, atol=1e-6)
     (g_clip,) = torch.autograd.grad(clipped.sum(), lanes)
-    (g_rest,) = torch.autograd.grad(ds.shade_di(lanes, geo, decoder, no_metal=True).sum(), lanes)
+    (g_rest,) = torch.autograd.grad(shading.shade_di(lanes, geo, decoder, no_metal=True).sum(), lanes)
     (g_full,) = torch.autograd.grad(plain.sum(), lanes)
     lobe = g_clip - g_rest
     norm = torch.sqrt((lobe * lobe).sum(-1))
@@ -158,9 +161,9 @@ def test_nonfinite_gradient_rows_are_dropped_and_counted():
 
 
 def test_training_batches_are_the_same_for_every_lambda():
-    tex = fp.texture_tensor(ds.material(32))
-    data = ds.plane_samples(fp.mip_chain(tex), 512, 2, seed=0)
-    a, b = ds.batches(data, 64, 5), ds.batches(data, 64, 5)
+    tex = fp.texture_tensor(plane.material(32))
+    data = plane.plane_samples(fp.mip_chain(tex), 512, 2, seed=0)
+    a, b = plane.batches(data, 64, 5), plane.batches(data, 64, 5)
     for _ in range(3):
         x, y = next(a), next(b)
         assert torch.equal(x.x, y.x) and torch.equal(x.ref, y.ref)
@@ -178,11 +181,11 @@ def test_a_normal_facing_away_from_the_eye_shades_its_visible_side(seed):
     gen = torch.Generator().manual_seed(seed)
     n = torch.nn.functional.normalize(torch.randn(512, 3, generator=gen), dim=-1)
     v = torch.nn.functional.normalize(torch.randn(512, 3, generator=gen), dim=-1)
-    m = ds.visible_normal(n, v)
+    m = shading.visible_normal(n, v)
     nv = (n * v).sum(-1)
     assert torch.allclose(m.norm(dim=-1), torch.ones(512), atol=1e-5)
-    assert ((m * v).sum(-1) >= ds.MIN_NV / math.sqrt(1 + ds.MIN_NV ** 2) - 1e-6).all()
-    keep = nv >= ds.MIN_NV
+    assert ((m * v).sum(-1) >= shading.MIN_NV / math.sqrt(1 + shading.MIN_NV ** 2) - 1e-6).all()
+    keep = nv >= shading.MIN_NV
     assert torch.equal(m[keep], n[keep])
     assert (~keep).any()
 
@@ -252,7 +255,7 @@ def test_geometry_twin_matches_the_pass(gl, asset):
     from inshade.runtime.scene import load_scene
 
     _, inputs, derivs, positions = _render(gl, asset, ds.lambda_folder(0.0), "independent")
-    uv, dx, dy, p, hit, _ = ds.plane_pixels(load_scene(asset).make_camera().to_dict(), *VIEW)
+    uv, dx, dy, p, hit, _ = plane.plane_pixels(load_scene(asset).make_camera().to_dict(), *VIEW)
     ok = bench.plane_rows(inputs)[:, None] & hit.numpy()
     tile = uv.numpy() - np.floor(uv.numpy())
     d = np.abs(tile - inputs[..., :2])
@@ -261,7 +264,7 @@ def test_geometry_twin_matches_the_pass(gl, asset):
     assert np.abs(p.numpy() - positions[..., :3])[ok].max() < 1e-3
     assert np.abs(dx.numpy() - derivs[..., :2])[ok].max() < 1e-4
     assert np.abs(dy.numpy() - derivs[..., 2:])[ok].max() < 1e-4
-    lf = ds.log2_footprint(dx, dy).numpy()
+    lf = plane.log2_footprint(dx, dy).numpy()
     assert np.abs(lf - inputs[..., 2])[ok].max() < 1e-3
 
 
@@ -286,14 +289,14 @@ def test_uncompressed_views_match_the_emulated_sampler(gl, asset, decoder, view)
     from inshade.runtime.scene import load_scene
 
     eye = torch.tensor(load_scene(asset).make_camera().uniforms(*VIEW)["u_eye"], dtype=torch.float32)
-    geo = ds.plane_geometry(p[:, :3], eye)
+    geo = shading.plane_geometry(p[:, :3], eye)
     with torch.no_grad():
         if view == "reference":
-            want = ds.reference(chain, x[:, :2], der[:, :2], der[:, 2:], x[:, 2], geo)
+            want = shading.reference(chain, x[:, :2], der[:, :2], der[:, 2:], x[:, 2], geo)
         else:
             lanes = fp.emulated_trilinear(chain, x[:, :2], x[:, 2])
-            want = ds.shade_di(lanes, geo, decoder) if view == "trilinear" else ds.shade_analytic(lanes, geo)
-        want = ds.display(want).numpy()
+            want = shading.shade_di(lanes, geo, decoder) if view == "trilinear" else shading.shade_analytic(lanes, geo)
+        want = shading.display(want).numpy()
     got = np.clip(colour[..., :3][ok], 0, 1)
     got = np.where(got <= 0.0031308, 12.92 * got, 1.055 * np.power(np.maximum(got, 0.0031308), 1 / 2.4) - 0.055)
     mse = float(np.mean((got - want) ** 2))
@@ -444,7 +447,7 @@ def test_device_spy_catches_a_tensor_left_on_the_cpu():
         spy.mixed.clear()
         lanes[::7, 3] = 0.5
         lanes[::7, 4:6] = 0.5           # a zero tangent-space normal: the +z fallback
-        s = ds.unpack(lanes)
+        s = shading.unpack(lanes)
         assert spy.on_device(s["normal_ts"]) and not spy.on_device(lanes.cpu())
         assert not spy.on_device(_lanes(4, 1)) and spy.on_device(lanes) and spy.mixed == []
         lanes.cpu() + lanes                 # a tensor brought back, then mixed with a placed one

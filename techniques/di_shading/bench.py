@@ -63,7 +63,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from inshade.techniques.di_shading.train import ShadingError
+    from inshade.techniques.di_shading.model import ShadingError
 
     return command.main("inshade bench di_shading", __doc__, add_arguments, run, argv,
                         errors=(BenchError, ShadingError))
@@ -118,7 +118,7 @@ def torch_twin(folder: Path, e2e: str, inputs, positions, eye) -> np.ndarray:
 
     from inshade.bundle import load
     from inshade.models.graph import GraphModule
-    from inshade.techniques.di_shading import train as ds
+    from inshade.techniques.di_shading import model as ds
 
     sampler = GraphModule.from_bundle(load(folder / e2e))
     decoder = GraphModule.from_bundle(load(folder / "brdf"))
@@ -141,7 +141,7 @@ def emulated_views(folder: Path, inputs, derivs, positions, eye):
     from inshade.bundle import load
     from inshade.models.graph import GraphModule
     from inshade.models import footprint_sampler as fp
-    from inshade.techniques.di_shading import train as ds
+    from inshade.techniques.di_shading import model as ds
 
     lanes = np.concatenate([np.asarray(Image.open(folder / f"set{i}.png").convert("RGBA"), np.float32) / 255.0
                             for i in range(2)], -1)
