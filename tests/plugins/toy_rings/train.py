@@ -1,13 +1,24 @@
-"""`inshade train toy_rings -o DIR`: write a toy asset (bundle + scene.json), numpy only."""
+"""`inshade train toy_rings [-o DIR] [--seed S]`: write a toy asset (bundle + scene.json).
+
+The smallest trainer on the trainer contract (inshade/trainer.py): one setting, one preset, a
+`train(run)` that writes `run.out` and its metrics.json; the network itself is numpy only."""
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
 from inshade.bundle import Bundle
+from inshade.files import atomic_write
+from inshade.trainer import Run, Trainer, setting
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a toy_rings asset is built from (metrics.json records it)."""
+    seed: int = setting(0, "random seed of the network's weights")
 
 
 def weights(seed: int = 0) -> dict:
@@ -29,19 +40,17 @@ def write(out, seed: int = 0) -> Path:
              "camera": {"type": "plane2d"},
              "settings": {"warmth": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0,
                                      "frame": "warmth"}}}
-    (out / "scene.json").write_text(json.dumps(scene, indent=2) + "\n")
+    atomic_write(out / "scene.json", json.dumps(scene, indent=2) + "\n")
     return out
 
 
-def add_arguments(parser):
-    parser.add_argument("-o", "--out", required=True, help="asset folder to write")
-    parser.add_argument("--seed", type=int, default=0)
-
-
-def run(args) -> int:
-    print(f"wrote {write(args.out, args.seed)}")
+def train(run: Run) -> int:
+    out = write(run.out, run.settings.seed)
+    run.write_metrics({})
+    print(f"wrote {out}")
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train toy_rings", __doc__, add_arguments, run, argv)
+# One preset: there is nothing to train, so nothing to make longer.
+TRAINER = Trainer("toy_rings", __doc__, Settings, {"quick": {}}, train, folder=lambda s: "toy_rings")
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
