@@ -29,6 +29,7 @@ from hypothesis import strategies as st
 from torch.overrides import TorchFunctionMode
 from torch.utils.weak import WeakTensorKeyDictionary
 
+from inshade import devices
 from inshade.models.lookup_array import LookupArray
 from inshade.models import footprint_sampler as fp
 from inshade.techniques.di_shading import bench
@@ -481,7 +482,7 @@ def test_device_option_places_the_sweep_on_the_device(tmp_path, monkeypatch, cap
             return loss
         return step
 
-    monkeypatch.setattr(ds, "resolve_device", lambda spec: spy.device if spec == "cuda" else None)
+    monkeypatch.setattr(devices, "resolve_device", lambda spec: spy.device if spec == "cuda" else None)
     monkeypatch.setattr(ds, "train_sweep", sweep)
     monkeypatch.setattr(ds, "objective", objective)
     out = tmp_path / "on_device"

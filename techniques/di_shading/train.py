@@ -56,8 +56,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import shlex
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,12 +63,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models import footprint_sampler as fp
+from inshade.trainer import Run, Trainer, setting
 
 from .data import VIEW_SIZE, Samples, batches, material, plane_samples
 from .model import (AMBIENT, DEFAULT_BRDF, EXPOSURE, LIGHT_INTENSITY, LIGHT_POSITION, ShadingError, decoder_graph,
@@ -83,17 +80,40 @@ CHANNELS = 8
 # SHADING_VIEW of passes/shading_plane.frag (mirrored there as constants)
 VIEWS = {"end_to_end": 0, "independent": 1, "reference": 2, "split": 3, "trilinear": 4, "analytic": 5}
 LAMBDAS = (0.0, 0.1, 0.25, 0.5)
-DEFAULTS = dict(size=128, ratio=6.0, n_cascaded=4, steps=1500, lr=1e-2, batch=4096, samples=1 << 17,
-                views=12, metal_clip=1.0, seed=0, lambdas=list(LAMBDAS))
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a di_shading run is built from (metrics.json records it)."""
+    size: int = setting(128, "bricks set size (power of two >= 32)")
+    ratio: float = setting(6.0, "compression vs the 8-lane RGBA8 base level")
+    n_cascaded: int = setting(4, "N_c (multiple of 4)")
+    steps: int = setting(1500, "training steps per lambda")
+    lr: float = setting(1e-2, "Adam learning rate")
+    batch: int = setting(4096, "samples per step")
+    samples: int = setting(1 << 17, "training pixels")
+    views: int = setting(12, "random grazing views the pixels come from")
+    metal_clip: float = setting(1.0, "per-sample gradient-norm bound (x 1/batch) through the GGX (metallic) "
+                                "lobe; 0: off")
+    seed: int = setting(0, "random seed")
+    lambdas: tuple[float, ...] = setting(LAMBDAS, "the sweep (must include 0)")
+
+
+# "quick" is a small run; "ship" is exactly what built trained/di_shading_bricks.
 PRESETS = {"quick": dict(size=64, steps=300, samples=1 << 15, views=4),
            "ship": dict(size=128, steps=1500, samples=1 << 17, views=12)}
-SETTINGS = ("size", "ratio", "n_cascaded", "steps", "lr", "batch", "samples", "views", "metal_clip", "seed",
-            "lambdas")
+SHIP_ASSETS = {"di_shading_bricks": {}}
 
 
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to with no other option (one asset)."""
-    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
+def check(s: Settings) -> None:
+    """The sweep's own limits (the set size and the BRDF asset are checked where they are read)."""
+    for lam in s.lambdas:
+        if not (0.0 <= float(lam) < 1.0):
+            raise ShadingError(f"lambdas: {lam!r}: each lambda must be in [0, 1) (lambda = 1 is unstable)")
+    if 0.0 not in [float(x) for x in s.lambdas]:
+        raise ShadingError("lambdas: must include 0 (the independently trained baseline)")
+    if s.steps < 0 or s.batch < 1 or s.samples < 1 or s.views < 1:
+        raise ShadingError("steps >= 0, batch >= 1, samples >= 1 and views >= 1 are required")
 
 
 def lambda_folder(lam: float) -> str:
@@ -105,7 +125,8 @@ def lambda_folder(lam: float) -> str:
 # training
 
 @dataclass
-class Run:
+class LambdaRun:
+    """One sampler of the sweep: its lambda, float graph, 8-bit bundle, history and metrics."""
     lam: float
     graph: GraphModule       # trained float sampler core (outputs 8 lanes)
     bundle: object           # exported 8-bit bundle
@@ -159,34 +180,28 @@ def evaluate(core: GraphModule, s: Samples, decoder: GraphModule) -> dict:
             "psnr_proxy_shaded_vs_reference": round(di.psnr(proxy_shaded, ref), 4)}
 
 
-def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAULTS["n_cascaded"],
-                steps=DEFAULTS["steps"], lr=DEFAULTS["lr"], batch=DEFAULTS["batch"], samples=DEFAULTS["samples"],
-                views=DEFAULTS["views"], metal_clip=DEFAULTS["metal_clip"], seed=DEFAULTS["seed"],
-                lambdas=LAMBDAS, brdf_folder=DEFAULT_BRDF, progress=None, name="di_shading", device=None):
+def train_sweep(settings: Settings = Settings(), brdf_folder=DEFAULT_BRDF, progress=None, name="di_shading",
+                device=None):
     """Train one sampler per lambda (same init, data, batches, steps, seed) on `device` (default the
     CPU; module docstring). Returns (runs, decoder, image, data info), the runs' samplers and the
     decoder on the CPU."""
+    s = settings
+    check(s)
+    metal_clip = s.metal_clip or None     # 0: no clipping
     device = torch.device("cpu") if device is None else torch.device(device)
-    for lam in lambdas:
-        if not (0.0 <= float(lam) < 1.0):
-            raise ShadingError(f"lambdas: {lam!r}: each lambda must be in [0, 1) (lambda = 1 is unstable)")
-    if 0.0 not in [float(x) for x in lambdas]:
-        raise ShadingError("lambdas: must include 0 (the independently trained baseline)")
-    if steps < 0 or batch < 1 or samples < 1 or views < 1:
-        raise ShadingError("steps >= 0, batch >= 1, samples >= 1 and views >= 1 are required")
-    image = material(size)
+    image = material(s.size)
     chain = fp.mip_chain(fp.texture_tensor(image).to(device))
     decoder = decoder_graph(brdf_folder).to(device)
-    sizing = fp.plan(size, CHANNELS, ratio, n_cascaded)
+    sizing = fp.plan(s.size, CHANNELS, s.ratio, s.n_cascaded)
     t0 = time.perf_counter()
-    data = plane_samples(chain, samples, views, seed)
-    held = plane_samples(chain, min(16384, samples), max(2, views // 2), seed + 1000)
+    data = plane_samples(chain, s.samples, s.views, s.seed)
+    held = plane_samples(chain, min(16384, s.samples), max(2, s.views // 2), s.seed + 1000)
     data_seconds = time.perf_counter() - t0
     runs = []
-    for lam in lambdas:
+    for lam in s.lambdas:
         lam = float(lam)
-        torch.manual_seed(seed)
-        core = fp.sampler_graph(size, sizing, image.reshape(-1, CHANNELS).mean(0)).to(device)  # CPU init
+        torch.manual_seed(s.seed)
+        core = fp.sampler_graph(s.size, sizing, image.reshape(-1, CHANNELS).mean(0)).to(device)  # CPU init
         ev = held.index(torch.arange(min(4096, len(held.x)), device=device))
 
         def metric(c, ev=ev, lam=lam):
@@ -195,8 +210,9 @@ def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAU
 
         t1 = time.perf_counter()
         nonfinite = [0]
-        hist = di.train_cascade(core, batches(data, batch, seed), steps, lr=lr, schedule="cosine", seed=seed,
-                                objective=objective(lam, decoder, metal_clip, batch, nonfinite), metric=metric,
+        hist = di.train_cascade(core, batches(data, s.batch, s.seed), s.steps, lr=s.lr, schedule="cosine",
+                                seed=s.seed, objective=objective(lam, decoder, metal_clip, s.batch, nonfinite),
+                                metric=metric,
                                 progress=progress, desc=f"{name} lambda {lam:g}")
         seconds = time.perf_counter() - t1
         core = core.to("cpu")             # the result, on the CPU for export
@@ -207,10 +223,10 @@ def train_sweep(size=DEFAULTS["size"], ratio=DEFAULTS["ratio"], n_cascaded=DEFAU
         m = {"lambda": lam, "train_seconds": round(seconds, 2), **evaluate(q, held, decoder),
              "nonfinite_gradient_samples": int(nonfinite[0]),
              "history": [{"step": r["step"], "psnr_shaded": round(r["psnr"], 3)} for r in hist.records]}
-        runs.append(Run(lam, core, bundle, hist, m))
+        runs.append(LambdaRun(lam, core, bundle, hist, m))
     info = {"bytes": sizing.bytes, "n_primary": sizing.n_primary, "n_footprint": sizing.n_footprint,
             "n_cascaded": sizing.n_cascaded, "n_lod": sizing.n_lod,
-            "ratio_vs_base": round(fp.texture_bytes(size, CHANNELS, False) / sizing.bytes, 4),
+            "ratio_vs_base": round(fp.texture_bytes(s.size, CHANNELS, False) / sizing.bytes, 4),
             "data_seconds": round(data_seconds, 2), "samples": len(data.x), "heldout": len(held.x)}
     return runs, decoder.to("cpu"), image, info
 
@@ -293,8 +309,7 @@ def write_set_textures(out: Path, image: np.ndarray):
             Image.fromarray(np.ascontiguousarray(data[..., 4 * i:4 * i + 4]), "RGBA").save(tmp, format="PNG")
 
 
-def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, metrics: dict,
-                preview_size=VIEW_SIZE) -> Path:
+def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, preview_size=VIEW_SIZE) -> Path:
     from inshade.runtime.image_io import write_png
     from inshade.runtime.renderer import SceneRenderer
     from inshade.runtime.scene import load_scene
@@ -324,49 +339,19 @@ def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, metrics: 
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    d = DEFAULTS
-    asset_folder.add_arguments(p, "di_shading_bricks")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="ship: exactly what built trained/di_shading_bricks; quick: a small run; options "
-                        "given explicitly override it (default %(default)s)")
-    p.add_argument("--size", type=int, help="bricks set size (power of two >= 32; default: the preset's)")
-    p.add_argument("--ratio", type=float, default=d["ratio"], help="compression vs the 8-lane RGBA8 base level")
-    p.add_argument("--n-cascaded", type=int, default=d["n_cascaded"], help="N_c (multiple of 4)")
-    p.add_argument("--steps", type=int, help="training steps per lambda (default: the preset's)")
-    p.add_argument("--lr", type=float, default=d["lr"])
-    p.add_argument("--batch", type=int, default=d["batch"])
-    p.add_argument("--samples", type=int, help="training pixels (default: the preset's)")
-    p.add_argument("--views", type=int, help="random grazing views the pixels come from (default: the preset's)")
-    p.add_argument("--metal-clip", type=float, default=d["metal_clip"],
-                   help="per-sample gradient-norm bound (x 1/batch) through the GGX (metallic) lobe; 0: off")
-    p.add_argument("--lambdas", type=float, nargs="+", default=d["lambdas"], help="the sweep (must include 0)")
-    p.add_argument("--seed", type=int, default=d["seed"])
+def extra_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--brdf", default=DEFAULT_BRDF, help="the frozen di_brdf_disney asset (default %(default)s)")
-    add_device_argument(p)
-    return p
 
 
-def run(args, argv=None) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    args.out = str(asset_folder.claim(args.out, "di_shading_bricks", force=args.force))
-    preset = PRESETS[args.preset]
-    for k in ("size", "steps", "samples", "views"):
-        if getattr(args, k) is None:
-            setattr(args, k, preset.get(k, DEFAULTS[k]))
-    settings = {k: getattr(args, k) for k in SETTINGS}
-    settings["lambdas"] = [float(x) for x in settings["lambdas"]]
-    argv = list(sys.argv[1:] if argv is None else argv)
-    cmd = shlex.join(["inshade", "train", "di_shading", *argv])
+def train(run: Run) -> int:
     torch.set_num_threads(1)
     t0 = time.perf_counter()
-    kw = {k: v for k, v in settings.items()}
-    kw["metal_clip"] = kw["metal_clip"] or None
-    runs, decoder, image, info = train_sweep(**kw, brdf_folder=args.brdf, name=Path(args.out).name, device=device)
+    runs, decoder, image, info = train_sweep(settings=run.settings, brdf_folder=run.args.brdf, name=run.out.name,
+                                             device=run.device)
     best = best_run(runs)
     sweep = [{k: v for k, v in r.metrics.items() if k != "history"} for r in runs]
     base = next(r for r in runs if r.lam == 0.0).metrics["psnr_shaded_vs_reference"]
-    metrics = {"command": cmd, "preset": args.preset, "settings": settings, "device": str(device), **info,
+    metrics = {"device": str(run.device), **info,
                "lambda_best": best.lam, "sweep": sweep,
                "psnr_gain_best_vs_independent_db": round(best.metrics["psnr_shaded_vs_reference"] - base, 4),
                "psnr_gain_best_vs_independent_percent": round(
@@ -374,12 +359,12 @@ def run(args, argv=None) -> int:
                "train_seconds_total": round(time.perf_counter() - t0, 2),
                "note": "psnr_*: torch, 8-bit samplers, held-out plane pixels, display domain sRGB(clamp(x)); "
                        "the GLSL-rendered numbers are inshade bench di_shading's"}
-    prov = {"command": cmd, "torch": torch.__version__, "device": str(device),
+    prov = {"command": run.command, "torch": torch.__version__, "device": str(run.device),
             "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
             "technique": "Differentiable Indirection end-to-end shading (Datta et al. 2023 supp. 1.5): "
                          "footprint sampler trained through the frozen DI Disney decoder"}
-    out = write_asset(args.out, runs, decoder, image, lambda_folder(best.lam), prov, metrics)
-    atomic_write(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
+    out = write_asset(run.out, runs, decoder, image, lambda_folder(best.lam), prov)
+    run.write_metrics(metrics)
     rows = ", ".join(f"lambda {r.lam:g}: {r.metrics['psnr_shaded_vs_reference']:.2f} dB" for r in runs)
     print(f"wrote {out}: shaded PSNR vs the 16-sample reference (held-out pixels, torch) {rows}; "
           f"best lambda {best.lam:g} ({metrics['psnr_gain_best_vs_independent_db']:+.2f} dB), "
@@ -387,6 +372,7 @@ def run(args, argv=None) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train di_shading", __doc__, add_arguments, run, argv,
-                        errors=(DeviceError, ShadingError, fp.FootprintError))
+TRAINER = Trainer("di_shading", __doc__, Settings, PRESETS, train, folder=lambda s: "di_shading_bricks",
+                  ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
+                  errors=(ShadingError, fp.FootprintError))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
