@@ -121,9 +121,11 @@ def test_bad_input_is_one_clear_error():
     assert issubclass(sampler.FootprintError, ValueError)
 
 
-def test_cli_rejects_bad_steps(tmp_path):
-    with pytest.raises(sampler.FootprintError, match="--steps"):
-        fp.main(["--out", str(tmp_path / "x"), "--steps", "-1"])
+def test_cli_rejects_bad_steps(tmp_path, capsys):
+    assert fp.main(["--out", str(tmp_path / "x"), "--steps", "-1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("inshade: error: --steps"), err
+    assert not (tmp_path / "x").exists()
 
 
 # training, export, parity ---------------------------------------------------------------------

@@ -239,10 +239,11 @@ def _asset(args):
         if bundle.meta["metrics"].get("channels") == 1:
             image = image[..., :1]
         return bundle, image, load_scene(path), f"asset {path}"
-    size, steps = (32, 60) if args.quick else (fp.DEFAULTS["size"], args.steps or fp.DEFAULTS["steps"])
-    image, _, source = fp.load_texture(fp.DEFAULTS["image"], size)
-    result = fp.train_sampler(image, 1.5 if args.quick else fp.DEFAULTS["ratio"],
-                              n_cascaded=4 if args.quick else fp.DEFAULTS["n_cascaded"], steps=steps)
+    d = fp.Settings()       # the trainer's quick preset
+    size, steps = (32, 60) if args.quick else (d.size, args.steps or d.steps)
+    image, _, source = fp.load_texture(d.image, size)
+    result = fp.train_sampler(image, 1.5 if args.quick else d.ratio, n_cascaded=4 if args.quick else d.n_cascaded,
+                              steps=steps)
     out = Path(args.out) / "di_footprint"
     fp.write_asset(result, out, preview_size=(64, 32))
     return result.bundle, image, load_scene(out), f"trained here ({source}, {steps} steps)"

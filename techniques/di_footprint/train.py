@@ -47,7 +47,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import shlex
 import sys
 import time
 from dataclasses import dataclass, field
@@ -57,8 +56,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
+from inshade.trainer import Run, Trainer, setting
 from inshade.metrics import srgb_eotf
 from inshade.models import indirection as di
 from inshade.models import texture_cascade as tc
@@ -71,20 +69,27 @@ KIND = "di_footprint"
 RENDER_PROGRAM = "passes/footprint_plane.frag"
 # Comparison modes of passes/footprint_plane.frag (FOOTPRINT_MODE); mirrored there as constants.
 MODES = {"di": 0, "trilinear": 1, "anisotropic": 2, "bilinear": 3, "explicit_lod": 4}
-DEFAULTS = dict(image="skimage:astronaut", size=256, ratio=6.0, n_cascaded=N_CASCADED, steps=1500, lr=1e-2,
-                batch=16384, schedule="cosine", seed=0, threads=1)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a di_footprint run is built from (metrics.json records it)."""
+    image: str = setting("skimage:astronaut", "image file or skimage:NAME")
+    size: int = setting(256, "centre-crop and resize to SIZE^2, a power of two")
+    ratio: float = setting(6.0, "compression vs the RGB8 base level")
+    n_cascaded: int = setting(N_CASCADED, "N_c (multiple of 4)")
+    steps: int = setting(1500, "training steps")
+    lr: float = setting(1e-2, "Adam learning rate")
+    batch: int = setting(16384, "samples per step")
+    schedule: str = setting("cosine", "learning-rate schedule", choices=sorted(di.SCHEDULES))
+    seed: int = setting(0, "random seed")
+
+
 # --preset: "ship" is what built trained/di_footprint; "quick" keeps the 1500-step default.
-PRESETS = {"quick": dict(steps=1500), "ship": dict(steps=3000)}
-SETTINGS = ("image", "size", "ratio", "n_cascaded", "steps", "lr", "batch", "schedule", "seed")
-
-
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
-    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
-
-
-# threads = 1: on the shared 2-core machines torch's intra-op threads spin against each other and
+PRESETS = {"quick": {}, "ship": dict(steps=3000)}
+# One thread: on the shared 2-core machines torch's intra-op threads spin against each other and
 # against other processes; one thread measured ~10x faster per step (0.045 s vs 0.46 s at load 4).
+THREADS = 1
 
 
 def export_graph(core: GraphModule, channels: int) -> GraphModule:
@@ -102,7 +107,7 @@ def export_graph(core: GraphModule, channels: int) -> GraphModule:
 # ---------------------------------------------------------------------------------------------
 # input
 
-def load_texture(spec: str, size: int | None = DEFAULTS["size"]):
+def load_texture(spec: str, size: int | None = Settings.size):
     """(image float32 [N, N, k] sRGB-encoded, row 0 = top; notes; source) from a file or
     skimage:NAME, centre-cropped and resized to `size` (a power of two) when given."""
     image, notes, source = tc.load_image(spec, size)
@@ -155,11 +160,11 @@ def _encoded_output(g: GraphModule) -> GraphModule:
     return core
 
 
-def train_sampler(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *,
-                  n_cascaded: int = DEFAULTS["n_cascaded"], steps: int = DEFAULTS["steps"],
-                  lr: float = DEFAULTS["lr"], batch: int = DEFAULTS["batch"],
-                  schedule: str = DEFAULTS["schedule"], seed: int = DEFAULTS["seed"],
-                  threads: int | None = DEFAULTS["threads"], provenance: dict | None = None, name: str = KIND,
+def train_sampler(image: np.ndarray, ratio: float = Settings.ratio, *,
+                  n_cascaded: int = Settings.n_cascaded, steps: int = Settings.steps,
+                  lr: float = Settings.lr, batch: int = Settings.batch,
+                  schedule: str = Settings.schedule, seed: int = Settings.seed,
+                  threads: int | None = THREADS, provenance: dict | None = None, name: str = KIND,
                   progress: bool | None = None, device=None) -> Result:
     """Train the footprint sampler on `image` ([N, N, k] sRGB-encoded in [0, 1], N a power of
     two, k 1 or 3) against the emulated trilinear sampler; export at 8 bits. `threads`: torch
@@ -308,57 +313,34 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    d = DEFAULTS
-    p.add_argument("--image", default=d["image"], help="image file or skimage:NAME (default %(default)s)")
-    asset_folder.add_arguments(p, "di_footprint")
-    p.add_argument("--size", type=int, default=d["size"], help="centre-crop and resize to SIZE^2, a power of two")
-    p.add_argument("--ratio", type=float, default=d["ratio"], help="compression vs the RGB8 base level")
-    p.add_argument("--n-cascaded", type=int, default=d["n_cascaded"], help="N_c (multiple of 4)")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="ship: exactly what built trained/di_footprint (3000 steps); quick: 1500 steps; "
-                        "options given explicitly override it (default %(default)s)")
-    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
-    p.add_argument("--lr", type=float, default=d["lr"])
-    p.add_argument("--batch", type=int, default=d["batch"])
-    p.add_argument("--schedule", choices=sorted(di.SCHEDULES), default=d["schedule"])
-    p.add_argument("--seed", type=int, default=d["seed"])
-    p.add_argument("--threads", type=int, default=d["threads"], help="torch threads while training (0: torch's default)")
+def extra_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--threads", type=int, default=THREADS, help="torch threads while training (0: torch's default)")
     p.add_argument("--title", help="scene title")
-    add_device_argument(p)
-    return p
 
 
-def run(args, argv=None) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    args.out = str(asset_folder.claim(args.out, "di_footprint", force=args.force))
-    if args.steps is None:
-        args.steps = PRESETS[args.preset]["steps"]
-    if args.steps < 0 or args.batch < 1:
+def check(s: Settings) -> None:
+    if s.steps < 0 or s.batch < 1:
         raise FootprintError("--steps must be >= 0 and --batch >= 1")
-    image, notes, source = load_texture(args.image, args.size)
+
+
+def train(run: Run) -> int:
+    s, args = run.settings, run.args
+    image, notes, source = load_texture(s.image, s.size)
     for n in notes:
         print(f"inshade: note: {n}", file=sys.stderr)
-    argv = list(sys.argv[1:] if argv is None else argv)
-    command = shlex.join(["inshade", "train", "di_footprint", *argv])
-    result = train_sampler(image, args.ratio, n_cascaded=args.n_cascaded, steps=args.steps, lr=args.lr,
-                           batch=args.batch, schedule=args.schedule, seed=args.seed, threads=args.threads or None,
-                           name=Path(args.out).name, device=device,
-                           provenance={"command": command, "image": source, "image_notes": notes})
-    out = write_asset(result, args.out, args.title)
+    result = train_sampler(image, s.ratio, n_cascaded=s.n_cascaded, steps=s.steps, lr=s.lr, batch=s.batch,
+                           schedule=s.schedule, seed=s.seed, threads=args.threads or None, name=run.out.name,
+                           device=run.device,
+                           provenance={"command": run.command, "image": source, "image_notes": notes})
+    out = write_asset(result, run.out, args.title)
     m = result.metrics
-    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
-    # asset's equal to preset_settings("ship")) and the bundle's metrics without the loss history
-    settings = {k: getattr(args, k) for k in SETTINGS}
-    atomic_write(out / "metrics.json", json.dumps({"command": command, "preset": args.preset, "settings": settings,
-                                                   **{k: v for k, v in m.items() if k != "history"}},
-                                                  indent=1) + "\n")
+    run.write_metrics({k: v for k, v in m.items() if k != "history"})
     print(f"wrote {out}: {m['bytes']} bytes ({m['ratio_vs_base']:.2f}x vs RGB8, {m['ratio_vs_mip_chain']:.2f}x vs "
           f"RGB8 + mips; N_p0 {m['n_primary']}, N_p1 {m['n_footprint']}, N_c {m['n_cascaded']}, N_lod {m['n_lod']}), "
           f"held-out PSNR vs emulated trilinear {m['psnr_heldout']:.2f} dB (8-bit arrays), {m['train_seconds']:.1f} s")
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train di_footprint", __doc__, add_arguments, run, argv, errors=(DeviceError,))
-
+TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: KIND, ship_assets={KIND: {}},
+                  extra_arguments=extra_arguments, check=check, errors=(FootprintError, tc.CompressionError))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
