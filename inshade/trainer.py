@@ -17,11 +17,16 @@ Resolution, one rule for every trainer: an option given on the command line wins
 preset's value, else the field's default. ``preset_settings(preset, asset)`` is what ``--preset
 PRESET`` resolves to with no other option (plus a shipped asset's own inputs, ``ship_assets``):
 what a shipped asset's ``metrics.json`` records, so ``--preset ship`` with those inputs rebuilds it.
+
+Presets may differ per value of one setting (``preset_by="which"``: ``presets[preset][value]``, the
+learned BRDF's ggx and disney recipes), and a setting may belong to some values of another only
+(``only={"which": ("disney",)}``): it is not recorded for the others, and refused there when given.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import inspect
 import json
 import shlex
 import sys
@@ -38,13 +43,30 @@ from inshade.files import atomic_write
 PRESETS = ("quick", "ship")
 
 
+class SettingError(ValueError):
+    """An option given for a run it does not belong to."""
+
+
 def setting(default, help: str, *, choices=None, positional: str | None = None, flag: str | None = None,
-            metavar: str | None = None):
+            metavar: str | None = None, only: Mapping[str, tuple] | None = None):
     """A settings field: its default, its ``--help`` line, the values it may take, and how the
     command line spells it (``positional="IMAGE"``: a positional argument; ``flag``: another
-    option name than ``--field-name``)."""
+    option name than ``--field-name``). ``only={"which": ("disney",)}``: a setting of those values
+    of another setting only."""
     return field(default=default, metadata={"help": help, "choices": choices, "positional": positional,
-                                            "flag": flag, "metavar": metavar})
+                                            "flag": flag, "metavar": metavar, "only": only})
+
+
+def _applies(f: dataclasses.Field, values: Mapping) -> bool:
+    """Whether the setting ``f`` belongs to a run of these setting ``values`` (its ``only``)."""
+    only = f.metadata.get("only")
+    return not only or all(values[name] in allowed for name, allowed in only.items())
+
+
+def recorded(settings) -> dict:
+    """The settings a run records: every field that belongs to it."""
+    values = dataclasses.asdict(settings)
+    return {f.name: values[f.name] for f in dataclasses.fields(settings) if _applies(f, values)}
 
 
 def _scalar(annotation) -> tuple[type, bool, bool]:
@@ -74,7 +96,7 @@ class Run:
 
     def record(self) -> dict:
         """What metrics.json records about the run: command, preset and resolved settings."""
-        return {"command": self.command, "preset": self.preset, "settings": dataclasses.asdict(self.settings)}
+        return {"command": self.command, "preset": self.preset, "settings": recorded(self.settings)}
 
     def write_metrics(self, metrics: Mapping, name: str = "metrics.json") -> Path:
         """``out/metrics.json``: the run's record, then ``metrics`` (written atomically)."""
@@ -89,45 +111,61 @@ class Trainer:
     name: str                                        # inshade train NAME
     doc: str | None                                  # the module docstring: the --help description
     settings: type                                   # a dataclass of setting(...) fields
-    presets: Mapping[str, Mapping]                   # preset -> the fields it sets
+    presets: Mapping[str, Mapping]                   # preset -> the fields it sets (-> value -> fields: preset_by)
     train: Callable[[Run], int | None]               # trains, writes run.out, prints its summary
-    folder: Callable[[object], str]                  # settings -> the default asset folder's name
+    folder: Callable[..., str]                       # settings (, args) -> the default asset folder's name
     default_preset: str = "quick"
     ship_assets: Mapping[str, Mapping] = field(default_factory=dict)   # shipped folder -> its inputs
     extra_arguments: Callable[[argparse.ArgumentParser], None] | None = None   # options that are not settings
     check: Callable[[object], None] | None = None    # raises the technique's error for a bad setting
     errors: tuple = ()                               # exceptions that become `inshade: error:` lines
+    preset_by: str | None = None                     # presets differ per this setting's value
 
     def __post_init__(self):
         names = {f.name for f in dataclasses.fields(self.settings)}
-        for preset, values in self.presets.items():
-            unknown = set(values) - names
-            if unknown:
-                raise TypeError(f"{self.name}: preset {preset!r} sets unknown settings {sorted(unknown)}")
+        if self.preset_by is not None and self.preset_by not in names:
+            raise TypeError(f"{self.name}: preset_by {self.preset_by!r} is not a setting")
+        for preset, table in self.presets.items():
+            for values in (table.values() if self.preset_by else (table,)):
+                unknown = set(values) - names
+                if unknown:
+                    raise TypeError(f"{self.name}: preset {preset!r} sets unknown settings {sorted(unknown)}")
         if self.default_preset not in self.presets:
             raise TypeError(f"{self.name}: default preset {self.default_preset!r} is not one of {list(self.presets)}")
 
     # -- resolution --------------------------------------------------------------------------
 
-    def defaults(self, preset: str) -> dict:
-        """Every setting's value under ``preset`` with no option given."""
+    def defaults(self, preset: str, choice=None) -> dict:
+        """Every setting's value under ``preset`` with no option given (``choice``: the ``preset_by``
+        setting's value; unset, the preset's first)."""
         if preset not in self.presets:
             raise ValueError(f"--preset: {preset!r} is not one of {', '.join(self.presets)}")
-        return {f.name: self.presets[preset].get(f.name, f.default) for f in dataclasses.fields(self.settings)}
+        values = self.presets[preset]
+        if self.preset_by is not None:
+            choice = next(iter(values)) if choice is None else choice
+            values = {self.preset_by: choice, **values[choice]}
+        return {f.name: values.get(f.name, f.default) for f in dataclasses.fields(self.settings)}
 
     def preset_settings(self, preset: str, asset: str | None = None) -> dict:
         """What ``--preset PRESET`` resolves to (what metrics.json records as "settings") for the
         shipped asset folder ``asset`` (its own inputs from ``ship_assets``)."""
-        values = {**self.defaults(preset), **(self.ship_assets[asset] if asset else {})}
+        inputs = self.ship_assets[asset] if asset else {}
+        values = {**self.defaults(preset, inputs.get(self.preset_by) if self.preset_by else None), **inputs}
+        values = {f.name: values[f.name] for f in dataclasses.fields(self.settings) if _applies(f, values)}
         return json.loads(json.dumps(values))     # as metrics.json holds them (a tuple reads back as a list)
 
     def resolve(self, args: argparse.Namespace):
         """The Settings instance of parsed ``args``: option given, else preset, else default."""
-        values = self.defaults(args.preset)
-        for f in dataclasses.fields(self.settings):
-            given = getattr(args, f.name)
-            if given is not None:
-                values[f.name] = tuple(given) if isinstance(given, list) else given
+        values = self.defaults(args.preset, getattr(args, self.preset_by) if self.preset_by else None)
+        given = [f for f in dataclasses.fields(self.settings) if getattr(args, f.name) is not None]
+        for f in given:
+            value = getattr(args, f.name)
+            values[f.name] = tuple(value) if isinstance(value, list) else value
+        for f in given:
+            if not _applies(f, values):
+                wanted = " and ".join(f"{name} {' or '.join(map(str, allowed))}"
+                                      for name, allowed in f.metadata["only"].items())
+                raise SettingError(f"{_spelling(f)}: only with {wanted}")
         settings = self.settings(**values)
         if self.check is not None:
             self.check(settings)
@@ -137,16 +175,18 @@ class Trainer:
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
         hints = typing.get_type_hints(self.settings)
-        shown = {p: self.defaults(p) for p in self.presets}
+        if self.preset_by is None:
+            shown = {p: self.defaults(p) for p in self.presets}
+        else:
+            shown = {f"{p} {c}": self.defaults(p, c) for p, table in self.presets.items() for c in table}
         for f in dataclasses.fields(self.settings):
             meta = f.metadata
             kind, optional, sequence = _scalar(hints[f.name])
-            per_preset = {p: v[f.name] for p, v in shown.items()}
-            default = per_preset[self.default_preset]
+            per_preset = {p: v[f.name] for p, v in shown.items() if _applies(f, v)}
             if len(set(map(repr, per_preset.values()))) > 1:
                 told = "; ".join(f"{p}: {_shown(v)}" for p, v in per_preset.items())
             else:
-                told = f"default {_shown(default)}"
+                told = f"default {_shown(next(iter(per_preset.values()), f.default))}"
             required = meta["positional"] and f.default is None
             kw = dict(help=meta["help"] if required else f"{meta['help']} ({told})", default=None,
                       choices=meta["choices"])
@@ -165,7 +205,7 @@ class Trainer:
                     kw["nargs"] = "?"
                 parser.add_argument(f.name, metavar=meta["positional"], **kw)
             else:
-                parser.add_argument(meta["flag"] or "--" + f.name.replace("_", "-"), dest=f.name, **kw)
+                parser.add_argument(_spelling(f), dest=f.name, **kw)
         parser.add_argument("--preset", choices=list(self.presets), default=self.default_preset,
                             help=f"{self.preset_help()} (default %(default)s)")
         asset_folder.add_arguments(parser, f"{self.name}_<name>")
@@ -175,8 +215,14 @@ class Trainer:
         return parser
 
     def preset_help(self) -> str:
-        parts = [f"{p} = " + (", ".join(f"{k} {_shown(v)}" for k, v in values.items()) or "the defaults")
-                 for p, values in self.presets.items()]
+        def listed(values):
+            return ", ".join(f"{k} {_shown(v)}" for k, v in values.items()) or "the defaults"
+
+        if self.preset_by is None:
+            parts = [f"{p} = {listed(values)}" for p, values in self.presets.items()]
+        else:
+            parts = [f"{p} = " + " / ".join(f"{c}: {listed(values)}" for c, values in table.items())
+                     for p, table in self.presets.items()]
         return "settings by name: " + "; ".join(parts) + "; an option given explicitly wins"
 
     def run(self, args: argparse.Namespace, argv: list[str]) -> int:
@@ -184,14 +230,22 @@ class Trainer:
 
         device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
         settings = self.resolve(args)
-        out = asset_folder.claim(args.out, self.folder(settings), force=args.force)
+        takes_args = len(inspect.signature(self.folder).parameters) > 1     # a name from an input option
+        name = self.folder(settings, args) if takes_args else self.folder(settings)
+        out = asset_folder.claim(args.out, name, force=args.force)
         run = Run(settings, args.preset, device, out, shlex.join(["inshade", "train", self.name, *argv]), args)
         return int(self.train(run) or 0)
 
     def main(self, argv=None) -> int:
         argv = list(sys.argv[1:] if argv is None else argv)
         return command.main(f"inshade train {self.name}", self.doc, self.add_arguments,
-                            lambda args: self.run(args, argv), argv, errors=(DeviceError, *self.errors))
+                            lambda args: self.run(args, argv), argv,
+                            errors=(DeviceError, SettingError, *self.errors))
+
+
+def _spelling(f: dataclasses.Field) -> str:
+    """How the command line spells the setting ``f``."""
+    return f.metadata["positional"] or f.metadata["flag"] or "--" + f.name.replace("_", "-")
 
 
 def _shown(value) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 
@@ -80,3 +81,59 @@ def test_bad_settings_and_refused_folders_are_one_line(tmp_path, capsys):
 def test_a_preset_naming_an_unknown_setting_is_refused():
     with pytest.raises(TypeError, match="unknown settings"):
         Trainer("toy", None, Toy, {"quick": {"stepz": 1}}, lambda run: 0, folder=lambda s: "toy")
+
+
+@dataclass(frozen=True)
+class Shape:
+    which: str = setting(None, "what to fit", choices=("ring", "disc"), positional="WHICH")
+    steps: int = setting(None, "training steps")
+    holes: int | None = setting(None, "holes in the disc", only={"which": ("disc",)})
+    seed: int = setting(0, "random seed")
+
+
+def _per_shape(runs: list) -> Trainer:
+    """Presets per value of one setting, a setting of one value only, a folder named from an input option."""
+    def train(run: Run) -> int:
+        runs.append(run)
+        run.write_metrics({})
+        return 0
+
+    return Trainer("shape", "A trainer of two recipes.", Shape,
+                   {"ship": {"ring": {"steps": 900}, "disc": {"steps": 300, "holes": 2}},
+                    "quick": {"ring": {"steps": 9}, "disc": {"steps": 3, "holes": 1}}},
+                   train, folder=lambda s, args: f"shape_{s.which}_{args.tag}", default_preset="ship",
+                   ship_assets={"shape_ring": {"which": "ring"}, "shape_disc": {"which": "disc"}},
+                   extra_arguments=lambda p: p.add_argument("--tag", default="a"), preset_by="which")
+
+
+def test_presets_per_value_record_only_the_settings_of_that_value(tmp_path):
+    runs: list[Run] = []
+    t = _per_shape(runs)
+    assert t.main(["disc", "--steps", "5", "-o", str(tmp_path / "d"), "--device", "cpu"]) == 0
+    assert t.main(["ring", "--preset", "quick", "-o", str(tmp_path / "r"), "--device", "cpu"]) == 0
+    assert (runs[0].settings.steps, runs[0].settings.holes, runs[1].settings.holes) == (5, 2, None)
+    def read(name):
+        return json.loads((tmp_path / name / "metrics.json").read_text())["settings"]
+
+    assert read("d") == {"which": "disc", "steps": 5, "holes": 2, "seed": 0}
+    assert read("r") == {"which": "ring", "steps": 9, "seed": 0}
+    assert t.preset_settings("ship", "shape_ring") == {"which": "ring", "steps": 900, "seed": 0}
+    assert t.preset_settings("quick", "shape_disc") == {"which": "disc", "steps": 3, "holes": 1, "seed": 0}
+    assert t.preset_settings("quick") == t.preset_settings("quick", "shape_ring")     # unset: the first value
+
+
+def test_a_setting_given_for_another_value_is_one_line(tmp_path, capsys):
+    runs: list[Run] = []
+    assert _per_shape(runs).main(["ring", "--holes", "1", "-o", str(tmp_path / "o"), "--device", "cpu"]) == 2
+    assert capsys.readouterr().err.strip() == "inshade: error: --holes: only with which disc" and runs == []
+
+
+def test_per_value_help_and_a_folder_named_from_an_input_option(tmp_path, monkeypatch):
+    runs: list[Run] = []
+    t = _per_shape(runs)
+    text = " ".join(t.add_arguments(argparse.ArgumentParser()).format_help().split())
+    assert "ship ring: 900; ship disc: 300; quick ring: 9; quick disc: 3" in text
+    assert "ship disc: 2; quick disc: 1" in text and "ship = ring: steps 900 / disc: steps 300, holes 2" in text
+    monkeypatch.chdir(tmp_path)
+    assert t.main(["ring", "--tag", "b", "--device", "cpu"]) == 0
+    assert runs[0].out == Path("inshade-out/shape_ring_b")
