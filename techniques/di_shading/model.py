@@ -30,8 +30,8 @@ EXPOSURE = 1.0
 # the set's constant Disney parameters (brdf.PARAMS order; roughness comes from the set)
 CONSTANTS = {"metallic": 0.0, "anisotropic": 0.0, "subsurface": 0.0, "specular": 0.5, "specular_tint": 0.0,
              "sheen": 0.0, "sheen_tint": 0.5, "clearcoat": 0.0, "clearcoat_gloss": 1.0}
-# the glue's per-texel scalars at those constants (di_brdf DisneyDI.extras): R0 specular specular_tint,
-# R0 specular (1 - specular_tint), clearcoat / 4
+# the glue's per-texel scalars at those constants (techniques/di_brdf/model.py DisneyDI.extras):
+# R0 specular specular_tint, R0 specular (1 - specular_tint), clearcoat / 4
 K_EXTRA = (0.0, float(np.float32(brdf.R0 * 0.5)), 0.0)
 SUB = (-0.375, -0.125, 0.125, 0.375)     # 4x4 footprint sample grid (pixel units)
 DEFAULT_BRDF = "trained/di_brdf_disney"
@@ -108,7 +108,7 @@ def _dot(a, b):
 
 
 def unpack(lanes: torch.Tensor) -> dict:
-    """lib/pbr_set pbr_set_unpack of 8 lanes [N, 8] (di_pbr_set's `unpack`)."""
+    """lib/pbr_set pbr_set_unpack of 8 lanes [N, 8] (models/pbr_lanes.py `unpack`)."""
     return pbr_lanes.unpack(lanes[:, :4], lanes[:, 4:])
 
 
@@ -173,7 +173,7 @@ def shade_analytic(lanes: torch.Tensor, geo: Geometry, ambient: float = AMBIENT)
 
 def shade_di(lanes: torch.Tensor, geo: Geometry, decoder: GraphModule, ambient: float = AMBIENT,
              no_metal: bool = False) -> torch.Tensor:
-    """di_shading_learned: the frozen DI Disney decoder + glue (di_brdf `disney_glue`), linear [N, 3].
+    """di_shading_learned: the frozen DI Disney decoder + glue (models/disney_glue.py), linear [N, 3].
     `no_metal`: the GGX lobe D_m G_m set to ~0 (ggx denominators 1e6), for the metallic-path split."""
     s = unpack(lanes)
     local = local_frame(visible_normal(s["normal_ts"], geo.v))

@@ -1,10 +1,11 @@
 """End-to-end optimised shading pipeline with Differentiable Indirection (Datta et al. 2023 §4.3.3,
-supp. 1.5): the footprint-aware DI texture sampler (techniques/di_footprint) trained to be aware of
-the learned DI Disney BRDF (techniques/di_brdf, the shipped trained/di_brdf_disney), on the PBR
-bricks set (techniques/di_pbr_set: albedo, normal, roughness, AO; 8 lanes) on a lit ground plane
-seen at grazing angles.
+supp. 1.5): the footprint-aware DI texture sampler (techniques/di_footprint; its graph and targets in
+models/footprint_sampler.py) trained to be aware of the learned DI Disney BRDF (techniques/di_brdf,
+the shipped trained/di_brdf_disney), on the PBR bricks set (models/pbr_lanes.py, as
+techniques/di_pbr_set ships it: albedo, normal, roughness, AO; 8 lanes) on a lit ground plane seen
+at grazing angles.
 
-The pipeline, per pixel (passes/shading_plane.frag; torch twin `shade_di` / `reference`):
+The pipeline, per pixel (passes/shading_plane.frag; torch twin model.py `shade_di` / `reference`):
 
     (fract uv, log2 footprint) -> DI footprint sampler (2D primary + 1D footprint primary -> 4D
         cascaded, 8 lanes, 8-bit arrays, no mip chain) -> lanes
@@ -15,17 +16,17 @@ The pipeline, per pixel (passes/shading_plane.frag; torch twin `shade_di` / `ref
     -> lib/di_brdf glue, one point light (I / d^2) + an ambient term albedo * AO * ambient.
 
 The set's other Disney parameters are constants: metallic 0, specular 0.5, specular_tint 0,
-sheen 0, sheen_tint 0.5, clearcoat 0, clearcoat_gloss 1 (as techniques/di_pbr_set shades it).
+sheen 0, sheen_tint 0.5, clearcoat 0, clearcoat_gloss 1 (as techniques/di_pbr_set/render.py shades it).
 
 Training (`train_sweep`): one (uv, footprint, light, view) data set drawn like the plane's pixels
-(`plane_samples`: random grazing fly cameras, pixels of a 512x256 view, uv derivatives by
+(data.py `plane_samples`: random grazing fly cameras, pixels of a 512x256 view, uv derivatives by
 differences between neighbouring pixels on 2x2 quads, as llvmpipe forms dFdx/dFdy; tested against
 the pass's G-buffer), then for each lambda, the same sampler initialisation, the same batches, the
 same steps and seed:
 
     loss = (1 - lambda) |sampler - proxy| + lambda |display(shade_di(sampler)) - display(reference)|
 
-- proxy: di_footprint's `emulated_trilinear` of the set (GL_LINEAR_MIPMAP_LINEAR, 8-bit box mips);
+- proxy: models/footprint_sampler.py `emulated_trilinear` of the set (GL_LINEAR_MIPMAP_LINEAR, 8-bit box mips);
 - reference ("appearance filtering", `reference`): 16 samples on a 4x4 grid over the pixel footprint
   uv + a duv/dx + b duv/dy (a, b in {-3/8, -1/8, 1/8, 3/8}: the pixel's parallelogram, first order),
   each prefiltered by the proxy trilinear sampler at a quarter of the footprint (log2 footprint - 2)

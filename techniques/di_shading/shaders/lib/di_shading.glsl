@@ -2,18 +2,18 @@
 // sample (PbrSample below, from the DI footprint sampler or from the uncompressed set) on
 // the ground plane y = 0, shaded by one point light + an ambient term, with the learned DI Disney
 // BRDF (the frozen decoder bundle <network_brdf> + lib/di_brdf's glue) or the analytic one
-// (lib/brdf). Torch twins: techniques/di_shading/train.py (plane_geometry, visible_normal, local_frame,
+// (lib/brdf). Torch twins: techniques/di_shading/model.py (plane_geometry, visible_normal, local_frame,
 // shade_di, shade_analytic), same operations in the same order.
 // Tangent space of the plane: x = +u = world +x, y = +v = world -z, z = the normal = world +y.
 // The set's constant Disney parameters: metallic 0, anisotropic 0, subsurface 0, specular 0.5,
-// specular_tint 0, sheen 0, sheen_tint 0.5, clearcoat 0, clearcoat_gloss 1 (train.py CONSTANTS).
+// specular_tint 0, sheen 0, sheen_tint 0.5, clearcoat 0, clearcoat_gloss 1 (model.py CONSTANTS).
 #include <network_brdf>
 #include <lib/colour>
 #include <lib/brdf>
 #include <lib/di_brdf>
 
-// One sample of the 8-lane set (techniques/di_pbr_set LANES), unpacked as lib/pbr_set's
-// pbr_set_unpack does (torch: di_pbr_set/train.py unpack); lib/pbr_set itself pulls in the SH
+// One sample of the 8-lane set (models/pbr_lanes.py LANES), unpacked as lib/pbr_set's
+// pbr_set_unpack does (torch: models/pbr_lanes.py unpack); lib/pbr_set itself pulls in the SH
 // lighting chunks this pass has no use for.
 struct PbrSample {
     vec3 albedo;      // linear
