@@ -139,7 +139,7 @@ def test_pass_matches_torch_twin(gl, asset):
     refs = {}
     for view in render.VIEWS:
         refs[view] = render.render_gbuffer(views["_gbuffer"], views["_uniforms"], 48, 48, views["_sh"], graph=graph,
-                                           set8=set8, view=view, light_count=P.DEFAULTS["lights"])
+                                           set8=set8, view=view, light_count=render.DEFAULT_LIGHTS)
     err = np.abs(views["di"] - refs["di"]) / np.maximum(1.0, np.abs(refs["di"]))
     assert err.max() <= TOL, f"DI view: max scaled error {err.max():.3g}"
     diff = np.abs(views["uncompressed"] - refs["uncompressed"])[covered]
@@ -210,7 +210,7 @@ def test_shipped_asset_renders_and_matches_torch(gl):
     bundle = load(folder)
     views = render.render_views(folder, views=("di",), size=40, ctx=gl)
     ref = render.render_gbuffer(views["_gbuffer"], views["_uniforms"], 40, 40, views["_sh"],
-                                graph=GraphModule.from_bundle(bundle), view="di", light_count=P.DEFAULTS["lights"])
+                                graph=GraphModule.from_bundle(bundle), view="di", light_count=render.DEFAULT_LIGHTS)
     err = np.abs(views["di"] - ref) / np.maximum(1.0, np.abs(ref))
     assert err.max() <= TOL
     size = m["texture"]["width"]

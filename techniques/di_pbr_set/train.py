@@ -24,36 +24,42 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import shlex
-import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import torch
 
 from inshade.files import atomic_files, atomic_write
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import LANES, Bricks, PbrSetError, bricks, split_rgba8
 from inshade.models.texture_cascade import FINISH_OPTIMIZERS, compress, torch_decode
 from inshade.techniques.di_pbr_set.render import DEFAULT_LIGHTS, LIGHTS, VIEWS, render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, lane_metrics, markdown, render_psnr
+from inshade.trainer import Run, Trainer, setting
 
 PROGRAM = "passes/mesh_pbr_set.frag"
-# finish_optimizer "adam": on this set the minibatch Adam finish beat full-batch L-BFGS (12000 steps,
-# all lanes 27.67 vs 27.50 dB), unlike on RGB images (models/texture_cascade.py FINISH_OPTIMIZERS)
-DEFAULTS = dict(size=256, ratio=6.0, steps=3000, lr=1e-2, batch=16384, seed=0, render=256, lights=DEFAULT_LIGHTS,
-                finish_optimizer="adam")
+ASSET = "di_pbr_set_bricks"
+RENDER_SIZE = 256       # the scene's render size
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a di_pbr_set run is built from (metrics.json records it)."""
+    size: int = setting(256, "texture side in texels")
+    ratio: float = setting(6.0, "compression ratio vs 8 lanes x 8 bit")
+    steps: int = setting(3000, "training steps")
+    lr: float = setting(1e-2, "Adam learning rate")
+    batch: int = setting(16384, "samples per step")
+    seed: int = setting(0, "random seed")
+    # "adam": on this set the minibatch Adam finish beat full-batch L-BFGS (12000 steps, all lanes
+    # 27.67 vs 27.50 dB), unlike on RGB images (models/texture_cascade.py FINISH_OPTIMIZERS)
+    finish_optimizer: str = setting("adam", "finish phase of the training (inshade train di_texture --help)",
+                                    choices=FINISH_OPTIMIZERS)
+
+
 # --preset: "ship" is what built trained/di_pbr_set_bricks; "quick" keeps the 3000-step default.
-PRESETS = {"quick": dict(steps=3000), "ship": dict(steps=12000)}
-SETTINGS = ("size", "ratio", "steps", "lr", "batch", "seed", "finish_optimizer")
-
-
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
-    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
+PRESETS = {"quick": {}, "ship": dict(steps=12000)}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -95,10 +101,10 @@ def scene_dict(name: str, title: str, size: int, lights: int) -> dict:
     }
 
 
-def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"], steps: int = DEFAULTS["steps"],
-          lr: float = DEFAULTS["lr"], batch: int = DEFAULTS["batch"], seed: int = DEFAULTS["seed"],
-          render: int = DEFAULTS["render"], lights: int = DEFAULTS["lights"], recipe: Bricks = Bricks(),
-          finish_optimizer: str = DEFAULTS["finish_optimizer"],
+def build(out, *, size: int = Settings.size, ratio: float = Settings.ratio, steps: int = Settings.steps,
+          lr: float = Settings.lr, batch: int = Settings.batch, seed: int = Settings.seed,
+          render: int = RENDER_SIZE, lights: int = DEFAULT_LIGHTS, recipe: Bricks = Bricks(),
+          finish_optimizer: str = Settings.finish_optimizer,
           gl_metrics: bool = True, command: str | None = None, progress: bool | None = None, device=None,
           preset: str | None = None) -> dict:
     """Write the asset folder; returns its metrics. `device`: where the DI training runs (default the CPU)."""
@@ -162,49 +168,32 @@ def build(out, *, size: int = DEFAULTS["size"], ratio: float = DEFAULTS["ratio"]
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    d = DEFAULTS
-    asset_folder.add_arguments(p, "di_pbr_set_bricks")
-    p.add_argument("--size", type=int, default=d["size"], help="texture side in texels (default %(default)s)")
-    p.add_argument("--ratio", type=float, default=d["ratio"], help="compression ratio vs 8 lanes x 8 bit "
-                   "(default %(default)s)")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="ship: exactly what built trained/di_pbr_set_bricks (12000 steps); quick: 3000 steps; "
-                        "options given explicitly override it (default %(default)s)")
-    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
-    p.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default %(default)s)")
-    p.add_argument("--batch", type=int, default=d["batch"], help="samples per step (default %(default)s)")
-    p.add_argument("--seed", type=int, default=d["seed"])
-    p.add_argument("--finish-optimizer", choices=FINISH_OPTIMIZERS, default=d["finish_optimizer"],
-                   help="finish phase of the training (inshade train di_texture --help; default %(default)s)")
-    p.add_argument("--render", type=int, default=d["render"], help="scene render size (default %(default)s)")
-    p.add_argument("--lights", type=int, default=d["lights"], choices=range(0, len(LIGHTS) + 1),
+def extra_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--render", type=int, default=RENDER_SIZE, help="scene render size (default %(default)s)")
+    p.add_argument("--lights", type=int, default=DEFAULT_LIGHTS, choices=range(0, len(LIGHTS) + 1),
                    help="default point-light count (default %(default)s)")
     p.add_argument("--no-gl", action="store_true", help="skip GL metrics and the preview (no GL context)")
-    add_device_argument(p)
-    return p
 
 
-def run(args, argv=None) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    args.out = str(asset_folder.claim(args.out, "di_pbr_set_bricks", force=args.force))
-    if args.steps is None:
-        args.steps = PRESETS[args.preset]["steps"]
-    if args.steps < 0 or args.batch < 1:
+def check(s: Settings) -> None:
+    if s.steps < 0 or s.batch < 1:
         raise PbrSetError("--steps must be >= 0 and --batch >= 1")
-    argv = list(sys.argv[1:] if argv is None else argv)
-    m = build(args.out, size=args.size, ratio=args.ratio, steps=args.steps, lr=args.lr, batch=args.batch,
-              seed=args.seed, render=args.render, lights=args.lights, finish_optimizer=args.finish_optimizer,
-              gl_metrics=not args.no_gl, device=device, preset=args.preset,
-              command=shlex.join(["inshade", "train", "di_pbr_set", *argv]))
+
+
+def train(run: Run) -> int:
+    """build() writes the folder and its metrics.json (the run's command, preset and settings with the
+    metrics), and report.md from the same metrics."""
+    args = run.args
+    m = build(run.out, **asdict(run.settings), render=args.render, lights=args.lights, gl_metrics=not args.no_gl,
+              device=run.device, preset=run.preset, command=run.command)
     t = m["texture"]
     q = m.get("di_glsl_exact", m["di_torch"])
-    print(f"wrote {args.out}: {t['ratio']:.2f}x ({t['bytes']} bytes), albedo {q['psnr_albedo']:.2f} dB, "
+    print(f"wrote {run.out}: {t['ratio']:.2f}x ({t['bytes']} bytes), albedo {q['psnr_albedo']:.2f} dB, "
           f"normal {q['normal_mean_deg']:.2f} deg mean, roughness {q['psnr_roughness']:.2f} dB, "
           f"AO {q['psnr_ao']:.2f} dB, {t['train_seconds']:.1f} s")
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train di_pbr_set", __doc__, add_arguments, run, argv, errors=(DeviceError,))
-
+TRAINER = Trainer("di_pbr_set", __doc__, Settings, PRESETS, train, folder=lambda s: ASSET, ship_assets={ASSET: {}},
+                  extra_arguments=extra_arguments, check=check, errors=(PbrSetError,))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
