@@ -208,7 +208,7 @@ def test_bad_settings_are_clear_errors(tmp_path):
     for argv in (["ggx", "-o", str(tmp_path / "x"), "--steps", "-1"],
                  ["disney", "-o", str(tmp_path / "x"), "--lr", "0"]):
         with pytest.raises(train.BrdfTrainingError, match="--steps must be >= 0"):
-            train.run(p.parse_args(argv), argv)
+            train.TRAINER.run(p.parse_args(argv), argv)
     with pytest.raises(ValueError, match="lights must be in 1..4"):
         mb.render(8, 8, 1, 1, lambda *a: None, lights=5)
 

@@ -58,21 +58,19 @@ import argparse
 import datetime
 import json
 import math
-import shlex
-import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from inshade.files import atomic_files, atomic_write
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.models import brdf
 from inshade.models import indirection as di
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
+from inshade.trainer import Run, Trainer, setting
 
 from .data import (GGX_ALPHA_RANGE, SWEEP_COLUMNS, disney_samples, ggx_ball_display, ggx_ball_sampler, ggx_sampler,
                    sweep_grid)
@@ -91,22 +89,32 @@ GGX_DEFAULTS = dict(steps=8000, batch=4096, lr=2e-2, schedule="cosine", seed=0)
 GGX_FUNCTION_WEIGHT = 1e-3
 DISNEY_DEFAULTS = dict(steps=400, batch=4096, lr=3e-3, schedule="cosine", seed=0, samples=1 << 17)
 # --preset, per BRDF: "ship" is what built trained/di_brdf_<which> (GGX: GGX_DEFAULTS; Disney: 300
-# steps at batch 2048, not DISNEY_DEFAULTS' 400 x 4096); "quick" a short run.
+# steps at batch 2048, not DISNEY_DEFAULTS' 400 x 4096); "quick" a short run. The default is "ship".
 PRESETS = {"ship": {"ggx": dict(steps=8000, batch=4096, lr=2e-2, seed=0),
                     "disney": dict(steps=300, batch=2048, lr=3e-3, samples=1 << 17, seed=0)},
            "quick": {"ggx": dict(steps=500, batch=4096, lr=2e-2, seed=0),
                      "disney": dict(steps=60, batch=2048, lr=3e-3, samples=1 << 15, seed=0)}}
 
 
+# The input of each shipped asset (WHICH beside --preset ship).
+SHIP_ASSETS = {"di_brdf_ggx": dict(which="ggx"), "di_brdf_disney": dict(which="disney")}
+
+
 class BrdfTrainingError(ValueError):
     """A setting the BRDF trainer cannot use."""
 
 
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to for the asset folder ``asset`` (di_brdf_ggx or
-    di_brdf_disney; default ggx)."""
-    which = asset.removeprefix("di_brdf_") if asset else "ggx"
-    return {"which": which, **PRESETS[preset][which]}
+@dataclass(frozen=True)
+class Settings:
+    """What a di_brdf run is built from (metrics.json records it); every preset sets the training
+    lengths per BRDF (PRESETS)."""
+    which: str = setting(None, "which learned BRDF to build: ggx or disney", choices=("ggx", "disney"),
+                         positional="WHICH")
+    steps: int = setting(None, "training steps")
+    batch: int = setting(None, "samples per step")
+    lr: float = setting(None, "Adam learning rate")
+    samples: int | None = setting(None, "training samples drawn once", only={"which": ("disney",)})
+    seed: int = setting(0, "random seed")
 
 
 # training
@@ -336,52 +344,36 @@ def _save_encoders(model: DisneyDI, path: Path):
 
 
 # command line
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("which", choices=("ggx", "disney"), help="which learned BRDF to build")
-    asset_folder.add_arguments(p, "di_brdf_<which>")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="ship",
-                   help="ship: exactly what built trained/di_brdf_<which>; quick: a short run; options given "
-                        "explicitly override it (default %(default)s)")
-    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
-    p.add_argument("--batch", type=int, help="samples per step (default: the preset's)")
-    p.add_argument("--lr", type=float, help="Adam learning rate (default: the preset's)")
-    p.add_argument("--seed", type=int, help="random seed (default: the preset's, 0)")
+def extra_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-gl", action="store_true", help="skip the shader-rendered PSNR (no GL context)")
-    add_device_argument(p)
-    return p
 
 
-def run(args, argv=None) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    args.out = str(asset_folder.claim(args.out, f"di_brdf_{args.which}", force=args.force))
-    # explicit option > the preset's value
-    settings = {"which": args.which, **PRESETS[args.preset][args.which]}
-    for k in ("steps", "batch", "lr", "seed"):
-        if getattr(args, k) is not None:
-            settings[k] = getattr(args, k)
-    steps, batch, lr = settings["steps"], settings["batch"], settings["lr"]
-    if steps < 0 or batch < 1 or not lr > 0:
+def check(s: Settings) -> None:
+    if s.steps < 0 or s.batch < 1 or not s.lr > 0:
         raise BrdfTrainingError("--steps must be >= 0, --batch >= 1 and --lr > 0")
-    argv = list(sys.argv[1:] if argv is None else argv)
-    command = shlex.join(["inshade", "train", "di_brdf", *argv])
-    kw = {k: v for k, v in settings.items() if k != "which"}
-    build = build_ggx if args.which == "ggx" else build_disney
-    m = build(args.out, **kw, command=command, gl_metrics=not args.no_gl, device=device)
-    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
-    # assets' equal to preset_settings("ship", asset)) and the bundle's metrics without the loss history
-    atomic_write(Path(args.out) / "metrics.json",
-                 json.dumps({"command": command, "preset": args.preset, "settings": settings,
-                             **{k: v for k, v in m.items() if k != "history"}}, indent=1) + "\n")
-    if args.which == "ggx":
-        print(f"wrote {args.out}: GGX ball PSNR all pixels {m['psnr_balls_all_pixels']:.2f} dB, "
+
+
+def train(run: Run) -> int:
+    s, gl_metrics = run.settings, not run.args.no_gl
+    if s.which == "ggx":
+        m = build_ggx(run.out, s.steps, s.batch, s.lr, s.seed, command=run.command, gl_metrics=gl_metrics,
+                      device=run.device)
+    else:
+        m = build_disney(run.out, s.steps, s.batch, s.lr, s.samples, s.seed, command=run.command,
+                         gl_metrics=gl_metrics, device=run.device)
+    run.write_metrics({k: v for k, v in m.items() if k != "history"})
+    if s.which == "ggx":
+        print(f"wrote {run.out}: GGX ball PSNR all pixels {m['psnr_balls_all_pixels']:.2f} dB, "
               f"mean {m['psnr_balls_mean']:.2f} dB (min {m['psnr_balls_min']:.2f}), "
               f"function (tone-mapped) {m['psnr_function_tonemapped']:.2f} dB, {m['train_seconds']:.1f} s")
     else:
         rows = ", ".join(f"{k} {v['min']:.1f}" for k, v in m["sweep"].items())
-        print(f"wrote {args.out}: Disney sweep min PSNR {m['sweep_min_psnr']:.2f} dB ({rows}), "
+        print(f"wrote {run.out}: Disney sweep min PSNR {m['sweep_min_psnr']:.2f} dB ({rows}), "
               f"{m['train_seconds']:.1f} s")
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train di_brdf", __doc__, add_arguments, run, argv, errors=(DeviceError,))
+TRAINER = Trainer("di_brdf", __doc__, Settings, PRESETS, train, folder=lambda s: f"di_brdf_{s.which}",
+                  default_preset="ship", ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
+                  errors=(BrdfTrainingError,), preset_by="which")
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
