@@ -83,11 +83,11 @@ def orbit_views(n: int) -> list[dict]:
 # heads (cached)
 
 def head_settings(args, head: str, ratio: float) -> dict:
-    from .train import DEFAULTS
+    from .train import Settings
 
+    d = Settings()      # the trainer's quick preset
     return {"head": head, "ratio": ratio, "grid": args.grid, "steps": args.steps, "batch": args.batch,
-            "lr": DEFAULTS[f"lr_{head}"], "shell_fraction": DEFAULTS["shell_fraction"], "seed": DEFAULTS["seed"],
-            "scene": DEFAULTS["scene"]}
+            "lr": getattr(d, f"lr_{head}"), "shell_fraction": d.shell_fraction, "seed": d.seed, "scene": d.scene}
 
 
 def cached_head(args, head: str, ratio: float, grids, log):

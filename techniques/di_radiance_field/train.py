@@ -21,22 +21,19 @@ arrays, model.py). ``--preset ship`` is what built trained/di_radiance_field_tri
 """
 from __future__ import annotations
 
-import argparse
 import datetime
 import json
 import math
-import shlex
-import sys
 import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from inshade import asset_folder, command
 from inshade.runtime.labels import split_labels
-from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.files import atomic_write
+from inshade.trainer import Run, Trainer, setting
 
 from . import KIND, PREFIX_DI, PREFIX_GRID, PROGRAM, SETTINGS as SCENE_SETTINGS
 from . import field, march, model
@@ -45,12 +42,26 @@ from . import field, march, model
 # at 36.6 dB held-out (39.2 dB rendered) and 10x at 37.4 dB (44.9 dB rendered, empty-space noise); 3e-3
 # gives 43.9 dB held-out at both (about 60 dB rendered with the 10x colour head, 6 views). Colour: 1e-2
 # diverges (the 136^3 primary moves a cell per step), 3e-4 learns slower than 1e-3 (150-step probe).
-DEFAULTS = dict(scene="trinket", grid=32, colour_ratio=10.0, density_ratio=10.0, steps=200, batch=4096,
-                lr_colour=1e-3, lr_density=3e-3, shell_fraction=0.75, step_voxels=1.0, preview_grid=32,
-                preview_bits=8, seed=0)
+@dataclass(frozen=True)
+class Settings:
+    """What a di_radiance_field run is built from (metrics.json records it)."""
+    scene: str = setting("trinket", "procedural scene", choices=field.SCENES)
+    grid: int = setting(32, "grid side N (N^3 voxels)")
+    colour_ratio: float = setting(10.0, "colour compression")
+    density_ratio: float = setting(10.0, "density compression")
+    steps: int = setting(200, "training steps per head")
+    batch: int = setting(4096, "samples per step")
+    lr_colour: float = setting(1e-3, "Adam lr, colour head")
+    lr_density: float = setting(3e-3, "Adam lr, density head")
+    shell_fraction: float = setting(0.75, "share of samples in the surface shell")
+    step_voxels: float = setting(1.0, "march step in grid cells")
+    preview_grid: int = setting(32, "side of the shipped uncompressed grid")
+    preview_bits: int = setting(8, "bits of the shipped grid", choices=(8, 16, 32))
+    seed: int = setting(0, "random seed")
+
+
+# "quick" is a 32^3 field in seconds; "ship" is what built trained/di_radiance_field_trinket.
 PRESETS = {"quick": {}, "ship": dict(grid=128, steps=800, batch=8192, preview_grid=64)}
-SETTINGS = ("scene", "grid", "colour_ratio", "density_ratio", "steps", "batch", "lr_colour", "lr_density",
-            "shell_fraction", "step_voxels", "preview_grid", "preview_bits", "seed")
 BACKGROUND = (0.93, 0.93, 0.95)
 # Density lanes (sigma / SIGMA_SCALE) below this are empty space in the march (grids and DI alike): the
 # DI density's residual noise in empty space would otherwise integrate into a haze over the ~100 empty
@@ -59,12 +70,7 @@ BACKGROUND = (0.93, 0.93, 0.95)
 # 0.025 / 0.088 with lr 1e-2, where the floor took the 10x render from 38.4 to 44.9 dB. The float32
 # grids' empty space (sigmoid tail) is below 1e-3, so the floor leaves the reference unchanged there.
 DENSITY_FLOOR = 0.02
-ASSET = "trinket"
-
-
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to with no other option (one asset)."""
-    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
+ASSET = "di_radiance_field_trinket"
 
 
 def march_render(grid: int, step_voxels: float) -> dict:
@@ -167,8 +173,10 @@ def torch_render(graph, render: dict, camera: dict, size: int) -> np.ndarray:
                        sigma_scale=render["sigma_scale"], density_floor=render.get("density_floor", 0.0))
 
 
-def write_asset(out, di_bundle, grid_bundle, full_grids, settings: dict, metrics: dict, command_line: str,
-                preset: str, preview_size: int = 128) -> Path:
+def write_asset(out, di_bundle, grid_bundle, full_grids, settings: dict, metrics: dict,
+                preview_size: int = 128) -> dict:
+    """The bundles, scene.json and preview.png; returns the preview's metrics (its PSNR against the
+    float32 grids)."""
     from inshade.bundle import Bundle
     from inshade.metrics import psnr
     from inshade.models.graph import GraphModule
@@ -187,67 +195,32 @@ def write_asset(out, di_bundle, grid_bundle, full_grids, settings: dict, metrics
     img = torch_render(di_graph, render, scene["camera"], preview_size)
     ref = torch_render(model.grid_graph(*full_grids), render, scene["camera"], preview_size)
     write_png(out / "preview.png", img[..., :3])
-    record = {"command": command_line, "preset": preset, "settings": {k: settings[k] for k in SETTINGS},
-              **metrics, "preview_psnr_vs_fp32_grids": round(float(psnr(img[..., :3], ref[..., :3])), 3),
-              "preview_size": preview_size}
-    atomic_write(out / "metrics.json", json.dumps(record, indent=1) + "\n")
-    return out
+    return {"preview_psnr_vs_fp32_grids": round(float(psnr(img[..., :3], ref[..., :3])), 3),
+            "preview_size": preview_size}
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    d = DEFAULTS
-    asset_folder.add_arguments(p, "di_radiance_field_trinket")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="ship: what built trained/di_radiance_field_trinket (128^3, 800 steps); quick: a 32^3 "
-                        "field, 200 steps; options given explicitly override it (default %(default)s)")
-    p.add_argument("--scene", choices=field.SCENES, help=f"procedural scene (default {d['scene']})")
-    p.add_argument("--grid", type=int, help="grid side N (N^3 voxels; default: the preset's)")
-    p.add_argument("--colour-ratio", type=float, help=f"colour compression (default {d['colour_ratio']:g})")
-    p.add_argument("--density-ratio", type=float, help=f"density compression (default {d['density_ratio']:g})")
-    p.add_argument("--steps", type=int, help="training steps per head (default: the preset's)")
-    p.add_argument("--batch", type=int, help="samples per step (default: the preset's)")
-    p.add_argument("--lr-colour", type=float, help=f"Adam lr, colour head (default {d['lr_colour']:g})")
-    p.add_argument("--lr-density", type=float, help=f"Adam lr, density head (default {d['lr_density']:g})")
-    p.add_argument("--shell-fraction", type=float, help="share of samples in the surface shell (default 0.75)")
-    p.add_argument("--step-voxels", type=float, help="march step in grid cells (default 1)")
-    p.add_argument("--preview-grid", type=int, help="side of the shipped uncompressed grid (default: the preset's)")
-    p.add_argument("--preview-bits", type=int, choices=(8, 16, 32), help="bits of the shipped grid (default 8)")
-    p.add_argument("--seed", type=int)
-    add_device_argument(p)
-    return p
-
-
-def resolve(args) -> dict:
-    s = preset_settings(args.preset)
-    for k in SETTINGS:
-        v = getattr(args, k, None)
-        if v is not None:
-            s[k] = v
-    field.check_resolution(s["grid"], "--grid")
-    field.check_resolution(s["preview_grid"], "--preview-grid")
-    if s["steps"] < 0 or s["batch"] < 1:
-        raise model.RadianceFieldError(f"--steps must be >= 0 and --batch >= 1 (got {s['steps']}, {s['batch']})")
-    if not 0.0 <= s["shell_fraction"] <= 1.0:
-        raise model.RadianceFieldError(f"--shell-fraction must be in [0, 1], got {s['shell_fraction']}")
-    if not 0.05 <= s["step_voxels"] <= 8.0:
-        raise model.RadianceFieldError(f"--step-voxels must be in [0.05, 8], got {s['step_voxels']}")
+def check(s: Settings) -> None:
+    field.check_resolution(s.grid, "--grid")
+    field.check_resolution(s.preview_grid, "--preview-grid")
+    if s.steps < 0 or s.batch < 1:
+        raise model.RadianceFieldError(f"--steps must be >= 0 and --batch >= 1 (got {s.steps}, {s.batch})")
+    if not 0.0 <= s.shell_fraction <= 1.0:
+        raise model.RadianceFieldError(f"--shell-fraction must be in [0, 1], got {s.shell_fraction}")
+    if not 0.05 <= s.step_voxels <= 8.0:
+        raise model.RadianceFieldError(f"--step-voxels must be in [0.05, 8], got {s.step_voxels}")
     for h in model.HEADS:
-        model.plan(s["grid"], h, s[f"{h}_ratio"])    # a ratio the grid cannot meet fails before any work
-    return s
+        model.plan(s.grid, h, getattr(s, f"{h}_ratio"))    # a ratio the grid cannot meet fails before any work
 
 
-def run(args, argv=None) -> int:
-    device = resolve_device(args.device)
-    args.out = str(asset_folder.claim(args.out, "di_radiance_field_trinket", force=args.force))
-    settings = resolve(args)
-    argv = list(sys.argv[1:] if argv is None else argv)
-    cmd = shlex.join(["inshade", "train", "di_radiance_field", *argv])
+def train(run: Run) -> int:
+    settings = asdict(run.settings)
     t0 = time.perf_counter()
     with torch_threads(1):
-        di_bundle, grid_bundle, full, metrics = fit(settings, device, provenance={"command": cmd})
-        out = write_asset(args.out, di_bundle, grid_bundle, full, settings, metrics, cmd, args.preset)
-    m = json.loads((out / "metrics.json").read_text())
-    print(f"wrote {out}: {m['di_bytes'] / 1e6:.2f} MB DI vs {m['field_bytes'] / 1e6:.2f} MB fp32 grids "
+        di_bundle, grid_bundle, full, metrics = fit(settings, run.device, provenance={"command": run.command})
+        preview = write_asset(run.out, di_bundle, grid_bundle, full, settings, metrics)
+    m = {**metrics, **preview}
+    run.write_metrics(m)
+    print(f"wrote {run.out}: {m['di_bytes'] / 1e6:.2f} MB DI vs {m['field_bytes'] / 1e6:.2f} MB fp32 grids "
           f"({m['overall_ratio']:.1f}x), preview PSNR {m['preview_psnr_vs_fp32_grids']:.2f} dB, "
           f"{time.perf_counter() - t0:.0f} s")
     return 0
@@ -267,6 +240,6 @@ class torch_threads:
         torch.set_num_threads(self.old)
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train di_radiance_field", __doc__, add_arguments, run, argv,
-                        errors=(model.RadianceFieldError, field.FieldError, DeviceError))
+TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: ASSET, ship_assets={ASSET: {}},
+                  check=check, errors=(model.RadianceFieldError, field.FieldError))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
