@@ -229,8 +229,8 @@ def test_training_bad_inputs_are_one_error_line(tmp_path, asset):
         (["--table-size", "1000"], "table_size: must be a power of two, got 1000"),
         (["--textures", str(textures)], "--textures: goes with --mesh"),
     ]
-    for args, message in cases:
-        res = _train_cli("--preset", "quick", "--steps", "2", "--no-preview", "--out", str(tmp_path / "o"), *args)
+    for i, (args, message) in enumerate(cases):   # a fresh folder each: a refused one would be the one error
+        res = _train_cli("--preset", "quick", "--steps", "2", "--no-preview", "--out", str(tmp_path / f"o{i}"), *args)
         assert res.returncode == 2, (args, res.stderr[-2000:])
         lines = [ln for ln in res.stderr.splitlines() if ln.startswith("inshade: error:")]
         assert len(lines) == 1 and message in lines[0], (args, res.stderr[-2000:])

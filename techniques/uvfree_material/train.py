@@ -30,47 +30,81 @@ import json
 import math
 import shlex
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 from PIL import Image
 
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
+from inshade import asset_folder
+from inshade.components import ComponentError
+from inshade.devices import resolve_device
 from inshade.files import atomic_write
 from inshade.runtime.labels import split_labels
 from inshade.lit_settings import lit_settings
 from inshade.mesh import MeshError, load_mesh, mesh_uv
-from inshade.mesh_topology import mesh_topology
+from inshade.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.metrics import psnr
+from inshade.trainer import Run, Trainer, setting
 
 from . import objects
 from .memory import memory_report, reference_bytes
 from .model import CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, material_graph
 from .object_textures import sample_textures, write_object
 
-PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096, hidden=(32, 32)),
-           "ship": dict(resolution=512, steps=3000, batch=1 << 14, hidden=HIDDEN)}
-DEFAULTS = dict(object="rock", config="balanced", preset="ship", seed=0, device="auto", lr=1e-2, mlp_lr=5e-3)
 BUNDLE = "material"
-
-
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to (what metrics.json records as "settings") for the
-    asset folder ``asset`` (``uvfree_material_<object>_<config>``; default rock, balanced). Levels and
-    table size follow from the mesh and the config; metrics.json records them beside."""
-    name, config = DEFAULTS["object"], DEFAULTS["config"]
-    if asset:
-        name, _, config = asset.removeprefix(f"{KIND}_").rpartition("_")
-    p = PRESETS[preset]
-    return dict(object=name, config=config, resolution=p["resolution"], steps=p["steps"], batch=p["batch"],
-                hidden=list(p["hidden"]), features=FEATURES, seed=DEFAULTS["seed"], lr=DEFAULTS["lr"],
-                mlp_lr=DEFAULTS["mlp_lr"])
 
 
 class TrainError(ValueError):
     """Bad training input; the message names the file or option."""
+
+
+class Widths(tuple):
+    """A decoder's hidden layer widths, spelled ``64,64,64,64`` on the command line."""
+
+    def __new__(cls, value=()):
+        if isinstance(value, str):
+            text = value
+            try:
+                value = [int(w) for w in text.split(",") if w.strip()]
+            except ValueError:
+                value = []
+            if not value or min(value) < 1 or max(value) > 256:
+                raise argparse.ArgumentTypeError(f"comma-separated widths 1..256, got {text!r}")
+        return super().__new__(cls, value)
+
+    def __str__(self) -> str:
+        return ",".join(map(str, self))
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a uvfree_material run is built from (metrics.json records it). Levels and table size
+    follow from the mesh and the config; metrics.json records them beside."""
+    object: str = setting("rock", "a procedural uv-textured object (with --mesh: the mesh's name)",
+                          choices=objects.OBJECTS)
+    config: str = setting("balanced", "memory | balanced | quality: features sized to 1/12, 1/6, 1/3 of the "
+                          "uncompressed textures", choices=sorted(CONFIGS))
+    resolution: int = setting(512, "procedural texture side, a power of two")
+    steps: int = setting(3000, "training steps")
+    batch: int = setting(1 << 14, "surface points per step")
+    hidden: Widths = setting(Widths(HIDDEN), "hidden layer widths of the decoder MLP, comma-separated",
+                             metavar="W,W,...")
+    features: int = setting(FEATURES, "features per table entry F", choices=(1, 2, 4, 8))
+    seed: int = setting(0, "random seed")
+    lr: float = setting(1e-2, "feature table learning rate (Adam)")
+    mlp_lr: float = setting(5e-3, "decoder MLP learning rate (Adam)")
+
+
+# "ship" built the shipped assets (512^2 textures, the thesis's 4x64 ReLU decoder); "quick" is the
+# same pipeline at 64^2 with a 2x32 decoder, for a few seconds (tests).
+PRESETS = {"quick": dict(resolution=64, steps=120, batch=4096, hidden=Widths((32, 32))), "ship": {}}
+# The inputs of each shipped asset (--object and --config beside --preset ship).
+SHIP_ASSETS = {f"{KIND}_{name}_{config}": dict(object=name, config=config)
+               for name, config in (("fruit", "balanced"), ("rock", "balanced"), ("stump_high", "balanced"),
+                                    ("stump_high", "memory"), ("stump_high", "quality"),
+                                    ("stump_low", "balanced"))}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -187,49 +221,60 @@ def evaluate(graph, sampler, textures, n: int, seed: int, device) -> dict:
 
 
 def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="balanced", preset="ship", out=None,
-          resolution=None, steps=None, batch=None, levels=None, table_size=None, features=FEATURES, hidden=None,
-          seed=0,
-          device="cpu", lr=DEFAULTS["lr"], mlp_lr=DEFAULTS["mlp_lr"], progress=None, command_line=None,
+          resolution=None, steps=None, batch=None, levels=None, table_size=None, features=None, hidden=None,
+          seed=None, device="cpu", lr=None, mlp_lr=None, progress=None, command_line=None,
           write_preview=True) -> Path:
-    """Train and write the asset folder; returns it. `device`: a torch.device or a --device spelling
-    (auto, cpu, cuda, cuda:N)."""
+    """Train and write the asset folder; returns it. The keyword form of ``inshade train
+    uvfree_material``: a setting left None is the preset's. `device`: a torch.device or a --device
+    spelling (auto, cpu, cuda, cuda:N)."""
+    device = resolve_device(device) if isinstance(device, str) else torch.device(device)
+    given = dict(object=object_name if mesh_path is None else Path(mesh_path).stem, config=config,
+                 resolution=resolution, steps=steps, batch=batch, hidden=None if hidden is None else tuple(hidden),
+                 features=features, seed=seed, lr=lr, mlp_lr=mlp_lr)
+    settings = Settings(**{**TRAINER.defaults(preset), **{k: v for k, v in given.items() if v is not None}})
+    check(settings)
+    out = Path(out) if out else asset_folder.default(folder_name(settings))
+    command_line = command_line or shlex.join(["inshade", "train", KIND, "--object", settings.object,
+                                               "--config", settings.config, "--preset", preset])
+    options = argparse.Namespace(mesh=mesh_path, textures=textures_dir, levels=levels, table_size=table_size,
+                                 no_preview=not write_preview)
+    write_material(Run(settings, preset, device, out, command_line, options), progress)
+    return out
+
+
+def write_material(run: Run, progress=None) -> dict:
+    """Train on ``run.settings`` and write the asset folder ``run.out`` (metrics.json through the
+    run, then preview.png unless --no-preview); returns the metrics beside the run's record."""
     from inshade.progress import progress as progress_bar
 
-    device = resolve_device(device) if isinstance(device, str) else torch.device(device)
-    if config not in CONFIGS:
-        raise TrainError(f"--config: unknown {config!r} (choose from {', '.join(CONFIGS)})")
-    p = PRESETS[preset]
-    resolution = resolution or p["resolution"]
-    steps = p["steps"] if steps is None else steps
-    batch = batch or p["batch"]
-    hidden = tuple(hidden or p["hidden"])
-    name = object_name if mesh_path is None else Path(mesh_path).stem
-    out = Path(out) if out else asset_folder.default(f"{KIND}_{name}_{config}")
+    s, args, device, out = run.settings, run.args, run.device, run.out
+    hidden = tuple(s.hidden)
     started = time.perf_counter()
-    mesh, textures = prepare_asset(out, object_name=object_name, mesh_path=mesh_path, textures_dir=textures_dir,
-                                   resolution=resolution, seed=seed)
+    mesh, textures = prepare_asset(out, object_name=s.object, mesh_path=args.mesh, textures_dir=args.textures,
+                                   resolution=s.resolution, seed=s.seed)
     tex_res = textures["albedo"].shape[0]
     faces = np.asarray(mesh.faces)
     ref_bytes = reference_bytes(tex_res)
-    levels = levels or choose_levels(len(faces), tex_res * tex_res)
-    table_size = table_size or choose_table_size(CONFIGS[config] * ref_bytes, levels, features)
-    torch.manual_seed(seed)
-    graph = material_graph(mesh.vertices, faces, levels=levels, table_size=table_size, features=features,
-                           hidden=hidden, seed=seed).to(device)
+    levels = args.levels or choose_levels(len(faces), tex_res * tex_res)
+    table_size = args.table_size or choose_table_size(CONFIGS[s.config] * ref_bytes, levels, s.features)
+    torch.manual_seed(s.seed)
+    graph = material_graph(mesh.vertices, faces, levels=levels, table_size=table_size, features=s.features,
+                           hidden=hidden, seed=s.seed).to(device)
     sampler = SurfaceSampler(mesh)
     table = graph.nodes["features"].table
     mlp = [q for n, q in graph.named_parameters() if not n.startswith("nodes.features.")]
-    opt = torch.optim.Adam([{"params": [table], "lr": lr}, {"params": mlp, "lr": mlp_lr}], betas=(0.9, 0.99),
+    opt = torch.optim.Adam([{"params": [table], "lr": s.lr}, {"params": mlp, "lr": s.mlp_lr}], betas=(0.9, 0.99),
                            eps=1e-15)
     base = [g["lr"] for g in opt.param_groups]
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(s.seed)
     history = []
-    bar = progress_bar(range(steps), desc=f"uvfree_material {name} {config}", enabled=progress)
+    steps = s.steps
+    bar = progress_bar(range(steps), desc=f"uvfree_material {s.object} {s.config}", enabled=progress)
     for step in bar:
         t = step / max(steps, 1)
         for g, lr0 in zip(opt.param_groups, base):
             g["lr"] = lr0 * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
-        face, t0, t1, uv = sampler(batch, rng)
+        face, t0, t1, uv = sampler(s.batch, rng)
         x = torch.from_numpy(np.stack([face.astype(np.float32), t0, t1], 1)).to(device)
         y = torch.from_numpy(targets(textures, uv)).to(device)
         loss = torch.mean((graph(x) - y) ** 2)
@@ -241,34 +286,27 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
             bar.set_postfix(mse=f"{loss.item():.5f}")
     seconds = time.perf_counter() - started
     graph = graph.to("cpu")
-    quality = evaluate(graph, sampler, textures, 1 << 16, seed, "cpu")
+    quality = evaluate(graph, sampler, textures, 1 << 16, s.seed, "cpu")
     topo = mesh_topology(mesh.vertices, faces)
-    command_line = command_line or shlex.join(["inshade", "train", KIND, "--object", str(name), "--config", config,
-                                               "--preset", preset])
-    provenance = {"command": command_line, "preset": preset, "object": name, "config": config,
-                  "resolution": tex_res, "levels": levels, "features": features, "table_size": table_size,
-                  "hidden": list(hidden), "steps": steps, "batch": batch, "seed": seed, "lr": lr, "mlp_lr": mlp_lr,
-                  "mesh_digest": topo.digest, "faces": int(len(faces)), "torch": torch.__version__,
-                  "device": str(device),
+    provenance = {"command": run.command, "preset": run.preset, "object": s.object, "config": s.config,
+                  "resolution": tex_res, "levels": levels, "features": s.features, "table_size": table_size,
+                  "hidden": list(hidden), "steps": steps, "batch": s.batch, "seed": s.seed, "lr": s.lr,
+                  "mlp_lr": s.mlp_lr, "mesh_digest": topo.digest, "faces": int(len(faces)),
+                  "torch": torch.__version__, "device": str(device),
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-    bundle = graph.export(KIND, f"{name}_{config}", provenance=provenance, metrics=quality)
+    bundle = graph.export(KIND, f"{s.object}_{s.config}", provenance=provenance, metrics=quality)
     # the fp16 table (what an RGBA16F texture holds) stored as F16: half the file, widened exactly at load
     bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") else v) for k, v in bundle.tensors.items()}
     bundle.save(out / BUNDLE)
     memory = memory_report(bundle, tex_res)
-    atomic_write(out / "scene.json", json.dumps(scene_description(out.name, name, config), indent=2) + "\n")
-    # "settings": what the run resolved (preset + explicit options); tests/test_presets.py holds the
-    # shipped ones equal to preset_settings("ship", asset)
-    settings = dict(object=name, config=config, resolution=resolution, steps=steps, batch=batch,
-                    hidden=list(hidden), features=features, seed=seed, lr=lr, mlp_lr=mlp_lr)
-    metrics = {"command": command_line, "preset": preset, "settings": settings, "train_seconds": round(seconds, 1),
-               "train_threads": torch.get_num_threads(), "device": str(device), "levels": levels,
-               "table_size": table_size, "features": features, "faces": int(len(faces)), "memory": memory,
-               "torch_quality": quality, "history": history}
-    atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
-    if write_preview:
+    atomic_write(out / "scene.json", json.dumps(scene_description(out.name, s.object, s.config), indent=2) + "\n")
+    metrics = {"train_seconds": round(seconds, 1), "train_threads": torch.get_num_threads(), "device": str(device),
+               "levels": levels, "table_size": table_size, "features": s.features, "faces": int(len(faces)),
+               "memory": memory, "torch_quality": quality, "history": history}
+    run.write_metrics(metrics)
+    if not args.no_preview:
         render_preview(out)
-    return out
+    return metrics
 
 
 def scene_description(name: str, object_name: str, config: str) -> dict:
@@ -326,73 +364,55 @@ def render_preview(out: Path) -> None:
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("--object", default=DEFAULTS["object"], choices=objects.OBJECTS,
-                        help="a procedural uv-textured object (default: %(default)s)")
-    parser.add_argument("--mesh", help="instead of --object: a uv-mapped mesh (OBJ/PLY/GLB)")
+class MeshOption(argparse.Action):
+    """``--mesh FILE`` names the asset after the mesh: the recorded ``object`` is the mesh's name."""
+
+    def __call__(self, parser, namespace, value, option_string=None):
+        namespace.mesh, namespace.object = value, Path(value).stem
+
+
+def extra_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--mesh", action=MeshOption, help="instead of --object: a uv-mapped mesh (OBJ/PLY/GLB)")
     parser.add_argument("--textures", help="with --mesh: folder holding albedo.png, normal.png, rma.png "
                         "(default: the mesh's folder)")
-    parser.add_argument("--config", default=DEFAULTS["config"], choices=sorted(CONFIGS),
-                        help="memory | balanced | quality: features sized to 1/12, 1/6, 1/3 of the "
-                        "uncompressed textures (default: %(default)s)")
-    parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
-                        help="ship: what built trained/uvfree_material_*; quick: 64^2 textures, seconds "
-                        "(default: %(default)s)")
-    add_device_argument(parser, DEFAULTS["device"])
-    asset_folder.add_arguments(parser, f"{KIND}_<object>_<config>")
-    parser.add_argument("--resolution", type=int, help="procedural texture side, a power of two (default: the preset's)")
-    parser.add_argument("--steps", type=int, help="training steps (default: the preset's)")
-    parser.add_argument("--batch", type=int, help="surface points per step (default: the preset's)")
     parser.add_argument("--levels", type=int, help="hierarchy levels L (default: from the texel density)")
-    parser.add_argument("--features", type=int, default=FEATURES, choices=(1, 2, 4, 8),
-                        help="features per table entry F (default: %(default)s)")
-    parser.add_argument("--hidden", help="hidden layer widths of the decoder MLP, comma-separated (default: the "
-                        f"preset's: ship {','.join(map(str, HIDDEN))}, the thesis's; quick 32,32)")
     parser.add_argument("--table-size", type=int, help="hash-table entries per level T, a power of two "
                         "(default: from --config)")
-    parser.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="random seed (default: %(default)s)")
     parser.add_argument("--no-preview", action="store_true", help="skip rendering preview.png")
-    return parser
 
 
-def _widths(text: str) -> tuple[int, ...]:
-    try:
-        widths = tuple(int(w) for w in text.split(",") if w.strip())
-    except ValueError:
-        widths = ()
-    if not widths or min(widths) < 1 or max(widths) > 256:
-        raise TrainError(f"--hidden: comma-separated widths 1..256, got {text!r}")
-    return widths
+def check(s: Settings) -> None:
+    if s.config not in CONFIGS:
+        raise TrainError(f"--config: unknown {s.config!r} (choose from {', '.join(CONFIGS)})")
+    if s.steps < 0:
+        raise TrainError(f"--steps: must be >= 0, got {s.steps}")
+    if s.batch < 1:
+        raise TrainError(f"--batch: must be >= 1, got {s.batch}")
 
 
-def run(args: argparse.Namespace, argv=None) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    for name in ("steps", "batch", "levels", "table_size"):
+def folder_name(s: Settings) -> str:
+    return f"{KIND}_{s.object}_{s.config}"
+
+
+def build(run: Run) -> int:
+    args = run.args
+    for name in ("levels", "table_size"):
         v = getattr(args, name)
-        if v is not None and v < (0 if name == "steps" else 1):
-            raise TrainError(f"--{name.replace('_', '-')}: must be >= {0 if name == 'steps' else 1}, got {v}")
+        if v is not None and v < 1:
+            raise TrainError(f"--{name.replace('_', '-')}: must be >= 1, got {v}")
     if args.textures and not args.mesh:
         raise TrainError("--textures: goes with --mesh")
-    name = args.object if args.mesh is None else Path(args.mesh).stem
-    args.out = str(asset_folder.claim(args.out, f"{KIND}_{name}_{args.config}", force=args.force))
-    command_line = shlex.join(["inshade", "train", KIND, *(argv or [])]) if argv else None
-    out = train(object_name=args.object, mesh_path=args.mesh, textures_dir=args.textures, config=args.config,
-                preset=args.preset, out=args.out, resolution=args.resolution, steps=args.steps, batch=args.batch,
-                levels=args.levels, table_size=args.table_size, features=args.features,
-                hidden=_widths(args.hidden) if args.hidden else None,
-                seed=args.seed, device=device,
-                command_line=command_line, write_preview=not args.no_preview)
-    m = json.loads((out / "metrics.json").read_text())
+    if args.mesh and run.settings.object != Path(args.mesh).stem:
+        raise TrainError("--object: goes without --mesh (the mesh names the asset)")
+    m = write_material(run)
     q, mem = m["torch_quality"], m["memory"]
-    print(f"wrote {out}: albedo {q['psnr_albedo']:.2f} dB, normal {q['normal_mean_deg']:.2f} deg, "
+    print(f"wrote {run.out}: albedo {q['psnr_albedo']:.2f} dB, normal {q['normal_mean_deg']:.2f} deg, "
           f"rma {q['psnr_rma']:.2f} dB; {mem['rate_features_mlp']:.1%} of the textures "
           f"({mem['rate_all']:.1%} with owner tables); {m['train_seconds']:.0f} s")
     return 0
 
 
-def main(argv=None) -> int:
-    from inshade.components import ComponentError
-    from inshade.mesh_topology import MeshTopologyError
-
-    return command.main(f"inshade train {KIND}", __doc__, add_arguments, run, argv,
-                        errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError, DeviceError))
+TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, build, folder=folder_name, default_preset="ship",
+                  ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
+                  errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
