@@ -24,8 +24,6 @@ import argparse
 import datetime
 import json
 import math
-import shlex
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,8 +32,6 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
 from inshade.lit_settings import lit_settings
 from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH
 
@@ -43,6 +39,7 @@ from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models.network_sdf import NetworkSdfModule
 from inshade.models.threads import torch_threads
+from inshade.trainer import Run, Trainer, setting
 
 from .data import (MARGIN, NEAR_SIGMAS, UNIFORM_FRACTION, DiSdfError, DistanceQuery, Frame, check_mesh, eval_set,
                    load_mesh, make_samples, mesh_frame, nearest_init, sample_batches, sdf_metrics)
@@ -60,14 +57,25 @@ RENDER_PROGRAM = "passes/sdf_diffuse.frag"
 DEFAULTS = dict(budget_kb=64.0, rho=RHO, truncation=0.1, steps=1500, lr=1e-2, batch=16384, schedule="cosine",
                 samples=400_000, uniform_fraction=UNIFORM_FRACTION, near_sigmas=NEAR_SIGMAS, margin=MARGIN, seed=0,
                 clip_primary="auto", monotonicity=0.2)
-# --preset: "ship" is what built trained/di_sdf; "quick" keeps the 1500-step default.
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a di_sdf run is built from (metrics.json records it; the mesh is an input beside it)."""
+    budget_kb: float = setting(DEFAULTS["budget_kb"], "bytes of 8-bit cells, KiB")
+    rho: float = setting(DEFAULTS["rho"], "N_p / N_c")
+    truncation: float = setting(DEFAULTS["truncation"], "truncation band, fraction of the bound radius")
+    steps: int = setting(DEFAULTS["steps"], "training steps")
+    lr: float = setting(DEFAULTS["lr"], "Adam learning rate")
+    batch: int = setting(DEFAULTS["batch"], "samples per step")
+    samples: int = setting(DEFAULTS["samples"], "training samples")
+    schedule: str = setting(DEFAULTS["schedule"], "learning-rate schedule", choices=sorted(di.SCHEDULES))
+    monotonicity: float = setting(DEFAULTS["monotonicity"], "soft-monotonicity weight on the primary (paper supp. §2)")
+    seed: int = setting(DEFAULTS["seed"], "random seed")
+
+
+# --preset: "ship" is what built trained/di_sdf; "quick" (the default) keeps the 1500-step default.
 PRESETS = {"quick": dict(steps=1500), "ship": dict(steps=3000)}
-SETTINGS = ("budget_kb", "rho", "truncation", "steps", "lr", "batch", "samples", "schedule", "monotonicity", "seed")
-
-
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
-    return {k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -243,65 +251,36 @@ def write_asset(result: Result, out, title: str, lut_filter: str = "exact", prev
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    d = DEFAULTS
+def extra_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mesh", help="closed triangle mesh (PLY/OBJ/STL/GLB ...; default: the procedural rabbit, "
                    f"generated into {DEFAULT_MESH}, the shipped asset's)")
-    asset_folder.add_arguments(p, "di_sdf_<mesh>")
-    p.add_argument("--budget-kb", type=float, default=d["budget_kb"], help="bytes of 8-bit cells, KiB (default %(default)s)")
-    p.add_argument("--rho", type=float, default=d["rho"], help="N_p / N_c (default %(default)s)")
-    p.add_argument("--truncation", type=float, default=d["truncation"],
-                   help="truncation band, fraction of the bound radius (default %(default)s)")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="ship: exactly what built trained/di_sdf (3000 steps); quick: 1500 steps; "
-                        "options given explicitly override it (default %(default)s)")
-    p.add_argument("--steps", type=int, help="training steps (default: the preset's)")
-    p.add_argument("--lr", type=float, default=d["lr"], help="Adam learning rate (default %(default)s)")
-    p.add_argument("--batch", type=int, default=d["batch"], help="samples per step (default %(default)s)")
-    p.add_argument("--samples", type=int, default=d["samples"], help="training samples (default %(default)s)")
-    p.add_argument("--schedule", choices=sorted(di.SCHEDULES), default=d["schedule"])
-    p.add_argument("--monotonicity", type=float, default=d["monotonicity"],
-                   help="soft-monotonicity weight on the primary (paper supp. §2; default %(default)s)")
-    p.add_argument("--seed", type=int, default=d["seed"])
-    add_device_argument(p)
     p.add_argument("--lut-filter", choices=("exact", "fast"), default="exact", help="the scene's default LUT path")
     p.add_argument("--title", help="scene title")
-    return p
 
 
-def run(args, argv=None) -> int:
-    device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
-    args.out = str(asset_folder.claim(args.out, f"di_sdf_{Path(args.mesh or DEFAULT_MESH).stem}", force=args.force))
-    if args.steps is None:
-        args.steps = PRESETS[args.preset]["steps"]
-    if args.mesh is None:     # the procedural rabbit (deterministic), as neural_sdf does
+def train(run: Run) -> int:
+    s, args = run.settings, run.args
+    mesh_path = args.mesh
+    if mesh_path is None:     # the procedural rabbit (deterministic), as neural_sdf does
         from inshade.mesh import write_bunny
 
-        args.mesh = str(DEFAULT_MESH if DEFAULT_MESH.is_file() else write_bunny(DEFAULT_MESH))
-    mesh = load_mesh(args.mesh)
-    argv = list(sys.argv[1:] if argv is None else argv)
-    name = Path(args.out).name
-    provenance_command = shlex.join(["inshade", "train", "di_sdf", *argv])
-    result = fit(mesh, args.budget_kb * 1024, rho=args.rho, truncation=args.truncation, steps=args.steps, lr=args.lr,
-                 batch=args.batch, samples=args.samples, schedule=args.schedule, seed=args.seed, name=name,
-                 monotonicity=args.monotonicity, device=device,
-                 provenance={"command": provenance_command, "mesh": str(args.mesh)})
-    title = args.title or f"DI-SDF: {Path(args.mesh).name}, {result.metrics['bytes'] / 1024:.1f} KiB"
-    out = write_asset(result, args.out, title, args.lut_filter)
+        mesh_path = str(DEFAULT_MESH if DEFAULT_MESH.is_file() else write_bunny(DEFAULT_MESH))
+    mesh = load_mesh(mesh_path)
+    result = fit(mesh, s.budget_kb * 1024, rho=s.rho, truncation=s.truncation, steps=s.steps, lr=s.lr,
+                 batch=s.batch, samples=s.samples, schedule=s.schedule, seed=s.seed, name=run.out.name,
+                 monotonicity=s.monotonicity, device=run.device,
+                 provenance={"command": run.command, "mesh": str(mesh_path)})
+    title = args.title or f"DI-SDF: {Path(mesh_path).name}, {result.metrics['bytes'] / 1024:.1f} KiB"
+    out = write_asset(result, run.out, title, args.lut_filter)
     m = result.metrics
-    # metrics.json: the preset, the settings it resolved to (tests/test_presets.py holds the shipped
-    # asset's equal to preset_settings("ship")) and the bundle's metrics without the loss history
-    settings = {k: getattr(args, k) for k in SETTINGS}
-    atomic_write(out / "metrics.json", json.dumps({"command": provenance_command, "preset": args.preset,
-                                                   "settings": settings,
-                                                   **{k: v for k, v in m.items() if k != "history"}},
-                                                  indent=1) + "\n")
+    run.write_metrics({k: v for k, v in m.items() if k != "history"})
     print(f"wrote {out}: {m['bytes']} bytes (N_p {m['n_primary']}, N_c {m['n_cascaded']}), surface MAE "
           f"{m['surface_mae_per_radius']:.2e} radius, IoU {m['iou']:.4f}, normals {m['normal_deg_mean']:.2f} deg, "
           f"samples {m['sample_seconds']:.1f} s, training {m['train_seconds']:.1f} s")
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train di_sdf", __doc__, add_arguments, run, argv, errors=(DiSdfError, DeviceError))
-
+TRAINER = Trainer("di_sdf", __doc__, Settings, PRESETS, train,
+                  folder=lambda s, args: f"di_sdf_{Path(args.mesh or DEFAULT_MESH).stem}",
+                  ship_assets={KIND: {}}, extra_arguments=extra_arguments, errors=(DiSdfError,))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
