@@ -85,13 +85,13 @@ def test_presets_and_explicit_options():
 
     import torch
 
-    from inshade.techniques.neural_image.train import PRESETS, add_arguments, build, resolve
+    from inshade.techniques.neural_image.train import PRESETS, TRAINER, add_arguments, build
 
     parse = add_arguments(argparse.ArgumentParser()).parse_args
-    quick = resolve(parse(["--preset", "quick"]))
-    assert quick["steps"] == PRESETS["quick"]["steps"] and quick["levels"] == PRESETS["quick"]["levels"]
-    mine = resolve(parse(["--preset", "ship", "--steps", "7", "--arch", "siren"]))
-    assert mine["steps"] == 7 and mine["arch"] == "siren" and mine["width"] == PRESETS["ship"]["width"]
+    quick = TRAINER.resolve(parse(["--preset", "quick"]))
+    assert quick.steps == PRESETS["quick"]["steps"] and quick.levels == PRESETS["quick"]["levels"]
+    mine = TRAINER.resolve(parse(["--preset", "ship", "--steps", "7", "--arch", "siren"]))
+    assert mine.steps == 7 and mine.arch == "siren" and mine.width == PRESETS["ship"]["width"]
     uv = torch.rand(5, 2)
     for arch in ("siren", "frequency_relu", "multires"):
         g = build(arch, width=16, depth=1, levels="4:4,8:1", grid_bits=32).eval()

@@ -25,20 +25,17 @@ trained for fewer steps; any option given explicitly overrides the preset's valu
 """
 from __future__ import annotations
 
-import argparse
 import datetime
 import json
 import math
-import shlex
 import time
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from inshade import asset_folder, command
 from inshade.files import atomic_write
-from inshade.devices import DeviceError, add_device_argument, resolve_device
+from inshade.trainer import Run, Trainer, setting
 from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
 from inshade.pixels import pixel_uvs
 from inshade.models import activations as _act
@@ -63,35 +60,53 @@ SHIP_NOTE = (
     "(176k, 300 steps) 41.3 / 33.6; 32:4,64:4,128:2,256:1 (120k, 600 steps) 44.4 / 36.9; "
     "32:4,64:4,256:1 (87k, 600 steps) 41.2 / 34.6: shipped, trained 1000 steps. The one-channel "
     "full-resolution level carries the detail, the coarse four-channel ones the colour.")
-PRESETS = {
-    "ship": dict(arch="multires", levels="32:4,64:4,256:1", width=32, depth=2, steps=1000,
-                 batch=65536, grid_bits=8, output_activation="identity"),
-    "quick": dict(arch="multires", levels="32:4,64:4,256:1", width=32, depth=2, steps=300,
-                  batch=65536, grid_bits=8, output_activation="identity"),
-}
-DEFAULTS = dict(out=None, image="astronaut", size=256, seed=0, n_freqs=8,
-                omega0=30.0, lr=None, grid_lr=1e-2, preset="ship", **PRESETS["ship"])
+SHIP = dict(arch="multires", levels="32:4,64:4,256:1", width=32, depth=2, steps=1000, batch=65536, grid_bits=8,
+            output_activation="identity")
+PRESETS = {"ship": SHIP, "quick": {**SHIP, "steps": 300}}     # quick: the same network, fewer steps
 RENDER_PROGRAM = "passes/field2d.frag"
-SETTINGS = ("image", "size", "steps", "seed", "arch", "width", "depth", "n_freqs", "omega0", "output_activation",
-            "lr", "batch", "levels", "grid_bits", "grid_lr")
+ASSET = "neural_image"
 
 
-def settings_of(*, image, size, steps, seed, arch, width, depth, n_freqs, omega0, output_activation, lr, batch,
-                levels, grid_bits, grid_lr) -> dict:
+class NeuralImageError(ValueError):
+    """A setting the neural image cannot be trained with."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a neural_image run is built from; metrics.json records those its architecture uses (recorded())."""
+    image: str = setting("astronaut", "skimage.data photograph", choices=IMAGES)
+    size: int = setting(256, "target resolution, square")
+    steps: int = setting(SHIP["steps"], "optimizer steps")
+    seed: int = setting(0, "random seed")
+    arch: str = setting(SHIP["arch"], "network", choices=ARCHES)
+    width: int = setting(SHIP["width"], "hidden width")
+    depth: int = setting(SHIP["depth"], "hidden layers")
+    n_freqs: int = setting(8, "frequency encoding octaves, frequency_relu only")
+    omega0: float = setting(30.0, "SIREN omega0, siren only")
+    output_activation: str = setting(SHIP["output_activation"], "output activation", choices=OUTPUT_ACTIVATIONS)
+    lr: float | None = setting(None, "Adam learning rate of the dense layers (None: 3e-4 for siren, 2e-3 otherwise)")
+    batch: int = setting(SHIP["batch"], "pixels per step")
+    levels: str = setting(SHIP["levels"], "multires lookup arrays, RES:CHANNELS,...")
+    grid_bits: int = setting(SHIP["grid_bits"], "multires lookup-array storage bits", choices=(8, 16, 32))
+    grid_lr: float = setting(1e-2, "multires lookup-array learning rate")
+
+
+def recorded(s: Settings) -> dict:
     """The settings metrics.json records: those the architecture uses, lr resolved as fit() does."""
-    multires = arch == "multires"
-    s = dict(image=image, size=size, steps=steps, seed=seed, arch=arch, width=width, depth=depth,
-             n_freqs=n_freqs if arch == "frequency_relu" else None, omega0=omega0 if arch == "siren" else None,
-             output_activation=output_activation,
-             lr=lr if lr is not None else (3e-4 if arch == "siren" else 2e-3), batch=batch,
-             levels=levels if multires else None, grid_bits=grid_bits if multires else None,
-             grid_lr=grid_lr if multires else None)
-    return {k: v for k, v in s.items() if v is not None}
+    multires = s.arch == "multires"
+    r = dict(image=s.image, size=s.size, steps=s.steps, seed=s.seed, arch=s.arch, width=s.width, depth=s.depth,
+             n_freqs=s.n_freqs if s.arch == "frequency_relu" else None, omega0=s.omega0 if s.arch == "siren" else None,
+             output_activation=s.output_activation,
+             lr=s.lr if s.lr is not None else (3e-4 if s.arch == "siren" else 2e-3), batch=s.batch,
+             levels=s.levels if multires else None, grid_bits=s.grid_bits if multires else None,
+             grid_lr=s.grid_lr if multires else None)
+    return {k: v for k, v in r.items() if v is not None}
 
 
 def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to with no other option (one asset: ``asset`` is ignored)."""
-    return settings_of(**{k: PRESETS[preset].get(k, DEFAULTS[k]) for k in SETTINGS})
+    """What metrics.json records for ``--preset PRESET`` with no other option: the trainer's
+    resolution, kept to the settings the architecture uses (recorded())."""
+    return recorded(Settings(**TRAINER.preset_settings(preset, asset)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -134,13 +149,13 @@ def parse_levels(levels: str) -> list[tuple[int, int]]:
         res, _, ch = part.strip().partition(":")
         out.append((int(res), int(ch or 4)))
     if not out or any(r < 2 or not 1 <= c <= 4 for r, c in out):
-        raise ValueError(f"bad --levels {levels!r}: RES:CHANNELS,... with RES >= 2, 1 <= CHANNELS <= 4")
+        raise NeuralImageError(f"bad --levels {levels!r}: RES:CHANNELS,... with RES >= 2, 1 <= CHANNELS <= 4")
     return out
 
 
-def build(arch: str = DEFAULTS["arch"], width: int = DEFAULTS["width"], depth: int = DEFAULTS["depth"],
+def build(arch: str = Settings.arch, width: int = Settings.width, depth: int = Settings.depth,
           n_freqs: int = 8, omega0: float = 30.0, output_activation: str = "identity",
-          levels: str = DEFAULTS["levels"], grid_bits: int = DEFAULTS["grid_bits"]) -> GraphModule:
+          levels: str = Settings.levels, grid_bits: int = Settings.grid_bits) -> GraphModule:
     """uv[2] -> rgb[3] network as a bundle graph.
 
     - ``multires``: one 2D ``lookup_array`` of uv per level (``levels`` = resolution:channels,
@@ -214,7 +229,7 @@ def metrics_of(prediction: np.ndarray, target: np.ndarray) -> dict:
 
 def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr: float | None = None,
         batch: int = 16384, arch: str = "frequency_relu", progress: bool | None = None,
-        grid_lr: float = DEFAULTS["grid_lr"]) -> dict:
+        grid_lr: float = Settings.grid_lr) -> dict:
     """Adam on random pixel batches (full image when ``batch`` >= pixels), cosine-decayed lr;
     lookup-array cells (multires) at ``grid_lr``, Adam eps 1e-15 as Instant NGP.
     Runs on the model's device; batch indices are drawn on a CPU generator and then moved, so a
@@ -258,49 +273,34 @@ def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr
     return {"seconds": time.perf_counter() - start, "losses": losses, "lr": lr}
 
 
-def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"],
-          steps=DEFAULTS["steps"], seed=DEFAULTS["seed"], arch=DEFAULTS["arch"],
-          width=DEFAULTS["width"], depth=DEFAULTS["depth"], n_freqs=DEFAULTS["n_freqs"],
-          omega0=DEFAULTS["omega0"], output_activation=DEFAULTS["output_activation"],
-          lr=DEFAULTS["lr"], batch=DEFAULTS["batch"], levels=DEFAULTS["levels"],
-          grid_bits=DEFAULTS["grid_bits"], grid_lr=DEFAULTS["grid_lr"], preset: str | None = None,
-          command: str | None = None, progress: bool | None = None, write_images: bool = True,
-          device="cpu"):
-    """Trains on ``device`` (a torch.device or its name) and writes the bundle (+ preview.png,
-    reference.png) into ``out``. Returns the saved ``Bundle``. Metrics and the preview come from
-    the *exported* bundle (lookup arrays quantised to ``grid_bits``), i.e. what the shader draws."""
-    device = torch.device(device)
-    torch.manual_seed(seed)
-    target = load_target(image, size)
-    multires = arch == "multires"
+def train(run: Run) -> int:
+    """Trains on the run's device and writes the bundle (+ preview.png, reference.png) into the run's
+    folder. Metrics and the preview come from the *exported* bundle (lookup arrays quantised to
+    ``grid_bits``), i.e. what the shader draws."""
+    s, device = run.settings, run.device
+    torch.manual_seed(s.seed)
+    target = load_target(s.image, s.size)
+    multires = s.arch == "multires"
     # initialised on the CPU generator, then moved: the same start on every device
-    model = build(arch, width, depth, n_freqs, omega0, output_activation, levels, grid_bits).to(device)
-    start_metrics = metrics_of(predict(model, size, size), target)
-    log = fit(model, target, steps=steps, seed=seed, lr=lr, batch=batch, arch=arch, progress=progress,
-              grid_lr=grid_lr)
-    float_metrics = metrics_of(predict(model, size, size), target)
+    model = build(s.arch, s.width, s.depth, s.n_freqs, s.omega0, s.output_activation, s.levels,
+                  s.grid_bits).to(device)
+    start_metrics = metrics_of(predict(model, s.size, s.size), target)
+    log = fit(model, target, steps=s.steps, seed=s.seed, lr=s.lr, batch=s.batch, arch=s.arch, grid_lr=s.grid_lr)
+    float_metrics = metrics_of(predict(model, s.size, s.size), target)
     provenance = {
-        "command": command or _command_line(preset=preset, out=out, image=image, size=size, steps=steps,
-                                            seed=seed, arch=arch, width=width, depth=depth,
-                                            n_freqs=n_freqs if arch == "frequency_relu" else None,
-                                            omega0=omega0 if arch == "siren" else None,
-                                            levels=levels if multires else None,
-                                            grid_bits=grid_bits if multires else None,
-                                            grid_lr=grid_lr if multires else None,
-                                            output_activation=output_activation,
-                                            lr=lr, batch=batch),
-        "preset": preset,
-        "preset_note": SHIP_NOTE if preset == "ship" else None,
-        "image": f"skimage.data.{image}",
-        "image_preprocessing": f"centre square crop, sRGB EOTF to linear, resized to {size}x{size}",
+        "command": run.command,
+        "preset": run.preset,
+        "preset_note": SHIP_NOTE if run.preset == "ship" else None,
+        "image": f"skimage.data.{s.image}",
+        "image_preprocessing": f"centre square crop, sRGB EOTF to linear, resized to {s.size}x{s.size}",
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
-        "steps": steps, "seed": seed, "arch": arch, "width": width, "depth": depth,
-        "n_freqs": n_freqs if arch == "frequency_relu" else None,
-        "omega0": omega0 if arch == "siren" else None,
-        "levels": levels if multires else None,
-        "grid_bits": grid_bits if multires else None,
-        "grid_lr": grid_lr if multires else None,
-        "output_activation": output_activation, "lr": log["lr"], "batch": batch,
+        "steps": s.steps, "seed": s.seed, "arch": s.arch, "width": s.width, "depth": s.depth,
+        "n_freqs": s.n_freqs if s.arch == "frequency_relu" else None,
+        "omega0": s.omega0 if s.arch == "siren" else None,
+        "levels": s.levels if multires else None,
+        "grid_bits": s.grid_bits if multires else None,
+        "grid_lr": s.grid_lr if multires else None,
+        "output_activation": s.output_activation, "lr": log["lr"], "batch": s.batch,
         "optimizer": "adam, cosine decay to 5%" + (", eps 1e-15" if multires else ""),
         "loss": "mse, linear rgb",
         "device": str(device),
@@ -308,11 +308,11 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
     provenance = {k: v for k, v in provenance.items() if v is not None}
-    render = {"program": RENDER_PROGRAM, "width": size, "height": size, "input": "uv", "output": "rgb"}
+    render = {"program": RENDER_PROGRAM, "width": s.size, "height": s.size, "input": "uv", "output": "rgb"}
     bundle = model.export("neural_image", "neural_image", provenance=provenance, render=render)
     # What the shader draws: the exported (quantised) bundle, read back through torch.
     shipped = GraphModule.from_bundle(bundle).eval()
-    prediction = predict(shipped, size, size)
+    prediction = predict(shipped, s.size, s.size)
     metrics = metrics_of(prediction, target)
     metrics.update({
         "psnr_linear_step0": start_metrics["psnr_linear"],
@@ -326,96 +326,29 @@ def train(*, out=DEFAULTS["out"], image=DEFAULTS["image"], size=DEFAULTS["size"]
         "device": str(device),
     })
     bundle.meta["metrics"] = metrics
-    out = Path(out) if out else asset_folder.default(f"neural_image_{image}")
-    bundle.save(out)
-    # metrics.json: the bundle's metrics plus the preset and the settings it resolved to
-    # (tests/test_presets.py holds the shipped asset's equal to preset_settings("ship"))
-    settings = settings_of(image=image, size=size, steps=steps, seed=seed, arch=arch, width=width, depth=depth,
-                           n_freqs=n_freqs, omega0=omega0, output_activation=output_activation, lr=lr,
-                           batch=batch, levels=levels, grid_bits=grid_bits, grid_lr=grid_lr)
-    atomic_write(out / "metrics.json", json.dumps({"command": provenance["command"], "preset": preset,
-                                                   "settings": settings, **metrics}, indent=1) + "\n")
-    if write_images:
-        from inshade.runtime.image_io import write_png
+    bundle.save(run.out)
+    # metrics.json as run.write_metrics writes it, with the settings the architecture uses
+    atomic_write(run.out / "metrics.json",
+                 json.dumps({**run.record(), "settings": recorded(s), **metrics}, indent=1) + "\n")
+    from inshade.runtime.image_io import write_png
 
-        write_png(out / "preview.png", prediction)
-        write_png(out / "reference.png", target)
-    return bundle
-
-
-def _command_line(**kw) -> str:
-    parts = ["inshade", "train", "neural_image"]
-    for k, v in kw.items():
-        if v is None:
-            continue
-        parts += [f"--{k.replace('_', '-')}", str(v)]
-    return shlex.join(parts)
+    write_png(run.out / "preview.png", prediction)
+    write_png(run.out / "reference.png", target)
+    print(f"wrote {bundle.path}: PSNR {metrics['psnr_linear']:.2f} dB linear, {metrics['psnr_srgb']:.2f} dB sRGB "
+          f"({metrics['params']} params, {metrics['weight_bytes']} weight bytes, {metrics['train_seconds']:.1f} s)")
+    return 0
 
 
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    d = DEFAULTS
-    # Options a preset sets default to None here and are resolved in run(): explicit > preset.
-    parser.add_argument("--preset", default=d["preset"], choices=sorted(PRESETS),
-                        help="ship: exactly what built trained/neural_image; quick: the same network, "
-                             "fewer steps (default: %(default)s)")
-    add_device_argument(parser)
-    asset_folder.add_arguments(parser, "neural_image_<image>")
-    parser.add_argument("--image", default=d["image"], choices=IMAGES,
-                        help="skimage.data photograph (default: %(default)s)")
-    parser.add_argument("--size", type=int, default=d["size"], help="target resolution, square (default: %(default)s)")
-    parser.add_argument("--steps", type=int, help="optimizer steps (default: the preset's)")
-    parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
-    parser.add_argument("--arch", choices=ARCHES, help="network (default: the preset's, multires)")
-    parser.add_argument("--width", type=int, help="hidden width (default: the preset's)")
-    parser.add_argument("--depth", type=int, help="hidden layers (default: the preset's)")
-    parser.add_argument("--levels", help="multires lookup arrays, RES:CHANNELS,... (default: the preset's)")
-    parser.add_argument("--grid-bits", type=int, choices=(8, 16, 32),
-                        help="multires lookup-array storage bits (default: the preset's)")
-    parser.add_argument("--grid-lr", type=float, default=d["grid_lr"],
-                        help="multires lookup-array learning rate (default: %(default)s)")
-    parser.add_argument("--n-freqs", type=int, default=d["n_freqs"],
-                        help="frequency encoding octaves, frequency_relu only (default: %(default)s)")
-    parser.add_argument("--omega0", type=float, default=d["omega0"], help="SIREN omega0 (default: %(default)s)")
-    parser.add_argument("--output-activation", choices=OUTPUT_ACTIVATIONS,
-                        help="(default: the preset's)")
-    parser.add_argument("--lr", type=float, default=d["lr"],
-                        help="Adam learning rate of the dense layers (default: 3e-4 for siren, 2e-3 otherwise)")
-    parser.add_argument("--batch", type=int, help="pixels per step (default: the preset's)")
-    return parser
+def check(s: Settings) -> None:
+    if s.steps < 0 or s.size < 1:
+        raise NeuralImageError("--steps must be >= 0 and --size >= 1")
+    if s.arch == "multires":
+        parse_levels(s.levels)
 
 
-def resolve(args: argparse.Namespace) -> dict:
-    """train() keywords: each option given explicitly, else the preset's value, else DEFAULTS."""
-    preset = PRESETS[args.preset]
-    kw = {"preset": args.preset}
-    for k in ("out", "image", "size", "steps", "seed", "arch", "width", "depth", "n_freqs", "omega0",
-              "output_activation", "lr", "batch", "levels", "grid_bits", "grid_lr"):
-        v = getattr(args, k)
-        kw[k] = v if v is not None else preset.get(k, DEFAULTS[k])
-    return kw
-
-
-def run(args: argparse.Namespace) -> int:
-    device = resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work
-    kw = resolve(args)
-    kw["out"] = str(asset_folder.claim(args.out, f"neural_image_{kw['image']}", force=args.force))
-    if kw["steps"] < 0 or kw["size"] < 1:
-        raise SystemExit("--steps must be >= 0 and --size >= 1")
-    if kw["arch"] == "multires":
-        try:
-            parse_levels(kw["levels"])
-        except ValueError as e:
-            raise SystemExit(str(e)) from e
-    bundle = train(**kw, device=device)
-    m = bundle.meta["metrics"]
-    print(f"wrote {bundle.path}: PSNR {m['psnr_linear']:.2f} dB linear, {m['psnr_srgb']:.2f} dB sRGB "
-          f"({m['params']} params, {m['weight_bytes']} weight bytes, {m['train_seconds']:.1f} s)")
-    return 0
-
-
-def main(argv=None) -> int:
-    return command.main("inshade train neural_image", __doc__, add_arguments, run, argv, errors=(DeviceError,))
-
+TRAINER = Trainer(ASSET, __doc__, Settings, PRESETS, train, folder=lambda s: f"neural_image_{s.image}",
+                  default_preset="ship", ship_assets={ASSET: {}}, check=check, errors=(NeuralImageError,))
+add_arguments, main = TRAINER.add_arguments, TRAINER.main
