@@ -25,34 +25,61 @@ scales 2..3, V 4, M 4, bins 2 x 4, seconds: tests).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import math
-import shlex
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from inshade import asset_folder, bake, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
+from inshade import bake
+from inshade.bake import BakeError
+from inshade.components import ComponentError
 from inshade.files import atomic_write
+from inshade.trainer import Run, Trainer, setting
 
+from .data import DataError
 from .memory import memory_report
 from .model import KIND, RAW, build_decoders, losses, split_outputs
+from .scene import DETAILS, SCENES, SceneError
+from .voxels import VoxelError
 
-PRESETS = {
-    "quick": dict(scene="slabs", detail="quick", scales=[2, 3], views=4, mask=4, bins=[2, 4], rays_per_texel=1,
-                  latent=28, width=32, steps=150, batch=512),
-    "ship": dict(scene="grove", detail="ship", scales=[3, 7], views=16, mask=8, bins=[4, 8], rays_per_texel=1,
-                 latent=60, width=32, steps=24000, batch=4096),
-}
-# ship: ~51.5k voxels (grove, scales 3..7). Measured on grove scales 3..5 (1928 voxels, 5000 steps of
-# 2048): latent 28 -> 60 lowered coverage L2 0.071 -> 0.066, width 64 to 0.057 at 4x the decoder
-# FLOPs in the shader (kept 32: llvmpipe renders); lr 1e-3 beat the paper's 3e-4 at this step count
-# (coverage 0.092 vs 0.119 after 1000 steps). One thread: ~42 ms per step of 4096: ~17 min of training.
-DEFAULTS = dict(preset="ship", seed=0, device="auto", lr=1e-3, latent_lr=1e-2, precision="f16")
+
+@dataclass(frozen=True)
+class Settings:
+    """What an appearance_prefilter run is built from (metrics.json records it)."""
+    scene: str = setting("grove", "procedural scene", choices=sorted(SCENES))
+    detail: str = setting("ship", "the scene's level of detail", choices=DETAILS)
+    scales: tuple[int, ...] = setting((3, 7), "voxel scales S_MIN S_MAX, 2^s cells per axis", metavar="S")
+    views: int = setting(16, "view directions baked per voxel")
+    mask: int = setting(8, "coverage mask side M")
+    bins: tuple[int, ...] = setting((4, 8), "phase bins BT BP in cos(theta) x phi", metavar="B")
+    rays_per_texel: int = setting(1, "rays per mask texel per view")
+    latent: int = setting(60, "learned latent floats per voxel (+ 4 raw; the sum a multiple of 4, at most 64)")
+    width: int = setting(32, "decoder width")
+    steps: int = setting(24000, "training steps")
+    batch: int = setting(4096, "(voxel, view, light) samples per step")
+    seed: int = setting(0, "random seed")
+    lr: float = setting(1e-3, "decoder learning rate (Adam; the paper uses 3e-4 over days of training, this "
+                        "CPU budget a larger one)")
+    latent_lr: float = setting(1e-2, "latent learning rate")
+    precision: str = setting("f16", "latent storage", choices=("f16", "f32"))
+
+
+# ship (the defaults): ~51.5k voxels (grove, scales 3..7). Measured on grove scales 3..5 (1928 voxels,
+# 5000 steps of 2048): latent 28 -> 60 lowered coverage L2 0.071 -> 0.066, width 64 to 0.057 at 4x the
+# decoder FLOPs in the shader (kept 32: llvmpipe renders); lr 1e-3 beat the paper's 3e-4 at this step
+# count (coverage 0.092 vs 0.119 after 1000 steps). One thread: ~42 ms per step of 4096: ~17 min of
+# training. quick: a tiny bake and fit, seconds (tests).
+PRESETS = {"quick": dict(scene="slabs", detail="quick", scales=(2, 3), views=4, mask=4, bins=(2, 4), latent=28,
+                         steps=150, batch=512),
+           "ship": {}}
+# The inputs of each shipped asset (--scene beside --preset ship).
+SHIP_ASSETS = {f"{KIND}_grove": dict(scene="grove")}
 BLOCKS = 3
 VIEW_FREQS = 4
 LIGHT_FREQS = 4
@@ -62,16 +89,6 @@ PROGRAM = "passes/appearance_prefilter.frag"
 
 class TrainError(ValueError):
     """Bad training input; the message names the option."""
-
-
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """What ``--preset PRESET`` resolves to (metrics.json's "settings"); ``asset``
-    (``appearance_prefilter_<scene>``) names the scene."""
-    s = dict(PRESETS[preset])
-    if asset:
-        s["scene"] = asset.removeprefix(f"{KIND}_")
-    return dict(s, seed=DEFAULTS["seed"], lr=DEFAULTS["lr"], latent_lr=DEFAULTS["latent_lr"],
-                precision=DEFAULTS["precision"])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -201,20 +218,18 @@ def fit(data: dict, settings: dict, *, device, progress=None, log_every: int = 2
     return graph.to("cpu"), history
 
 
-def train(settings: dict, *, preset: str, out=None, device="cpu", executor=None, cache_dir=None, progress=None,
-          command_line=None) -> Path:
-    """Bake, fit and write the asset folder; returns it."""
-    device = resolve_device(device) if isinstance(device, str) else torch.device(device)
-    out = Path(out) if out else asset_folder.default(f"{KIND}_{settings['scene']}")
-    data = bake_data(settings, executor=executor, cache_dir=cache_dir, progress=progress)
+def train(run: Run) -> int:
+    """Bake, fit and write the asset folder ``run.out``."""
+    executor = bake.executor_from_args(run.args)
+    settings, preset, device, out = dataclasses.asdict(run.settings), run.preset, run.device, run.out
+    cache = Path(run.args.cache) if run.args.cache else Path.home() / ".cache" / "inshade" / KIND
+    data = bake_data(settings, executor=executor, cache_dir=cache)
     started = time.perf_counter()
-    graph, history = fit(data, settings, device=device, progress=progress)
+    graph, history = fit(data, settings, device=device)
     train_seconds = time.perf_counter() - started
     quality = evaluate(graph, Samples(data, "cpu"), settings["mask"])
     bt, bp = settings["bins"]
-    command_line = command_line or shlex.join(["inshade", "train", KIND, "--scene", settings["scene"],
-                                               "--preset", preset])
-    provenance = {"command": command_line, "preset": preset, **settings, "voxels": int(len(data["cells"])),
+    provenance = {"command": run.command, "preset": preset, **settings, "voxels": int(len(data["cells"])),
                   "faces": int(data["faces"]), "torch": torch.__version__, "device": str(device),
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     bundle = graph.export(KIND, settings["scene"], provenance=provenance, metrics=quality,
@@ -226,16 +241,19 @@ def train(settings: dict, *, preset: str, out=None, device="cpu", executor=None,
     write_reference(out, settings, preset)
     atomic_write(out / "scene.json", json.dumps(scene_description(out.name, settings), indent=2) + "\n")
     counts = data["ray_counts"]
-    metrics = {"command": command_line, "preset": preset, "settings": settings, "device": str(device),
-               "train_threads": torch.get_num_threads(), "voxels": int(len(data["cells"])),
-               "voxels_per_scale": {str(s): int((data["cells"][:, 0] == s).sum())
-                                    for s in range(settings["scales"][0], settings["scales"][1] + 1)},
-               "faces": int(data["faces"]), "bake_seconds": round(float(data["bake_seconds"]), 2),
-               "bake_rays": {"primary": int(counts[0]), "shadow": int(counts[1])},
-               "train_seconds": round(train_seconds, 2), "losses": quality, "memory": memory_report(bundle),
-               "history": history}
-    atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
-    return out
+    m = {"device": str(device), "train_threads": torch.get_num_threads(), "voxels": int(len(data["cells"])),
+         "voxels_per_scale": {str(s): int((data["cells"][:, 0] == s).sum())
+                              for s in range(settings["scales"][0], settings["scales"][1] + 1)},
+         "faces": int(data["faces"]), "bake_seconds": round(float(data["bake_seconds"]), 2),
+         "bake_rays": {"primary": int(counts[0]), "shadow": int(counts[1])},
+         "train_seconds": round(train_seconds, 2), "losses": quality, "memory": memory_report(bundle),
+         "history": history}
+    run.write_metrics(m)
+    q, mem = m["losses"], m["memory"]
+    print(f"wrote {out}: {m['voxels']} voxels; loss {q['total']:.4f} (coverage {q['coverage']:.4f}, albedo "
+          f"{q['albedo']:.4f}, phase {q['phase']:.4f}, slice {q['slice']:.4f}); {mem['bytes_per_voxel']:.0f} B/voxel; "
+          f"bake {m['bake_seconds']:.0f} s, training {m['train_seconds']:.0f} s")
+    return 0
 
 
 # seen from afar, aimed at the objects (they span about half the picture: the regime prefiltering is
@@ -289,90 +307,30 @@ def scene_description(name: str, settings: dict) -> dict:
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    from .scene import SCENES
-
-    parser.add_argument("--scene", choices=sorted(SCENES), help="procedural scene (default: the preset's: "
-                        "ship grove, quick slabs)")
-    parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
-                        help="ship: what built trained/appearance_prefilter_grove; quick: a tiny bake and fit, "
-                        "seconds (default: %(default)s)")
-    add_device_argument(parser, DEFAULTS["device"])
-    asset_folder.add_arguments(parser, f"{KIND}_<scene>")
-    parser.add_argument("--scales", type=int, nargs=2, metavar=("S_MIN", "S_MAX"),
-                        help="voxel scales, 2^s cells per axis (default: the preset's)")
-    parser.add_argument("--views", type=int, help="view directions baked per voxel (default: the preset's)")
-    parser.add_argument("--mask", type=int, help="coverage mask side M (default: the preset's)")
-    parser.add_argument("--bins", type=int, nargs=2, metavar=("BT", "BP"),
-                        help="phase bins in cos(theta) x phi (default: the preset's)")
-    parser.add_argument("--rays-per-texel", type=int, help="rays per mask texel per view (default: the preset's)")
-    parser.add_argument("--latent", type=int, help="learned latent floats per voxel (+ 4 raw; the sum a multiple "
-                        "of 4, at most 64; default: the preset's)")
-    parser.add_argument("--width", type=int, help="decoder width (default: the preset's)")
-    parser.add_argument("--steps", type=int, help="training steps (default: the preset's)")
-    parser.add_argument("--batch", type=int, help="(voxel, view, light) samples per step (default: the preset's)")
-    parser.add_argument("--lr", type=float, default=DEFAULTS["lr"], help="decoder learning rate (Adam; the paper "
-                        "uses 3e-4 over days of training, this CPU budget a larger one; default: %(default)s)")
-    parser.add_argument("--latent-lr", type=float, default=DEFAULTS["latent_lr"],
-                        help="latent learning rate (default: %(default)s)")
-    parser.add_argument("--precision", default=DEFAULTS["precision"], choices=("f16", "f32"),
-                        help="latent storage (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="random seed (default: %(default)s)")
+def extra_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache", help="bake shard cache folder (default: ~/.cache/inshade/appearance_prefilter)")
     bake.add_arguments(parser)
-    return parser
 
 
-def resolve_settings(args: argparse.Namespace) -> dict:
-    """The preset's settings with the explicit options over them, checked (TrainError naming the option)."""
-    s = preset_settings(args.preset)
-    for name in ("scene", "scales", "views", "mask", "bins", "rays_per_texel", "latent", "width", "steps", "batch"):
-        v = getattr(args, name)
-        if v is not None:
-            s[name] = list(v) if isinstance(v, (list, tuple)) else v
-    s.update(seed=args.seed, lr=args.lr, latent_lr=args.latent_lr, precision=args.precision)
+def check(s: Settings) -> None:
+    """A bad setting: TrainError naming the option."""
     for name in ("views", "mask", "rays_per_texel", "width", "batch"):
-        if s[name] < 1:
-            raise TrainError(f"--{name.replace('_', '-')}: must be >= 1, got {s[name]}")
-    if s["steps"] < 0:
-        raise TrainError(f"--steps: must be >= 0, got {s['steps']}")
-    if min(s["bins"]) < 1:
-        raise TrainError(f"--bins: BT and BP must be >= 1, got {s['bins']}")
-    lo, hi = s["scales"]
-    if not 0 <= lo <= hi <= 9:
-        raise TrainError(f"--scales: need 0 <= S_MIN <= S_MAX <= 9, got {lo} {hi}")
-    if s["latent"] < 0 or (s["latent"] + RAW) % 4 or s["latent"] + RAW > 64:
-        raise TrainError(f"--latent: {s['latent']} + {RAW} raw lanes must be a multiple of 4, at most 64")
+        if getattr(s, name) < 1:
+            raise TrainError(f"--{name.replace('_', '-')}: must be >= 1, got {getattr(s, name)}")
+    if s.steps < 0:
+        raise TrainError(f"--steps: must be >= 0, got {s.steps}")
+    if len(s.bins) != 2 or min(s.bins) < 1:
+        raise TrainError(f"--bins: BT and BP must be >= 1, got {' '.join(map(str, s.bins))}")
+    if len(s.scales) != 2 or not 0 <= s.scales[0] <= s.scales[1] <= 9:
+        raise TrainError(f"--scales: need 0 <= S_MIN <= S_MAX <= 9, got {' '.join(map(str, s.scales))}")
+    if s.latent < 0 or (s.latent + RAW) % 4 or s.latent + RAW > 64:
+        raise TrainError(f"--latent: {s.latent} + {RAW} raw lanes must be a multiple of 4, at most 64")
     for name in ("lr", "latent_lr"):
-        if not (math.isfinite(s[name]) and s[name] > 0):
-            raise TrainError(f"--{name.replace('_', '-')}: must be > 0, got {s[name]}")
-    return s
+        if not (math.isfinite(getattr(s, name)) and getattr(s, name) > 0):
+            raise TrainError(f"--{name.replace('_', '-')}: must be > 0, got {getattr(s, name)}")
 
 
-def run(args: argparse.Namespace, argv=None) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
-    executor = bake.executor_from_args(args)
-    settings = resolve_settings(args)
-    args.out = str(asset_folder.claim(args.out, f"{KIND}_{settings['scene']}", force=args.force))
-    cache = Path(args.cache) if args.cache else Path.home() / ".cache" / "inshade" / KIND
-    command_line = shlex.join(["inshade", "train", KIND, *(argv or [])]) if argv else None
-    out = train(settings, preset=args.preset, out=args.out, device=device, executor=executor, cache_dir=cache,
-                command_line=command_line)
-    m = json.loads((out / "metrics.json").read_text())
-    q, mem = m["losses"], m["memory"]
-    print(f"wrote {out}: {m['voxels']} voxels; loss {q['total']:.4f} (coverage {q['coverage']:.4f}, albedo "
-          f"{q['albedo']:.4f}, phase {q['phase']:.4f}, slice {q['slice']:.4f}); {mem['bytes_per_voxel']:.0f} B/voxel; "
-          f"bake {m['bake_seconds']:.0f} s, training {m['train_seconds']:.0f} s")
-    return 0
-
-
-def main(argv=None) -> int:
-    from inshade.bake import BakeError
-    from inshade.components import ComponentError
-
-    from .data import DataError
-    from .scene import SceneError
-    from .voxels import VoxelError
-
-    return command.main(f"inshade train {KIND}", __doc__, add_arguments, run, argv,
-                        errors=(TrainError, ComponentError, DeviceError, BakeError, DataError, SceneError, VoxelError))
+TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: f"{KIND}_{s.scene}",
+                  default_preset="ship", ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
+                  errors=(TrainError, ComponentError, BakeError, DataError, SceneError, VoxelError))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
