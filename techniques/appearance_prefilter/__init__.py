@@ -13,14 +13,15 @@ march.py).
 from pathlib import Path
 
 from inshade.papers import APPEARANCE_PREFILTERING
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
 
 KIND = "appearance_prefilter"
 PREFIX = "dap"
 PROGRAM = "passes/appearance_prefilter.frag"
-# u_dap_view, in order (passes/appearance_prefilter.frag DAP_VIEW_*)
+# u_dap_view's values in index order (the pass's DAP_VIEW_* come from the program's choices)
 VIEWS = ("prefiltered", "scale", "coverage", "albedo")
-UNIFORM_DEFAULTS = {"u_dap_distance": 1.0, "u_dap_force_scale": -1, "u_dap_view": 0, "u_dap_shadows": 0}
+UNIFORM_DEFAULTS = {"u_dap_distance": 1.0, "u_dap_force_scale": -1, "u_dap_view": VIEWS.index("prefiltered"),
+                    "u_dap_shadows": 0}
 # scene.json "settings" of an asset: the viewer's distance slider (`--set distance=...`), the debug
 # views, a forced scale and the sun's shadow map
 SETTINGS = {
@@ -147,7 +148,7 @@ def _frame(inputs) -> dict:
 
 def _validate(scene):
     """One network at prefix "dap" whose render metadata says M and B and whose ports are the
-    march's; an SH environment; the view setting's choices in VIEWS order."""
+    march's; an SH environment."""
     from inshade.bundle import load
 
     nets = [n for n in scene.networks if n.prefix == PREFIX]
@@ -179,9 +180,6 @@ def _validate(scene):
             raise ValueError(f"environment.sky: unknown sky {env['sky']!r} (known: {', '.join(SKY_PRESETS)})")
         if env["degree"] not in range(1, MAX_DEGREE + 1):
             raise ValueError(f"environment.degree: must be an int in 1..{MAX_DEGREE}, got {env['degree']!r}")
-    for sname, s in scene.settings.items():
-        if s.binding == "uniform" and s.target == "u_dap_view" and tuple(s.choices) != VIEWS[:len(s.choices)]:
-            raise ValueError(f"settings.{sname}.choices: u_dap_view takes {list(VIEWS)} (in that order)")
 
 
 TECHNIQUE = Technique(
@@ -191,7 +189,8 @@ TECHNIQUE = Technique(
     paper=APPEARANCE_PREFILTERING,
     kinds=(KIND,),
     programs=(ProgramSpec(PROGRAM, geometry="fullscreen", bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS,
-                          chunks=_chunks, frame=_frame, validate=_validate, shadows=_shadows),),
+                          chunks=_chunks, frame=_frame, validate=_validate, shadows=_shadows,
+                          choices=(Choice("u_dap_view", "DAP_VIEW", VIEWS),)),),
     train="inshade.techniques.appearance_prefilter.train",
     train_help="voxelise a procedural scene at several scales, bake per-voxel coverage/albedo/phase, "
                "fit voxel latents + decoders",

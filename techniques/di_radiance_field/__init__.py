@@ -17,15 +17,15 @@ switches uncompressed | di | split | error.
 from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
 
 KIND = "di_radiance_field"
 PROGRAM = "passes/di_radiance_field.frag"
 PREFIX_GRID, PREFIX_DI = "rfg", "rfd"
 STOP = 1e-3
-# u_rf_view, in order (passes/di_radiance_field.frag RF_VIEW_*)
+# u_rf_view's values in index order (the pass's RF_VIEW_* come from the program's choices)
 VIEWS = ("uncompressed", "di", "split", "error")
-UNIFORM_DEFAULTS = {"u_rf_view": 1, "u_rf_split": 0.5, "u_rf_error_scale": 10.0}
+UNIFORM_DEFAULTS = {"u_rf_view": VIEWS.index("di"), "u_rf_split": 0.5, "u_rf_error_scale": 10.0}
 SETTINGS = {
     "view": {"type": "choice", "default": "di", "choices": list(VIEWS), "uniform": "u_rf_view", "label": "view"},
     "split": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0, "uniform": "u_rf_split",
@@ -80,8 +80,7 @@ def _chunks(scene, bundles, networks, codegen_options) -> dict:
 
 
 def _validate(scene):
-    """Networks rfg and rfd, each x[3] -> colour[12], density[1]; the DI bundle's march settings;
-    the view setting's choices in VIEWS order."""
+    """Networks rfg and rfd, each x[3] -> colour[12], density[1]; the DI bundle's march settings."""
     from inshade.bundle import load
 
     for prefix in (PREFIX_GRID, PREFIX_DI):
@@ -99,9 +98,6 @@ def _validate(scene):
                              f"{', '.join(f'{n}[{d}]' for n, d in outs)}")
         if prefix == PREFIX_DI:
             march_settings(bundle.meta.get("render") or {}, where)
-    for sname, s in scene.settings.items():
-        if s.binding == "uniform" and s.target == "u_rf_view" and tuple(s.choices) != VIEWS[:len(s.choices)]:
-            raise ValueError(f"settings.{sname}.choices: u_rf_view takes {list(VIEWS)} (in that order)")
 
 
 TECHNIQUE = Technique(
@@ -110,7 +106,7 @@ TECHNIQUE = Technique(
     paper=DIFFERENTIABLE_INDIRECTION,
     kinds=(KIND,),
     programs=(ProgramSpec(PROGRAM, geometry="fullscreen", bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS,
-                          chunks=_chunks, validate=_validate),),
+                          chunks=_chunks, validate=_validate, choices=(Choice("u_rf_view", "RF_VIEW", VIEWS),)),),
     train="inshade.techniques.di_radiance_field.train",
     train_help="bake a procedural radiance field (density + SH colour grids) and compress it with "
                "multi-head DI cascades",

@@ -12,17 +12,20 @@ anisotropic non-centred GGX). One asset folder holds one bundle per network (kin
 from pathlib import Path
 
 from inshade.papers import NEURAL_APPEARANCE
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
 
 KIND = "neural_appearance"
 # (bundle folder in the asset, GLSL prefix): the pass includes <network_PREFIX> for each.
 NETWORKS = (("latents", "latents"), ("decoder_2x16", "dec16"), ("decoder_2x32", "dec32"),
             ("decoder_3x64", "dec64"), ("sampler", "smp"), ("sampler_isotropic", "iso"))
 DECODERS = {"2x16": "decoder_2x16", "2x32": "decoder_2x32", "3x64": "decoder_3x64"}
-# the pass's views and lighting modes (lib/na_shading.glsl NA_VIEW_* / NA_LIGHTING_*), in order
+# the pass's views, lighting modes and BRDF samplings in index order: its NA_VIEW_*, NA_LIGHTING_* and
+# NA_SAMPLING_* come from the program's choices (CHOICES)
 VIEWS = ("neural", "reference", "split", "error", "level", "latents")
 LIGHTING = ("lights", "environment")
 SAMPLING = ("learned", "isotropic", "cosine")
+CHOICES = (Choice("u_na_view", "NA_VIEW", VIEWS), Choice("u_na_lighting", "NA_LIGHTING", LIGHTING),
+           Choice("u_na_sampling", "NA_SAMPLING", SAMPLING))
 UNIFORM_DEFAULTS = {"u_na_view": 0, "u_na_lighting": 0, "u_na_sampling": 0, "u_na_mis": 1, "u_na_level_bias": 0.0,
                     "u_na_error_scale": 4.0, "u_na_latent_page": 0, "u_light_count": 4}
 
@@ -38,10 +41,6 @@ def _validate(scene):
                          f"(one entry per network: {', '.join(f for f, _ in NETWORKS)})")
     if not material_path(scene).is_file():
         raise ValueError(f"material: {material_path(scene)}: missing (the reference material's description)")
-    for name, choices in (("u_na_view", VIEWS), ("u_na_lighting", LIGHTING), ("u_na_sampling", SAMPLING)):
-        for sname, s in scene.settings.items():
-            if s.binding == "uniform" and s.target == name and tuple(s.choices) != choices[:len(s.choices)]:
-                raise ValueError(f"settings.{sname}.choices: {name} takes {list(choices)} (in that order)")
 
 
 def _chunks(scene, bundles, networks, codegen_options):
@@ -73,7 +72,7 @@ TECHNIQUE = Technique(
     kinds=(KIND,),
     programs=(ProgramSpec("passes/mesh_neural_appearance.frag", geometry="mesh", mesh_attributes=("uv", "tangent"),
                           bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS, chunks=_chunks, frame=_frame, validate=_validate,
-                          accumulate=True),),
+                          accumulate=True, choices=CHOICES),),
     train="inshade.techniques.neural_appearance.train",
     train_help="bake a layered material into a latent pyramid + decoders + sampler",
     bench="inshade.techniques.neural_appearance.bench",

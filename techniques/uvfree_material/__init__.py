@@ -14,14 +14,18 @@ each visible pixel once, then shades the channels with lib/pbr_shading. An asset
 from pathlib import Path
 
 from inshade.papers import FEATURE_HIERARCHY
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
 
 KIND = "uvfree_material"
-# u_uvf_view / u_uvf_channel (passes/mesh_uvfree_material.frag.glsl UVF_VIEW_* / UVF_CHANNEL_*), in order
+# u_uvf_view / u_uvf_channel / u_uvf_wireframe in index order: the pass's UVF_VIEW_*, UVF_CHANNEL_* and
+# UVF_WIREFRAME_* come from the program's choices (CHOICES)
 VIEWS = ("decoded", "reference", "split", "error")
 CHANNEL_VIEWS = ("shaded", "albedo", "normal", "roughness", "metallic", "ao")
 WIREFRAME = ("off", "triangles", "level")
-UNIFORM_DEFAULTS = {"u_uvf_view": 2, "u_uvf_channel": 0, "u_uvf_wireframe": 0, "u_uvf_wire_level": 1,
+CHOICES = (Choice("u_uvf_view", "UVF_VIEW", VIEWS), Choice("u_uvf_channel", "UVF_CHANNEL", CHANNEL_VIEWS),
+           Choice("u_uvf_wireframe", "UVF_WIREFRAME", WIREFRAME))
+UNIFORM_DEFAULTS = {"u_uvf_view": VIEWS.index("split"), "u_uvf_channel": CHANNEL_VIEWS.index("shaded"),
+                    "u_uvf_wireframe": WIREFRAME.index("off"), "u_uvf_wire_level": 1,
                     "u_uvf_error_scale": 4.0, "u_light_count": 2}
 
 
@@ -33,10 +37,6 @@ def _validate(scene):
     nets = [n for n in scene.networks if n.prefix == "mat"]
     if len(nets) != 1:
         raise ValueError("networks: a uvfree_material scene needs one network with prefix \"mat\" (the material bundle)")
-    for name, choices in (("u_uvf_view", VIEWS), ("u_uvf_channel", CHANNEL_VIEWS), ("u_uvf_wireframe", WIREFRAME)):
-        for sname, s in scene.settings.items():
-            if s.binding == "uniform" and s.target == name and tuple(s.choices) != choices[:len(s.choices)]:
-                raise ValueError(f"settings.{sname}.choices: {name} takes {list(choices)} (in that order)")
     check_mesh_matches(scene, nets[0])
 
 
@@ -46,7 +46,8 @@ TECHNIQUE = Technique(
     paper=FEATURE_HIERARCHY,
     kinds=(KIND,),
     programs=(ProgramSpec("passes/mesh_uvfree_material.frag", geometry="mesh", mesh_attributes=("uv", "tangent"),
-                          bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS, validate=_validate, visibility=True),),
+                          bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS, validate=_validate, visibility=True,
+                          choices=CHOICES),),
     train="inshade.techniques.uvfree_material.train",
     train_help="fit a hashed per-triangle feature hierarchy + MLP to a uv-textured mesh",
     bench="inshade.techniques.uvfree_material.bench",

@@ -5,9 +5,10 @@
 // The technique record (techniques/appearance_prefilter/__init__.py) generates <dap_config>
 // (DAP_MASK, DAP_BINS, DAP_BINS_THETA, DAP_BINS_PHI from the bundle's render metadata) and asks for
 // the sun's shadow map (ProgramSpec.shadows; u_dap_shadows 0 or no map: no global shadows).
-// u_dap_view (VIEWS in the record): prefiltered | scale (the scale L each pixel marched at, as a ramp
-// x = (L - S_MIN) / (S_MAX - S_MIN) from blue (coarsest) through green to red (finest), on what the
-// pixel covers, over black) | coverage (mean Lambda as grey) | albedo (coverage-weighted albedo).
+// u_dap_view (VIEWS in the record; DAP_VIEW_* from <choices>): prefiltered | scale (the scale L
+// each pixel marched at, as a ramp x = (L - S_MIN) / (S_MAX - S_MIN) from blue (coarsest) through
+// green to red (finest), on what the pixel covers, over black) | coverage (mean Lambda as grey) |
+// albedo (coverage-weighted albedo).
 // Lighting: the scene's first directional light (E_sun = its intensity, white) and the SH
 // environment u_sh. Linear radiance; alpha = mean coverage.
 #include <lib/camera>
@@ -15,11 +16,7 @@
 #include <network_dap>
 #include <dap_config>
 #include <lib/dap_march>
-
-#define DAP_VIEW_PREFILTERED 0
-#define DAP_VIEW_SCALE 1
-#define DAP_VIEW_COVERAGE 2
-#define DAP_VIEW_ALBEDO 3
+#include <choices>
 
 uniform vec2 u_size;
 uniform mat4 u_proj;

@@ -1,18 +1,14 @@
 // A voxel radiance field, ray marched (lib/rf_march) through either the uncompressed grids
 // (network rfg: 3D textures, trilinear) or their DI compression (network rfd: primary -> cascaded
-// 3D lookups per head). u_rf_view (VIEWS in techniques/di_radiance_field/__init__.py):
-// uncompressed | di | split (uncompressed left of u_rf_split, DI right, the edge's pixel column white) |
+// 3D lookups per head). u_rf_view (VIEWS in techniques/di_radiance_field/__init__.py; RF_VIEW_* from
+// <choices>): uncompressed | di | split (uncompressed left of u_rf_split, DI right, the edge's pixel column white) |
 // error (|di - uncompressed| x u_rf_error_scale). Linear RGB over the constant background, alpha 1.
 #include <lib/camera>
 #include <network_rfg>
 #include <network_rfd>
 #include <rf_config>
 #include <lib/rf_march>
-
-#define RF_VIEW_UNCOMPRESSED 0
-#define RF_VIEW_DI 1
-#define RF_VIEW_SPLIT 2
-#define RF_VIEW_ERROR 3
+#include <choices>
 
 uniform vec2 u_size;
 uniform int u_rf_view;

@@ -6,17 +6,14 @@
 // BRDF sampling: NA_SAMPLING_LEARNED (the sampler decoder's proxy), _ISOTROPIC (the isotropic
 // baseline proxy) or _COSINE (BRDF-agnostic cosine-weighted). No shadowing: lights and
 // environment reach every point with n.l > 0 (as in the paper's material-only comparisons).
+// NA_LIGHTING_* and NA_SAMPLING_*: the program's choices (LIGHTING, SAMPLING in
+// techniques/neural_appearance/__init__.py), generated into <choices>.
 #include <lib/na_neural>
 #include <lib/na_reference>
 #include <lib/lights>
 #include <lib/environment>
 #include <lib/random>
-
-#define NA_LIGHTING_LIGHTS 0
-#define NA_LIGHTING_ENVIRONMENT 1
-#define NA_SAMPLING_LEARNED 0
-#define NA_SAMPLING_ISOTROPIC 1
-#define NA_SAMPLING_COSINE 2
+#include <choices>
 
 
 struct NaPoint {

@@ -3,21 +3,15 @@
 // tangent and the uv footprint per pixel; the latent pyramid, decoder and sampler run once per
 // visible pixel and sample. A stochastic program (ProgramSpec.accumulate): the level choice and the
 // environment estimator draw from lib/random with u_sample_index, and the runtime keeps the
-// running mean. Views (u_na_view, VIEWS in techniques/neural_appearance/__init__.py):
+// running mean. Views (u_na_view, VIEWS in techniques/neural_appearance/__init__.py; NA_VIEW_*: <choices>):
 // neural | reference | split (left reference, right neural) | error (|neural - reference| x
 // u_na_error_scale) | level (the chosen pyramid level, a ramp) | latents (3 of the 8 channels,
 // page u_na_latent_page: 0 -> z0..2, 1 -> z3..5, 2 -> z6..7).
 // Linear radiance; alpha 1 on the mesh, 0 in the background (which shows the environment).
 #include <lib/camera>
 #include <lib/gbuffer>
+#include <choices>
 #include <lib/na_shading>
-
-#define NA_VIEW_NEURAL 0
-#define NA_VIEW_REFERENCE 1
-#define NA_VIEW_SPLIT 2
-#define NA_VIEW_ERROR 3
-#define NA_VIEW_LEVEL 4
-#define NA_VIEW_LATENTS 5
 
 uniform vec2 u_size;
 uniform int u_sample_index;

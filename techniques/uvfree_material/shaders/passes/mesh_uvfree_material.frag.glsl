@@ -10,6 +10,7 @@
 // puts the stored value on screen. u_uvf_wireframe: off | triangles (face boundaries) | level
 // (boundaries of the sub-triangles of level u_uvf_wire_level), found from the neighbours' ids
 // (only between cells three or more pixels across: finer than that, the overlay fades out).
+// UVF_VIEW_*, UVF_CHANNEL_*, UVF_WIREFRAME_*: the program's choices, generated into <choices>.
 // UVF_DECODER 0 (the scene setting "decoder": off) compiles the decoder out: the reference-only
 // shader, for timing the decode (a software rasteriser may run both sides of a uniform branch).
 // Linear radiance; alpha 1 on the mesh, 0 in the background (the environment).
@@ -17,12 +18,8 @@
 #include <lib/gbuffer>
 #include <lib/uvf_material>
 #include <lib/mesh_features>
+#include <choices>
 
-#define UVF_VIEW_DECODED 0
-#define UVF_VIEW_REFERENCE 1
-#define UVF_VIEW_SPLIT 2
-#define UVF_VIEW_ERROR 3
-#define UVF_CHANNEL_SHADED 0
 #ifndef UVF_DECODER
 #define UVF_DECODER 1
 #endif
@@ -41,7 +38,8 @@ layout(location = 0) out vec4 frag_color;
 
 vec3 uvf_show(UvfChannels c, vec3 p, vec3 n, vec4 tangent, vec3 rd) {
     if (u_uvf_channel == UVF_CHANNEL_SHADED) return pbr_shade(uvf_unpack(c), p, n, tangent, rd, u_sh, u_light_count);
-    vec3 stored = u_uvf_channel == 1 ? c.albedo : (u_uvf_channel == 2 ? c.normal : vec3(c.rma[u_uvf_channel - 3]));
+    vec3 stored = u_uvf_channel == UVF_CHANNEL_ALBEDO ? c.albedo
+                : (u_uvf_channel == UVF_CHANNEL_NORMAL ? c.normal : vec3(c.rma[u_uvf_channel - UVF_CHANNEL_ROUGHNESS]));
     return srgb_eotf(clamp(stored, 0.0, 1.0));
 }
 
@@ -55,15 +53,15 @@ uvec4 uvf_cell(ivec2 px, int level) {
 }
 
 bool uvf_same(uvec4 a, uvec4 b) {
-    return u_uvf_wireframe == 1 ? a.x == b.x : a == b;
+    return u_uvf_wireframe == UVF_WIREFRAME_TRIANGLES ? a.x == b.x : a == b;
 }
 
 // A boundary between this pixel's cell and the next pixel's (+x or +y), drawn only where this
 // pixel's cell also holds the two previous pixels: cells narrower than three pixels draw no lines,
 // so a level finer than the screen resolves fades out instead of covering the surface.
 bool uvf_edge(ivec2 px) {
-    if (u_uvf_wireframe == 0) return false;
-    int level = u_uvf_wireframe == 1 ? 0 : u_uvf_wire_level;
+    if (u_uvf_wireframe == UVF_WIREFRAME_OFF) return false;
+    int level = u_uvf_wireframe == UVF_WIREFRAME_TRIANGLES ? 0 : u_uvf_wire_level;
     uvec4 here = uvf_cell(px, level);
     ivec2 size = ivec2(u_size);
     for (int d = 0; d < 2; ++d) {
