@@ -15,11 +15,11 @@ import torch
 
 from inshade.models import brdf
 from inshade.models.pbr_lanes import CHANNELS, dot3, unpack
+from inshade.techniques.di_pbr_set import VIEWS
 
 # (world position, intensity): lib/pbr_set.glsl PBR_SET_LIGHTS
 LIGHTS = ((2.5, 3.0, 2.5, 16.0), (-3.0, 1.5, 1.5, 8.0), (0.5, -2.5, 3.0, 5.0), (-1.5, 3.5, -2.5, 6.0))
 DEFAULT_LIGHTS = 2                           # point lights a scene starts with
-VIEWS = ("uncompressed", "di", "split")      # u_pbr_view index
 
 
 def _normalise(x, floor=None):

@@ -34,7 +34,8 @@ from inshade.files import atomic_files, atomic_write
 from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import LANES, Bricks, PbrSetError, bricks, split_rgba8
 from inshade.models.texture_cascade import FINISH_OPTIMIZERS, compress, torch_decode
-from inshade.techniques.di_pbr_set.render import DEFAULT_LIGHTS, LIGHTS, VIEWS, render_views
+from inshade.techniques.di_pbr_set import VIEWS
+from inshade.techniques.di_pbr_set.render import DEFAULT_LIGHTS, LIGHTS, render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, lane_metrics, markdown, render_psnr
 from inshade.trainer import Run, Trainer, setting
 

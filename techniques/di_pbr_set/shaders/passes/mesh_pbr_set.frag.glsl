@@ -2,21 +2,20 @@
 // uv -> 8 lanes) on a rasterised, uv-mapped mesh, lit by point lights and the SH environment
 // (lib/pbr_set). Deferred like passes/mesh_prt: the G-buffer (runtime/geometry.py) gives position,
 // normal, uv and tangent per pixel, so the network runs once per visible pixel.
-// u_pbr_view: 0 the uncompressed set (u_pbr_set0/1: RGBA8 textures of the same lanes, bilinear,
-// repeat), 1 the DI-compressed set, 2 side by side (left half uncompressed, right half DI).
+// u_pbr_view (VIEWS in techniques/di_pbr_set/__init__.py; PBR_VIEW_* from <choices>): uncompressed
+// (u_pbr_set0/1: RGBA8 textures of the same lanes, bilinear, repeat) | di (the DI-compressed set) |
+// split (side by side: left half uncompressed, right half DI).
 // The texture repeats: the network is evaluated at fract(uv), the textures wrap in hardware.
 // Torch twin: techniques/di_pbr_set/render.py render_gbuffer (fed the same G-buffer).
 #include <network>
 #include <lib/camera>
 #include <lib/gbuffer>
 #include <lib/pbr_set>
+#include <choices>
 
 #if NET_IN_DIM != 2 || NET_OUT_DIM < 8
 #error "passes/mesh_pbr_set.frag needs a uv -> 8-lane network (techniques/di_pbr_set/train.py)"
 #endif
-#define PBR_VIEW_UNCOMPRESSED 0
-#define PBR_VIEW_DI 1
-#define PBR_VIEW_SPLIT 2
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
