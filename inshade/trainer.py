@@ -120,6 +120,9 @@ class Trainer:
     check: Callable[[object], None] | None = None    # raises the technique's error for a bad setting
     errors: tuple = ()                               # exceptions that become `inshade: error:` lines
     preset_by: str | None = None                     # presets differ per this setting's value
+    resume: tuple[str, ...] = ()                     # the run's own checkpoint files: a folder holding
+                                                     # only them is an unfinished run, not an asset
+    folder_hint: str | None = None                   # the default folder's name in --help (e.g. NAME_<image>)
 
     def __post_init__(self):
         names = {f.name for f in dataclasses.fields(self.settings)}
@@ -208,7 +211,7 @@ class Trainer:
                 parser.add_argument(_spelling(f), dest=f.name, **kw)
         parser.add_argument("--preset", choices=list(self.presets), default=self.default_preset,
                             help=f"{self.preset_help()} (default %(default)s)")
-        asset_folder.add_arguments(parser, f"{self.name}_<name>")
+        asset_folder.add_arguments(parser, self.folder_hint or f"{self.name}_<name>")
         add_device_argument(parser)
         if self.extra_arguments is not None:
             self.extra_arguments(parser)
@@ -232,7 +235,7 @@ class Trainer:
         settings = self.resolve(args)
         takes_args = len(inspect.signature(self.folder).parameters) > 1     # a name from an input option
         name = self.folder(settings, args) if takes_args else self.folder(settings)
-        out = asset_folder.claim(args.out, name, force=args.force)
+        out = asset_folder.claim(args.out, name, force=args.force, resume=self.resume)
         run = Run(settings, args.preset, device, out, shlex.join(["inshade", "train", self.name, *argv]), args)
         return int(self.train(run) or 0)
 

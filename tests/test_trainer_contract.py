@@ -137,3 +137,12 @@ def test_per_value_help_and_a_folder_named_from_an_input_option(tmp_path, monkey
     monkeypatch.chdir(tmp_path)
     assert t.main(["ring", "--tag", "b", "--device", "cpu"]) == 0
     assert runs[0].out == Path("inshade-out/shape_ring_b")
+
+
+def test_a_folder_holding_only_the_runs_checkpoint_is_resumed_not_refused(tmp_path):
+    runs: list[Run] = []
+    t = _trainer(runs, resume=("checkpoint.safetensors",))
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "checkpoint.safetensors").write_bytes(b"")
+    assert t.main(["x", "-o", str(tmp_path / "out"), "--device", "cpu"]) == 0 and len(runs) == 1
+    assert t.main(["x", "-o", str(tmp_path / "out"), "--device", "cpu"]) == 2      # now it holds an asset

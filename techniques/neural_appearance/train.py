@@ -30,20 +30,23 @@ description and its parameter textures (for the reference shader), ``scene.json`
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import math
 import shlex
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from inshade import asset_folder, command
-from inshade.devices import DeviceError, add_device_argument, resolve_device
+from inshade import asset_folder
+from inshade.devices import resolve_device
 from inshade.files import atomic_write
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
+from inshade.trainer import Run, Trainer, setting
 
 from . import KIND, NETWORKS
 from inshade.models.latent_pyramid import LatentPyramid
@@ -51,28 +54,36 @@ from inshade.models.latent_pyramid import LatentPyramid
 from .data import Targets, direction_pairs, draw_levels, scene_description
 from .model import LATENT, NeuralMaterial, decoder_loss, export_graphs, sampler_loss
 
-PRESETS = {
-    "ship": dict(resolution=512, steps1=5000, steps2=10000, batch=4096, sampler_batch=512, sampler_samples=8,
-                 footprint_samples=8),
-    "quick": dict(resolution=32, steps1=30, steps2=30, batch=512, sampler_batch=64, sampler_samples=4,
-                  footprint_samples=4),
-}
-DEFAULTS = dict(material="ceramic", preset="ship", seed=0, device="auto", lr=2e-3, latent_lr=1e-3,
-                level_scale=1.5, mollify_degrees=12.0, checkpoint_every=250, out=None)
 MATERIALS = ("ceramic", "brushed_metal")
 CHECKPOINT = "checkpoint.safetensors"
 
 
-def preset_settings(preset: str, asset: str | None = None) -> dict:
-    """The settings ``--preset PRESET`` resolves to (what metrics.json records as "settings"), for the
-    material of the asset folder ``asset`` (``neural_appearance_<material>``; default ceramic)."""
-    material = asset.removeprefix("neural_appearance_") if asset else DEFAULTS["material"]
-    p = PRESETS[preset]
-    return dict(material=material, resolution=p["resolution"], steps1=p["steps1"], steps2=p["steps2"],
-                batch=p["batch"], sampler_batch=p["sampler_batch"], sampler_samples=p["sampler_samples"],
-                footprint_samples=p["footprint_samples"], seed=DEFAULTS["seed"], lr=DEFAULTS["lr"],
-                latent_lr=DEFAULTS["latent_lr"], level_scale=DEFAULTS["level_scale"],
-                mollify_degrees=DEFAULTS["mollify_degrees"])
+@dataclass(frozen=True)
+class Settings:
+    """What a neural_appearance run is built from (metrics.json records it, a description file's
+    material by its name)."""
+    material: str = setting("ceramic", f"{' | '.join(MATERIALS)} or a material description .json")
+    resolution: int = setting(512, "finest latent/texture side, a power of two")
+    steps1: int = setting(5000, "phase 1 (encoder) steps")
+    steps2: int = setting(10000, "phase 2 (latent fine-tuning) steps")
+    batch: int = setting(4096, "BRDF samples per step")
+    sampler_batch: int = setting(512, "samples per step of the samplers' KL loss")
+    sampler_samples: int = setting(8, "directions per sample of the samplers' KL estimate")
+    footprint_samples: int = setting(8, "uv points averaged per prefiltered target above level 0")
+    seed: int = setting(0, "random seed")
+    lr: float = setting(2e-3, "encoder and network learning rate (Adam)")
+    latent_lr: float = setting(1e-3, "phase 2 latent learning rate (Adam)")
+    level_scale: float = setting(1.5, "scale of the exponential level distribution (favouring fine levels)")
+    mollify_degrees: float = setting(12.0, "light cone of the phase 1 targets, shrinking to 0")
+
+
+# "ship" (the defaults) built trained/neural_appearance_*; "quick" is the same pipeline at 32x32
+# for a few seconds (tests).
+PRESETS = {"quick": dict(resolution=32, steps1=30, steps2=30, batch=512, sampler_batch=64, sampler_samples=4,
+                         footprint_samples=4),
+           "ship": {}}
+# The inputs of each shipped asset (--material beside --preset ship).
+SHIP_ASSETS = {f"neural_appearance_{m}": dict(material=m) for m in MATERIALS}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -133,34 +144,41 @@ def encode_pyramid(model: NeuralMaterial, encoder_levels: list[torch.Tensor]) ->
 
 
 def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps1=None, steps2=None,
-          batch=None, sampler_batch=None, sampler_samples=None, footprint_samples=None, seed=0, device="cpu",
-          lr=DEFAULTS["lr"], latent_lr=DEFAULTS["latent_lr"], level_scale=DEFAULTS["level_scale"],
-          mollify_degrees=DEFAULTS["mollify_degrees"], checkpoint_every=DEFAULTS["checkpoint_every"],
+          batch=None, sampler_batch=None, sampler_samples=None, footprint_samples=None, seed=None, device="cpu",
+          lr=None, latent_lr=None, level_scale=None, mollify_degrees=None, checkpoint_every=250,
           restart=False, progress=None, command_line=None, write_preview=True) -> Path:
-    """Train and write the asset folder; returns it. `device`: a torch.device or a --device spelling
-    (auto, cpu, cuda, cuda:N)."""
+    """Train and write the asset folder; returns it. The keyword form of ``inshade train
+    neural_appearance``: a setting left None is the preset's. `device`: a torch.device or a
+    --device spelling (auto, cpu, cuda, cuda:N)."""
+    from .material import load_material
+
+    given = dict(material=material, resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
+                 sampler_batch=sampler_batch, sampler_samples=sampler_samples, footprint_samples=footprint_samples,
+                 seed=seed, lr=lr, latent_lr=latent_lr, level_scale=level_scale, mollify_degrees=mollify_degrees)
+    settings = Settings(**{**TRAINER.defaults(preset), **{k: v for k, v in given.items() if v is not None}})
+    check(settings)
+    name = load_material(material).name
+    out = Path(out) if out else asset_folder.default(f"neural_appearance_{name}")
+    device = resolve_device(device) if isinstance(device, str) else torch.device(device)
+    command_line = command_line or _command_line(material, preset, out, dataclasses.replace(settings, material=name))
+    options = argparse.Namespace(checkpoint_every=checkpoint_every, restart=restart, no_preview=not write_preview)
+    fit_material(Run(settings, preset, device, out, command_line, options), progress)
+    return out
+
+
+def fit_material(run: Run, progress=None) -> dict:
+    """Train on ``run.settings`` and write the asset folder ``run.out`` (metrics.json through the
+    run, then preview.png unless --no-preview); returns the metrics beside the run's record."""
     from inshade.progress import progress as progress_bar
 
     from .material import ENCODER_INPUTS, bake_parameters, load_material, parameter_pyramid
 
-    p = PRESETS[preset]
-    resolution = resolution or p["resolution"]
-    steps1 = p["steps1"] if steps1 is None else steps1
-    steps2 = p["steps2"] if steps2 is None else steps2
-    batch, sampler_batch = batch or p["batch"], sampler_batch or p["sampler_batch"]
-    sampler_samples = sampler_samples or p["sampler_samples"]
-    footprint_samples = footprint_samples or p["footprint_samples"]
-    if resolution < 4 or resolution & (resolution - 1):
-        raise ValueError(f"--resolution: must be a power of two >= 4, got {resolution}")
-    mat = load_material(material)
-    out = Path(out) if out else asset_folder.default(f"neural_appearance_{mat.name}")
-    device = resolve_device(device) if isinstance(device, str) else torch.device(device)
+    mat = load_material(run.settings.material)
+    run = dataclasses.replace(run, settings=dataclasses.replace(run.settings, material=mat.name))
+    s, out, device, checkpoint_every = run.settings, run.out, run.device, run.args.checkpoint_every
+    resolution, steps1, steps2, seed, lr, latent_lr = s.resolution, s.steps1, s.steps2, s.seed, s.lr, s.latent_lr
     levels = int(math.log2(resolution)) + 1
-    config = dict(material=mat.name, resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
-                  sampler_batch=sampler_batch, sampler_samples=sampler_samples,
-                  footprint_samples=footprint_samples, seed=seed, lr=lr, latent_lr=latent_lr,
-                  level_scale=level_scale, mollify_degrees=mollify_degrees)
-    command_line = command_line or _command_line(material, preset, out, config)
+    config = dataclasses.asdict(s)
 
     torch.manual_seed(seed)
     raw = bake_parameters(mat, resolution)
@@ -172,7 +190,7 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
 
     ckpt = out / CHECKPOINT
     start_phase, start_step, saved = 1, 0, None
-    if ckpt.is_file() and not restart:
+    if ckpt.is_file() and not run.args.restart:
         start_phase, start_step, tensors, groups = _load_checkpoint(ckpt, config)
         saved = (tensors, groups)
         print(f"resuming {ckpt}: phase {start_phase}, step {start_step}")
@@ -203,18 +221,19 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
             for g, lr0 in zip(opt.param_groups, base):
                 g["lr"] = lr0 * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * t)))
             gen = torch.Generator().manual_seed(seed * 1_000_003 + phase * 100_000 + step)
-            uv = torch.rand(batch, 2, generator=gen).to(device)
-            level = draw_levels(batch, levels, level_scale, gen).to(device)
-            light, view = (d.to(device) for d in direction_pairs(batch, gen))
-            cone = math.radians(mollify_degrees) * max(0.0, 1.0 - 2.0 * (step / max(steps, 1))) if phase == 1 else 0.0
+            uv = torch.rand(s.batch, 2, generator=gen).to(device)
+            level = draw_levels(s.batch, levels, s.level_scale, gen).to(device)
+            light, view = (d.to(device) for d in direction_pairs(s.batch, gen))
+            cone = math.radians(s.mollify_degrees) * max(0.0, 1.0 - 2.0 * (step / max(steps, 1))) if phase == 1 else 0.0
             with torch.no_grad():
-                target = targets(uv, level, light, view, footprint_samples, cone, gen)
+                target = targets(uv, level, light, view, s.footprint_samples, cone, gen)
             if phase == 1:
                 z = model.encoder(encoder_inputs(torch.cat([uv, level[:, None].float()], -1)))
             else:
                 z = model.pyramid(torch.cat([uv, level[:, None].float()], -1))
             loss, parts = decoder_loss(model, z, light, view, target)
-            s_loss, s_parts = sampler_loss(model, z[:sampler_batch], view[:sampler_batch], sampler_samples, gen)
+            s_loss, s_parts = sampler_loss(model, z[:s.sampler_batch], view[:s.sampler_batch], s.sampler_samples,
+                                           gen)
             opt.zero_grad(set_to_none=True)
             (loss + 0.1 * s_loss).backward()
             opt.step()
@@ -228,11 +247,14 @@ def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps
     if model.pyramid is None:     # steps2 == 0: latents straight from the encoder
         model.make_pyramid(encode_pyramid(model, enc_levels))
     history["holdout"] = holdout(model, targets, levels, device, seed)
-    write_asset(out, model, mat, raw, config, history, seconds, command_line, preset, device)
+    sizes = write_asset(out, model, mat, raw, config, run.command, run.preset, device)
+    metrics = {"train_seconds": round(seconds, 1), "train_threads": torch.get_num_threads(), "device": str(device),
+               "bundle_bytes": sizes, "history": history}
+    run.write_metrics(metrics)
     ckpt.unlink(missing_ok=True)
-    if write_preview:
+    if not run.args.no_preview:
         render_preview(out)
-    return out
+    return metrics
 
 
 def holdout(model: NeuralMaterial, targets: Targets, levels: int, device, seed: int, n: int = 8192) -> dict:
@@ -254,8 +276,8 @@ def holdout(model: NeuralMaterial, targets: Targets, levels: int, device, seed: 
 # ---------------------------------------------------------------------------------------------
 # the asset
 
-def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, history, seconds, command_line, preset,
-                device) -> None:
+def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, command_line, preset, device) -> dict:
+    """The bundles, the material and its textures, scene.json; returns each bundle's bytes."""
     from .material import write_textures
 
     out.mkdir(parents=True, exist_ok=True)
@@ -273,12 +295,7 @@ def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, history, sec
     write_textures(mat, raw.shape[0], out)
     atomic_write(out / "material.json", Path(mat.path).read_bytes())
     atomic_write(out / "scene.json", json.dumps(scene_description(mat, out.name), indent=2) + "\n")
-    # "settings": what the run resolved (preset + explicit options); tests/test_presets.py holds the
-    # shipped ones equal to preset_settings("ship", asset)
-    metrics = {"command": command_line, "preset": preset, "settings": config,
-               "train_seconds": round(seconds, 1), "train_threads": torch.get_num_threads(), "device": str(device),
-               "bundle_bytes": sizes, "history": history}
-    atomic_write(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+    return sizes
 
 
 def render_preview(out: Path, spp: int = 4) -> None:
@@ -290,56 +307,46 @@ def render_preview(out: Path, spp: int = 4) -> None:
     Path(f"{out / 'preview.png'}.json").unlink()   # a shipped picture: its sidecar would hold this machine's paths
 
 
-def _command_line(material, preset, out, config) -> str:
+def _command_line(material, preset, out, settings: Settings) -> str:
+    """The keyword form's command: the options that differ from the preset's."""
     parts = ["inshade", "train", "neural_appearance", "--material", str(material), "--preset", preset]
     if Path(out) != asset_folder.default(f"neural_appearance_{Path(str(material)).stem}"):
         parts += ["--out", str(out)]
+    preset_values = TRAINER.defaults(preset)
     for key in ("resolution", "steps1", "steps2", "seed"):
-        if config[key] != PRESETS[preset].get(key, DEFAULTS.get(key)):
-            parts += [f"--{key.replace('_', '-')}", str(config[key])]
+        if getattr(settings, key) != preset_values[key]:
+            parts += [f"--{key.replace('_', '-')}", str(getattr(settings, key))]
     return shlex.join(parts)
 
 
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("--material", default=DEFAULTS["material"],
-                        help=f"{' | '.join(MATERIALS)} or a material description .json (default: %(default)s)")
-    parser.add_argument("--preset", default=DEFAULTS["preset"], choices=sorted(PRESETS),
-                        help="ship: what built trained/neural_appearance_*; quick: 32x32, seconds (default: %(default)s)")
-    add_device_argument(parser, DEFAULTS["device"])
-    asset_folder.add_arguments(parser, "neural_appearance_<material>")
-    parser.add_argument("--resolution", type=int, help="finest latent/texture side, a power of two (default: the preset's)")
-    parser.add_argument("--steps1", type=int, help="phase 1 (encoder) steps (default: the preset's)")
-    parser.add_argument("--steps2", type=int, help="phase 2 (latent fine-tuning) steps (default: the preset's)")
-    parser.add_argument("--batch", type=int, help="BRDF samples per step (default: the preset's)")
-    parser.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="random seed (default: %(default)s)")
-    parser.add_argument("--checkpoint-every", type=int, default=DEFAULTS["checkpoint_every"],
+def extra_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--checkpoint-every", type=int, default=250,
                         help="steps between checkpoints, 0 for none (default: %(default)s)")
     parser.add_argument("--restart", action="store_true", help="ignore a checkpoint in the output folder")
     parser.add_argument("--no-preview", action="store_true", help="skip rendering preview.png")
-    return parser
 
 
-def run(args: argparse.Namespace) -> int:
-    device = resolve_device(args.device)     # first: a missing CUDA device fails before any work
+def check(s: Settings) -> None:
     for name in ("steps1", "steps2", "batch"):
-        v = getattr(args, name)
-        if v is not None and v < 0:
-            raise SystemExit(f"--{name}: must be >= 0, got {v}")
-    args.out = str(asset_folder.claim(args.out, f"neural_appearance_{Path(str(args.material)).stem}",
-                                      force=args.force, resume=(CHECKPOINT,)))
-    out = train(material=args.material, preset=args.preset, out=args.out, resolution=args.resolution,
-                steps1=args.steps1, steps2=args.steps2, batch=args.batch, seed=args.seed, device=device,
-                checkpoint_every=args.checkpoint_every, restart=args.restart, write_preview=not args.no_preview)
-    metrics = json.loads((out / "metrics.json").read_text())
-    last = metrics["history"]["phase2"][-1] if metrics["history"]["phase2"] else metrics["history"]["phase1"][-1]
-    print(f"wrote {out}: L1(log) 3x64 {last['l1_3x64']:.4f}, 2x32 {last['l1_2x32']:.4f}, "
-          f"2x16 {last['l1_2x16']:.4f} in {metrics['train_seconds']:.0f} s")
+        if getattr(s, name) < 0:
+            raise ValueError(f"--{name}: must be >= 0, got {getattr(s, name)}")
+    if s.resolution < 4 or s.resolution & (s.resolution - 1):
+        raise ValueError(f"--resolution: must be a power of two >= 4, got {s.resolution}")
+
+
+def build(run: Run) -> int:
+    m = fit_material(run)
+    last = m["history"]["phase2"][-1] if m["history"]["phase2"] else m["history"]["phase1"][-1]
+    print(f"wrote {run.out}: L1(log) 3x64 {last['l1_3x64']:.4f}, 2x32 {last['l1_2x32']:.4f}, "
+          f"2x16 {last['l1_2x16']:.4f} in {m['train_seconds']:.0f} s")
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("inshade train neural_appearance", __doc__, add_arguments, run, argv,
-                        errors=(ValueError, DeviceError))
+TRAINER = Trainer("neural_appearance", __doc__, Settings, PRESETS, build,
+                  folder=lambda s: f"neural_appearance_{Path(s.material).stem}", default_preset="ship",
+                  ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check, errors=(ValueError,),
+                  resume=(CHECKPOINT,))
+add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
