@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 import torch
 
-from inshade.techniques.prt.codegen import (SHADING_MODES, light_matrix, light_matrix_blocks, light_matrix_uniform,
-                                 prt_chunk)
+from inshade.techniques.prt import SHADING_MODES
+from inshade.techniques.prt.codegen import light_matrix, light_matrix_blocks, light_matrix_uniform, prt_chunk
 from inshade.codegen.sdf import environment_sh
 from inshade.techniques.prt.twin import (PrtShading, compose, image_metrics, light_matrix_t, phong_bands_f32, prt_glossy,
                                 quality_orbit, render, trace_view)
@@ -221,6 +221,7 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
     from inshade.codegen.spherical_harmonics import sh_chunks
     from inshade.sdf import parse_sdf
     from inshade.shaders import assemble
+    from inshade.technique import choice_chunks, program_spec
 
     assert shutil.which("glslangValidator"), "glslangValidator not found on PATH: install glslang-tools"
     b = load(prt_scene[0] / "transfer")
@@ -228,7 +229,8 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
               **sdf_chunks(parse_sdf(SDF_SCENE)), **sh_chunks(4)}
     for program in ("passes/sdf_prt.frag", "passes/mesh_prt.frag"):
         path = tmp_path / f"{program.split('/')[1]}.{version}.frag"
-        path.write_text(assemble(program, version=version, chunks=chunks).source)
+        choices = choice_chunks(program_spec(program)[1])
+        path.write_text(assemble(program, version=version, chunks={**chunks, **choices}).source)
         result = subprocess.run(["glslangValidator", str(path)], capture_output=True, text=True)
         assert result.returncode == 0, f"{program} ({version}):\n{result.stdout}{result.stderr}"
 
@@ -388,10 +390,11 @@ def test_missing_transfer_network_one_clear_error(tmp_path, prt_scene):
     del data["sdf"]
     (folder / "scene.json").write_text(json.dumps(data))
     _scene_error(folder, "sdf: passes/sdf_prt.frag traces an SDF")
-    # the shading choice must list the modes in lib/prt.glsl's order
-    bad = dict(PRT_SETTINGS, shading=dict(PRT_SETTINGS["shading"], choices=["glossy", "diffuse"]))
-    shutil.copytree(prt_scene[0] / "transfer", tmp_path / "order" / "transfer")
-    _scene_error(write_scene(tmp_path / "order", settings=bad), "u_shading takes")
+    # the shading choice may name only the declared modes (SHADING_MODES)
+    bad = dict(PRT_SETTINGS, shading=dict(PRT_SETTINGS["shading"], choices=["diffuse", "phong"]))
+    shutil.copytree(prt_scene[0] / "transfer", tmp_path / "modes" / "transfer")
+    _scene_error(write_scene(tmp_path / "modes", settings=bad),
+                 "settings.shading.choices: 'phong' is not a u_shading value")
 
 
 def test_bad_environment_one_clear_error(tmp_path, prt_scene):

@@ -302,11 +302,13 @@ def test_texture_pass_passes_glslang(tmp_path, version):
     from inshade.codegen.network import generate
     from inshade.codegen.spherical_harmonics import sh_chunks
     from inshade.shaders import assemble
+    from inshade.technique import choice_chunks, program_spec
     from inshade.techniques.prt.texture_codegen import texture_chunks
 
     assert shutil.which("glslangValidator"), "glslangValidator not found on PATH: install glslang-tools"
     b = tp.texture_bundle(np.zeros((8, 8, 16), np.float32), 8, "t", {})
-    chunks = {f"network_{PREFIX}": generate(b, prefix=PREFIX, target=version).chunk, **texture_chunks(b), **sh_chunks(4)}
+    chunks = {f"network_{PREFIX}": generate(b, prefix=PREFIX, target=version).chunk, **texture_chunks(b), **sh_chunks(4),
+              **choice_chunks(program_spec(PROGRAM)[1])}
     path = tmp_path / f"mesh_prt_texture.{version}.frag"
     path.write_text(assemble(PROGRAM, version=version, chunks=chunks).source)
     result = subprocess.run(["glslangValidator", str(path)], capture_output=True, text=True)

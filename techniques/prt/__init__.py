@@ -4,7 +4,7 @@ light matrix) shading on sphere-traced SDFs and rasterised meshes."""
 from pathlib import Path
 
 from inshade.papers import LEARNT_TRANSFER
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
 
 
 def _chunks(scene, bundles, networks, codegen_options):
@@ -35,24 +35,19 @@ def _frame(inputs):
 
 
 def _validate(scene):
-    """A u_shading choice lists lib/prt.glsl's modes in order (its index is the uniform)."""
-    from .codegen import SHADING_MODES
-
+    """A transfer network (the u_shading setting is checked against SHADING_MODES by the runtime)."""
     if not scene.networks:
         raise ValueError(f"networks: a PRT scene ({scene.program}) needs a transfer network: "
                          "[{\"bundle\": \"transfer\"}] naming a bundle of kind \"prt\"")
-    for name, s in scene.settings.items():
-        if s.binding == "uniform" and s.target == "u_shading":
-            if s.type != "choice" or tuple(s.choices) != SHADING_MODES[:len(s.choices)]:
-                raise ValueError(f"settings.{name}.choices: u_shading takes {list(SHADING_MODES)} "
-                                 f"(in that order), got {list(s.choices) or s.type}")
 
 
+# u_shading's values in index order: lib/prt.glsl's PRT_DIFFUSE, PRT_GLOSSY come from the programs' choices
+SHADING_MODES = ("diffuse", "glossy")
 # Values of the PRT passes' uniforms a scene does not bind to a setting (twin.py PrtShading's defaults).
-UNIFORM_DEFAULTS = {"u_shading": 0, "u_phong_exponent": 16.0, "u_albedo": 1.0, "u_kd": 1.0, "u_ks": 0.5,
-                    "u_prt_debug": 0}
+UNIFORM_DEFAULTS = {"u_shading": SHADING_MODES.index("diffuse"), "u_phong_exponent": 16.0, "u_albedo": 1.0,
+                    "u_kd": 1.0, "u_ks": 0.5, "u_prt_debug": 0}
 _PRT = dict(bundle_kinds=("prt", "transfer"), uniforms=UNIFORM_DEFAULTS, chunks=_chunks, frame=_frame,
-            validate=_validate, environment_degree=4)
+            validate=_validate, environment_degree=4, choices=(Choice("u_shading", "PRT", SHADING_MODES),))
 
 
 def _texture_chunks(scene, bundles, networks, codegen_options):

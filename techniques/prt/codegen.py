@@ -30,7 +30,6 @@ PRT_CHUNK = "prt_network"
 PRT_DEGREE = 4                      # 16 coefficients = 4 vec4 blocks; the transfer contract
 PRT_COEFFS = PRT_DEGREE * PRT_DEGREE
 PRT_BLOCKS = PRT_COEFFS // 4
-SHADING_MODES = ("diffuse", "glossy")   # u_shading: the index (lib/prt.glsl PRT_DIFFUSE, PRT_GLOSSY)
 KINDS = ("prt", "transfer")          # bundle kinds of transfer networks: current, then the old name
 
 

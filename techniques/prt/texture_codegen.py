@@ -20,7 +20,7 @@ numpy only (no torch); deterministic output.
 from __future__ import annotations
 
 from .codegen import KINDS as NETWORK_KINDS
-from .codegen import PRT_COEFFS, SHADING_MODES, network_chunk_name
+from .codegen import PRT_COEFFS, network_chunk_name
 
 KIND = "prt_texture"
 PREFIX = "prttex"
@@ -94,8 +94,3 @@ def validate_hook(scene) -> None:
     if not scene.networks:
         raise ValueError(f"networks: a texture PRT scene ({scene.program}) needs a transfer texture: "
                          f"[{{\"bundle\": \"transfer\", \"prefix\": \"{PREFIX}\"}}] naming a bundle of kind \"{KIND}\"")
-    for name, s in scene.settings.items():
-        if s.binding == "uniform" and s.target == "u_shading":
-            if s.type != "choice" or tuple(s.choices) != SHADING_MODES[:len(s.choices)]:
-                raise ValueError(f"settings.{name}.choices: u_shading takes {list(SHADING_MODES)} "
-                                 f"(in that order), got {list(s.choices) or s.type}")

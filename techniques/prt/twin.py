@@ -29,7 +29,8 @@ import numpy as np
 import torch
 
 from inshade import metrics
-from inshade.techniques.prt.codegen import PRT_DEGREE, SHADING_MODES, light_matrix
+from inshade.techniques.prt import SHADING_MODES
+from inshade.techniques.prt.codegen import PRT_DEGREE, light_matrix
 from inshade.sdf import SdfScene, f32
 from inshade.sh import band_of, sh_basis
 

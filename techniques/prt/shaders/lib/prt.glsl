@@ -7,16 +7,16 @@
 // R the reflection direction. Final = kd * diffuse [+ ks * glossy]. Torch twins, same order:
 // techniques/prt/twin.py (prt_transfer, prt_diffuse, prt_glossy, prt_shade).
 // <prt_network> (techniques/prt/codegen.py) includes the transfer network and defines PRT_NET_EVAL,
-// PRT_CENTER, PRT_INV_RADIUS and PRT_SCALE.
+// PRT_CENTER, PRT_INV_RADIUS and PRT_SCALE. The u_shading values PRT_DIFFUSE, PRT_GLOSSY are the
+// programs' choices (SHADING_MODES in techniques/prt/__init__.py), generated into <choices>.
 #include <lib/spherical_harmonics>
 #include <prt_network>
+#include <choices>
 
 #if SH_COEFFS != 16
 #error "lib/prt needs a degree-4 environment (16 SH coefficients, the transfer contract)"
 #endif
 #define PRT_BLOCKS 4
-#define PRT_DIFFUSE 0   // u_shading values: techniques/prt/codegen.py SHADING_MODES
-#define PRT_GLOSSY 1
 #define PRT_DEBUG_POSITION 5  // u_prt_debug: 1..4 transfer block, 5 position, 6 normal
 #define PRT_DEBUG_NORMAL 6
 

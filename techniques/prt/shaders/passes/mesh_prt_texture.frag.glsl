@@ -8,6 +8,7 @@
 #include <lib/camera>
 #include <lib/gbuffer>
 #include <lib/prt_texture>
+#include <choices>
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];

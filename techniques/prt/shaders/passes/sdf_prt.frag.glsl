@@ -9,6 +9,7 @@
 // Torch reference: techniques/prt/twin.py render().
 #include <lib/sdf>
 #include <lib/prt>
+#include <choices>
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
