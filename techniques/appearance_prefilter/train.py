@@ -331,6 +331,7 @@ def check(s: Settings) -> None:
 
 
 TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: f"{KIND}_{s.scene}",
+                  folder_hint=f"{KIND}_<scene>",
                   default_preset="ship", ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
                   errors=(TrainError, ComponentError, BakeError, DataError, SceneError, VoxelError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

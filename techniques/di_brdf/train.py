@@ -374,6 +374,7 @@ def train(run: Run) -> int:
 
 
 TRAINER = Trainer("di_brdf", __doc__, Settings, PRESETS, train, folder=lambda s: f"di_brdf_{s.which}",
+                  folder_hint="di_brdf_<model>",
                   default_preset="ship", ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
                   errors=(BrdfTrainingError,), preset_by="which")
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

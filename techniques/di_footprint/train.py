@@ -341,6 +341,7 @@ def train(run: Run) -> int:
     return 0
 
 
-TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: KIND, ship_assets={KIND: {}},
+TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: KIND,
+                  folder_hint=KIND, ship_assets={KIND: {}},
                   extra_arguments=extra_arguments, check=check, errors=(FootprintError, tc.CompressionError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

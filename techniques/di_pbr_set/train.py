@@ -195,6 +195,7 @@ def train(run: Run) -> int:
     return 0
 
 
-TRAINER = Trainer("di_pbr_set", __doc__, Settings, PRESETS, train, folder=lambda s: ASSET, ship_assets={ASSET: {}},
+TRAINER = Trainer("di_pbr_set", __doc__, Settings, PRESETS, train, folder=lambda s: ASSET,
+                  folder_hint=ASSET, ship_assets={ASSET: {}},
                   extra_arguments=extra_arguments, check=check, errors=(PbrSetError,))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

@@ -240,6 +240,7 @@ class torch_threads:
         torch.set_num_threads(self.old)
 
 
-TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: ASSET, ship_assets={ASSET: {}},
+TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: ASSET,
+                  folder_hint=ASSET, ship_assets={ASSET: {}},
                   check=check, errors=(model.RadianceFieldError, field.FieldError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

@@ -282,5 +282,6 @@ def train(run: Run) -> int:
 
 TRAINER = Trainer("di_sdf", __doc__, Settings, PRESETS, train,
                   folder=lambda s, args: f"di_sdf_{Path(args.mesh or DEFAULT_MESH).stem}",
+                  folder_hint="di_sdf_<mesh>",
                   ship_assets={KIND: {}}, extra_arguments=extra_arguments, errors=(DiSdfError,))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

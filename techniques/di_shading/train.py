@@ -374,6 +374,7 @@ def train(run: Run) -> int:
 
 
 TRAINER = Trainer("di_shading", __doc__, Settings, PRESETS, train, folder=lambda s: "di_shading_bricks",
+                  folder_hint="di_shading_bricks",
                   ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
                   errors=(ShadingError, fp.FootprintError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

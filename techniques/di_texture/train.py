@@ -195,5 +195,6 @@ def train(run: Run) -> int:
 
 TRAINER = Trainer("di_texture", __doc__, Settings, PRESETS, train,
                   folder=lambda s: f"di_texture_{Path(s.image.removeprefix('skimage:')).stem}",
+                  folder_hint="di_texture_<image>",
                   ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check, errors=(CompressionError,))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

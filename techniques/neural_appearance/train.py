@@ -346,7 +346,8 @@ def build(run: Run) -> int:
 
 
 TRAINER = Trainer("neural_appearance", __doc__, Settings, PRESETS, build,
-                  folder=lambda s: f"neural_appearance_{Path(s.material).stem}", default_preset="ship",
+                  folder=lambda s: f"neural_appearance_{Path(s.material).stem}",
+                  folder_hint="neural_appearance_<material>", default_preset="ship",
                   ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check, errors=(ValueError,),
                   resume=(CHECKPOINT,))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

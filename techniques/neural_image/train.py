@@ -350,5 +350,6 @@ def check(s: Settings) -> None:
 
 
 TRAINER = Trainer(ASSET, __doc__, Settings, PRESETS, train, folder=lambda s: f"neural_image_{s.image}",
+                  folder_hint="neural_image_<image>",
                   default_preset="ship", ship_assets={ASSET: {}}, check=check, errors=(NeuralImageError,))
 add_arguments, main = TRAINER.add_arguments, TRAINER.main

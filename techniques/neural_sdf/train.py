@@ -213,5 +213,6 @@ def train_command(run: Run) -> int:
 
 
 TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train_command, folder=lambda s, args: default_name(args.mesh),
+                  folder_hint=f"{KIND}_<mesh>",
                   default_preset="ship", extra_arguments=extra_arguments, check=check, errors=(NeuralSdfError,))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

@@ -52,5 +52,6 @@ def train(run: Run) -> int:
 
 
 # One preset: there is nothing to train, so nothing to make longer.
-TRAINER = Trainer("toy_rings", __doc__, Settings, {"quick": {}}, train, folder=lambda s: "toy_rings")
+TRAINER = Trainer("toy_rings", __doc__, Settings, {"quick": {}}, train, folder=lambda s: "toy_rings",
+                  folder_hint="toy_rings")
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
