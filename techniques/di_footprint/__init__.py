@@ -3,14 +3,18 @@ GL trilinear and anisotropic filtering."""
 from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
+
+# FOOTPRINT_MODE: the pass's samplers and their indices (its FOOTPRINT_* come from the program's choices)
+MODES = {"di": 0, "trilinear": 1, "anisotropic": 2, "bilinear": 3, "explicit_lod": 4}
 
 TECHNIQUE = Technique(
     name="di_footprint",
     summary="DI footprint-aware texture sampler vs GL trilinear / anisotropic",
     paper=DIFFERENTIABLE_INDIRECTION,
     kinds=("di_footprint",),
-    programs=(ProgramSpec("passes/footprint_plane.frag", geometry="fullscreen", attachments=2),),
+    programs=(ProgramSpec("passes/footprint_plane.frag", geometry="fullscreen", attachments=2,
+                          choices=(Choice("FOOTPRINT_MODE", "FOOTPRINT", MODES),)),),
     train="inshade.techniques.di_footprint.train",
     train_help="DI footprint-aware texture sampler (no mip chain)",
     bench="inshade.techniques.di_footprint.bench",

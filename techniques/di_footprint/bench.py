@@ -38,10 +38,11 @@ from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, atomic_path, machine, machine_markdown, matplotlib_pyplot,
                                    write_report)
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
+from inshade.techniques.di_footprint import MODES
 
 DEFAULT_OUT = "bench-out/footprint"
 DEFAULT_ASSET = "trained/di_footprint"
-GL_MODES = ("trilinear", "anisotropic", "bilinear", "explicit_lod")
+GL_MODES = tuple(m for m in MODES if m != "di")   # the GL samplers the DI one is compared with
 MAX_ANISOTROPY = 16.0
 
 
@@ -111,8 +112,6 @@ class PlaneRenderer:
             self.renderer = SceneRenderer(self.scene, ctx, bundles=[bundle], settings={"lut_filter": lut_filter})
 
     def render(self, mode: str, camera, width: int, height: int, tile: float, extent: float):
-        from inshade.techniques.di_footprint.train import MODES
-
         r = self.renderer
         r.set_setting("mode", MODES[mode])
         r.set_setting("tile", float(tile))

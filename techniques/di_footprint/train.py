@@ -64,11 +64,10 @@ from inshade.models.footprint_sampler import (CAMERA, EXTENT, N_CASCADED, PRIMAR
                                               Sizing, footprint_sampler, held_out_set, lod_sets, mip_chain,
                                               plan, sampler_graph, texture_bytes, texture_tensor)
 from inshade.models.graph import GraphModule
+from inshade.techniques.di_footprint import MODES
 
 KIND = "di_footprint"
 RENDER_PROGRAM = "passes/footprint_plane.frag"
-# Comparison modes of passes/footprint_plane.frag (FOOTPRINT_MODE); mirrored there as constants.
-MODES = {"di": 0, "trilinear": 1, "anisotropic": 2, "bilinear": 3, "explicit_lod": 4}
 
 
 @dataclass(frozen=True)

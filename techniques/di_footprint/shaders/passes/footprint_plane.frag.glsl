@@ -1,6 +1,6 @@
 // Footprint-aware sampling on a tiled ground plane seen at grazing angles: full-screen ray-plane
 // intersection (lib/footprint), uv from the hit, the pixel footprint from dFdx/dFdy of uv, and the
-// texture read by one of FOOTPRINT_MODE (mirrored in techniques/di_footprint/train.py MODES):
+// texture read by one of FOOTPRINT_MODE (MODES in techniques/di_footprint/__init__.py, names from <choices>):
 //   0 FOOTPRINT_DI           the generated DI network <network>: inputs (fract(uv), log2 footprint)
 //   1 FOOTPRINT_TRILINEAR    GL trilinear: u_texture (RGB8 + mip chain, LINEAR_MIPMAP_LINEAR, REPEAT)
 //   2 FOOTPRINT_ANISOTROPIC  GL anisotropic: u_texture_aniso (same texels, max anisotropy 16)
@@ -16,12 +16,8 @@
 #include <network>
 #include <lib/footprint>
 #include <lib/colour>
+#include <choices>
 
-#define FOOTPRINT_DI 0
-#define FOOTPRINT_TRILINEAR 1
-#define FOOTPRINT_ANISOTROPIC 2
-#define FOOTPRINT_BILINEAR 3
-#define FOOTPRINT_EXPLICIT_LOD 4
 #ifndef FOOTPRINT_MODE
 #define FOOTPRINT_MODE FOOTPRINT_DI
 #endif
