@@ -4,14 +4,18 @@ at grazing angles, next to the independently trained sampler and the appearance-
 from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
+
+# SHADING_VIEW: the pass's views and their indices (its SHADING_* come from the program's choices)
+VIEWS = {"end_to_end": 0, "independent": 1, "reference": 2, "split": 3, "trilinear": 4, "analytic": 5}
 
 TECHNIQUE = Technique(
     name="di_shading",
     summary="DI footprint sampler + DI Disney decoder optimised end to end",
     paper=DIFFERENTIABLE_INDIRECTION,
     kinds=("di_shading", "di_shading_brdf"),
-    programs=(ProgramSpec("passes/shading_plane.frag", geometry="fullscreen", attachments=4),),
+    programs=(ProgramSpec("passes/shading_plane.frag", geometry="fullscreen", attachments=4,
+                          choices=(Choice("SHADING_VIEW", "SHADING", VIEWS),)),),
     train="inshade.techniques.di_shading.train",
     train_help="DI footprint sampler trained end to end through the frozen DI Disney decoder (lambda sweep)",
     bench="inshade.techniques.di_shading.bench",

@@ -79,7 +79,7 @@ class ShadingRenderer:
         from inshade.bundle import load
         from inshade.runtime.renderer import SceneRenderer
         from inshade.runtime.scene import load_scene
-        from inshade.techniques.di_shading.train import VIEWS
+        from inshade.techniques.di_shading import VIEWS
 
         self.scene = load_scene(folder)
         bundles = [load(folder / e2e), load(folder / self.scene.networks[1].bundle.name),

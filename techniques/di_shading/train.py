@@ -70,6 +70,7 @@ from inshade.models.graph import GraphModule
 from inshade.models import footprint_sampler as fp
 from inshade.trainer import Run, Trainer, setting
 
+from . import VIEWS
 from .data import VIEW_SIZE, Samples, batches, material, plane_samples
 from .model import (AMBIENT, DEFAULT_BRDF, EXPOSURE, LIGHT_INTENSITY, LIGHT_POSITION, ShadingError, decoder_graph,
                     display, shade_di, shade_di_clipped)
@@ -78,8 +79,6 @@ KIND = "di_shading"
 DECODER_KIND = "di_shading_brdf"
 PROGRAM = "passes/shading_plane.frag"
 CHANNELS = 8
-# SHADING_VIEW of passes/shading_plane.frag (mirrored there as constants)
-VIEWS = {"end_to_end": 0, "independent": 1, "reference": 2, "split": 3, "trilinear": 4, "analytic": 5}
 LAMBDAS = (0.0, 0.1, 0.25, 0.5)
 
 

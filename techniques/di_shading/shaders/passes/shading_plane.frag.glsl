@@ -2,7 +2,8 @@
 // plane of lib/footprint seen at grazing angles, its PBR set read by a DI footprint sampler
 // (<network_e2e>: trained through the frozen DI Disney decoder; <network_ind>: lambda = 0, the
 // independently trained sampler) and shaded with the DI Disney decoder (lib/di_shading), or the
-// appearance-filtered reference. SHADING_VIEW (train.py VIEWS):
+// appearance-filtered reference. SHADING_VIEW (VIEWS in techniques/di_shading/__init__.py, the
+// SHADING_* names from <choices>):
 //   0 end-to-end     e2e sampler at (fract uv, log2 footprint) + DI Disney
 //   1 independent    ind sampler + DI Disney
 //   2 reference      16 samples uv + a duv/dx + b duv/dy (a, b in {-3/8, -1/8, 1/8, 3/8}) of the
@@ -19,13 +20,8 @@
 #include <lib/camera>
 #include <lib/footprint>
 #include <lib/di_shading>
+#include <choices>
 
-#define SHADING_END_TO_END 0
-#define SHADING_INDEPENDENT 1
-#define SHADING_REFERENCE 2
-#define SHADING_SPLIT 3
-#define SHADING_TRILINEAR 4
-#define SHADING_ANALYTIC 5
 #ifndef SHADING_VIEW
 #define SHADING_VIEW SHADING_SPLIT
 #endif
