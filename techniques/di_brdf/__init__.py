@@ -3,7 +3,12 @@ analytic BRDFs."""
 from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique
+
+# BRDF_VIEW and BRDF_MODEL of the material-ball pass, with their indices (its BRDF_VIEW_* and
+# BRDF_MODEL_* come from the program's choices)
+VIEWS = {"analytic": 0, "learned": 1, "split": 2, "diffuse": 3}
+MODELS = {"ggx": 1, "disney": 2}
 
 TECHNIQUE = Technique(
     name="di_brdf",
@@ -11,7 +16,9 @@ TECHNIQUE = Technique(
     paper=DIFFERENTIABLE_INDIRECTION,
     kinds=("di_brdf_ggx", "di_brdf_disney"),
     old_kinds={"di_ggx": "di_brdf_ggx", "di_disney": "di_brdf_disney"},
-    programs=(ProgramSpec("passes/material_balls.frag", geometry="fullscreen"),),
+    programs=(ProgramSpec("passes/material_balls.frag", geometry="fullscreen",
+                          choices=(Choice("BRDF_VIEW", "BRDF_VIEW", VIEWS),
+                                   Choice("BRDF_MODEL", "BRDF_MODEL", MODELS))),),
     train="inshade.techniques.di_brdf.train",
     train_help="DI approximations of the GGX and Disney BRDFs",
     bench="inshade.techniques.di_brdf.bench",

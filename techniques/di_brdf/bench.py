@@ -30,9 +30,10 @@ from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row, ratio_verd
 from inshade.bench.harness import (BenchError, Ratio, add_clock_argument, clock_for, clock_record, interleave,
                                    machine, machine_markdown, markdown_table, matplotlib_pyplot,
                                    paired_difference, paired_ratio, write_report)
+from inshade.techniques.di_brdf import VIEWS as PASS_VIEWS
 
 DEFAULT_OUT = "bench-out/brdf"
-VIEWS = {"analytic": 0, "learned": 1, "diffuse": 3}
+VIEWS = {v: PASS_VIEWS[v] for v in ("analytic", "learned", "diffuse")}   # the timed views (no split)
 LIGHTS = (1, 2, 3, 4)
 
 

@@ -13,13 +13,11 @@ from inshade.models import brdf
 from inshade.models import indirection as di
 from inshade.models.disney_glue import disney_glue
 from inshade.models.graph import GraphModule
+from inshade.techniques.di_brdf import VIEWS
 from inshade.techniques.di_brdf import material_balls as mb
 
 from .data import GGX_ALPHA_RANGE, GGX_KD, GGX_KS, SWEEP_COLUMNS, ggx_eval_set
 from .model import DECODERS, DISNEY_OUTPUTS, analytic_d, learned_d
-
-# Views of the material-ball pass (BRDF_VIEW define), mirrored in the GLSL.
-VIEWS = {"analytic": 0, "learned": 1, "split": 2, "diffuse": 3}
 
 
 # GGX

@@ -75,7 +75,8 @@ from inshade.trainer import Run, Trainer, setting
 from .data import (GGX_ALPHA_RANGE, SWEEP_COLUMNS, disney_samples, ggx_ball_display, ggx_ball_sampler, ggx_sampler,
                    sweep_grid)
 from .model import ENCODERS, GGX_INIT_CAP, DisneyDI, analytic_d, disney_graph, ggx_cascade, learned_d
-from .render import VIEWS, disney_render, ggx_metrics, ggx_shade, glsl_psnr, sweep_psnr
+from . import MODELS, VIEWS
+from .render import disney_render, ggx_metrics, ggx_shade, glsl_psnr, sweep_psnr
 
 PROGRAM = "passes/material_balls.frag"
 GGX_KIND, DISNEY_KIND = "di_brdf_ggx", "di_brdf_disney"
@@ -198,9 +199,6 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
 
 
 # assets
-MODELS = {"ggx": 1, "disney": 2}
-
-
 def scene_dict(name: str, title: str, model: str, size, cols: int, rows: int, ball_px: int) -> dict:
     return {
         "format": "inshade.scene", "version": 1, "name": name, "title": title,

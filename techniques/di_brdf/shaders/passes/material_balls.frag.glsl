@@ -3,24 +3,27 @@
 // techniques/di_brdf/material_balls.py is the torch twin (same operations, same order); techniques/di_brdf/train.py
 // writes the assets (scene.json settings drive the defines below).
 //
-// BRDF_MODEL 1: GGX. Columns sweep alpha_h over [GGX_ALPHA_LO, GGX_ALPHA_HI]; the network is the
+// BRDF_MODEL_GGX: GGX. Columns sweep alpha_h over [GGX_ALPHA_LO, GGX_ALPHA_HI]; the network is the
 //   learned D, net_eval((alpha_h, n.h)) -> D, evaluated per light.
-// BRDF_MODEL 2: Disney. The network is the di_disney bundle: input the ball's grid coordinate,
+// BRDF_MODEL_DISNEY: Disney. The network is the di_disney bundle: input the ball's grid coordinate,
 //   outputs (lanes below) the five decoder lookups of the latent textures, the latent textures'
 //   extra lanes, and the artist-parameter textures the analytic path reads. Evaluated once per
 //   pixel; unused lanes (the other path's textures) are dead code the compiler removes.
-// BRDF_VIEW 0 analytic, 1 learned, 2 side by side (left half analytic, right half learned),
-//   3 diffuse-only baseline (albedo n.l / pi: the shader's fixed cost, for benchmarks).
+// BRDF_VIEW_ANALYTIC, _LEARNED, _SPLIT (side by side: left half analytic, right half learned),
+//   _DIFFUSE (diffuse-only baseline, albedo n.l / pi: the shader's fixed cost, for benchmarks).
+// BRDF_MODEL_* and BRDF_VIEW_*: the program's choices (MODELS, VIEWS in techniques/di_brdf/__init__.py),
+// generated into <choices>.
 #include <network>
 #include <lib/brdf>
 #include <lib/di_brdf>
 #include <lib/lights>
+#include <choices>
 
 #ifndef BRDF_MODEL
-#define BRDF_MODEL 2
+#define BRDF_MODEL BRDF_MODEL_DISNEY
 #endif
 #ifndef BRDF_VIEW
-#define BRDF_VIEW 2
+#define BRDF_VIEW BRDF_VIEW_SPLIT
 #endif
 #ifndef BALL_COLS
 #define BALL_COLS 8
@@ -35,7 +38,7 @@
 #define GGX_KS 0.25
 #define GGX_ALPHA_LO 0.1
 #define GGX_ALPHA_HI 1.0
-#if BRDF_VIEW == 2
+#if BRDF_VIEW == BRDF_VIEW_SPLIT
 #define BALL_HALVES 2.0
 #else
 #define BALL_HALVES 1.0
@@ -83,9 +86,9 @@ void main() {
     vec3 t = vec3(n.z * tl, 0.0, -n.x * tl);
     vec3 b = vec3(n.y * t.z, n.z * t.x - n.x * t.z, -n.y * t.x);
     vec3 v = ball_local(vec3(0.0, 0.0, 1.0), t, b, n);
-    bool learned = BRDF_VIEW == 1 || (BRDF_VIEW == 2 && side >= 1.0);
+    bool learned = BRDF_VIEW == BRDF_VIEW_LEARNED || (BRDF_VIEW == BRDF_VIEW_SPLIT && side >= 1.0);
 
-#if BRDF_MODEL == 2
+#if BRDF_MODEL == BRDF_MODEL_DISNEY
     vec4 xin[NET_IN_BLOCKS];
     xin[0] = vec4(colf / float(max(BALL_COLS - 1, 1)), rowf / float(max(BALL_ROWS - 1, 1)), 0.0, 0.0);
     vec4 yo[NET_OUT_BLOCKS];
@@ -118,11 +121,11 @@ void main() {
         float dist2 = dl.x * dl.x + dl.y * dl.y + dl.z * dl.z;
         vec3 l = ball_local(dl * inversesqrt(dist2), t, b, n);
         vec3 f;
-#if BRDF_MODEL == 1
+#if BRDF_MODEL == BRDF_MODEL_GGX
         float a = GGX_ALPHA_LO + (GGX_ALPHA_HI - GGX_ALPHA_LO) * (colf / float(max(BALL_COLS - 1, 1)));
         vec3 h = brdf_half_vector(l, v);
         float dd;
-        if (BRDF_VIEW == 3) {
+        if (BRDF_VIEW == BRDF_VIEW_DIFFUSE) {
             dd = 0.0;  // diffuse-only baseline
         } else if (learned) {
             vec4 xg[NET_IN_BLOCKS];
@@ -135,7 +138,7 @@ void main() {
         }
         float fs = l.z * (GGX_KD_TERM + GGX_KS * dd);
         f = vec3(l.z > 0.0 && v.z > 0.0 ? fs : 0.0);
-#elif BRDF_VIEW == 3
+#elif BRDF_VIEW == BRDF_VIEW_DIFFUSE
         f = m.base_color * (max(l.z, 0.0) * BRDF_INV_PI);
 #else
         f = learned ? di_disney_brdf(d, l, v) : disney_brdf(m, l, v);
