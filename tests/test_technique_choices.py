@@ -97,6 +97,18 @@ def test_no_glsl_writes_a_declared_choice_name_by_hand():
     assert not found, "hand-written defines of declared choices:\n" + "\n".join(found)
 
 
+def test_every_shipped_choice_setting_of_a_program_enumeration_is_declared():
+    """A shipped scene's choice that sets a uniform, or names the values of a define, drives a
+    declared choice (its index comes from the program, not from the scene's list)."""
+    undeclared = []
+    for folder in sorted((ROOT / "trained").glob("*/scene.json")):
+        for name, s in load_scene(folder.parent).settings.items():
+            named = s.binding == "define" and any(isinstance(c, str) for c in s.choices)
+            if s.type == "choice" and (s.binding == "uniform" or named) and s.declared is None:
+                undeclared.append(f"{folder.parent.name}: settings.{name} ({s.binding} {s.target})")
+    assert not undeclared, "choice settings the program does not declare:\n" + "\n".join(undeclared)
+
+
 # a toy program: scene checks and the bound index -----------------------------------------------------
 @pytest.fixture
 def toy(tmp_path):
