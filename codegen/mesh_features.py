@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from inshade.mesh_topology import check_tables
+from inshade.geometry.mesh_topology import check_tables
 
 from .glsl import PlanRow, TextureResource
 from .limits import LimitError, limit, source

@@ -10,7 +10,7 @@ The contract (torch twin: models/network_sdf.py ``NetworkSdfModule``), stored in
 - its single output is a distance in *normalised* units; ``scene_sdf`` returns it times
   ``radius``, so distances, ``hit_eps`` and ``normal_eps`` are in world units like an analytic
   scene's;
-- ``trace`` takes the analytic scenes' fields (inshade/sdf.py TRACE_DEFAULTS: max_steps,
+- ``trace`` takes the analytic scenes' fields (geometry/sdf.py TRACE_DEFAULTS: max_steps,
   step_scale, hit_eps, normal_eps); a network is not an exact distance, so its ``step_scale``
   should come from a Lipschitz bound (the MLP SDF trainer picks ``min(0.9, 1 / L)``);
 - ``albedo`` is one constant colour (linear RGB).
@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from inshade.bundle import Bundle, BundleError
-from inshade.sdf import DEFAULT_ALBEDO, TRACE_DEFAULTS, f32
+from inshade.geometry.sdf import DEFAULT_ALBEDO, TRACE_DEFAULTS, f32
 
 from .glsl import flt
 from .network import Generated, generate
@@ -101,7 +101,7 @@ def check_io(bundle: Bundle):
 
 
 def check_trace(trace: dict) -> dict:
-    """Sphere-tracing settings as inshade/sdf.py accepts them; ValueError 'trace.FIELD: ...'."""
+    """Sphere-tracing settings as geometry/sdf.py accepts them; ValueError 'trace.FIELD: ...'."""
     out = {}
     for k, v in trace.items():
         if k not in TRACE_DEFAULTS:

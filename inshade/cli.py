@@ -83,7 +83,7 @@ _count = _int_at_least(1, "must be an integer", "must be >= 1")   # --spp
 
 def _size(text: str) -> int:
     """--width/--height: an int in 1..MAX_SIZE."""
-    from inshade.runtime.scene import MAX_SIZE
+    from inshade.scene.description import MAX_SIZE
 
     try:
         value = int(text)
@@ -231,7 +231,7 @@ def _codegen_program(args, src: Path) -> int:
 
     from inshade.runtime.context import shared_context
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     if args.output in (None, STDOUT):
         raise UserError("--program: give -o PASS.frag (the vertex stage, manifest and resources go beside it)")
@@ -290,8 +290,8 @@ def _codegen(args, b, prefix, output) -> int:
 
 # info -------------------------------------------------------------------------------------
 def _resolve(name_or_path) -> Path:
-    """An asset path, or a bare name looked up in trained/ and $INSHADE_ASSETS (runtime/scene.py)."""
-    from inshade.runtime.scene import resolve_asset
+    """An asset path, or a bare name looked up in trained/ and $INSHADE_ASSETS (scene/description.py)."""
+    from inshade.scene.description import resolve_asset
 
     return resolve_asset(name_or_path)
 
@@ -299,7 +299,7 @@ def _resolve(name_or_path) -> Path:
 def _asset_networks(src: Path):
     """(scene, [(role, prefix, bundle path)]) of an asset with a scene.json (its networks, then a
     network SDF), or (None, []) for a bare bundle."""
-    from inshade.runtime.scene import SCENE_FILE, NetworkSdfRef, load_scene
+    from inshade.scene.description import SCENE_FILE, NetworkSdfRef, load_scene
 
     if not ((src / SCENE_FILE).is_file() or (src.suffix == ".json" and src.name != "bundle.json")):
         return None, []
@@ -415,7 +415,7 @@ def _mesh_json(mesh):
 
 
 def _scene_json(scene) -> dict:
-    from inshade.runtime.scene import NetworkSdfRef
+    from inshade.scene.description import NetworkSdfRef
 
     if isinstance(scene.sdf, NetworkSdfRef):
         sdf = {"network": str(scene.sdf.bundle), "prefix": scene.sdf.prefix}
@@ -434,7 +434,7 @@ def _scene_json(scene) -> dict:
 def cmd_info(args) -> int:
     from inshade import bundle as bundle_mod
     from inshade.envelope import analyse, format_findings
-    from inshade.runtime.scene import NetworkSdfRef
+    from inshade.scene.description import NetworkSdfRef
 
     src = _resolve(args.bundle)
     scene, nets = _asset_networks(src)

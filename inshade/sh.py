@@ -223,7 +223,7 @@ def load_environment(path) -> np.ndarray:
             raise ValueError("no such file")
         suffix = path.suffix.lower()
         if suffix == ".exr":
-            from inshade.runtime.image_io import read_exr
+            from inshade.scene.image_io import read_exr
             try:
                 image = read_exr(path)
             except Exception as exc:  # OpenEXR's own errors differ by version

@@ -30,7 +30,7 @@ import numpy as np
 from inshade.shaders.library import add_search_provider
 
 PLUGINS_ENV = "INSHADE_TECHNIQUES"
-# What a program draws over; the runtime sets up the matching pass (runtime/scene.py GEOMETRIES).
+# What a program draws over; the runtime sets up the matching pass (scene/description.py GEOMETRIES).
 GEOMETRIES = ("fullscreen", "sdf", "mesh")
 MESH_ATTRIBUTES = ("uv", "tangent")
 

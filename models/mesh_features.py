@@ -21,7 +21,7 @@ off the grid). A sub-vertex (k, W) is canonicalised so every face sharing it nam
                                   W'[a] = W[(s+1)%3], W'[b] = W[(s+2)%3], W'[3-a-b] = 0
     else k' = k, W' = W
 
-(tables from inshade/mesh_topology.py), then hashed with uint32 wrap-around arithmetic:
+(tables from geometry/mesh_topology.py), then hashed with uint32 wrap-around arithmetic:
 
     h = (2654435761 * k') ^ W'0 ^ (805459861 * W'1) ^ (1094488767 * l)
     index = l * T + (h & (T - 1))
@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from inshade.components import ComponentError, check_node, resolve_params
-from inshade.mesh_topology import check_tables, mesh_topology
+from inshade.geometry.mesh_topology import check_tables, mesh_topology
 
 from .latent_pyramid import _round_fp16
 from .registry import Component, register
@@ -140,7 +140,7 @@ class MeshFeatures(Component):
 
     @classmethod
     def for_mesh(cls, vertices, faces, levels: int, features: int, table_size: int, **kw) -> "MeshFeatures":
-        """Welds the mesh and builds its owner tables (inshade/mesh_topology.py)."""
+        """Welds the mesh and builds its owner tables (geometry/mesh_topology.py)."""
         topo = mesh_topology(vertices, faces)
         return cls(levels, features, table_size, topo.corners, topo.edges, **kw)
 

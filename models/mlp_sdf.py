@@ -22,7 +22,7 @@ import math
 
 import torch
 
-from inshade.sdf import f32
+from inshade.geometry.sdf import f32
 
 from . import activations as _act
 from . import encodings as _enc

@@ -6,7 +6,7 @@ Data: area-weighted surface samples (trimesh, seeded) pushed off the surface by 
 (two scales, ``SIGMAS`` x radius) plus uniform samples in the bound's cube; exact signed distances
 from the mesh by point-cloud-utils (libigl, C++; ~20k points/s on one shared core, where trimesh's
 ``closest_point`` does ~250/s), with trimesh (``closest_point`` + embree ``contains``) as the slow
-fallback. The mesh must be watertight (inshade.mesh.load_mesh(require_watertight=True)).
+fallback. The mesh must be watertight (inshade.geometry.mesh.load_mesh(require_watertight=True)).
 
 Loss: L1 on distance / radius plus ``lipschitz_weight * relu(log L - log lipschitz_target)``, L the
 bound of models/mlp_sdf.py, so the exported ``step_scale = min(0.9, 1/L)`` is safe. The price is
@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade.mesh import bounding_sphere, load_mesh
-from inshade.sdf import DEFAULT_ALBEDO, f32
+from inshade.geometry.mesh import bounding_sphere, load_mesh
+from inshade.geometry.sdf import DEFAULT_ALBEDO, f32
 
 from .graph import GraphModule
 from .mlp_sdf import build, fold_beta, lipschitz_bound, trace_settings

@@ -13,7 +13,7 @@ import torch
 
 from inshade.bundle import Bundle
 from inshade.codegen.network_sdf import NetworkSdfScene
-from inshade.sdf import DEFAULT_ALBEDO
+from inshade.geometry.sdf import DEFAULT_ALBEDO
 
 from .graph import GraphModule
 

@@ -1,4 +1,4 @@
-"""Torch reference for analytic SDF scenes (inshade/sdf.py descriptions) and for the sdf_diffuse
+"""Torch reference for analytic SDF scenes (geometry/sdf.py descriptions) and for the sdf_diffuse
 pass: the same operations, in the same order and float32, as the GLSL that codegen/sdf.py
 generates and shaders/lib/sdf.glsl + shaders/passes/sdf_diffuse.frag.glsl run.
 
@@ -17,7 +17,7 @@ import math
 import numpy as np
 import torch
 
-from inshade.sdf import DEFAULT_ALBEDO, SdfScene, f32
+from inshade.geometry.sdf import DEFAULT_ALBEDO, SdfScene, f32
 from inshade.sh import background_bands, band_of, lambert_bands, sh_basis
 
 INV_PI = f32(1.0 / math.pi)

@@ -1,6 +1,6 @@
 """Triangle-mesh geometry on the GPU: the G-buffer pass that deferred mesh shading (PRT, PBR sets) reads.
 
-``MeshGBuffer(ctx, mesh)`` uploads a trimesh mesh's positions, shading normals (inshade/mesh.py
+``MeshGBuffer(ctx, mesh)`` uploads a trimesh mesh's positions, shading normals (geometry/mesh.py
 ``shading_normals``: welded across uv seams), uv and tangents once; ``draw(view, proj, model,
 width, height)`` rasterises it with depth testing (common/mesh.vert + passes/mesh_gbuffer.frag)
 into five RGBA32F textures (``GBUFFER``), NEAREST-filtered, data orientation (texel (x, y) is
@@ -24,7 +24,7 @@ writes a visibility buffer, with no vendor extension:
   (t2 = 1 - t0 - t1), interpolated from per-corner attributes: the mesh is drawn de-indexed
   (three vertices per face) so that each corner carries its own unit vector.
 
-Matrices follow runtime/camera.py: numpy 4x4 in pyrr's row-vector layout (``v @ view @ proj``),
+Matrices follow scene/camera.py: numpy 4x4 in pyrr's row-vector layout (``v @ view @ proj``),
 i.e. exactly ``camera.view_matrix()`` and ``camera.projection(width, height)``; their C-order
 float32 bytes are GLSL's column-major ``M * v``. ``model`` defaults to the identity.
 A consumer pass (e.g. mesh PRT) samples the textures it needs with ``texelFetch`` at
@@ -35,7 +35,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from inshade.mesh import mesh_uv, shading_normals, vertex_tangents
+from inshade.geometry.mesh import mesh_uv, shading_normals, vertex_tangents
 
 from .programs import ProgramCache
 from .render import TARGET_FORMATS, float_target, read_rgba_raw

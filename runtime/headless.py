@@ -1,6 +1,6 @@
 """Render a scene or a bundle without a window: `inshade render ASSET -o shot.png`.
 
-A folder with a ``scene.json`` is rendered as that scene says (runtime/scene.py); a bundle without
+A folder with a ``scene.json`` is rendered as that scene says (scene/description.py); a bundle without
 one is rendered as its ``render`` field says (the format before scenes). Both go through
 ``renderer.SceneRenderer``, the same per-frame render function the window app uses.
 
@@ -23,14 +23,14 @@ import numpy as np
 
 from inshade.bundle import Bundle, load
 
-from .camera import camera_from_dict
+from inshade.scene.camera import camera_from_dict
 from .context import make_current, shared_context
 from inshade.files import atomic_files
 
-from .image_io import sidecar_path, sidecar_text, write_exr, write_png
+from inshade.scene.image_io import sidecar_path, sidecar_text, write_exr, write_png
 from .programs import ProgramCache
 from .renderer import SceneRenderer
-from .scene import MAX_SIZE, RenderSpecError, Scene, load_scene, render_spec, scene_from_bundle  # noqa: F401
+from inshade.scene.description import MAX_SIZE, RenderSpecError, Scene, load_scene, render_spec, scene_from_bundle  # noqa: F401
 
 log = logging.getLogger("inshade")
 
@@ -198,7 +198,7 @@ def render_from_sidecar(sidecar, *, ctx=None, cache: ProgramCache | None = None)
 def save_render(image: np.ndarray, info: dict, out_path, *, exposure: float = 1.0,
                 tonemap: str = "none") -> tuple[Path, Path]:
     """Write ``image`` (linear, image orientation) by suffix: ``.png`` = exposure, tonemap, sRGB,
-    8-bit, with the scene's labels drawn over it (runtime/labels.py; the built-in setting ``labels``
+    8-bit, with the scene's labels drawn over it (scene/labels.py; the built-in setting ``labels``
     turns them off); ``.exr`` = linear float32, never labelled. A sidecar ``<out_path>.json``
     records ``info``. Returns ``(image_path, sidecar_path)``."""
     out_path = Path(out_path)
@@ -225,7 +225,7 @@ def save_render(image: np.ndarray, info: dict, out_path, *, exposure: float = 1.
 def _draw_labels(png_path, info: dict) -> None:
     """The scene's labels (scene.json ``"labels"``, for the recorded settings and mode) over the 8-bit
     PNG only: the float image and the EXR stay as rendered."""
-    from .labels import draw_on_png, labels_for_info
+    from inshade.scene.labels import draw_on_png, labels_for_info
 
     labels = labels_for_info(info)
     if not labels:

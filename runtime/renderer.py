@@ -34,15 +34,15 @@ from inshade.progress import format_seconds
 from inshade.technique import FrameInputs, choice_chunks
 
 from .context import GLContextError, gl_info, make_current, shared_context
-from .display import DisplayMode, glsl_chunk, parse_mode
+from inshade.scene.display import DisplayMode, glsl_chunk, parse_mode
 from .environment import EnvironmentSampler, EnvironmentTextures, environment_image, scene_environment
 from .geometry import MeshGBuffer
-from .image_io import read_exr
+from inshade.scene.image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
 from .render import (FullscreenPass, check_gl_error, clear_gl_error, float_target, read_rgba, read_rgba_raw,
                      release_target)
-from .scene import MAX_LIGHTS, NetworkSdfRef, Scene, SceneError, codegen_option_path
+from inshade.scene.description import MAX_LIGHTS, NetworkSdfRef, Scene, SceneError, codegen_option_path
 from .shadow import ShadowMaps
 
 VERTEX = "common/fullscreen.vert"
@@ -343,7 +343,7 @@ class SceneRenderer:
                     v = s.index(v)
                 out[s.target] = v
         if "u_lights" in program:   # lib/lights.glsl: the scene's lights
-            from .scene import light_uniforms
+            from inshade.scene.description import light_uniforms
             # a program that never calls scene_light (u_light_kinds unused) reads u_lights as positions
             if any(light.kind != "point" for light in self.scene.lights) and "u_light_kinds" not in program:
                 raise SceneError(f"lights: {self.scene.program} treats every light as a point light (it reads "
@@ -362,7 +362,7 @@ class SceneRenderer:
         for name, s in self.scene.settings.items():
             if s.binding == "environment":
                 env[s.target] = self.values[name]
-        if env["sky"] == "map":   # environment.map, projected at load time (runtime/scene.py)
+        if env["sky"] == "map":   # environment.map, projected at load time (scene/description.py)
             return _rotated_map_sh(self.scene.environment_map, float(env["rotation"]))
         return environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
 
@@ -614,7 +614,7 @@ class SceneRenderer:
                 env[s.target] = self.values[name]
         if sdf is None:
             mesh = self.scene.mesh
-            # a built-in shape is recorded by name and parameters (inshade/shapes.py rebuilds it)
+            # a built-in shape is recorded by name and parameters (geometry/shapes.py rebuilds it)
             source = {"path": str(mesh.path)} if mesh.path is not None else \
                 {"path": None, "shape": mesh.shape, **mesh.params}
             return {"mesh": {**source, "name": mesh.name, "vertices": int(len(mesh.data.vertices)),

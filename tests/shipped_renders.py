@@ -91,7 +91,7 @@ def size(scene_size) -> tuple[int, int]:
 
 def render_case(asset: str, settings: dict) -> np.ndarray:
     from inshade.runtime.headless import render_scene
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(ROOT / "trained" / asset)
     w, h = size(scene.size)

@@ -128,7 +128,7 @@ def test_random_uniform_rejects_bad_width():
 @pytest.fixture
 def toy_renderer(gl, tmp_path):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     toy = _toy()
     scene = load_scene(toy.write(tmp_path / "noise", size=(8, 6)))
@@ -205,7 +205,7 @@ def test_accumulate_draws_exactly_spp_and_caps_later_renders(toy_renderer):
 def test_a_deterministic_program_takes_one_sample_only(gl):
     from inshade.runtime.headless import render_scene
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[1] / "trained" / "neural_image")
     assert not scene.spec.accumulate
@@ -227,7 +227,7 @@ def test_a_deterministic_program_takes_one_sample_only(gl):
 def test_cli_render_spp_writes_the_mean_and_records_spp(tmp_path):
     toy = _toy()
     asset = toy.write(tmp_path / "noise", size=(8, 6))
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     cam = load_scene(asset).make_camera()
     shot = tmp_path / "mean.exr"
@@ -235,7 +235,7 @@ def test_cli_render_spp_writes_the_mean_and_records_spp(tmp_path):
     run = subprocess.run([sys.executable, "-m", "inshade.cli", "render", str(asset), "--spp", "4", "-o", str(shot),
                           "--set", "gain=0.75"], capture_output=True, text=True, env=env, timeout=600)
     assert run.returncode == 0, run.stderr
-    from inshade.runtime.image_io import read_exr
+    from inshade.scene.image_io import read_exr
 
     image = np.asarray(read_exr(shot), np.float64)
     want0, _ = expected_mean(cam, 8, 6, 4, gain=0.75)

@@ -18,7 +18,7 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from inshade.bake import Executor
+from inshade.models.bake import Executor
 from inshade.techniques.appearance_prefilter import frame
 from inshade.techniques.appearance_prefilter.brdf_np import brdf
 from inshade.techniques.appearance_prefilter.data import DataError, bake_voxel_data, phase_slice
@@ -461,7 +461,7 @@ def test_bake_input_errors():
 # --- the reference renderer -----------------------------------------------------------------------
 
 def test_reference_rays_match_an_explicit_pinhole_camera():
-    from inshade.runtime.camera import OrbitCamera
+    from inshade.scene.camera import OrbitCamera
 
     cam = OrbitCamera(fov_y=50.0, target=(0.4, 0.5, 0.45), distance=2.0, yaw=30.0, pitch=-20.0)
     width, height = 12, 8

@@ -23,8 +23,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade import technique
-from inshade.runtime.camera import OrbitCamera
-from inshade.runtime.scene import DirectionalLight, SceneError, load_scene
+from inshade.scene.camera import OrbitCamera
+from inshade.scene.description import DirectionalLight, SceneError, load_scene
 
 from parity import parity_settings, run_sample_pass
 

@@ -1,7 +1,7 @@
 """Package architecture: the torch-free side stays torch-free, and module-level imports between
 the project's modules form no cycle.
 
-- torch-free: the runtime, codegen, the shader library, the viewer app, the technique registry
+- torch-free: the runtime, the scene model, geometry sources, codegen, the shader library, the viewer app, the technique registry
   (with every technique's record imported) and the CLI's parser are imported in a fresh
   interpreter, which must not have imported torch. On failure every entry point is imported
   alone in its own interpreter and the message names each one that pulls torch, with the
@@ -57,6 +57,10 @@ def _torch_free_steps() -> list[str]:
     files = _module_files()
     steps = ["import inshade", "import inshade; inshade.export; inshade.check", "import inshade.runtime"]
     steps += [f"import {m}" for m in sorted(files) if m.startswith("inshade.runtime.")]
+    steps += ["import inshade.scene"]
+    steps += [f"import {m}" for m in sorted(files) if m.startswith("inshade.scene.")]
+    steps += ["import inshade.geometry"]
+    steps += [f"import {m}" for m in sorted(files) if m.startswith("inshade.geometry.")]
     steps += ["import inshade.codegen"]
     steps += [f"import {m}" for m in sorted(files) if m.startswith("inshade.codegen.")]
     steps += ["import inshade.shaders"]

@@ -1,4 +1,4 @@
-"""The sharded bake executor (inshade/bake.py) and PRT's transfer bake on it (techniques/prt/transfer.py),
+"""The sharded bake executor (models/bake.py) and PRT's transfer bake on it (techniques/prt/transfer.py),
 plus `inshade train prt`'s presets (techniques/prt/train.py).
 
 Bit-identity is the contract: a sharded dataset equals one unsharded estimate over all points, and
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 import torch
 
-from inshade import bake
-from inshade.bake import BakeError, Executor, Shard, run_shards
+from inshade.models import bake
+from inshade.models.bake import BakeError, Executor, Shard, run_shards
 from inshade.models.sdf import SdfModule
-from inshade.sdf import parse_sdf
+from inshade.geometry.sdf import parse_sdf
 from inshade.techniques.prt import train as prt_train
 from inshade.techniques.prt import transfer_training
 from inshade.techniques.prt.transfer import build_dataset, mesh_transfer, sdf_transfer
@@ -38,7 +38,7 @@ def one_thread():
 def _sdf():
     slab = {"type": "transform", "translate": [0, 0, -0.25], "child": {"type": "box", "size": [2, 2, 0.25]}}
     ball = {"type": "transform", "translate": [0, 0, 1.0], "child": {"type": "sphere", "radius": 0.5}}
-    return SdfModule(parse_sdf({"format": "inshade.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 2.5},
+    return SdfModule(parse_sdf({"format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 2.5},
                                 "root": {"type": "union", "children": [slab, ball]}}))
 
 
@@ -207,7 +207,7 @@ def test_the_ship_recipe_is_the_creatures():
 def test_train_prt_quick_records_preset_and_settings(tmp_path):
     out = tmp_path / "prt_quick"
     sdf = tmp_path / "ball.json"       # a sphere: the fastest surface to sample and sphere trace
-    sdf.write_text(json.dumps({"format": "inshade.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 1.0},
+    sdf.write_text(json.dumps({"format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 1.0},
                                "root": {"type": "sphere", "radius": 0.5}}))
     argv = ["--preset", "quick", "--sdf", str(sdf), "--out", str(out),
             "--cache", str(tmp_path / "cache"), "--points", "300", "--dirs", "8", "--steps", "20",

@@ -49,10 +49,10 @@ def test_every_registered_bench_declares_its_suite_entry():
 
 def test_suite_names_no_bench():
     # each bench's sizes, claims and headline parser live in its own module, its paper in its record
-    text = (REPO / "inshade" / "bench" / "suite.py").read_text()
+    text = (REPO / "bench" / "suite.py").read_text()
     names = {t.name for t in technique.techniques()} | set(suite.registered())
     found = sorted(n for n in names if re.search(rf"\b{re.escape(n)}\b", text))
-    assert not found, f"inshade/bench/suite.py names {found}"
+    assert not found, f"bench/suite.py names {found}"
 
 
 def test_a_suite_entry_checks_its_sizes():

@@ -26,10 +26,10 @@ from parity import assert_parity
 
 
 def _render_scene(folder, settings, width, height):
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, settings=settings)

@@ -153,7 +153,7 @@ def _eroded_hit(inputs):
 
 
 def _camera():
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
 
     return camera_from_dict(sampler.CAMERA)
 
@@ -211,7 +211,7 @@ def test_gl_modes_render_and_differ(gl, trained):
 
 def test_asset_folder_renders_with_the_scene_renderer(gl, trained, tmp_path):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     out = fp.write_asset(trained, tmp_path / "di_footprint", preview_size=VIEW)
     for f in ("bundle.json", "weights.safetensors", "scene.json", "preview.png", "texture.png"):

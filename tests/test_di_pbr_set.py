@@ -154,8 +154,8 @@ def test_pass_matches_torch_twin(gl, asset):
 
 
 def test_scene_errors(asset, tmp_path):
-    from inshade.mesh import obj_text, torus
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.geometry.mesh import obj_text, torus
+    from inshade.scene.description import SceneError, load_scene
 
     out, _ = asset
     bad = tmp_path / "bad"
@@ -176,7 +176,7 @@ def test_scene_errors(asset, tmp_path):
 def test_network_with_wrong_outputs_is_one_compile_error(gl, asset, tmp_path):
     from inshade.shaders import ShaderCompileError
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.models.texture_cascade import compress
 
     out, _ = asset

@@ -20,8 +20,8 @@ from hypothesis import strategies as st
 from inshade import technique
 from inshade.bundle import load
 from inshade.models.graph import GraphModule
-from inshade.runtime.camera import OrbitCamera
-from inshade.runtime.scene import SceneError, load_scene
+from inshade.scene.camera import OrbitCamera
+from inshade.scene.description import SceneError, load_scene
 
 from parity import check_parity, parity_settings
 

@@ -153,7 +153,7 @@ def test_asset_renders_like_torch(gl, tiny):
     """The asset's scene (SceneRenderer, sdf_diffuse + the DI-SDF's textures) vs models/sdf.py."""
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     result, out = tiny
     scene = load_scene(out)
@@ -232,7 +232,7 @@ def test_bench_ground_truth_is_the_mesh():
     from inshade.techniques.di_sdf.bench import mesh_ground_truth
     from inshade.codegen.sdf import environment_sh
     from inshade.models.sdf import camera_rays
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
 
     size = 32
     mesh = trimesh.creation.icosphere(4, radius=0.6)

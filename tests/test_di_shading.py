@@ -209,7 +209,7 @@ def test_lookup_graphs_match_torch_exactly(gl, asset, seed):
 
 
 def _render(gl, folder, e2e, view):
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     r = bench.ShadingRenderer(gl, folder, e2e, view)
     try:
@@ -219,7 +219,7 @@ def _render(gl, folder, e2e, view):
 
 
 def _twin(folder, sampler, inputs, positions):
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     eye = load_scene(folder).make_camera().uniforms(*VIEW)["u_eye"]
     return bench.torch_twin(folder, sampler, inputs, positions, eye)
@@ -253,7 +253,7 @@ def test_split_view_is_independent_left_end_to_end_right(gl, asset):
 def test_geometry_twin_matches_the_pass(gl, asset):
     """train.py's plane_pixels (the training data's uv, derivatives and footprints) against the
     pass's G-buffer, to float32 rounding (uv up to ~16 tiles: 2^-19 relative steps)."""
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     _, inputs, derivs, positions = _render(gl, asset, ds.lambda_folder(0.0), "independent")
     uv, dx, dy, p, hit, _ = plane.plane_pixels(load_scene(asset).make_camera().to_dict(), *VIEW)
@@ -287,7 +287,7 @@ def test_uncompressed_views_match_the_emulated_sampler(gl, asset, decoder, view)
     chain = fp.mip_chain(tex)
     f = lambda a: torch.from_numpy(np.ascontiguousarray(a[ok], np.float32))  # noqa: E731
     x, der, p = f(inputs), f(derivs), f(positions)
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     eye = torch.tensor(load_scene(asset).make_camera().uniforms(*VIEW)["u_eye"], dtype=torch.float32)
     geo = shading.plane_geometry(p[:, :3], eye)

@@ -16,14 +16,14 @@ from hypothesis import strategies as st
 
 from inshade import sh
 from inshade.codegen.sdf import environment_sh
-from inshade.runtime.camera import camera_from_dict
+from inshade.scene.camera import camera_from_dict
 from inshade.runtime.environment import (EnvironmentSampler, EnvironmentTextures, environment_image, mis_power,
                                          scene_environment)
-from inshade.runtime.image_io import write_exr
+from inshade.scene.image_io import write_exr
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
 from inshade.runtime.renderer import SceneRenderer, _rotated_map_sh
-from inshade.runtime.scene import SceneError, load_scene
+from inshade.scene.description import SceneError, load_scene
 
 from parity import assert_parity, parity_settings
 

@@ -11,8 +11,8 @@ import torch
 
 import inshade
 from inshade.cli import main
-from inshade.runtime.image_io import read_exr
-from inshade.runtime.scene import load_scene
+from inshade.scene.image_io import read_exr
+from inshade.scene.description import load_scene
 
 from zoo import Siren, zoo
 

@@ -234,7 +234,7 @@ def test_scene_renderer_limits_override(gl):
 
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[1] / "trained" / "di_texture_astronaut")
     cam = scene.make_camera()

@@ -1,4 +1,4 @@
-"""Scene labels (runtime/labels.py): an overlay on the 8-bit PNG and the window, never in the float
+"""Scene labels (scene/labels.py): an overlay on the 8-bit PNG and the window, never in the float
 image or the EXR, turned off by the built-in setting ``labels``."""
 import json
 from pathlib import Path
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from inshade.runtime.labels import active, labels_for_info, layout, parse_labels
-from inshade.runtime.scene import SceneError, load_scene
+from inshade.scene.labels import active, labels_for_info, layout, parse_labels
+from inshade.scene.description import SceneError, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 GGX = ROOT / "trained" / "di_brdf_ggx"
@@ -66,7 +66,7 @@ def test_labels_for_info_reads_the_scene_file():
 
 def test_render_png_labels_only_where_the_labels_are(gl, tmp_path):
     from inshade.cli import main
-    from inshade.runtime.image_io import read_exr
+    from inshade.scene.image_io import read_exr
 
     for name, extra in (("on", []), ("off", ["--set", "labels=0"])):
         for suffix in ("png", "exr"):
@@ -111,8 +111,8 @@ def test_shipped_labels_fit_at_256(asset):
     import json
     from pathlib import Path
 
-    from inshade.runtime.labels import MIN_FONT, active, fit_texts, font_size, layout, parse_labels
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.labels import MIN_FONT, active, fit_texts, font_size, layout, parse_labels
+    from inshade.scene.description import load_scene
 
     folder = Path(__file__).resolve().parents[1] / "trained" / asset
     scene = load_scene(folder)

@@ -20,9 +20,12 @@ TECHNIQUES = "inshade.techniques"
 # any shared layer.
 ABOVE_SHARED = ("inshade.techniques", "inshade.viewer", "inshade.bench", "inshade.convert", "inshade.cli")
 LAYER_RULES = {
-    "inshade.shaders": ("inshade.codegen", "inshade.models", "inshade.runtime", "inshade.technique", *ABOVE_SHARED),
-    "inshade.codegen": ("inshade.models", "inshade.runtime", *ABOVE_SHARED),
-    "inshade.models": ("inshade.runtime", *ABOVE_SHARED),
+    "inshade.shaders": ("inshade.codegen", "inshade.models", "inshade.runtime", "inshade.scene", "inshade.geometry",
+                        "inshade.technique", *ABOVE_SHARED),
+    "inshade.geometry": ("inshade.codegen", "inshade.models", "inshade.runtime", "inshade.scene", *ABOVE_SHARED),
+    "inshade.codegen": ("inshade.models", "inshade.runtime", "inshade.scene", *ABOVE_SHARED),
+    "inshade.scene": ("inshade.models", "inshade.runtime", *ABOVE_SHARED),      # the GL-free scene model
+    "inshade.models": ("inshade.runtime", "inshade.scene", *ABOVE_SHARED),
     "inshade.runtime": ("inshade.models", *ABOVE_SHARED),
     "inshade.viewer": ("inshade.models", "inshade.techniques", "inshade.bench", "inshade.convert", "inshade.cli"),
 }

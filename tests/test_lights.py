@@ -1,4 +1,4 @@
-"""Scene lights (runtime/scene.py "lights", shaders/lib/lights.glsl): point and directional lights
+"""Scene lights (scene/description.py "lights", shaders/lib/lights.glsl): point and directional lights
 parsed with one error per bad field, packed into lib/lights' uniforms, and ``scene_light`` in GLSL
 (through tests/shaders/passes/scene_light_test.frag) against numpy at random points and lights.
 
@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from inshade.runtime.scene import (LIGHT_KINDS, MAX_LIGHTS, DirectionalLight, PointLight, SceneError, light_uniforms,
+from inshade.scene.description import (LIGHT_KINDS, MAX_LIGHTS, DirectionalLight, PointLight, SceneError, light_uniforms,
                                    parse_scene)
 from parity import assert_parity, parity_settings, run_sample_pass
 

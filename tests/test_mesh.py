@@ -1,4 +1,4 @@
-"""Triangle meshes (inshade/mesh.py): loading OBJ/PLY/GLB, one clear MeshError per bad input, the
+"""Triangle meshes (geometry/mesh.py): loading OBJ/PLY/GLB, one clear MeshError per bad input, the
 procedural rabbit, and the G-buffer pass (runtime/geometry.py + passes/mesh_gbuffer.frag) checked
 against the mesh itself: covered pixels lie on the surface (exact signed distance), they are the
 first hit of the pixel-centre ray (embree), normals are unit and equal the interpolated vertex
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from inshade.mesh import MeshError, bounding_sphere, bunny, edge_defects, load_mesh
+from inshade.geometry.mesh import MeshError, bounding_sphere, bunny, edge_defects, load_mesh
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +99,7 @@ def _model_matrix():
 def test_gbuffer_on_surface_first_hit_and_normals(gl, small_bunny):
     from inshade.models.mlp_sdf_fit import signed_distance
     from inshade.models.sdf import camera_rays
-    from inshade.runtime.camera import OrbitCamera
+    from inshade.scene.camera import OrbitCamera
     from inshade.runtime.geometry import MeshGBuffer
 
     size = 48
@@ -162,7 +162,7 @@ def _closest(mesh, points):
 
 
 def test_gbuffer_resize_and_reuse(gl, small_bunny):
-    from inshade.runtime.camera import OrbitCamera
+    from inshade.scene.camera import OrbitCamera
     from inshade.runtime.geometry import MeshGBuffer
 
     cam = OrbitCamera(distance=3.0)
@@ -182,7 +182,7 @@ def test_gbuffer_resize_and_reuse(gl, small_bunny):
 # --- uv-mapped meshes: loading keeps uv, tangents, the torus, G-buffer uv/tangent ---------------
 
 def _torus_angles(p, major=1.0):
-    """Ring angle a and tube angle b of points on the torus (inshade.mesh.torus parametrisation)."""
+    """Ring angle a and tube angle b of points on the torus (inshade.geometry.mesh.torus parametrisation)."""
     a = np.arctan2(-p[:, 2], p[:, 0]) % (2 * np.pi)
     ring = np.hypot(p[:, 0], p[:, 2]) - major
     b = np.arctan2(p[:, 1], ring) % (2 * np.pi)
@@ -190,7 +190,7 @@ def _torus_angles(p, major=1.0):
 
 
 def test_torus_obj_roundtrip_keeps_uv_seams_and_tangents(tmp_path):
-    from inshade.mesh import mesh_uv, obj_text, shading_normals, torus, vertex_tangents, write_torus
+    from inshade.geometry.mesh import mesh_uv, obj_text, shading_normals, torus, vertex_tangents, write_torus
 
     path = write_torus(tmp_path / "t.obj", segments=(24, 12))
     assert path.read_text() == obj_text(torus(segments=(24, 12))), "not deterministic"
@@ -221,7 +221,7 @@ def test_torus_obj_roundtrip_keeps_uv_seams_and_tangents(tmp_path):
 
 
 def test_uv_errors(tmp_path):
-    from inshade.mesh import vertex_tangents
+    from inshade.geometry.mesh import vertex_tangents
 
     with pytest.raises(MeshError, match="no texture coordinates"):
         vertex_tangents(trimesh.creation.icosphere(subdivisions=1))
@@ -232,8 +232,8 @@ def test_uv_errors(tmp_path):
 
 
 def test_gbuffer_uv_and_tangent_on_torus(gl, tmp_path):
-    from inshade.mesh import write_torus
-    from inshade.runtime.camera import OrbitCamera
+    from inshade.geometry.mesh import write_torus
+    from inshade.scene.camera import OrbitCamera
     from inshade.runtime.geometry import MeshGBuffer
 
     size = 48

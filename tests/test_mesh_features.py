@@ -16,7 +16,7 @@ from inshade.bundle import load
 from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.components import ComponentError, check_node, resolve_params
-from inshade.mesh_topology import MeshTopologyError, mesh_topology
+from inshade.geometry.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.models import GraphModule
 from inshade.models.mesh_features import MeshFeatures, canonical, hash_index, hash_value, subvertices
 

@@ -1,4 +1,4 @@
-"""inshade/mesh_topology.py: welding, corner and edge owner tables (hand-made meshes with the
+"""geometry/mesh_topology.py: welding, corner and edge owner tables (hand-made meshes with the
 owners worked out by hand, random meshes against a loop-by-loop reference), the errors, the
 digest and the table validator."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from inshade.mesh_topology import MeshTopologyError, check_tables, mesh_topology, topology_digest, weld
+from inshade.geometry.mesh_topology import MeshTopologyError, check_tables, mesh_topology, topology_digest, weld
 
 QUAD = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
 

@@ -1,4 +1,4 @@
-"""inshade.metrics (PSNR, SSIM, sRGB, FLIP) and inshade.codecs (ASTC / BC / ETC1 round trips)."""
+"""inshade.metrics (PSNR, SSIM, sRGB, FLIP) and inshade.bench.codecs (ASTC / BC / ETC1 round trips)."""
 import math
 import subprocess
 import sys
@@ -6,11 +6,13 @@ import sys
 import numpy as np
 import pytest
 
-from inshade import codecs, metrics
+from inshade import metrics
+
+from inshade.bench import codecs
 
 
 def test_imports_are_cheap_and_torch_free():
-    code = ("import sys, inshade.metrics, inshade.codecs; "
+    code = ("import sys, inshade.metrics, inshade.bench.codecs; "
             "bad = [m for m in ('torch', 'skimage', 'flip_evaluator', 'astc_encoder', 'etcpak') if m in sys.modules]; "
             "sys.exit(1 if bad else 0)")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0

@@ -26,7 +26,7 @@ def asset(tmp_path_factory):
 
 def test_asset_holds_every_network_and_the_material(asset):
     from inshade.bundle import load
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.techniques.neural_appearance import KIND, NETWORKS
 
     for folder, _prefix in NETWORKS:
@@ -46,7 +46,7 @@ def test_asset_holds_every_network_and_the_material(asset):
 
 def _render(asset, settings, spp=1, camera=None):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(asset)
     r = SceneRenderer(scene, settings={"decoder": 16, **settings})   # 2x16 unless asked: llvmpipe JITs it in seconds
@@ -137,7 +137,7 @@ def test_cli_render_with_spp(asset, tmp_path):
 def test_networks_that_together_exceed_a_limit_are_one_clear_error(asset):
     """Six networks of ubo weights: codegen plans each alone; the renderer checks their sum."""
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.scene.description import SceneError, load_scene
 
     scene = load_scene(asset)
     with pytest.raises(SceneError, match="uniform blocks together; GL_MAX_FRAGMENT_UNIFORM_BLOCKS is 8"):

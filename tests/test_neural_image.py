@@ -22,7 +22,7 @@ from inshade.pixels import pixel_uvs
 from inshade.techniques.neural_image.train import predict
 from inshade.runtime.context import gl_info, shared_context
 from inshade.runtime.headless import RenderSpecError, render_bundle, save_render
-from inshade.runtime.image_io import read_exr, write_png
+from inshade.scene.image_io import read_exr, write_png
 from inshade.runtime.programs import ProgramCache
 
 SHIPPED = Path(__file__).resolve().parents[1] / "trained" / "neural_image"

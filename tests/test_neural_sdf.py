@@ -19,7 +19,7 @@ from inshade.codegen.sdf import SDF_CHUNK, environment_sh
 from inshade.models import GraphModule, mlp_graph
 from inshade.models.network_sdf import NetworkSdfModule
 from inshade.models.sdf import INV_PI, SdfModule, camera_rays, normals, sh_background_t, sh_irradiance_t, trace
-from inshade.sdf import parse_sdf
+from inshade.geometry.sdf import parse_sdf
 
 from parity import assert_parity, parity_settings, run_sample_pass
 
@@ -90,7 +90,7 @@ def _fit_torus(steps=300, seed=0):
 
 def _fit_torus_1(steps, seed):
     torch.manual_seed(seed)
-    scene = parse_sdf({"format": "inshade.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 1.5},
+    scene = parse_sdf({"format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 1.5},
                        "root": {"type": "transform", "rotate": {"axis": [1, 0, 0], "angle": 60},
                                 "child": {"type": "torus", "major": 0.8, "minor": 0.3}}})
     target = SdfModule(scene)
@@ -169,7 +169,7 @@ def test_scene_sdf_glsl_vs_torch_fitted_and_normals(gl, torus):
 
 
 def test_render_glsl_vs_torch(gl, torus):
-    from inshade.runtime.camera import OrbitCamera
+    from inshade.scene.camera import OrbitCamera
 
     size = 48
     cam = OrbitCamera(target=(0.1, 0.0, 0.0), distance=3.2, yaw=25.0, pitch=20.0)
@@ -275,7 +275,7 @@ def test_trace_settings_from_bound():
 @pytest.fixture(scope="module")
 def tiny_fit(tmp_path_factory):
     """A seconds-long fit to a coarse procedural rabbit: the pipeline, not the quality."""
-    from inshade.mesh import bunny
+    from inshade.geometry.mesh import bunny
     from inshade.techniques.neural_sdf.train import train
 
     tmp = tmp_path_factory.mktemp("nsdf")
@@ -324,7 +324,7 @@ def test_shipped_bunny_keeps_its_ears_apart():
     from pathlib import Path
 
     from inshade.bundle import load
-    from inshade.mesh import bunny_field
+    from inshade.geometry.mesh import bunny_field
 
     module = NetworkSdfModule.from_bundle(load(Path(__file__).resolve().parents[1] / "trained/prt_neural_bunny/sdf"))
     xs, ys, zs = np.linspace(-0.2, 0.2, 41), np.linspace(0.7, 1.25, 56), np.linspace(0.15, 0.4, 13)
@@ -342,7 +342,7 @@ def test_shipped_bunny_keeps_its_ears_apart():
 def test_cli_rejects_open_mesh(tmp_path):
     import trimesh
 
-    from inshade.mesh import MeshError
+    from inshade.geometry.mesh import MeshError
     from inshade.techniques.neural_sdf.train import main
 
     s = trimesh.creation.icosphere(1)

@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SIZE = 48
 
 SDF_SCENE = {  # a blob on a slab: self-occlusion where they meet, visible from the test camera
-    "format": "inshade.sdf", "version": 1, "name": "prt_test",
+    "format": "inshade.geometry.sdf", "version": 1, "name": "prt_test",
     "bound": {"center": [0.0, 0.0, 0.0], "radius": 1.6},
     "trace": {"max_steps": 96, "step_scale": 0.9, "hit_eps": 0.001, "normal_eps": 0.001},
     "root": {"type": "union", "k": 0.1, "children": [
@@ -75,7 +75,7 @@ def write_scene(folder: Path, *, sdf=None, networks=None, program="passes/sdf_pr
 
 @pytest.fixture(scope="module")
 def prt_scene(tmp_path_factory):
-    from inshade.sdf import parse_sdf
+    from inshade.geometry.sdf import parse_sdf
 
     folder = tmp_path_factory.mktemp("prt_scene")
     sdf = parse_sdf(SDF_SCENE)
@@ -99,7 +99,7 @@ def _gl_render(gl, cache, folder, settings_seq, size=SIZE):
     environment SH of the last one."""
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, gl, cache=cache)
@@ -219,7 +219,7 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
     from inshade.techniques.prt.codegen import prt_chunks
     from inshade.codegen.sdf import sdf_chunks
     from inshade.codegen.spherical_harmonics import sh_chunks
-    from inshade.sdf import parse_sdf
+    from inshade.geometry.sdf import parse_sdf
     from inshade.shaders import assemble
     from inshade.technique import choice_chunks, program_spec
 
@@ -286,7 +286,7 @@ def test_glossy_ks_and_settings_take_the_uniform_path(gl, cache, prt_scene):
 
 def test_light_matrix_follows_environment(gl, cache, prt_scene):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     folder, _, _ = prt_scene
     scene = load_scene(folder)
@@ -367,7 +367,7 @@ def test_network_sdf_scene_glsl_vs_torch(gl, tmp_path):
 # scene errors -----------------------------------------------------------------------------------------
 def _scene_error(folder, match):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.scene.description import SceneError, load_scene
 
     with pytest.raises(SceneError, match=match) as info:
         SceneRenderer(load_scene(folder))
@@ -398,7 +398,7 @@ def test_missing_transfer_network_one_clear_error(tmp_path, prt_scene):
 
 
 def test_bad_environment_one_clear_error(tmp_path, prt_scene):
-    from inshade.runtime.image_io import write_exr
+    from inshade.scene.image_io import write_exr
 
     src, _, _ = prt_scene
 
@@ -423,9 +423,9 @@ def test_environment_map_lights_the_scene(gl, cache, tmp_path, prt_scene):
     """An equirectangular map (here the sunset preset written to EXR) lights the scene as the
     preset's own SH does, and rotates with the environment setting."""
     from inshade.sh import procedural_sky
-    from inshade.runtime.image_io import write_exr
+    from inshade.scene.image_io import write_exr
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     src, _, _ = prt_scene
     folder = tmp_path / "map"
@@ -481,8 +481,8 @@ def test_ground_truth_matches_reference_when_transfer_is_exact(prt_scene):
     ground truth is the ground-truth render (same pixels), so quality differences are the
     network's alone."""
     from inshade.techniques.prt.twin import ground_truth_transfer, render_ground_truth
-    from inshade.runtime.camera import camera_from_dict
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.camera import camera_from_dict
+    from inshade.scene.description import load_scene
 
     folder, _, _ = prt_scene
     scene = load_scene(folder)
@@ -501,7 +501,7 @@ def mesh_scene(tmp_path_factory):
     import trimesh
     import trimesh.creation
 
-    from inshade.mesh import bounding_sphere
+    from inshade.geometry.mesh import bounding_sphere
 
     folder = tmp_path_factory.mktemp("mesh_scene")
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
@@ -522,7 +522,7 @@ def mesh_scene(tmp_path_factory):
 def _gl_mesh(gl, cache, folder, settings_seq, size=SIZE):
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, gl, cache=cache)

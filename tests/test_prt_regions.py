@@ -27,7 +27,7 @@ from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
 SIZE = 48
 SDF_SCENE = {  # a floor slab with a few blobs across the grid's cell sides (occlusion on both sides)
-    "format": "inshade.sdf", "version": 1, "name": "prt_regions_test",
+    "format": "inshade.geometry.sdf", "version": 1, "name": "prt_regions_test",
     "bound": {"center": [0.0, 0.0, 0.0], "radius": 2.6},
     "trace": {"max_steps": 96, "step_scale": 0.9, "hit_eps": 0.001, "normal_eps": 0.001},
     "root": {"type": "union", "k": 0.1, "children": [
@@ -86,7 +86,7 @@ def _renders(folder, settings_seq, cache, size=SIZE):
     from inshade.runtime.context import shared_context
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, shared_context(), cache=cache)
@@ -331,7 +331,7 @@ def test_bad_inputs_name_the_field():
 def test_inconsistent_region_sets_fail_with_the_field(tmp_path):
     from inshade.runtime.context import shared_context
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     table = np.array([0, 1, 2, 2])
     bundles = region_bundles(GRID, table, 0.1)
@@ -381,7 +381,7 @@ def test_builder_presets_and_the_baseline_width():
 
 
 def test_atrium_scene_is_large_and_valid():
-    from inshade.sdf import parse_sdf
+    from inshade.geometry.sdf import parse_sdf
     from inshade.techniques.prt.atrium import BOUND_RADIUS, atrium
 
     scene = parse_sdf(atrium())
@@ -393,7 +393,7 @@ def test_atrium_scene_is_large_and_valid():
 
 def test_shipped_atrium_records_its_ship_preset_and_a_consistent_region_set():
     from inshade.bundle import load
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.techniques.prt import regions_train
 
     root = Path(__file__).resolve().parents[1] / "trained" / "prt_atrium"

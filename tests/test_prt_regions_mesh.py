@@ -93,7 +93,7 @@ def _renders(folder, settings_seq, cache, size=SIZE):
     from inshade.runtime.context import shared_context
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, shared_context(), cache=cache)

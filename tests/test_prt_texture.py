@@ -56,7 +56,7 @@ def _small_mesh():
 @pytest.fixture(scope="module")
 def atlas_mesh(tmp_path_factory):
     """The small mesh with an atlas for RES^2, written as OBJ and read back as the renderer reads it."""
-    from inshade.mesh import load_mesh, obj_text
+    from inshade.geometry.mesh import load_mesh, obj_text
 
     folder = tmp_path_factory.mktemp("prt_texture")
     mapped = tp.atlas(_small_mesh(), RES, padding=2)
@@ -83,7 +83,7 @@ def test_atlas_footprints_stay_in_their_chart(atlas_mesh):
 
 
 def test_inside_cells_are_surface_points_at_their_uv(atlas_mesh):
-    from inshade.mesh import mesh_uv
+    from inshade.geometry.mesh import mesh_uv
 
     _, mesh = atlas_mesh
     s = tp.texel_samples(mesh, RES)
@@ -114,7 +114,7 @@ def test_unoccluded_plane_bakes_the_analytic_transfer(tmp_path):
     expected = np.array([bands[int(math.isqrt(k))] * y[k] for k in range(16)])
     g = tp.texture_graph(table, 32)
     _, fi, bary = trimesh.sample.sample_surface(mapped, 200, seed=2, return_barycentric=True)
-    from inshade.mesh import mesh_uv
+    from inshade.geometry.mesh import mesh_uv
 
     uv = np.einsum("mc,mcx->mx", bary, mesh_uv(mapped)[mapped.faces[fi]])
     got = tp.texture_transfer(g, uv).numpy()
@@ -143,7 +143,7 @@ def cache():
 def _gl(gl, cache, folder, settings_seq):
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     r = SceneRenderer(scene, gl, cache=cache)
@@ -193,7 +193,7 @@ def test_texture_transfer_and_images_glsl_vs_torch(gl, cache, atlas_mesh, tmp_pa
 
 # errors -----------------------------------------------------------------------------------------------
 def _scene_error(folder, pattern):
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.scene.description import SceneError, load_scene
 
     with pytest.raises(SceneError, match=pattern):
         load_scene(folder)
@@ -201,7 +201,7 @@ def _scene_error(folder, pattern):
 
 def test_wrong_bundle_or_mesh_is_one_clear_error(gl, atlas_mesh, tmp_path):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
     src, _ = atlas_mesh

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import torch
 
-from inshade.sdf import parse_sdf
+from inshade.geometry.sdf import parse_sdf
 from inshade.techniques.prt import thin
 from inshade.techniques.prt import transfer as T
 from inshade.techniques.prt.transfer_directions import hemisphere_directions
@@ -27,7 +27,7 @@ HIT = 1e-3
 GAP = 2.5 * HIT
 SLOT = {  # two 0.6 x 0.6 plates, the lower one's top at y = 0, the upper one's bottom at y = GAP,
     # the upper plate ends at x = 0.1 (the slot's mouth); a wall-free floor beyond it
-    "format": "inshade.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 1.0},
+    "format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 1.0},
     "trace": {"max_steps": 256, "step_scale": 0.9, "hit_eps": HIT, "normal_eps": HIT},
     "root": {"type": "union", "children": [
         {"type": "transform", "translate": [0.0, -0.05, 0.0], "child": {"type": "box", "size": [0.3, 0.05, 0.3]}},

@@ -29,7 +29,7 @@ from inshade.techniques.prt.transfer_surface import sample_mesh_surface, sample_
 from inshade.techniques.prt.transfer_model import TransferFrame, evaluate_transfer, export_transfer
 from inshade.techniques.prt.transfer_net import main
 from inshade.techniques.prt.transfer_training import train_transfer, transfer_metrics
-from inshade.sdf import parse_sdf
+from inshade.geometry.sdf import parse_sdf
 from inshade.sh import band_of, lambert_bands, sh_basis
 
 @pytest.fixture(autouse=True, scope="module")
@@ -45,7 +45,7 @@ R, H = 0.5, 1.0      # occluder sphere radius and its centre's height above the 
 
 
 def _scene(root, radius=2.5):
-    return parse_sdf({"format": "inshade.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": radius},
+    return parse_sdf({"format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": radius},
                       "root": root})
 
 
@@ -246,7 +246,7 @@ def test_cli_writes_a_bundle(tmp_path):
     import json
 
     scene = tmp_path / "sdf.json"
-    scene.write_text(json.dumps({"format": "inshade.sdf", "version": 1, "name": "ball",
+    scene.write_text(json.dumps({"format": "inshade.geometry.sdf", "version": 1, "name": "ball",
                                  "bound": {"center": [0, 0, 0], "radius": 1.0},
                                  "root": {"type": "sphere", "radius": 0.5}}))
     out = tmp_path / "out"

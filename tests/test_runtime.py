@@ -7,7 +7,7 @@ import pytest
 
 from inshade.shaders import LIBRARY_DIR, ShaderCompileError, ShaderIncludeError
 from inshade.runtime.context import create_context, egl_devices, gl_info, shared_context
-from inshade.runtime.image_io import read_exr, write_exr, write_png, write_sidecar
+from inshade.scene.image_io import read_exr, write_exr, write_png, write_sidecar
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import (
     FullscreenPass,

@@ -1,4 +1,4 @@
-"""Analytic SDF scenes (inshade/sdf.py): torch (models/sdf.py) vs generated GLSL (codegen/sdf.py,
+"""Analytic SDF scenes (geometry/sdf.py): torch (models/sdf.py) vs generated GLSL (codegen/sdf.py,
 shaders/lib/sdf.glsl), primitives vs closed forms, the sdf_diffuse pass vs the torch reference
 renderer, bad scene files, deterministic chunks.
 
@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunk, sdf_chunks
 from inshade.models.sdf import SdfModule, camera_rays, gradient, normals, render, sh_background_t
-from inshade.sdf import SdfError, load_sdf, parse_sdf
+from inshade.geometry.sdf import SdfError, load_sdf, parse_sdf
 from parity import run_sample_pass
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -101,7 +101,7 @@ _tree = st.recursive(_leaf, _extend, max_leaves=5)
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(root=_tree, seed=st.integers(0, 2**16))
 def test_random_scenes_glsl_vs_torch(gl, root, seed):
-    scene = parse_sdf({"format": "inshade.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 2},
+    scene = parse_sdf({"format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 2},
                        "root": root})
     points = np.random.default_rng(seed).uniform(-1.5, 1.5, (256, 3)).astype(np.float32)
     _check_values(gl, scene, points)
@@ -109,7 +109,7 @@ def test_random_scenes_glsl_vs_torch(gl, root, seed):
 
 # primitives vs closed forms -----------------------------------------------------------------------
 def _prim(node):
-    return SdfModule(parse_sdf({"format": "inshade.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 3},
+    return SdfModule(parse_sdf({"format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 3},
                                 "root": node}))
 
 
@@ -163,7 +163,7 @@ def test_primitives_closed_forms():
 @pytest.mark.parametrize("name", SCENES)
 def test_render_glsl_vs_torch(gl, name):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(ROOT / f"trained/sdf_{name}")
     size = 64
@@ -219,7 +219,7 @@ def test_bad_sdf_file_one_clear_error(tmp_path):
 
 
 def test_bad_scene_file_names_scene_and_sdf(tmp_path):
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.scene.description import SceneError, load_scene
 
     scene = json.loads((ROOT / "trained/sdf_occlusion/scene.json").read_text())
     sdf = json.loads((ROOT / "trained/sdf_occlusion/sdf.json").read_text())

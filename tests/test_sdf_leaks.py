@@ -35,7 +35,7 @@ def test_leak_detector():
 
 
 def _scene():
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     return load_scene(ROOT / "trained/sdf_occlusion")
 

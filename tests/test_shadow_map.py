@@ -344,7 +344,7 @@ def test_renderer_binds_and_reuses_the_shadow_maps(gl, shadow_scene):
     per pixel equals the numpy twin on the renderer's own maps), redraws them only when the request
     changes (a setting the hook reads), and makes no new GL objects for a redraw or a camera move."""
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(shadow_scene)
     r = SceneRenderer(scene, gl)

@@ -1,4 +1,4 @@
-"""Built-in shapes (inshade/shapes.py, inshade/teapot.py): the Newell teapot table's structure, its
+"""Built-in shapes (geometry/shapes.py, geometry/teapot.py): the Newell teapot table's structure, its
 tessellation (stitched patches, outward winding, uv atlas, tangents), sphere and plane, scenes that
 name a shape, and the sidecar's record of it.
 
@@ -17,8 +17,8 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from inshade import shapes, teapot
-from inshade.mesh import check_tangents, edge_defects, load_mesh, mesh_uv, obj_text, shading_normals, vertex_tangents
+from inshade.geometry import shapes, teapot
+from inshade.geometry.mesh import check_tangents, edge_defects, load_mesh, mesh_uv, obj_text, shading_normals, vertex_tangents
 
 REPO = Path(__file__).resolve().parents[1]
 PBR_ASSET = REPO / "trained" / "di_pbr_set_bricks"     # a mesh program that needs uv and tangents
@@ -253,7 +253,7 @@ def _pbr_scene(mesh) -> dict:
 
 
 def test_scene_names_a_shape():
-    from inshade.runtime.scene import parse_scene
+    from inshade.scene.description import parse_scene
 
     scene = parse_scene(_pbr_scene({"shape": "teapot", "segments": 3}), root=PBR_ASSET)
     assert scene.mesh.path is None and scene.mesh.name == "teapot"
@@ -282,7 +282,7 @@ def test_scene_names_a_shape():
     (5, "mesh"),
 ])
 def test_scene_shape_errors(mesh, field):
-    from inshade.runtime.scene import SceneError, parse_scene
+    from inshade.scene.description import SceneError, parse_scene
 
     with pytest.raises(SceneError) as info:
         parse_scene(_pbr_scene(mesh), root=PBR_ASSET)
@@ -291,7 +291,7 @@ def test_scene_shape_errors(mesh, field):
 
 
 def test_mesh_without_uv_or_with_degenerate_uv(tmp_path):
-    from inshade.runtime.scene import SceneError, parse_scene
+    from inshade.scene.description import SceneError, parse_scene
 
     plain = shapes.sphere(1.0, 6)
     (tmp_path / "plain.obj").write_text(obj_text(trimesh.Trimesh(plain.vertices, plain.faces, process=False)))
@@ -313,7 +313,7 @@ def test_mesh_without_uv_or_with_degenerate_uv(tmp_path):
 
 def test_render_teapot_scene_records_the_shape(gl, tmp_path):
     from inshade.runtime.headless import render_scene
-    from inshade.runtime.scene import parse_scene
+    from inshade.scene.description import parse_scene
 
     data = _pbr_scene({"shape": "teapot", "segments": 4})
     data["camera"] = {"type": "orbit", "fov_y": 40.0, "target": [0.2, 1.4, 0.0], "distance": 9.0,

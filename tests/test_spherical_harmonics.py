@@ -11,7 +11,7 @@ from PIL import Image
 
 from inshade import sh
 from inshade.codegen.spherical_harmonics import sh_chunk, sh_chunks
-from inshade.runtime.image_io import write_exr
+from inshade.scene.image_io import write_exr
 
 from parity import assert_parity, unit_directions
 

@@ -14,7 +14,7 @@ import pytest
 
 from inshade import technique
 from inshade.bundle import Bundle
-from inshade.runtime.scene import SceneError, load_scene
+from inshade.scene.description import SceneError, load_scene
 from inshade.technique import Choice, ProgramSpec, Technique, TechniqueError, choice_chunks
 
 ROOT = Path(__file__).resolve().parents[1]

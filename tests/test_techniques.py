@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from inshade import technique
-from inshade.runtime.scene import SceneError, parse_scene
+from inshade.scene.description import SceneError, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 TOY = Path(__file__).resolve().parent / "plugins" / "toy_rings"
-RUNTIME_DIRS = ("runtime", "viewer", "shaders", "codegen")
+RUNTIME_DIRS = ("runtime", "scene", "viewer", "shaders", "codegen")
 
 
 def _cli(*args, env_extra=None, cwd=None):
@@ -123,7 +123,7 @@ def test_toy_technique_trains_renders_and_is_listed(tmp_path):
     shot = tmp_path / "toy.exr"
     drawn = _cli("render", str(asset), "-o", str(shot), "--set", "warmth=0.25", env_extra=env, cwd=tmp_path)
     assert drawn.returncode == 0, drawn.stderr
-    from inshade.runtime.image_io import read_exr
+    from inshade.scene.image_io import read_exr
 
     image = np.asarray(read_exr(shot), np.float64)[..., :3]
     h, w = image.shape[:2]

@@ -44,7 +44,7 @@ def graph(asset):
 
 def test_asset_folder_holds_the_bundle_mesh_and_reference(asset):
     from inshade.bundle import load
-    from inshade.mesh import load_mesh
+    from inshade.geometry.mesh import load_mesh
     from inshade.techniques.uvfree_material.model import CHANNELS, KIND
 
     bundle = load(asset / "material")
@@ -65,8 +65,8 @@ def test_asset_folder_holds_the_bundle_mesh_and_reference(asset):
 def _shared_points(asset, rng, n_random=96):
     """Random interior points, plus every mesh vertex and edge midpoint named from each face that has
     it (so both sides of an edge and all faces around a vertex), plus sub-triangle boundaries."""
-    from inshade.mesh import load_mesh
-    from inshade.mesh_topology import weld
+    from inshade.geometry.mesh import load_mesh
+    from inshade.geometry.mesh_topology import weld
 
     mesh = load_mesh(asset / "mesh.obj")
     welded, _ = weld(mesh.vertices, mesh.faces)
@@ -110,7 +110,7 @@ def test_material_network_matches_torch_and_is_continuous_across_faces(gl, asset
 
 def _renderer(asset, **settings):
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     return SceneRenderer(load_scene(asset), settings=settings)
 
@@ -185,7 +185,7 @@ def test_wireframe_level_refines_the_triangle_overlay(asset):
 
 
 def test_scene_refuses_a_mesh_other_than_the_bundles(asset, tmp_path):
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.scene.description import SceneError, load_scene
 
     other = tmp_path / "other"
     shutil.copytree(asset, other)
@@ -195,7 +195,7 @@ def test_scene_refuses_a_mesh_other_than_the_bundles(asset, tmp_path):
     with pytest.raises(SceneError, match="faces; the material bundle was trained on"):
         load_scene(other)
     # same face count, faces in another order: the welded topology digest differs
-    from inshade.mesh import load_mesh, obj_text
+    from inshade.geometry.mesh import load_mesh, obj_text
 
     mesh = load_mesh(asset / "mesh.obj")
     flipped = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[::-1], visual=mesh.visual, process=False)
@@ -215,7 +215,7 @@ def _quad_mesh(path: Path, uv: bool, faces=((0, 1, 2), (0, 2, 3))):
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 0]], float)
     visual = trimesh.visual.TextureVisuals(uv=v[:, :2]) if uv else None
     m = trimesh.Trimesh(v, np.array(faces), visual=visual, process=False)
-    from inshade.mesh import obj_text
+    from inshade.geometry.mesh import obj_text
 
     path.write_text(obj_text(m) if uv else m.export(file_type="obj"))
     return path
@@ -237,7 +237,7 @@ def test_training_bad_inputs_are_one_error_line(tmp_path, asset):
 
 
 def test_degenerate_faces_are_dropped_by_the_loader_before_ids_are_given(tmp_path, asset):
-    """A face whose corners weld to two positions has zero area: inshade/mesh.py load_mesh drops it
+    """A face whose corners weld to two positions has zero area: geometry/mesh.py load_mesh drops it
     when the trainer writes and reads the mesh, exactly as the renderer's loader does, so face ids agree."""
     from inshade.bundle import load
     from inshade.techniques.uvfree_material.train import train
@@ -249,13 +249,13 @@ def test_degenerate_faces_are_dropped_by_the_loader_before_ids_are_given(tmp_pat
 
 
 def test_non_manifold_edges_train_and_render_by_the_documented_rule(tmp_path, asset):
-    """Three faces on one edge: the lowest face owns it (inshade/mesh_topology.py), training runs."""
+    """Three faces on one edge: the lowest face owns it (geometry/mesh_topology.py), training runs."""
     from inshade.techniques.uvfree_material.train import train
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]], float)
     mesh = trimesh.Trimesh(v, [[0, 1, 2], [1, 0, 3], [0, 1, 4]], process=False,
                            visual=trimesh.visual.TextureVisuals(uv=v[:, :2] * 0.4 + 0.5))
-    from inshade.mesh import obj_text
+    from inshade.geometry.mesh import obj_text
 
     (tmp_path / "fin.obj").write_text(obj_text(mesh))
     out = train(mesh_path=tmp_path / "fin.obj", textures_dir=asset, preset="quick", steps=3, out=tmp_path / "fin",

@@ -30,7 +30,7 @@ def asset(tmp_path_factory):
 @pytest.fixture(scope="module")
 def report(asset, tmp_path_factory):
     """The bench run once, with BC7 made unavailable (a codec that cannot run must not crash it)."""
-    from inshade.codecs import CodecError
+    from inshade.bench.codecs import CodecError
 
     out = tmp_path_factory.mktemp("uvf_bench_out")
     real = bench_measure.roundtrip

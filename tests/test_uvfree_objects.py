@@ -1,7 +1,7 @@
 """The UV-free material's procedural objects (techniques/uvfree_material/objects.py, procedural.py,
 object_textures.py): deterministic meshes and textures, sane ranges, the low/high stump pair
 sharing one texture set and uv layout, uv seams that weld into closed outward-wound surfaces, the
-OBJ + PNG round trip through ``inshade.mesh.load_mesh``, and ``sample_textures`` against GL's own
+OBJ + PNG round trip through ``inshade.geometry.mesh.load_mesh``, and ``sample_textures`` against GL's own
 lookup of the written PNGs as the renderer uploads them (``runtime/renderer.py _scene_texture``)."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from inshade.mesh import edge_defects, load_mesh, mesh_uv, vertex_tangents
+from inshade.geometry.mesh import edge_defects, load_mesh, mesh_uv, vertex_tangents
 from inshade.metrics import srgb_eotf, srgb_oetf
 from inshade.techniques.uvfree_material.object_textures import read_textures, sample_textures, write_object
 from inshade.techniques.uvfree_material.objects import (
@@ -223,7 +223,7 @@ def _gl_lookup(gl, png, uvs: np.ndarray) -> np.ndarray:
     from inshade.runtime.programs import ProgramCache
     from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
     from inshade.runtime.renderer import _scene_texture
-    from inshade.runtime.scene import SceneTexture
+    from inshade.scene.description import SceneTexture
 
     tex = _scene_texture(gl, SceneTexture("u_tex", png, mipmaps=False, repeat=False))
     cache = ProgramCache(gl)

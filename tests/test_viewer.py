@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from inshade.runtime.scene import list_scenes
-from inshade.runtime.camera import CameraError, FlyCamera, OrbitCamera, Plane2DCamera, camera_from_dict
-from inshade.runtime.display import DisplayMode, UI_MODES, glsl_chunk, parse_mode
-from inshade.runtime.scene import SceneError, load_scene
+from inshade.scene.description import list_scenes
+from inshade.scene.camera import CameraError, FlyCamera, OrbitCamera, Plane2DCamera, camera_from_dict
+from inshade.scene.display import DisplayMode, UI_MODES, glsl_chunk, parse_mode
+from inshade.scene.description import SceneError, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 ASSET = ROOT / "trained" / "neural_image"
@@ -247,7 +247,7 @@ def app(xvfb, tmp_path_factory):
 
 
 def _encode(linear: np.ndarray) -> np.ndarray:
-    from inshade.runtime.image_io import srgb_oetf
+    from inshade.scene.image_io import srgb_oetf
     return np.rint(srgb_oetf(linear[..., :3]) * 255).astype(np.int16)
 
 
@@ -332,7 +332,7 @@ def test_uniform_settings_do_not_recompile(app):
 
 def test_screenshot_is_reproduced_by_render_from(app, tmp_path):
     from inshade.cli import main
-    from inshade.runtime.image_io import read_exr
+    from inshade.scene.image_io import read_exr
 
     _reset(app, "split")
     app.scroll(3)

@@ -22,7 +22,7 @@ from inshade.models import GraphModule
 from inshade.runtime.geometry import GBUFFER, VISIBILITY, MeshGBuffer
 from inshade.runtime.network import NetworkResources
 from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw
-from inshade.shapes import sphere, teapot
+from inshade.geometry.shapes import sphere, teapot
 from inshade.technique import ProgramSpec, TechniqueError
 
 from parity import assert_parity, glsl_eval, parity_settings

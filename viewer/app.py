@@ -34,13 +34,13 @@ from inshade.shaders import search_path
 
 from . import navigation
 from inshade.runtime.context import release_shared
-from inshade.runtime.display import UI_MODES, DisplayMode, parse_mode
-from inshade.runtime.labels import active as active_labels
+from inshade.scene.display import UI_MODES, DisplayMode, parse_mode
+from inshade.scene.labels import active as active_labels
 from inshade.runtime.headless import save_render
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass
 from inshade.runtime.renderer import SceneRenderer
-from inshade.runtime.scene import list_scenes, load_scene
+from inshade.scene.description import list_scenes, load_scene
 from .watch import FileWatcher
 
 log = logging.getLogger("inshade")
@@ -229,7 +229,7 @@ class ViewerApp:
         return self.flash_text if self.flash_text and time.perf_counter() < self._flash_until else None
 
     def active_labels(self) -> list:
-        """The scene's labels (runtime/labels.py) to draw over the viewport now."""
+        """The scene's labels (scene/labels.py) to draw over the viewport now."""
         if self.scene is None or self.renderer is None:
             return []
         return active_labels(self.scene.labels, self.renderer.values, self.mode)

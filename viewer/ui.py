@@ -8,8 +8,8 @@ import re
 import numpy as np
 from imgui_bundle import ImVec2, ImVec4, imgui, implot
 
-from inshade.runtime.display import UI_MODES, DisplayMode
-from inshade.runtime.labels import layout as label_layout
+from inshade.scene.display import UI_MODES, DisplayMode
+from inshade.scene.labels import layout as label_layout
 
 RED = ImVec4(1.0, 0.35, 0.3, 1.0)
 YELLOW = ImVec4(1.0, 0.85, 0.3, 1.0)
@@ -115,7 +115,7 @@ def _widget_label(app, label: str, key: str) -> tuple[str, bool]:
 
 
 def _labels(app) -> None:
-    """The scene's labels (runtime/labels.py) over the viewport: the window's copy of what the PNG
+    """The scene's labels (scene/labels.py) over the viewport: the window's copy of what the PNG
     writer draws; never part of the rendered image."""
     labels = app.active_labels()
     if not labels:

@@ -1,8 +1,8 @@
 // Camera rays for full-screen passes (SDF sphere tracing, deferred mesh shading, ray-cast planes).
-// World frame: right-handed, y up; the camera looks down -z (runtime/camera.py).
+// World frame: right-handed, y up; the camera looks down -z (scene/camera.py).
 // Torch twin: models/sdf.py camera_rays.
 
-uniform mat4 u_inv_view_proj;  // inverse of proj * view (runtime/camera.py)
+uniform mat4 u_inv_view_proj;  // inverse of proj * view (scene/camera.py)
 uniform vec3 u_eye;            // camera position
 
 // Ray through the pixel centre frag (gl_FragCoord.xy): the far-plane point (ndc z = 1)

@@ -1,5 +1,5 @@
 // Footprint-aware texturing of a ground plane (models/footprint_sampler.py has the torch side).
-// World frame: right-handed, y up, the camera looks down -z (runtime/camera.py fly/orbit cameras).
+// World frame: right-handed, y up, the camera looks down -z (scene/camera.py fly/orbit cameras).
 // The plane is y = 0; its texture coordinate is the hit's (x, -z) / tile, so one tile of the
 // texture covers tile x tile world units, u to the right and v away from a camera at yaw 0.
 

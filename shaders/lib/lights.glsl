@@ -1,6 +1,6 @@
 // Lights of the scene (scene.json "lights"), uploaded by the runtime every frame. u_lights[i]: xyz
 // the position (point) or the unit direction towards the light (directional), in the pass's space;
-// w the intensity. u_light_kinds[i] says which (INSHADE_LIGHT_*, runtime/scene.py LIGHT_KINDS).
+// w the intensity. u_light_kinds[i] says which (INSHADE_LIGHT_*, scene/description.py LIGHT_KINDS).
 // u_scene_light_count is how many the scene has; a pass may light fewer (e.g. a "lights" setting).
 // New passes call scene_light(); older ones read u_lights as point lights, and the runtime refuses
 // them a directional light (u_light_kinds is then unused).

@@ -1,5 +1,5 @@
 // UV-free hashed per-triangle feature hierarchy (models/mesh_features.py has the torch twin
-// and the rules, inshade/mesh_topology.py the owner tables). All integer work is uint32
+// and the rules, geometry/mesh_topology.py the owner tables). All integer work is uint32
 // wrap-around arithmetic, bit-exact with torch; the float work is the same float32 operations
 // in the same order.
 

@@ -2,7 +2,7 @@
 // chunk <sdf_scene> (codegen/sdf.py: chunks=sdf_chunks(scene)): scene_sdf(p), scene_albedo(p) and
 // the constants SDF_MAX_STEPS, SDF_STEP_SCALE, SDF_HIT_EPS, SDF_NORMAL_EPS, SDF_BOUND_CENTER,
 // SDF_BOUND_RADIUS. Torch twins, step for step, in models/sdf.py (trace, normals).
-// World frame: right-handed, y up; the camera looks down -z (runtime/camera.py).
+// World frame: right-handed, y up; the camera looks down -z (scene/camera.py).
 #include <sdf_scene>
 
 #include <lib/camera>
@@ -12,7 +12,7 @@
 // sphere's exit or after SDF_MAX_STEPS. Returns hit; t is the ray parameter of the last point.
 // A ray grazing an edge or meeting a surface at a shallow angle crawls (steps shrink by about
 // SDF_STEP_SCALE * sin(angle)) and may need ~180 steps; one that runs out is a miss, i.e. a
-// sky-coloured hole in the surface: SDF_MAX_STEPS must cover them (inshade/sdf.py, default 256).
+// sky-coloured hole in the surface: SDF_MAX_STEPS must cover them (geometry/sdf.py, default 256).
 bool sdf_trace(vec3 ro, vec3 rd, out float t) {
     vec3 oc = ro - SDF_BOUND_CENTER;
     float b = oc.x * rd.x + oc.y * rd.y + oc.z * rd.z;

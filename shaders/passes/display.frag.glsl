@@ -1,6 +1,6 @@
 // Display (composite) pass: turns the scene pass's linear float output into what a display mode
 // shows, still in linear light (the screen blit or write_png encodes sRGB afterwards).
-// Modes are the generated constants of runtime/display.py (DisplayMode), switched by a uniform so a
+// Modes are the generated constants of scene/display.py (DisplayMode), switched by a uniform so a
 // mode change never recompiles the network program. In DISPLAY_FINAL at exposure 1 the output is
 // the network pass's texel unchanged (x * 1.0), so `inshade render` and the viewer agree exactly.
 #include <display_modes>

@@ -9,7 +9,7 @@
 // into visible disagreement with torch. render.read_rgba flips rows, so image row 0 (top) holds
 // v = (H - 0.5) / H.
 //
-// Camera (runtime/camera.py, `plane2d`): uv = u_view.xy + gl_FragCoord.xy / u_size * u_view.zw. The
+// Camera (scene/camera.py, `plane2d`): uv = u_view.xy + gl_FragCoord.xy / u_size * u_view.zw. The
 // default view is u_view = (0, 0, 1, 1), which adds 0 and multiplies by 1 (exact), so the pixels
 // are the same as without a camera. Outside the unit square the network is not evaluated and the
 // pixel is transparent (alpha 0 = no coverage; the display pass draws a background there).

@@ -79,7 +79,7 @@ def asset_folders(text: str | None) -> list[Path]:
 def load_asset(folder: Path):
     """(scene, bundle, metrics) of an asset folder; BenchError naming the folder otherwise."""
     from inshade.bundle import BundleError, load
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.scene.description import SceneError, load_scene
 
     if not (folder / "scene.json").is_file() or not (folder / "metrics.json").is_file():
         raise BenchError(f"{folder}: not a {KIND} asset (scene.json and metrics.json needed)")

@@ -1,6 +1,6 @@
 """Per-voxel data of appearance prefiltering: coverage masks, directional albedo and the phase
 function, ray cast with embree against the geometry inside each voxel only, sharded through the
-bake executor (inshade/bake.py) by chunks of voxel slots.
+bake executor (models/bake.py) by chunks of voxel slots.
 
 For voxel slot n (sphere centre c, radius r, box [lo, hi]) and each of its V views w (stratified
 over the sphere, drawn from a generator seeded by (seed, n), so a slot's data does not depend on
@@ -243,7 +243,7 @@ def bake_voxel_data(scene, cells, spheres, *, views: int = 16, mask: int = 8, bi
     ``fixed_views`` [V, 3] (unit, toward the viewer): the same views for every slot in place of
     the per-slot stratified draws (the paper's prerendering uses one shared set, §3.5; tests use
     it to look along chosen axes)."""
-    from inshade.bake import IN_PROCESS, Shard, run_shards
+    from inshade.models.bake import IN_PROCESS, Shard, run_shards
     from inshade.progress import progress as progress_bar
 
     cells, spheres = _check(cells, spheres, views, mask, bins, rays_per_texel, chunk)

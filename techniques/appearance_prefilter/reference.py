@@ -11,7 +11,7 @@ with f = brdf_np.brdf and the face's real base colour, roughness and metallic; n
 normal, turned toward the viewer on two-sided faces; L_env(d) = max(0, SH(d)) (real orthonormal
 SH, inshade/sh.py). A miss shows L_env(ray direction). V = 1 when ``shadows`` is False.
 
-Camera: ``runtime/camera.py``'s model -- a camera dict (``orbit`` / ``fly``) or (origin, target,
+Camera: ``scene/camera.py``'s model -- a camera dict (``orbit`` / ``fly``) or (origin, target,
 fov_y degrees) as an orbit camera looking from origin at target -- and lib/camera.glsl's ray: the
 pixel's far-plane point (ndc z = 1) unprojected by u_inv_view_proj, minus the eye, normalised;
 ndc = (pixel + offset) * 2 / size - 1 with offset 0.5 at the pixel centre. Row 0 of the image
@@ -37,7 +37,7 @@ class ReferenceError(ValueError):
 
 
 def _camera(camera):
-    from inshade.runtime.camera import OrbitCamera, camera_from_dict
+    from inshade.scene.camera import OrbitCamera, camera_from_dict
 
     if isinstance(camera, dict):
         cam = camera_from_dict(camera)

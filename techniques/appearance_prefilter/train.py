@@ -36,8 +36,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade import bake
-from inshade.bake import BakeError
+from inshade.models import bake
+from inshade.models.bake import BakeError
 from inshade.components import ComponentError
 from inshade.files import atomic_write
 from inshade.trainer import Run, Trainer, setting
@@ -272,7 +272,7 @@ def write_reference(out: Path, settings: dict, preset: str) -> Path:
     the display's reference, so the viewer's split / error modes show prefiltered | supersampled mesh
     at the default view (a moved camera or another distance no longer matches it)."""
     from inshade.codegen.sdf import environment_sh
-    from inshade.runtime.image_io import write_exr
+    from inshade.scene.image_io import write_exr
 
     from .reference import render_reference
     from .scene import build_scene

@@ -54,9 +54,9 @@ def main(argv=None) -> int:
 
 
 def _time_model(folder: Path, size: int, filters, rounds: int, warmup: int, clock_name: str, log) -> dict:
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     camera = camera_from_dict({"type": "plane2d", "aspect": 1.0})

@@ -121,10 +121,10 @@ def glsl_psnr(folder, model: str, lut_filter: str, ball_px: int) -> dict:
     """Quality from the shader's own output: the asset's material-ball pass rendered through the GL
     driver with the analytic and the learned BRDF (2 lights), ball PSNR in the display domain;
     Disney: min per row (artist parameter), GGX: per ball. Also returns GL_RENDERER."""
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     cols = scene.settings["cols"].default

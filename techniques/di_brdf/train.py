@@ -243,7 +243,7 @@ def _provenance(command, extra):
 
 
 def _write_scene(out: Path, scene: dict, preview: np.ndarray):
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     atomic_write(out / "scene.json", json.dumps(scene, indent=2) + "\n")
     write_png(out / "preview.png", preview)

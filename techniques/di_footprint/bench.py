@@ -94,7 +94,7 @@ class PlaneRenderer:
 
         from inshade.techniques.di_footprint import train as fp
         from inshade.runtime.renderer import SceneRenderer
-        from inshade.runtime.scene import load_scene
+        from inshade.scene.description import load_scene
 
         self.ctx, self.bundle = ctx, bundle
         # the scene is read from a folder (scene.json, bundle.json, texture.png) that only lives
@@ -224,7 +224,7 @@ def _asset(args):
     from inshade.bundle import load
     from inshade.techniques.di_footprint import train as fp
     from inshade.models import footprint_sampler as sampler
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     path = Path(args.asset) if args.asset else None
     if not args.quick and path is not None and args.asset != DEFAULT_ASSET and not (path / "bundle.json").is_file():
@@ -347,7 +347,7 @@ def run(args) -> int:
 def views(renders: dict, truth: np.ndarray, k: int, path: Path) -> None:
     """Ground truth (black where not scored) and every mode stacked vertically (linear, written
     sRGB), in order: truth, di, di_fast, trilinear, anisotropic, bilinear, explicit_lod."""
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     t = srgb_eotf(truth if k == 3 else np.repeat(truth, 3, -1))
     panels = [t] + [renders[key][..., :3] for key in ("di", "di_fast", "trilinear", "anisotropic", "bilinear",

@@ -239,7 +239,7 @@ def _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenanc
 def scene_dict(name: str, title: str, output: str, size=(512, 256), gl_modes: bool = False) -> dict:
     """The asset's scene. `gl_modes` adds the GL comparison modes (a FOOTPRINT_MODE define and the
     uncompressed texture bound as u_texture / u_texture_aniso): it needs scene.json "textures"
-    support in runtime/scene.py + runtime/renderer.py, which the shipped renderer lacks (the report
+    support in scene/description.py + runtime/renderer.py, which the shipped renderer lacks (the report
     of this module's author carries the diff); without it the scene shows the DI sampler only."""
     scene = {
         "format": "inshade.scene", "version": 1, "name": name, "title": title,
@@ -287,7 +287,7 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
                 gl_modes: bool = False) -> Path:
     """bundle.json + weights.safetensors + scene.json + texture.png (the 8-bit source) +
     preview.png (the scene rendered through the GL driver, DI mode)."""
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     out = Path(out)
     result.bundle.save(out)
@@ -297,7 +297,7 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
     src = result.image if result.image.shape[2] == 3 else np.repeat(result.image, 3, -1)
     write_png(out / "texture.png", srgb_eotf(src))
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(out)
     r = SceneRenderer(scene)

@@ -113,7 +113,7 @@ def render_views(folder, views=VIEWS, size: int | None = None, ctx=None) -> dict
     (the G-buffer read back) and "_uniforms"/"_sh" for the torch twin."""
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
     w, h = (size, size) if size else scene.size

@@ -29,7 +29,7 @@ def lane_metrics(test: np.ndarray, ref: np.ndarray) -> dict:
 
 def astc_rows(set8: tuple[np.ndarray, np.ndarray], ref: np.ndarray) -> list[dict]:
     """ASTC (LDR, the benchmark's quality) on the same two RGBA8 textures, per block size."""
-    from inshade.codecs import ASTC_QUALITY, CodecError, astc_roundtrip
+    from inshade.bench.codecs import ASTC_QUALITY, CodecError, astc_roundtrip
 
     rows = []
     raw = ref.shape[0] * ref.shape[1] * CHANNELS

@@ -111,7 +111,7 @@ def build(out, *, size: int = Settings.size, ratio: float = Settings.ratio, step
     """Write the asset folder; returns its metrics. `device`: where the DI training runs (default the CPU)."""
     from PIL import Image
 
-    from inshade.mesh import write_torus
+    from inshade.geometry.mesh import write_torus
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -141,7 +141,7 @@ def build(out, *, size: int = Settings.size, ratio: float = Settings.ratio, step
     metrics["di_torch"] = lane_metrics(torch_decode(bundle, size), lanes)
     if gl_metrics:      # the GLSL decode, ASTC, the rendered torus and its preview (a GL context)
         from inshade.runtime.context import gl_info, shared_context
-        from inshade.runtime.image_io import write_png
+        from inshade.scene.image_io import write_png
         from inshade.runtime.network import evaluate_on_pixels
 
         for f in ("exact", "fast"):

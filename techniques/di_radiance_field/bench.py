@@ -141,7 +141,7 @@ class Scene:
 
     def __init__(self, root: Path, grid_folder: Path, di_bundle, cache, lut_filter: str = "exact"):
         from inshade.runtime.renderer import SceneRenderer
-        from inshade.runtime.scene import load_scene
+        from inshade.scene.description import load_scene
 
         from .train import scene_dict
 
@@ -152,7 +152,7 @@ class Scene:
         self.renderer = SceneRenderer(load_scene(self.folder), cache=cache)
 
     def draw(self, camera: dict, size: int, view: str, force: bool = False) -> np.ndarray:
-        from inshade.runtime.camera import camera_from_dict
+        from inshade.scene.camera import camera_from_dict
 
         self.renderer.set_setting("view", view)
         self.renderer.render_network(camera_from_dict(camera), size, size, force=force)
@@ -292,7 +292,7 @@ def run(args) -> int:
 def time_frames(ctx, sc: Scene, root: Path, grid_folder: Path, bundle, cache, camera: dict, args, log) -> dict:
     """Frame time at time_size^2: float32 grids vs DI (exact) in one renderer (a uniform switches the
     view), interleaved; DI (fast lookups) from a second renderer, interleaved with them."""
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
 
     cam = camera_from_dict(camera)
     size = args.time_size

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inshade.runtime.labels import split_labels
+from inshade.scene.labels import split_labels
 from inshade.files import atomic_write
 from inshade.trainer import Run, Trainer, setting
 
@@ -166,7 +166,7 @@ def fit(settings: dict, device="cpu", progress=None, provenance: dict | None = N
 
 
 def torch_render(graph, render: dict, camera: dict, size: int) -> np.ndarray:
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
 
     return march.march(march.graph_network(graph), camera_from_dict(camera).uniforms(size, size), size, size,
                        step=render["step"], max_steps=render["max_steps"], background=render["background"],
@@ -180,7 +180,7 @@ def write_asset(out, di_bundle, grid_bundle, full_grids, settings: dict, metrics
     from inshade.bundle import Bundle
     from inshade.metrics import psnr
     from inshade.models.graph import GraphModule
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     out = Path(out)
     di_bundle.save(out)

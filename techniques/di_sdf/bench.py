@@ -48,7 +48,7 @@ PROGRAM = "passes/sdf_diffuse.frag"
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
     p.add_argument("--mesh", default=DEFAULT_MESH,
-                   help="closed mesh (default: the procedural rabbit of inshade.mesh, generated if missing)")
+                   help="closed mesh (default: the procedural rabbit of inshade.geometry.mesh, generated if missing)")
     p.add_argument("--budgets-kb", default="13", help="DI-SDFs to fit here, byte budgets in KiB, comma-separated ( = none; default %(default)s)")
     p.add_argument("--di-steps", type=int, default=1500, help="DI training steps (default %(default)s)")
     p.add_argument("--di-bundles", default="",
@@ -131,7 +131,7 @@ def sdf_scene(bundle_folder, frame, size: int, workdir: Path):
     import json
 
     from inshade.techniques.di_sdf.train import scene_dict
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     data = scene_dict("di_sdf_bench", "DI-SDF bench", frame, size=size)
     data["program"] = PROGRAM
@@ -238,12 +238,12 @@ def model_entry(name, bundle, nbytes, mesh_radius, ev, gt, ctx, view, args, work
 
 def run(args) -> int:
     from inshade.codegen.sdf import environment_sh
-    from inshade.mesh import bounding_sphere, write_bunny
+    from inshade.geometry.mesh import bounding_sphere, write_bunny
     from inshade.techniques.di_sdf.data import Frame, eval_set, load_mesh
     from inshade.techniques.di_sdf.model import fast_path_bound
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.context import gl_info, shared_context
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     if args.quick:
         args.budgets_kb, args.di_steps, args.mlp_steps, args.size, args.frames = "13", 40, 100, 64, 1
@@ -253,7 +253,7 @@ def run(args) -> int:
     except ValueError:
         raise BenchError(f"--budgets-kb: expected numbers, got {args.budgets_kb!r}") from None
     if args.mesh == DEFAULT_MESH and not Path(DEFAULT_MESH).is_file():   # not run from the repository root
-        from inshade.mesh import DEFAULT_OUT as generated
+        from inshade.geometry.mesh import DEFAULT_OUT as generated
         args.mesh = str(write_bunny(generated))
     mesh = load_mesh(args.mesh)
     ctx = shared_context()
@@ -309,7 +309,7 @@ def run(args) -> int:
 
 
 def _write_images(rows, out: Path, nbytes: int) -> list:
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     for r in rows:
         if "_image" in r:

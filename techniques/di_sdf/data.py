@@ -36,8 +36,8 @@ class DiSdfError(ValueError):
 # mesh and its frame
 
 def load_mesh(path):
-    """A closed triangle mesh from a file (inshade.mesh.load_mesh); one DiSdfError naming the file."""
-    from inshade.mesh import MeshError, load_mesh as _load
+    """A closed triangle mesh from a file (inshade.geometry.mesh.load_mesh); one DiSdfError naming the file."""
+    from inshade.geometry.mesh import MeshError, load_mesh as _load
 
     try:
         return check_mesh(_load(path, require_watertight=True), str(path))

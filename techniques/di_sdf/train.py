@@ -33,7 +33,7 @@ import torch
 
 from inshade.files import atomic_write
 from inshade.lit_settings import lit_settings
-from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH
+from inshade.geometry.mesh import DEFAULT_OUT as DEFAULT_MESH
 
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
@@ -50,7 +50,7 @@ RENDER_PROGRAM = "passes/sdf_diffuse.frag"
 # Measured on the 2-core CPU with a ~40k-face mesh: lr 1e-2 + cosine reaches in ~1 min what the
 # paper's 1e-3 does not in 5 (as for texture compression); rho 2 is the middle of the paper's
 # [1.5, 2.5] for SDFs. monotonicity 0.2 (the paper's soft-monotonicity regulariser on the primary):
-# without it the rabbit (inshade.mesh, 43.2 KB, 3000 steps) grows a floater between its ears -- a
+# without it the rabbit (inshade.geometry.mesh, 43.2 KB, 3000 steps) grows a floater between its ears -- a
 # fold of the primary that maps free space onto the inside -- with it the floater is gone, at
 # surface MAE 1.05e-3 vs 0.85e-3 of the radius, IoU 0.9918 vs 0.9928 (lr 3e-3 also removes it,
 # at 1.30e-3 / 0.9887 in 1500 steps).
@@ -209,7 +209,7 @@ def scene_dict(name: str, title: str, frame: Frame, lut_filter: str = "exact", s
 def render_torch(bundle, camera: dict, size: int, sky: str = "noon") -> dict:
     """The sdf_diffuse pass in torch (models/sdf.py render) for a DI-SDF bundle."""
     from inshade.codegen.sdf import environment_sh
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
 
     cam = camera_from_dict(camera)
     return render_module(sdf_module(bundle), cam.uniforms(size, size), size, environment_sh(sky, 0.0))
@@ -237,7 +237,7 @@ def render_module(module, uniforms, size, sh) -> dict:
 
 def write_asset(result: Result, out, title: str, lut_filter: str = "exact", preview_size: int = 128) -> Path:
     """bundle.json + weights.safetensors + scene.json + preview.png (torch render of the 8-bit bundle)."""
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     out = Path(out)
     result.bundle.save(out)
@@ -262,7 +262,7 @@ def train(run: Run) -> int:
     s, args = run.settings, run.args
     mesh_path = args.mesh
     if mesh_path is None:     # the procedural rabbit (deterministic), as neural_sdf does
-        from inshade.mesh import write_bunny
+        from inshade.geometry.mesh import write_bunny
 
         mesh_path = str(DEFAULT_MESH if DEFAULT_MESH.is_file() else write_bunny(DEFAULT_MESH))
     mesh = load_mesh(mesh_path)

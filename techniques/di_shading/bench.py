@@ -78,7 +78,7 @@ class ShadingRenderer:
     def __init__(self, ctx, folder: Path, e2e: str, view: str, lut_filter: str = "exact"):
         from inshade.bundle import load
         from inshade.runtime.renderer import SceneRenderer
-        from inshade.runtime.scene import load_scene
+        from inshade.scene.description import load_scene
         from inshade.techniques.di_shading import VIEWS
 
         self.scene = load_scene(folder)
@@ -212,7 +212,7 @@ def run(args) -> int:
         raise BenchError(f"{folder}: no di_shading asset here (scene.json, metrics.json); build one with "
                          f"`inshade train di_shading -o {folder} --preset ship`")
     trained = json.loads((folder / "metrics.json").read_text())
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.techniques.di_shading.train import lambda_folder
 
     scene = load_scene(folder)

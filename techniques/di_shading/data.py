@@ -28,7 +28,7 @@ def plane_camera(rng: np.random.Generator) -> dict:
 def pixel_rays(camera: dict, width: int, height: int):
     """(eye [3], directions [H, W, 3]) as lib/camera camera_ray, image orientation (row 0 = top)."""
     from inshade.models.sdf import camera_rays
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
 
     u = camera_from_dict(camera).uniforms(width, height)
     ro, rd = camera_rays(u, width, height)

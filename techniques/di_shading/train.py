@@ -310,9 +310,9 @@ def write_set_textures(out: Path, image: np.ndarray):
 
 
 def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, preview_size=VIEW_SIZE) -> Path:
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

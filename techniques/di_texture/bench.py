@@ -6,9 +6,9 @@ For each image (a ``skimage.data`` photograph, centre-cropped and resized to ``-
   assets that match the size, and one trained here at each ``--ratios`` value), decoded by its generated GLSL through the GL driver
   on both LUT paths (``exact``: texelFetch + fp32 mix; ``fast``: hardware filtering), plus the
   torch decode of the same quantised bundle; training seconds from the bundle.
-- ASTC (``inshade.codecs``: ``astc-encoder-py``, ARM astcenc, LDR profile on the sRGB bytes,
+- ASTC (``inshade.bench.codecs``: ``astc-encoder-py``, ARM astcenc, LDR profile on the sRGB bytes,
   quality 60): blocks 4x4, 6x6, 8x8, 12x12 (128 bits a block).
-- BC1 and BC7 (``inshade.codecs``: ``etcpak`` to encode; Pillow's ``bcn`` decoder to decode,
+- BC1 and BC7 (``inshade.bench.codecs``: ``etcpak`` to encode; Pillow's ``bcn`` decoder to decode,
   because etcpak 0.9.15's ``decompress_bc*`` crash here).
 
 Quality: PSNR in sRGB 8-bit space against the 8-bit original, and mean FLIP (LDR, default 67
@@ -28,10 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade import codecs, command
+from inshade import command
+
+from inshade.bench import codecs
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
-from inshade.codecs import ASTC_BLOCKS, ASTC_QUALITY, RGB8_BPP
+from inshade.bench.codecs import ASTC_BLOCKS, ASTC_QUALITY, RGB8_BPP
 from inshade.metrics import flip as flip_mean
 from inshade.metrics import flip_unavailable, psnr
 
@@ -69,7 +71,7 @@ def quality(ref8: np.ndarray, test8: np.ndarray, flip: bool) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
-# baselines (inshade.codecs)
+# baselines (inshade.bench.codecs)
 
 def astc_entries(img8: np.ndarray, flip: bool) -> list[dict]:
     out = []

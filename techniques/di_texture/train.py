@@ -139,7 +139,7 @@ def scene_dict(name: str, title: str, size: int, output: str, lut_filter: str = 
 def write_asset(result: Result, out, title: str, lut_filter: str = "exact") -> Path:
     """bundle.json + weights.safetensors + scene.json + preview.png (torch decode of the quantised
     bundle, linear) + reference.png (the 8-bit original)."""
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     out = Path(out)
     result.bundle.save(out)

@@ -155,7 +155,7 @@ def filtering(scene, height: int, log) -> dict:
 
 def speed(scene, size: int, rounds: int, warmup: int, clock_name: str, log) -> dict:
     """The material pass full screen: a plane filling the view, one light."""
-    from inshade.runtime.scene import parse_scene
+    from inshade.scene.description import parse_scene
 
     data = {**json.loads(Path(scene.path).read_text()), "mesh": {"shape": "plane", "size": 2.0},
             "camera": {"type": "orbit", "fov_y": 30.0, "target": [0.0, 0.0, 0.0], "distance": 3.0, "yaw": 0.0,
@@ -242,7 +242,7 @@ def _png_bytes(path: Path) -> int:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     def log(msg):
         print(msg, file=sys.stderr, flush=True)

@@ -17,7 +17,7 @@ import torch
 from inshade.lit_settings import lit_settings
 from inshade.models.latent_pyramid import bilinear_repeat
 from inshade.models.proxy_lobe import cosine_direction
-from inshade.runtime.labels import split_labels
+from inshade.scene.labels import split_labels
 
 from . import NETWORKS
 

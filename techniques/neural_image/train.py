@@ -330,7 +330,7 @@ def train(run: Run) -> int:
     # metrics.json as run.write_metrics writes it, with the settings the architecture uses
     atomic_write(run.out / "metrics.json",
                  json.dumps({**run.record(), "settings": recorded(s), **metrics}, indent=1) + "\n")
-    from inshade.runtime.image_io import write_png
+    from inshade.scene.image_io import write_png
 
     write_png(run.out / "preview.png", prediction)
     write_png(run.out / "reference.png", target)

@@ -15,7 +15,7 @@ mesh on the CPU, and evaluation and export run on the CPU). ``--preset ship`` (t
 the shipped network SDF (trained/prt_neural_bunny/sdf) from the default mesh; OUT/metrics.json records
 the preset and the resolved settings.
 Without ``--mesh``, the procedural rabbit
-(inshade.mesh.bunny) is generated into /tmp/inshade_mesh/bunny.ply first.
+(inshade.geometry.mesh.bunny) is generated into /tmp/inshade_mesh/bunny.ply first.
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ import numpy as np
 import torch
 
 from inshade import asset_folder
-from inshade.mesh import DEFAULT_OUT as DEFAULT_MESH
+from inshade.geometry.mesh import DEFAULT_OUT as DEFAULT_MESH
 
 from inshade.models.mlp_sdf import ACTIVATIONS
 from inshade.models.mlp_sdf_fit import DEFAULTS as FIT_DEFAULTS, SIGMAS, fit_mesh
@@ -80,10 +80,10 @@ def default_name(mesh) -> str:
 
 
 def mesh_or_rabbit(mesh) -> Path:
-    """``mesh``, or without one the procedural rabbit (inshade.mesh.bunny), generated into
+    """``mesh``, or without one the procedural rabbit (inshade.geometry.mesh.bunny), generated into
     DEFAULT_MESH the first time."""
     if mesh is None:
-        from inshade.mesh import write_bunny
+        from inshade.geometry.mesh import write_bunny
 
         mesh = DEFAULT_MESH if DEFAULT_MESH.is_file() else write_bunny(DEFAULT_MESH)
     return Path(mesh)
@@ -140,7 +140,7 @@ def fit_and_write(run: Run, *, hit_eps=FIT_DEFAULTS["hit_eps"], albedo=ALBEDO, p
         bundle.save(run.out)
         run.write_metrics(metrics)
         if run.args.preview:
-            from inshade.runtime.image_io import write_png
+            from inshade.scene.image_io import write_png
 
             image, info = render_preview(bundle)
             write_png(run.out / "preview.png", image)
@@ -156,7 +156,7 @@ def render_preview(bundle, size: int = 256, sky: str = "sunset", yaw: float = 35
     from inshade.codegen.network_sdf import NetworkSdfScene, network_sdf_chunks
     from inshade.codegen.sdf import environment_sh
     from inshade.codegen.spherical_harmonics import sh_chunks
-    from inshade.runtime.camera import OrbitCamera
+    from inshade.scene.camera import OrbitCamera
     from inshade.runtime.context import shared_context
     from inshade.runtime.network import NetworkResources
     from inshade.runtime.programs import ProgramCache

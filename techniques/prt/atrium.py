@@ -1,7 +1,7 @@
 """A procedural atrium of the Sponza kind for sub-scene PRT (Learnt Transfer, Dhawal et al. 2022 §4.4): an
-analytic SDF description (inshade/sdf.py) that the sdf passes trace in the shader.
+analytic SDF description (geometry/sdf.py) that the sdf passes trace in the shader.
 
-``atrium(scale=1.0)`` -> the description dict (``format: inshade.sdf``): a 16 x 12 floor (scaled),
+``atrium(scale=1.0)`` -> the description dict (``format: inshade.geometry.sdf``): a 16 x 12 floor (scaled),
 two colonnades of seven columns along x at z = +-3.5 carrying arched beams (a box minus six
 cylinders along z), covered walks (a roof slab between each colonnade and its outer wall), outer
 walls at z = +-6, coloured banners hanging from the beams into the courtyard (the cloth), a
@@ -94,7 +94,7 @@ def atrium(scale: float = 1.0) -> dict:
     if scale != 1.0:
         root = _t(root, scale=float(scale))
     s = float(scale)
-    return {"format": "inshade.sdf", "version": 1, "name": "atrium",
+    return {"format": "inshade.geometry.sdf", "version": 1, "name": "atrium",
             "notes": "procedural atrium (techniques/prt/atrium.py): colonnades, arches, banners, fountain, bushes",
             "bound": {"center": [0.0, 2.0 * s, 0.0], "radius": BOUND_RADIUS * s},
             "trace": {"max_steps": 256, "step_scale": 0.9, "hit_eps": 0.002 * s, "normal_eps": 0.002 * s},

@@ -132,7 +132,7 @@ def _sdf_module(scene):
     """The torch SDF module of a PRT scene's geometry (analytic description or network bundle)."""
     from inshade.bundle import load
     from inshade.techniques.prt import twin as prt
-    from inshade.runtime.scene import NetworkSdfRef
+    from inshade.scene.description import NetworkSdfRef
 
     if isinstance(scene.sdf, NetworkSdfRef):
         from inshade.models.network_sdf import NetworkSdfModule
@@ -141,21 +141,21 @@ def _sdf_module(scene):
 
 
 def _geometry(scene) -> str:
-    from inshade.runtime.scene import NetworkSdfRef
+    from inshade.scene.description import NetworkSdfRef
     if scene.sdf is None:
         return "mesh (rasterised)"
     return "neural SDF" if isinstance(scene.sdf, NetworkSdfRef) else "analytic SDF"
 
 
 def _sdf_assets(paths: list[str]) -> list[str]:
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     return [p for p in paths if load_scene(p).sdf is not None]
 
 
 def bench_asset(path: str, args, ctx, cache, clock) -> list[dict]:
     from inshade.bundle import load
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(path)
     trained = [load(n.bundle) for n in scene.networks]
@@ -191,7 +191,7 @@ def torch_comparison(path: str, args, ctx, cache) -> dict:
     from inshade.models.graph import GraphModule
     from inshade.techniques.prt.transfer_model import TransferFrame
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     scene = load_scene(path)
     size = args.torch_size
@@ -225,7 +225,7 @@ def rays_per_second(args) -> list[dict]:
     import torch
 
     from inshade.techniques.prt import transfer, transfer_surface
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     torch.set_num_threads(1)
 
@@ -244,7 +244,7 @@ def rays_per_second(args) -> list[dict]:
     if mesh_path.is_file():
         import trimesh
 
-        from inshade.mesh import load_mesh
+        from inshade.geometry.mesh import load_mesh
         mesh = load_mesh(mesh_path)
         p, n = transfer_surface.sample_mesh_surface(mesh, args.rays, seed=0)
         dirs = 256

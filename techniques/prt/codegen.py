@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from inshade.sdf import f32
+from inshade.geometry.sdf import f32
 from inshade.sh import triple_product_tensor
 
 from inshade.codegen.glsl import flt
@@ -68,7 +68,7 @@ def transfer_frame(bundle) -> dict:
 
 
 def network_chunk_name(prefix: str) -> str:
-    """The chunk name the renderer gives a network with this prefix (runtime/scene.py NetworkRef)."""
+    """The chunk name the renderer gives a network with this prefix (scene/description.py NetworkRef)."""
     return "network" if prefix == "net" else f"network_{prefix}"
 
 

@@ -1,7 +1,7 @@
 """A plants-like analytic SDF for learnt transfer on thin geometry (the paper's
 weakest scenes are PLANTS and DINING-TABLE): a potted plant of three whorls of thin leaves (rounded
 boxes 0.024 thick, i.e. 24 hit_eps, tilted up, five per whorl by polar repetition), a stem, a
-terracotta pot with soil, on a round floor slab. Deterministic JSON (inshade/sdf.py format).
+terracotta pot with soil, on a round floor slab. Deterministic JSON (geometry/sdf.py format).
 
     python -m inshade.techniques.prt.plants trained/prt_plants/sdf.json
 """
@@ -39,7 +39,7 @@ def plants_sdf() -> dict:
             "child": {"type": "cylinder", "radius": 0.26, "height": 0.02}}
     floor = {"type": "transform", "translate": [0.0, -0.83, 0.0], "albedo": [0.72, 0.72, 0.7],
              "child": {"type": "cylinder", "radius": 0.75, "height": 0.03}}
-    return {"format": "inshade.sdf", "version": 1, "name": "plants",
+    return {"format": "inshade.geometry.sdf", "version": 1, "name": "plants",
             "bound": {"center": [0.0, -0.15, 0.0], "radius": 1.15},
             "trace": {"max_steps": 256, "step_scale": 0.9, "hit_eps": 0.001, "normal_eps": 0.001},
             "root": {"type": "union", "k": 0.0, "children": [leaves, stem, pot, soil, floor]}}
@@ -47,7 +47,7 @@ def plants_sdf() -> dict:
 
 def main(argv=None) -> int:
     from inshade.files import atomic_write
-    from inshade.sdf import parse_sdf
+    from inshade.geometry.sdf import parse_sdf
 
     argv = list(sys.argv[1:] if argv is None else argv)
     if len(argv) != 1:

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from inshade.codegen.glsl import flt
-from inshade.sdf import f32
+from inshade.geometry.sdf import f32
 
 REGION_FORMAT = 1
 MAX_NETWORKS = 32        # GLSL branch chain and scene size sanity bound

@@ -15,7 +15,7 @@ with the set's parameter count), and each ``OUT/baselines/set_k<w>`` region set 
 - seam: PSNR over the surface pixels within ``band`` (world units) of a side between cells of
   different networks (the same pixels for every variant);
 - frames: median of ``fps_repeats`` forced redraws at ``fps_size``² (wall clock with glFinish on
-  software renderers, inshade/bench/harness.py); ``first_draw_s``: the variant's first draw of
+  software renderers, bench/harness.py); ``first_draw_s``: the variant's first draw of
   all (the program's JIT; cold when MESA_SHADER_CACHE_DISABLE=true).
 
 Writes ``prt_regions.json``, ``prt_regions.md`` and ``prt_regions.png``.
@@ -77,12 +77,12 @@ def run_report(asset, settings: dict, report_dir=None, baselines=("k64",), ctx=N
     import torch
 
     from inshade.bundle import load
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.context import gl_info, shared_context
     from inshade.runtime.programs import ProgramCache
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.techniques.prt import regions, twin
 
     asset = Path(asset)

@@ -93,7 +93,7 @@ def run(args) -> int:
     import torch
 
     from inshade.models.sdf import SdfModule
-    from inshade.sdf import load_sdf
+    from inshade.geometry.sdf import load_sdf
     from inshade.techniques.prt import regions, regions_bench
     from inshade.techniques.prt.atrium import FLOOR_PLAN, atrium
     from inshade.techniques.prt.region_twin import export_regions, train_regions

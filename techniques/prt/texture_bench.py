@@ -66,7 +66,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 def build_variant(mesh, learnt_scene: Path, resolution: int, bits_list, bake_dirs: int, work: Path, cache: Path):
     """Atlas + bake (cached) + one scene folder per bit depth; returns [(label, folder, info)]."""
     from inshade.files import atomic_write
-    from inshade.mesh import load_mesh, obj_text
+    from inshade.geometry.mesh import load_mesh, obj_text
     from inshade.techniques.prt import texture_prt as tp
 
     folder = work / f"tex{resolution}"
@@ -99,13 +99,13 @@ def run(args: argparse.Namespace) -> int:
     import torch
 
     from inshade.bundle import load
-    from inshade.mesh import load_mesh
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.geometry.mesh import load_mesh
+    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.context import gl_info, shared_context
     from inshade.runtime.programs import ProgramCache
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.techniques.prt import texture_prt as tp
     from inshade.techniques.prt.twin import (PrtShading, compose, gbuffer_view, ground_truth_transfer, image_metrics,
                                              light_matrix_t, orbit_cameras)

@@ -119,7 +119,7 @@ def texel_samples(mesh, resolution: int, gutter: float = 1.5) -> dict:
     ``gutter`` cells of one (the closest point of the nearest triangle). Ties go to the lower face
     index. Returns {"cell" [M] flat index iy * N + ix, "face" [M], "bary" [M, 3] float64, "inside"
     [M] bool, "dist" [M] (cells)}."""
-    from inshade.mesh import mesh_uv
+    from inshade.geometry.mesh import mesh_uv
 
     n = _positive(resolution, "resolution", 2)
     uv = mesh_uv(mesh)
@@ -177,8 +177,8 @@ def _closest_barycentric(p, a, b, c):
 
 def sample_points(mesh, samples: dict):
     """Surface positions and unit shading normals (float32 tensors) of ``texel_samples``: what the
-    G-buffer interpolates (inshade/mesh.py shading_normals, welded across uv seams)."""
-    from inshade.mesh import shading_normals
+    G-buffer interpolates (geometry/mesh.py shading_normals, welded across uv seams)."""
+    from inshade.geometry.mesh import shading_normals
 
     f = np.asarray(mesh.faces)[samples["face"]]
     w = samples["bary"]
@@ -196,7 +196,7 @@ def bake(mesh, resolution: int, n_dirs: int = 256, seed: int = 0, gutter: float 
     table is stored there keyed by mesh + settings and read back by a later call."""
     from inshade.techniques.prt.transfer import MESH_OFFSET, VERSION as TRANSFER_VERSION, mesh_transfer
     from inshade.techniques.prt.transfer_dataset import geometry_digest
-    from inshade.mesh import mesh_uv
+    from inshade.geometry.mesh import mesh_uv
 
     n = _positive(resolution, "resolution", 2)
     n_dirs = _positive(n_dirs, "n_dirs")
@@ -241,7 +241,7 @@ def bleed_check(mesh, resolution: int, samples: dict, n_points: int = 20000, see
     a cell baked for another chart, or no cell at all: both must be 0 for a bleed-free atlas."""
     import trimesh
 
-    from inshade.mesh import mesh_uv
+    from inshade.geometry.mesh import mesh_uv
 
     n = int(resolution)
     charts = face_charts(mesh)
@@ -375,7 +375,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    from inshade.mesh import load_mesh, obj_text
+    from inshade.geometry.mesh import load_mesh, obj_text
     from inshade.techniques.prt.train import default_name, previews_and_quality, scene_camera
     from inshade.techniques.prt.transfer_dataset import geometry_bound
 
@@ -431,7 +431,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
-    from inshade.mesh import MeshError
+    from inshade.geometry.mesh import MeshError
 
     return command.main("python -m inshade.techniques.prt.texture_prt", __doc__, add_arguments, run, argv,
                         errors=(DeviceError, TextureBakeError, MeshError))

@@ -148,7 +148,7 @@ def sample_near_occluders(sdf, n_points: int, seed: int = 0, boost: float = 3.0,
 
 
 def _study(args) -> int:
-    from inshade.sdf import load_sdf
+    from inshade.geometry.sdf import load_sdf
     from inshade.techniques.prt.twin import sdf_module
 
     sdf = sdf_module(load_sdf(args.sdf))

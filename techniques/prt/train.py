@@ -24,7 +24,7 @@ sphere tracing of the transfer rays (mesh rays are embree's, on the CPU) and the
 training; the resolved device is recorded in the transfer bundle's provenance and metrics.
 
 ``--workers N`` / ``--ray auto|ADDRESS``: where the ground-truth rays of step 2 are baked, shard by
-shard (inshade/bake.py, docs/cluster.md); the data is bit-identical to an in-process bake.
+shard (models/bake.py, docs/cluster.md); the data is bit-identical to an in-process bake.
 
 ``--preset quick|ship`` (default ship): the settings below, options given explicitly override them.
 ``ship`` is exactly what built the shipped assets: an OUT named like one of them (``prt_creature``,
@@ -44,7 +44,7 @@ from pathlib import Path
 
 from inshade.files import atomic_write
 from inshade import asset_folder, command
-from inshade.bake import BakeError, executor_from_args
+from inshade.models.bake import BakeError, executor_from_args
 from inshade.devices import DeviceError, resolve_device
 from inshade.lit_settings import lit_settings
 
@@ -184,7 +184,7 @@ def scene_camera(center, radius, camera_from: str | None) -> tuple[dict, dict]:
 def write_previews(out: Path) -> float:
     """preview.png / preview_glossy.png of OUT's scene through the GL driver; the seconds it took."""
     from inshade.runtime.headless import render_scene, save_render
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
 
     start = time.perf_counter()
     scene = load_scene(out)
@@ -198,7 +198,7 @@ def write_previews(out: Path) -> float:
 def previews_and_quality(out: Path, views: int, size: int, dirs: int) -> tuple[dict, dict]:
     """Previews, then the quality orbit of OUT's scene (twin.py quality_orbit, per-view rows dropped):
     (quality, {"preview_seconds", "quality_seconds"})."""
-    from inshade.runtime.scene import load_scene
+    from inshade.scene.description import load_scene
     from inshade.techniques.prt.twin import quality_orbit
 
     times = {"preview_seconds": write_previews(out)}

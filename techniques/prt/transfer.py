@@ -183,7 +183,7 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     ``transfer-<key>.safetensors`` and read back on a later call with the same geometry and
     settings (seconds/throughput are then the original run's).
 
-    The rays are a sharded bake (inshade/bake.py; ``executor``: in-process by default, a process
+    The rays are a sharded bake (models/bake.py; ``executor``: in-process by default, a process
     pool or Ray): one shard per chunk of ``chunk_rays`` rays, cached in ``transfer-<key>.shards/``
     while the bake runs (a rerun resumes there; removed once the dataset is written). The shards
     replay the unsharded estimate's random stream (``chunk_generator``), so the data is bit-identical
@@ -215,7 +215,7 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
         if data.get("key") == key:
             data["cached"] = True
             return data
-    from inshade.bake import IN_PROCESS, run_shards
+    from inshade.models.bake import IN_PROCESS, run_shards
 
     executor = executor or IN_PROCESS
     center, radius = geometry_bound(geometry)
@@ -263,9 +263,9 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
 
 
 def transfer_shards(sets, chunk_rays: int = CHUNK_RAYS, num_gpus: float = 0.0) -> list:
-    """One ``inshade.bake.Shard`` per chunk of each (name, points, normals, n_dirs, seed) set, in
+    """One ``inshade.models.bake.Shard`` per chunk of each (name, points, normals, n_dirs, seed) set, in
     order; a shard's args carry its points, normals and offset into the set (``start``)."""
-    from inshade.bake import Shard
+    from inshade.models.bake import Shard
 
     shards = []
     for name, p, nrm, n_dirs, seed in sets:

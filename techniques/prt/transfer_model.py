@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from inshade.bundle import Bundle
-from inshade.sdf import f32
+from inshade.geometry.sdf import f32
 
 from inshade.models.activations import LeakyReLU
 from inshade.models.encodings import Frequency

@@ -17,7 +17,9 @@ from pathlib import Path
 
 import torch
 
-from inshade import bake, command
+from inshade import command
+
+from inshade.models import bake
 from inshade.devices import DeviceError, add_device_argument, resolve_device
 
 from inshade.techniques.prt.transfer_model import export_transfer
@@ -37,7 +39,7 @@ def command_options(args: argparse.Namespace, names) -> list[str]:
 def load_geometry(args: argparse.Namespace):
     """(geometry, description) from --sdf / --mesh / --neural-sdf; ValueError naming the file."""
     if args.sdf:
-        from inshade.sdf import load_sdf
+        from inshade.geometry.sdf import load_sdf
 
         from inshade.models.sdf import SdfModule
 

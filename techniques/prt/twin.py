@@ -31,7 +31,7 @@ import torch
 from inshade import metrics
 from inshade.techniques.prt import SHADING_MODES
 from inshade.techniques.prt.codegen import PRT_DEGREE, light_matrix
-from inshade.sdf import SdfScene, f32
+from inshade.geometry.sdf import SdfScene, f32
 from inshade.sh import band_of, sh_basis
 
 from inshade.models.sdf import SdfModule, camera_rays, normals, sh_background_t, trace
@@ -267,7 +267,7 @@ def orbit_cameras(scene, n_views: int) -> list[dict]:
 def scene_geometry(scene):
     """What the ground truth casts rays against: an SdfModule (analytic ``"sdf"``), a
     NetworkSdfModule (``"sdf": {"network": ...}``) or the trimesh (``"mesh"``) of a viewer Scene."""
-    from inshade.runtime.scene import NetworkSdfRef
+    from inshade.scene.description import NetworkSdfRef
 
     if isinstance(scene.sdf, NetworkSdfRef):
         from inshade.bundle import load
@@ -294,10 +294,10 @@ def quality_orbit(scene, bundle=None, n_views: int = 30, size: int = 128, *, set
     "n_dirs", "gl_renderer"}; metrics as ``image_metrics``, averaged over views."""
     from tqdm import tqdm
 
-    from inshade.runtime.camera import camera_from_dict
+    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
-    from inshade.runtime.scene import Scene, load_scene
+    from inshade.scene.description import Scene, load_scene
 
     if not isinstance(scene, Scene):
         scene = load_scene(scene)

@@ -1,4 +1,4 @@
-"""sdf: analytic SDF scenes (inshade/sdf.py: primitives, smooth booleans, repetition) sphere-traced
+"""sdf: analytic SDF scenes (geometry/sdf.py: primitives, smooth booleans, repetition) sphere-traced
 and lit by the SH environment. Network SDFs (neural_sdf, di_sdf) are traced by the same pass."""
 from inshade.technique import ProgramSpec, Technique
 

@@ -19,7 +19,7 @@ real GL driver, at the scene's default camera and its ``close-up`` bookmark:
   tables; memory.py's accounting) against the uncompressed textures (3 RGB8 maps of
   the asset's PNG sizes): rates with and without the owner tables.
 - **baselines**: the three textures through BC1, BC7 (etcpak) and ASTC 4x4 .. 12x12
-  (astc-encoder-py) round trips (inshade/codecs.py), written into a temporary copy of the asset
+  (astc-encoder-py) round trips (bench/codecs.py), written into a temporary copy of the asset
   (same scene, mesh, bundle) and rendered in the reference view, same groups and metrics, against
   the uncompressed reference renders. A codec that cannot run is an "unavailable" row with the
   reason. At equal bytes: the codec(s) whose three maps' bytes are closest to the neural total

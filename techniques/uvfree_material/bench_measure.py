@@ -30,7 +30,7 @@ TARGET_ASSETS = f"{KIND}_stump_high_"
 def load_asset(folder: Path):
     """(scene, bundle) of a uvfree_material asset folder; BenchError naming the folder otherwise."""
     from inshade.bundle import BundleError
-    from inshade.runtime.scene import SceneError, load_scene
+    from inshade.scene.description import SceneError, load_scene
 
     if not (folder / "scene.json").is_file():
         raise BenchError(f"{folder}: not a {KIND} asset (no scene.json)")
@@ -186,8 +186,8 @@ def memory(bundle, folder: Path) -> dict:
 # block-compressed baselines
 
 def roundtrip(codec: str, img8: np.ndarray):
-    """inshade.codecs round trip of one uint8 RGB texture; CodecError when it cannot run."""
-    from inshade import codecs
+    """inshade.bench.codecs round trip of one uint8 RGB texture; CodecError when it cannot run."""
+    from inshade.bench import codecs
 
     if codec.startswith("ASTC "):
         return codecs.astc_roundtrip(img8, int(codec.split("x")[-1]))
@@ -217,7 +217,7 @@ def compressed_asset(folder: Path, into: Path, codec: str, memo: dict) -> int:
 
 def baselines(folder: Path, codecs_: list[str], reference: dict, renders: Renders, views, height: int,
               ref_bytes: int, memo: dict, log) -> list[dict]:
-    from inshade.codecs import CodecError
+    from inshade.bench.codecs import CodecError
 
     rows = []
     for codec in codecs_:

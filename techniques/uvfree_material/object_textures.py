@@ -10,7 +10,7 @@ import numpy as np
 from PIL import Image
 
 from inshade.files import atomic_files
-from inshade.mesh import mesh_uv, obj_text
+from inshade.geometry.mesh import mesh_uv, obj_text
 from inshade.metrics import srgb_eotf, srgb_oetf
 
 from .objects import FILES, TEXTURES, ObjectError, TexturedObject

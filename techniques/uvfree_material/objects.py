@@ -20,7 +20,7 @@ Conventions (shared by ``make_object``, the PNGs and ``sample_textures``):
 - ``albedo``: linear RGB; ``normal``: tangent-space normal stored as n * 0.5 + 0.5 (x along the
   tangent = +u, y along the bitangent = +v, z out of the surface); ``rma``: roughness, metallic,
   ambient occlusion. All meshes are right-handed in uv: cross(dP/du, dP/dv) points outward (the
-  handedness ``inshade.mesh.vertex_tangents`` reports is +1 everywhere).
+  handedness ``inshade.geometry.mesh.vertex_tangents`` reports is +1 everywhere).
 - Values are exactly what the 8-bit PNGs hold: albedo = srgb_eotf(k / 255) (stored sRGB-encoded),
   normal and rma = k / 255 (stored linearly), so writing and reading back loses nothing.
 - ``normal`` comes from a uv-space height field by finite differences (``normal_from_height``).

@@ -1,12 +1,12 @@
 """The scene's mesh must be the one the material bundle was trained on: its features are
 addressed by face id, so the same faces in the same order with the same welded topology
-(inshade/mesh_topology.py digest, recorded in the bundle's provenance by train.py)."""
+(geometry/mesh_topology.py digest, recorded in the bundle's provenance by train.py)."""
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from inshade.mesh_topology import MeshTopologyError, weld, topology_digest
+from inshade.geometry.mesh_topology import MeshTopologyError, weld, topology_digest
 
 
 def _bundle_meta(ref) -> dict:

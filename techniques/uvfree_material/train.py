@@ -12,7 +12,7 @@ Command: ``inshade train uvfree_material [--object rock|fruit|stump_low|stump_hi
 - Points: triangles drawn by area (Vose alias table, O(1) per sample), barycentrics uniform on
   the triangle (t0 = 1 - sqrt(r0), t1 = sqrt(r0) (1 - r1)); fresh every step.
 - Adam (betas 0.9, 0.99, as the thesis) on the feature table and the MLP, MSE, cosine decay.
-- The mesh is read back through the runtime's loader (inshade/mesh.py load_mesh) before training,
+- The mesh is read back through the runtime's loader (geometry/mesh.py load_mesh) before training,
   so triangle ids are the faces the renderer draws; the bundle records the welded topology's
   digest and the scene refuses a mesh that does not match.
 
@@ -41,10 +41,10 @@ from inshade import asset_folder
 from inshade.components import ComponentError
 from inshade.devices import resolve_device
 from inshade.files import atomic_write
-from inshade.runtime.labels import split_labels
+from inshade.scene.labels import split_labels
 from inshade.lit_settings import lit_settings
-from inshade.mesh import MeshError, load_mesh, mesh_uv
-from inshade.mesh_topology import MeshTopologyError, mesh_topology
+from inshade.geometry.mesh import MeshError, load_mesh, mesh_uv
+from inshade.geometry.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.metrics import psnr
 from inshade.trainer import Run, Trainer, setting
 
@@ -191,7 +191,7 @@ def prepare_asset(out: Path, *, object_name: str | None, mesh_path, textures_dir
         if mesh_uv(mesh) is None:
             raise TrainError(f"{mesh_path}: the mesh has no texture coordinates: training targets are looked "
                              f"up in its uv textures (export it with uvs)")
-        from inshade.mesh import obj_text
+        from inshade.geometry.mesh import obj_text
 
         atomic_write(out / objects.FILES["mesh"], obj_text(mesh))
         src = Path(textures_dir) if textures_dir else Path(mesh_path).parent

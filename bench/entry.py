@@ -2,7 +2,7 @@
 summary rows next to the paper's claims.
 
 Every bench module (``inshade bench NAME``: a technique's ``bench`` module, or a shared one in
-``inshade/bench/``) declares ``SUITE = SuiteEntry(sizes, claims, headlines)``; the suite reads it from
+``bench/``) declares ``SUITE = SuiteEntry(sizes, claims, headlines)``; the suite reads it from
 the module it runs and names no bench itself. ``claim_row`` builds one summary row, ``ratio_verdict``
 words a harness ``Ratio`` record (median, bounds, verdict).
 """

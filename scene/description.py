@@ -23,7 +23,7 @@ I}`` (the direction towards the light, normalised here; irradiance I), uploaded 
 ``u_light_kinds`` to programs that include ``lib/lights`` (its ``scene_light`` handles both kinds; a
 program that reads ``u_lights`` as positions only is refused a directional light at render time).
 
-An analytic SDF scene (inshade/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
+An analytic SDF scene (geometry/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
 have ``"networks": []``, and lights the scene with ``"environment": {"sky": preset, "rotation":
 degrees, "degree": 4}`` (a procedural sky of inshade.sh, projected to SH); settings bound to
 ``"environment": "sky" | "rotation"`` override those two at run time. A network SDF (an MLP fitted
@@ -33,9 +33,9 @@ compiled into the same ``sdf_scene`` chunk, so every SDF pass traces it unchange
 The ``program`` names a fragment chunk that a registered technique draws (inshade/technique.py
 ``ProgramSpec``): the spec says what the program needs (geometry, mesh attributes, bundle kinds,
 SH degree, uniforms, extra chunks, per-frame work) and the scene is checked against it here. A
-mesh scene has ``"mesh": "mesh.ply"`` (OBJ/PLY/GLB, inshade/mesh.py) or a built-in shape,
+mesh scene has ``"mesh": "mesh.ply"`` (OBJ/PLY/GLB, geometry/mesh.py) or a built-in shape,
 ``"mesh": {"shape": "teapot", "segments": 12}`` (``sphere``: radius, segments; ``plane``: size,
-segments; inshade/shapes.py), instead of ``"sdf"``: the
+segments; geometry/shapes.py), instead of ``"sdf"``: the
 renderer rasterises a G-buffer first (runtime/geometry.py MeshGBuffer), then the full-screen pass
 shades each covered pixel once.
 The environment of SDF and mesh scenes may also be an equirectangular map,
@@ -60,7 +60,7 @@ from pathlib import Path
 
 from inshade import technique
 from inshade.codegen import FILTERS, OPTIONS, SHORTHANDS, STORAGE_MODES
-from inshade.mesh import mesh_uv
+from inshade.geometry.mesh import mesh_uv
 from inshade.shaders import find_chunk
 
 from .camera import CameraError, camera_from_dict
@@ -92,7 +92,7 @@ BUILTIN_SETTINGS = {
                 "label": "weight storage"},
     "lut_filter": {"type": "choice", "default": "exact", "choices": list(FILTERS), "codegen": "lut_filter",
                    "label": "LUT filtering"},
-    # scene labels (runtime/labels.py): drawn over the window and the PNG, never in the float image
+    # scene labels (scene/labels.py): drawn over the window and the PNG, never in the float image
     "labels": {"type": "bool", "default": True, "frame": "labels", "label": "labels"},
 }
 
@@ -178,8 +178,8 @@ class NetworkSdfRef:
 
 @dataclass
 class MeshRef:
-    """``"mesh": "mesh.ply"``: a triangle mesh (inshade/mesh.py load_mesh), or ``"mesh": {"shape":
-    "teapot", ...}``: a built-in one (inshade/shapes.py; ``path`` None), rasterised into a G-buffer
+    """``"mesh": "mesh.ply"``: a triangle mesh (geometry/mesh.py load_mesh), or ``"mesh": {"shape":
+    "teapot", ...}``: a built-in one (geometry/shapes.py; ``path`` None), rasterised into a G-buffer
     (runtime/geometry.py MeshGBuffer) that a deferred pass (mesh_prt) shades."""
     path: Path | None
     data: object = None       # the trimesh.Trimesh
@@ -248,11 +248,11 @@ class Scene:
     split: float = 0.5
     settings: dict = field(default_factory=dict)   # name -> Setting
     requires: dict = field(default_factory=dict)   # {"gl": 330, "extensions": [...]}
-    sdf: object = None        # inshade.sdf.SdfScene (analytic), NetworkSdfRef (network SDF) or None
+    sdf: object = None        # inshade.geometry.sdf.SdfScene (analytic), NetworkSdfRef (network SDF) or None
     textures: list = field(default_factory=list)   # SceneTexture: plain images the program samples
     environment_map: object = None  # radiance SH [K, 3] (float64) of environment.map, before rotation
     mesh: object = None       # MeshRef for triangle-mesh scenes ("mesh": "mesh.ply"), else None
-    labels: tuple = ()        # runtime/labels.py Label: overlay texts/lines (window and PNG only)
+    labels: tuple = ()        # scene/labels.py Label: overlay texts/lines (window and PNG only)
 
     @property
     def lit(self) -> bool:
@@ -578,11 +578,11 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
 
 
 def _parse_sdf(value, root: Path):
-    """``"sdf"``: a description file (analytic, inshade/sdf.py) or {"network": bundle folder}."""
+    """``"sdf"``: a description file (analytic, geometry/sdf.py) or {"network": bundle folder}."""
     if value is None:
         return None
     if isinstance(value, str):
-        from inshade.sdf import SdfError, load_sdf
+        from inshade.geometry.sdf import SdfError, load_sdf
         try:
             return load_sdf((root / value).resolve())
         except SdfError as exc:
@@ -608,7 +608,7 @@ def _parse_mesh(value, root: Path):
     if value is None:
         return None
     if isinstance(value, dict):
-        from inshade.shapes import ShapeError, make_shape
+        from inshade.geometry.shapes import ShapeError, make_shape
         try:
             name, params, data = make_shape(value, "mesh")
         except ShapeError as exc:
@@ -617,7 +617,7 @@ def _parse_mesh(value, root: Path):
     if not isinstance(value, str):
         raise SceneError("mesh: must name a mesh file (OBJ/PLY/GLB, relative to the scene file) or a "
                          "built-in shape, e.g. {\"shape\": \"teapot\", \"segments\": 12}")
-    from inshade.mesh import MeshError, load_mesh
+    from inshade.geometry.mesh import MeshError, load_mesh
 
     path = (root / value).resolve()
     try:
@@ -630,7 +630,7 @@ def _check_mesh_attributes(mesh: MeshRef, program: str, needs) -> None:
     """The mesh carries what the program reads (ProgramSpec.mesh_attributes): uv, and tangents that
     are defined somewhere (uv that span an area), else one SceneError naming the mesh and the
     attribute, rather than NaN or arbitrary shading."""
-    from inshade.mesh import MeshError, check_tangents
+    from inshade.geometry.mesh import MeshError, check_tangents
 
     needs = [a for a in needs if a in ("uv", "tangent")]
     if not needs:

@@ -16,7 +16,7 @@
   mesh; its uv tile the texture ``tiles`` times around each circle.
 - ``bunny(resolution)``: the shipped procedural mesh (no downloads exist here): marching cubes of
   a smooth-union rabbit with eye sockets and a fine fur ripple, Taubin-smoothed, watertight.
-  ``python -m inshade.mesh [OUT.ply]`` writes it (binary PLY, byte-identical every run).
+  ``python -m inshade.geometry.mesh [OUT.ply]`` writes it (binary PLY, byte-identical every run).
 
 numpy + trimesh (+ scikit-image for the generator only); no torch.
 """

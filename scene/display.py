@@ -43,6 +43,6 @@ def parse_mode(value) -> DisplayMode:
 
 
 def glsl_chunk() -> str:
-    lines = ["// generated from inshade.runtime.display.DisplayMode; do not edit"]
+    lines = ["// generated from inshade.scene.display.DisplayMode; do not edit"]
     lines += [f"#define DISPLAY_{m.name} {int(m)}" for m in DisplayMode]
     return "\n".join(lines) + "\n"

@@ -1,6 +1,6 @@
 """Block-compressed texture baselines as encode + decode round trips on 8-bit images.
 
-``import inshade.codecs`` is cheap and torch-free: the encoders (``astc-encoder-py``, ``etcpak``)
+``import inshade.bench.codecs`` is cheap and torch-free: the encoders (``astc-encoder-py``, ``etcpak``)
 and Pillow's ``bcn`` decoder are imported inside the functions that use them.
 
 Every round trip takes a uint8 ``[H, W, 3]`` (RGB; alpha 255 is added for the encoder) or

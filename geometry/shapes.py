@@ -1,6 +1,6 @@
 """Built-in meshes a scene names as data instead of a file: ``"mesh": {"shape": "teapot", "segments": 12}``.
 
-- ``teapot(segments=8)``: the Utah teapot (inshade/teapot.py: Newell's 32 Bezier patches, its uv
+- ``teapot(segments=8)``: the Utah teapot (geometry/teapot.py: Newell's 32 Bezier patches, its uv
   atlas documented there), y up, base at y = 0, 3.15 high.
 - ``sphere(radius=1, segments=32)``: a uv sphere about the origin, ``2 * segments`` columns around
   y and ``segments`` rows pole to pole; u = longitude / 2 pi (0 at +x, counter-clockwise seen from
@@ -9,11 +9,11 @@
   quads a side; u along +x, v along -z (uv (0, 0) at (-size/2, 0, +size/2)), tangent +x.
 
 Each returns a ``trimesh.Trimesh`` with per-vertex uv (``TextureVisuals``, found by
-``inshade.mesh.mesh_uv``), counter-clockwise faces seen from outside, and the same bytes every
+``inshade.geometry.mesh.mesh_uv``), counter-clockwise faces seen from outside, and the same bytes every
 run. ``make_shape(spec)`` builds one from a scene's ``{"shape": ..., parameters}`` object, every
 problem a ``ShapeError`` naming the field (``mesh.shape``, ``mesh.segments``, ...).
 
-``python -m inshade.shapes teapot OUT.obj [segments]`` writes one as OBJ (atomically).
+``python -m inshade.geometry.shapes teapot OUT.obj [segments]`` writes one as OBJ (atomically).
 numpy + trimesh; no torch.
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from inshade import teapot as _teapot
+from inshade.geometry import teapot as _teapot
 
 
 class ShapeError(ValueError):
@@ -136,10 +136,10 @@ def make_shape(spec, where: str = "mesh") -> tuple[str, dict, trimesh.Trimesh]:
 
 def main(argv: list[str]) -> int:
     from inshade.files import atomic_write
-    from inshade.mesh import obj_text
+    from inshade.geometry.mesh import obj_text
 
     if len(argv) not in (2, 3) or argv[0] not in SHAPES:
-        print(f"usage: python -m inshade.shapes {{{','.join(SHAPES)}}} OUT.obj [segments]", file=sys.stderr)
+        print(f"usage: python -m inshade.geometry.shapes {{{','.join(SHAPES)}}} OUT.obj [segments]", file=sys.stderr)
         return 2
     spec = {"shape": argv[0]}
     if len(argv) == 3:
@@ -147,7 +147,7 @@ def main(argv: list[str]) -> int:
     try:
         _, _, mesh = make_shape(spec, "shape")
     except ShapeError as exc:
-        print(f"inshade.shapes: error: {exc}", file=sys.stderr)
+        print(f"inshade.geometry.shapes: error: {exc}", file=sys.stderr)
         return 2
     out = atomic_write(Path(argv[1]), obj_text(mesh))
     print(f"{out}: {argv[0]}, {len(mesh.vertices)} vertices, {len(mesh.faces)} faces")

@@ -3,7 +3,7 @@
 
 A description file::
 
-    {"format": "inshade.sdf", "version": 1,
+    {"format": "inshade.geometry.sdf", "version": 1,
      "bound": {"center": [0, 0, 0], "radius": 2.0},          # sphere tracing only inside it
      "trace": {"max_steps": 256, "step_scale": 0.9, "hit_eps": 1e-3, "normal_eps": 1e-3},
      "root": NODE}
@@ -115,8 +115,8 @@ def load_sdf(path) -> SdfScene:
 def parse_sdf(data) -> SdfScene:
     if not isinstance(data, dict):
         raise SdfError("must be a JSON object")
-    if data.get("format") != "inshade.sdf":
-        raise SdfError(f"format: expected \"inshade.sdf\", got {data.get('format')!r}")
+    if data.get("format") != "inshade.geometry.sdf":
+        raise SdfError(f"format: expected \"inshade.geometry.sdf\", got {data.get('format')!r}")
     if data.get("version") != 1:
         raise SdfError(f"version: this inshade reads version 1, got {data.get('version')!r}")
     extra = sorted(set(data) - {"format", "version", "name", "notes", "bound", "trace", "root"})

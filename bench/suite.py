@@ -4,7 +4,7 @@ headline numbers next to the papers' claims.
 Runs every bench ``inshade bench`` mounts (the shared ones and each registered technique's, its
 record's ``bench`` field), one after another in this process, each with the command line of
 ``--preset``. Each bench's module declares that command line per preset and how its JSON reads as
-summary rows (``SUITE``, inshade/bench/entry.py); the papers come from the technique records, so
+summary rows (``SUITE``, bench/entry.py); the papers come from the technique records, so
 this module names no bench:
 
 - ``cpu``: small sizes that finish in a few minutes on a 2-core machine (Mesa llvmpipe);
