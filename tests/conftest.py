@@ -1,9 +1,27 @@
-"""Shared fixtures."""
+"""Shared fixtures, and ``--gl-backend egl|osmesa``: the GL backend every context of the run uses
+(the same switch as the CLI's flag and ``INSHADE_GL_BACKEND``; subprocesses inherit it)."""
+import os
 from pathlib import Path
 
 import pytest
 
+from inshade.runtime.context import BACKEND_ENV, BACKENDS
 from inshade.shaders import add_search_path
+
+
+def pytest_addoption(parser):
+    parser.addoption("--gl-backend", choices=BACKENDS, default=None,
+                     help=f"GL backend for every context of the run (default: ${BACKEND_ENV}, else egl)")
+
+
+def pytest_configure(config):
+    backend = config.getoption("--gl-backend")
+    if backend:
+        os.environ[BACKEND_ENV] = backend
+
+
+def pytest_report_header(config):
+    return f"GL backend: {os.environ.get(BACKEND_ENV) or 'egl'}"
 
 # Test-only passes (tests/shaders/passes/*_test.frag.glsl) that feed chunks sample inputs.
 add_search_path(Path(__file__).resolve().parent / "shaders")

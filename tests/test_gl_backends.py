@@ -1,8 +1,8 @@
 """The two headless GL backends (EGL, OSMesa), EGL device selection and `inshade doctor`.
 
 Parity between backends: a few generated networks (one per weight placement) and two shipped
-assets are rendered under EGL (in this process) and under OSMesa (in a subprocess, since
-PyOpenGL picks its platform once per process). Tolerance: bit-identical whenever both report
+assets are rendered under EGL and under OSMesa, each in a fresh process (PyOpenGL picks its
+platform once per process, and the run itself may use either). Tolerance: bit-identical whenever both report
 the same GL_RENDERER. Here both are Mesa's llvmpipe from one Mesa build (libEGL_mesa and
 libOSMesa), which JIT-compiles the same shader code; only the window-system layer differs, and
 inshade draws into its own float FBOs, so nothing in the pixels depends on it. With different
@@ -15,7 +15,6 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -53,9 +52,16 @@ def render_set() -> dict[str, np.ndarray]:
     return out
 
 
+def _fresh_env(**extra) -> dict:
+    """This process's environment without its GL choices (a run under --gl-backend osmesa exports
+    them), plus ``extra``: a subprocess chooses its backend as a user's shell would."""
+    env = {k: v for k, v in os.environ.items() if k not in (BACKEND_ENV, DEVICE_ENV, "PYOPENGL_PLATFORM")}
+    return {**env, "OMP_NUM_THREADS": "1", **extra}
+
+
 def _cli(*args, env=None, **kw) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "inshade.cli", *args], capture_output=True, text=True,
-                          env={**os.environ, "OMP_NUM_THREADS": "1", **(env or {})}, **kw)
+                          env=_fresh_env(**(env or {})), **kw)
 
 
 def _one_error_line(stderr: str) -> str:
@@ -75,20 +81,24 @@ def gl_env(monkeypatch):
 
 # --- parity between backends -----------------------------------------------------------------
 
-@pytest.fixture(scope="module")
-def osmesa_set(tmp_path_factory):
-    out = tmp_path_factory.mktemp("osmesa") / "set.npz"
-    env = {**os.environ, "INSHADE_GL_BACKEND": "osmesa", "OMP_NUM_THREADS": "1"}
-    env.pop(DEVICE_ENV, None)
-    r = subprocess.run([sys.executable, __file__, str(out)], capture_output=True, text=True, env=env)
+def _render_set_in(backend: str, tmp_path_factory) -> dict:
+    """The parity set rendered by a fresh process on ``backend`` (each backend is chosen once per process)."""
+    out = tmp_path_factory.mktemp(backend) / "set.npz"
+    r = subprocess.run([sys.executable, __file__, str(out)], capture_output=True, text=True,
+                       env=_fresh_env(**{BACKEND_ENV: backend}))
     assert r.returncode == 0, r.stderr
     with np.load(out) as data:
         return {k: data[k] for k in data.files}
 
 
 @pytest.fixture(scope="module")
-def egl_set():
-    return render_set()
+def osmesa_set(tmp_path_factory):
+    return _render_set_in("osmesa", tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def egl_set(tmp_path_factory):
+    return _render_set_in("egl", tmp_path_factory)
 
 
 def test_osmesa_subprocess_really_used_osmesa(osmesa_set, egl_set):
@@ -192,7 +202,7 @@ def test_render_with_bad_env_backend(monkeypatch, tmp_path, capsys):
 def test_osmesa_after_pyopengl_chose_another_platform():
     code = ("import sys, OpenGL.GL; from inshade.cli import main; "
             "sys.exit(main(['-q', '--gl-backend', 'osmesa', 'doctor']))")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_fresh_env())
     assert r.returncode == 2
     assert "PyOpenGL picks its platform once" in _one_error_line(r.stderr)
     r = _cli("-q", "--gl-backend", "osmesa", "doctor", env={"PYOPENGL_PLATFORM": "egl"})
@@ -243,5 +253,5 @@ def test_nvidia_hints_name_the_missing_pieces(monkeypatch, tmp_path):
     assert "10_nvidia.json" not in " ".join(context.nvidia_hints())
 
 
-if __name__ == "__main__":   # the OSMesa half of the parity set, run by osmesa_set in a fresh process
+if __name__ == "__main__":   # one backend's parity set, run by _render_set_in in a fresh process
     np.savez(sys.argv[1], **render_set())
