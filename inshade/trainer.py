@@ -40,8 +40,6 @@ from inshade import asset_folder, command
 from inshade.devices import DeviceError, add_device_argument
 from inshade.files import atomic_write
 
-PRESETS = ("quick", "ship")
-
 
 class SettingError(ValueError):
     """An option given for a run it does not belong to."""

@@ -165,6 +165,14 @@ def release_shared() -> None:
         ctx.__exit__(None, None, None)
 
 
+def pyopengl_bound_to_osmesa() -> bool:
+    """Whether this process's PyOpenGL is on its OSMesa platform (the osmesa backend was used here):
+    PyOpenGL picks its platform once per process, so a window's GL calls cannot reach its own
+    context any more."""
+    loaded = sys.modules.get("OpenGL.platform")
+    return loaded is not None and type(getattr(loaded, "PLATFORM", None)).__name__ == "OSMesaPlatform"
+
+
 # OSMesa through PyOpenGL ------------------------------------------------------------------------
 def _osmesa_module():
     """PyOpenGL's OSMesa bindings, with PyOpenGL on its OSMesa platform (or GLContextError)."""

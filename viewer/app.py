@@ -33,7 +33,7 @@ from inshade.files import atomic_files
 from inshade.shaders import search_path
 
 from . import navigation
-from inshade.runtime.context import release_shared
+from inshade.runtime.context import pyopengl_bound_to_osmesa, release_shared
 from inshade.scene.display import UI_MODES, DisplayMode, parse_mode
 from inshade.scene.labels import active as active_labels
 from inshade.runtime.headless import save_render
@@ -67,6 +67,10 @@ class ViewerApp:
     def __init__(self, source=None, *, size=(1280, 800), visible: bool = True, trained_root=None,
                  settings: dict | None = None, vsync: bool = True, screenshot_dir=None,
                  title: str = "inshade view", max_spp: int = MAX_SPP):
+        if pyopengl_bound_to_osmesa():
+            raise NoDisplayError("the window draws through its own GL context, but this process already used the "
+                                 "osmesa backend and PyOpenGL stays on OSMesa for the process's life; open the "
+                                 "window from a process that has not (without INSHADE_GL_BACKEND=osmesa)")
         with warnings.catch_warnings():  # glfw warns, then returns False; the error below says it all
             warnings.simplefilter("ignore")
             ok = glfw.init()
