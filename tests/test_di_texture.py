@@ -1,4 +1,4 @@
-"""DI texture compression (techniques/di_texture/train.py) and `inshade bench di_texture --quick`."""
+"""DI texture compression (models/texture_cascade.py, techniques/di_texture/train.py) and `inshade bench di_texture --quick`."""
 from pathlib import Path
 
 import numpy as np

@@ -1,7 +1,7 @@
 """`inshade bench di_footprint`: the DI footprint-aware sampler (no mip chain) against GL's own
 sampling of the uncompressed texture, on a tiled ground plane seen at grazing angles.
 
-One view (``passes/footprint_plane.frag``, camera techniques/di_footprint/train.py CAMERA), five renders
+One view (``passes/footprint_plane.frag``, camera models/footprint_sampler.py CAMERA), five renders
 through the GL driver:
 
 - ``di``: the DI footprint sampler (generated GLSL, exact LUT path; ``di_fast``: hardware-filtered);

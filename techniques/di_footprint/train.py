@@ -30,7 +30,7 @@ linear footprint x = u^n, u ~ U(0, 1), n = log_p(1 / N) with p = 0.5 (half the s
 i.e. log2_footprint = n log2 u. Target: ``emulated_trilinear`` -- the box-filtered mip chain
 (2x2 means, each level rounded to 8 bits like an RGB8 texture's), bilinear in two levels
 (GL_REPEAT wrap, texel centres at (i + 0.5) / n) mixed by the fractional LOD, i.e.
-GL_LINEAR_MIPMAP_LINEAR. Colour as techniques/di_texture/train.py: arrays hold sRGB-encoded
+GL_LINEAR_MIPMAP_LINEAR. Colour as models/texture_cascade.py: arrays hold sRGB-encoded
 values (filtering happens on the encoded values, as for an RGB8 texture); the graph decodes.
 
     from inshade.techniques.di_footprint import train as fp

@@ -1,4 +1,4 @@
-"""`inshade bench di_sdf`: the DI-SDF (techniques/di_sdf/train.py) against the MLP SDF (techniques/neural_sdf/train.py)
+"""`inshade bench di_sdf`: the DI-SDF (techniques/di_sdf/train.py) against the MLP SDF (models/mlp_sdf.py, fitted as neural_sdf fits it)
 at equal bytes, on one mesh, rendered by the same sphere-tracing pass.
 
 For each ``--budgets-kb`` value: a DI-SDF is fitted within the budget (8-bit arrays; its actual
@@ -77,7 +77,7 @@ def main(argv=None) -> int:
 # equal bytes
 
 def mlp_params(width: int, layers: int) -> int:
-    """Parameters of neural_sdf.build(width, layers): 3 -> width (x layers) -> 1, with biases."""
+    """Parameters of models/mlp_sdf.py build(width, layers): 3 -> width (x layers) -> 1, with biases."""
     return 4 * width + (layers - 1) * (width * width + width) + width + 1
 
 

@@ -21,7 +21,7 @@ so it is reported beside it, not used as the ground truth.
 Quality: PSNR (8-bit sRGB of the linear render clamped to [0, 1]) and mean FLIP (LDR) against the
 reference, over the rows of the view where every pixel lies on the plane with valid derivatives.
 Also: the torch held-out numbers the trainer recorded (metrics.json), the GLSL-vs-torch parity of
-the end-to-end view on this view (the pass's G-buffer fed to train.py's twin), and the frame time
+the end-to-end view on this view (the pass's G-buffer fed to model.py's twin), and the frame time
 of the pass (end-to-end, independent, reference) at --time-size^2 (512^2) with GL_RENDERER; the paper's number
 (< 1.5 ms at 4K, sampler + shading, RTX 3090) is quoted, not measured.
 
@@ -113,7 +113,7 @@ def display(linear: np.ndarray) -> np.ndarray:
 
 
 def torch_twin(folder: Path, e2e: str, inputs, positions, eye) -> np.ndarray:
-    """train.py's torch twin of the learned view on the pass's own G-buffer: linear [H, W, 3]."""
+    """model.py's torch twin of the learned view on the pass's own G-buffer: linear [H, W, 3]."""
     import torch
 
     from inshade.bundle import load
@@ -132,7 +132,7 @@ def torch_twin(folder: Path, e2e: str, inputs, positions, eye) -> np.ndarray:
 
 def emulated_views(folder: Path, inputs, derivs, positions, eye):
     """The reference and the 1-sample views from the pass's own G-buffer, in torch on the emulated
-    trilinear sampler (train.py `reference`: box-filtered mips rounded to 8 bits, the proxy the
+    trilinear sampler (model.py `reference`: box-filtered mips rounded to 8 bits, the proxy the
     samplers are trained against): (reference, 1 sample + DI Disney, 1 sample + analytic), linear
     [H, W, 3], 0 off the plane."""
     import torch

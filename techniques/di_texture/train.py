@@ -22,7 +22,7 @@ passed through a fixed 256-entry float32 1D lookup of the sRGB EOTF (piecewise-l
 hardware. These decode tables are the same for every texture and are not counted in the
 compressed bytes (reported as `decode_table_bytes`).
 
-Orientation follows techniques/neural_image/train.py: uv (0, 0) is the bottom-left of the picture.
+Orientation follows inshade/pixels.py: uv (0, 0) is the bottom-left of the picture.
 
     from inshade.models.texture_cascade import compress, load_image
     image, notes, source = load_image("skimage:astronaut", size=256)
