@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -29,7 +28,8 @@ from pathlib import Path
 
 from inshade import command
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
+from inshade.bench.harness import (BenchError, cold_shader_cache, machine, machine_markdown, matplotlib_pyplot,
+                                   write_report)
 
 DEFAULT_OUT = "bench-out/export"
 TARGETS = {"export_check_s": 5.0, "onnx_import_s": 2.0, "memory_over_params": 2.0}
@@ -148,7 +148,11 @@ def measure_memory(widths) -> dict:
 
 
 def run(args) -> int:
-    os.environ.setdefault("MESA_SHADER_CACHE_DISABLE", "true")   # before the first GL context
+    with cold_shader_cache():    # effective for the GL contexts this run makes first
+        return _run(args)
+
+
+def _run(args) -> int:
     import torch
 
     from inshade.runtime.context import gl_info, shared_context

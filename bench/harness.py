@@ -22,6 +22,7 @@ imported only when used).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -47,6 +48,21 @@ MESA_VARIABLES = ("LP_NUM_THREADS", "MESA_SHADER_CACHE_DISABLE", "GALLIUM_DRIVER
 
 # ---------------------------------------------------------------------------------------------
 # machine record
+
+@contextlib.contextmanager
+def cold_shader_cache():
+    """Mesa's on-disk shader cache off for the GL contexts made inside (cold compile times: the cache
+    would hide the JIT on re-runs), unless the caller chose; the process's environment is restored
+    after, so contexts made later (another bench, a window) keep their cache."""
+    name = "MESA_SHADER_CACHE_DISABLE"
+    chosen = name in os.environ
+    os.environ.setdefault(name, "true")
+    try:
+        yield
+    finally:
+        if not chosen:
+            os.environ.pop(name, None)
+
 
 def machine(gl: Mapping | None = None, **extra) -> dict:
     """The "machine" record of every benchmark's JSON, from ``runtime.context.gl_info`` (the shared

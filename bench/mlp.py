@@ -18,7 +18,6 @@ with the GL_RENDERER string next to them.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -27,7 +26,7 @@ import numpy as np
 
 from inshade import command
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, machine,
+from inshade.bench.harness import (BenchError, add_clock_argument, cold_shader_cache, clock_for, clock_record, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
 
 DEFAULT_OUT = "bench-out/mlp"
@@ -164,9 +163,13 @@ def _bench_glsl(ctx, bundle, mode: str, x: np.ndarray, ref: np.ndarray, size: in
 
 
 def run(args) -> int:
-    # Cold compile times: Mesa's on-disk shader cache would otherwise hide the JIT on re-runs.
-    # (Only effective before the process's first GL context is created.)
-    os.environ.setdefault("MESA_SHADER_CACHE_DISABLE", "true")
+    # Cold compile times: Mesa's on-disk shader cache would otherwise hide the JIT on re-runs
+    # (effective for the GL contexts this run makes first).
+    with cold_shader_cache():
+        return _run(args)
+
+
+def _run(args) -> int:
     import torch
     from tqdm import tqdm
 

@@ -2,6 +2,7 @@
 the clocks. Synthetic clocks make the timing tests deterministic (no speed is ever asserted)."""
 import json
 import math
+import os
 import subprocess
 import sys
 
@@ -182,3 +183,18 @@ def test_harness_import_is_torch_and_gl_free():
             "print(*bad, file=sys.stderr); sys.exit(bool(bad))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_cold_shader_cache_is_restored_after_the_bench(monkeypatch):
+    """A bench turns Mesa's shader cache off for its own contexts only: contexts made later in the
+    process (the next bench, a window) keep the cache; a choice the caller made is kept."""
+    from inshade.bench.harness import cold_shader_cache
+
+    monkeypatch.delenv("MESA_SHADER_CACHE_DISABLE", raising=False)
+    with cold_shader_cache():
+        assert os.environ["MESA_SHADER_CACHE_DISABLE"] == "true"
+    assert "MESA_SHADER_CACHE_DISABLE" not in os.environ
+    monkeypatch.setenv("MESA_SHADER_CACHE_DISABLE", "false")
+    with cold_shader_cache():
+        assert os.environ["MESA_SHADER_CACHE_DISABLE"] == "false"
+    assert os.environ["MESA_SHADER_CACHE_DISABLE"] == "false"
