@@ -20,31 +20,12 @@ import numpy as np
 from inshade.geometry.mesh_topology import check_tables
 
 from .glsl import PlanRow, TextureResource
-from .limits import LimitError, limit, source
 from .registry import emitter
+from .texture_rows import row_layout, rows_data
 from .values import declare
 
 _FLOAT = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F")}
 _CHANNELS = {1: "R", 2: "RG", 4: "RGBA"}
-
-
-def row_layout(node_id: str, what: str, items: int, limits: dict) -> tuple[int, int]:
-    """(log2 of the row width, rows) for `items` texels; LimitError when they cannot fit."""
-    name = "GL_MAX_TEXTURE_SIZE"
-    cap = limit(limits, name)
-    log2w = min(cap.bit_length() - 1, max(1, (items - 1).bit_length()))
-    rows = -(-items // (1 << log2w))
-    if rows > cap:
-        raise LimitError(f"node {node_id}: the {what} needs {items} texels, {1 << log2w}x{rows} in rows; "
-                         f"{name} is {cap} ({source(limits, name)})")
-    return log2w, rows
-
-
-def _rows(data: np.ndarray, log2w: int, rows: int) -> np.ndarray:
-    """[items, C] -> [rows, 2^log2w, C], zero-padded."""
-    out = np.zeros((rows << log2w, data.shape[1]), data.dtype)
-    out[:data.shape[0]] = data
-    return out.reshape(rows, 1 << log2w, data.shape[1])
 
 
 @emitter("mesh_features", separate_inputs=True)
@@ -66,7 +47,7 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     packed = np.stack([corners, edges], 1).astype(np.uint32)   # [faces, 2 texels, 3]
     topo = ctx.name(node.id, "topology")
     ctx.globals.append(f"uniform usampler2D {topo};  // {node.id}: corner/edge owners of {faces} faces, 2 texels each")
-    ctx.resources.append(TextureResource(topo, _rows(packed.reshape(2 * faces, 3), topo_log2w, topo_rows), "u4"))
+    ctx.resources.append(TextureResource(topo, rows_data(packed.reshape(2 * faces, 3), topo_log2w, topo_rows), "u4"))
 
     tab_log2w, tab_rows = row_layout(node.id, "feature table", levels * size, ctx.limits)
     groups = []
@@ -76,7 +57,7 @@ def emit_mesh_features(ctx, node, srcs, bundle):
         data = np.ascontiguousarray(table[:, 4 * g:4 * g + width], dtype=np_dtype)
         ctx.globals.append(f"uniform sampler2D {name};  // {node.id}: features {4 * g}..{4 * g + width - 1} "
                            f"of {levels} levels x {size} rows, {p['precision']}")
-        ctx.resources.append(TextureResource(name, _rows(data, tab_log2w, tab_rows), fdtype))
+        ctx.resources.append(TextureResource(name, rows_data(data, tab_log2w, tab_rows), fdtype))
         groups.append((name, width))
 
     out = declare(ctx, f"v_{node.id}", node.out_dim)

@@ -29,7 +29,7 @@ from inshade.components import check_voxel_tables
 
 from .glsl import PlanRow, TextureResource, flt
 from .limits import LimitError, limit, source
-from .mesh_features import _rows, row_layout
+from .texture_rows import row_layout, rows_data
 from .registry import emitter
 from .values import declare
 
@@ -77,9 +77,9 @@ def emit_sparse_voxels(ctx, node, srcs, bundle):
     lat, sph, grid = (ctx.name(node.id, s) for s in ("latents", "spheres", "grid"))
     chain = index_grid(cells, smin, smax)
     resources = [
-        TextureResource(lat, _rows(np.ascontiguousarray(latents.reshape(n * texels, 4), dtype=np_dtype),
+        TextureResource(lat, rows_data(np.ascontiguousarray(latents.reshape(n * texels, 4), dtype=np_dtype),
                                    lat_log2w, lat_rows), fdtype),
-        TextureResource(sph, _rows(np.ascontiguousarray(spheres, np.float32), sph_log2w, sph_rows), "f4"),
+        TextureResource(sph, rows_data(np.ascontiguousarray(spheres, np.float32), sph_log2w, sph_rows), "f4"),
         TextureResource(grid, chain[0], "u4", mips=tuple(chain[1:])),
     ]
     ctx.resources += resources

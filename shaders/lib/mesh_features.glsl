@@ -2,6 +2,7 @@
 // and the rules, geometry/mesh_topology.py the owner tables). All integer work is uint32
 // wrap-around arithmetic, bit-exact with torch; the float work is the same float32 operations
 // in the same order.
+#include <lib/texture_rows>
 
 // The level's sub-triangle of a point with barycentrics t = (t0, t1): sub-vertices w[v] =
 // (W0, W1) (W2 = 2^level - W0 - W1) and their weights, in the order the rule lists them.
@@ -68,21 +69,16 @@ void mf_level_taps(uint k, vec2 t, int level, uint table_size, uvec3 corners, uv
     }
 }
 
-// Texel `index` of a table laid out in rows of 2^log2w texels.
-ivec2 mf_texel(uint index, int log2w) {
-    return ivec2(int(index & ((1u << uint(log2w)) - 1u)), int(index >> uint(log2w)));
-}
-
 // Face k's owner tables from an RGB32UI texture holding 2 texels per face (24 bytes, no padding):
 // texel 2k = corners.xyz, texel 2k + 1 = edges.xyz. (highp: ES 3.00 has no default precision for usampler2D.)
 void mf_face_tables(highp usampler2D topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
-    corners = texelFetch(topo, mf_texel(2u * k, log2w), 0).xyz;
-    edges = texelFetch(topo, mf_texel(2u * k + 1u, log2w), 0).xyz;
+    corners = texelFetch(topo, rows_texel(2u * k, log2w), 0).xyz;
+    edges = texelFetch(topo, rows_texel(2u * k + 1u, log2w), 0).xyz;
 }
 
 // One table row blended: ((w0 * f0) + w1 * f1) + w2 * f2, as torch sums it.
 vec4 mf_blend(sampler2D table, int log2w, uint index[3], vec3 weight) {
-    return (weight.x * texelFetch(table, mf_texel(index[0], log2w), 0)
-            + weight.y * texelFetch(table, mf_texel(index[1], log2w), 0))
-           + weight.z * texelFetch(table, mf_texel(index[2], log2w), 0);
+    return (weight.x * texelFetch(table, rows_texel(index[0], log2w), 0)
+            + weight.y * texelFetch(table, rows_texel(index[1], log2w), 0))
+           + weight.z * texelFetch(table, rows_texel(index[2], log2w), 0);
 }

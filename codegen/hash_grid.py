@@ -1,0 +1,72 @@
+"""Multiresolution grid encodings as texture fetches; torch twin in models/hash_grid.py (the rules in
+inshade/grid_layout.py), the level lookup in shaders/lib/hash_grid.glsl.
+
+Resources: the [rows, F] table (all levels, level l from row offset_l) as 2D textures in rows of 2^n
+texels (codegen/texture_rows.py: a table longer than GL_MAX_TEXTURE_SIZE wraps into rows), one
+texture per 4 features (F = 8: two RGBA; 4: RGBA; 2: RG; 1: R), RGBA16F-family for precision f16
+(the bundle's values are fp16-representable: checked at load), 32F for f32; texelFetch only.
+Levels are unrolled with their constants (scale, resolution, rows, offset, dense or hashed) as
+literals; each level reads 2^dims texels per texture.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from inshade.components import grid_node_levels
+from inshade.grid_layout import HASH_PRIMES
+
+from .glsl import PlanRow, TextureResource, flt
+from .registry import emitter
+from .texture_rows import row_layout, rows_data
+from .values import declare
+
+_FLOAT = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F")}
+_CHANNELS = {1: "R", 2: "RG", 4: "RGBA"}
+
+
+@emitter("hash_grid", "dense_grid")
+def emit_grid(ctx, node, src, bundle):
+    ctx.include("lib/hash_grid")
+    p, dims = node.params, node.in_dim
+    levels = grid_node_levels(node.type, p, dims)
+    feats = p["features"]
+    table = bundle.tensor(node, "table")
+    fdtype, np_dtype, bits = _FLOAT[p["precision"]]
+    log2w, n_rows = row_layout(node.id, "grid table", table.shape[0], ctx.limits)
+    groups = []
+    for g in range(-(-feats // 4)):
+        width = min(4, feats - 4 * g)
+        name = ctx.name(node.id, f"table{g}")
+        data = np.ascontiguousarray(table[:, 4 * g:4 * g + width], dtype=np_dtype)
+        ctx.globals.append(f"uniform sampler2D {name};  // {node.id}: features {4 * g}..{4 * g + width - 1} "
+                           f"of {len(levels)} levels, {table.shape[0]} rows, {p['precision']}")
+        ctx.resources.append(TextureResource(name, rows_data(data, log2w, n_rows), fdtype))
+        groups.append((name, width))
+
+    primes = HASH_PRIMES[p.get("hash", "coherent_prime")]
+    x, s = ctx.name(node.id, "x"), ctx.name(node.id, "s")
+    lanes = ", ".join(src.lane(i) for i in range(dims)) + (", 0.0" if dims == 2 else "")
+    ctx.body += [f"vec3 {x} = vec3({lanes});", f"vec4 {s};"]
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    for li, lv in enumerate(levels):
+        for g, (name, width) in enumerate(groups):
+            call = (f"hg_level({name}, {log2w}, {x}, {dims}, {flt(lv.scale)}, {lv.resolution}u, {lv.rows}u, "
+                    f"{lv.offset}u, {'true' if lv.dense else 'false'}, uvec3({primes[0]}u, {primes[1]}u, {primes[2]}u))")
+            first = li * feats + 4 * g
+            if width == 4:
+                ctx.body.append(f"{out.array}[{first // 4}] = {call};")
+                continue
+            ctx.body.append(f"{s} = {call};")
+            ctx.body += [f"{out.lane(first + ch)} = {s}.{'xyzw'[ch]};" for ch in range(width)]
+
+    tex_bytes = sum(r.nbytes for r in ctx.resources[-len(groups):])
+    fmt = " + ".join(f"{_CHANNELS[w]}{bits}" for _, w in groups)
+    hashed = sum(not lv.dense for lv in levels)
+    corners = 1 << dims
+    ctx.plan.append(PlanRow(node.id, node.type,
+                            f"{dims}D, {len(levels)} levels x {feats} ({p['precision']}), {hashed} hashed, "
+                            f"{table.shape[0]} rows", "texture/exact",
+                            f"{fmt} table, rows of {1 << log2w} texels", params=int(table.size),
+                            flops=len(levels) * corners * (2 * feats + dims + 6),
+                            fetches=len(levels) * corners * len(groups), texture_bytes=tex_bytes))
+    return out
