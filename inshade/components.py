@@ -186,6 +186,24 @@ _register(ComponentSpec(
     out_dim=lambda p, d: d * p["n_freqs"],
     category="encoding",
 ))
+ONE_BLOB_MAX_BINS = 1024
+
+
+def _one_blob_width(p, d):
+    if d * p["n_bins"] > MAX_WIDTH:
+        raise ComponentError(f"n_bins: {d} inputs x {p['n_bins']} bins = {d * p['n_bins']} lanes, more than {MAX_WIDTH}")
+
+
+_register(ComponentSpec(
+    "one_blob", "tiny-cuda-nn's OneBlob: per input x and bin k < n_bins, the mass of a quartic kernel of "
+                "radius 1/n_bins centred at x (wrapped with period 1) that falls in [k, k+1) / n_bins; "
+                "lanes input-major (x_i's bins at i*n_bins..); models/encodings.py has the exact rule",
+    {"n_bins": Param(int, 16, lambda v: _pos_int(ONE_BLOB_MAX_BINS)(v) and v & (v - 1) == 0,
+                     doc=f"a power of two, 1..{ONE_BLOB_MAX_BINS}")},
+    out_dim=lambda p, d: d * p["n_bins"],
+    extra_checks=_one_blob_width,
+    category="encoding",
+))
 _register(ComponentSpec(
     "spherical_harmonics", "real orthonormal SH basis of a unit direction, bands l < degree",
     {"degree": Param(int, check=_pos_int(SH_MAX_DEGREE))},
