@@ -1,13 +1,17 @@
-"""The command-line side of the ways in: ``inshade convert`` (ONNX -> bundle, ``--ops``) and
-``inshade eval`` (a bundle's GLSL on a batch from the shell). Parsers only at import: torch, onnx
-and GL load when a command runs."""
+"""The command-line side of the ways in: ``inshade convert`` (ONNX or tiny-cuda-nn -> bundle,
+``--ops``) and ``inshade eval`` (a bundle's GLSL on a batch from the shell). Parsers only at
+import: torch, onnx and GL load when a command runs."""
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
 
-SOURCES = {".onnx": "ONNX"}
+SOURCES = {".onnx": "ONNX", ".json": "tiny-cuda-nn"}   # by the MODEL file's suffix
+TCNN_PARTS = ("  encodings: Grid, HashGrid, DenseGrid (Hash and Dense storage, 2D and 3D, Linear), Identity,",
+              "  Frequency, SphericalHarmonics (degree <= 5), OneBlob, TriangleWave, Composite (Concatenation), Empty",
+              "  networks: FullyFusedMLP, CutlassMLP; activations: None, ReLU, LeakyReLU, SiLU, Exponential, Sine,",
+              "  Sigmoid, Squareplus, Softplus, Tanh")
 
 
 def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
@@ -15,16 +19,33 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
 
     from .shown_as import SHOWN_AS
 
-    p = sub.add_parser("convert", help="an ONNX file -> a bundle, checked against onnxruntime",
-                       description="Convert a network file into a bundle folder (bundle.json + weights.safetensors): "
+    p = sub.add_parser("convert", help="an ONNX file or a tiny-cuda-nn model -> a bundle, checked through the GL driver",
+                       description="Convert a network into a bundle folder (bundle.json + weights.safetensors): "
                                    "each op is lowered onto inshade's components, the GLSL is run through the GL "
-                                   "driver on sample inputs and compared with onnxruntime (max |glsl - source| "
-                                   "under 1e-5 * max(1, |source|)), then the folder is written. Torch modules go in "
-                                   "from Python: inshade.export(module, example_input, folder). --ops lists what "
-                                   "each source can hold.")
-    p.add_argument("source", nargs="?", metavar="MODEL", help="model.onnx (opsets 13 and newer)")
+                                   "driver on sample inputs and compared with the source (max |glsl - source| "
+                                   "under 1e-5 * max(1, |source|)), then the folder is written. MODEL.onnx is "
+                                   "checked against onnxruntime. CONFIG.json PARAMS is a tiny-cuda-nn model (its "
+                                   "JSON config and the flat parameter vector its torch bindings save); its GLSL "
+                                   "is checked against the bundle's torch twin, since tiny-cuda-nn needs CUDA and "
+                                   "does not run here (docs/tcnn.md says what the lowering was tested against). "
+                                   "Torch modules go in from Python: inshade.export(module, example_input, "
+                                   "folder). --ops lists what each source can hold.")
+    p.add_argument("source", nargs="?", metavar="MODEL",
+                   help="model.onnx (opsets 13 and newer), or a tiny-cuda-nn config.json: {\"encoding\", "
+                        "\"network\"} (either may be left out), with \"n_input_dims\" / \"n_output_dims\" in "
+                        "it or given by --inputs / --outputs")
+    p.add_argument("params", nargs="?", metavar="PARAMS",
+                   help="a tiny-cuda-nn model's parameters: state_dict()[\"params\"] as .npy, .safetensors, "
+                        ".pt/.pth (torch.load with weights_only=True) or raw little-endian .bin (its length "
+                        "says fp16 or fp32)")
     p.add_argument("-o", "--output", metavar="FOLDER", help="bundle folder to write (refused if it holds files, "
                                                             "unless --force)")
+    p.add_argument("--inputs", type=int, metavar="N", help="tiny-cuda-nn: the model's input width "
+                                                           "(n_input_dims), when the config does not say")
+    p.add_argument("--outputs", type=int, metavar="M", help="tiny-cuda-nn: the model's output width "
+                                                            "(n_output_dims), when the config does not say")
+    p.add_argument("--params-key", metavar="KEY", help="tiny-cuda-nn: the tensor to read from a .pt or "
+                                                       ".safetensors file holding several (default: params)")
     p.add_argument("--as", dest="as_", choices=SHOWN_AS,
                    help="what the network is, so `inshade render` / `view` can draw it (image: uv -> colour)")
     p.add_argument("--name", help="bundle name (default: the file's stem)")
@@ -32,8 +53,8 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
                    help="a port's semantic, e.g. --semantic rgb=srgb for colour fitted to sRGB pixels (the "
                         "display decodes it); repeatable")
     p.add_argument("--example", metavar="INPUTS.npy",
-                   help="[N, inputs] float32 rows for the check (default: 64 uniform rows in [-1, 1]); random rows "
-                        "in their range are added")
+                   help="[N, inputs] float32 rows for the check (default: 64 uniform rows in [-1, 1] for ONNX, "
+                        "[0, 1] for tiny-cuda-nn); random rows in their range are added")
     p.add_argument("--no-check", action="store_true", help="write without running the GLSL against the source")
     p.add_argument("--force", action="store_true", help="write into a folder that already holds files")
     p.add_argument("--ops", action="store_true", help="list the operations each source lowers, and exit")
@@ -65,16 +86,31 @@ def cmd_convert(args) -> int:
         raise ConvertError(f"{source}: unknown model format {source.suffix or '(no suffix)'!r} "
                            f"(inshade convert reads {', '.join(SOURCES)}; torch modules: inshade.export)")
     example = _read_npy(args.example) if args.example else None
-    from .onnx_model import convert
-
     semantics = {}
     for item in args.semantic or []:
         port, sep, semantic = item.partition("=")
         if not sep or not port or not semantic:
             raise ConvertError(f"--semantic {item!r}: expected PORT=SEMANTIC, e.g. rgb=srgb")
         semantics[port] = semantic
-    bundle = convert(source, args.output, name=args.name, as_=args.as_, check=not args.no_check, force=args.force,
-                     quiet=args.quiet, example=example, semantics=semantics)
+    common = dict(name=args.name, as_=args.as_, check=not args.no_check, force=args.force, quiet=args.quiet,
+                  example=example, semantics=semantics)
+    if kind == "tiny-cuda-nn":
+        if args.params is None:
+            raise ConvertError(f"{source}: a tiny-cuda-nn config needs its PARAMS file too: "
+                               f"inshade convert {source} PARAMS -o FOLDER")
+        from .tcnn import convert
+
+        bundle = convert(source, args.params, args.output, n_input_dims=args.inputs, n_output_dims=args.outputs,
+                         params_key=args.params_key, **common)
+    else:
+        tcnn_only = [o for o, v in (("PARAMS", args.params), ("--inputs", args.inputs), ("--outputs", args.outputs),
+                                    ("--params-key", args.params_key)) if v is not None]
+        if tcnn_only:
+            raise ConvertError(f"{source}: {tcnn_only[0]} is for tiny-cuda-nn models (CONFIG.json PARAMS); an ONNX "
+                               "file holds its own weights and shapes")
+        from .onnx_model import convert
+
+        bundle = convert(source, args.output, **common)
     if not args.quiet:
         print(f"wrote {args.output}: {len(bundle.nodes)} nodes, {bundle.in_dim} -> {bundle.out_dim} lanes",
               file=sys.stderr)
@@ -135,7 +171,9 @@ def ops_text() -> str:
               "", "ONNX (inshade convert model.onnx; opsets 13 and newer):"]
     lines += _wrap(sorted(ONNX_OPS))
     lines += ["  plus any node whose inputs are all constants (evaluated by onnx's reference evaluator)",
-              "", "bundle components they lower to:"]
+              "", "tiny-cuda-nn (inshade convert config.json params; docs/tcnn.md):"]
+    lines += list(TCNN_PARTS)
+    lines += ["", "bundle components they lower to:"]
     lines += _wrap(sorted(COMPONENTS))
     lines += ["", "refused: ops that mix the batch (reductions, softmax or BatchNorm statistics over it), "
               "data-dependent control flow, outputs wider than 4 x GL_MAX_DRAW_BUFFERS lanes, grids past the GL "
