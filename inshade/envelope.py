@@ -35,6 +35,19 @@ that leaves the measured envelope:
   discrepancy: the shipped DI textures measure <= 6.9e-6 at gain 147 (~4.7e-8 * gain): limit
   ``LOOKUP_GAIN_CHAINED`` = 200. An input coordinate is rounded identically on both sides (no
   limit). Coordinates outside [0, 1] are clamped by both sides (a note, not a warning).
+- grid encodings (``hash_grid``, ``dense_grid``): per level the position p = scale * x + 0.5 is
+  rounded twice here (as llvmpipe and GLSL 4's ``precise`` keep it); where it is fused (tiny-cuda-nn's
+  fmaf, some GLSL 3.30 / ES drivers) the two differ by one ulp of p, which moves the output by
+  ulp(max p) * sum over axes of the max difference between neighbouring vertices' features (the
+  level's rows as laid out for a dense level, wrap-around included; the spread max - min of its
+  features for a hashed one), divided by max(1, max |feature|): a note past the 1e-5 rule. A
+  computed coordinate is amplified like a lookup array's: gain sum over axes of scale * that
+  neighbour difference / max(1, max |feature|). Measured: a 16- or 64-input dense feeding a 2D grid
+  gives 6.1e-8 to 8.2e-8 * gain (1.0e-5 at gain 122, 6.5e-5 at 1020): limit ``GRID_GAIN`` = 100.
+  Outside [0, 1] the levels wrap (the same on both sides: a note).
+- ``one_blob``: the blob's slope is at most 15/16 n_bins, the gain of a computed input: limit
+  ``LOOKUP_GAIN`` (measured on llvmpipe, a 16- or 64-input dense feeding it: 1.2e-7 to 2.9e-7 * gain).
+  An input is bit-identical on both sides (no limit).
 
 Saturating activations (sigmoid, tanh, softplus) are safe at any argument: lib/activations
 evaluates them in overflow-free forms. The probes behind these numbers are described in the
@@ -50,7 +63,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .bundle import Bundle, Node
-from .components import LUT_BITS
+from .components import grid_node_levels
 
 TOL = 1e-5
 PERIODIC_ARG_INPUT = 2.0 ** 7 * math.pi    # ~402: sin/cos of a bundle input
@@ -60,6 +73,7 @@ DENSE_MAGNITUDE = 175.0                    # S / max(1, min|y|) where cancellati
 DENSE_MAGNITUDE_WARN = 2.0 ** 24 / 16      # ~1.05e6: one ulp of S >= 1/16
 LOOKUP_GAIN = 50.0                         # gain / max(1, max|cell|), coordinate from a dense etc.
 LOOKUP_GAIN_CHAINED = 200.0                # same, coordinate straight from another lookup array
+GRID_GAIN = 100.0                          # sum_d scale * neighbour difference / max(1, max|feature|)
 
 WARNING, NOTE = "warning", "note"
 
@@ -303,6 +317,15 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             elif t == "mesh_features":    # per level a barycentric (convex) blend of table rows
                 table = bundle.tensor(n, "table")
                 olo, ohi = np.tile(table.min(0), p["levels"]), np.tile(table.max(0), p["levels"])
+            elif t in ("hash_grid", "dense_grid"):   # per level a convex blend of the level's rows
+                olo, ohi = _grid(bundle, n, lo, hi, src_exact, warn)
+            elif t == "one_blob":         # bin masses of a unit blob
+                gain = 15.0 / 16.0 * p["n_bins"]
+                if not src_exact and gain > LOOKUP_GAIN:
+                    warn(n.id, f"one_blob gain 15/16 n_bins (n_bins {p['n_bins']}, input computed)", gain, LOOKUP_GAIN,
+                         "an upstream discrepancy is multiplied by the blob's slope: measured ~2.9e-7 * gain "
+                         "(1.6e-5 at n_bins 64 after a 64-input dense)")
+                olo, ohi = np.zeros(n.out_dim), np.ones(n.out_dim)
             elif t == "sparse_voxels":    # one latent row per slot, fetched as stored
                 latents = bundle.tensor(n, "latents").astype(np.float64)
                 olo, ohi = latents.min(0), latents.max(0)
@@ -378,6 +401,43 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             iv[n.id] = (np.asarray(olo, np.float64).reshape(n.out_dim), np.asarray(ohi, np.float64).reshape(n.out_dim))
             exact[n.id] = is_exact
     return Envelope(findings, rng, iv)
+
+
+def _grid_steps(rows: np.ndarray, level, dims: int, wraps: bool) -> np.ndarray:
+    """Per axis, the max |feature difference| between neighbouring vertices of a level: for a dense
+    level row i against row (i + resolution^d) mod rows (every neighbour pair, the wrap-around and
+    padding rows included); for a hashed level (or coordinates that wrap uint32) the features' spread."""
+    if not level.dense or wraps:
+        return np.full(dims, float((rows.max(0) - rows.min(0)).max()))
+    return np.array([float(np.abs(rows - np.roll(rows, -level.resolution ** d, axis=0)).max()) for d in range(dims)])
+
+
+def _grid(bundle: Bundle, n: Node, lo, hi, src_exact: bool, warn):
+    """hash_grid / dense_grid: output bounds per level, and what its position rounding amplifies."""
+    table = bundle.tensor(n, "table").astype(np.float64)
+    if np.any(lo < 0) or np.any(hi > 1):
+        warn(n.id, "grid coordinate", float(np.max(np.maximum(-lo, hi - 1) + 1)), 1.0,
+             "coordinates outside [0, 1] wrap around the levels (the same on both sides)", NOTE)
+    wraps = bool(np.any(lo < 0))          # negative vertices wrap uint32: no neighbour structure
+    xmag = float(np.max(_mag(lo, hi)))
+    olo, ohi, fused, gain = [], [], (0.0, 0), (0.0, 0)
+    for i, level in enumerate(grid_node_levels(n.type, n.params, n.in_dim)):
+        rows = table[level.offset:level.offset + level.rows]
+        olo.append(rows.min(0))
+        ohi.append(rows.max(0))
+        step = _grid_steps(rows, level, n.in_dim, wraps).sum() / max(1.0, float(np.abs(rows).max()))
+        ulp = float(np.spacing(np.float32(float(level.scale) * xmag + 0.5)))
+        fused, gain = max(fused, (ulp * step, i)), max(gain, (float(level.scale) * step, i))
+    if fused[0] > TOL:
+        warn(n.id, f"fused position: ulp(max p) * neighbour difference / max(1, max|feature|) (level {fused[1]})",
+             fused[0], TOL, "where a driver fuses p = scale * x + 0.5 (tiny-cuda-nn's fmaf; llvmpipe and GLSL 4's "
+             "precise do not) p moves by one ulp and the output by this much", NOTE)
+    if not src_exact and gain[0] > GRID_GAIN:
+        warn(n.id, f"grid gain sum_d scale * neighbour difference / max(1, max|feature|) (level {gain[1]}, "
+             "coordinate computed)", gain[0], GRID_GAIN,
+             "an upstream coordinate discrepancy is multiplied by the gain: measured ~8.2e-8 * gain at most "
+             "(6.5e-5 at gain 1020)")
+    return np.concatenate(olo), np.concatenate(ohi)
 
 
 def _softplus(p):

@@ -158,3 +158,91 @@ def test_intervals_are_sound():
     for name, v in (("enc", enc), ("l0", l0), ("a0", a0), ("a1", a1)):
         lo, hi = env.intervals[name]
         assert (v >= lo - 1e-9).all() and (v <= hi + 1e-9).all(), name
+
+
+# --- grid encodings and one_blob ---------------------------------------------------------------------
+
+def _grid_bundle(kind: str, params: dict, table, *, dims: int = 2, semantic: str = "uv", through=None):
+    """A grid node reading the input, or (through = (W, b)) a dense layer's output."""
+    nodes, tensors, src = [], {"grid.table": table}, "x"
+    if through is not None:
+        nodes.append({"id": "pre", "type": "dense", "inputs": ["x"], "params": {"out": dims}})
+        tensors["pre.weight"], tensors["pre.bias"] = through
+        src = "pre"
+    nodes.append({"id": "grid", "type": kind, "inputs": [src], "params": {**params, "precision": "f32"}})
+    return _bundle([{"name": "x", "dim": dims, "semantic": semantic}], nodes, [{"name": "y", "node": "grid"}], tensors)
+
+
+HASHED = {"levels": 3, "features": 2, "base_resolution": 16, "per_level_scale": 4.0, "log2_table_size": 8}
+
+
+def test_grid_fused_position_is_a_note_past_the_rule():
+    """Levels of scale 15 (dense), 63 and 255 (hashed, 256 rows each): where p = 255 x + 0.5 is fused
+    it moves by ulp(255.5) = 2^-16, times the features' spread on each of the two axes."""
+    table = np.random.default_rng(4).uniform(-1, 1, (768, 2))
+    env = analyse(_grid_bundle("hash_grid", HASHED, table))
+    assert env.ok, format_findings(env)
+    [note] = [f for f in env.notes if f.node == "grid"]
+    assert "fused position" in note.quantity and "(level 2)" in note.quantity and note.threshold == 1e-5
+    t = table.astype(np.float32).astype(np.float64)[512:]
+    want = 2 * float((t.max(0) - t.min(0)).max()) * 2.0 ** -16 / max(1.0, float(np.abs(t).max()))
+    assert note.bound == pytest.approx(want, rel=1e-12)
+    quiet = analyse(_grid_bundle("hash_grid", HASHED, table * 0.1))     # 6e-6: inside the rule
+    assert not quiet.findings, format_findings(quiet)
+
+
+def _periodic_table(rows: int, shuffle: bool):
+    """Values smooth along the flat row index (every dense neighbour, wrap-around included, differs by
+    little), or the same values shuffled (neighbours differ by up to the spread)."""
+    t = np.sin(np.arange(rows) * 2 * np.pi / rows)[:, None]
+    return np.random.default_rng(5).permutation(t) if shuffle else t
+
+
+def test_grid_gain_of_a_computed_coordinate():
+    """A dense layer feeding a 129^2 grid (scale 128, 16648 rows): a smooth dense level's gain is
+    128 * (2 pi / 16648 + 2 pi 129 / 16648) ~ 6.3; shuffled, its neighbours differ by up to 2 and the
+    gain nears 128 * 4 = 512, past GRID_GAIN; hashed, only the spread is known (512 as well)."""
+    from inshade.envelope import GRID_GAIN
+
+    through = (np.eye(2) * 0.5, np.full(2, 0.25))                     # coordinates in [0.25, 0.75]
+    dense = {"levels": 1, "features": 1, "base_resolution": 129}
+    assert analyse(_grid_bundle("dense_grid", dense, _periodic_table(16648, False), through=through)).ok
+    [w] = analyse(_grid_bundle("dense_grid", dense, _periodic_table(16648, True), through=through)).warnings
+    assert w.node == "grid" and "grid gain" in w.quantity and w.threshold == GRID_GAIN
+    assert GRID_GAIN < w.bound <= 512.0
+    hashed = {**dense, "log2_table_size": 14}                            # 129^2 > 2^14: hashed
+    [w] = analyse(_grid_bundle("hash_grid", hashed, _periodic_table(1 << 14, False), through=through)).warnings
+    assert w.bound == pytest.approx(128 * 2 * 2.0, rel=1e-6)
+    # the same grid reading the input directly: both sides round p alike, no gain
+    assert analyse(_grid_bundle("dense_grid", dense, _periodic_table(16648, True))).ok
+
+
+def test_grid_intervals_and_wrap_note():
+    table = np.random.default_rng(6).uniform(-1, 1, (768, 2))
+    env = analyse(_grid_bundle("hash_grid", HASHED, table * 0.1, semantic="mystery"))
+    lo, hi = env.intervals["grid"]
+    t = (table * 0.1).astype(np.float32).astype(np.float64)
+    np.testing.assert_array_equal(lo, np.concatenate([t[o:o + 256].min(0) for o in (0, 256, 512)]))
+    np.testing.assert_array_equal(hi, np.concatenate([t[o:o + 256].max(0) for o in (0, 256, 512)]))
+    assert env.ok and any(f.node == "grid" and "wrap" in f.why for f in env.notes)
+
+
+def _blob(n_bins: int, computed: bool):
+    nodes, tensors, src = [], {}, "x"
+    if computed:
+        nodes.append({"id": "pre", "type": "dense", "inputs": ["x"], "params": {"out": 1}})
+        tensors = {"pre.weight": [[0.5, 0.5]], "pre.bias": [0.0]}
+        src = "pre"
+    nodes.append({"id": "blob", "type": "one_blob", "inputs": [src], "params": {"n_bins": n_bins}})
+    return _bundle([{"name": "x", "dim": 2 if computed else 1, "semantic": "uv"}], nodes,
+                   [{"name": "y", "node": "blob"}], tensors)
+
+
+def test_one_blob_gain_of_a_computed_input():
+    [w] = analyse(_blob(64, True)).warnings
+    assert w.node == "blob" and "one_blob gain" in w.quantity and w.threshold == LOOKUP_GAIN and w.bound == 60.0
+    assert analyse(_blob(32, True)).ok               # gain 30
+    env = analyse(_blob(1024, False))                # an input: bit-identical, no limit
+    assert env.ok and not env.findings
+    lo, hi = env.intervals["blob"]
+    assert lo.shape == (1024,) and (lo == 0).all() and (hi == 1).all()
