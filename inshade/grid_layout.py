@@ -34,6 +34,9 @@ MAX_LEVELS = 32
 MAX_LOG2_TABLE = 24
 MASK = 0xFFFFFFFF
 MAX_DENSE_RESOLUTION = {2: 0xFFFF, 3: 0x659}   # common_device.h grid_index: no uint32 overflow below these
+# Finest usable scale: beyond 2^24 float32 p = scale * x + 0.5 keeps no fraction (no interpolation),
+# and past 2^31 its int conversion is undefined (torch, GLSL and CUDA then read different rows).
+MAX_SCALE = 2.0 ** 24
 
 
 @dataclass(frozen=True)
@@ -48,8 +51,9 @@ class GridLevel:
 def level_scale(level: int, per_level_scale: float, base_resolution: int) -> np.float32:
     """exp2f(level * log2f(per_level_scale)) * base_resolution - 1, every step in float32."""
     log2s = np.log2(np.float32(per_level_scale)).astype(np.float32)
-    e = np.exp2(np.float32(level) * log2s).astype(np.float32)
-    return np.float32(np.float32(e * np.float32(base_resolution)) - np.float32(1.0))
+    with np.errstate(over="ignore"):      # an overflow is inf, refused by grid_levels
+        e = np.exp2(np.float32(level) * log2s).astype(np.float32)
+        return np.float32(np.float32(e * np.float32(base_resolution)) - np.float32(1.0))
 
 
 def grid_levels(dims: int, levels: int, base_resolution: int, per_level_scale: float,
@@ -57,6 +61,11 @@ def grid_levels(dims: int, levels: int, base_resolution: int, per_level_scale: f
     out, offset = [], 0
     for level in range(levels):
         scale = level_scale(level, per_level_scale, base_resolution)
+        if not scale < MAX_SCALE:
+            from .components import ComponentError
+            raise ComponentError(f"levels: level {level} has scale {float(scale):.4g}, not below 2^24 (float32 "
+                                 f"p = scale * x + 0.5 keeps no fraction there): fewer levels, a smaller "
+                                 f"base_resolution or per_level_scale")
         resolution = int(np.ceil(scale)) + 1
         full = resolution ** dims
         rows = min(full, MASK // 2)

@@ -163,8 +163,12 @@ def test_layout_by_hand():
 def test_layout_matches_tiny_cuda_nn(dims, levels, base, pls, log2, grid):
     if grid == "dense":
         levels = min(levels, 4)
-    got = grid_levels(dims, levels, base, pls, log2, grid)
     want = tcnn_layout(dims, levels, base, pls, log2, grid)
+    if want[-1][0] >= 2 ** 24:       # float32 p keeps no fraction: refused
+        with pytest.raises(ComponentError, match=rf"^levels: level {next(i for i, w in enumerate(want) if w[0] >= 2 ** 24)} "):
+            grid_levels(dims, levels, base, pls, log2, grid)
+        return
+    got = grid_levels(dims, levels, base, pls, log2, grid)
     assert [(lv.scale, lv.resolution, lv.rows, lv.offset) for lv in got] == want
     for lv, (_, res, size, _) in zip(got, want):    # grid_index's choice: dense where res^dims fits
         assert lv.dense == (res <= TCNN_MAX_BASES[dims] and res ** dims <= size)
@@ -488,6 +492,12 @@ def test_component_checks():
     # ... or its table too long (2D, 10000^2 rows)
     with pytest.raises(ComponentError, match=r"^levels: the table needs 100000000 rows, more than 67108864$"):
         check_node("dense_grid", {**fine, "base_resolution": 10000}, 2)
+    # a level so fine that float32 p = scale * x + 0.5 has no fraction (here 2^28: past int32 at 2^31 the
+    # rows read would differ between executors); the same config one level shorter is accepted
+    coarse = resolve_params("hash_grid", {"levels": 3, "base_resolution": 65536, "per_level_scale": 16.0})
+    assert check_node("hash_grid", coarse, 3) == 6
+    with pytest.raises(ComponentError, match=r"^levels: level 3 has scale 2\.684e\+08, not below 2\^24 "):
+        check_node("hash_grid", {**coarse, "levels": 32}, 3)
     with pytest.raises(ComponentError, match="cannot take a 4-wide input"):
         HashGrid(4, 2)
     with pytest.raises(ComponentError, match=r"^table: shape \[8, 2\], expected \[64, 2\]$"):
