@@ -195,9 +195,10 @@ def _one_blob_width(p, d):
 
 
 _register(ComponentSpec(
-    "one_blob", "tiny-cuda-nn's OneBlob: per input x and bin k < n_bins, the mass of a quartic kernel of "
-                "radius 1/n_bins centred at x (wrapped with period 1) that falls in [k, k+1) / n_bins; "
-                "lanes input-major (x_i's bins at i*n_bins..); models/encodings.py has the exact rule",
+    "one_blob", "tiny-cuda-nn's OneBlob (encodings/oneblob.h, kernel_one_blob_soa): per input x and bin "
+                "k < n_bins, the mass of a quartic kernel of radius 1/n_bins centred at x (wrapped with "
+                "period 1) that falls in [k, k+1) / n_bins; lanes input-major (x_i's bins at i*n_bins..); "
+                "models/encodings.py has the exact rule",
     {"n_bins": Param(int, 16, lambda v: _pos_int(ONE_BLOB_MAX_BINS)(v) and v & (v - 1) == 0,
                      doc=f"a power of two, 1..{ONE_BLOB_MAX_BINS}")},
     out_dim=lambda p, d: d * p["n_bins"],
