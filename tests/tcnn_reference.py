@@ -92,7 +92,8 @@ def next_multiple(n, m):
 def grid_scale(level: int, per_level_scale, base_resolution: int) -> np.float32:
     """grid_scale(level, std::log2(per_level_scale), base): exp2f(level * log2) * base - 1.0f."""
     log2_scale = _host("log2f", per_level_scale)
-    e = _host("exp2f", np.float32(np.float32(level) * log2_scale))
+    with np.errstate(invalid="ignore"):
+        e = _host("exp2f", np.float32(np.float32(level) * log2_scale))
     return np.float32(np.float32(e * np.float32(base_resolution)) - np.float32(1.0))
 
 
@@ -116,6 +117,11 @@ def _encoding(cfg: dict, n: int, alignment: int) -> dict:
     """create_encoding(n_dims_to_encode, encoding, alignment) as a dict: out (lanes computed),
     pad, pad_value, pad_first, align (required_output_alignment), n_params and the settings."""
     otype = _lower(cfg.get("otype", "OneBlob"))
+    if otype in ("nrc", "oneblobfrequency"):   # encoding.cu nrc_factory
+        return _encoding({"otype": "Composite", "nested": [
+            {"n_dims_to_encode": 3, "otype": "TriangleWave", "n_frequencies": cfg.get("n_frequencies", 12)},
+            {"n_dims_to_encode": 5, "otype": "OneBlob", "n_bins": cfg.get("n_bins", 4)},
+            {"otype": "Identity"}]}, n, alignment)
     e = {"otype": otype, "n": n, "pad": 0, "pad_value": 1.0, "pad_first": False, "align": 1, "n_params": 0}
     if otype == "identity":
         e.update(out=n, scale=float(np.float32(cfg.get("scale", 1.0))), offset=float(np.float32(cfg.get("offset", 0.0))))
@@ -141,12 +147,15 @@ def _encoding(cfg: dict, n: int, alignment: int) -> dict:
         if "per_level_scale" in cfg:
             pls = np.float32(cfg["per_level_scale"])
         elif gtype == "dense":   # std::exp(std::log(256.0f / (float)base) / (n_levels - 1))
-            pls = _host("expf", np.float32(_host("logf", np.float32(256.0) / np.float32(base)) / np.float32(levels - 1)))
+            with np.errstate(divide="ignore", invalid="ignore"):   # n_levels 1: tiny-cuda-nn divides by 0 too
+                pls = _host("expf", np.float32(_host("logf", np.float32(256.0) / np.float32(base))
+                                               / np.float32(levels - 1)))
         else:
             pls = np.float32(2.0)
         log2 = cfg.get("log2_hashmap_size", 19)
         table = grid_offsets(n, levels, base, pls, log2, gtype)
         e.update(F=F, levels=levels, gtype=gtype, table=table, hash=_lower(cfg.get("hash", "CoherentPrime")),
+                 per_level_scale=float(pls), base_resolution=base,
                  out=levels * F, align=F, pad_value=0.0)
         e["n_params"] = (table[-1][3] + table[-1][2]) * F
     elif otype == "composite":
@@ -167,7 +176,7 @@ def _encoding(cfg: dict, n: int, alignment: int) -> dict:
         so_far = 0
         for i in range(len(nested) - 1):   # pad each to the next one's alignment
             want = next_multiple(so_far + _width(nested[i]), nested[i + 1]["align"]) - so_far
-            nested[i]["pad"] = want - nested[i]["out"]
+            _set_padded(nested[i], want)
             so_far += _width(nested[i])
         e.update(nested=nested, begins=begins, align=math.lcm(*(x["align"] for x in nested)),
                  n_params=sum(x["n_params"] for x in nested))

@@ -181,7 +181,7 @@ def lower_encoding(b: Builder, enc, src: str, params: Cursor, dtype: str) -> lis
 # --- activations (common_device.h warp_activation), each as the components computing it ------
 
 def leaky_slope(dtype: str) -> float:
-    """LeakyReLU multiplies by (T)0.01f, T the network's precision: 0.0099945068359375 in fp16."""
+    """LeakyReLU multiplies by (T)0.01f, T the network's precision: 0.01000213623046875 in fp16."""
     return float(np.float16(0.01)) if dtype == "float16" else float(np.float32(0.01))
 
 
