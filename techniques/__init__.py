@@ -20,4 +20,5 @@ BUILTIN = (
     "uvfree_material",
     "appearance_prefilter",
     "imported",
+    "hash_grid",
 )

@@ -1,0 +1,18 @@
+"""hash_grid: instant-NGP's multiresolution hash encoding + a small MLP (Müller et al. 2022), one
+trainer for several applications (train.py APPS): an image drawn by the shared 2D field pass, and a
+mesh's signed distance traced by the sdf technique's pass."""
+from inshade.technique import Paper, Technique
+
+INSTANT_NGP = Paper("Instant Neural Graphics Primitives with a Multiresolution Hash Encoding",
+                    "ACM Transactions on Graphics (SIGGRAPH) 2022", arxiv="2201.05989", doi="10.1145/3528223.3530127")
+
+TECHNIQUE = Technique(
+    name="hash_grid",
+    summary="instant-NGP hash encoding + MLP: a 2K image, a mesh SDF",
+    paper=INSTANT_NGP,
+    kinds=("hash_grid_image", "hash_grid_sdf"),
+    # No programs of its own: the image is drawn by passes/field2d.frag (neural_image's), the SDF by
+    # passes/sdf_diffuse.frag (sdf's) through the network-SDF contract.
+    train="inshade.techniques.hash_grid.train",
+    train_help="fit a hash grid + MLP: APP image (2048^2 photo collage) or sdf (a mesh)",
+)
