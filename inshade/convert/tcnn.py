@@ -190,10 +190,13 @@ def _elementwise(kind: str, **params):
 
 
 def _squareplus(b: Builder, src: str, dtype: str, where: str) -> str:
-    """X = 10 x; 0.5 (X + sqrt(X X + 4)) / 10."""
+    """X = 10 x; 0.5 (X + sqrt(X X + 4)) / 10. The square is |X| |X| (the same value): a product
+    of two non-negative lanes, so bounds propagated through the graph (inshade info's parity
+    envelope) know the square root's argument is positive."""
     n = b.width(src)
     x = b.node("affine", {}, [src], {"scale": np.full(n, K_ACT), "offset": np.zeros(n)}, where)
-    square = b.node("mul", {}, [x, x], where=where)
+    size = b.node("abs", {}, [x], where=where)
+    square = b.node("mul", {}, [size, size], where=where)
     shifted = b.node("affine", {}, [square], {"scale": np.ones(n), "offset": np.full(n, 4.0)}, where)
     root = b.node("sqrt", {}, [shifted], where=where)
     total = b.node("add", {}, [x, root], where=where)

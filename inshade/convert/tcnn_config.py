@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from inshade.grid_layout import MAX_DENSE_RESOLUTION, GridLevel, grid_levels, table_rows
+from inshade.grid_layout import MAX_DENSE_RESOLUTION, MAX_LEVELS, GridLevel, grid_levels, table_rows
 
 from .lowering import ConvertError
 
@@ -238,8 +238,8 @@ class Grid(Encoding):
             self.levels = n_features // self.features
         else:
             self.levels = r.uint("n_levels", 16)
-        if self.levels < 1:
-            raise err(f"{where}.n_levels", "a grid needs at least one level")
+        if not 1 <= self.levels <= MAX_LEVELS:
+            raise err(f"{where}.n_levels", f"{self.levels}: inshade's grid components take 1..{MAX_LEVELS} levels")
         self.type = r.word("type", default_type, ("hash", "dense", "tiled", "tile"))
         if self.type in ("tiled", "tile"):
             raise err(f"{where}.type", "Tiled grids are not supported (inshade lowers Hash and Dense grids)")
