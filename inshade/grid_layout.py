@@ -49,10 +49,13 @@ class GridLevel:
 
 
 def level_scale(level: int, per_level_scale: float, base_resolution: int) -> np.float32:
-    """exp2f(level * log2f(per_level_scale)) * base_resolution - 1, every step in float32."""
-    log2s = np.log2(np.float32(per_level_scale)).astype(np.float32)
+    """exp2f(level * log2f(per_level_scale)) * base_resolution - 1, every step a float32 result.
+    log2f and exp2f are correctly rounded here (float64, rounded once), as glibc's are in
+    tiny-cuda-nn's host code, which sizes the levels; numpy's float32 ones are up to 2 ulp off. (CUDA's
+    device exp2f, which the kernel's scale uses, may differ from both by up to 2 ulp: docs/tcnn.md.)"""
+    log2s = np.float32(np.log2(np.float64(np.float32(per_level_scale))))
     with np.errstate(over="ignore"):      # an overflow is inf, refused by grid_levels
-        e = np.exp2(np.float32(level) * log2s).astype(np.float32)
+        e = np.float32(np.exp2(np.float64(np.float32(np.float32(level) * log2s))))
         return np.float32(np.float32(e * np.float32(base_resolution)) - np.float32(1.0))
 
 

@@ -41,9 +41,11 @@ TCNN_MAX_BASES = {2: 0xFFFF, 3: 0x659}     # grid_index's MAX_BASES[N_DIMS]
 
 
 def tcnn_scale(level: int, per_level_scale: float, base_resolution: int) -> np.float32:
-    """grid_scale(level, std::log2(per_level_scale), base_resolution), every step float32."""
-    log2s = np.log2(f32(per_level_scale))
-    return f32(np.exp2(f32(level) * log2s) * f32(base_resolution)) - f32(1)
+    """grid_scale(level, std::log2(per_level_scale), base_resolution), every step float32, with the
+    C library's log2f and exp2f as tiny-cuda-nn's host code calls them (tests/tcnn_reference.py)."""
+    from tcnn_reference import _host
+    log2s = _host("log2f", per_level_scale)
+    return f32(_host("exp2f", f32(f32(level) * log2s)) * f32(base_resolution)) - f32(1)
 
 
 def tcnn_resolution(scale: np.float32) -> int:

@@ -553,10 +553,6 @@ REFUSALS = {   # name: (config, params dtype, params count change, expected in t
     "scale_below_one": (_edit(GRID_NET, "encoding.per_level_scale", 0.5), "float16", 0, "per_level_scale"),
     "dense_one_level": ({"n_input_dims": 2, "encoding": {"otype": "DenseGrid", "n_levels": 1}}, "float32", 0,
                         "encoding.per_level_scale: missing"),
-    # 16 * 1.2609^15 - 1 = 517.0000: tiny-cuda-nn's float32 scale lands just below 517 (resolution 518), numpy's
-    # just above (519); the 2D level is dense (518^2 < 2^19 rows), so the grids would differ
-    "scale_rounding": ({"n_input_dims": 2, "encoding": {"otype": "HashGrid", "per_level_scale": 1.2609}}, "float32",
-                       0, "level 15: tiny-cuda-nn's float32 level scale 516.999939 gives resolution 518"),
     "float64": (GRID_NET, "float64", 0, "dtype float64"),
     "nan": (GRID_NET, "nan", 0, "NaN or Inf"),
 }

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from inshade.grid_layout import MAX_DENSE_RESOLUTION, MAX_LEVELS, GridLevel, grid_levels, table_rows
+from inshade.grid_layout import MAX_LEVELS, grid_levels, table_rows
 
 from .lowering import ConvertError
 
@@ -272,24 +272,8 @@ class Grid(Encoding):
                              f"also has 4D)")
         self.grid_levels = grid_levels(n_dims, self.levels, self.base_resolution, self.per_level_scale,
                                        self.log2_hashmap_size, self.type)
-        self._check_resolutions(r.ctx)
         self.alignment = self.features
         self.out = self.levels * self.features
-
-    def _check_resolutions(self, ctx: Context) -> None:
-        """tiny-cuda-nn sizes each level on the host with the C library's log2f / exp2f (correctly
-        rounded but for near-halfway cases); inshade.grid_layout with numpy's float32 ones, which may
-        lie a few ulp away. Where that moves ceil(scale) on a level whose resolution matters (its rows,
-        or dense indexing), the grids differ: refused, not converted wrong."""
-        host = grid_levels_host(self.n_dims, self.levels, self.base_resolution, self.per_level_scale,
-                                self.log2_hashmap_size, self.type)
-        for k, (ours, theirs) in enumerate(zip(self.grid_levels, host)):
-            if ours.resolution != theirs.resolution and (ours.dense or theirs.dense or ours.rows != theirs.rows):
-                raise ctx.error(f"{self.where}.per_level_scale",
-                                f"level {k}: tiny-cuda-nn's float32 level scale {float(theirs.scale):.9g} gives "
-                                f"resolution {theirs.resolution}, inshade's {float(ours.scale):.9g} gives "
-                                f"{ours.resolution} (numpy's float32 log2 / exp2 round differently); this grid "
-                                "cannot be converted exactly")
 
     @property
     def rows(self) -> int:
@@ -311,28 +295,6 @@ class Grid(Encoding):
         if self.type == "hash":
             out["log2_hashmap_size"] = self.log2_hashmap_size
         return out
-
-
-def host_scale(level: int, per_level_scale: float, base_resolution: int) -> np.float32:
-    """common_device.h grid_scale as the host computes it: exp2f(level * log2f(scale)) * base - 1,
-    each C library call correctly rounded to float32 (glibc's are, to 0.502 ulp)."""
-    log2s = np.float32(math.log2(float(np.float32(per_level_scale))))
-    e = np.float32(2.0 ** float(np.float32(np.float32(level) * log2s)))
-    return np.float32(np.float32(e * np.float32(base_resolution)) - np.float32(1.0))
-
-
-def grid_levels_host(dims, levels, base_resolution, per_level_scale, log2_table_size, grid):
-    """grid_layout.grid_levels' rule with host_scale's level scales."""
-    out = []
-    for k in range(levels):
-        scale = host_scale(k, per_level_scale, base_resolution)
-        resolution = int(np.ceil(scale)) + 1
-        rows = next_multiple(min(resolution ** dims, 0xFFFFFFFF // 2), 8)
-        if grid == "hash":
-            rows = min(rows, 1 << log2_table_size)
-        dense = resolution <= MAX_DENSE_RESOLUTION[dims] and resolution ** dims <= rows
-        out.append(GridLevel(scale, resolution, rows, 0, dense))
-    return out
 
 
 def dense_default_scale(base_resolution: int, levels: int) -> float:
