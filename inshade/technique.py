@@ -254,7 +254,10 @@ class Technique:
     ``kinds`` are the bundle kinds its trainers write (new bundles); ``old_kinds`` maps kinds
     that earlier bundles carry to the current one, and they are still read. ``train`` and
     ``bench`` name modules with ``main(argv) -> int`` (imported only when run: they may need
-    torch). ``shaders`` is the folder whose chunks join the shader search path.
+    torch). ``shaders`` is the folder whose chunks join the shader search path. ``converts`` maps
+    file suffixes ``inshade convert`` reads into this technique's assets to the module that does it
+    (``convert(source, folder, *, force, quiet) -> str``, the line said when done; ``SOURCE``: what
+    such a file is, in words).
     """
     name: str
     summary: str
@@ -268,6 +271,7 @@ class Technique:
     bench: str | None = None
     bench_help: str = ""
     shaders: Path | None = None
+    converts: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.name.isidentifier():
@@ -299,6 +303,10 @@ def register(technique: Technique) -> Technique:
         if kinds:
             raise TechniqueError(f"technique {technique.name!r}: bundle kind {sorted(kinds)[0]!r} already "
                                  f"belongs to {other.name!r}")
+        suffixes = set(other.converts) & set(technique.converts)
+        if suffixes:
+            raise TechniqueError(f"technique {technique.name!r}: inshade convert's {sorted(suffixes)[0]} files "
+                                 f"already belong to {other.name!r}")
         if technique.train_alias and technique.train_alias in (other.name, other.train_alias):
             raise TechniqueError(f"technique {technique.name!r}: train_alias {technique.train_alias!r} already "
                                  f"names {other.name!r}")

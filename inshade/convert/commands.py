@@ -29,11 +29,12 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
                                    "is checked against the bundle's torch twin, since tiny-cuda-nn needs CUDA and "
                                    "does not run here (docs/tcnn.md says what the lowering was tested against). "
                                    "Torch modules go in from Python: inshade.export(module, example_input, "
-                                   "folder). --ops lists what each source can hold.")
+                                   "folder). --ops lists what each source can hold. A technique's own files become "
+                                   "whole assets (--ops lists them: e.g. instant-ngp NeRF snapshots).")
     p.add_argument("source", nargs="?", metavar="MODEL",
                    help="model.onnx (opsets 13 and newer), or a tiny-cuda-nn config.json: {\"encoding\", "
                         "\"network\"} (either may be left out), with \"n_input_dims\" / \"n_output_dims\" in "
-                        "it or given by --inputs / --outputs")
+                        "it or given by --inputs / --outputs, or a file a technique converts (--ops)")
     p.add_argument("params", nargs="?", metavar="PARAMS",
                    help="a tiny-cuda-nn model's parameters: state_dict()[\"params\"] as .npy, .safetensors, "
                         ".pt/.pth (torch.load with weights_only=True) or raw little-endian .bin (its length "
@@ -82,9 +83,13 @@ def cmd_convert(args) -> int:
         raise ConvertError("convert: give MODEL and -o FOLDER (or --ops)")
     source = Path(args.source)
     kind = SOURCES.get(source.suffix.lower())
+    converter = technique_converters().get(source.suffix.lower())
+    if converter is not None:
+        return _convert_asset(converter, source, args)
     if kind is None:
+        known = [*SOURCES, *technique_converters()]
         raise ConvertError(f"{source}: unknown model format {source.suffix or '(no suffix)'!r} "
-                           f"(inshade convert reads {', '.join(SOURCES)}; torch modules: inshade.export)")
+                           f"(inshade convert reads {', '.join(known)}; torch modules: inshade.export)")
     example = _read_npy(args.example) if args.example else None
     semantics = {}
     for item in args.semantic or []:
@@ -114,6 +119,34 @@ def cmd_convert(args) -> int:
     if not args.quiet:
         print(f"wrote {args.output}: {len(bundle.nodes)} nodes, {bundle.in_dim} -> {bundle.out_dim} lanes",
               file=sys.stderr)
+    return 0
+
+
+def technique_converters() -> dict[str, str]:
+    """File suffix -> the module that converts such files into a technique's asset (the registry's
+    ``converts``)."""
+    from inshade.technique import techniques
+
+    return {suffix.lower(): module for t in techniques() for suffix, module in t.converts.items()}
+
+
+def _convert_asset(module: str, source: Path, args) -> int:
+    """A file that becomes a whole asset (e.g. an instant-ngp snapshot): the technique's converter
+    writes the folder; the network options of bundle conversions do not apply."""
+    import importlib
+
+    from .lowering import ConvertError
+
+    given = [o for o, v in (("PARAMS", args.params), ("--inputs", args.inputs), ("--outputs", args.outputs),
+                            ("--params-key", args.params_key), ("--as", args.as_), ("--example", args.example),
+                            ("--semantic", args.semantic), ("--name", args.name)) if v]
+    if given:
+        raise ConvertError(f"{source}: {given[0]} does not apply to a {source.suffix} file (it converts to a whole asset)")
+    if args.output is None:
+        raise ConvertError(f"convert: give -o FOLDER for {source}")
+    said = importlib.import_module(module).convert(source, args.output, force=args.force, quiet=args.quiet)
+    if not args.quiet:
+        print(said, file=sys.stderr)
     return 0
 
 
@@ -157,11 +190,15 @@ def cmd_eval(args) -> int:
 
 def ops_text() -> str:
     """What each source lowers (``inshade convert --ops``)."""
+    import importlib
+
     from inshade.components import COMPONENTS
 
     from .onnx_model import HANDLERS as ONNX_OPS
 
-    lines = ["torch modules (inshade.export; ATen ops as torch.export records them):"]
+    lines = ["files that become a technique's asset (inshade convert FILE -o FOLDER):"]
+    lines += [f"  {suffix}: {importlib.import_module(module).SOURCE}" for suffix, module in technique_converters().items()]
+    lines += ["", "torch modules (inshade.export; ATen ops as torch.export records them):"]
     try:
         from .torch_module import HANDLERS as TORCH_OPS
         lines += _wrap(sorted(TORCH_OPS))
