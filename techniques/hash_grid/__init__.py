@@ -1,18 +1,26 @@
 """hash_grid: instant-NGP's multiresolution hash encoding + a small MLP (Müller et al. 2022), one
-trainer for several applications (train.py APPS): an image drawn by the shared 2D field pass, and a
-mesh's signed distance traced by the sdf technique's pass."""
+trainer for several applications (train.py APPS): an image drawn by the shared 2D field pass, a
+mesh's signed distance traced by the sdf technique's pass, and a radiance field ray marched with an
+occupancy grid by its own pass (radiance_field_render.py)."""
+from pathlib import Path
+
 from inshade.technique import Paper, Technique
+
+from .radiance_field_render import KIND as RADIANCE_FIELD_KIND, PROGRAM_SPEC as RADIANCE_FIELD_PROGRAM
 
 INSTANT_NGP = Paper("Instant Neural Graphics Primitives with a Multiresolution Hash Encoding",
                     "ACM Transactions on Graphics (SIGGRAPH) 2022", arxiv="2201.05989", doi="10.1145/3528223.3530127")
 
 TECHNIQUE = Technique(
     name="hash_grid",
-    summary="instant-NGP hash encoding + MLP: a 2K image, a mesh SDF",
+    summary="instant-NGP hash encoding + MLP: a 2K image, a mesh SDF, a radiance field",
     paper=INSTANT_NGP,
-    kinds=("hash_grid_image", "hash_grid_sdf"),
-    # No programs of its own: the image is drawn by passes/field2d.frag (neural_image's), the SDF by
-    # passes/sdf_diffuse.frag (sdf's) through the network-SDF contract.
+    kinds=("hash_grid_image", "hash_grid_sdf", RADIANCE_FIELD_KIND),
+    # The image is drawn by passes/field2d.frag (neural_image's), the SDF by passes/sdf_diffuse.frag
+    # (sdf's) through the network-SDF contract; the radiance field by its own march.
+    programs=(RADIANCE_FIELD_PROGRAM,),
+    shaders=Path(__file__).resolve().parent / "shaders",
     train="inshade.techniques.hash_grid.train",
-    train_help="fit a hash grid + MLP: APP image (2048^2 photo collage) or sdf (a mesh)",
+    train_help="fit a hash grid + MLP: APP image (2048^2 photo collage), sdf (a mesh) or radiance_field "
+               "(a procedural scene from its views)",
 )

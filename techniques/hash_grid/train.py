@@ -5,7 +5,11 @@ per entry of ``APPS``:
 - ``image``: uv -> sRGB colour of a 2048x2048 collage of photographs (image.py), drawn by
   passes/field2d.frag as neural_image is; shipped as trained/hash_grid_image;
 - ``sdf``: q -> signed distance of a watertight mesh (sdf.py), sphere traced by the sdf technique's
-  pass through scene.json's ``"sdf": {"network": "."}``; shipped as trained/hash_grid_sdf.
+  pass through scene.json's ``"sdf": {"network": "."}``; shipped as trained/hash_grid_sdf;
+- ``radiance_field``: instant-NGP's NeRF (x, d -> density, rgb) of a procedural scene, trained from
+  its own rendered views with occupancy-guided sampling (radiance_field_train.py) and ray marched
+  with an occupancy grid by passes/radiance_field_hash_grid.frag; shipped as
+  trained/hash_grid_radiance_field.
 
 Command: ``inshade train hash_grid APP [--preset quick|ship] [--device auto|cpu|cuda[:N]] [-o DIR]
 [--force] [--steps N] [--budget-kb K] ...``. ``--preset ship`` is exactly what built the shipped asset
@@ -38,8 +42,10 @@ class App:
 APPS = {
     "image": App("inshade.techniques.hash_grid.image", "hash_grid_image", "uv -> sRGB of a 2048^2 photo collage"),
     "sdf": App("inshade.techniques.hash_grid.sdf", "hash_grid_sdf", "a mesh's signed distance, sphere traced"),
+    "radiance_field": App("inshade.techniques.hash_grid.radiance_field_train", "hash_grid_radiance_field",
+                          "a procedural scene's radiance field, ray marched with an occupancy grid"),
 }
-IMAGE, SDF = ("image",), ("sdf",)
+IMAGE, SDF, RF = ("image",), ("sdf",), ("radiance_field",)
 
 
 @dataclass(frozen=True)
@@ -76,6 +82,16 @@ class Settings:
     hit_eps: float = setting(2e-4, "hit distance, fraction of the bound radius", only={"app": SDF})
     slope_lattice: int = setting(96, "lattice points a side where the slope is measured", only={"app": SDF})
     mc_resolution: int = setting(256, "marching-cubes grid of the zero-set metric", only={"app": SDF})
+    scene: str = setting("still_life", "procedural scene", choices=("still_life",), only={"app": RF})
+    train_views: int = setting(96, "training views (upper hemisphere)", only={"app": RF})
+    heldout_views: int = setting(8, "held-out views, between the training views", only={"app": RF})
+    train_size: int = setting(128, "training views' pixels a side", only={"app": RF})
+    heldout_size: int = setting(192, "held-out views' pixels a side (the scene's size)", only={"app": RF})
+    samples_per_side: int = setting(384, "march step = box side / this", only={"app": RF})
+    occupancy_resolution: int = setting(64, "occupancy grid cells a side", only={"app": RF})
+    occupancy_threshold: float = setting(0.01, "occupied: a step's optical thickness above this", only={"app": RF})
+    occupancy_every: int = setting(16, "steps between density-grid updates", only={"app": RF})
+    empty_weight: float = setting(1.0, "weight of the empty-space density term", only={"app": RF})
 
 
 # --preset, per application. image ship: instant-NGP's image settings (F 2, N_min 16, 64x2 MLP) with
@@ -87,12 +103,18 @@ PRESETS = {
         "image": dict(steps=2500, batch=65536, levels=12, finest=2048, size=2048, budget_kb=960.0,
                       baseline_steps=1200),
         "sdf": dict(steps=2000, batch=16384, finest=512, budget_kb=640.0, baseline_steps=1000, n_freqs=6),
+        "radiance_field": dict(steps=2400, batch=32768, finest=1024, log2_table_size=15, baseline_steps=400,
+                               baseline_depth=4),
     },
     "quick": {
         "image": dict(steps=30, batch=4096, finest=128, size=128, levels=6, budget_kb=64.0, width=16,
                       baseline_steps=10, baseline_batch=1024),
         "sdf": dict(steps=30, batch=2048, finest=64, budget_kb=64.0, levels=6, width=16, samples=8000,
                     baseline_steps=0, slope_lattice=16, mc_resolution=32, n_freqs=4),
+        "radiance_field": dict(steps=12, batch=2048, finest=32, levels=4, log2_table_size=10, width=16, depth=1,
+                               train_views=6, heldout_views=2, train_size=24, heldout_size=24, samples_per_side=48,
+                               occupancy_resolution=8, occupancy_every=4, baseline_steps=4, baseline_depth=1,
+                               n_freqs=4),
     },
 }
 
@@ -106,11 +128,16 @@ def check(s: Settings) -> None:
         raise HashGridError(f"--size {s.size}: must divide 2048")
     if s.arch == "mlp" and s.app != "image":
         raise HashGridError("--arch mlp: the image application only (the sdf one measures it with --baseline-steps)")
+    if s.app == "radiance_field":
+        from .radiance_field_train import check as check_radiance_field
+
+        check_radiance_field(s)
 
 
 def extra_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mesh", default=None, help="sdf: a watertight OBJ/PLY/GLB (default: the procedural rabbit)")
-    parser.add_argument("--preview", action="store_true", help="sdf: also render preview.png through the GLSL path")
+    parser.add_argument("--preview", action="store_true", help="sdf: also render preview.png through the GLSL path; "
+                        "radiance_field: also draw the held-out views with the shader and record their PSNR")
     parser.add_argument("--threads", type=int, default=1,
                         help="torch threads while training (default: %(default)s; a shared 2-core machine)")
 
