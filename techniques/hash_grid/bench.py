@@ -1,0 +1,210 @@
+"""`inshade bench hash_grid`: instant-NGP's hash grid + MLP (techniques/hash_grid) in its three
+applications, each against the project's own alternatives at equal bytes, through the GL driver.
+
+- image (``--image``, default trained/hash_grid_image; passes/field2d.frag): PSNR (sRGB and linear)
+  and FLIP of the GL render at the collage's native size against the target; beside it the
+  MLP-only network of its bytes (the trainer's measured quality; frames timed here) and a DI
+  texture cascade of its bytes trained here (``--di-steps``) and drawn the same way (bench_image.py);
+- sdf (``--sdf``, default trained/hash_grid_sdf; passes/sdf_diffuse.frag): the trainer's mean
+  surface error per bounding-box diagonal, the MLP-only network's beside it (bench_fields.py);
+- radiance_field (``--radiance-field``, default trained/hash_grid_radiance_field;
+  passes/radiance_field_hash_grid.frag): PSNR of the shader's march of the held-out views against
+  their ground truth, the MLP-only network's (the trainer's) beside it (bench_fields.py).
+
+For every network: bytes (grid tables at their precision + fp32 MLP weights; the GPU resources the
+codegen plan lays out; the bundle's files), FLOPs and texture fetches per pixel (the codegen plan
+per evaluation, times the evaluations a pixel makes: 1 for the image, counted by the torch twin of
+the march for the others), and ms per frame at each ``--sizes`` side: the median of ``--frames``
+draws after the first, which is made at ``--probe``² and reported apart (llvmpipe JIT-compiles
+there; Mesa's on-disk shader cache is off for this run unless the caller set it), on the harness
+clock (GL timer query on a hardware driver, draw + glFinish wall time on llvmpipe). A side whose
+frame the probe predicts past ``--max-frame-s`` is skipped with the prediction recorded.
+
+Writes hash_grid.{json,md,png} into ``--out`` (GL_RENDERER in all three). ``--quick``: one tiny
+side, one frame, a few DI steps (tests and smoke runs; options given explicitly win).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+from types import SimpleNamespace
+
+from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
+from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, cold_shader_cache,
+                                   machine, write_report)
+
+STEM = "hash_grid"
+APPS = ("image", "sdf", "radiance_field")
+QUICK = dict(sizes="64", frames=1, probe=16, di_steps=20, di_batch=2048, count_size=16, eval_side=8, heldout_views=1)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    p.add_argument("--out", default="bench-out/hash_grid", help="report folder (default %(default)s)")
+    p.add_argument("--apps", default=",".join(APPS), help="applications to measure (default %(default)s)")
+    p.add_argument("--image", default="trained/hash_grid_image", help="image asset folder (default %(default)s)")
+    p.add_argument("--sdf", default="trained/hash_grid_sdf", help="SDF asset folder (default %(default)s)")
+    p.add_argument("--radiance-field", default="trained/hash_grid_radiance_field",
+                   help="radiance-field asset folder (default %(default)s)")
+    p.add_argument("--sizes", default="512,1024", help="timed frame sides, comma-separated (default %(default)s)")
+    p.add_argument("--frames", type=int, default=5, help="timed draws per side (default %(default)s)")
+    p.add_argument("--probe", type=int, default=64, help="side of each program's first draw (default %(default)s)")
+    p.add_argument("--max-frame-s", type=float, default=120.0,
+                   help="skip a side whose frame the probe predicts longer than this (default %(default)s)")
+    p.add_argument("--di-steps", type=int, default=1500, help="steps of the image's DI cascade (default %(default)s)")
+    p.add_argument("--di-batch", type=int, default=16384, help="samples per DI step (default %(default)s)")
+    p.add_argument("--count-size", type=int, default=128,
+                   help="side at which the marches' evaluations per pixel are counted (default %(default)s)")
+    p.add_argument("--eval-side", type=int, default=48,
+                   help="lattice side of the per-evaluation timing (side^3 points; default %(default)s)")
+    p.add_argument("--heldout-views", type=int, default=8,
+                   help="radiance field: held-out views drawn by the shader (default %(default)s)")
+    p.add_argument("--quick", action="store_true", help="tiny run: " + ", ".join(f"{k} {v}" for k, v in QUICK.items()))
+    add_clock_argument(p)
+    return p
+
+
+def main(argv=None) -> int:
+    return command.main(f"inshade bench {STEM}", __doc__, add_arguments, run, argv, errors=(BenchError,))
+
+
+def _apply_quick(args) -> None:
+    defaults = vars(add_arguments(argparse.ArgumentParser()).parse_args([]))
+    for k, v in QUICK.items():
+        if getattr(args, k) == defaults[k]:
+            setattr(args, k, v)
+
+
+def _sizes(text: str) -> tuple[int, ...]:
+    try:
+        sizes = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise BenchError(f"--sizes: expected comma-separated integers, got {text!r}") from None
+    if not sizes or min(sizes) < 8:
+        raise BenchError(f"--sizes: sides of at least 8 pixels, got {text!r}")
+    return sizes
+
+
+def _checked(args) -> tuple[tuple[str, ...], tuple[int, ...]]:
+    if args.quick:
+        _apply_quick(args)
+    apps = tuple(a.strip() for a in args.apps.split(",") if a.strip())
+    unknown = [a for a in apps if a not in APPS]
+    if not apps or unknown:
+        raise BenchError(f"--apps: unknown application {unknown[0] if unknown else '(none)'} (known: {', '.join(APPS)})")
+    for name in ("frames", "probe", "di_batch", "count_size", "eval_side", "heldout_views"):
+        if getattr(args, name) < 1:
+            raise BenchError(f"--{name.replace('_', '-')}: must be >= 1, got {getattr(args, name)}")
+    if args.di_steps < 0 or not args.max_frame_s > 0:
+        raise BenchError("--di-steps must be >= 0 and --max-frame-s > 0")
+    return apps, _sizes(args.sizes)
+
+
+def run(args) -> int:
+    with cold_shader_cache():
+        return _run(args)
+
+
+def _run(args) -> int:
+    import torch
+
+    from inshade.metrics import flip_unavailable
+    from inshade.runtime.context import gl_info, shared_context
+
+    from . import bench_fields, bench_image
+    from .bench_measure import Timing, load_asset
+    from .bench_report import markdown, plot
+    from .train import APPS as TRAINED
+
+    apps, sizes = _checked(args)
+    folders = {app: Path(getattr(args, app)) for app in apps}   # --image, --sdf, --radiance-field
+    for app, folder in folders.items():     # every asset checked before any work
+        load_asset(folder, TRAINED[app].folder)
+    measures = {"image": bench_image.measure, "sdf": bench_fields.measure_sdf,
+                "radiance_field": bench_fields.measure_radiance_field}
+    ctx = shared_context()
+    info = gl_info(ctx)
+    clock = clock_for(ctx, args.clock, software=info["software"])
+    print(f"GL_RENDERER: {info['renderer']}", file=sys.stderr)
+    flip_reason = flip_unavailable()
+    opts = SimpleNamespace(timing=Timing(sizes, args.frames, args.probe, args.max_frame_s, clock),
+                           flip=flip_reason is None, di_steps=args.di_steps, di_batch=args.di_batch,
+                           count_size=args.count_size, eval_side=args.eval_side, heldout_views=args.heldout_views)
+
+    def log(msg):
+        print(msg, file=sys.stderr, flush=True)
+
+    result = {"benchmark": STEM, "quick": bool(args.quick), "machine": machine(info, torch=torch.__version__),
+              **clock_record(clock),
+              "timing": {"sizes": list(sizes), "frames": args.frames, "probe": args.probe,
+                         "max_frame_s": args.max_frame_s, "count_size": args.count_size,
+                         "eval_points": args.eval_side ** 3},
+              "flip": "available" if flip_reason is None else f"unavailable: {flip_reason}", "apps": {}}
+    with tempfile.TemporaryDirectory(prefix="hash_grid_bench-") as tmp:
+        for app in apps:
+            work = Path(tmp) / app
+            work.mkdir()
+            result["apps"][app] = measures[app](folders[app], opts, ctx, work, log)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_report(out, STEM, result, markdown, plot)
+    log(f"wrote {out / (STEM + '.json')}, {out / (STEM + '.md')}, {out / (STEM + '.png')}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows
+
+NGP = "Instant NGP (Müller et al. 2022)"
+CLAIMS = {
+    "image": Claim(NGP, "PSNR (sRGB) of the GL render of a >= 2K image at native size, network <= 1 MB",
+                   "an image of 2048² or more at >= 38 dB within 1 MB (inshade's bar for its port)", 38.0),
+    "sdf": Claim(NGP, "mean surface error of the SDF per bounding-box diagonal",
+                 "<= 1e-3 of the bounding box (inshade's bar for its port)", 1e-3, higher_better=False),
+    "radiance_field": Claim(NGP, "PSNR of the shader's march on held-out views",
+                            ">= 30 dB on held-out views (inshade's bar for its port)", 30.0),
+    "image_mlp": Claim(NGP, "image PSNR of the hash grid minus the MLP-only network's at equal bytes (dB)",
+                       "the hash encoding beats a frequency-encoded MLP of the same size (> 0 dB)", 0.0),
+    "sdf_mlp": Claim(NGP, "surface error of the MLP-only network / the hash grid's at equal bytes (> 1: hash grid "
+                     "better)", "the hash encoding beats a frequency-encoded MLP of the same size (> 1)", 1.0),
+    "radiance_field_mlp": Claim(NGP, "held-out PSNR of the hash grid minus the MLP-only network's at equal bytes "
+                                "(dB)", "the hash encoding beats a frequency-encoded MLP of the same size (> 0 dB)", 0.0),
+}
+PRIMARY = {"image": "psnr_srgb", "sdf": "surface_abs_mean_per_diagonal", "radiance_field": "heldout_psnr"}
+
+
+def _row(app: dict, key: str) -> dict | None:
+    return next((r for r in app["rows"] if r.get("key") == key and r.get("quality")), None)
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = []
+    for name, app in r["apps"].items():
+        metric = PRIMARY[name]
+        ours, mlp = _row(app, "hash_grid"), _row(app, "mlp")
+        value = ours["quality"][metric]
+        where = f"{ours['bytes'] / 1e6:.2f} MB" + (f", {app['size']}² image" if name == "image" else "")
+        text = f"{value:.3g} of the diagonal" if name == "sdf" else f"{value:.2f} dB"
+        rows.append(claim_row(CLAIMS, STEM, name, f"{text} at {where}", value, name))
+        if mlp is None or metric not in mlp["quality"]:
+            continue
+        theirs = mlp["quality"][metric]
+        if name == "sdf":
+            ratio = theirs / value
+            rows.append(claim_row(CLAIMS, STEM, "sdf_mlp", f"{ratio:.1f}x: {value:.3g} vs MLP-only {theirs:.3g} at "
+                                  f"{mlp['bytes'] / 1e6:.2f} MB", ratio, name))
+        else:
+            gap = value - theirs
+            rows.append(claim_row(CLAIMS, STEM, f"{name}_mlp", f"{gap:+.2f} dB: {value:.2f} vs MLP-only {theirs:.2f} dB "
+                                  f"at {mlp['bytes'] / 1e6:.2f} MB", gap, name))
+    return rows
+
+
+SUITE = SuiteEntry(sizes={
+    # llvmpipe: 512² only (a 1024² radiance-field frame takes minutes), the DI trained 600 steps
+    "cpu": Sizing(("--sizes", "512", "--frames", "2", "--max-frame-s", "40", "--di-steps", "600",
+                   "--heldout-views", "4", "--count-size", "96", "--eval-side", "32"), 600),
+    "device": Sizing(("--sizes", "512,1024", "--frames", "10", "--di-steps", "1500"), 60),
+}, claims=CLAIMS, headlines=headlines)
