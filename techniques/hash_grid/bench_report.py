@@ -163,9 +163,9 @@ def markdown(result: dict) -> str:
     for name, app in result["apps"].items():
         lines += [f"## {TITLES[name]} (`{app['asset']}`)", ""] + SECTIONS[name](app, sizes) + [""]
     lines += ["## Bytes", ""] + _bytes(result)
-    lines += ["## Not compared", ""]
-    for app in result["apps"].values():
-        lines += [f"- {k}: {v}" for k, v in app.get("not_compared", {}).items()]
+    skipped = [f"- {k}: {v}" for app in result["apps"].values() for k, v in app.get("not_compared", {}).items()]
+    if skipped:
+        lines += ["## Not compared", ""] + skipped
     return "\n".join(lines) + "\n"
 
 
