@@ -80,6 +80,7 @@ class Settings:
     eikonal: float = setting(0.1, "weight of the eikonal term", only={"app": SDF})
     step_safety: float = setting(1.5, "sphere-tracing step = 1 / (this x the measured slope)", only={"app": SDF})
     hit_eps: float = setting(2e-4, "hit distance, fraction of the bound radius", only={"app": SDF})
+    max_steps: int = setting(1024, "sphere-tracing steps per ray at most", only={"app": SDF})
     slope_lattice: int = setting(96, "lattice points a side where the slope is measured", only={"app": SDF})
     mc_resolution: int = setting(256, "marching-cubes grid of the zero-set metric", only={"app": SDF})
     scene: str = setting("still_life", "procedural scene", choices=("still_life",), only={"app": RF})
@@ -102,7 +103,7 @@ PRESETS = {
     "ship": {
         "image": dict(steps=2500, batch=65536, levels=12, finest=2048, size=2048, budget_kb=960.0,
                       baseline_steps=1200),
-        "sdf": dict(steps=2000, batch=16384, finest=512, budget_kb=640.0, baseline_steps=1000, n_freqs=6),
+        "sdf": dict(steps=2000, batch=16384, finest=512, budget_kb=640.0, baseline_steps=2000, n_freqs=6),
         "radiance_field": dict(steps=2400, batch=32768, finest=1024, log2_table_size=15, baseline_steps=400,
                                baseline_depth=4),
     },
