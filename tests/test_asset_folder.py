@@ -25,13 +25,14 @@ MINIMAL_ARGS = {
     "prt": ["--sdf", str(TRAINED / "sdf_creature" / "sdf.json")],
     "di_texture": ["skimage:astronaut"],
     "di_brdf": ["ggx"],
+    "hash_grid": ["image"],
 }
 # A shipped asset each trainer builds (the folder a careless --out would name).
 SHIPPED = {"neural_sdf": "prt_neural_bunny/sdf", "prt": "prt_creature", "di_texture": "di_texture_astronaut",
            "di_brdf": "di_brdf_ggx", "neural_appearance": "neural_appearance_ceramic",
            "uvfree_material": "uvfree_material_rock_balanced", "appearance_prefilter": "appearance_prefilter_grove",
            "di_pbr_set": "di_pbr_set_bricks", "di_shading": "di_shading_bricks",
-           "di_radiance_field": "di_radiance_field_trinket"}
+           "di_radiance_field": "di_radiance_field_trinket", "hash_grid": "hash_grid_image"}
 
 
 class Claimed(Exception):

@@ -18,7 +18,7 @@ TRAINED = ROOT / "trained"
 # Techniques whose shipped assets this file checks (prefix of the folder name -> technique).
 TECHNIQUES = ("neural_image", "di_texture", "di_pbr_set", "di_footprint", "di_brdf", "di_sdf",
               "neural_appearance", "uvfree_material", "appearance_prefilter", "di_shading",
-              "di_radiance_field")
+              "di_radiance_field", "hash_grid")
 # Folders built outside these trainers: prt_* (techniques/prt, its own preset test), sdf_* (hand-written
 # analytic SDF scenes, no trainer).
 ELSEWHERE = ("prt", "sdf")
