@@ -234,7 +234,7 @@ def write_scene(out, s, metrics: dict) -> None:
         "bookmarks": {"whole picture": cam,
                       "astronaut, native pixels": {**cam, "center": [0.487, 0.452], "zoom": native},
                       "galaxies, 4x": {**cam, "center": [0.2, 0.8], "zoom": 4 * native},
-                      "retina vessels, 4x": {**cam, "center": [0.7, 0.75], "zoom": 4 * native}},
+                      "retina vessels, 4x": {**cam, "center": [0.56, 0.86], "zoom": 4 * native}},
         "lights": [], "environment": None,
         "display": {"mode": "final", "modes": ["final", "network", "reference", "error", "split"], "split": 0.5},
         "settings": {
