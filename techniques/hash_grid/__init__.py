@@ -20,6 +20,8 @@ TECHNIQUE = Technique(
     # (sdf's) through the network-SDF contract; the radiance field by its own march.
     programs=(RADIANCE_FIELD_PROGRAM,),
     shaders=Path(__file__).resolve().parent / "shaders",
+    # instant-ngp NeRF snapshots become radiance-field assets (inshade convert FILE -o FOLDER)
+    converts={".msgpack": "inshade.techniques.hash_grid.ngp_snapshot", ".ingp": "inshade.techniques.hash_grid.ngp_snapshot"},
     train="inshade.techniques.hash_grid.train",
     train_help="fit a hash grid + MLP: APP image (2048^2 photo collage), sdf (a mesh) or radiance_field "
                "(a procedural scene from its views)",
