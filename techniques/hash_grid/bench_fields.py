@@ -12,8 +12,9 @@ its quality quoted from the trainer (metrics.json ``mlp_baseline``, measured bes
 A march's frame time follows its field: an untrained network's distances or densities set how far
 a ray goes and how many samples it evaluates. So the MLP-only network is timed per evaluation in
 passes/evaluate.frag beside the hash grid (one point per pixel, a lattice over the field's box),
-and its frame is projected as the hash grid's measured frame times the ratio of the two costs per
-evaluation (the frame it would draw making the hash grid's evaluations), and labelled so.
+and its frame is projected as the hash grid's measured frame plus, for each of the hash grid's
+evaluations, the difference of the two costs per evaluation (the same march with the other
+network), and labelled so.
 """
 from __future__ import annotations
 
@@ -39,9 +40,11 @@ def _ours(ctx, scene, opts) -> tuple[ScenePass, dict]:
     return p, {"compile_s": p.compile_s, "first_draw_s": p.first_draw_s, "frames": p.frames()}
 
 
-def projected(frames: dict, ratio: float) -> dict:
-    """The hash grid's frames scaled by a per-evaluation cost ratio (sizes it timed only)."""
-    return {size: {"ms_projected": round(f["ms_median"] * ratio, 1)} for size, f in frames.items() if "ms_median" in f}
+def projected(frames: dict, evals_per_pixel: float, extra_ns: float) -> dict:
+    """The hash grid's measured frames (sizes it timed) with ``extra_ns`` more per evaluation: the
+    same march making the same evaluations with another network."""
+    return {size: {"ms_projected": round(f["ms_median"] + 1e-6 * extra_ns * evals_per_pixel * int(size) ** 2, 1)}
+            for size, f in frames.items() if "ms_median" in f}
 
 
 def mlp_row(ctx, graph, kind: str, inputs, opts, ours: dict, base: dict | None, quality_keys) -> dict:
@@ -52,12 +55,15 @@ def mlp_row(ctx, graph, kind: str, inputs, opts, ours: dict, base: dict | None, 
 
     bundle = graph.export(kind, f"{kind}_mlp_only")
     cost = evaluation_cost(ctx, bundle, inputs, opts.timing)
-    ratio = cost["ns_per_evaluation"] / ours["evaluation"]["ns_per_evaluation"]
+    ours_ns = ours["evaluation"]["ns_per_evaluation"]
     row = {"key": "mlp", "name": "MLP-only", "bytes": network_bytes(graph), "architecture": architecture(bundle),
-           "evaluation": cost, "plan": cost["plan"], "cost_ratio": round(ratio, 2),
-           "frames": projected(ours["frames"], ratio), "first_draw_s": cost["first_draw_s"],
-           "frames_note": "projected: the hash grid's frame x the ratio of costs per evaluation (evaluate pass); "
-                          "an untrained march's own frame follows its untrained field",
+           "evaluation": cost, "plan": cost["plan"], "cost_ratio": round(cost["ns_per_evaluation"] / ours_ns, 2),
+           "frames": projected(ours["frames"], ours["evaluations_per_pixel"], cost["ns_per_evaluation"] - ours_ns),
+           "first_draw_s": cost["first_draw_s"],
+           "frames_note": "MLP-only frames projected: the hash grid's measured frame plus its evaluations x the "
+                          "difference of the two costs per evaluation (the same march with the other network; an "
+                          "untrained network's own march would follow its untrained field); its first draw is the "
+                          "evaluate pass's",
            "quality": {k: base[k] for k in quality_keys if k in base} if base else None,
            "quality_source": (f"the trainer's, beside the ship run ({base['steps']} steps, {base['network']}; "
                               "metrics.json mlp_baseline)") if base else

@@ -94,7 +94,7 @@ def _sdf(app: dict, sizes) -> list[str]:
               f"{ours['evaluations']['hit_fraction']:.0%} of pixels hit, 6 normal evaluations each); the MLP-only "
               "row's per-pixel work is at the hash grid's evaluations",
               f"- ns/eval: passes/evaluate.frag over a {round(ours['evaluation']['points'] ** (1 / 3))}³ lattice of the "
-              f"traced cube; MLP-only / hash grid: {mlp['cost_ratio']:.2f}x. {mlp['frames_note']}",
+              f"traced cube; MLP-only / hash grid: {mlp['cost_ratio']:.2f}x; {mlp['frames_note']}",
               f"- step: 1 / (safety x measured slope {app['lipschitz']['lipschitz_measured']:.3g}) = "
               f"{app['lipschitz']['step_scale']:.3g} (sound bound {app['lipschitz']['lipschitz_sound']:.3g})"]
     for name, a in app.get("also", {}).items():
@@ -122,7 +122,7 @@ def _radiance_field(app: dict, sizes) -> list[str]:
               f"{_f(march['occupied_fraction'], '.1%')} occupied; dt {march['step']:.4g}, at most {march['max_steps']} "
               "steps); the occupancy lookups of every step are in the frame times, not in FLOPs/px",
               f"- ns/eval: passes/evaluate.frag over a {round(ours['evaluation']['points'] ** (1 / 3))}³ lattice of the "
-              f"box; MLP-only / hash grid: {mlp['cost_ratio']:.2f}x. {mlp['frames_note']}",
+              f"box; MLP-only / hash grid: {mlp['cost_ratio']:.2f}x; {mlp['frames_note']}",
               "- held-out PSNR per view (GL): " + ", ".join(f"{v:.2f}" for v in ours["quality"]["heldout_psnr_per_view"])]
     return markdown_table(head, rows, "lrrrrrrrr" + "r" * len(sizes)) + [""] + notes
 
