@@ -25,14 +25,22 @@ from inshade.techniques.hash_grid import radiance_field_render as record
 from inshade.techniques.hash_grid import radiance_field_scene as scene
 from inshade.techniques.hash_grid import train as hg
 
+from parity import TOL, assert_parity, check_parity
+
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "trained" / "hash_grid_radiance_field"
 APP = "radiance_field"
 W = H = 24
-# The shader's composited colour against the torch twin's, per pixel and channel: the networks agree to
-# ~1e-6 (the parity rule's scale); a ray's transmittance may cross STOP one sample apart in the two
-# (llvmpipe's exp against torch's), which moves the colour by at most STOP (1e-4) x |rgb - background|.
-MARCH_TOL = 2e-4
+# The shader's composited colour against the torch twin's is held to the parity rule (tests/parity.py,
+# 1e-5 at unit scale; measured 1.2e-6 on llvmpipe): the networks agree to ~1e-6 and both marches visit
+# the same samples. The one way past it is a transmittance landing within ~1e-6 of STOP, where the two
+# could stop one sample apart (at most STOP x |rgb - background|): the cameras here are fixed and clear of it.
+# The shipped field against its twin through the real renderer: lib/camera's rays differ from
+# models/sdf.py camera_rays by up to ~40 ulps (6.6e-7 measured on llvmpipe), which moves samples by
+# ~1e-6 box units; the finest grid level (1025 vertices a side) turns that into up to ~2e-4 of the
+# composited colour where a ray grazes a steep density shell (1.9e-4 measured). The network itself is
+# held to the rule at identical inputs (test_shipped_network_parity).
+SHIPPED_MARCH_TOL = 1e-3
 # The occupancy grid dropping its empty cells, per pixel and channel: every dropped sample had an
 # optical thickness under the threshold at the grid's probes and is trained toward zero (the
 # empty-space term); measured on the shipped asset, with this margin.
@@ -155,9 +163,18 @@ class Drawn:
         return _one_thread(march.render, self.field, grid, camera.uniforms(size, size), size, size, self.m)
 
 
-@pytest.fixture(scope="module")
-def drawn_quick(quick):
-    d = Drawn(quick)
+@pytest.fixture(scope="module", params=["trained grid", "random grid"])
+def drawn_quick(request, quick, tmp_path_factory):
+    """The quick asset as trained (its tiny field leaves every cell occupied), and with a random grid
+    of half its cells empty: the twins must hop over the same cells whatever the grid holds."""
+    folder = quick
+    if request.param == "random grid":
+        folder = tmp_path_factory.mktemp("hgrf_random") / "rf"
+        shutil.copytree(quick, folder)
+        shutil.rmtree(folder / "occupancy")
+        cells = torch.from_numpy(np.random.default_rng(5).random((8, 8, 8)) < 0.5)
+        rf.occupancy_bundle(cells).save(folder / "occupancy")
+    d = Drawn(folder)
     yield d
     d.renderer.release()
 
@@ -173,8 +190,7 @@ def test_march_matches_torch(drawn_quick, empty_space):
         glsl = drawn_quick.glsl(cam, empty_space=empty_space)
         rgb, evals = drawn_quick.torch(cam, empty_space)
         assert np.abs(rgb - np.asarray(drawn_quick.m.background)).max() > 0.05   # not the background only
-        err = np.abs(glsl[..., :3] - rgb).max()
-        assert err <= MARCH_TOL, f"{empty_space}, camera {cam.to_dict()}: max |glsl - torch| {err:.3g}"
+        assert_parity(glsl[..., :3], rgb, TOL, f"{empty_space}, camera {cam.to_dict()}")
         assert np.all(glsl[..., 3] == 1.0)
 
 
@@ -186,6 +202,36 @@ def test_samples_view_counts_the_twins_evaluations(drawn_quick):
         _, evals = drawn_quick.torch(cam)
         assert np.array_equal(np.rint(counts), np.minimum(evals, 64)), cam.to_dict()
         assert evals.max() > 0
+        if not drawn_quick.occupancy.all():     # the grid's empty cells are stepped over
+            every = _one_thread(march.render, drawn_quick.field, None, cam.uniforms(W, H), W, H, drawn_quick.m)[1]
+            assert evals.sum() < every.sum()
+
+
+def test_reference_split_and_error_views(quick, drawn_quick):
+    """At the scene's camera: reference is the held-out ground truth (the PNG, sRGB-decoded), split
+    puts it left of the middle and the radiance right, error is how far the radiance lies outside the
+    values the PNG's bytes stand for, x error_scale."""
+    from PIL import Image
+
+    from inshade.metrics import srgb_eotf
+
+    sc = load_scene(quick)
+    cam, size = camera_from_dict(sc.camera), sc.size[0]
+    png = np.asarray(Image.open(quick / "heldout" / "view_00.png").convert("RGB"), np.float64) / 255.0
+    truth = srgb_eotf(png)
+    reference = drawn_quick.glsl(cam, view="reference", size=size)[..., :3]
+    assert_parity(reference, truth, TOL, "reference view")
+    assert np.abs(truth - read_exr(quick / "heldout" / "view_00.exr")).max() < 0.01   # the EXR, 8-bit
+    radiance = drawn_quick.glsl(cam, size=size)[..., :3]
+    split = drawn_quick.glsl(cam, view="split", size=size)[..., :3]
+    half = size // 2
+    assert np.array_equal(split[:, :half], reference[:, :half]) and np.all(split[:, half] == 1.0)
+    assert np.array_equal(split[:, half + 1:], radiance[:, half + 1:])
+    error = drawn_quick.glsl(cam, view="error", size=size)[..., :3]
+    lo, hi = srgb_eotf(np.maximum(png - 0.5 / 255, 0.0)), srgb_eotf(np.minimum(png + 0.5 / 255, 1.0))
+    want = np.maximum(np.maximum(lo - radiance, radiance - hi), 0.0) * 10.0
+    assert_parity(error, want, TOL * 10.0, "error view")
+    assert error.max() > 0.1
 
 
 # --- bad render metadata -----------------------------------------------------------------------------
@@ -224,6 +270,17 @@ def test_bad_render_metadata_on_the_command_line(quick, tmp_path, capsys):
     assert main(["render", str(folder), "-o", str(tmp_path / "x.png")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("inshade: error:") and "render.step" in err[0], err
+
+
+def test_scene_without_the_reference_texture_is_one_error(quick, tmp_path):
+    folder = tmp_path / "a"
+    shutil.copytree(quick, folder)
+    sc = json.loads((folder / "scene.json").read_text())
+    del sc["textures"]
+    (folder / "scene.json").write_text(json.dumps(sc))
+    with pytest.raises(SceneError, match=record.REFERENCE_UNIFORM) as info:
+        load_scene(folder)
+    assert "\n" not in str(info.value)
 
 
 def test_scene_without_the_occupancy_network_is_one_error(quick, tmp_path):
@@ -274,4 +331,16 @@ def test_shipped_skipping_changes_no_pixel(shipped):
     every = shipped.glsl(cam, empty_space="evaluate", size=32)[..., :3]
     assert np.abs(skip - every).max() <= SKIP_TOL
     rgb, _ = shipped.torch(cam, size=32)
-    assert np.abs(skip - rgb).max() <= MARCH_TOL
+    assert np.abs(skip - rgb).max() <= SHIPPED_MARCH_TOL
+    assert np.mean(np.abs(skip - rgb)) <= 1e-5
+
+
+def test_shipped_network_parity(gl):
+    """The field at points near the scene's surfaces (where its density is steep) and random
+    directions: GLSL against torch under the parity rule."""
+    rng = np.random.default_rng(0)
+    p = rng.uniform(0.0, 1.0, (60000, 3))
+    p = p[np.abs(scene.sdf(p)) < 0.01][:2048]
+    d = rng.normal(size=p.shape)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    check_parity(gl, load(SHIPPED), np.concatenate([p, d], 1).astype(np.float32), what="shipped field")

@@ -31,16 +31,23 @@ OCCUPANCY_PORTS = ([("x", 3)], [("occupancy", 1)])
 STOP = 1e-4            # transmittance that ends a ray (instant-NGP's early termination)
 MAX_STEPS = 8192
 MAX_OCCUPANCY = 512
-# u_hgrf_view: the composited radiance, or the network evaluations per pixel (x 1/64, grey: what
-# the occupancy grid saves); u_hgrf_empty_space: skip unoccupied cells, or evaluate every sample
-VIEWS = ("radiance", "samples")
+# u_hgrf_view (the pass's header says what each draws): the composited radiance, the held-out ground
+# truth at the scene's camera, the two split, their difference, or the network evaluations per pixel;
+# u_hgrf_empty_space: skip unoccupied cells, or evaluate every sample
+VIEWS = ("radiance", "reference", "split", "error", "samples")
 EMPTY_SPACE = ("skip", "evaluate")
-UNIFORM_DEFAULTS = {"u_hgrf_view": VIEWS.index("radiance"), "u_hgrf_empty_space": EMPTY_SPACE.index("skip")}
+REFERENCE_UNIFORM = "u_hgrf_reference"     # the scene texture holding the ground truth (8-bit sRGB)
+UNIFORM_DEFAULTS = {"u_hgrf_view": VIEWS.index("radiance"), "u_hgrf_empty_space": EMPTY_SPACE.index("skip"),
+                    "u_hgrf_split": 0.5, "u_hgrf_error_scale": 10.0}
 SETTINGS = {
     "view": {"type": "choice", "default": "radiance", "choices": list(VIEWS), "uniform": "u_hgrf_view",
-             "label": "view"},
+             "label": "view (split: left reference, right radiance)"},
     "empty_space": {"type": "choice", "default": "skip", "choices": list(EMPTY_SPACE),
                     "uniform": "u_hgrf_empty_space", "label": "empty space (occupancy grid)"},
+    "split": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0, "uniform": "u_hgrf_split",
+              "label": "split (reference | radiance)"},
+    "error_scale": {"type": "float", "default": 10.0, "min": 1.0, "max": 100.0, "uniform": "u_hgrf_error_scale",
+                    "label": "error x"},
 }
 
 
@@ -139,9 +146,13 @@ def _spelled(ports) -> str:
 
 def validate(scene) -> None:
     """Networks hgrf (the field) and hgocc (its occupancy grid) with the ports above; the field's
-    march settings; an occupancy grid of render.occupancy_resolution cells per side."""
+    march settings; an occupancy grid of render.occupancy_resolution cells per side; the reference
+    texture the reference, split and error views read."""
     from inshade.bundle import load
 
+    if not any(t.uniform == REFERENCE_UNIFORM for t in scene.textures):
+        raise ValueError(f"textures: {PROGRAM} needs a texture for \"{REFERENCE_UNIFORM}\" (the ground truth at the "
+                         f"scene's camera, an 8-bit sRGB image without mipmaps)")
     found = {}
     for prefix, ports, what in ((PREFIX_FIELD, FIELD_PORTS, "the radiance field"),
                                 (PREFIX_OCCUPANCY, OCCUPANCY_PORTS, "its occupancy grid")):

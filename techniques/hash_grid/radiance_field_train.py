@@ -47,8 +47,8 @@ from . import radiance_field as rf
 from . import radiance_field_march as march
 from . import radiance_field_scene as scene
 from .network import HashGridError, cosine, network_bytes, optimizer
-from .radiance_field_render import (KIND, PREFIX_FIELD, PREFIX_OCCUPANCY, PROGRAM, SETTINGS, STOP,
-                                    MarchSettings)
+from .radiance_field_render import (KIND, PREFIX_FIELD, PREFIX_OCCUPANCY, PROGRAM, REFERENCE_UNIFORM, SETTINGS,
+                                    STOP, MarchSettings)
 
 LN_STOP = -math.log(STOP)   # optical depth where the transmittance falls under STOP
 BACKGROUND = (0.9, 0.9, 0.92)
@@ -272,28 +272,45 @@ def learning_rates(s, mlp_lr: float | None = None) -> dict:
                 mlp_eps=s.mlp_eps, mlp_l2=s.mlp_l2)
 
 
-def heldout_image(k: int) -> str:
-    return f"{HELDOUT_FOLDER}/view_{k:02d}.exr"
+def heldout_image(k: int, suffix: str = "exr") -> str:
+    return f"{HELDOUT_FOLDER}/view_{k:02d}.{suffix}"
 
 
 def scene_dict(name: str, title: str, heldout: Views) -> dict:
     """scene.json: the pass, both networks, the first held-out camera with its ground truth as the
-    reference (display modes reference / split / error compare the shader's render with it)."""
+    pass's reference texture (views reference / split / error; 8-bit sRGB) and as the scene's
+    reference (display modes; linear EXR, the exact values)."""
     return {
         "format": "inshade.scene", "version": 1, "name": name, "title": title, "program": PROGRAM,
         "size": [heldout.size, heldout.size],
         "networks": [{"bundle": ".", "prefix": PREFIX_FIELD}, {"bundle": "occupancy", "prefix": PREFIX_OCCUPANCY}],
         "reference": {"image": heldout_image(0), "colour": "linear", "space": "screen"},
+        "textures": [{"uniform": REFERENCE_UNIFORM, "image": heldout_image(0, "png"), "mipmaps": False,
+                      "repeat": False}],
         "camera": heldout.cameras[0],
         "bookmarks": {"held-out 0": heldout.cameras[0], "front": scene.orbit_camera(0.0, -15.0),
                       "top": scene.orbit_camera(30.0, -75.0)},
         "display": {"mode": "final", "modes": ["final", "reference", "error", "split"], "split": 0.5},
         "settings": json.loads(json.dumps(SETTINGS)),
         "requires": {"gl": 330},
-        "notes": "the reference is the ground truth of held-out view 0 (the scene's camera): reference, split "
-                 "and error compare the shader's march with it there; view samples shows network evaluations "
-                 "per pixel / 64; empty_space evaluate marches without the occupancy grid",
+        "notes": "the reference is the ground truth of held-out view 0 (the scene's camera): views reference, "
+                 "split and error compare the shader's march with it there; view samples shows network "
+                 "evaluations per pixel / 64; empty_space evaluate marches without the occupancy grid",
     }
+
+
+def write_views(out, heldout: Views, scene_name: str, metrics: dict) -> None:
+    """The held-out ground truth (EXR per view, view 0 also as the pass's PNG), their cameras and
+    scene.json."""
+    from inshade.scene.image_io import write_exr, write_png
+
+    for k, img in enumerate(heldout.images):
+        write_exr(out / heldout_image(k), img)
+    write_png(out / heldout_image(0, "png"), heldout.images[0])
+    atomic_write(out / HELDOUT_FOLDER / "cameras.json", json.dumps(heldout.cameras, indent=1) + "\n")
+    title = (f"Hash grid radiance field: {scene_name}, {metrics['bytes'] / 1024:.0f} KiB, held-out "
+             f"{metrics['heldout_psnr']:.1f} dB")
+    atomic_write(out / "scene.json", json.dumps(scene_dict(out.name, title, heldout), indent=1) + "\n")
 
 
 def shader_psnr(out, heldout: Views) -> dict:
@@ -323,7 +340,7 @@ def train_baseline(s, train: Views, heldout: Views, m: MarchSettings, budget: in
 def train(run) -> int:
     """Render the views, fit, build the occupancy grid, measure, write the asset folder."""
     from .image import save_fp16
-    from inshade.scene.image_io import write_exr, write_png
+    from inshade.scene.image_io import write_png
 
     s = run.settings
     torch.manual_seed(s.seed)
@@ -364,12 +381,7 @@ def train(run) -> int:
     rf.occupancy_bundle(occupancy, {"grid": f"{m.occupancy_resolution}^3 cells: the field's density max over "
                                             f"{FINAL_PROBES}^3 points per cell, x dt > {s.occupancy_threshold:g}, "
                                             "grown by one cell"}).save(run.out / "occupancy")
-    for k, img in enumerate(heldout.images):
-        write_exr(run.out / heldout_image(k), img)
-    atomic_write(run.out / HELDOUT_FOLDER / "cameras.json", json.dumps(heldout.cameras, indent=1) + "\n")
-    title = (f"Hash grid radiance field: {s.scene}, {metrics['bytes'] / 1024:.0f} KiB, held-out "
-             f"{metrics['heldout_psnr']:.1f} dB")
-    atomic_write(run.out / "scene.json", json.dumps(scene_dict(run.out.name, title, heldout), indent=1) + "\n")
+    write_views(run.out, heldout, s.scene, metrics)
     write_png(run.out / "preview.png", images[0])
     if run.args.preview:
         metrics["shader"] = shader_psnr(run.out, heldout)
