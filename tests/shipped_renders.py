@@ -50,6 +50,8 @@ CASES = [
     ("uvfree_material_rock_balanced", {"view": "decoded", "wireframe": "level", "wire_level": 2}),
     ("uvfree_material_fruit_balanced", {"view": "split", "channel": "normal"}),
     ("appearance_prefilter_grove", {}),
+    ("hash_grid_radiance_field", {}), ("hash_grid_radiance_field", {"view": "error"}),
+    ("hash_grid_radiance_field", {"view": "samples", "empty_space": "evaluate"}),
 ]
 
 
