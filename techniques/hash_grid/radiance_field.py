@@ -11,11 +11,13 @@ An asset is two bundles of kind ``hash_grid_radiance_field`` (scene.json names t
                      as is: not instant-NGP's (d + 1) / 2
      outputs  density [1]  >= 0; extinction per box unit = density x render.sigma_scale
               rgb [3]      linear RGB in [0, 1]
-   The graph (instant-NGP's NeRF network, no biases like tiny-cuda-nn's fully fused MLPs):
-     x -> hash_grid (3D, L levels x F features) -> dense 64, relu -> dense 16 = "geo"
+   The graph (instant-NGP's NeRF network, no biases like tiny-cuda-nn's fully fused MLPs; width 64
+   and two colour layers as instant-NGP, the trainer's ``width`` and ``depth``):
+     x -> hash_grid (3D, L levels x F features) -> dense width, relu -> dense 16 = "geo"
      geo lane 0 -> clamp(max 15) -> exp = density
      d -> spherical_harmonics (degree 4: 16 lanes)
-     [geo (16), sh (16)] -> dense 64, relu -> dense 64, relu -> dense 3 -> sigmoid = rgb
+     [geo (16), sh (16)] -> (dense width, relu) x depth -> dense 3 -> sigmoid = rgb
+   Only the ports and ``render`` are the contract: any graph with them is marched the same way.
    Density activation: exp, as instant-NGP (empty space goes to zero fast, and the network moves the
    density over orders of magnitude with bounded lanes), of the lane clamped at 15: instant-NGP's
    truncated exp bounds the gradient; the clamp bounds the value too, so neither training nor the
@@ -28,8 +30,12 @@ An asset is two bundles of kind ``hash_grid_radiance_field`` (scene.json names t
    one 3D ``lookup_array`` node of G^3 cells, 8-bit, values 0 or 1. Cell c = (i, j, k) covers
    [c / G, (c + 1) / G] of the box; node c of the array is that cell's bit (so the array is read at
    x = c / (G - 1), exactly on node c, and tested > 0.5). 1: the field may have density there, the
-   march evaluates it; 0: empty, the march skips the cell. instant-NGP's density bitfield (its
-   finest cascade) is this grid, transposed to [k, j, i] (x fastest).
+   march evaluates it; 0: empty, the march skips the cell. instant-NGP's density bitfield, at the
+   cascade that covers the box, is such a grid (here stored [k, j, i], x fastest).
+
+scene.json draws them with passes/radiance_field_hash_grid.frag (radiance_field_render.py): networks
+``.`` (hgrf) and ``occupancy`` (hgocc), and a texture ``u_hgrf_reference``, the ground truth at the
+scene's camera as an 8-bit sRGB image, for the reference, split and error views.
 
 The march (radiance_field_march.py, lib/radiance_field_march.glsl): samples at t0 + (i + 0.5) dt
 from the box entry t0, alpha = 1 - exp(-density sigma_scale dt), composited front to back until the
