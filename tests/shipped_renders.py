@@ -52,6 +52,7 @@ CASES = [
     ("appearance_prefilter_grove", {}),
     ("hash_grid_radiance_field", {}), ("hash_grid_radiance_field", {"view": "error"}),
     ("hash_grid_radiance_field", {"view": "samples", "empty_space": "evaluate"}),
+    ("hash_grid_image", {}), ("hash_grid_sdf", {}),
 ]
 
 
