@@ -20,8 +20,11 @@ SHIPPED = sorted(p.parent for p in (REPO / "trained").rglob("bundle.json"))
 # neural_appearance_*/decoder_3x64: interval arithmetic through three 64-wide layers bounds the expm1
 # argument at ~230 over z in [-1, 1] (the latents lie in [-0.98, 0.71]); the decoders' real outputs,
 # 200k random latents x directions, stay below log(1 + 63) = 4.2: a conservative warning.
+# hash_grid_sdf: its `grid` reads the coordinate its frozen `to_unit` dense computes, x = 0.5 q + 0.5: a
+# power-of-two scale and one rounded sum, the same bits in torch and GLSL, so the gain (~850 at level 14)
+# multiplies no discrepancy (scene_sdf: max |glsl - torch| 2.4e-7 at 2048 random points): a conservative warning.
 EXPECTED_WARNINGS = {"di_sdf": {"primary"}, "neural_appearance_ceramic/decoder_3x64": {"expm1"},
-                     "neural_appearance_brushed_metal/decoder_3x64": {"expm1"}}
+                     "neural_appearance_brushed_metal/decoder_3x64": {"expm1"}, "hash_grid_sdf": {"grid"}}
 
 
 def _name(folder: Path) -> str:

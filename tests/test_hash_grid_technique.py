@@ -253,7 +253,7 @@ def test_shipped_sdf_has_no_leak_pixels_in_glsl(gl, shipped_sdf):
 
 
 @pytest.mark.parametrize("size", [16, pytest.param(48, marks=pytest.mark.skipif(
-    not os.environ.get("INSHADE_SLOW"), reason="~2 min of torch evaluation; set INSHADE_SLOW=1"))])
+    not os.environ.get("INSHADE_SLOW"), reason="~1 min of torch evaluation; set INSHADE_SLOW=1"))])
 def test_shipped_sdf_trace_is_proved_leak_free_by_the_sound_bound(shipped_sdf, size):
     """Every ray of the scene's view (size x size), traced with the shipped step: where it misses,
     the sound Lipschitz bound proves the network positive over the whole chord of the bound sphere
