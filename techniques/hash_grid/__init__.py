@@ -25,4 +25,7 @@ TECHNIQUE = Technique(
     train="inshade.techniques.hash_grid.train",
     train_help="fit a hash grid + MLP: APP image (2048^2 photo collage), sdf (a mesh) or radiance_field "
                "(a procedural scene from its views)",
+    bench="inshade.techniques.hash_grid.bench",
+    bench_help="hash grid + MLP image, SDF and radiance field vs the MLP-only network and a DI cascade at equal "
+               "bytes: quality, bytes, FLOPs and fetches per pixel, frame time",
 )

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .bench_measure import (ScenePass, evaluation_cost, folder_bytes, lattice, load_asset, march_evaluations,
-                            plan_summary, sdf_evaluations)
+from .bench_measure import (ScenePass, asset_record, evaluation_cost, folder_bytes, lattice, load_asset,
+                            march_evaluations, plan_summary, sdf_evaluations)
 
 SDF_QUALITY = ("surface_abs_mean_per_diagonal", "zero_set_to_mesh_mean_per_diagonal",
                "zero_set_to_mesh_p95_per_diagonal", "iou_uniform")
@@ -96,15 +96,17 @@ def measure_sdf(folder: Path, opts, ctx, workdir: Path, log) -> dict:
                 architecture=architecture(bundle), plan=plan, evaluations=count,
                 evaluation=evaluation_cost(ctx, bundle, q, opts.timing),
                 quality={k: metrics[k] for k in SDF_QUALITY if k in metrics},
-                quality_source=f"the trainer's (metrics.json): mean |f| at {metrics['mc_resolution']}³-grid "
-                               "marching-cubes and held-out mesh surface points, per bounding-box diagonal "
-                               f"({metrics['diagonal']:.4g})")
+                quality_source="the trainer's (metrics.json), per bounding-box diagonal "
+                               f"({metrics['diagonal']:.4g}): surface error = mean |f| at held-out points on the "
+                               "mesh; zero set→mesh = distance to the mesh of the vertices of f = 0 (marching cubes, "
+                               f"{metrics['mc_resolution']}³); IoU of inside on held-out points in the cube")
     _per_pixel(ours, plan, count["per_pixel"])
     log(f"sdf: MLP-only network of {metrics['bytes']} bytes, cost per evaluation")
     graph = sdf.build_baseline(s, int(metrics["bytes"]))
     mlp = mlp_row(ctx, graph, sdf.KIND, q, opts, ours, metrics.get("mlp_baseline"), SDF_QUALITY)
     neural = metrics.get("neural_sdf_shipped")
-    return {"app": "sdf", "asset": str(folder), "kind": sdf.KIND, "mesh": bundle.meta["provenance"].get("mesh"),
+    return {"app": "sdf", "asset": str(folder), "trained": asset_record(bundle, metrics), "kind": sdf.KIND,
+            "mesh": bundle.meta["provenance"].get("mesh"),
             "bytes_file": folder_bytes(folder), "table_bytes": int(metrics["encoding"]["table_bytes_fp16"]),
             "lipschitz": {k: metrics.get(k) for k in ("lipschitz_measured", "lipschitz_sound", "step_scale")},
             "rows": [ours, mlp],
@@ -162,7 +164,8 @@ def measure_radiance_field(folder: Path, opts, ctx, workdir: Path, log) -> dict:
     log(f"radiance field: MLP-only network of {metrics['bytes']} bytes, cost per evaluation")
     graph = rf.baseline_graph(s.n_freqs, s.baseline_depth, s.width, s.depth, int(metrics["bytes"]), s.seed)
     mlp = mlp_row(ctx, graph, KIND, inputs, opts, ours, metrics.get("mlp_baseline"), ("heldout_psnr",))
-    return {"app": "radiance_field", "asset": str(folder), "kind": KIND, "scene": s.scene,
+    return {"app": "radiance_field", "asset": str(folder), "trained": asset_record(bundle, metrics), "kind": KIND,
+            "scene": s.scene,
             "march": {"step": m.step, "max_steps": m.max_steps, "occupancy_resolution": m.occupancy_resolution,
                       "occupied_fraction": metrics.get("occupied_fraction")},
             "bytes_file": folder_bytes(folder, ("occupancy",)), "occupancy_bytes": int(metrics["occupancy_bytes"]),

@@ -55,6 +55,13 @@ def load_asset(folder: Path, kind: str):
     return bundle, metrics, Settings(**metrics["settings"])
 
 
+def asset_record(bundle, metrics: dict) -> dict:
+    """Which training run an asset is: its command, preset and date (the bundle's provenance)."""
+    prov = bundle.meta.get("provenance", {})
+    return {"command": metrics.get("command"), "preset": metrics.get("preset"), "date_utc": prov.get("date_utc"),
+            "train_seconds": metrics.get("train_seconds")}
+
+
 def plan_summary(plan) -> dict:
     """The plan's totals per evaluation and where each node's weights live."""
     t = plan.totals()

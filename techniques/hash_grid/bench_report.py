@@ -161,7 +161,10 @@ def markdown(result: dict) -> str:
                                              else ""), "",
              "## Against the bars", ""] + _bars(result)
     for name, app in result["apps"].items():
-        lines += [f"## {TITLES[name]} (`{app['asset']}`)", ""] + SECTIONS[name](app, sizes) + [""]
+        trained = app["trained"]
+        lines += [f"## {TITLES[name]} (`{app['asset']}`)", "",
+                  f"`{trained['command']}` (preset {trained['preset']}, {trained['date_utc']}, "
+                  f"{_f(trained['train_seconds'], '.0f')} s of training)", ""] + SECTIONS[name](app, sizes) + [""]
     lines += ["## Bytes", ""] + _bytes(result)
     skipped = [f"- {k}: {v}" for app in result["apps"].values() for k, v in app.get("not_compared", {}).items()]
     if skipped:
