@@ -10,19 +10,13 @@ literals; each level reads 2^dims texels per texture.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from inshade.components import grid_node_levels
 from inshade.grid_layout import HASH_PRIMES
 
-from .glsl import PlanRow, TextureResource, flt
+from .glsl import PlanRow, flt
 from .registry import emitter
-from .texture_rows import row_layout, rows_data
+from .texture_rows import feature_textures, row_layout, texture_formats
 from .values import declare
-
-_FLOAT = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F")}
-_CHANNELS = {1: "R", 2: "RG", 4: "RGBA"}
-
 
 @emitter("hash_grid", "dense_grid")
 def emit_grid(ctx, node, src, bundle):
@@ -31,17 +25,9 @@ def emit_grid(ctx, node, src, bundle):
     levels = grid_node_levels(node.type, p, dims)
     feats = p["features"]
     table = bundle.tensor(node, "table")
-    fdtype, np_dtype, bits = _FLOAT[p["precision"]]
     log2w, n_rows = row_layout(node.id, "grid table", table.shape[0], ctx.limits)
-    groups = []
-    for g in range(-(-feats // 4)):
-        width = min(4, feats - 4 * g)
-        name = ctx.name(node.id, f"table{g}")
-        data = np.ascontiguousarray(table[:, 4 * g:4 * g + width], dtype=np_dtype)
-        ctx.globals.append(f"uniform sampler2D {name};  // {node.id}: features {4 * g}..{4 * g + width - 1} "
-                           f"of {len(levels)} levels, {table.shape[0]} rows, {p['precision']}")
-        ctx.resources.append(TextureResource(name, rows_data(data, log2w, n_rows), fdtype))
-        groups.append((name, width))
+    groups = feature_textures(ctx, node.id, table, p["precision"], log2w, n_rows,
+                              f"{len(levels)} levels, {table.shape[0]} rows")
 
     primes = HASH_PRIMES[p.get("hash", "coherent_prime")]
     x, s = ctx.name(node.id, "x"), ctx.name(node.id, "s")
@@ -60,7 +46,7 @@ def emit_grid(ctx, node, src, bundle):
             ctx.body += [f"{out.lane(first + ch)} = {s}.{'xyzw'[ch]};" for ch in range(width)]
 
     tex_bytes = sum(r.nbytes for r in ctx.resources[-len(groups):])
-    fmt = " + ".join(f"{_CHANNELS[w]}{bits}" for _, w in groups)
+    fmt = texture_formats(groups, p["precision"])
     hashed = sum(not lv.dense for lv in levels)
     corners = 1 << dims
     ctx.plan.append(PlanRow(node.id, node.type,

@@ -21,11 +21,8 @@ from inshade.geometry.mesh_topology import check_tables
 
 from .glsl import PlanRow, TextureResource
 from .registry import emitter
-from .texture_rows import row_layout, rows_data
+from .texture_rows import feature_textures, row_layout, rows_data, texture_formats
 from .values import declare
-
-_FLOAT = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F")}
-_CHANNELS = {1: "R", 2: "RG", 4: "RGBA"}
 
 
 @emitter("mesh_features", separate_inputs=True)
@@ -36,7 +33,6 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     corners, edges = bundle.tensor(node, "corners"), bundle.tensor(node, "edges")
     check_tables(corners, edges, faces)
     table = bundle.tensor(node, "table")
-    fdtype, np_dtype, bits = _FLOAT[p["precision"]]
 
     lanes = [(v, i) for v in srcs for i in range(v.dim)]
     (kv, ki), (t0v, t0i), (t1v, t1i) = lanes
@@ -50,15 +46,8 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     ctx.resources.append(TextureResource(topo, rows_data(packed.reshape(2 * faces, 3), topo_log2w, topo_rows), "u4"))
 
     tab_log2w, tab_rows = row_layout(node.id, "feature table", levels * size, ctx.limits)
-    groups = []
-    for g in range(-(-feats // 4)):
-        width = min(4, feats - 4 * g)
-        name = ctx.name(node.id, f"table{g}")
-        data = np.ascontiguousarray(table[:, 4 * g:4 * g + width], dtype=np_dtype)
-        ctx.globals.append(f"uniform sampler2D {name};  // {node.id}: features {4 * g}..{4 * g + width - 1} "
-                           f"of {levels} levels x {size} rows, {p['precision']}")
-        ctx.resources.append(TextureResource(name, rows_data(data, tab_log2w, tab_rows), fdtype))
-        groups.append((name, width))
+    groups = feature_textures(ctx, node.id, table, p["precision"], tab_log2w, tab_rows,
+                              f"{levels} levels x {size} rows")
 
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     k, t, c, e = (ctx.name(node.id, s) for s in ("k", "t", "corners", "edges"))
@@ -80,7 +69,7 @@ def emit_mesh_features(ctx, node, srcs, bundle):
             ctx.body += [f"{out.lane(first + ch)} = {s}.{'xyzw'[ch]};" for ch in range(width)]
 
     tex_bytes = sum(r.nbytes for r in ctx.resources[-1 - len(groups):])
-    fmt = " + ".join(f"{_CHANNELS[w]}{bits}" for _, w in groups)
+    fmt = texture_formats(groups, p["precision"])
     ctx.plan.append(PlanRow(node.id, "mesh_features",
                             f"{levels} levels x {size} rows x {feats} ({p['precision']}), {faces} faces",
                             "texture/exact", f"RGB32UI topology (2 texels/face) + {fmt} table, "

@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .glsl import TextureResource
 from .limits import LimitError, limit, source
+
+FLOAT_FORMATS = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F")}   # precision -> texels
+CHANNELS = {1: "R", 2: "RG", 4: "RGBA"}
 
 
 def row_layout(node_id: str, what: str, items: int, limits: dict) -> tuple[int, int]:
@@ -25,3 +29,26 @@ def rows_data(data: np.ndarray, log2w: int, rows: int) -> np.ndarray:
     out = np.zeros((rows << log2w, data.shape[1]), data.dtype)
     out[:data.shape[0]] = data
     return out.reshape(rows, 1 << log2w, data.shape[1])
+
+
+def feature_textures(ctx, node_id: str, table: np.ndarray, precision: str, log2w: int, rows: int,
+                     what: str) -> list[tuple[str, int]]:
+    """A [items, F] feature table as one texture per 4 features (F = 8: two RGBA; 4: RGBA; 2: RG;
+    1: R) in rows of 2^log2w texels, RGBA16F-family for precision f16, 32F for f32: declared and
+    added to ctx's resources. Returns (sampler name, channels) per texture."""
+    fdtype, np_dtype, _ = FLOAT_FORMATS[precision]
+    feats, groups = table.shape[1], []
+    for g in range(-(-feats // 4)):
+        width = min(4, feats - 4 * g)
+        name = ctx.name(node_id, f"table{g}")
+        data = np.ascontiguousarray(table[:, 4 * g:4 * g + width], dtype=np_dtype)
+        ctx.globals.append(f"uniform sampler2D {name};  // {node_id}: features {4 * g}..{4 * g + width - 1} "
+                           f"of {what}, {precision}")
+        ctx.resources.append(TextureResource(name, rows_data(data, log2w, rows), fdtype))
+        groups.append((name, width))
+    return groups
+
+
+def texture_formats(groups, precision: str) -> str:
+    """e.g. "RG16F" or "RGBA32F + RGBA32F" for the plan."""
+    return " + ".join(f"{CHANNELS[w]}{FLOAT_FORMATS[precision][2]}" for _, w in groups)
