@@ -329,12 +329,19 @@ def test_exported_digest_is_reproducible():
 
 def test_no_pickle_anywhere():
     """A bundle from a stranger must not be able to run code: no pickle, torch.load or
-    np.load(allow_pickle) in the package."""
+    np.load(allow_pickle) in the package. The one exception is torch.load with weights_only=True
+    (tensors only: a tiny-cuda-nn model's saved params), and catching the UnpicklingError it raises
+    for anything else."""
     pattern = re.compile(r"\bpickle\b|torch\.load\b|allow_pickle\s*=\s*True|\bdill\b|joblib")
+    safe = re.compile(r"weights_only=True|UnpicklingError")
     offenders = []
     for folder in ("inshade", "models", "codegen", "viewer", "shaders"):
         for path in sorted((REPO / folder).rglob("*.py")):
-            for number, line in enumerate(path.read_text().splitlines(), 1):
-                if pattern.search(line):
+            text = path.read_text()
+            catches = "UnpicklingError" in text
+            for number, line in enumerate(text.splitlines(), 1):
+                if line.strip() == "import pickle" and catches:
+                    continue
+                if pattern.search(line) and not safe.search(line):
                     offenders.append(f"{path.relative_to(REPO)}:{number}: {line.strip()}")
     assert not offenders, "\n".join(offenders)

@@ -104,6 +104,7 @@ MINIMAL_ARGS = {
     "neural_appearance": [],
     "uvfree_material": [],
     "appearance_prefilter": [],
+    "hash_grid": ["image", "-o", "{tmp}/hash_grid"],
 }
 TRAINERS = sorted(t.name for t in techniques() if t.train)
 
