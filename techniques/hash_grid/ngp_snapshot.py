@@ -278,6 +278,8 @@ def scene_dict(name: str, source_name: str, cam: dict) -> dict:
                       "repeat": False}],
         "camera": cam, "bookmarks": {"snapshot": cam},
         "display": {"mode": "final", "modes": ["final", "reference", "error", "split"], "split": 0.5},
+        "labels": [{"text": "torch march", "at": [0.25, 0.95], "when": {"view": "split"}},
+                   {"text": "shader", "at": [0.75, 0.95], "when": {"view": "split"}}],
         "settings": {k: dict(v) for k, v in SETTINGS.items()}, "requires": {"gl": 330},
         "notes": "converted from an instant-ngp snapshot, which holds no ground truth: the reference is the torch "
                  "march of this field at the scene's camera, so split and error show the shader against its twin",

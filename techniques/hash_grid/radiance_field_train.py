@@ -291,6 +291,8 @@ def scene_dict(name: str, title: str, heldout: Views) -> dict:
         "bookmarks": {"held-out 0": heldout.cameras[0], "front": scene.orbit_camera(0.0, -15.0),
                       "top": scene.orbit_camera(30.0, -75.0)},
         "display": {"mode": "final", "modes": ["final", "reference", "error", "split"], "split": 0.5},
+        "labels": [{"text": "held-out truth", "at": [0.25, 0.95], "when": {"view": "split"}},
+                   {"text": "hash grid", "at": [0.75, 0.95], "when": {"view": "split"}}],
         "settings": json.loads(json.dumps(SETTINGS)),
         "requires": {"gl": 330},
         "notes": "the reference is the ground truth of held-out view 0 (the scene's camera): views reference, "
