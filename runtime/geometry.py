@@ -18,7 +18,7 @@ pixel (x, y), as runtime/render.py ``read_rgba_raw``):
 With ``visibility=True`` (a program whose spec asks for it, ProgramSpec.visibility) the pass also
 writes a visibility buffer, with no vendor extension:
 
-- ``primitive`` (R32UI, a ``usampler2D``): the face index (``gl_PrimitiveID``, faces in the mesh's
+- ``primitive`` (R32UI, a ``usampler2D``): the face index (``gl_VertexID / 3`` of the de-indexed draw, faces in the mesh's
   order, one draw), meaningful where ``position.w`` = 1 (coverage is read from ``position`` only);
 - ``barycentric`` (RG32F): the perspective-correct barycentrics (t0, t1) of face vertices 0 and 1
   (t2 = 1 - t0 - t1), interpolated from per-corner attributes: the mesh is drawn de-indexed
@@ -54,6 +54,25 @@ def _mat_bytes(m) -> bytes:
     return m.astype("f4").tobytes()
 
 
+def gbuffer_attributes(mesh, visibility: bool = False) -> tuple[dict, np.ndarray, bool]:
+    """What the G-buffer pass draws: ({attribute: (float32 array [N, k], layout)}, faces int32
+    [F, 3], whether the mesh has uv). With ``visibility`` the attributes are de-indexed (corner c of
+    face f is vertex 3f + c, carrying barycentric e_c) and the faces are only counted."""
+    faces = np.asarray(mesh.faces, np.int32)
+    normals = shading_normals(mesh)
+    uv = mesh_uv(mesh)
+    has_uv = uv is not None
+    tangents = vertex_tangents(mesh, normals) if has_uv else np.zeros((len(mesh.vertices), 4))
+    uv = uv if has_uv else np.zeros((len(mesh.vertices), 2))
+    attributes = {"in_position": (mesh.vertices, "3f"), "in_normal": (normals, "3f"), "in_uv": (uv, "2f"),
+                  "in_tangent": (tangents, "4f")}
+    if visibility:
+        attributes = {name: (np.asarray(a)[faces.reshape(-1)], layout) for name, (a, layout) in attributes.items()}
+        attributes["in_barycentric"] = (np.tile(np.eye(3, dtype=np.float32)[:, :2], (len(faces), 1)), "2f")
+    return ({name: (np.ascontiguousarray(a, np.float32), layout) for name, (a, layout) in attributes.items()},
+            faces, has_uv)
+
+
 class MeshGBuffer:
     """A mesh's G-buffer pass: ``draw`` -> (position texture, normal texture)."""
 
@@ -66,22 +85,12 @@ class MeshGBuffer:
         self.formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if self.visibility else ())
         self.program = self.cache.get(VERTEX, FRAGMENT, version=version,
                                       defines={"GBUFFER_VISIBILITY": 1} if self.visibility else None)
-        vertices = np.asarray(mesh.vertices, np.float32)
-        normals = shading_normals(mesh)
-        faces = np.asarray(mesh.faces, np.int32)
-        uv = mesh_uv(mesh)
-        self.has_uv = uv is not None
-        tangents = vertex_tangents(mesh, normals) if self.has_uv else np.zeros((len(vertices), 4))
-        uv = uv if self.has_uv else np.zeros((len(vertices), 2))
+        attributes, faces, self.has_uv = gbuffer_attributes(mesh, self.visibility)
+        vertices = attributes["in_position"][0]
         self.bounds = (vertices.min(0), vertices.max(0))
         self.face_count = len(faces)
         # as render.MeshPass, but owning its buffers so release() frees them
-        attributes = {"in_position": (vertices, "3f"), "in_normal": (normals, "3f"), "in_uv": (uv, "2f"),
-                      "in_tangent": (tangents, "4f")}
-        if self.visibility:   # de-indexed: corner c of face f is vertex 3f + c, carrying barycentric e_c
-            attributes = {name: (np.asarray(a)[faces.reshape(-1)], layout) for name, (a, layout) in attributes.items()}
-            attributes["in_barycentric"] = (np.tile(np.eye(3, dtype=np.float32)[:, :2], (len(faces), 1)), "2f")
-        self.buffers = [ctx.buffer(np.ascontiguousarray(a, np.float32).tobytes()) for a, _ in attributes.values()]
+        self.buffers = [ctx.buffer(a.tobytes()) for a, _ in attributes.values()]
         self.index_buffer = None if self.visibility else ctx.buffer(np.ascontiguousarray(faces).tobytes())
         content = [(b, layout, name) for b, (name, (_, layout)) in zip(self.buffers, attributes.items())
                    if name in self.program]

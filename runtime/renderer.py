@@ -88,13 +88,16 @@ class SceneRenderer:
     own cache); leave False when the cache is shared with other code.
     ``limits`` overrides the context's GL limits codegen plans against (``gl_info``), e.g. a lowered
     GL_MAX_TEXTURE_SIZE to exercise a layout that fits it.
+    ``target`` is the GLSL every program is assembled and generated for ("330", "450", "es300": the
+    WebGL2 export draws the ES programs here first; desktop Mesa compiles them).
     """
 
     def __init__(self, scene: Scene, ctx: moderngl.Context | None = None, *, cache: ProgramCache | None = None,
                  settings: dict | None = None, bundles: list[Bundle] | None = None,
-                 owns_programs: bool = False, limits: dict | None = None):
+                 owns_programs: bool = False, limits: dict | None = None, target: str = "330"):
         self.ctx = shared_context() if ctx is None else make_current(ctx)
         self.scene = scene
+        self.target = target
         self.spec = scene.spec        # what the program needs (its technique's ProgramSpec)
         self.gl = {**gl_info(self.ctx), **(limits or {})}   # `limits` overrides (e.g. lowered on purpose)
         check_capabilities(self.ctx, scene)
@@ -122,14 +125,15 @@ class SceneRenderer:
         self.shadow_maps = ShadowMaps(self.ctx)   # ProgramSpec.shadows: GL objects made on first use, then reused
         self._build()
         if scene.mesh is not None:
-            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, visibility=self.spec.visibility)
+            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, version=target,
+                                      visibility=self.spec.visibility)
         clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
         self.environment = None        # EnvironmentTextures while the program samples lib/environment
         self._environment_key = None
         self._sync_environment()
-        self.display_program = self.cache.get(VERTEX, "passes/display.frag",
+        self.display_program = self.cache.get(VERTEX, "passes/display.frag", version=target,
                                               chunks={"display_modes": glsl_chunk()})
         self._display_pass = FullscreenPass(self.ctx, self.display_program)
         self.reference_image = None
@@ -155,7 +159,8 @@ class SceneRenderer:
 
     def _generate(self, bundles):
         options = self._codegen_options()
-        return [generate(b, prefix=n.prefix, **options) for b, n in zip(bundles, self.scene.networks)]
+        return [generate(b, prefix=n.prefix, target=self.target, **options)
+                for b, n in zip(bundles, self.scene.networks)]
 
     def _geometry_chunks(self, bundles) -> tuple[dict, list]:
         """Chunks for the scene's geometry and shading besides the networks': the SDF (analytic, or
@@ -165,7 +170,8 @@ class SceneRenderer:
         chunks, extra = {}, []
         sdf = self.scene.sdf
         if isinstance(sdf, NetworkSdfRef):
-            sdf_ch, gen = network_sdf_chunks(self.sdf_bundle, prefix=sdf.prefix, **self._codegen_options())
+            sdf_ch, gen = network_sdf_chunks(self.sdf_bundle, prefix=sdf.prefix, target=self.target,
+                                                **self._codegen_options())
             chunks.update(sdf_ch)
             extra.append(gen)
         elif sdf is not None:
@@ -210,7 +216,7 @@ class SceneRenderer:
             generated = generated + extra   # GL resources of a network SDF bind like a network's
             check_program_limits(generated, self.gl, self.scene)
             defines = self._defines(bundles)
-            program = self.cache.get(VERTEX, self.scene.program, defines=defines, chunks=chunks)
+            program = self.cache.get(VERTEX, self.scene.program, version=self.target, defines=defines, chunks=chunks)
             self._sources = (defines, chunks)
         except Exception as exc:
             self.error = exc
@@ -247,8 +253,8 @@ class SceneRenderer:
         from inshade.shaders import assemble
 
         defines, chunks = self._sources
-        return {"vertex": assemble(VERTEX, defines=defines, chunks=chunks).source,
-                "fragment": assemble(self.scene.program, defines=defines, chunks=chunks).source}
+        return {"vertex": assemble(VERTEX, version=self.target, defines=defines, chunks=chunks).source,
+                "fragment": assemble(self.scene.program, version=self.target, defines=defines, chunks=chunks).source}
 
     def uniform_values(self, camera, width: int, height: int) -> dict:
         """The scene pass's uniforms as this renderer sets them for ``camera`` at this size (bytes
@@ -306,7 +312,8 @@ class SceneRenderer:
         """Re-assemble the programs from the chunk files (after a .glsl edit)."""
         outcome = self._build(self.bundles)
         try:
-            display = self.cache.get(VERTEX, "passes/display.frag", chunks={"display_modes": glsl_chunk()})
+            display = self.cache.get(VERTEX, "passes/display.frag", version=self.target,
+                                     chunks={"display_modes": glsl_chunk()})
         except Exception as exc:
             self.error = exc
             raise
@@ -486,7 +493,8 @@ class SceneRenderer:
         spare target, which then becomes "network" (ping-pong: a pass cannot read its own target)."""
         n = self.spec.attachments
         if self._accumulate_pass is None:
-            program = self.cache.get(VERTEX, "passes/accumulate.frag", defines={"ACCUMULATE_ATTACHMENTS": n})
+            program = self.cache.get(VERTEX, "passes/accumulate.frag", version=self.target,
+                                     defines={"ACCUMULATE_ATTACHMENTS": n})
             self._accumulate_pass = FullscreenPass(self.ctx, program)
         mean = self._target("network", width, height, n)
         spare = self._target("network_spare", width, height, n)

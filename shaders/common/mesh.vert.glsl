@@ -13,6 +13,7 @@ in vec4 in_tangent;   // (tangent along +u, handedness); zero for meshes without
 #ifdef GBUFFER_VISIBILITY
 in vec2 in_barycentric;   // the corner's unit barycentrics (t0, t1): the mesh is drawn de-indexed
 out vec2 v_barycentric;
+flat out uint v_face;     // gl_VertexID / 3: the face index (ES 3.00 has no gl_PrimitiveID)
 #endif
 
 out vec3 v_world_position;
@@ -28,6 +29,7 @@ void main() {
     v_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
 #ifdef GBUFFER_VISIBILITY
     v_barycentric = in_barycentric;
+    v_face = uint(gl_VertexID / 3);
 #endif
     gl_Position = u_proj * u_view * world;
 }

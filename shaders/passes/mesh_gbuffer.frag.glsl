@@ -6,8 +6,9 @@
 // along +x and +y (window axes), taken here where the triangle is known, since derivatives in the
 // deferred pass would difference neighbours across triangle edges and uv seams. The clear value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
 // consistently wound closed mesh), not flipped towards the viewer: transfer is a function of it.
-// With GBUFFER_VISIBILITY (a visibility buffer): 5: the face index gl_PrimitiveID (uint; the mesh is drawn
-// de-indexed in one draw, so primitive i is face i); 6: perspective-correct barycentrics (t0, t1) of the
+// With GBUFFER_VISIBILITY (a visibility buffer): 5: the face index (uint; the mesh is drawn de-indexed in
+// one draw, so vertex 3i + c is corner c of face i: the vertex pass sends gl_VertexID / 3, which ES 3.00
+// has where it lacks gl_PrimitiveID); 6: perspective-correct barycentrics (t0, t1) of the
 // face's vertices 0 and 1. Built and read by runtime/geometry.py MeshGBuffer.
 
 in vec3 v_world_position;
@@ -22,6 +23,7 @@ layout(location = 3) out vec4 out_tangent;
 layout(location = 4) out vec4 out_uv_grad;
 #ifdef GBUFFER_VISIBILITY
 in vec2 v_barycentric;
+flat in uint v_face;
 layout(location = 5) out uint out_primitive;
 layout(location = 6) out vec2 out_barycentric;
 #endif
@@ -34,7 +36,7 @@ void main() {
     out_tangent = v_tangent;
     out_uv_grad = vec4(dFdx(v_uv), dFdy(v_uv));
 #ifdef GBUFFER_VISIBILITY
-    out_primitive = uint(gl_PrimitiveID);
+    out_primitive = v_face;
     out_barycentric = v_barycentric;
 #endif
 }
