@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 log = logging.getLogger("inshade")
@@ -22,6 +23,8 @@ log = logging.getLogger("inshade")
 SHARED_BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak"),
                   "export": ("inshade.bench.export", "inshade.export / convert: export + check time, ONNX import "
                                                      "time, export peak memory"),
+                  "web": ("inshade.web.bench", "every shipped asset as a WebGL2 page in headless Chromium: page bytes, "
+                                               "load time, frame time, PSNR vs inshade render"),
                   "suite": ("inshade.bench.suite", "every bench, sized by --preset cpu|device, and a one-page "
                                                    "summary against the papers (docs/bench/<renderer>/)")}
 
@@ -538,6 +541,39 @@ def _render(args, output) -> tuple:
     return tuple(paths) if isinstance(paths, (list, tuple)) else (paths,)
 
 
+def cmd_export_web(args) -> int:
+    from inshade.web.export import export_web
+
+    page = export_web(_resolve(args.asset), args.output, force=args.force, settings=_settings(args),
+                      width=args.width, height=args.height)
+    m = page.manifest
+    fixed = [s["name"] for s in m["settings"] if "fixed" in s]
+    log.info("%s: %d programs, %.1f MB of data; needs %s%s", m["name"], len(page.programs), page.blob.size / 1e6,
+             ", ".join(m["requires"]["extensions"]),
+             "".join(f", {k} >= {v}" for k, v in m["requires"]["limits"].items()))
+    if fixed:
+        log.info("fixed in the page (choose with --set): %s", ", ".join(fixed))
+    print(f"wrote {args.output}/index.html (serve the folder: python -m http.server -d {args.output})",
+          file=sys.stderr)
+    return 0
+
+
+def cmd_serve(args) -> int:
+    from inshade.web.browser import serve
+    from inshade.web.export import export_web
+
+    with tempfile.TemporaryDirectory(prefix="inshade-web-") as tmp:
+        folder = Path(tmp) / "page"
+        export_web(_resolve(args.asset), folder, settings=_settings(args))
+        try:
+            with serve(folder, port=args.port) as url:
+                print(f"serving {args.asset} at {url}index.html (Ctrl+C to stop)", flush=True)
+                threading.Event().wait()
+        except OSError as e:
+            raise UserError(f"serve: --port {args.port}: {e.strerror or e}") from None
+    return 0
+
+
 def _save(save_render, image, info, out):
     try:
         return save_render(image, info, out)
@@ -722,6 +758,35 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=_count, metavar="N",
                    help="samples per pixel averaged by a stochastic (accumulating) program (default 1)")
     p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("export-web", help="an asset as a static WebGL2 page (index.html + inshade.js + data)",
+                       description="Write ASSET as a static folder that any file server shows (python -m http.server): "
+                                   "index.html (the viewer: orbit / zoom / pan, the settings, split and error views "
+                                   "where the asset has a reference, progressive accumulation, frame time), "
+                                   "evaluate.html (the network on a test batch), inshade.js, the programs as GLSL "
+                                   "ES 3.00 and the data as data.bin + manifest.json. Planned against WebGL2's "
+                                   "guaranteed limits; an asset that cannot fit is refused naming the limit. "
+                                   "Settings compiled into the program or feeding per-frame work are fixed in the "
+                                   "page: choose them with --set.")
+    p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write (new or empty)")
+    p.add_argument("--width", type=_size, help="canvas width (default: the scene's)")
+    p.add_argument("--height", type=_size, help="canvas height (default: the scene's)")
+    p.add_argument("--storage", choices=STORAGE_MODES, help="weight storage (default: the scene's, else auto)")
+    p.add_argument("--lut-filter", choices=FILTERS, help="lookup array path (default: the scene's, else exact)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
+    p.add_argument("--force", action="store_true", help="replace what the folder holds")
+    p.set_defaults(func=cmd_export_web)
+
+    p = sub.add_parser("serve", help="export ASSET to a temporary page and serve it on localhost",
+                       description="Export ASSET as export-web does, into a temporary folder, and serve it on "
+                                   "localhost until Ctrl+C; prints the address to open.")
+    p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
+    p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0: any free port)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
+    p.add_argument("--storage", choices=STORAGE_MODES, help=argparse.SUPPRESS)
+    p.add_argument("--lut-filter", choices=FILTERS, help=argparse.SUPPRESS)
+    p.set_defaults(func=cmd_serve)
 
     p = sub.add_parser("view", help="interactive viewer window (glfw + imgui-bundle)",
                        description="Open ASSET (a trained/ folder, scene.json or bundle) in a window, with a "
