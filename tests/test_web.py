@@ -97,6 +97,25 @@ def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, tmp_pa
     assert db >= MIN_PSNR_DB, f"{asset}: the page's first frame is {db:.2f} dB from inshade render's"
 
 
+@pytest.mark.parametrize("asset,mode", [("di_texture_astronaut", "reference"), ("di_texture_astronaut", "split"),
+                                        ("hash_grid_radiance_field", "reference"), ("neural_image", "error")])
+def test_reference_views_match_inshade_render(gl, browser, asset, mode, tmp_path):
+    """The display modes that show the reference (an sRGB PNG decoded by the browser's texture unit,
+    or linear half floats), against ``inshade render --mode`` of the same view."""
+    from inshade.runtime.headless import render_scene
+    from inshade.scene.display import parse_mode
+
+    folder, (w, h) = _exported(asset, tmp_path)
+    with serve(folder) as url:
+        state = browser.open(url + "index.html")
+        assert state["error"] is None, state
+        browser.driver.execute_script(f"const v = window.inshade.viewer; v.mode = {int(parse_mode(mode))}; v.render();")
+        page = browser.canvas()
+    image, _ = render_scene(load_scene(resolve_asset(asset)), width=w, height=h, mode=mode)
+    db = psnr8(page, srgb8(image))
+    assert db >= MIN_PSNR_DB, f"{asset} {mode}: {db:.2f} dB"
+
+
 def _network_of(asset: str, name: str):
     scene = load_scene(resolve_asset(asset))
     bundles = [load(n.bundle) for n in scene.networks]

@@ -20,6 +20,8 @@ and can be chosen at export with ``--set NAME=VALUE``.
 """
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import logging
 import shutil
@@ -51,7 +53,7 @@ FORMAT = "inshade-web 1"
 TARGET = "es300"
 PAGE = Path(__file__).resolve().parent / "page"
 PAGE_FILES = ("index.html", "evaluate.html", "inshade.js")
-MANIFEST, DATA = "manifest.json", "data.bin"
+MANIFEST, DATA, REFERENCE_PNG = "manifest.json", "data.bin", "reference.png"
 EVAL_BATCH = 1024          # samples in the evaluation page's batch
 EVAL_UINT_RANGE = 256      # uint lanes of the batch are ids 0..255 (tables hold at least that many rows)
 ALIGN = 16
@@ -62,18 +64,23 @@ class PageExistsError(ValueError):
 
 
 class _Blob:
-    """The bytes of data.bin; ``add`` returns [offset, nbytes] of an array (16-byte aligned)."""
+    """The bytes of data.bin; ``add`` returns [offset, nbytes] of an array (16-byte aligned). The
+    same bytes added twice are stored once (e.g. a network's tables in the viewer and the evaluation)."""
 
     def __init__(self):
-        self.parts, self.size = [], 0
+        self.parts, self.size, self.seen = [], 0, {}
 
     def add(self, array) -> list[int]:
         data = array if isinstance(array, bytes) else np.ascontiguousarray(array).tobytes()
+        digest = hashlib.sha256(data).digest()
+        if digest in self.seen:
+            return list(self.seen[digest])
         pad = -self.size % ALIGN
         self.parts.append(b"\0" * pad + data)
         self.size += pad
         at = self.size
         self.size += len(data)
+        self.seen[digest] = (at, len(data))
         return [at, len(data)]
 
     def bytes(self) -> bytes:
@@ -134,6 +141,7 @@ class WebExport:
         self.height = scene.size[1] if height is None else int(height)
         self.blob = _Blob()
         self.programs: dict[str, dict[str, str]] = {}
+        self.files: dict[str, bytes] = {}     # other files of the page (an sRGB reference as PNG)
         try:
             self.camera = scene.make_camera()
             self.renderer._sync_shadows()   # the maps the page takes as data (the environment is built)
@@ -262,11 +270,19 @@ class WebExport:
                                                         for n, f in zip(names, formats)]}
 
     def _reference(self) -> dict | None:
-        ref = self.renderer.reference_image
+        """The reference image: an sRGB one as a PNG the browser decodes into an sRGB texture (the
+        texture unit decodes to linear before filtering, as the runtime's float copy is decoded
+        first); a linear one as half floats (filterable in every WebGL2, 11 significant bits)."""
+        ref = self.scene.reference
         if ref is None:
             return None
-        data = np.ascontiguousarray(ref[::-1], np.float32)    # uv (0, 0) = bottom-left
-        return _texture(self.blob, "u_reference", TextureResource("u_reference", data, "f4", "linear"))
+        if ref.colour == "srgb":
+            png = io.BytesIO()
+            Image.open(ref.image).convert("RGB").save(png, format="PNG")
+            self.files[REFERENCE_PNG] = png.getvalue()
+            return {"uniform": "u_reference", "image": REFERENCE_PNG, "filter": "linear", "wrap": "clamp"}
+        data = np.ascontiguousarray(self.renderer.reference_image[::-1], np.float16)   # uv (0, 0) = bottom-left
+        return _texture(self.blob, "u_reference", TextureResource("u_reference", data, "f2", "linear"))
 
     def _evaluation(self) -> dict | None:
         """The primary network (or the network SDF) as passes/evaluate.frag and a batch of inputs."""
@@ -304,7 +320,7 @@ class WebExport:
         targets = len(mesh["targets"]) if mesh else 1
         needs = {"GL_MAX_DRAW_BUFFERS": max(attachments, targets)}
         limits = {k: v for k, v in needs.items() if v > WEBGL2[k]}
-        all_textures = textures + ([reference] if reference else []) + (evaluation or {}).get("textures", [])
+        all_textures = textures + (evaluation or {}).get("textures", [])
         manifest = {
             "format": FORMAT,
             "name": scene.name, "title": scene.title or scene.name,
@@ -343,6 +359,8 @@ class WebExport:
             for stage, source in stages.items():
                 (folder / "programs" / f"{name}.{'vert' if stage == 'vertex' else 'frag'}.glsl").write_text(source)
         (folder / DATA).write_bytes(self.blob.bytes())
+        for name, data in self.files.items():
+            (folder / name).write_bytes(data)
         (folder / MANIFEST).write_text(json.dumps(self.manifest, indent=1, sort_keys=False) + "\n")
         for name in PAGE_FILES:
             shutil.copyfile(PAGE / name, folder / name)

@@ -42,13 +42,20 @@ export async function loadExport(base = "./") {
   const names = new Set(Object.values(manifest.programs));
   if (manifest.mesh) names.add(manifest.mesh.program);
   for (const name of (manifest.evaluate && manifest.evaluate.passes) || []) names.add(name);
+  const reference = manifest.display.reference;
+  const images = {};
+  if (reference && reference.image) {   // decoded as stored: no colour conversion, no premultiplication
+    const blob = new Blob([await fetchChecked(base + reference.image, "bytes")]);
+    images[reference.image] = await createImageBitmap(blob, {colorSpaceConversion: "none", premultiplyAlpha: "none",
+                                                             imageOrientation: "flipY"});   // uv (0, 0) = bottom-left
+  }
   const sources = {};
   await Promise.all([...names].map(async (name) => {
     const [vertex, fragment] = await Promise.all([
       fetchChecked(`${base}programs/${name}.vert.glsl`, "text"), fetchChecked(`${base}programs/${name}.frag.glsl`, "text")]);
     sources[name] = {vertex, fragment};
   }));
-  return {manifest, data, sources};
+  return {manifest, data, sources, images};
 }
 
 export function createContext(canvas, manifest) {
@@ -154,6 +161,18 @@ function texture(gl, rec, data) {
   }
   gl.texParameteri(target, gl.TEXTURE_MIN_FILTER, min);
   return {uniform: rec.uniform, target, texture: tex};
+}
+
+// an 8-bit sRGB image as an SRGB8_ALPHA8 texture: sampling decodes to linear before filtering
+function imageTexture(gl, rec, bitmap) {
+  const tex = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D, tex);
+  gl.texImage2D(gl.TEXTURE_2D, 0, gl.SRGB8_ALPHA8, gl.RGBA, gl.UNSIGNED_BYTE, bitmap);
+  const filter = rec.filter === "linear" ? gl.LINEAR : gl.NEAREST;
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, filter);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, filter);
+  for (const p of [gl.TEXTURE_WRAP_S, gl.TEXTURE_WRAP_T]) gl.texParameteri(gl.TEXTURE_2D, p, gl.CLAMP_TO_EDGE);
+  return {uniform: rec.uniform, target: gl.TEXTURE_2D, texture: tex};
 }
 
 function uniformBlocks(gl, blocks, data) {
@@ -322,7 +341,7 @@ export class Camera {
 // --- the viewer ----------------------------------------------------------------------------------
 
 export class Viewer {
-  constructor(canvas, {manifest, data, sources}, {width, height} = {}) {
+  constructor(canvas, {manifest, data, sources, images}, {width, height} = {}) {
     this.manifest = manifest;
     this.width = width || manifest.size[0];
     this.height = height || manifest.size[1];
@@ -334,7 +353,8 @@ export class Viewer {
     this.textures = manifest.textures.map((t) => texture(gl, t, data));
     this.blocks = uniformBlocks(gl, manifest.blocks, data);
     const display = manifest.display;
-    this.reference = display.reference ? texture(gl, display.reference, data) : null;
+    const ref = display.reference;
+    this.reference = !ref ? null : ref.image ? imageTexture(gl, ref, images[ref.image]) : texture(gl, ref, data);
     this.camera = new Camera(manifest.camera);
     this.values = Object.fromEntries(manifest.settings.map((s) => [s.name, s.value]));
     this.mode = display.modes[display.mode] ?? 0;
