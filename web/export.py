@@ -1,15 +1,16 @@
 """``inshade export-web ASSET -o DIR``: an asset as a static WebGL2 page.
 
-The asset is drawn once through the GL runtime (``SceneRenderer``) with GLSL ES 3.00 programs planned
-against WebGL2's limits (``limits.WEBGL2``); what that draw bound is then written for the page to
-replay, so the page and ``inshade render`` run the same programs on the same data:
+The asset is set up through the GL runtime (``SceneRenderer``: programs generated and compiled, the
+environment built, shadow maps drawn) with GLSL ES 3.00 programs planned against WebGL2's limits
+(``limits.WEBGL2``); what its draw would bind is then written for the page to replay, so the page
+and ``inshade render`` run the same programs on the same data:
 
 - ``programs/*.glsl``: every pass assembled by the resolver (scene, display, present, and where the
   scene needs them the G-buffer, the accumulation and the network evaluation pass);
 - ``data.bin`` + ``manifest.json``: textures (network resources, scene textures, the environment's
-  importance-sampling textures, shadow maps, the reference image) and uniform blocks as raw texels,
+  importance-sampling textures, shadow maps, a linear reference) and uniform blocks as raw texels,
   the mesh's vertex attributes, the evaluation batch; uniforms the page does not compute itself;
-  the settings as controls;
+  the settings as controls; ``reference.png``: an sRGB reference image;
 - ``index.html``, ``evaluate.html``, ``inshade.js``: the page (no framework, no build step).
 
 What the page computes: the camera's uniforms (orbit / zoom / pan), the uniforms a setting binds,
