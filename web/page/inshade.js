@@ -321,6 +321,12 @@ export class Camera {
     }
   }
 
+  // a fly camera's step (scene/camera.py FlyCamera.move): forward, right, up in [-1, 1], dt seconds
+  move(forward, right, up, dt) {
+    const f = direction(this.yaw, this.pitch), r = normalize(cross(f, [0, 1, 0])), step = (this.speed ?? 1) * dt;
+    this.position = this.position.map((p, i) => p + step * (forward * f[i] + right * r[i] + (i === 1 ? up : 0)));
+  }
+
   wheel(factor, x, y, w, h) {
     if (!this.is3d) {
       const [ox, oy, sx, sy] = this.view2d(w, h);
@@ -661,8 +667,18 @@ function buildPanel(panel, viewer, redraw) {
   panel.append(reset);
 }
 
+const FLY_KEYS = {KeyW: [1, 0, 0], KeyS: [-1, 0, 0], KeyD: [0, 1, 0], KeyA: [0, -1, 0], KeyE: [0, 0, 1], KeyQ: [0, 0, -1]};
+
 function attachPointer(canvas, viewer, redraw) {
   let last = null;
+  if (viewer.camera.type === "fly") {   // W A S D Q E move, 1/30 s per key repeat
+    window.addEventListener("keydown", (e) => {
+      const step = FLY_KEYS[e.code];
+      if (!step) return;
+      viewer.camera.move(...step, 1 / 30);
+      redraw();
+    });
+  }
   canvas.addEventListener("contextmenu", (e) => e.preventDefault());
   canvas.addEventListener("pointerdown", (e) => { last = [e.clientX, e.clientY]; canvas.setPointerCapture(e.pointerId); });
   canvas.addEventListener("pointerup", () => { last = null; });
