@@ -4,7 +4,7 @@ Per asset: the page's bytes (native size), load time to the first frame, the fra
 full redraw (median of 5, network pass forced) under the browser's WebGL2 (SwiftShader without a
 GPU), and the PSNR of the first frame against ``inshade render`` at a quarter of the scene's size
 (8-bit sRGB), plus the evaluation page's max error against torch under the parity rule's scale.
-Writes docs/bench/web.json, .md and .png (frame time per asset).
+Writes ``web.json``, ``web.md`` and ``web.png`` (frame time per asset) into ``--out``.
 """
 from __future__ import annotations
 
@@ -17,9 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.files import atomic_write
+from inshade import command
+from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
+from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_OUT = "bench-out/web"
 
 
 def _quarter(size) -> tuple[int, int]:
@@ -82,7 +85,8 @@ def _evaluation_error(folder: Path, scene, out: np.ndarray) -> float | None:
 
 def markdown(report: dict) -> str:
     lines = [f"# Exported pages in headless Chromium ({report['browser_renderer']})", "",
-             f"Exported on `{report['gl_renderer']}`; `inshade render` is the reference. Page bytes and timings "
+             machine_markdown(report["machine"]), "",
+             "Exported on this renderer; `inshade render` on it is the reference. Page bytes and timings "
              "at the scene's own size; PSNR (8-bit sRGB) at a quarter of it; the evaluation error is "
              "max |browser - torch| / max(1, |torch|) on the exported batch (the parity rule is 1e-5).", "",
              "| asset | page bytes | load → first frame (ms) | frame (ms) | PSNR vs render (dB) | eval error |",
@@ -98,11 +102,7 @@ def markdown(report: dict) -> str:
 
 
 def plot(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = matplotlib_pyplot()
     rows = [r for r in report["assets"] if "frame_ms" in r]
     fig, ax = plt.subplots(figsize=(8, 0.28 * len(rows) + 1.2))
     ax.barh([r["asset"] for r in rows], [r["frame_ms"] for r in rows])
@@ -114,29 +114,56 @@ def plot(report: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="inshade bench web", description=__doc__.split("\n\n")[0])
-    ap.add_argument("assets", nargs="*", help="asset folders (default: every shipped asset)")
-    ap.add_argument("--out", default=str(ROOT / "docs" / "bench" / "web"), help="output path stem")
-    args = ap.parse_args(argv)
-    from inshade.runtime.context import shared_context
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("assets", nargs="*", help="asset folders (default: every shipped asset)")
+    parser.add_argument("--out", default=DEFAULT_OUT, help="output folder")
+    return parser
 
-    from .browser import Browser
+
+def run(args) -> int:
+    from .browser import Browser, BrowserError
 
     assets = [Path(a) for a in args.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir())
-    report = {"gl_renderer": shared_context().info["GL_RENDERER"], "assets": []}
-    with Browser() as browser, tempfile.TemporaryDirectory() as tmp:
-        report["browser_renderer"] = browser.renderer()
-        for asset in assets:
-            row = measure(asset, browser, Path(tmp))
-            print(json.dumps(row), file=sys.stderr, flush=True)
-            report["assets"].append(row)
-    out = Path(args.out)
-    atomic_write(out.with_suffix(".json"), json.dumps(report, indent=1) + "\n")
-    atomic_write(out.with_suffix(".md"), markdown(report))
-    plot(report, out.with_suffix(".png"))
-    print(markdown(report))
+    report = {"benchmark": "web", "machine": machine(), "assets": []}
+    try:
+        with Browser() as browser, tempfile.TemporaryDirectory() as tmp:
+            report["browser_renderer"] = browser.renderer()
+            for asset in assets:
+                row = measure(asset, browser, Path(tmp))
+                print(json.dumps(row), file=sys.stderr, flush=True)
+                report["assets"].append(row)
+    except BrowserError as exc:
+        raise BenchError(str(exc)) from None
+    write_report(args.out, "web", report, markdown, plot)
     return 0
+
+
+def main(argv=None) -> int:
+    return command.main("inshade bench web", __doc__, add_arguments, run, argv, errors=(BenchError,),
+                        formatter=argparse.ArgumentDefaultsHelpFormatter)
+
+
+# ---------------------------------------------------------------------------------------------
+# `inshade bench suite`: this bench's command line per preset, and its headline rows
+
+CLAIMS = {"page_psnr": Claim("none (inshade's own bar)", "exported page's first frame vs inshade render, "
+                             "8-bit sRGB", "at least 40 dB (different rasterisers)", 40.0)}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = [a for a in r["assets"] if "psnr_db_vs_render" in a]
+    if not rows:
+        return []
+    worst = min(rows, key=lambda a: a["psnr_db_vs_render"])
+    return [claim_row(CLAIMS, "web", "page_psnr", f"worst {worst['psnr_db_vs_render']:.1f} dB ({worst['asset']}) "
+                      f"over {len(rows)} pages in {r['browser_renderer'][:40]}", worst["psnr_db_vs_render"])]
+
+
+SUITE = SuiteEntry(sizes={
+    "cpu": Sizing(("trained/neural_image", "trained/di_texture_astronaut", "trained/sdf_creature"), 60),
+    # the GPU machine needs Debian's chromium + chromium-driver for this one
+    "device": Sizing(("trained/neural_image",), 10),
+}, claims=CLAIMS, headlines=headlines)
 
 
 if __name__ == "__main__":

@@ -207,5 +207,5 @@ SUITE = SuiteEntry(sizes={
     "cpu": Sizing(("--sizes", "256,512", "--frames", "2", "--max-frame-s", "40", "--di-steps", "1000",
                    "--heldout-views", "4", "--count-size", "96", "--eval-side", "32"), 600),
     # the DI cascade trains on the machine's CPUs (~75 s of the budget)
-    "device": Sizing(("--sizes", "512,1024", "--frames", "10", "--di-steps", "1000"), 120),
+    "device": Sizing(("--sizes", "512,1024", "--frames", "8", "--di-steps", "1000"), 110),
 }, claims=CLAIMS, headlines=headlines)
