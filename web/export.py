@@ -57,6 +57,7 @@ PAGE_FILES = ("index.html", "evaluate.html", "inshade.js")
 MANIFEST, DATA, REFERENCE_PNG = "manifest.json", "data.bin", "reference.png"
 EVAL_BATCH = 1024          # samples in the evaluation page's batch
 EVAL_UINT_RANGE = 256      # uint lanes of the batch are ids 0..255 (tables hold at least that many rows)
+UNIT_SEMANTICS = ("normal", "direction")   # ports whose batch rows are unit vectors (the rest: [0, 1))
 ALIGN = 16
 
 
@@ -297,15 +298,12 @@ class WebExport:
                                 defines={"EVAL_OUT_FIRST": first,
                                          "EVAL_OUT_TARGETS": min(per_pass, g.out_blocks - first)})
                   for first in range(0, g.out_blocks, per_pass)]
-        rng = np.random.default_rng(0)
-        batch = rng.random((EVAL_BATCH, g.in_dim)).astype(np.float32)
-        uint = list(g.uint_lanes)
-        batch[:, uint] = rng.integers(0, EVAL_UINT_RANGE, (EVAL_BATCH, len(uint)))
+        batch = _batch(bundle, g)
         textures = [_texture(self.blob, res.name, res) for res in g.resources if isinstance(res, TextureResource)]
         blocks = [{"name": res.name, "data": self.blob.add(bytes(res.data))}
                   for res in g.resources if isinstance(res, UniformBlockResource)]
         return {"bundle": bundle.name, "passes": passes, "blocks_per_pass": per_pass,
-                "inputs": self.blob.add(batch), "count": EVAL_BATCH, "in_dim": g.in_dim, "uint_lanes": uint,
+                "inputs": self.blob.add(batch), "count": EVAL_BATCH, "in_dim": g.in_dim, "uint_lanes": list(g.uint_lanes),
                 "in_blocks": g.in_blocks, "in_uint_blocks": g.in_uint_blocks, "out_dim": g.out_dim,
                 "out_blocks": g.out_blocks, "textures": textures, "blocks": blocks}
 
@@ -365,6 +363,30 @@ class WebExport:
         (folder / MANIFEST).write_text(json.dumps(self.manifest, indent=1, sort_keys=False) + "\n")
         for name in PAGE_FILES:
             shutil.copyfile(PAGE / name, folder / name)
+
+
+def _batch(bundle, g) -> np.ndarray:
+    """The evaluation page's inputs [EVAL_BATCH, in_dim]: each port uniform over the range the parity
+    envelope assumes for its semantic (inshade/envelope.py), directions and normals as unit vectors,
+    uint lanes ids 0..EVAL_UINT_RANGE - 1; seeded, so every export of an asset has the same batch."""
+    from inshade.envelope import input_ranges
+
+    rng = np.random.default_rng(0)
+    ranges, _ = input_ranges(bundle)
+    batch = np.zeros((EVAL_BATCH, g.in_dim), np.float32)
+    lane = 0
+    for port in bundle.inputs:
+        cols = slice(lane, lane + port.dim)
+        lo, hi = ranges[port.name]
+        if port.dtype == "uint":
+            batch[:, cols] = rng.integers(0, EVAL_UINT_RANGE, (EVAL_BATCH, port.dim))
+        elif port.semantic in UNIT_SEMANTICS:
+            v = rng.normal(size=(EVAL_BATCH, port.dim))
+            batch[:, cols] = v / np.linalg.norm(v, axis=1, keepdims=True)
+        else:
+            batch[:, cols] = rng.uniform(lo, hi, (EVAL_BATCH, port.dim))
+        lane += port.dim
+    return batch
 
 
 def _alternatives(s, value) -> list:
