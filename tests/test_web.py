@@ -35,8 +35,8 @@ AT_OWN_SIZE = {"di_pbr_set_bricks"}
 # same batch, to within this factor of the desktop's error (the browser no less exact than the desktop).
 DESKTOP_MARGIN = 1.25
 # Frequency encodings take sin / cos of arguments up to 2^k pi, and SwiftShader's sin / cos are off by up
-# to 2e-4 even within [-pi, pi] (measured): the shipped PRT and prefiltering networks reach 8e-5 ..
-# 3.7e-3 in Chromium where llvmpipe holds ~1e-5 on the same batch. A sin / cos of the shader's own
+# to 2e-4 even within [-pi, pi] (measured): the shipped PRT and prefiltering networks reach 1.2e-4 ..
+# 4.6e-3 in Chromium where llvmpipe holds ~1e-5 on the same batch. A sin / cos of the shader's own
 # (Cody-Waite reduction + Cephes polynomials) brought prt_mechanical to 7.6e-6 but made the grove's
 # march compile for minutes in SwiftShader, so those networks are held to this bound instead.
 BROWSER_SIN_TOL = 5e-3
