@@ -592,9 +592,9 @@ def _settings(args) -> dict:
     for item in args.set or []:
         name, sep, text = item.partition("=")
         if not sep or not name:
-            raise UserError(f"render: --set expects NAME=VALUE, got {item!r}")
+            raise UserError(f"{args.command}: --set expects NAME=VALUE, got {item!r}")
         if name in settings:
-            raise UserError(f"render: --set {name}: given more than once (or also by its own option)")
+            raise UserError(f"{args.command}: --set {name}: given more than once (or also by its own option)")
         try:
             settings[name] = json.loads(text)
         except ValueError:
