@@ -28,6 +28,11 @@ def srgb_oetf(linear: np.ndarray) -> np.ndarray:
     return np.where(linear <= 0.0031308, linear * 12.92, 1.055 * np.power(linear, 1.0 / 2.4) - 0.055)
 
 
+def to_8bit(values: np.ndarray) -> np.ndarray:
+    """Values in [0, 1] as the 8-bit integers a PNG holds (round to nearest)."""
+    return np.rint(np.asarray(values, np.float64) * 255.0).astype(np.uint8)
+
+
 def write_png(path: str | Path, linear_rgb: np.ndarray, exposure: float = 1.0, tonemap: str = "none") -> Path:
     """Write linear ``[H, W, 3|4]`` as an 8-bit sRGB PNG: scale by exposure, apply ``tonemap``
     (``"none"``, the default: no operator, values above 1 clip; ``"reinhard"``: x / (1 + x)),
@@ -42,7 +47,7 @@ def write_png(path: str | Path, linear_rgb: np.ndarray, exposure: float = 1.0, t
     if tonemap == "reinhard":
         rgb = rgb / (1.0 + rgb)
     channels = [srgb_oetf(rgb)] + ([np.clip(image[..., 3:], 0.0, 1.0)] if image.shape[2] == 4 else [])
-    pixels = np.rint(np.concatenate(channels, axis=2) * 255.0).astype(np.uint8)
+    pixels = to_8bit(np.concatenate(channels, axis=2))
     path = Path(path)
     with atomic_files(path) as tmp:
         Image.fromarray(pixels).save(tmp, format="PNG")

@@ -135,9 +135,9 @@ class Browser:
 
 def srgb8(linear: np.ndarray) -> np.ndarray:
     """Linear RGB -> 8-bit sRGB as ``inshade render`` writes a PNG (scene/image_io.py write_png)."""
-    from inshade.scene.image_io import srgb_oetf
+    from inshade.scene.image_io import srgb_oetf, to_8bit
 
-    return np.rint(srgb_oetf(np.clip(np.asarray(linear, np.float64)[..., :3], 0.0, 1.0)) * 255.0).astype(np.uint8)
+    return to_8bit(srgb_oetf(np.maximum(np.asarray(linear, np.float64)[..., :3], 0.0)))
 
 
 def psnr8(a: np.ndarray, b: np.ndarray) -> float:

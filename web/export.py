@@ -191,7 +191,7 @@ class WebExport:
         environment's SH, per-frame CPU work, shadow matrices; not the camera's, u_size or a live setting's."""
         r = self.renderer
         camera_names = set(self.camera.uniforms(self.width, self.height)) | {"u_size", "u_sample_index"}
-        values = {k: v for k, v in r._uniforms(r.program, self.camera, self.width, self.height).items()
+        values = {k: v for k, v in r.uniform_values(self.camera, self.width, self.height).items()
                   if k not in camera_names and k not in live}
         maps = r.shadow_maps
         if "u_shadow_matrix" in r.program:
@@ -213,8 +213,8 @@ class WebExport:
         saved = r.values
         r.values = values
         try:
-            parts = [repr(sorted((k, repr(v)) for k, v in r._uniforms(r.program, self.camera, self.width,
-                                                                      self.height).items() if k != own))]
+            parts = [repr(sorted((k, repr(v)) for k, v in r.uniform_values(self.camera, self.width,
+                                                                            self.height).items() if k != own))]
             if spec.shadows is not None:
                 req = spec.shadows(scene, r.bundles, values)
                 parts.append("none" if req is None else repr((req.key, req.size, req.directions.tolist())))
