@@ -1,8 +1,8 @@
 """Triangle meshes: loading with one clear error, bounds, and the procedural asset.
 
-- ``load_mesh(path, require_watertight=False)``: OBJ / PLY / GLB / anything trimesh reads, scenes
-  flattened into one mesh (``force="mesh"``), vertices merged, zero-area faces dropped. Every
-  problem is one ``MeshError`` (a ValueError) that names the file: missing or unreadable file,
+- ``load_mesh(path, require_watertight=False)``: OBJ / PLY / anything trimesh reads, glTF / GLB
+  through the project's glTF reader (geometry/gltf.py), scenes flattened into one mesh, vertices
+  merged, zero-area faces dropped. Every problem is one ``MeshError`` (a ValueError) that names the file: missing or unreadable file,
   not a mesh, no faces, non-finite vertices, all faces degenerate, and, when
   ``require_watertight``, how many open (boundary) and non-manifold edges it has.
 - ``bounding_sphere(mesh)``: (centre of the bounding box, max vertex distance from it), the bound
@@ -29,6 +29,7 @@ import numpy as np
 import trimesh
 
 DEFAULT_OUT = Path("/tmp/inshade_mesh/bunny.ply")
+GLTF_SUFFIXES = (".gltf", ".glb")   # read by geometry/gltf.py (node transforms, instances, every primitive)
 
 
 class MeshError(ValueError):
@@ -40,6 +41,17 @@ def load_mesh(path, require_watertight: bool = False) -> trimesh.Trimesh:
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
+    if path.suffix.lower() in GLTF_SUFFIXES:
+        from .gltf import GltfError, load_gltf
+
+        try:
+            mesh = load_gltf(path).mesh
+        except GltfError as exc:
+            raise MeshError(str(exc)) from None
+        try:
+            return check_mesh(mesh, require_watertight)
+        except MeshError as exc:
+            raise MeshError(f"{path}: {exc}") from None
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh's loaders raise whatever their parsers raise
@@ -138,15 +150,20 @@ def check_tangents(mesh: trimesh.Trimesh) -> None:
 
 def vertex_tangents(mesh: trimesh.Trimesh, normals: np.ndarray | None = None) -> np.ndarray:
     """Per-vertex [V, 4] (unit tangent along +u, handedness w = +-1) for tangent-space normal maps:
-    per face the edge vectors solved against the uv edges, accumulated with the face's area, made
-    orthogonal to the normal (Gram-Schmidt); the bitangent is w * cross(n, t). Raises MeshError
-    without uv (``check_tangents`` also refuses uv that span no area anywhere)."""
+    ``tangent_frames`` of the mesh's arrays, with ``shading_normals`` unless ``normals`` are given.
+    Raises MeshError without uv (``check_tangents`` also refuses uv that span no area anywhere)."""
     uv = mesh_uv(mesh)
     if uv is None:
         raise MeshError("no texture coordinates: normal-mapped shading needs a uv-mapped mesh "
                         "(OBJ vt, or PLY/GLB texture coordinates)")
     n = shading_normals(mesh) if normals is None else np.asarray(normals, np.float64)
-    v, f = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces)
+    return tangent_frames(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces), uv, n)
+
+
+def tangent_frames(v: np.ndarray, f: np.ndarray, uv: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """[V, 4] tangents of vertices ``v`` [V, 3], faces ``f``, uv [V, 2] (v up) and unit normals
+    ``n``: per face the edge vectors solved against the uv edges, accumulated with the face's
+    area, made orthogonal to the normal (Gram-Schmidt); the bitangent is w * cross(n, t)."""
     e1, e2 = v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]
     d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
     det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]

@@ -302,9 +302,9 @@ def _resolve(name_or_path) -> Path:
 def _asset_networks(src: Path):
     """(scene, [(role, prefix, bundle path)]) of an asset with a scene.json (its networks, then a
     network SDF), or (None, []) for a bare bundle."""
-    from inshade.scene.description import SCENE_FILE, NetworkSdfRef, load_scene
+    from inshade.scene.description import NetworkSdfRef, is_scene, load_scene
 
-    if not ((src / SCENE_FILE).is_file() or (src.suffix == ".json" and src.name != "bundle.json")):
+    if not is_scene(src):
         return None, []
     scene = load_scene(src)
     nets = [("network", n.prefix, n.bundle) for n in scene.networks]
@@ -528,7 +528,9 @@ def _render(args, output) -> tuple:
             raise UserError("render: needs an ASSET and -o IMAGE (or --from SIDECAR)")
         src = _resolve(args.bundle)
         settings = _settings(args)
-        if (src / "scene.json").is_file() or src.suffix == ".json" and src.name != "bundle.json":
+        from inshade.scene.description import is_scene
+
+        if is_scene(src):
             image, info = render_scene(src, width=args.width, height=args.height, settings=settings,
                                        spp=args.spp or 1)
         else:

@@ -32,7 +32,7 @@ from inshade.shaders.library import add_search_provider
 PLUGINS_ENV = "INSHADE_TECHNIQUES"
 # What a program draws over; the runtime sets up the matching pass (scene/description.py GEOMETRIES).
 GEOMETRIES = ("fullscreen", "sdf", "mesh")
-MESH_ATTRIBUTES = ("uv", "tangent")
+MESH_ATTRIBUTES = ("uv", "tangent", "materials")   # materials: a glTF mesh's (lib/gltf_material)
 
 
 class TechniqueError(ValueError):
@@ -126,7 +126,11 @@ class ProgramSpec:
     - ``program``: the entry chunk (``passes/<name>.frag``), unique over all techniques;
     - ``geometry``: what the pass covers: ``fullscreen`` (a field or an analytic scene in the
       shader), ``sdf`` (a sphere-traced SDF: the scene's ``sdf``), ``mesh`` (a rasterised G-buffer
-      of the scene's ``mesh``, shaded once per pixel); ``mesh_attributes`` the mesh must carry;
+      of the scene's ``mesh``, shaded once per pixel); ``mesh_attributes`` the mesh must carry
+      (``uv``, ``tangent``, ``materials``: the mesh is a glTF file whose materials the runtime
+      uploads for shaders/lib/gltf_material.glsl, runtime/materials.py);
+    - ``networks``: False for a program that draws no network (a reference shading of the scene
+      alone); such a scene may have ``"networks": []``;
     - ``attachments``: colour outputs the program writes (RGBA32F each; location 0 is what the
       display pass shows, the others are data a caller reads back, e.g. a sampler's inputs);
     - ``field_inputs``: a bundle's ``render.program`` may name this program; the bundle's only
@@ -163,6 +167,7 @@ class ProgramSpec:
     program: str
     geometry: str = "fullscreen"
     mesh_attributes: tuple[str, ...] = ()
+    networks: bool = True
     attachments: int = 1
     field_inputs: int | None = None
     bundle_kinds: tuple[str, ...] = ()
@@ -258,6 +263,8 @@ class Technique:
     file suffixes ``inshade convert`` reads into this technique's assets to the module that does it
     (``convert(source, folder, *, force, quiet) -> str``, the line said when done; ``SOURCE``: what
     such a file is, in words).
+    ``opens`` maps file suffixes that ``inshade render`` / ``view`` / ``info`` take as a scene
+    to a function ``(path) -> scene.json data`` (e.g. a glTF file drawn by a reference pass).
     """
     name: str
     summary: str
@@ -272,6 +279,7 @@ class Technique:
     bench_help: str = ""
     shaders: Path | None = None
     converts: Mapping = field(default_factory=dict)
+    opens: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.name.isidentifier():
@@ -307,6 +315,10 @@ def register(technique: Technique) -> Technique:
         if suffixes:
             raise TechniqueError(f"technique {technique.name!r}: inshade convert's {sorted(suffixes)[0]} files "
                                  f"already belong to {other.name!r}")
+        suffixes = set(other.opens) & set(technique.opens)
+        if suffixes:
+            raise TechniqueError(f"technique {technique.name!r}: {sorted(suffixes)[0]} files already open as "
+                                 f"{other.name!r} scenes")
         if technique.train_alias and technique.train_alias in (other.name, other.train_alias):
             raise TechniqueError(f"technique {technique.name!r}: train_alias {technique.train_alias!r} already "
                                  f"names {other.name!r}")
@@ -372,6 +384,12 @@ def program_spec(program: str) -> tuple[Technique, ProgramSpec]:
                 return t, spec
     known = sorted(p.program for t in _REGISTRY.values() for p in t.programs)
     raise TechniqueError(f"no technique draws program {program!r} (known: {', '.join(known)})")
+
+
+def opener(suffix: str) -> Callable | None:
+    """The function that makes scene data of a file with this suffix (``Technique.opens``), or None."""
+    _load()
+    return next((t.opens[suffix.lower()] for t in _REGISTRY.values() if suffix.lower() in t.opens), None)
 
 
 def technique_of_kind(kind: str) -> Technique | None:

@@ -8,7 +8,10 @@ pixel (x, y), as runtime/render.py ``read_rgba_raw``):
 
 - ``position``: world position, w = 1 where the mesh covers the pixel, all 0 in the background;
 - ``normal``: unit interpolated vertex normal (inverse-transpose of ``model``), w = 1 / 0 likewise;
-- ``uv``: interpolated texture coordinates (0 for a mesh without uv), z = 0, w = 1 / 0;
+  a mesh's own normals and tangents (``vertex_attributes`` "normal", "tangent": a glTF file's,
+  geometry/gltf.py) are drawn as given, others are made here;
+- ``uv``: interpolated texture coordinates (0 for a mesh without uv), z = the face's material (a
+  glTF mesh's ``vertex_attributes["material"]``, geometry/gltf.py; 0 otherwise), w = 1 / 0;
 - ``tangent``: interpolated world tangent (not renormalised: the shading pass orthonormalises it
   against the normal) and its handedness in w (+-1; 0 in the background or without uv);
 - ``uv_grad``: the uv footprint (dFdx(uv), dFdy(uv)), uv change per pixel along +x and +y, for
@@ -59,13 +62,16 @@ def gbuffer_attributes(mesh, visibility: bool = False) -> tuple[dict, np.ndarray
     [F, 3], whether the mesh has uv). With ``visibility`` the attributes are de-indexed (corner c of
     face f is vertex 3f + c, carrying barycentric e_c) and the faces are only counted."""
     faces = np.asarray(mesh.faces, np.int32)
-    normals = shading_normals(mesh)
+    own = mesh.vertex_attributes
+    normals = own["normal"] if "normal" in own else shading_normals(mesh)
     uv = mesh_uv(mesh)
     has_uv = uv is not None
-    tangents = vertex_tangents(mesh, normals) if has_uv else np.zeros((len(mesh.vertices), 4))
+    tangents = (own["tangent"] if "tangent" in own else vertex_tangents(mesh, normals) if has_uv
+                else np.zeros((len(mesh.vertices), 4)))
     uv = uv if has_uv else np.zeros((len(mesh.vertices), 2))
+    material = np.reshape(own["material"], (-1, 1)) if "material" in own else np.zeros((len(mesh.vertices), 1))
     attributes = {"in_position": (mesh.vertices, "3f"), "in_normal": (normals, "3f"), "in_uv": (uv, "2f"),
-                  "in_tangent": (tangents, "4f")}
+                  "in_tangent": (tangents, "4f"), "in_material": (material, "1f")}
     if visibility:
         attributes = {name: (np.asarray(a)[faces.reshape(-1)], layout) for name, (a, layout) in attributes.items()}
         attributes["in_barycentric"] = (np.tile(np.eye(3, dtype=np.float32)[:, :2], (len(faces), 1)), "2f")

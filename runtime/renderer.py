@@ -37,6 +37,7 @@ from .context import GLContextError, gl_info, make_current, shared_context
 from inshade.scene.display import DisplayMode, glsl_chunk, parse_mode
 from .environment import EnvironmentSampler, EnvironmentTextures, environment_image, scene_environment
 from .geometry import MeshGBuffer
+from .materials import MaterialTextures
 from inshade.scene.image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
@@ -129,6 +130,11 @@ class SceneRenderer:
                                       visibility=self.spec.visibility)
         clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
+        self.notes = []                # what the setup changed that a user should know (e.g. resampled images)
+        if "materials" in self.spec.mesh_attributes:   # a glTF mesh's materials (lib/gltf_material)
+            materials = MaterialTextures(self.ctx, scene.mesh.gltf, self.gl)
+            self.scene_textures.update(materials.textures)
+            self.notes += materials.notes
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
         self.environment = None        # EnvironmentTextures while the program samples lib/environment
         self._environment_key = None
@@ -694,6 +700,7 @@ def check_program_limits(generated, gl: dict, scene) -> None:
                          f"'inline' or 'texture')")
     samplers = sum(isinstance(r, TextureResource) for g in generated for r in g.resources) + len(scene.textures)
     samplers += scene.spec.shadows is not None   # lib/shadow_map: u_shadow_map
+    samplers += 2 * ("materials" in scene.spec.mesh_attributes)   # lib/gltf_material's two textures
     cap = limit(gl, "GL_MAX_TEXTURE_IMAGE_UNITS")
     if samplers > cap:
         raise SceneError(f"scene '{scene.name}': its networks and textures need {samplers} texture units "

@@ -185,6 +185,7 @@ class MeshRef:
     data: object = None       # the trimesh.Trimesh
     shape: str | None = None  # built-in shape name
     params: dict = field(default_factory=dict)   # its parameters, defaults filled in
+    gltf: object = None       # geometry.gltf.GltfAsset of a glTF mesh (its materials), else None
 
     @property
     def name(self) -> str:
@@ -285,8 +286,17 @@ class Scene:
         return out
 
 
+def is_scene(path) -> bool:
+    """Whether ``load_scene`` reads ``path`` as a scene (not as a bare bundle): a folder with a
+    scene.json, a scene .json file, or a file a technique opens (``Technique.opens``)."""
+    path = Path(path)
+    return ((path / SCENE_FILE).is_file() or (path.suffix == ".json" and path.name != BUNDLE_FILE)
+            or (path.is_file() and technique.opener(path.suffix) is not None))
+
+
 def load_scene(path) -> Scene:
-    """A scene from a scene.json, a folder holding one, or a bundle (folder or bundle.json)."""
+    """A scene from a scene.json, a folder holding one, a bundle (folder or bundle.json), or a file
+    a technique opens as a scene (``Technique.opens``: e.g. a .glb drawn by its reference pass)."""
     path = Path(path)
     if path.is_dir():
         if (path / SCENE_FILE).is_file():
@@ -298,6 +308,12 @@ def load_scene(path) -> Scene:
         raise SceneError(f"{path}: no such file or folder")
     if path.name == BUNDLE_FILE:
         return scene_from_bundle(path)
+    make = technique.opener(path.suffix)
+    if make is not None:   # a file a technique draws as a scene (Technique.opens), e.g. a glTF asset
+        try:
+            return parse_scene(make(path), root=path.parent, path=path)
+        except (SceneError, CameraError) as exc:
+            raise SceneError(str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}") from None
     return _parse_file(path)
 
 
@@ -480,7 +496,9 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
                          "built-in shape, e.g. {\"shape\": \"teapot\"}")
     if mesh is not None:
         _check_mesh_attributes(mesh, program, spec.mesh_attributes)
-    if not isinstance(networks, list) or (not networks and sdf is None):
+    if networks is None and not spec.networks:
+        networks = []
+    if not isinstance(networks, list) or (not networks and sdf is None and spec.networks):
         raise SceneError("networks: must be a non-empty list of {\"bundle\": ..., \"prefix\": ..., \"output\": ...}")
     refs, prefixes = [], set()
     for i, n in enumerate(networks):
@@ -617,13 +635,20 @@ def _parse_mesh(value, root: Path):
     if not isinstance(value, str):
         raise SceneError("mesh: must name a mesh file (OBJ/PLY/GLB, relative to the scene file) or a "
                          "built-in shape, e.g. {\"shape\": \"teapot\", \"segments\": 12}")
-    from inshade.geometry.mesh import MeshError, load_mesh
+    from inshade.geometry.gltf import GltfError, load_gltf
+    from inshade.geometry.mesh import GLTF_SUFFIXES, MeshError, check_mesh, load_mesh
 
     path = (root / value).resolve()
     try:
+        if path.suffix.lower() in GLTF_SUFFIXES and path.is_file():
+            asset = load_gltf(path)   # drawn as the file has it: its normals, tangents and materials
+            check_mesh(asset.mesh)
+            return MeshRef(path, asset.mesh, gltf=asset)
         return MeshRef(path, load_mesh(path))
-    except MeshError as exc:
+    except GltfError as exc:
         raise SceneError(f"mesh: {exc}") from None
+    except MeshError as exc:
+        raise SceneError(f"mesh: {path}: {exc}" if str(path) not in str(exc) else f"mesh: {exc}") from None
 
 
 def _check_mesh_attributes(mesh: MeshRef, program: str, needs) -> None:
@@ -632,6 +657,9 @@ def _check_mesh_attributes(mesh: MeshRef, program: str, needs) -> None:
     attribute, rather than NaN or arbitrary shading."""
     from inshade.geometry.mesh import MeshError, check_tangents
 
+    if "materials" in needs and mesh.gltf is None:
+        raise SceneError(f"mesh: {mesh.name} is not a glTF file, and {program} shades a glTF file's materials "
+                         "(give a .gltf or .glb)")
     needs = [a for a in needs if a in ("uv", "tangent")]
     if not needs:
         return

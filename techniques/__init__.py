@@ -21,4 +21,5 @@ BUILTIN = (
     "appearance_prefilter",
     "imported",
     "hash_grid",
+    "gltf_pbr",
 )

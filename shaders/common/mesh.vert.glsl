@@ -10,6 +10,7 @@ in vec3 in_position;
 in vec3 in_normal;
 in vec2 in_uv;
 in vec4 in_tangent;   // (tangent along +u, handedness); zero for meshes without uv
+in float in_material; // the face's material (a glTF mesh's index into its materials; 0 otherwise)
 #ifdef GBUFFER_VISIBILITY
 in vec2 in_barycentric;   // the corner's unit barycentrics (t0, t1): the mesh is drawn de-indexed
 out vec2 v_barycentric;
@@ -20,12 +21,14 @@ out vec3 v_world_position;
 out vec3 v_normal;
 out vec2 v_uv;
 out vec4 v_tangent;
+flat out float v_material;
 
 void main() {
     vec4 world = u_model * vec4(in_position, 1.0);
     v_world_position = world.xyz;
     v_normal = normalize(transpose(inverse(mat3(u_model))) * in_normal);
     v_uv = in_uv;
+    v_material = in_material;
     v_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
 #ifdef GBUFFER_VISIBILITY
     v_barycentric = in_barycentric;

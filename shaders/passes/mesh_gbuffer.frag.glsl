@@ -1,7 +1,7 @@
 // Mesh G-buffer pass (deferred PRT on triangle meshes, Learnt Transfer, Dhawal et al. 2022 §4.1): rasterise the mesh once
 // with depth testing (common/mesh.vert) so that a later full-screen pass runs the transfer
 // network once per pixel, on the visible surface only.
-// attachment 0: (world position, 1); attachment 1: (unit interpolated normal, 1); 2: (uv, 0, 1);
+// attachment 0: (world position, 1); attachment 1: (unit interpolated normal, 1); 2: (uv, material, 1);
 // 3: (interpolated tangent, handedness); 4: uv footprint (dFdx(uv), dFdy(uv)): uv change per pixel
 // along +x and +y (window axes), taken here where the triangle is known, since derivatives in the
 // deferred pass would difference neighbours across triangle edges and uv seams. The clear value (0, 0, 0, 0) marks the background: w = 0. The normal is the mesh's own (outward for a
@@ -15,6 +15,7 @@ in vec3 v_world_position;
 in vec3 v_normal;
 in vec2 v_uv;
 in vec4 v_tangent;
+flat in float v_material;
 
 layout(location = 0) out vec4 out_position;
 layout(location = 1) out vec4 out_normal;
@@ -32,7 +33,7 @@ void main() {
     out_position = vec4(v_world_position, 1.0);
     // interpolation shortens the normal between vertices: renormalise per fragment
     out_normal = vec4(v_normal * (1.0 / length(v_normal)), 1.0);
-    out_uv = vec4(v_uv, 0.0, 1.0);
+    out_uv = vec4(v_uv, v_material, 1.0);
     out_tangent = v_tangent;
     out_uv_grad = vec4(dFdx(v_uv), dFdy(v_uv));
 #ifdef GBUFFER_VISIBILITY

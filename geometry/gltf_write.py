@@ -1,0 +1,182 @@
+"""glTF 2.0 out: ``GltfBuilder`` assembles meshes, materials, PNG textures and a node tree and writes
+one self-contained ``.glb`` (atomically, byte-identical for the same input).
+
+    b = GltfBuilder()
+    tex = b.texture(b.image(rgba_uint8))
+    mat = b.material({"pbrMetallicRoughness": {"baseColorTexture": {"index": tex}}})
+    b.node(mesh=b.mesh([Primitive(vertices, faces, uv=uv, material=mat)]))
+    b.write("out.glb")
+
+Texture coordinates are given in the project's convention (v up, ``geometry/gltf.py``) and stored
+as glTF's (v down). Accessors carry min/max where the spec asks (POSITION) and every bufferView is
+4-byte aligned, so what is written passes the Khronos validator. numpy + Pillow; no torch.
+"""
+from __future__ import annotations
+
+import io
+import json
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from inshade.files import atomic_write
+
+from .gltf import GLB_BIN, GLB_JSON, GLB_MAGIC, gltf_uv
+
+ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
+WRAP_CODES = {"repeat": 10497, "clamp": 33071, "mirror": 33648}
+LINEAR, LINEAR_MIPMAP_LINEAR = 9729, 9987
+
+
+@dataclass
+class Primitive:
+    """One triangle list: vertices [V, 3], faces [F, 3] (counter-clockwise), optional unit normals,
+    uv (v up), tangents [V, 4] and a material index."""
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None = None
+    uv: np.ndarray | None = None
+    tangents: np.ndarray | None = None
+    material: int | None = None
+
+
+class GltfBuilder:
+    def __init__(self, generator: str = "inshade"):
+        self.doc: dict = {"asset": {"version": "2.0", "generator": generator}}
+        self.data = bytearray()
+        self.used: set[str] = set()
+        self.required: set[str] = set()
+        self.roots: list[int] = []
+
+    def _add(self, key: str, item: dict) -> int:
+        self.doc.setdefault(key, []).append(item)
+        return len(self.doc[key]) - 1
+
+    def _view(self, payload: bytes, target: int | None = None) -> int:
+        self.data += b"\0" * (-len(self.data) % 4)
+        view = {"buffer": 0, "byteOffset": len(self.data), "byteLength": len(payload)}
+        if target is not None:
+            view["target"] = target
+        self.data += payload
+        return self._add("bufferViews", view)
+
+    def accessor(self, array: np.ndarray, kind: str, *, target: int | None = ARRAY_BUFFER,
+                 bounds: bool = False) -> int:
+        """A float32 (or uint32 for SCALAR indices) accessor of ``array`` [N, k]."""
+        a = np.asarray(array)
+        integer = np.issubdtype(a.dtype, np.integer)
+        a = np.ascontiguousarray(a, np.uint32 if integer else np.float32)
+        acc = {"bufferView": self._view(a.tobytes(), target), "componentType": 5125 if integer else 5126,
+               "count": int(a.shape[0]), "type": kind}
+        if bounds:
+            flat = a.reshape(len(a), -1)
+            acc["min"] = [float(x) for x in flat.min(0)]
+            acc["max"] = [float(x) for x in flat.max(0)]
+        return self._add("accessors", acc)
+
+    def use(self, extension: str, required: bool = False) -> None:
+        self.used.add(extension)
+        if required:
+            self.required.add(extension)
+
+    def image(self, rgba: np.ndarray) -> int:
+        """A PNG image of ``rgba`` [H, W, 3|4] uint8 (row 0 = the top, glTF's v = 0)."""
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(np.ascontiguousarray(rgba, np.uint8)).save(buf, format="PNG", optimize=False,
+                                                                    compress_level=6)
+        return self._add("images", {"bufferView": self._view(buf.getvalue()), "mimeType": "image/png"})
+
+    def texture(self, image: int, wrap: tuple[str, str] = ("repeat", "repeat"), mipmaps: bool = True) -> int:
+        sampler = self._add("samplers", {"magFilter": LINEAR,
+                                         "minFilter": LINEAR_MIPMAP_LINEAR if mipmaps else LINEAR,
+                                         "wrapS": WRAP_CODES[wrap[0]], "wrapT": WRAP_CODES[wrap[1]]})
+        return self._add("textures", {"source": image, "sampler": sampler})
+
+    def material(self, spec: dict) -> int:
+        """A material as glTF JSON; the extensions it names are declared used."""
+        for ext in (spec.get("extensions") or {}):
+            self.use(ext)
+        for info in _texture_infos(spec):
+            for ext in (info.get("extensions") or {}):
+                self.use(ext)
+        return self._add("materials", spec)
+
+    def mesh(self, primitives: list[Primitive], name: str = "") -> int:
+        prims = []
+        for p in primitives:
+            v = np.asarray(p.vertices, np.float64)
+            attrs = {"POSITION": self.accessor(v, "VEC3", bounds=True)}
+            if p.normals is not None:
+                n = np.asarray(p.normals, np.float64)
+                attrs["NORMAL"] = self.accessor(n / np.linalg.norm(n, axis=1, keepdims=True), "VEC3")
+            if p.tangents is not None:
+                attrs["TANGENT"] = self.accessor(p.tangents, "VEC4")
+            if p.uv is not None:
+                attrs["TEXCOORD_0"] = self.accessor(gltf_uv(p.uv), "VEC2")
+            prim = {"attributes": attrs, "indices": self.accessor(np.asarray(p.faces).reshape(-1, 1), "SCALAR",
+                                                                   target=ELEMENT_ARRAY_BUFFER),
+                    "mode": 4}
+            if p.material is not None:
+                prim["material"] = int(p.material)
+            prims.append(prim)
+        return self._add("meshes", {"name": name, "primitives": prims} if name else {"primitives": prims})
+
+    def node(self, mesh: int | None = None, *, translation=None, rotation=None, scale=None, matrix=None,
+             children=(), instances: dict | None = None, root: bool = True, name: str = "") -> int:
+        """A node; ``instances`` = {"TRANSLATION": [N, 3], "ROTATION": [N, 4], "SCALE": [N, 3]}
+        draws the mesh N times (EXT_mesh_gpu_instancing). Root nodes join the scene."""
+        node: dict = {}
+        if name:
+            node["name"] = name
+        if mesh is not None:
+            node["mesh"] = mesh
+        for key, value in (("translation", translation), ("rotation", rotation), ("scale", scale)):
+            if value is not None:
+                node[key] = [float(x) for x in value]
+        if matrix is not None:
+            node["matrix"] = [float(x) for x in np.asarray(matrix, np.float64).T.reshape(-1)]
+        if children:
+            node["children"] = [int(c) for c in children]
+        if instances:
+            self.use("EXT_mesh_gpu_instancing")
+            node["extensions"] = {"EXT_mesh_gpu_instancing": {"attributes": {
+                k: self.accessor(np.asarray(v, np.float64), "VEC4" if k == "ROTATION" else "VEC3", target=None)
+                for k, v in instances.items()}}}
+        index = self._add("nodes", node)
+        if root:
+            self.roots.append(index)
+        return index
+
+    def glb(self) -> bytes:
+        doc = dict(self.doc)
+        doc["scene"] = 0
+        doc["scenes"] = [{"nodes": self.roots}]
+        if self.used:
+            doc["extensionsUsed"] = sorted(self.used)
+        if self.required:
+            doc["extensionsRequired"] = sorted(self.required)
+        data = bytes(self.data) + b"\0" * (-len(self.data) % 4)
+        if data:
+            doc["buffers"] = [{"byteLength": len(data)}]
+        text = json.dumps(doc, separators=(",", ":"), sort_keys=True).encode()
+        text += b" " * (-len(text) % 4)
+        chunks = struct.pack("<II", len(text), GLB_JSON) + text
+        if data:
+            chunks += struct.pack("<II", len(data), GLB_BIN) + data
+        return struct.pack("<III", GLB_MAGIC, 2, 12 + len(chunks)) + chunks
+
+    def write(self, path) -> Path:
+        return atomic_write(path, self.glb())
+
+
+def _texture_infos(spec: dict):
+    """Every textureInfo object in a material's JSON (to declare the extensions they use)."""
+    if isinstance(spec, dict):
+        if "index" in spec and isinstance(spec.get("index"), int):
+            yield spec
+        for v in spec.values():
+            yield from _texture_infos(v)

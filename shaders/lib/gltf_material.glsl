@@ -1,0 +1,136 @@
+// glTF materials at a G-buffer pixel: the factors and textures runtime/materials.py packs
+// (u_material_params: a row per material; u_material_images: every image, a layer each), sampled
+// with KHR_texture_transform and the sampler's wrap, the G-buffer's uv footprint choosing the mip
+// level; then shaded by lib/gltf_brdf with the scene's lights and SH environment. The reference
+// every learnt material of a glTF file is compared with.
+// The G-buffer's uv run v up (the project's convention); glTF's run v down: g = (u, 1 - v).
+// Alpha: MASK and BLEND surfaces are drawn opaque (a deferred G-buffer keeps one surface per pixel).
+#include <lib/colour>
+#include <lib/gltf_brdf>
+#include <lib/lights>
+#include <lib/spherical_harmonics>
+
+uniform sampler2D u_material_params;
+uniform sampler2DArray u_material_images;
+
+// runtime/materials.py SCALARS, SLOTS: texel offsets of a material row
+#define MATERIAL_SCALARS 6
+#define MATERIAL_BASE_COLOR 0
+#define MATERIAL_METALLIC_ROUGHNESS 1
+#define MATERIAL_NORMAL 2
+#define MATERIAL_OCCLUSION 3
+#define MATERIAL_EMISSIVE 4
+#define MATERIAL_CLEARCOAT 5
+#define MATERIAL_CLEARCOAT_ROUGHNESS 6
+#define MATERIAL_CLEARCOAT_NORMAL 7
+#define MATERIAL_SHEEN_COLOR 8
+#define MATERIAL_SHEEN_ROUGHNESS 9
+#define MATERIAL_ANISOTROPY 10
+// the smoothest surface shaded: GGX at roughness 0 is a delta, NaN at its peak
+#define MATERIAL_MIN_ROUGHNESS 0.02
+
+struct GltfSurface {
+    GltfShading s;
+    vec3 n;            // shading normal (normal map applied)
+    vec3 nc;           // clearcoat normal
+    vec3 at;           // anisotropy direction (orthogonal to n)
+    vec3 ab;           // cross(n, at)
+    float occlusion;   // scales the environment's light
+    vec3 emissive;
+    float alpha;
+};
+
+vec4 material_param(int m, int texel) {
+    return texelFetch(u_material_params, ivec2(texel, m), 0);
+}
+
+float material_wrap(float x, float mode) {
+    if (mode == 1.0) return clamp(x, 0.0, 1.0);                  // clamp to edge
+    if (mode == 2.0) { float t = mod(x, 2.0); return t > 1.0 ? 2.0 - t : t; }   // mirrored repeat
+    return x;                                                    // repeat: the array wraps
+}
+
+// Slot `slot` of material m at glTF uv g, footprint (dx, dy) per pixel; `fallback` without a texture.
+vec4 material_texture(int m, int slot, vec2 g, vec2 dx, vec2 dy, vec4 fallback) {
+    int at = MATERIAL_SCALARS + 3 * slot;
+    vec4 a = material_param(m, at);
+    if (a.x < 0.0) return fallback;
+    vec4 r0 = material_param(m, at + 1);
+    vec4 r1 = material_param(m, at + 2);
+    vec2 t = vec2(r0.x * g.x + r0.y * g.y + r0.z, r0.w * g.x + r1.x * g.y + r1.y);
+    vec2 tdx = vec2(r0.x * dx.x + r0.y * dx.y, r0.w * dx.x + r1.x * dx.y);
+    vec2 tdy = vec2(r0.x * dy.x + r0.y * dy.y, r0.w * dy.x + r1.x * dy.y);
+    t = vec2(material_wrap(t.x, a.y), material_wrap(t.y, a.z));
+    return textureGrad(u_material_images, vec3(t, a.x), tdx, tdy);
+}
+
+float material_scale(int m, int slot) {
+    return material_param(m, MATERIAL_SCALARS + 3 * slot).w;
+}
+
+vec3 material_normal(int m, int slot, vec2 g, vec2 dx, vec2 dy, vec3 t, vec3 b, vec3 ng) {
+    vec4 tex = material_texture(m, slot, g, dx, dy, vec4(0.5, 0.5, 1.0, 1.0));
+    vec3 nt = tex.xyz * 2.0 - 1.0;
+    nt.xy *= material_scale(m, slot);
+    vec3 n = t * nt.x + b * nt.y + ng * nt.z;
+    return n * inversesqrt(max(gltf_dot(n, n), 1e-30));
+}
+
+// The material of face material m at the pixel: uv (G-buffer, v up), uv_grad (d uv / dx, d uv / dy),
+// ng the interpolated normal, tangent (xyz, handedness), v towards the camera.
+GltfSurface gltf_surface(int m, vec2 uv, vec4 uv_grad, vec3 ng, vec4 tangent, vec3 v) {
+    vec2 g = vec2(uv.x, 1.0 - uv.y);
+    vec2 dx = vec2(uv_grad.x, -uv_grad.y), dy = vec2(uv_grad.z, -uv_grad.w);
+    vec4 base_f = material_param(m, 0), emissive_f = material_param(m, 1), mr_f = material_param(m, 2);
+    vec4 layer_f = material_param(m, 3), sheen_f = material_param(m, 4), sided = material_param(m, 5);
+    vec3 t = tangent.xyz - ng * gltf_dot(ng, tangent.xyz);
+    t = t * inversesqrt(max(gltf_dot(t, t), 1e-30));
+    vec3 b = cross(ng, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
+    if (sided.x > 0.5 && gltf_dot(ng, v) < 0.0) {   // the back of a double-sided surface
+        ng = -ng; t = -t; b = -b;
+    }
+    GltfSurface s;
+    vec4 base = material_texture(m, MATERIAL_BASE_COLOR, g, dx, dy, vec4(1.0));
+    vec4 mr = material_texture(m, MATERIAL_METALLIC_ROUGHNESS, g, dx, dy, vec4(1.0));
+    s.s.base_color = base_f.rgb * srgb_eotf(base.rgb);
+    s.alpha = base_f.a * base.a;
+    s.s.metallic = clamp(mr_f.x * mr.b, 0.0, 1.0);
+    s.s.roughness = clamp(mr_f.y * mr.g, MATERIAL_MIN_ROUGHNESS, 1.0);
+    s.s.f0 = mr_f.z;
+    s.n = material_normal(m, MATERIAL_NORMAL, g, dx, dy, t, b, ng);
+    float ao = material_texture(m, MATERIAL_OCCLUSION, g, dx, dy, vec4(1.0)).r;
+    s.occlusion = 1.0 + material_scale(m, MATERIAL_OCCLUSION) * (ao - 1.0);
+    s.emissive = emissive_f.rgb * srgb_eotf(material_texture(m, MATERIAL_EMISSIVE, g, dx, dy, vec4(1.0)).rgb);
+    s.s.clearcoat = layer_f.x * material_texture(m, MATERIAL_CLEARCOAT, g, dx, dy, vec4(1.0)).r;
+    s.s.clearcoat_roughness = clamp(layer_f.y * material_texture(m, MATERIAL_CLEARCOAT_ROUGHNESS, g, dx, dy,
+                                                                 vec4(1.0)).g, MATERIAL_MIN_ROUGHNESS, 1.0);
+    s.nc = material_normal(m, MATERIAL_CLEARCOAT_NORMAL, g, dx, dy, t, b, ng);
+    s.s.sheen_color = sheen_f.rgb * srgb_eotf(material_texture(m, MATERIAL_SHEEN_COLOR, g, dx, dy, vec4(1.0)).rgb);
+    s.s.sheen_roughness = layer_f.z * material_texture(m, MATERIAL_SHEEN_ROUGHNESS, g, dx, dy, vec4(1.0)).a;
+    vec4 an = material_texture(m, MATERIAL_ANISOTROPY, g, dx, dy, vec4(1.0, 0.5, 1.0, 1.0));
+    s.s.anisotropy = layer_f.w * an.b;
+    vec2 d = an.rg * 2.0 - 1.0;
+    float c = cos(sheen_f.w), sn = sin(sheen_f.w);
+    d = vec2(c * d.x - sn * d.y, sn * d.x + c * d.y);
+    vec3 at = t * d.x + b * d.y;
+    at = at - s.n * gltf_dot(s.n, at);
+    s.at = at * inversesqrt(max(gltf_dot(at, at), 1e-30));
+    s.ab = cross(s.n, s.at);
+    return s;
+}
+
+// Everything the surface sends towards the camera: the scene's lights (light_count of them), the
+// SH environment (scaled by occlusion) and the emission.
+vec3 gltf_shade(GltfSurface s, vec3 p, vec3 v, in vec3 sh[SH_COEFFS], int light_count) {
+    vec3 r = reflect(-v, s.n);
+    vec3 colour = gltf_environment(s.s, s.n, v, sh_irradiance(s.n, sh), max(sh_radiance(r, sh), vec3(0.0)))
+                * s.occlusion + s.emissive;
+    for (int i = 0; i < INSHADE_MAX_LIGHTS; ++i) {
+        if (i >= scene_lights(light_count)) break;
+        vec3 l;
+        float scale;
+        scene_light(i, p, l, scale);
+        colour += gltf_brdf(s.s, s.n, s.at, s.ab, s.nc, v, l) * (u_lights[i].w * scale);
+    }
+    return colour;
+}
