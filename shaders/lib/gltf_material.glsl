@@ -68,24 +68,38 @@ float material_scale(int m, int slot) {
     return material_param(m, MATERIAL_SCALARS + 3 * slot).w;
 }
 
-vec3 material_normal(int m, int slot, vec2 g, vec2 dx, vec2 dy, vec3 t, vec3 b, vec3 ng) {
-    vec4 tex = material_texture(m, slot, g, dx, dy, vec4(0.5, 0.5, 1.0, 1.0));
-    vec3 nt = tex.xyz * 2.0 - 1.0;
-    nt.xy *= material_scale(m, slot);
+// The surface frame at a G-buffer pixel: t, b from the interpolated tangent and its handedness,
+// orthonormal to the interpolated normal ng (b along +v).
+void gltf_tangent_frame(vec3 ng, vec4 tangent, out vec3 t, out vec3 b) {
+    t = tangent.xyz - ng * gltf_dot(ng, tangent.xyz);
+    t = t * inversesqrt(max(gltf_dot(t, t), 1e-30));
+    b = cross(ng, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
+}
+
+// A tangent-space normal (x along t, y along b, z along ng) in world space, unit.
+vec3 gltf_mapped_normal(vec3 nt, vec3 t, vec3 b, vec3 ng) {
     vec3 n = t * nt.x + b * nt.y + ng * nt.z;
     return n * inversesqrt(max(gltf_dot(n, n), 1e-30));
 }
 
+vec3 material_normal(int m, int slot, vec2 g, vec2 dx, vec2 dy, vec3 t, vec3 b, vec3 ng) {
+    vec4 tex = material_texture(m, slot, g, dx, dy, vec4(0.5, 0.5, 1.0, 1.0));
+    vec3 nt = tex.xyz * 2.0 - 1.0;
+    nt.xy *= material_scale(m, slot);
+    return gltf_mapped_normal(nt, t, b, ng);
+}
+
 // The material of face material m at the pixel: uv (G-buffer, v up), uv_grad (d uv / dx, d uv / dy),
 // ng the interpolated normal, tangent (xyz, handedness), v towards the camera.
+// A pass that decodes some channels with a network starts from this reference surface and replaces
+// them (e.g. s.s.base_color, s.s.roughness, s.n = gltf_mapped_normal(...)): the rest stays the file's.
 GltfSurface gltf_surface(int m, vec2 uv, vec4 uv_grad, vec3 ng, vec4 tangent, vec3 v) {
     vec2 g = vec2(uv.x, 1.0 - uv.y);
     vec2 dx = vec2(uv_grad.x, -uv_grad.y), dy = vec2(uv_grad.z, -uv_grad.w);
     vec4 base_f = material_param(m, 0), emissive_f = material_param(m, 1), mr_f = material_param(m, 2);
     vec4 layer_f = material_param(m, 3), sheen_f = material_param(m, 4), sided = material_param(m, 5);
-    vec3 t = tangent.xyz - ng * gltf_dot(ng, tangent.xyz);
-    t = t * inversesqrt(max(gltf_dot(t, t), 1e-30));
-    vec3 b = cross(ng, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
+    vec3 t, b;
+    gltf_tangent_frame(ng, tangent, t, b);
     if (sided.x > 0.5 && gltf_dot(ng, v) < 0.0) {   // the back of a double-sided surface
         ng = -ng; t = -t; b = -b;
     }
