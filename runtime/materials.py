@@ -24,6 +24,7 @@ TEXELS = len(SCALARS) + 3 * len(SLOTS)
 WRAP_CODES = {"repeat": 0.0, "clamp": 1.0, "mirror": 2.0}
 ALPHA_CODES = {"OPAQUE": 0.0, "MASK": 1.0, "BLEND": 2.0}
 IMAGE_BUDGET = 512 << 20      # bytes of the image array with its mip chain
+ANISOTROPY = 16.0             # the images' anisotropic filtering (capped by the driver's maximum)
 
 
 def _f0(ior: float) -> float:
@@ -99,7 +100,7 @@ class MaterialTextures:
         self.images = ctx.texture_array((side, side, len(data)), 4, data.tobytes())
         self.images.build_mipmaps()
         self.images.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        self.images.anisotropy = min(16.0, ctx.max_anisotropy)
+        self.images.anisotropy = min(ANISOTROPY, ctx.max_anisotropy)
         self.images.repeat_x = self.images.repeat_y = True
         self.textures = {"u_material_params": self.params, "u_material_images": self.images}
 
