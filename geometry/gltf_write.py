@@ -7,6 +7,9 @@ one self-contained ``.glb`` (atomically, byte-identical for the same input).
     b.node(mesh=b.mesh([Primitive(vertices, faces, uv=uv, material=mat)]))
     b.write("out.glb")
 
+``add_material`` writes a material the reader returned (``geometry.gltf.Material``) back as JSON, its
+texture transforms as KHR_texture_transform.
+
 Texture coordinates are given in the project's convention (v up, ``geometry/gltf.py``) and stored
 as glTF's (v down). Accessors carry min/max where the spec asks (POSITION) and every bufferView is
 4-byte aligned, so what is written passes the Khronos validator. numpy + Pillow; no torch.
@@ -180,3 +183,79 @@ def _texture_infos(spec: dict):
             yield spec
         for v in spec.values():
             yield from _texture_infos(v)
+
+
+def transform_extension(matrix: np.ndarray) -> dict | None:
+    """KHR_texture_transform's {offset, rotation, scale} of a 3x3 uv matrix T * R * S (None for the identity)."""
+    m = np.asarray(matrix, np.float64)
+    if np.allclose(m, np.eye(3), atol=1e-12):
+        return None
+    sx, sy = float(np.hypot(m[0, 0], m[1, 0])), float(np.hypot(m[0, 1], m[1, 1]))
+    return {"offset": [float(m[0, 2]), float(m[1, 2])], "rotation": float(np.arctan2(-m[1, 0], m[0, 0])),
+            "scale": [sx, sy]}
+
+
+# Material fields -> (glTF JSON path, key of the slot's scalar in its textureInfo)
+_SLOTS = {
+    "base_color_texture": (("pbrMetallicRoughness", "baseColorTexture"), None),
+    "metallic_roughness_texture": (("pbrMetallicRoughness", "metallicRoughnessTexture"), None),
+    "normal_texture": (("normalTexture",), "scale"),
+    "occlusion_texture": (("occlusionTexture",), "strength"),
+    "emissive_texture": (("emissiveTexture",), None),
+    "clearcoat_texture": (("extensions", "KHR_materials_clearcoat", "clearcoatTexture"), None),
+    "clearcoat_roughness_texture": (("extensions", "KHR_materials_clearcoat", "clearcoatRoughnessTexture"), None),
+    "clearcoat_normal_texture": (("extensions", "KHR_materials_clearcoat", "clearcoatNormalTexture"), "scale"),
+    "sheen_color_texture": (("extensions", "KHR_materials_sheen", "sheenColorTexture"), None),
+    "sheen_roughness_texture": (("extensions", "KHR_materials_sheen", "sheenRoughnessTexture"), None),
+    "anisotropy_texture": (("extensions", "KHR_materials_anisotropy", "anisotropyTexture"), None),
+}
+
+
+def add_material(builder: GltfBuilder, material, images: list, image_index: dict) -> int:
+    """Add a ``geometry.gltf.Material`` (a converted one comes out metallic-roughness) and return its
+    index; its images (``images`` of the asset it came from) are added once each (``image_index``
+    maps the asset's image index to the builder's)."""
+    m = material
+    spec: dict = {"name": m.name, "pbrMetallicRoughness": {"baseColorFactor": list(m.base_color),
+                                                          "metallicFactor": m.metallic, "roughnessFactor": m.roughness}}
+    if any(m.emissive):
+        strength = max(m.emissive)
+        factor = [c / strength for c in m.emissive] if strength > 1.0 else list(m.emissive)
+        spec["emissiveFactor"] = factor
+        if strength > 1.0:
+            spec.setdefault("extensions", {})["KHR_materials_emissive_strength"] = {"emissiveStrength": strength}
+    if m.alpha_mode != "OPAQUE":
+        spec["alphaMode"] = m.alpha_mode
+        if m.alpha_mode == "MASK":
+            spec["alphaCutoff"] = m.alpha_cutoff
+    if m.double_sided:
+        spec["doubleSided"] = True
+    ext = spec.setdefault("extensions", {})
+    if m.ior != 1.5:
+        ext["KHR_materials_ior"] = {"ior": m.ior}
+    if m.clearcoat > 0 or m.clearcoat_texture is not None:
+        ext["KHR_materials_clearcoat"] = {"clearcoatFactor": m.clearcoat, "clearcoatRoughnessFactor": m.clearcoat_roughness}
+    if any(m.sheen_color) or m.sheen_color_texture is not None:
+        ext["KHR_materials_sheen"] = {"sheenColorFactor": list(m.sheen_color), "sheenRoughnessFactor": m.sheen_roughness}
+    if m.anisotropy_strength > 0 or m.anisotropy_texture is not None:
+        ext["KHR_materials_anisotropy"] = {"anisotropyStrength": m.anisotropy_strength,
+                                           "anisotropyRotation": m.anisotropy_rotation}
+    for field_name, (path, scalar) in _SLOTS.items():
+        ref = getattr(m, field_name)
+        if ref is None:
+            continue
+        if ref.image not in image_index:
+            image_index[ref.image] = builder.image(images[ref.image])
+        info: dict = {"index": builder.texture(image_index[ref.image], ref.wrap)}
+        if scalar is not None and ref.scale != 1.0:
+            info[scalar] = ref.scale
+        transform = transform_extension(ref.transform)
+        if transform is not None:
+            info["extensions"] = {"KHR_texture_transform": transform}
+        target = spec
+        for key in path[:-1]:
+            target = target.setdefault(key, {})
+        target[path[-1]] = info
+    if not ext:
+        del spec["extensions"]
+    return builder.material(spec)

@@ -560,6 +560,18 @@ def cmd_export_web(args) -> int:
     return 0
 
 
+def cmd_export_gltf(args) -> int:
+    from inshade.runtime.gltf_export import export_gltf
+
+    done = export_gltf(_resolve(args.asset), args.output, material=args.material, size=args.size,
+                       settings=_settings(args), force=args.force)
+    for note in done.notes:
+        log.info("%s", note)
+    print(f"wrote {done.path} ({done.material} material, {done.primitives} primitive"
+          f"{'s' if done.primitives != 1 else ''})", file=sys.stderr)
+    return 0
+
+
 def cmd_serve(args) -> int:
     from inshade.web.browser import serve
     from inshade.web.export import export_web
@@ -779,6 +791,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
     p.add_argument("--force", action="store_true", help="replace what the folder holds")
     p.set_defaults(func=cmd_export_web)
+
+    p = sub.add_parser("export-gltf", help="an asset's mesh and material as a glTF 2.0 binary (.glb)",
+                       description="Write ASSET's mesh (normals, uv, tangents; a primitive per material) with its "
+                                   "material as one .glb: the material its network decodes, baked into the mesh's "
+                                   "uv space by the GL runtime (--material decoded), or the glTF material the asset "
+                                   "was made from (--material reference); auto picks decoded where the asset's "
+                                   "program can bake it.")
+    p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, a .glb/.gltf, or a shipped asset's name")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.glb", help="the file to write")
+    p.add_argument("--material", choices=("auto", "decoded", "reference"), default="auto",
+                   help="which material to write (default auto)")
+    p.add_argument("--size", type=_size, default=512, help="side of the baked textures in texels (default 512)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
+    p.add_argument("--storage", choices=STORAGE_MODES, help=argparse.SUPPRESS)
+    p.add_argument("--lut-filter", choices=FILTERS, help=argparse.SUPPRESS)
+    p.add_argument("--force", action="store_true", help="replace OUT.glb if it exists")
+    p.set_defaults(func=cmd_export_gltf)
 
     p = sub.add_parser("serve", help="export ASSET to a temporary page and serve it on localhost",
                        description="Export ASSET as export-web does, into a temporary folder, and serve it on "

@@ -159,6 +159,10 @@ class ProgramSpec:
       when the request's key, directions or size change, and binds ``u_shadow_map``,
       ``u_shadow_matrix`` and ``u_shadow_layers`` of shaders/lib/shadow_map.glsl (None: no layers,
       ``shadow_visibility`` is 1);
+    - ``bake(scene, values, size) -> {channel: [size, size(, k)] float}``: (mesh) the material the
+      program decodes, baked into the mesh's uv space by the GL runtime (channels named as
+      geometry/gltf_sample.py ``material_channels``; row 0 = the top of the texture): what
+      ``inshade export-gltf`` writes as the material's textures;
     - ``choices``: the program's enumerations (``Choice``: a uniform or define, a GLSL prefix, the
       values in index order). The runtime generates the chunk ``<choices>`` (``#define
       PREFIX_VALUE index`` each) for the pass to include, checks that a scene setting bound to the
@@ -180,6 +184,7 @@ class ProgramSpec:
     accumulate: bool = False
     shadows: Callable | None = None
     choices: tuple[Choice, ...] = ()
+    bake: Callable | None = None
 
     def __post_init__(self):
         if self.geometry not in GEOMETRIES:
