@@ -4,7 +4,7 @@
   ``SCALARS`` order, then per texture slot (``SLOTS``) three texels: (image layer or -1, wrap s,
   wrap t, the slot's scale), (m00, m01, m02, m10), (m11, m12, 0, 0), the KHR_texture_transform
   rows on glTF uv. ``pack`` writes it; the GLSL reads the same offsets (MATERIAL_* there).
-- ``u_material_images`` (RGBA8 2D array, mipmapped, trilinear, repeat): every image the materials
+- ``u_material_images`` (RGBA8 2D array, mipmapped, trilinear (``ANISOTROPY``), repeat): every image the materials
   use, one layer each, rows as stored (glTF's v = 0 is the first row, so the shader samples at glTF
   uv). Layers share one size, the largest image's side (capped by GL_MAX_TEXTURE_SIZE and
   ``IMAGE_BUDGET``); images of another size are resampled (Lanczos) to it and the renderer says so.
@@ -24,7 +24,10 @@ TEXELS = len(SCALARS) + 3 * len(SLOTS)
 WRAP_CODES = {"repeat": 0.0, "clamp": 1.0, "mirror": 2.0}
 ALPHA_CODES = {"OPAQUE": 0.0, "MASK": 1.0, "BLEND": 2.0}
 IMAGE_BUDGET = 512 << 20      # bytes of the image array with its mip chain
-ANISOTROPY = 16.0             # the images' anisotropic filtering (capped by the driver's maximum)
+# Trilinear only, as glTF's samplers say: anisotropic filtering is each driver's own (16x made the
+# same page 29 dB apart between llvmpipe and SwiftShader, and llvmpipe's blends past the bilinear
+# footprint when magnifying).
+ANISOTROPY = 1.0
 
 
 def _f0(ior: float) -> float:
@@ -95,6 +98,7 @@ class MaterialTextures:
             self.notes.append(f"images of {', '.join(resized)} resampled to the {side}x{side} layers of one array")
         data = layers(images, side)
         params = pack(asset.materials)
+        self.arrays = {"u_material_params": params, "u_material_images": data}   # what was uploaded
         self.params = ctx.texture((TEXELS, len(asset.materials)), 4, params.tobytes(), dtype="f4")
         self.params.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.images = ctx.texture_array((side, side, len(data)), 4, data.tobytes())

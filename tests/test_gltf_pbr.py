@@ -23,7 +23,6 @@ from inshade.geometry import gltf_scenes
 from inshade.geometry.gltf import load_gltf
 from inshade.geometry.gltf_sample import material_channels
 from inshade.models import gltf_brdf as G
-from inshade.runtime import materials
 from inshade.runtime.renderer import SceneRenderer
 from inshade.scene.description import load_scene
 
@@ -82,13 +81,11 @@ def test_lights_share_matches_the_numpy_twin_at_every_untextured_pixel(gl, asset
     assert (err <= bound).all(), f"pixel {worst}: {got[worst]} vs twin {expect[worst]}"
 
 
-def test_channel_views_match_the_cpu_reading(gl, assets, monkeypatch):
+def test_channel_views_match_the_cpu_reading(gl, assets):
     """Where the textures are seen at their base level (a pixel's footprint under one texel), the
     base-colour view equals material_channels' bilinear reading of the file (8-bit texels, sRGB
     decoded) within 0.01: the hardware's 8-bit filter weights and its sRGB-decode-after-filter
-    order. Anisotropic filtering is off here: llvmpipe's blends beyond the bilinear footprint
-    even when magnifying (up to 0.38 at the torus's uv seam), which is its quality choice."""
-    monkeypatch.setattr(materials, "ANISOTROPY", 1.0)
+    order."""
     scene = load_scene(assets["tiles_torus"])
     renderer = SceneRenderer(scene, gl)
     try:

@@ -290,3 +290,22 @@ def test_an_asset_past_webgl2s_limits_is_refused_naming_the_limit(gl, tmp_path, 
     with pytest.raises(WebLimitError, match="WebGL2: .*GL_MAX_"):
         export_web(TRAINED / "hash_grid_image", tmp_path / "page")
     assert not (tmp_path / "page").exists()
+
+
+def test_a_gltf_file_exports_as_a_page_of_its_reference_shading(gl, browser, tmp_path):
+    """A .glb opened as a scene (the gltf_pbr reference pass): its materials travel as the same two
+    textures the runtime binds (a parameter table and a mipmapped image array)."""
+    from inshade.geometry import gltf_scenes
+    from inshade.runtime.headless import render_scene
+
+    path = gltf_scenes.tiles_torus().write(tmp_path / "tiles.glb")
+    folder = tmp_path / "page"
+    export_web(path, folder, width=128, height=128)
+    with serve(folder) as url:
+        state = browser.open(url + "index.html")
+        assert state["error"] is None, state
+        assert not _errors(state["console"]), state["console"]
+        page = browser.canvas()
+    image, _ = render_scene(load_scene(path), width=128, height=128)
+    db = psnr8(page, srgb8(image))
+    assert db >= MIN_PSNR_DB, f"tiles.glb: the page is {db:.2f} dB from inshade render's"

@@ -170,6 +170,16 @@ class WebExport:
             out.append(_texture(self.blob, t.uniform,
                                 TextureResource(t.uniform, data, "f1", "linear", wrap="repeat" if t.repeat else "clamp"),
                                 generate_mipmaps=bool(t.mipmaps), anisotropy=t.anisotropy if t.mipmaps else 1.0))
+        if r.materials is not None:   # a glTF mesh's materials: lib/gltf_material's two textures
+            from inshade.runtime.materials import ANISOTROPY
+
+            a = r.materials.arrays
+            out.append(_texture(self.blob, "u_material_params",
+                                TextureResource("u_material_params", a["u_material_params"], "f4")))
+            out.append(_texture(self.blob, "u_material_images",
+                                TextureResource("u_material_images", a["u_material_images"], "f1", "linear",
+                                                wrap="repeat", array=True),
+                                generate_mipmaps=True, anisotropy=ANISOTROPY))
         env = r.environment
         if env is not None:
             s = env.sampler
