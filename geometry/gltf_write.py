@@ -1,5 +1,6 @@
 """glTF 2.0 out: ``GltfBuilder`` assembles meshes, materials, PNG textures and a node tree and writes
-one self-contained ``.glb`` (atomically, byte-identical for the same input).
+one self-contained ``.glb``, or a ``.gltf`` with its ``.bin`` beside it (atomically, byte-identical
+for the same input).
 
     b = GltfBuilder()
     tex = b.texture(b.image(rgba_uint8))
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.files import atomic_write
+from inshade.files import atomic_files, atomic_write
 
 from .gltf import GLB_BIN, GLB_JSON, GLB_MAGIC, gltf_uv
 
@@ -154,7 +155,8 @@ class GltfBuilder:
             self.roots.append(index)
         return index
 
-    def glb(self) -> bytes:
+    def document(self, buffer_uri: str | None = None) -> dict:
+        """The glTF JSON; ``buffer_uri`` names the binary buffer's file (None: a GLB's own chunk)."""
         doc = dict(self.doc)
         doc["scene"] = 0
         doc["scenes"] = [{"nodes": self.roots}]
@@ -162,10 +164,15 @@ class GltfBuilder:
             doc["extensionsUsed"] = sorted(self.used)
         if self.required:
             doc["extensionsRequired"] = sorted(self.required)
+        if self.data:
+            doc["buffers"] = [{"byteLength": len(self.data) + (-len(self.data) % 4)}]
+            if buffer_uri is not None:
+                doc["buffers"][0]["uri"] = buffer_uri
+        return doc
+
+    def glb(self) -> bytes:
         data = bytes(self.data) + b"\0" * (-len(self.data) % 4)
-        if data:
-            doc["buffers"] = [{"byteLength": len(data)}]
-        text = json.dumps(doc, separators=(",", ":"), sort_keys=True).encode()
+        text = json.dumps(self.document(), separators=(",", ":"), sort_keys=True).encode()
         text += b" " * (-len(text) % 4)
         chunks = struct.pack("<II", len(text), GLB_JSON) + text
         if data:
@@ -173,7 +180,16 @@ class GltfBuilder:
         return struct.pack("<III", GLB_MAGIC, 2, 12 + len(chunks)) + chunks
 
     def write(self, path) -> Path:
-        return atomic_write(path, self.glb())
+        """``.glb``: one binary file; ``.gltf``: the JSON and its buffer beside it (``NAME.bin``)."""
+        path = Path(path)
+        if path.suffix.lower() != ".gltf":
+            return atomic_write(path, self.glb())
+        data = bytes(self.data) + b"\0" * (-len(self.data) % 4)
+        binary = path.with_suffix(".bin")
+        with atomic_files(binary, path) as (bin_tmp, json_tmp):
+            bin_tmp.write_bytes(data)
+            json_tmp.write_text(json.dumps(self.document(binary.name), indent=1, sort_keys=True))
+        return path
 
 
 def _texture_infos(spec: dict):

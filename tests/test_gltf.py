@@ -191,3 +191,57 @@ def test_builder_refuses_nothing_it_cannot_write_and_round_trips_flat_normals(tm
     np.testing.assert_allclose(asset.mesh.vertex_attributes["normal"], [[0, 0, 1]] * 3)
     assert asset.materials[-1].name == "default" and mesh_uv(asset.mesh) is None
     assert validate(tmp_path / "t.glb")[0]["errors"] == 0
+
+
+def test_separate_files_and_data_uris_read_the_same(tmp_path, written):
+    import base64
+
+    glb = load_gltf(written["showcase"])
+    sep = load_gltf(gltf_scenes.showcase().write(tmp_path / "showcase.gltf"))
+    assert (tmp_path / "showcase.bin").is_file()
+    doc = json.loads((tmp_path / "showcase.gltf").read_text())
+    doc["buffers"][0]["uri"] = ("data:application/octet-stream;base64,"
+                                + base64.b64encode((tmp_path / "showcase.bin").read_bytes()).decode())
+    (tmp_path / "inline.gltf").write_text(json.dumps(doc))
+    inline = load_gltf(tmp_path / "inline.gltf")
+    for other in (sep, inline):
+        np.testing.assert_array_equal(other.mesh.vertices, glb.mesh.vertices)
+        np.testing.assert_array_equal(other.face_material, glb.face_material)
+        assert all(np.array_equal(x, y) for x, y in zip(other.images, glb.images))
+    assert validate(tmp_path / "showcase.gltf")[0]["errors"] == 0
+
+
+def _one_primitive(tmp_path, accessors: list, views: bytes, primitive: dict, name: str):
+    """A GLB of one primitive from raw accessors over one buffer (for layouts the builder never writes)."""
+    doc = {"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [primitive]}], "accessors": accessors,
+           "bufferViews": [{"buffer": 0, "byteOffset": v[0], "byteLength": v[1], **({"byteStride": v[2]} if len(v) > 2 else {})}
+                           for v in views[1]],
+           "buffers": [{"byteLength": len(views[0])}]}
+    path = tmp_path / name
+    path.write_bytes(gltf_scenes._glb(doc, views[0]))
+    return load_gltf(path)
+
+
+def test_strips_fans_quantised_and_sparse_accessors(tmp_path):
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
+    data = square.tobytes()
+    # a strip 0 1 2 3 is two triangles (0 1 2) (2 1 3): both counter-clockwise about +z
+    strip = _one_primitive(tmp_path, [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                                       "min": [0, 0, 0], "max": [1, 1, 0]}], (data, [(0, 48)]),
+                           {"attributes": {"POSITION": 0}, "mode": 5}, "strip.glb")
+    np.testing.assert_array_equal(strip.mesh.faces.reshape(-1, 3).shape, (2, 3))
+    np.testing.assert_allclose(strip.mesh.vertex_attributes["normal"], [[0, 0, 1]] * 6)
+    fan = _one_primitive(tmp_path, [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                                     "min": [0, 0, 0], "max": [1, 1, 0]}], (data, [(0, 48)]),
+                         {"attributes": {"POSITION": 0}, "mode": 6}, "fan.glb")
+    assert len(fan.mesh.faces) == 2
+    # KHR_mesh_quantization: normalised int16 positions; a sparse accessor moving one vertex
+    q = np.array([[0, 0, 0, 0], [32767, 0, 0, 0], [0, 32767, 0, 0]], np.int16).tobytes()
+    sparse_idx = np.array([2], np.uint8).tobytes() + b"\0\0\0"
+    sparse_val = np.array([[0, -32767, 0, 0]], np.int16).tobytes()
+    views = (q + sparse_idx + sparse_val, [(0, 24, 8), (24, 1), (28, 8)])   # int16 VEC3 padded to 8 bytes
+    acc = [{"bufferView": 0, "componentType": 5122, "normalized": True, "count": 3, "type": "VEC3",
+            "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5121}, "values": {"bufferView": 2}}}]
+    asset = _one_primitive(tmp_path, acc, views, {"attributes": {"POSITION": 0}}, "quantised.glb")
+    np.testing.assert_allclose(asset.mesh.vertices[:3], [[0, 0, 0], [1, 0, 0], [0, -1, 0]], atol=1e-12)
