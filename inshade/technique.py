@@ -159,9 +159,8 @@ class ProgramSpec:
       when the request's key, directions or size change, and binds ``u_shadow_map``,
       ``u_shadow_matrix`` and ``u_shadow_layers`` of shaders/lib/shadow_map.glsl (None: no layers,
       ``shadow_visibility`` is 1);
-    - ``bake(scene, values, size) -> {channel: [size, size(, k)] float}``: (mesh) the material the
-      program decodes, baked into the mesh's uv space by the GL runtime (channels named as
-      geometry/gltf_sample.py ``material_channels``; row 0 = the top of the texture): what
+    - ``bake(scene, values, size) -> MaterialBake``: (mesh) the material the program decodes, baked
+      by the GL runtime into a ``size`` x ``size`` texture over a rectangle of the mesh's uv: what
       ``inshade export-gltf`` writes as the material's textures;
     - ``choices``: the program's enumerations (``Choice``: a uniform or define, a GLSL prefix, the
       values in index order). The runtime generates the chunk ``<choices>`` (``#define
@@ -215,6 +214,21 @@ class ProgramSpec:
     def choice(self, target: str) -> Choice | None:
         """The declared choice a setting bound to ``target`` drives, or None."""
         return next((c for c in self.choices if c.target == target), None)
+
+
+@dataclass
+class MaterialBake:
+    """A decoded material as textures (``ProgramSpec.bake``): ``channels`` {name: [S, S(, k)] float},
+    named as geometry/gltf_sample.py ``material_channels`` (linear base_color, metallic, roughness,
+    tangent-space normal, occlusion, emissive, alpha), row 0 = the top of the texture; the texture
+    covers the mesh uv rectangle ``origin`` + [0, 1]^2 * ``extent`` (v up), wrapping along the axes
+    ``repeat`` says and clamped along the others; ``material``: the glTF material of the scene's
+    mesh it replaces (the others stay the file's), or None for the whole mesh."""
+    channels: Mapping
+    origin: tuple = (0.0, 0.0)
+    extent: tuple = (1.0, 1.0)
+    repeat: tuple = (True, True)
+    material: int | None = None
 
 
 @dataclass

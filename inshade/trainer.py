@@ -45,12 +45,23 @@ class SettingError(ValueError):
     """An option given for a run it does not belong to."""
 
 
+class _Given(tuple):
+    """The values "any value but None": ``only={"gltf": GIVEN}`` makes a setting belong to the runs
+    that give that other setting (e.g. a material index only where a file is named)."""
+
+    def __contains__(self, value) -> bool:
+        return value is not None
+
+
+GIVEN = _Given(("given",))
+
+
 def setting(default, help: str, *, choices=None, positional: str | None = None, flag: str | None = None,
             metavar: str | None = None, only: Mapping[str, tuple] | None = None):
     """A settings field: its default, its ``--help`` line, the values it may take, and how the
     command line spells it (``positional="IMAGE"``: a positional argument; ``flag``: another
     option name than ``--field-name``). ``only={"which": ("disney",)}``: a setting of those values
-    of another setting only."""
+    of another setting only (``GIVEN``: of the runs that give it)."""
     return field(default=default, metadata={"help": help, "choices": choices, "positional": positional,
                                             "flag": flag, "metavar": metavar, "only": only})
 

@@ -5,8 +5,10 @@ binary, for the tools users already have (Blender, three.js, the Khronos sample 
   tangents; split into one primitive per material.
 - The material, by ``material``:
   ``decoded``: what the asset's network decodes, baked into the mesh's uv space through the GL
-  runtime by the program's ``ProgramSpec.bake`` hook, written as base colour (sRGB),
-  metallic-roughness, normal, occlusion and emissive textures of ``size`` texels;
+  runtime by the program's ``ProgramSpec.bake`` hook (a ``MaterialBake``), written as base colour
+  (sRGB), metallic-roughness, normal, occlusion and emissive textures of ``size`` texels, mapped
+  onto the mesh's uv by a KHR_texture_transform where the bake covers another rectangle; where the
+  bake replaces one material of a glTF scene the others are written as the file has them;
   ``reference``: the materials of the glTF file the scene was made from, as they are (a converted
   specular-glossiness material comes out metallic-roughness);
   ``auto``: decoded where the program can bake, else the reference.
@@ -17,12 +19,13 @@ numpy + Pillow + the GL runtime; no torch.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from inshade.geometry.gltf import linear_to_srgb
+from inshade.geometry.gltf import Material, TextureRef, linear_to_srgb, texture_transform
 from inshade.geometry.gltf_write import GltfBuilder, Primitive, add_material
 from inshade.geometry.mesh import mesh_uv, shading_normals, vertex_tangents
 
@@ -70,25 +73,40 @@ def channel_images(channels: dict) -> dict[str, np.ndarray]:
     return out
 
 
-def _decoded_material(builder: GltfBuilder, channels: dict) -> int:
-    images = channel_images(channels)
-    # glTF images run v down; baked channels have row 0 at the top (v = 1 in the project's uv), and
-    # glTF's v = 1 - v: the same rows, as they are
-    tex = {k: builder.texture(builder.image(v)) for k, v in images.items()}
-    spec: dict = {"name": "decoded", "pbrMetallicRoughness": {"metallicFactor": 1.0 if "metallic" in channels else 0.0,
-                                                              "roughnessFactor": 1.0}}
-    if "base_color" in tex:
-        spec["pbrMetallicRoughness"]["baseColorTexture"] = {"index": tex["base_color"]}
-    if "metallic_roughness" in tex:
-        spec["pbrMetallicRoughness"]["metallicRoughnessTexture"] = {"index": tex["metallic_roughness"]}
-    if "normal" in tex:
-        spec["normalTexture"] = {"index": tex["normal"]}
-    if "occlusion" in tex:
-        spec["occlusionTexture"] = {"index": tex["occlusion"]}
-    if "emissive" in tex:
-        spec["emissiveTexture"] = {"index": tex["emissive"]}
-        spec["emissiveFactor"] = [1.0, 1.0, 1.0]
-    return builder.material(spec)
+def bake_transform(bake) -> np.ndarray:
+    """The 3x3 KHR_texture_transform matrix taking glTF uv g to the bake's texture:
+    t = ((g_u - o_u) / e_u, (g_v + o_v + e_v - 1) / e_v) for the rectangle origin o, extent e in
+    the project's v-up uv (row 0 of the bake is its top, glTF's t_v = 0)."""
+    (ou, ov), (eu, ev) = bake.origin, bake.extent
+    return texture_transform((-ou / eu, (ov + ev - 1.0) / ev), 0.0, (1.0 / eu, 1.0 / ev))
+
+
+def decoded_material(bake, base: Material | None, first_image: int) -> tuple[Material, list]:
+    """(the material, its new images): ``base`` (the file's material the bake replaces, or the
+    spec's default) with the baked channels' textures in place of its own and their factors,
+    scale and strength set to 1; the channels it does not bake (emission, clearcoat, sheen, ...)
+    stay as ``base`` has them. The new textures are images ``first_image``, ``first_image + 1``, ..."""
+    m = copy.deepcopy(base) if base is not None else Material(name="decoded")
+    images = channel_images(bake.channels)
+    wrap = tuple("repeat" if r else "clamp" for r in bake.repeat)
+    transform = bake_transform(bake)
+    order = list(images)
+    ref = lambda k: TextureRef(first_image + order.index(k), 0, transform, wrap)  # noqa: E731
+    if "base_color" in images:
+        m.base_color = (1.0, 1.0, 1.0, m.base_color[3])
+        m.base_color_texture = ref("base_color")
+    if "metallic_roughness" in images:
+        m.metallic = 1.0 if "metallic" in bake.channels else m.metallic
+        m.roughness = 1.0 if "roughness" in bake.channels else m.roughness
+        m.metallic_roughness_texture = ref("metallic_roughness")
+    if "normal" in images:
+        m.normal_texture = ref("normal")
+    if "occlusion" in images:
+        m.occlusion_texture = ref("occlusion")
+    if "emissive" in images:
+        m.emissive, m.emissive_texture = (1.0, 1.0, 1.0), ref("emissive")
+    m.converted_from = None
+    return m, [images[k] for k in order]
 
 
 def _mesh_arrays(mesh):
@@ -139,17 +157,19 @@ def export_gltf(source, out, *, material: str = "auto", size: int = DEFAULT_SIZE
     builder = GltfBuilder()
     arrays = _mesh_arrays(scene.mesh.data)
     notes = []
-    if material == "decoded":
-        values = scene.check_settings(settings or {})
-        index = _decoded_material(builder, bake(scene, values, int(size)))
-        groups = [(np.arange(len(arrays[1])), index)]
+    materials = list(gltf.materials) if gltf is not None else [None]
+    images = list(gltf.images) if gltf is not None else []
+    face_material = gltf.face_material if gltf is not None else np.zeros(len(arrays[1]), int)
+    if material == "decoded":   # the decoded material in place of the one it replaces (all: None)
+        baked = bake(scene, scene.check_settings(settings or {}), int(size))
+        for m in (range(len(materials)) if baked.material is None else [baked.material]):
+            materials[m], new = decoded_material(baked, materials[m], len(images))
+            images += new
         notes.append(f"material decoded by {scene.program} at {size}x{size} texels")
-    else:
-        image_index: dict = {}
-        groups = []
-        for m in np.unique(gltf.face_material):
-            written = add_material(builder, gltf.materials[m], gltf.images, image_index)
-            groups.append((np.flatnonzero(gltf.face_material == m), written))
+    image_index: dict = {}
+    groups = [(np.flatnonzero(face_material == m), add_material(builder, materials[m], images, image_index))
+              for m in np.unique(face_material)]
+    if gltf is not None:
         notes += gltf.notes
     mesh = builder.mesh([_primitive(arrays, faces, m) for faces, m in groups], scene.name)
     builder.node(mesh, name=scene.name)

@@ -1,5 +1,6 @@
 """How good a compressed PBR set is, and the asset's report: per-lane-group quality of a decoded
-set, ASTC on the same two RGBA8 textures, the rendered mesh's PSNR, and the markdown table."""
+set, ASTC on the same two RGBA8 textures, the rendered mesh's PSNR, and the markdown table; the
+``gltf_*`` twins score the glTF mode's lanes (gltf_lanes.py: a two-lane normal, metallic)."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,8 +28,29 @@ def lane_metrics(test: np.ndarray, ref: np.ndarray) -> dict:
     return out
 
 
-def astc_rows(set8: tuple[np.ndarray, np.ndarray], ref: np.ndarray) -> list[dict]:
-    """ASTC (LDR, the benchmark's quality) on the same two RGBA8 textures, per block size."""
+def gltf_lane_metrics(test: np.ndarray, ref: np.ndarray) -> dict:
+    """``lane_metrics`` for the glTF mode's lanes: PSNR of the 8-bit values per group (albedo
+    sRGB-encoded; the normal's two lanes) and the angle between the normals the pass rebuilds."""
+    from inshade.techniques.di_pbr_set.gltf_lanes import LANES as GLTF_LANES, unit_normals
+
+    def db(a, b):   # a lane the decode reproduces exactly (e.g. a constant metallic) is null, not Infinity
+        value = psnr(a, b, 255.0)
+        return round(value, 3) if np.isfinite(value) else None
+
+    t8 = np.round(np.clip(test, 0.0, 1.0) * 255.0)
+    r8 = np.round(np.clip(ref, 0.0, 1.0) * 255.0)
+    out = {f"psnr_{name}": db(t8[..., a:a + w], r8[..., a:a + w]) for name, (a, w) in GLTF_LANES.items()}
+    cos = np.clip(np.sum(unit_normals(np.clip(test, 0.0, 1.0)) * unit_normals(ref), -1), -1.0, 1.0)
+    angle = np.degrees(np.arccos(cos))
+    out["normal_mean_deg"] = round(float(angle.mean()), 3)
+    out["normal_p99_deg"] = round(float(np.percentile(angle, 99)), 3)
+    out["psnr_all_lanes"] = db(t8, r8)
+    return out
+
+
+def astc_rows(set8: tuple[np.ndarray, np.ndarray], ref: np.ndarray, measure=lane_metrics) -> list[dict]:
+    """ASTC (LDR, the benchmark's quality) on the same two RGBA8 textures, per block size, scored by
+    ``measure`` (the lanes' metrics)."""
     from inshade.bench.codecs import ASTC_QUALITY, CodecError, astc_roundtrip
 
     rows = []
@@ -42,7 +64,7 @@ def astc_rows(set8: tuple[np.ndarray, np.ndarray], ref: np.ndarray) -> list[dict
         test = np.concatenate(decoded, -1).astype(np.float32) / 255.0
         rows.append({"codec": f"ASTC {block}x{block}", "available": True, "bytes": int(sum(nbytes)),
                      "ratio": round(raw / sum(nbytes), 3), "settings": f"2 RGBA textures, quality {ASTC_QUALITY:g}",
-                     **lane_metrics(test, ref)})
+                     **measure(test, ref)})
     return rows
 
 
@@ -82,4 +104,48 @@ def markdown(metrics: dict) -> str:
         r = metrics["render"]
         lines.append(f"Rendered torus ({r['size']}^2, {r['lights']} lights + environment): DI vs uncompressed "
                      f"{r['psnr_di_vs_uncompressed']:.2f} dB over {r['covered_pixels']} mesh pixels (display sRGB 8-bit).")
+    return "\n".join(lines) + "\n"
+
+
+def gltf_markdown(metrics: dict) -> str:
+    """The glTF mode's report: the decoded lanes against the bake (DI and ASTC), the sizes against
+    the file's textures, and the render against the file's own material."""
+    t, src, bake = metrics["texture"], metrics["source"], metrics["bake"]
+    lines = [f"# {src['file']}, material {src['material']} ({src['material_name'] or 'unnamed'}): "
+             f"PBR set (8 lanes) compressed with DI", "",
+             f"- GL_RENDERER: `{metrics.get('gl_renderer', 'n/a')}`",
+             f"- lanes: albedo (sRGB-encoded), normal x, y (z rebuilt), roughness, occlusion, metallic, baked at "
+             f"{bake['size']}x{bake['size']} over mesh uv origin {bake['origin']}, extent {bake['extent']}, "
+             f"repeat {bake['repeat']} (size from {bake['size_from']})",
+             f"- DI: {t['bytes']} bytes, {t['ratio']:.2f}x the 8-lane bake, {src['ratio_vs_lane_textures']:.2f}x "
+             f"the file's lane textures as RGBA8 ({src['lane_texture_bytes_rgba8']} bytes)",
+             "- PSNR of 8-bit lane values against the bake; normal: angle between rebuilt normals", ""]
+    head = ("| codec | bytes | albedo dB | normal dB | normal mean / p99 deg | roughness dB | occlusion dB | "
+            "metallic dB | all lanes dB |")
+    lines += [head, "|---" * (head.count("|") - 1) + "|"]
+
+    def dbs(v):
+        return "exact" if v is None else f"{v:.2f}"
+
+    def row(name, nbytes, q):
+        return (f"| {name} | {nbytes} | {dbs(q['psnr_albedo'])} | {dbs(q['psnr_normal'])} | "
+                f"{q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f} | {dbs(q['psnr_roughness'])} | "
+                f"{dbs(q['psnr_occlusion'])} | {dbs(q['psnr_metallic'])} | {dbs(q['psnr_all_lanes'])} |")
+
+    decoders = (("di_glsl_exact", "DI (GLSL exact)"), ("di_glsl_fast", "DI (GLSL fast)"), ("di_torch", "DI (torch)"))
+    for key, label in decoders:
+        if key in metrics:
+            lines.append(row(label, t["bytes"], metrics[key]))
+    for a in metrics.get("astc", []):
+        lines.append(row(a["codec"], a["bytes"], a) if a["available"]
+                     else f"| {a['codec']} | unavailable: {a['reason']} |||||||")
+    lines.append("")
+    device = metrics.get("device", "cpu")
+    lines.append(f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, {t['train_seconds']:.0f} s "
+                 f"training on {'1 CPU thread' if device == 'cpu' else device}.")
+    if "render" in metrics:
+        r = metrics["render"]
+        lines.append(f"Rendered at the scene camera ({r['size']}^2, {r['lights']} lights + environment): DI vs the "
+                     f"file's material {r['psnr_di_vs_reference']:.2f} dB over its {r['material_pixels']} pixels "
+                     "(display sRGB 8-bit; DI at the base level, the reference mip-mapped).")
     return "\n".join(lines) + "\n"

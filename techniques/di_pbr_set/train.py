@@ -15,9 +15,16 @@ pass's torch twin and the GL renders; report.py the quality metrics and the mark
   ASTC on the same two RGBA textures, and the rendered torus DI vs uncompressed); ``gl_metrics=False``
   (``--no-gl``) keeps to the torch decode and needs no GL context.
 
+With ``--gltf FILE`` (``--material INDEX``; default the textured material covering most faces) the set is
+that glTF material instead of the bricks: its channels baked over the mesh's uv (gltf_lanes.py:
+albedo, a two-lane normal, roughness, occlusion, metallic; the side from the textures unless
+``--size`` is given), the same cascade and training, and an asset drawn next to the file's own
+material (gltf_asset.py, passes/mesh_pbr_set_gltf.frag).
+
 Command: ``inshade train di_pbr_set --force -o trained/di_pbr_set_bricks [--preset quick|ship]`` (``--help`` for
 options). ``--preset ship`` is exactly what built trained/di_pbr_set_bricks; ``quick`` (the default) trains
-3000 steps. metrics.json records the preset and the resolved settings.
+3000 steps. metrics.json records the preset and the resolved settings (with ``--gltf``: the file, the
+material and the bake side actually used).
 """
 from __future__ import annotations
 
@@ -31,23 +38,28 @@ from pathlib import Path
 import torch
 
 from inshade.files import atomic_files, atomic_write
+from inshade.geometry.gltf import GltfError
 from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import LANES, Bricks, PbrSetError, bricks, split_rgba8
 from inshade.models.texture_cascade import FINISH_OPTIMIZERS, compress, torch_decode
 from inshade.techniques.di_pbr_set import VIEWS
 from inshade.techniques.di_pbr_set.render import DEFAULT_LIGHTS, LIGHTS, render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, lane_metrics, markdown, render_psnr
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import GIVEN, Run, Trainer, setting
 
 PROGRAM = "passes/mesh_pbr_set.frag"
 ASSET = "di_pbr_set_bricks"
 RENDER_SIZE = 256       # the scene's render size
 
 
+# the settings of a run that names a glTF file: a bricks run neither records them nor accepts --material
+GLTF_RUN = {"gltf": GIVEN}
+
+
 @dataclass(frozen=True)
 class Settings:
     """What a di_pbr_set run is built from (metrics.json records it)."""
-    size: int = setting(256, "texture side in texels")
+    size: int = setting(256, "texture side in texels (with --gltf: by default what the textures need)")
     ratio: float = setting(6.0, "compression ratio vs 8 lanes x 8 bit")
     steps: int = setting(3000, "training steps")
     lr: float = setting(1e-2, "Adam learning rate")
@@ -57,6 +69,10 @@ class Settings:
     # 27.67 vs 27.50 dB), unlike on RGB images (models/texture_cascade.py FINISH_OPTIMIZERS)
     finish_optimizer: str = setting("adam", "finish phase of the training (inshade train di_texture --help)",
                                     choices=FINISH_OPTIMIZERS)
+    gltf: str | None = setting(None, "compress this glTF file's material (.glb/.gltf) instead of the bricks; "
+                               "--size then defaults to what its textures need", metavar="FILE", only=GLTF_RUN)
+    material: int | None = setting(None, "with --gltf: the material's index (default: the textured one "
+                                   "covering most faces)", metavar="INDEX", only=GLTF_RUN)
 
 
 # --preset: "ship" is what built trained/di_pbr_set_bricks; "quick" keeps the 3000-step default.
@@ -172,20 +188,49 @@ def build(out, *, size: int = Settings.size, ratio: float = Settings.ratio, step
 def extra_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--render", type=int, default=RENDER_SIZE, help="scene render size (default %(default)s)")
     p.add_argument("--lights", type=int, default=DEFAULT_LIGHTS, choices=range(0, len(LIGHTS) + 1),
-                   help="default point-light count (default %(default)s)")
+                   help="default point-light count (default %(default)s; a glTF scene has 2)")
     p.add_argument("--no-gl", action="store_true", help="skip GL metrics and the preview (no GL context)")
 
 
 def check(s: Settings) -> None:
     if s.steps < 0 or s.batch < 1:
         raise PbrSetError("--steps must be >= 0 and --batch >= 1")
+    if s.gltf is not None:      # a file that cannot be used fails before the asset folder is claimed
+        from inshade.techniques.di_pbr_set.gltf_lanes import load
+
+        load(s.gltf, s.material)
+
+
+def train_gltf(run: Run) -> int:
+    """The glTF mode: gltf_asset.build_gltf writes the folder, metrics.json and report.md."""
+    from inshade.techniques.di_pbr_set.gltf_asset import LIGHTS as GLTF_LIGHTS, build_gltf
+
+    args, s = run.args, run.settings
+    if args.lights > GLTF_LIGHTS:
+        raise PbrSetError(f"--lights {args.lights}: a glTF scene has {GLTF_LIGHTS} point lights")
+    m = build_gltf(run.out, s.gltf, material=s.material, size=args.size, ratio=s.ratio, steps=s.steps, lr=s.lr,
+                   batch=s.batch, seed=s.seed, finish_optimizer=s.finish_optimizer, render=args.render,
+                   lights=args.lights, gl_metrics=not args.no_gl, device=run.device, preset=run.preset,
+                   command=run.command)
+    t = m["texture"]
+    q = m.get("di_glsl_exact", m["di_torch"])
+    shown = f", render {m['render']['psnr_di_vs_reference']:.2f} dB vs the file's material" if "render" in m else ""
+    lanes = ", ".join(f"{name} {'exact' if q[f'psnr_{name}'] is None else format(q[f'psnr_{name}'], '.2f') + ' dB'}"
+                      for name in ("albedo", "roughness", "occlusion", "metallic"))
+    print(f"wrote {run.out}: material {m['source']['material']} baked {t['width']}^2, {t['ratio']:.2f}x "
+          f"({t['bytes']} bytes), {lanes}, normal {q['normal_mean_deg']:.2f} deg mean{shown}, "
+          f"{t['train_seconds']:.1f} s")
+    return 0
 
 
 def train(run: Run) -> int:
     """build() writes the folder and its metrics.json (the run's command, preset and settings with the
     metrics), and report.md from the same metrics."""
+    if run.settings.gltf is not None:
+        return train_gltf(run)
     args = run.args
-    m = build(run.out, **asdict(run.settings), render=args.render, lights=args.lights, gl_metrics=not args.no_gl,
+    settings = {k: v for k, v in asdict(run.settings).items() if k not in ("gltf", "material")}
+    m = build(run.out, **settings, render=args.render, lights=args.lights, gl_metrics=not args.no_gl,
               device=run.device, preset=run.preset, command=run.command)
     t = m["texture"]
     q = m.get("di_glsl_exact", m["di_torch"])
@@ -195,7 +240,11 @@ def train(run: Run) -> int:
     return 0
 
 
-TRAINER = Trainer("di_pbr_set", __doc__, Settings, PRESETS, train, folder=lambda s: ASSET,
-                  folder_hint=ASSET, ship_assets={ASSET: {}},
-                  extra_arguments=extra_arguments, check=check, errors=(PbrSetError,))
+def folder(s: Settings) -> str:
+    return f"di_pbr_set_{Path(s.gltf).stem}" if s.gltf is not None else ASSET
+
+
+TRAINER = Trainer("di_pbr_set", __doc__, Settings, PRESETS, train, folder=folder,
+                  folder_hint=f"{ASSET}, with --gltf di_pbr_set_<file name>", ship_assets={ASSET: {}},
+                  extra_arguments=extra_arguments, check=check, errors=(PbrSetError, GltfError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
