@@ -535,6 +535,10 @@ class _Reader:
         textured = [m for m in materials if m.textures()]
         if textured and not any_uv:
             raise _err("meshes", "materials have textures, but no primitive has TEXCOORD_0")
+        for p in parts:
+            if p["uv"] is None and p["material"] is not None and materials[p["material"]].textures():
+                raise _err(p["where"], f"material {p['material']} ({materials[p['material']].name}) has textures, "
+                           "but the primitive has no TEXCOORD_0")
         for m in materials:
             for slot, t in m.textures().items():
                 if t.texcoord != 0:
@@ -604,7 +608,7 @@ class _Reader:
             idx = np.arange(v)
         faces = _triangles(idx, mode, where)
         out = {"position": pos, "faces": faces, "uv": None, "normal": None, "tangent": None,
-               "material": prim.get("material"), "needs_tangent": True}
+               "material": prim.get("material"), "needs_tangent": True, "where": where}
         for key, name, width in (("normal", "NORMAL", 3), ("tangent", "TANGENT", 4), ("uv", "TEXCOORD_0", 2)):
             if name in attrs:
                 a = self.accessor(attrs[name], f"{where}.attributes.{name}")

@@ -245,3 +245,16 @@ def test_strips_fans_quantised_and_sparse_accessors(tmp_path):
             "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5121}, "values": {"bufferView": 2}}}]
     asset = _one_primitive(tmp_path, acc, views, {"attributes": {"POSITION": 0}}, "quantised.glb")
     np.testing.assert_allclose(asset.mesh.vertices[:3], [[0, 0, 0], [1, 0, 0], [0, -1, 0]], atol=1e-12)
+
+
+def test_a_textured_primitive_without_uv_is_refused_even_when_another_has_uv(tmp_path):
+    b = GltfBuilder()
+    mat = b.material({"pbrMetallicRoughness": {"baseColorTexture": {"index": b.texture(b.image(
+        np.full((4, 4, 4), 200, np.uint8)))}}})
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    b.node(b.mesh([Primitive(tri, np.array([[0, 1, 2]]), uv=tri[:, :2], material=mat),
+                   Primitive(tri + 2.0, np.array([[0, 1, 2]]), material=mat)]))
+    path = b.write(tmp_path / "half.glb")
+    with pytest.raises(GltfError, match=r"half.glb: meshes\[0\].primitives\[1\]: material 0 \(material 0\) has textures, "
+                                        r"but the primitive has no TEXCOORD_0"):
+        load_gltf(path)

@@ -16,13 +16,19 @@ def reference_bytes(width: int, height: int | None = None) -> int:
     return TEXTURES * 3 * width * (width if height is None else height)
 
 
-def memory_report(bundle, width: int, height: int | None = None) -> dict:
+def network_bytes(bundle) -> tuple[int, int, int]:
+    """(features, MLP, owner tables) bytes of a material bundle's GPU resources."""
     from inshade.codegen import generate
 
     textures = [r for r in generate(bundle).resources if hasattr(r, "dtype")]
     feats = sum(r.nbytes for r in textures if "_table" in r.name)
     topo = sum(r.nbytes for r in textures if r.name.endswith("_topology"))
     mlp = sum(a.size * 4 for name, a in bundle.tensors.items() if name.endswith((".weight", ".bias")))
+    return int(feats), int(mlp), int(topo)
+
+
+def memory_report(bundle, width: int, height: int | None = None) -> dict:
+    feats, mlp, topo = network_bytes(bundle)
     ref = reference_bytes(width, height)
     return {"features_bytes": int(feats), "mlp_bytes": int(mlp), "topology_bytes": int(topo),
             "neural_bytes": int(feats + mlp), "neural_bytes_all": int(feats + mlp + topo), "reference_bytes": ref,

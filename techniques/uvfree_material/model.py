@@ -41,13 +41,14 @@ def choose_table_size(budget_bytes: float, levels: int, features: int = FEATURES
 
 
 def material_graph(vertices, faces, *, levels: int, table_size: int, features: int = FEATURES,
-                   hidden=HIDDEN, precision: str = "f16", seed: int = 0) -> GraphModule:
+                   hidden=HIDDEN, precision: str = "f16", seed: int = 0, outputs: int = len(CHANNELS)) -> GraphModule:
+    """The network on a mesh; ``outputs`` channels (``CHANNELS``; a glTF file's: gltf_channels.py)."""
     g = GraphModule([("triangle", 1, "triangle_id", "uint"), ("barycentric", 2, "barycentric")])
     enc = MeshFeatures.for_mesh(vertices, faces, levels, features, table_size, precision=precision, seed=seed)
     src = g.add("features", enc, ["triangle", "barycentric"])
     for i, width in enumerate(hidden):
         src = g.dense(f"l{i}", src, width)
         src = g.add(f"a{i}", ReLU(), src)
-    src = g.dense(f"l{len(hidden)}", src, len(CHANNELS))
+    src = g.dense(f"l{len(hidden)}", src, outputs)
     g.output("material", src, "material_channels")
     return g

@@ -2,8 +2,9 @@
 fitted to a uv-textured mesh, written as an asset folder the runtime renders.
 
 Command: ``inshade train uvfree_material [--object rock|fruit|stump_low|stump_high | --mesh FILE
---textures DIR] [--config memory|balanced|quality] [--preset quick|ship] [--device auto|cpu|cuda[:N]]
-[--out DIR] [--resolution N] [--steps N] [--levels L] [--table-size T] [--seed S]``.
+--textures DIR | --gltf FILE] [--config memory|balanced|quality] [--preset quick|ship]
+[--device auto|cpu|cuda[:N]] [--out DIR] [--resolution N] [--steps N] [--levels L] [--table-size T]
+[--seed S]``.
 
 - Targets: the mesh's own uv textures (``albedo.png`` sRGB, ``normal.png`` tangent-space
   n * 0.5 + 0.5, ``rma.png`` roughness/metallic/AO), looked up bilinearly (clamp) at the uv of
@@ -15,6 +16,8 @@ Command: ``inshade train uvfree_material [--object rock|fruit|stump_low|stump_hi
 - The mesh is read back through the runtime's loader (geometry/mesh.py load_mesh) before training,
   so triangle ids are the faces the renderer draws; the bundle records the welded topology's
   digest and the scene refuses a mesh that does not match.
+- ``--gltf FILE`` (.glb or .gltf): the targets are the file's material channels at each point's uv
+  instead, on the file's own mesh, written as a glTF asset folder (gltf_train.py).
 
 Asset folder (default ``trained/uvfree_material_<object>_<config>``): ``material/`` (the bundle:
 fp16 feature table stored F16, owner tables, MLP), ``mesh.obj``, the three reference textures,
@@ -49,6 +52,7 @@ from inshade.metrics import psnr
 from inshade.trainer import Run, Trainer, setting
 
 from . import objects
+from .gltf_source import GltfSourceError
 from .memory import memory_report, reference_bytes
 from .model import CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, material_graph
 from .object_textures import sample_textures, write_object
@@ -154,7 +158,9 @@ class SurfaceSampler:
 
     def __init__(self, mesh):
         self.faces = np.asarray(mesh.faces, np.int64)
-        self.uv = mesh_uv(mesh)
+        uv = mesh_uv(mesh)
+        # a mesh without uv (a glTF file without textures) has targets that do not vary over uv
+        self.uv = uv if uv is not None else np.zeros((len(mesh.vertices), 2))
         self.prob, self.alias = alias_table(np.asarray(mesh.area_faces))
 
     def __call__(self, n: int, rng: np.random.Generator):
@@ -223,30 +229,67 @@ def evaluate(graph, sampler, textures, n: int, seed: int, device) -> dict:
 def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="balanced", preset="ship", out=None,
           resolution=None, steps=None, batch=None, levels=None, table_size=None, features=None, hidden=None,
           seed=None, device="cpu", lr=None, mlp_lr=None, progress=None, command_line=None,
-          write_preview=True) -> Path:
+          write_preview=True, gltf_path=None) -> Path:
     """Train and write the asset folder; returns it. The keyword form of ``inshade train
     uvfree_material``: a setting left None is the preset's. `device`: a torch.device or a --device
-    spelling (auto, cpu, cuda, cuda:N)."""
+    spelling (auto, cpu, cuda, cuda:N). `gltf_path`: learn a glTF file's materials (``--gltf``)."""
     device = resolve_device(device) if isinstance(device, str) else torch.device(device)
-    given = dict(object=object_name if mesh_path is None else Path(mesh_path).stem, config=config,
+    named = gltf_path if gltf_path is not None else mesh_path
+    given = dict(object=object_name if named is None else Path(named).stem, config=config,
                  resolution=resolution, steps=steps, batch=batch, hidden=None if hidden is None else tuple(hidden),
                  features=features, seed=seed, lr=lr, mlp_lr=mlp_lr)
     settings = Settings(**{**TRAINER.defaults(preset), **{k: v for k, v in given.items() if v is not None}})
     check(settings)
     out = Path(out) if out else asset_folder.default(folder_name(settings))
-    command_line = command_line or shlex.join(["inshade", "train", KIND, "--object", settings.object,
-                                               "--config", settings.config, "--preset", preset])
-    options = argparse.Namespace(mesh=mesh_path, textures=textures_dir, levels=levels, table_size=table_size,
-                                 no_preview=not write_preview)
-    write_material(Run(settings, preset, device, out, command_line, options), progress)
+    source = ["--gltf", str(gltf_path)] if gltf_path is not None else ["--object", settings.object]
+    command_line = command_line or shlex.join(["inshade", "train", KIND, *source, "--config", settings.config,
+                                               "--preset", preset])
+    options = argparse.Namespace(mesh=mesh_path, textures=textures_dir, gltf=gltf_path, levels=levels,
+                                 table_size=table_size, no_preview=not write_preview)
+    run = Run(settings, preset, device, out, command_line, options)
+    if gltf_path is not None:
+        from .gltf_train import write_gltf_material
+
+        write_gltf_material(run, progress)
+    else:
+        write_material(run, progress)
     return out
+
+
+def fit(graph, batch, s: Settings, device, desc: str, progress=None) -> list:
+    """Adam on the feature table (``s.lr``) and the decoder (``s.mlp_lr``), MSE, cosine decay to 2 %
+    over ``s.steps``; ``batch(rng)`` gives each step's (inputs [n, 3] float32: face, t0, t1; targets
+    [n, C] float32). Returns the loss every 50 steps."""
+    from inshade.progress import progress as progress_bar
+
+    table = graph.nodes["features"].table
+    mlp = [q for n, q in graph.named_parameters() if not n.startswith("nodes.features.")]
+    opt = torch.optim.Adam([{"params": [table], "lr": s.lr}, {"params": mlp, "lr": s.mlp_lr}], betas=(0.9, 0.99),
+                           eps=1e-15)
+    base = [g["lr"] for g in opt.param_groups]
+    rng = np.random.default_rng(s.seed)
+    history = []
+    steps = s.steps
+    bar = progress_bar(range(steps), desc=desc, enabled=progress)
+    for step in bar:
+        t = step / max(steps, 1)
+        for g, lr0 in zip(opt.param_groups, base):
+            g["lr"] = lr0 * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
+        x, y = batch(rng)
+        x, y = torch.from_numpy(x).to(device), torch.from_numpy(y).to(device)
+        loss = torch.mean((graph(x) - y) ** 2)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        if step % 50 == 0 or step == steps - 1:
+            history.append({"step": step, "mse": round(loss.item(), 7)})
+            bar.set_postfix(mse=f"{loss.item():.5f}")
+    return history
 
 
 def write_material(run: Run, progress=None) -> dict:
     """Train on ``run.settings`` and write the asset folder ``run.out`` (metrics.json through the
     run, then preview.png unless --no-preview); returns the metrics beside the run's record."""
-    from inshade.progress import progress as progress_bar
-
     s, args, device, out = run.settings, run.args, run.device, run.out
     hidden = tuple(s.hidden)
     started = time.perf_counter()
@@ -261,29 +304,13 @@ def write_material(run: Run, progress=None) -> dict:
     graph = material_graph(mesh.vertices, faces, levels=levels, table_size=table_size, features=s.features,
                            hidden=hidden, seed=s.seed).to(device)
     sampler = SurfaceSampler(mesh)
-    table = graph.nodes["features"].table
-    mlp = [q for n, q in graph.named_parameters() if not n.startswith("nodes.features.")]
-    opt = torch.optim.Adam([{"params": [table], "lr": s.lr}, {"params": mlp, "lr": s.mlp_lr}], betas=(0.9, 0.99),
-                           eps=1e-15)
-    base = [g["lr"] for g in opt.param_groups]
-    rng = np.random.default_rng(s.seed)
-    history = []
-    steps = s.steps
-    bar = progress_bar(range(steps), desc=f"uvfree_material {s.object} {s.config}", enabled=progress)
-    for step in bar:
-        t = step / max(steps, 1)
-        for g, lr0 in zip(opt.param_groups, base):
-            g["lr"] = lr0 * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
+
+    def batch(rng):
         face, t0, t1, uv = sampler(s.batch, rng)
-        x = torch.from_numpy(np.stack([face.astype(np.float32), t0, t1], 1)).to(device)
-        y = torch.from_numpy(targets(textures, uv)).to(device)
-        loss = torch.mean((graph(x) - y) ** 2)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        if step % 50 == 0 or step == steps - 1:
-            history.append({"step": step, "mse": round(loss.item(), 7)})
-            bar.set_postfix(mse=f"{loss.item():.5f}")
+        return np.stack([face.astype(np.float32), t0, t1], 1), targets(textures, uv)
+
+    history = fit(graph, batch, s, device, f"uvfree_material {s.object} {s.config}", progress)
+    steps = s.steps
     seconds = time.perf_counter() - started
     graph = graph.to("cpu")
     quality = evaluate(graph, sampler, textures, 1 << 16, s.seed, "cpu")
@@ -365,20 +392,44 @@ def render_preview(out: Path) -> None:
 # command line
 
 class MeshOption(argparse.Action):
-    """``--mesh FILE`` names the asset after the mesh: the recorded ``object`` is the mesh's name."""
+    """``--mesh FILE`` / ``--gltf FILE`` names the asset after the file: the recorded ``object`` is its name."""
 
     def __call__(self, parser, namespace, value, option_string=None):
-        namespace.mesh, namespace.object = value, Path(value).stem
+        setattr(namespace, self.dest, value)
+        namespace.object = Path(value).stem
 
 
 def extra_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mesh", action=MeshOption, help="instead of --object: a uv-mapped mesh (OBJ/PLY/GLB)")
     parser.add_argument("--textures", help="with --mesh: folder holding albedo.png, normal.png, rma.png "
                         "(default: the mesh's folder)")
+    parser.add_argument("--gltf", action=MeshOption, metavar="FILE", dest="gltf",
+                        help="instead of --object / --mesh: learn a glTF file's materials (.glb/.gltf; base colour, "
+                        "metallic, roughness and the normal, occlusion and emission it has) on its own mesh")
     parser.add_argument("--levels", type=int, help="hierarchy levels L (default: from the texel density)")
     parser.add_argument("--table-size", type=int, help="hash-table entries per level T, a power of two "
                         "(default: from --config)")
     parser.add_argument("--no-preview", action="store_true", help="skip rendering preview.png")
+
+
+def build_gltf(run: Run) -> int:
+    from .gltf_train import write_gltf_material
+
+    args = run.args
+    if args.mesh or args.textures:
+        raise TrainError(f"--{'mesh' if args.mesh else 'textures'}: goes without --gltf (the file holds the mesh "
+                         "and its textures)")
+    if run.settings.object != Path(args.gltf).stem:
+        raise TrainError("--object: goes without --gltf (the file names the asset)")
+    m = write_gltf_material(run)
+    q, mem, r = m["torch_quality"], m["memory"], m["render"]
+    each = ", ".join(f"{k[5:]} {v:.2f}" for k, v in q.items() if k.startswith("psnr_"))
+    size = (f"{mem['rate_features_mlp']:.1%} of its {mem['texture_bytes']} B of RGBA8 textures "
+            f"({mem['rate_file']:.1%} of the {mem['texture_bytes_file']} B it stores)" if mem["texture_bytes"]
+            else "(the file has no textures)")
+    print(f"wrote {run.out}: channels {each} dB; render {r['render_psnr_vs_reference']:.2f} dB vs the file's "
+          f"material; {mem['neural_bytes']} B features + MLP {size}; {m['train_seconds']:.0f} s")
+    return 0
 
 
 def check(s: Settings) -> None:
@@ -400,6 +451,8 @@ def build(run: Run) -> int:
         v = getattr(args, name)
         if v is not None and v < 1:
             raise TrainError(f"--{name.replace('_', '-')}: must be >= 1, got {v}")
+    if args.gltf:
+        return build_gltf(run)
     if args.textures and not args.mesh:
         raise TrainError("--textures: goes with --mesh")
     if args.mesh and run.settings.object != Path(args.mesh).stem:
@@ -414,5 +467,5 @@ def build(run: Run) -> int:
 
 TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, build, folder=folder_name, default_preset="ship",
                   ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
-                  errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError))
+                  errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError, GltfSourceError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

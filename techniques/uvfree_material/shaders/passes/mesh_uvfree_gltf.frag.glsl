@@ -1,0 +1,53 @@
+// UV-free neural material of a glTF file (Walloner 2024) against the file's own material: the
+// G-buffer's pixel gives the reference surface (lib/gltf_material gltf_surface: the file's textures
+// at the mesh's uv, what passes/gltf_pbr.frag draws); where the network is shown, the visibility
+// buffer's (face, barycentrics) point is decoded (lib/uvf_gltf) and its channels replace the file's.
+// Both sides are shaded by gltf_shade (the spec's BRDF, the scene's lights and SH environment).
+// u_uvg_view (GLTF_VIEWS in techniques/uvfree_material/__init__.py): reference | network | split
+// (left half reference, right half network). u_uvg_channel (GLTF_CHANNEL_VIEWS): shaded, or one
+// channel as passes/gltf_pbr.frag shows it (linear base colour, mapped normal 0.5 + 0.5 n, metallic,
+// roughness, occlusion, emission). UVG_VIEW_*, UVG_CHANNEL_*: generated into <choices>.
+#include <lib/camera>
+#include <lib/gbuffer>
+#include <lib/uvf_gltf>
+#include <choices>
+
+uniform vec2 u_size;
+uniform vec3 u_sh[SH_COEFFS];
+uniform sampler2D u_gbuffer_uv_grad;
+uniform usampler2D u_gbuffer_primitive;
+uniform sampler2D u_gbuffer_barycentric;
+uniform int u_uvg_view;
+uniform int u_uvg_channel;
+uniform int u_light_count;
+layout(location = 0) out vec4 frag_color;
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec3 p, n;
+    bool covered = gbuffer_surface(px, p, n);
+    vec3 ro, rd;
+    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
+    if (!covered) {
+        frag_color = vec4(sh_background(rd, u_sh), 1.0);
+        return;
+    }
+    vec4 uv = texelFetch(u_gbuffer_uv, px, 0);
+    vec4 tangent = texelFetch(u_gbuffer_tangent, px, 0);
+    int m = int(uv.z + 0.5);
+    GltfSurface s = gltf_surface(m, uv.xy, texelFetch(u_gbuffer_uv_grad, px, 0), n, tangent, -rd);
+    bool network = u_uvg_view == UVG_VIEW_NETWORK || (u_uvg_view == UVG_VIEW_SPLIT && gl_FragCoord.x >= 0.5 * u_size.x);
+    if (network) {
+        uvg_decode(texelFetch(u_gbuffer_primitive, px, 0).x, texelFetch(u_gbuffer_barycentric, px, 0).xy, m, n,
+                   tangent, -rd, s);
+    }
+    vec3 c;
+    if (u_uvg_channel == UVG_CHANNEL_BASE_COLOR) c = s.s.base_color;
+    else if (u_uvg_channel == UVG_CHANNEL_NORMAL) c = 0.5 + 0.5 * s.n;
+    else if (u_uvg_channel == UVG_CHANNEL_METALLIC) c = vec3(s.s.metallic);
+    else if (u_uvg_channel == UVG_CHANNEL_ROUGHNESS) c = vec3(s.s.roughness);
+    else if (u_uvg_channel == UVG_CHANNEL_OCCLUSION) c = vec3(s.occlusion);
+    else if (u_uvg_channel == UVG_CHANNEL_EMISSIVE) c = s.emissive;
+    else c = gltf_shade(s, p, -rd, u_sh, u_light_count);
+    frag_color = vec4(c, 1.0);
+}
