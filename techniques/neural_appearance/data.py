@@ -3,8 +3,8 @@ the scene its asset is shown in:
 
 - online samples: pyramid levels favouring fine ones, (light, view) pairs above the horizon (half
   from half/difference vectors, half cosine-weighted), light directions jittered in a cone;
-- ``Targets``: the reference material prefiltered over the level's footprint and mollified over a
-  cone of light directions;
+- ``Targets``: the reference material (sources.py) prefiltered over the level's footprint and
+  mollified over a cone of light directions;
 - ``scene_description``: the asset's ``scene.json`` (the teapot, its lights and settings).
 """
 from __future__ import annotations
@@ -86,13 +86,11 @@ def jitter_cone(d: torch.Tensor, angle: float, gen: torch.Generator) -> torch.Te
 
 
 class Targets:
-    """Prefiltered, mollified reference values (§3.3, §3.4) from the material's level-0 textures."""
+    """Prefiltered, mollified reference values (§3.3, §3.4) from the material's level-0 textures;
+    ``source`` evaluates the reference (sources.py: a layered or a glTF material)."""
 
-    def __init__(self, material, raw: np.ndarray, device):
-        from .reference import reflectance
-
-        self.material = material
-        self.reflectance = reflectance
+    def __init__(self, source, raw: np.ndarray, device):
+        self.source = source
         self.texels = torch.from_numpy(np.ascontiguousarray(raw)).float().to(device)
         self.size = raw.shape[0]
 
@@ -108,7 +106,7 @@ class Targets:
             offset = torch.where(level[active, None] == 0, torch.zeros_like(offset), offset)
             p = bilinear_repeat(self.texels, uv[active] + offset)
             l_jit = jitter_cone(light[active], cone, gen)
-            total[active] += self.reflectance(p, l_jit, view[active], self.material)
+            total[active] += self.source.reflectance(p, l_jit, view[active])
         return total / k[:, None].float()
 
 

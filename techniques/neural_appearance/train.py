@@ -1,9 +1,14 @@
-"""Bake a layered reference material into a neural material (Real-Time Neural Appearance Models §3).
+"""Bake a reference material into a neural material (Real-Time Neural Appearance Models §3).
 
-Command: ``inshade train neural_appearance [--material ceramic|brushed_metal|FILE.json] [--preset
-quick|ship] [--device auto|cpu|cuda[:N]] [--out DIR] [--resolution N] [--steps1 N] [--steps2 N] [--seed S]
-[--restart]``. ``--preset ship`` is what built ``trained/neural_appearance_<material>``; ``quick``
-is the same pipeline at 32x32 for a few seconds (tests). Options given explicitly override the preset.
+Command: ``inshade train neural_appearance [--material ceramic|brushed_metal|FILE.json] [--gltf FILE
+[--material INDEX]] [--preset quick|ship] [--device auto|cpu|cuda[:N]] [--out DIR] [--resolution N]
+[--steps1 N] [--steps2 N] [--seed S] [--restart]``. ``--preset ship`` is what built
+``trained/neural_appearance_<material>``; ``quick`` is the same pipeline at 32x32 for a few seconds
+(tests). Options given explicitly override the preset.
+
+The reference (sources.py): one of the technique's layered materials, or with ``--gltf FILE`` the
+material of a glTF file (``--material INDEX``, default the one covering most faces) under the spec's
+BRDF with its clearcoat, sheen and anisotropy lobes, over the uv box its faces use (gltf_source.py).
 
 Training (one run per material; every network shares one latent pyramid):
 - **samples online** (§3.1): uv uniform; the pyramid level drawn from an exponential distribution
@@ -25,7 +30,10 @@ Training (one run per material; every network shares one latent pyramid):
 
 Writes the asset folder: one bundle per network (``latents/``, ``decoder_2x16/`` ...), the material
 description and its parameter textures (for the reference shader), ``scene.json`` (the teapot),
-``metrics.json`` (with the rebuild command) and ``preview.png``.
+``metrics.json`` (with the rebuild command) and ``preview.png``. From a glTF file: the file
+(``source.glb``) and ``gltf_material.json`` in place of the description and textures, a scene.json of
+the file's mesh showing the neural material next to the file's shading, and in metrics.json the
+render PSNR against it at the scene's camera (``render``, gltf_scene.py).
 """
 from __future__ import annotations
 
@@ -46,23 +54,29 @@ from inshade import asset_folder
 from inshade.devices import resolve_device
 from inshade.files import atomic_write
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import GIVEN, Run, Trainer, setting
 
 from . import KIND, NETWORKS
 from inshade.models.latent_pyramid import LatentPyramid
 
-from .data import Targets, direction_pairs, draw_levels, scene_description
+from .data import Targets, direction_pairs, draw_levels
 from .model import LATENT, NeuralMaterial, decoder_loss, export_graphs, sampler_loss
+from .sources import open_source
 
 MATERIALS = ("ceramic", "brushed_metal")
 CHECKPOINT = "checkpoint.safetensors"
+GLTF_SUFFIXES = (".glb", ".gltf")
 
 
 @dataclass(frozen=True)
 class Settings:
     """What a neural_appearance run is built from (metrics.json records it, a description file's
-    material by its name)."""
-    material: str = setting("ceramic", f"{' | '.join(MATERIALS)} or a material description .json")
+    material by its name, a glTF file's by its index)."""
+    material: str | None = setting(None, f"{' | '.join(MATERIALS)} or a material description .json (none given: "
+                                         "ceramic); with --gltf, the index of the file's material (none given: "
+                                         "the one covering most faces)")
+    gltf: str | None = setting(None, "learn the material of this glTF 2.0 file (.glb or .gltf) on its own mesh",
+                               metavar="FILE", only={"gltf": GIVEN})   # a run without one records what it always did
     resolution: int = setting(512, "finest latent/texture side, a power of two")
     steps1: int = setting(5000, "phase 1 (encoder) steps")
     steps2: int = setting(10000, "phase 2 (latent fine-tuning) steps")
@@ -143,25 +157,27 @@ def encode_pyramid(model: NeuralMaterial, encoder_levels: list[torch.Tensor]) ->
         return [model.encoder(t.reshape(-1, t.shape[-1])).reshape(*t.shape[:2], LATENT) for t in encoder_levels]
 
 
-def train(*, material="ceramic", preset="ship", out=None, resolution=None, steps1=None, steps2=None,
+def train(*, material=None, gltf=None, preset="ship", out=None, resolution=None, steps1=None, steps2=None,
           batch=None, sampler_batch=None, sampler_samples=None, footprint_samples=None, seed=None, device="cpu",
           lr=None, latent_lr=None, level_scale=None, mollify_degrees=None, checkpoint_every=250,
-          restart=False, progress=None, command_line=None, write_preview=True) -> Path:
+          restart=False, progress=None, command_line=None, write_preview=True, render_spp=16,
+          render_decoders=(32,)) -> Path:
     """Train and write the asset folder; returns it. The keyword form of ``inshade train
-    neural_appearance``: a setting left None is the preset's. `device`: a torch.device or a
-    --device spelling (auto, cpu, cuda, cuda:N)."""
-    from .material import load_material
-
-    given = dict(material=material, resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
+    neural_appearance``: a setting left None is the preset's (``material`` None: ceramic, or with
+    ``gltf`` the material covering most faces). `device`: a torch.device or a --device spelling
+    (auto, cpu, cuda, cuda:N)."""
+    given = dict(material=None if material is None else str(material), gltf=None if gltf is None else str(gltf),
+                 resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
                  sampler_batch=sampler_batch, sampler_samples=sampler_samples, footprint_samples=footprint_samples,
                  seed=seed, lr=lr, latent_lr=latent_lr, level_scale=level_scale, mollify_degrees=mollify_degrees)
     settings = Settings(**{**TRAINER.defaults(preset), **{k: v for k, v in given.items() if v is not None}})
     check(settings)
-    name = load_material(material).name
-    out = Path(out) if out else asset_folder.default(f"neural_appearance_{name}")
+    source = open_source(settings.material, settings.gltf)
+    out = Path(out) if out else asset_folder.default(_folder(settings))
     device = resolve_device(device) if isinstance(device, str) else torch.device(device)
-    command_line = command_line or _command_line(material, preset, out, dataclasses.replace(settings, material=name))
-    options = argparse.Namespace(checkpoint_every=checkpoint_every, restart=restart, no_preview=not write_preview)
+    command_line = command_line or _command_line(preset, out, settings, source.setting)
+    options = argparse.Namespace(checkpoint_every=checkpoint_every, restart=restart, no_preview=not write_preview,
+                                 render_spp=render_spp, render_decoders=tuple(render_decoders))
     fit_material(Run(settings, preset, device, out, command_line, options), progress)
     return out
 
@@ -170,23 +186,22 @@ def fit_material(run: Run, progress=None) -> dict:
     """Train on ``run.settings`` and write the asset folder ``run.out`` (metrics.json through the
     run, then preview.png unless --no-preview); returns the metrics beside the run's record."""
     from inshade.progress import progress as progress_bar
+    from inshade.trainer import recorded
 
-    from .material import ENCODER_INPUTS, bake_parameters, load_material, parameter_pyramid
-
-    mat = load_material(run.settings.material)
-    run = dataclasses.replace(run, settings=dataclasses.replace(run.settings, material=mat.name))
+    source = open_source(run.settings.material, run.settings.gltf)
+    run = dataclasses.replace(run, settings=dataclasses.replace(run.settings, material=source.setting))
     s, out, device, checkpoint_every = run.settings, run.out, run.device, run.args.checkpoint_every
     resolution, steps1, steps2, seed, lr, latent_lr = s.resolution, s.steps1, s.steps2, s.seed, s.lr, s.latent_lr
     levels = int(math.log2(resolution)) + 1
-    config = dataclasses.asdict(s)
+    config = recorded(s)
 
     torch.manual_seed(seed)
-    raw = bake_parameters(mat, resolution)
+    raw = source.bake(resolution)
     # the encoder inputs per level, looked up like latents (bilinear within a level, repeat); fixed data
-    encoder_inputs = LatentPyramid.from_arrays(parameter_pyramid(raw, levels, mat)).requires_grad_(False).to(device)
+    encoder_inputs = LatentPyramid.from_arrays(source.encoder_levels(raw, levels)).requires_grad_(False).to(device)
     enc_levels = [encoder_inputs.level(k) for k in range(levels)]
-    targets = Targets(mat, raw, device)
-    model = NeuralMaterial(ENCODER_INPUTS, resolution, levels).to(device)
+    targets = Targets(source, raw, device)
+    model = NeuralMaterial(source.encoder_inputs, resolution, levels).to(device)
 
     ckpt = out / CHECKPOINT
     start_phase, start_step, saved = 1, 0, None
@@ -214,7 +229,7 @@ def fit_material(run: Run, progress=None) -> dict:
             _restore(model, opt, *saved)
             first, saved = start_step, None
         base = [g["lr"] for g in opt.param_groups]
-        bar = progress_bar(range(first, steps), desc=f"neural_appearance {mat.name} phase {phase}",
+        bar = progress_bar(range(first, steps), desc=f"neural_appearance {source.name} phase {phase}",
                            enabled=progress)
         for step in bar:
             t = step / max(steps, 1)
@@ -247,13 +262,15 @@ def fit_material(run: Run, progress=None) -> dict:
     if model.pyramid is None:     # steps2 == 0: latents straight from the encoder
         model.make_pyramid(encode_pyramid(model, enc_levels))
     history["holdout"] = holdout(model, targets, levels, device, seed)
-    sizes = write_asset(out, model, mat, raw, config, run.command, run.preset, device)
+    sizes = write_asset(out, model, source, raw, config, run.command, run.preset, device)
     metrics = {"train_seconds": round(seconds, 1), "train_threads": torch.get_num_threads(), "device": str(device),
                "bundle_bytes": sizes, "history": history}
+    spp = getattr(run.args, "render_spp", 16)
+    metrics.update(source.render_metrics(out, spp, getattr(run.args, "render_decoders", (32,))))
     run.write_metrics(metrics)
     ckpt.unlink(missing_ok=True)
     if not run.args.no_preview:
-        render_preview(out)
+        render_preview(out, spp=spp if run.settings.gltf is not None else 4)
     return metrics
 
 
@@ -276,12 +293,11 @@ def holdout(model: NeuralMaterial, targets: Targets, levels: int, device, seed: 
 # ---------------------------------------------------------------------------------------------
 # the asset
 
-def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, command_line, preset, device) -> dict:
-    """The bundles, the material and its textures, scene.json; returns each bundle's bytes."""
-    from .material import write_textures
-
+def write_asset(out: Path, model: NeuralMaterial, source, raw, config, command_line, preset, device) -> dict:
+    """The bundles, what the reference shader reads (sources.py ``write_files``), scene.json; returns
+    each bundle's bytes."""
     out.mkdir(parents=True, exist_ok=True)
-    provenance = {"command": command_line, "preset": preset, "material": mat.name, **config,
+    provenance = {"command": command_line, "preset": preset, "material": source.name, **config,
                   "torch": torch.__version__, "device": str(device),
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     graphs = export_graphs(model.to("cpu"))
@@ -292,9 +308,8 @@ def write_asset(out: Path, model: NeuralMaterial, mat, raw, config, command_line
             bundle.tensors = {k: v.astype(np.float16) for k, v in bundle.tensors.items()}
         bundle.save(out / folder)
         sizes[folder] = int(sum(np.asarray(t).nbytes for t in bundle.tensors.values()))
-    write_textures(mat, raw.shape[0], out)
-    atomic_write(out / "material.json", Path(mat.path).read_bytes())
-    atomic_write(out / "scene.json", json.dumps(scene_description(mat, out.name), indent=2) + "\n")
+    source.write_files(out, raw)
+    atomic_write(out / "scene.json", json.dumps(source.scene(out), indent=2) + "\n")
     return sizes
 
 
@@ -307,10 +322,21 @@ def render_preview(out: Path, spp: int = 4) -> None:
     Path(f"{out / 'preview.png'}.json").unlink()   # a shipped picture: its sidecar would hold this machine's paths
 
 
-def _command_line(material, preset, out, settings: Settings) -> str:
+def _folder(s: Settings) -> str:
+    """The default asset folder's name: the layered material's, or the glTF file's (and the index
+    when one is given)."""
+    if s.gltf is not None:
+        return f"neural_appearance_{Path(s.gltf).stem}" + ("" if s.material is None else f"_{s.material}")
+    return f"neural_appearance_{Path(s.material or 'ceramic').stem}"
+
+
+def _command_line(preset, out, settings: Settings, material: str) -> str:
     """The keyword form's command: the options that differ from the preset's."""
-    parts = ["inshade", "train", "neural_appearance", "--material", str(material), "--preset", preset]
-    if Path(out) != asset_folder.default(f"neural_appearance_{Path(str(material)).stem}"):
+    parts = ["inshade", "train", "neural_appearance"]
+    if settings.gltf is not None:
+        parts += ["--gltf", str(settings.gltf)]
+    parts += ["--material", str(material), "--preset", preset]
+    if Path(out) != asset_folder.default(_folder(settings)):
         parts += ["--out", str(out)]
     preset_values = TRAINER.defaults(preset)
     for key in ("resolution", "steps1", "steps2", "seed"):
@@ -327,6 +353,28 @@ def extra_arguments(parser: argparse.ArgumentParser) -> None:
                         help="steps between checkpoints, 0 for none (default: %(default)s)")
     parser.add_argument("--restart", action="store_true", help="ignore a checkpoint in the output folder")
     parser.add_argument("--no-preview", action="store_true", help="skip rendering preview.png")
+    parser.add_argument("--render-spp", type=_positive, default=16,
+                        help="with --gltf: samples per pixel of the metric renders and the preview (default "
+                             "%(default)s)")
+    parser.add_argument("--render-decoders", type=_decoders, default=(32,), metavar="16,32,64",
+                        help="with --gltf: the decoders whose renders are measured against the reference (default "
+                             "32, the scene's; llvmpipe compiles 3x64 for about a minute)")
+
+
+def _positive(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return int(text)
+
+
+def _decoders(text: str) -> tuple[int, ...]:
+    try:
+        out = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        out = ()
+    if not out or any(d not in (16, 32, 64) for d in out):
+        raise argparse.ArgumentTypeError(f"expected decoders among 16,32,64 separated by commas, got {text!r}")
+    return out
 
 
 def check(s: Settings) -> None:
@@ -335,19 +383,25 @@ def check(s: Settings) -> None:
             raise ValueError(f"--{name}: must be >= 0, got {getattr(s, name)}")
     if s.resolution < 4 or s.resolution & (s.resolution - 1):
         raise ValueError(f"--resolution: must be a power of two >= 4, got {s.resolution}")
+    if s.gltf is not None:     # an unreadable file or material fails here, before a folder is claimed
+        if Path(s.gltf).suffix.lower() not in GLTF_SUFFIXES:
+            raise ValueError(f"--gltf: {s.gltf}: expected a .glb or .gltf file")
+        open_source(s.material, s.gltf)
 
 
 def build(run: Run) -> int:
     m = fit_material(run)
-    last = m["history"]["phase2"][-1] if m["history"]["phase2"] else m["history"]["phase1"][-1]
+    steps = m["history"]["phase2"] or m["history"]["phase1"]
+    last = steps[-1] if steps else {f"l1_{k}": v for k, v in m["history"]["holdout"]["level0"].items()}
+    psnr = ", ".join(f"{k[5:]} {v} dB" for k, v in m.get("render", {}).items() if k.startswith("psnr_"))
     print(f"wrote {run.out}: L1(log) 3x64 {last['l1_3x64']:.4f}, 2x32 {last['l1_2x32']:.4f}, "
-          f"2x16 {last['l1_2x16']:.4f} in {m['train_seconds']:.0f} s")
+          f"2x16 {last['l1_2x16']:.4f} in {m['train_seconds']:.0f} s"
+          + (f"; render PSNR vs the glTF reference: {psnr}" if psnr else ""))
     return 0
 
 
-TRAINER = Trainer("neural_appearance", __doc__, Settings, PRESETS, build,
-                  folder=lambda s: f"neural_appearance_{Path(s.material).stem}",
-                  folder_hint="neural_appearance_<material>", default_preset="ship",
+TRAINER = Trainer("neural_appearance", __doc__, Settings, PRESETS, build, folder=_folder,
+                  folder_hint="neural_appearance_<material | glTF file>", default_preset="ship",
                   ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check, errors=(ValueError,),
                   resume=(CHECKPOINT,))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

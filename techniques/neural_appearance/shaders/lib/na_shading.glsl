@@ -10,6 +10,7 @@
 // techniques/neural_appearance/__init__.py), generated into <choices>.
 #include <lib/na_neural>
 #include <lib/na_reference>
+#include <lib/na_sampling>
 #include <lib/lights>
 #include <lib/environment>
 #include <lib/random>
@@ -54,19 +55,6 @@ vec3 na_lights(NaPoint s, bool neural, int light_count) {
         sum += na_reflectance_of(s, neural, na_local(s, to_light)) * (u_lights[i].w * scale);
     }
     return sum;
-}
-
-float na_bsdf_pdf(int sampling, ProxyLobe lobe, vec3 view, vec3 light) {
-    if (sampling == NA_SAMPLING_COSINE) return max(light.z, 0.0) * (1.0 / NA_PI);
-    return proxy_pdf(lobe, view, light);
-}
-
-vec3 na_bsdf_sample(int sampling, ProxyLobe lobe, vec3 view, vec3 u) {
-    if (sampling == NA_SAMPLING_COSINE) {
-        float r = sqrt(u.y), phi = 2.0 * NA_PI * u.z;
-        return vec3(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u.y)));
-    }
-    return proxy_sample(lobe, view, u);
 }
 
 // One Monte Carlo sample of the environment's reflected radiance (pixel px, sample index k).
