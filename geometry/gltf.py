@@ -129,6 +129,38 @@ class GltfAsset:
         return sorted(int(m) for m in np.unique(self.face_material))
 
 
+def copy_gltf(path, folder, stem: str = "source") -> str:
+    """Copy a glTF file into ``folder`` as ``stem.glb`` / ``stem.gltf``, bytes unchanged (an asset
+    draws what was learnt from); a .gltf brings the buffers and images it names by relative path,
+    to the same relative paths. A uri outside the file's folder is a GltfError (pack it as .glb).
+    Every file is written atomically. Returns the copy's name."""
+    import json
+    from urllib.parse import unquote
+
+    from inshade.files import atomic_write
+
+    path, folder = Path(path), Path(folder)
+    name = f"{stem}{path.suffix.lower()}"
+    files = []
+    if path.suffix.lower() == ".gltf":
+        doc = json.loads(path.read_text())
+        base = path.parent.resolve()
+        for key in ("buffers", "images"):
+            for i, item in enumerate(doc.get(key) or []):
+                uri = item.get("uri") if isinstance(item, dict) else None
+                if not isinstance(uri, str) or uri.startswith("data:"):
+                    continue
+                source = (base / unquote(uri)).resolve()
+                if base not in source.parents:
+                    raise GltfError(f"{path}: {key}[{i}].uri: {uri!r} lies outside the file's folder; an asset "
+                                    "copies the file with what it names (pack it as .glb)")
+                files.append(source)
+    atomic_write(folder / name, path.read_bytes())
+    for source in files:
+        atomic_write(folder / source.relative_to(path.parent.resolve()), source.read_bytes())
+    return name
+
+
 def gltf_uv(uv: np.ndarray) -> np.ndarray:
     """The project's uv (v up) as glTF's (v down) and back: the same flip both ways."""
     uv = np.asarray(uv, np.float64).copy()

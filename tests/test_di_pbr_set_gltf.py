@@ -239,19 +239,20 @@ def _untextured(tmp_path) -> Path:
     return b.write(tmp_path / "untextured.glb")
 
 
-def _textured_without_uv(tmp_path, with_other_uv: bool) -> Path:
-    """A textured material on triangles without TEXCOORD_0 (and, if ``with_other_uv``, a second
-    primitive that has them, so the reader accepts the file)."""
+def _textured_without_uv(tmp_path, with_other_uv: bool, textured_uv: bool = False) -> Path:
+    """A textured material on triangles without TEXCOORD_0 (unless ``textured_uv``; and, if
+    ``with_other_uv``, a second primitive of a plain material that has them)."""
     b = GltfBuilder()
     tex = b.texture(b.image(gltf_scenes.tile_textures(16)["base_color"]))
     textured = b.material({"name": "tiles", "pbrMetallicRoughness": {"baseColorTexture": {"index": tex}}})
     mesh = torus(segments=(16, 8), tiles=(1.0, 1.0))
-    prims = [Primitive(mesh.vertices, mesh.faces, shading_normals(mesh), None, None, textured)]
+    prims = [Primitive(mesh.vertices, mesh.faces, shading_normals(mesh), mesh_uv(mesh) if textured_uv else None,
+                       None, textured)]
     if with_other_uv:
         other = b.material({"name": "plain"})
         prims.append(Primitive(mesh.vertices * 0.5, mesh.faces[:10], None, mesh_uv(mesh), None, other))
     b.node(b.mesh(prims))
-    return b.write(tmp_path / f"no_uv_{int(with_other_uv)}.glb")
+    return b.write(tmp_path / f"no_uv_{int(with_other_uv)}{int(textured_uv)}.glb")
 
 
 @pytest.mark.parametrize("case", ["no_uv_file", "no_uv_material", "unreadable", "missing", "untextured",
@@ -262,11 +263,12 @@ def test_bad_input_is_one_line(case, tmp_path, torus_file, capsys):
             "unreadable": lambda: ["--gltf", str(_write(tmp_path / "junk.glb", b"glTF but not really"))],
             "missing": lambda: ["--gltf", str(tmp_path / "absent.glb")],
             "untextured": lambda: ["--gltf", str(_untextured(tmp_path))],
-            "untextured_material": lambda: ["--gltf", str(_textured_without_uv(tmp_path, True)), "--material", "1"],
+            "untextured_material": lambda: ["--gltf", str(_textured_without_uv(tmp_path, True, True)), "--material", "1"],
             "material_index": lambda: ["--gltf", str(torus_file), "--material", "3"],
             "material_alone": lambda: ["--material", "0"]}[case]()
     expected = {"no_uv_file": ": meshes: materials have textures, but no primitive has TEXCOORD_0",
-                "no_uv_material": ": materials[0]: its triangles have no TEXCOORD_0",
+                "no_uv_material": ": meshes[0].primitives[0]: material 0 (tiles) has textures, but the primitive has "
+                                  "no TEXCOORD_0",
                 "unreadable": "junk.glb: ",
                 "missing": "absent.glb: no such file",
                 "untextured": ": materials: no material has a base colour",

@@ -258,3 +258,21 @@ def test_a_textured_primitive_without_uv_is_refused_even_when_another_has_uv(tmp
     with pytest.raises(GltfError, match=r"half.glb: meshes\[0\].primitives\[1\]: material 0 \(material 0\) has textures, "
                                         r"but the primitive has no TEXCOORD_0"):
         load_gltf(path)
+
+
+def test_copy_gltf_brings_the_files_a_gltf_names(tmp_path):
+    from inshade.geometry.gltf import copy_gltf
+
+    src = gltf_scenes.tiles_torus().write(tmp_path / "src" / "torus.gltf")
+    out = tmp_path / "out"
+    assert copy_gltf(src, out) == "source.gltf"
+    assert (out / "source.gltf").read_bytes() == src.read_bytes()
+    assert (out / "torus.bin").read_bytes() == (src.parent / "torus.bin").read_bytes()
+    assert len(load_gltf(out / "source.gltf").mesh.faces) == 4096
+    glb = gltf_scenes.tiles_torus().write(tmp_path / "src" / "torus.glb")
+    assert copy_gltf(glb, out, "mine") == "mine.glb" and (out / "mine.glb").read_bytes() == glb.read_bytes()
+    doc = json.loads(src.read_text())
+    doc["buffers"][0]["uri"] = "../elsewhere.bin"
+    (tmp_path / "src" / "outside.gltf").write_text(json.dumps(doc))
+    with pytest.raises(GltfError, match=r"outside.gltf: buffers\[0\].uri: '../elsewhere.bin' lies outside"):
+        copy_gltf(tmp_path / "src" / "outside.gltf", out)

@@ -20,15 +20,14 @@ from __future__ import annotations
 import datetime
 import hashlib
 import json
-import shutil
 import time
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
 import numpy as np
 import torch
 
-from inshade.files import atomic_files, atomic_write
-from inshade.geometry.gltf import GltfError
+from inshade.files import atomic_write
+from inshade.geometry.gltf import GltfError, copy_gltf
 from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import split_rgba8
 from inshade.models.texture_cascade import compress, torch_decode
@@ -38,32 +37,6 @@ from inshade.techniques.di_pbr_set.render import render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, gltf_lane_metrics, gltf_markdown, render_psnr
 
 LIGHTS = 2          # the point lights of a glTF scene (as ``inshade render FILE.glb`` places them)
-
-
-def copy_source(path: Path, out: Path) -> str:
-    """The file into ``out`` as ``source.glb`` / ``source.gltf`` (bytes unchanged); a .gltf brings
-    the buffers and images it names by relative path. Returns the copy's name."""
-    target = out / f"source{path.suffix.lower()}"
-    extra = []
-    if path.suffix.lower() == ".gltf":
-        doc = json.loads(path.read_text())
-        for key in ("buffers", "images"):
-            for i, item in enumerate(doc.get(key) or []):
-                uri = item.get("uri")
-                if not uri or uri.startswith("data:"):
-                    continue
-                rel = PurePosixPath(uri)
-                if rel.is_absolute() or ".." in rel.parts or ":" in uri:
-                    raise GltfError(f"{path}: {key}[{i}].uri: {uri!r} is outside the file's folder; the asset "
-                                    "copies the file with what it names (pack it as .glb)")
-                extra.append(rel)
-    with atomic_files(target) as tmp:
-        shutil.copyfile(path, tmp)
-    for rel in extra:
-        dest = out / Path(*rel.parts)
-        with atomic_files(dest) as tmp:
-            shutil.copyfile(path.parent / Path(*rel.parts), tmp)
-    return target.name
 
 
 def framing(mesh) -> tuple[dict, list]:
@@ -151,7 +124,7 @@ def build_gltf(out, path, *, material: int | None, size: int | None, ratio: floa
     bundle = type(result.bundle)({**result.bundle.meta, "render": {"uv_domain": domain.as_dict()}},
                                  result.bundle.tensors)
     bundle.save(out)
-    mesh_file = copy_source(path, out)
+    mesh_file = copy_gltf(path, out)
     camera, scene_lights = framing(asset.mesh)
     notes = [f"material {m} ({mat.name or 'unnamed'}) of {path.name} compressed by DI: albedo, normal (x, y; "
              "z rebuilt), roughness, occlusion, metallic in 8 lanes; emission, alpha, clearcoat, sheen, "

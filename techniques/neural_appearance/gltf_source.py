@@ -15,13 +15,12 @@ Targets need no gradients, so the BRDF is evaluated in numpy (float32) and hande
 """
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from inshade.geometry.gltf import GltfError, gltf_uv, load_gltf
+from inshade.geometry.gltf import GltfError, copy_gltf, gltf_uv, load_gltf
 from inshade.geometry.gltf_sample import material_channels, sample_texture
 from inshade.geometry.mesh import mesh_uv
 from inshade.models import gltf_brdf
@@ -188,12 +187,7 @@ class GltfSource:
         gltf_material.json. A .gltf's external buffers and images are copied beside it."""
         from .gltf_info import INFO_FILE, write_info
 
-        shutil.copyfile(self.path, out / self.source_name())
-        if self.path.suffix.lower() == ".gltf":
-            for uri in _external_uris(self.path):
-                target = out / uri
-                target.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(self.path.parent / uri, target)
+        copy_gltf(self.path, out, SOURCE_FILE)
         write_info(out / INFO_FILE, source=self.source_name(), material=self.index, material_name=self.material.name,
                    uv_min=self.uv_min, uv_max=self.uv_max)
 
@@ -209,14 +203,3 @@ class GltfSource:
         from .gltf_scene import render_metrics
 
         return render_metrics(out, self.index, spp, decoders)
-
-
-def _external_uris(path: Path) -> list[str]:
-    """Relative file URIs (buffers, images) of a .gltf that must travel with it."""
-    import json
-    from urllib.parse import unquote
-
-    doc = json.loads(path.read_text())
-    uris = [item.get("uri") for key in ("buffers", "images") for item in doc.get(key, []) if isinstance(item, dict)]
-    return [unquote(u) for u in uris if isinstance(u, str) and not u.startswith("data:") and "://" not in u
-            and not u.startswith("/") and ".." not in Path(unquote(u)).parts]

@@ -1,5 +1,5 @@
 """A glTF file as the source of a UV-free material: read it (one error line for anything that cannot
-be used), copy it into the asset folder byte for byte, and size what it holds -- the texture bytes
+be used) and size what it holds -- the texture bytes
 the decoder is compared with and the texels its surface carries (the hierarchy's depth follows from
 them). numpy + the glTF reader; no torch.
 """
@@ -13,7 +13,6 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from inshade.files import atomic_write
 from inshade.geometry.gltf import GLB_JSON, GLB_MAGIC, GltfError, load_gltf
 from inshade.geometry.mesh import GLTF_SUFFIXES, mesh_uv
 
@@ -54,26 +53,6 @@ def _external(doc: dict) -> list[str]:
     """The relative file uris of buffers and images (data uris excluded)."""
     uris = [item.get("uri") for key in ("buffers", "images") for item in doc.get(key, []) if isinstance(item, dict)]
     return [u for u in uris if isinstance(u, str) and not u.startswith("data:")]
-
-
-def copy_into(path, out: Path) -> str:
-    """Copy the file into ``out`` as ``source.glb`` (or ``source.gltf`` with the files it names, at
-    the same relative paths); returns the copy's name. Byte-identical: the scene draws what was learnt."""
-    path = Path(path)
-    name = SOURCE + path.suffix.lower()
-    atomic_write(out / name, path.read_bytes())
-    if path.suffix.lower() == ".gltf":
-        doc, _ = _document(path)
-        base = path.parent.resolve()
-        for uri in _external(doc):
-            src = (base / unquote(uri)).resolve()
-            if base not in src.parents:
-                raise GltfSourceError(f"{path}: uri {uri!r}: lies outside the file's folder (copy the asset "
-                                      "into one folder, or write it as .glb)")
-            dst = out / src.relative_to(base)
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write(dst, src.read_bytes())
-    return name
 
 
 def file_image_bytes(path) -> int:

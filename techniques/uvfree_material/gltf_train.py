@@ -31,6 +31,7 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
+from inshade.geometry.gltf import copy_gltf
 from inshade.geometry.gltf_sample import material_channels
 from inshade.geometry.mesh_topology import mesh_topology
 from inshade.metrics import psnr
@@ -97,7 +98,7 @@ def write_gltf_material(run: Run, progress=None) -> dict:
     started = time.perf_counter()
     gltf_source.read(args.gltf)             # refused before anything is written
     out.mkdir(parents=True, exist_ok=True)
-    mesh_name = gltf_source.copy_into(args.gltf, out)
+    mesh_name = copy_gltf(args.gltf, out, gltf_source.SOURCE)
     asset = gltf_source.read(out / mesh_name)   # as the scene reads it: its faces are the ids trained
     mesh, faces = asset.mesh, np.asarray(asset.mesh.faces)
     targets = GltfTargets(asset)

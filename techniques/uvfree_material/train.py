@@ -47,6 +47,7 @@ from inshade.files import atomic_write
 from inshade.scene.labels import split_labels
 from inshade.lit_settings import lit_settings
 from inshade.geometry.mesh import MeshError, load_mesh, mesh_uv
+from inshade.geometry.gltf import GltfError
 from inshade.geometry.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.metrics import psnr
 from inshade.trainer import Run, Trainer, setting
@@ -467,5 +468,5 @@ def build(run: Run) -> int:
 
 TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, build, folder=folder_name, default_preset="ship",
                   ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
-                  errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError, GltfSourceError))
+                  errors=(TrainError, ComponentError, MeshTopologyError, objects.ObjectError, GltfSourceError, GltfError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main
