@@ -39,20 +39,13 @@ from inshade.techniques.di_pbr_set.report import astc_rows, gltf_lane_metrics, g
 LIGHTS = 2          # the point lights of a glTF scene (as ``inshade render FILE.glb`` places them)
 
 
-def framing(mesh) -> tuple[dict, list]:
-    """(camera, lights) framing the mesh's bounds: an orbit camera at three radii, two point lights
-    scaled to its size (the framing ``inshade render FILE.glb`` gives a glTF file)."""
-    lo, hi = mesh.bounds
-    centre = (lo + hi) / 2.0
-    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-6)
+def framing(path: Path) -> tuple[dict, list]:
+    """(camera, lights) of the scene the file opens as on its own (``inshade render FILE.glb``,
+    through the registry's opener), so the reference side is exactly that render."""
+    from inshade.technique import opener
 
-    def light(offset, power):
-        return {"type": "point", "position": (centre + radius * np.array(offset)).tolist(),
-                "intensity": power * radius * radius}
-
-    camera = {"type": "orbit", "fov_y": 40.0, "target": centre.tolist(), "distance": 3.0 * radius,
-              "yaw": 30.0, "pitch": -20.0}
-    return camera, [light((2.0, 2.5, 2.0), 4.0), light((-2.5, 1.0, 1.5), 1.5)]
+    opened = opener(path.suffix)(path)
+    return opened["camera"], opened["lights"]
 
 
 def scene_dict(name: str, title: str, mesh_file: str, camera: dict, lights: list, size: int, light_count: int,
@@ -125,7 +118,7 @@ def build_gltf(out, path, *, material: int | None, size: int | None, ratio: floa
                                  result.bundle.tensors)
     bundle.save(out)
     mesh_file = copy_gltf(path, out)
-    camera, scene_lights = framing(asset.mesh)
+    camera, scene_lights = framing(out / mesh_file)
     notes = [f"material {m} ({mat.name or 'unnamed'}) of {path.name} compressed by DI: albedo, normal (x, y; "
              "z rebuilt), roughness, occlusion, metallic in 8 lanes; emission, alpha, clearcoat, sheen, "
              "anisotropy and ior stay the file's", domain_note(domain),
