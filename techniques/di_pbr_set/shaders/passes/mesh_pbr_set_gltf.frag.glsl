@@ -8,8 +8,7 @@
 // di | split (left half reference, right half DI). Faces of other materials stay the reference.
 // DI is evaluated without a footprint (the base level), the reference samples the file's mip maps.
 #include <network>
-#include <lib/camera>
-#include <lib/gbuffer>
+#include <lib/gltf_gbuffer>
 #include <lib/pbr_set_gltf>
 #include <choices>
 
@@ -19,33 +18,25 @@
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
-uniform sampler2D u_gbuffer_uv_grad;
 uniform int u_pbr_view;
 uniform int u_light_count;
 layout(location = 0) out vec4 frag_color;
 
 void main() {
-    ivec2 px = ivec2(gl_FragCoord.xy);
-    vec3 p, n;
-    bool covered = gbuffer_surface(px, p, n);
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (!covered) {
-        frag_color = vec4(sh_background(rd, u_sh), 1.0);
+    GltfPixel g;
+    GltfSurface s;
+    if (!gltf_pixel(gl_FragCoord.xy, u_size, g, s)) {
+        frag_color = vec4(sh_background(-g.v, u_sh), 1.0);
         return;
     }
-    vec4 uv = texelFetch(u_gbuffer_uv, px, 0);
-    int m = int(uv.z + 0.5);
-    vec4 tangent = texelFetch(u_gbuffer_tangent, px, 0);
-    GltfSurface s = gltf_surface(m, uv.xy, texelFetch(u_gbuffer_uv_grad, px, 0), n, tangent, -rd);
-    bool compressed = m == PBR_GLTF_MATERIAL && (u_pbr_view == PBR_VIEW_DI
+    bool compressed = g.material == PBR_GLTF_MATERIAL && (u_pbr_view == PBR_VIEW_DI
                                                  || (u_pbr_view == PBR_VIEW_SPLIT && gl_FragCoord.x >= 0.5 * u_size.x));
     if (compressed) {
         vec4 x[NET_IN_BLOCKS];
-        x[0] = vec4(pbr_set_gltf_uv(uv.xy), 0.0, 0.0);
+        x[0] = vec4(pbr_set_gltf_uv(g.uv.xy), 0.0, 0.0);
         vec4 y[NET_OUT_BLOCKS];
         net_eval(x, y);
-        pbr_set_gltf_decode(s, y[0], y[1], m, n, tangent, -rd);
+        pbr_set_gltf_decode(s, y[0], y[1], g.material, g.n, g.tangent, g.v);
     }
-    frag_color = vec4(gltf_shade(s, p, -rd, u_sh, u_light_count), 1.0);
+    frag_color = vec4(gltf_shade(s, g.p, g.v, u_sh, u_light_count), 1.0);
 }

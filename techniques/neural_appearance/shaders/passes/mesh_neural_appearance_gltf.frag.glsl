@@ -10,8 +10,7 @@
 // u_na_error_scale). Lighting (u_na_lighting, GLTF_LIGHTING): shaded (lights, SH environment and
 // emission, as gltf_pbr) | lights (lights and emission, no environment: deterministic but for the
 // level choice). Linear radiance; the background is the SH sky, as gltf_pbr draws it.
-#include <lib/camera>
-#include <lib/gbuffer>
+#include <lib/gltf_gbuffer>
 #include <choices>
 #include <na_latents_info>
 #include <na_gltf_info>
@@ -19,7 +18,6 @@
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
-uniform sampler2D u_gbuffer_uv_grad;
 uniform int u_sample_index;
 uniform int u_na_view;
 uniform int u_na_lighting;
@@ -33,20 +31,15 @@ layout(location = 0) out vec4 frag_color;
 void main() {
     ivec2 ipx = ivec2(gl_FragCoord.xy);
     uvec2 px = uvec2(ipx);
-    vec3 p, ng;
-    bool covered = gbuffer_surface(ipx, p, ng);
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (!covered) {
-        frag_color = vec4(sh_background(rd, u_sh), 1.0);
+    GltfPixel g;
+    GltfSurface surface;
+    if (!gltf_pixel(gl_FragCoord.xy, u_size, g, surface)) {
+        frag_color = vec4(sh_background(-g.v, u_sh), 1.0);
         return;
     }
-    vec4 uv = texelFetch(u_gbuffer_uv, ipx, 0);
-    vec4 uv_grad = texelFetch(u_gbuffer_uv_grad, ipx, 0);
-    vec4 tangent = texelFetch(u_gbuffer_tangent, ipx, 0);
-    int m = int(uv.z + 0.5);
-    vec3 v = -rd;
-    GltfSurface surface = gltf_surface(m, uv.xy, uv_grad, ng, tangent, v);
+    vec3 p = g.p, ng = g.n, v = g.v;
+    vec4 tangent = g.tangent;
+    int m = g.material;
     bool environment = u_na_lighting == NA_LIGHTING_SHADED;
     // lights only: gltf_shade under a black sky (its environment term 0) is lights + emission
     vec3 none[SH_COEFFS];
@@ -64,8 +57,8 @@ void main() {
     s.position = p;
     na_gltf_frame(m, ng, tangent, v, s.t, s.b, s.n);
     s.view = na_gltf_view(na_gltf_local(s, v));
-    vec2 x = (uv.xy - NA_UV_ORIGIN) * NA_UV_SCALE;
-    float lod = na_lod(uv_grad * vec4(NA_UV_SCALE, NA_UV_SCALE), u_na_level_bias);
+    vec2 x = (g.uv.xy - NA_UV_ORIGIN) * NA_UV_SCALE;
+    float lod = na_lod(texelFetch(u_gbuffer_uv_grad, ipx, 0) * vec4(NA_UV_SCALE, NA_UV_SCALE), u_na_level_bias);
     s.z = na_latent(x, na_choose_level(lod, random_uniform2(px, u_sample_index, 0).x));
     s.occlusion = surface.occlusion;
     s.emissive = surface.emissive;

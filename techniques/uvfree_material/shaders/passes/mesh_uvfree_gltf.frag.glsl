@@ -7,14 +7,12 @@
 // (left half reference, right half network). u_uvg_channel (GLTF_CHANNEL_VIEWS): shaded, or one
 // channel as passes/gltf_pbr.frag shows it (linear base colour, mapped normal 0.5 + 0.5 n, metallic,
 // roughness, occlusion, emission). UVG_VIEW_*, UVG_CHANNEL_*: generated into <choices>.
-#include <lib/camera>
-#include <lib/gbuffer>
+#include <lib/gltf_gbuffer>
 #include <lib/uvf_gltf>
 #include <choices>
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
-uniform sampler2D u_gbuffer_uv_grad;
 uniform usampler2D u_gbuffer_primitive;
 uniform sampler2D u_gbuffer_barycentric;
 uniform int u_uvg_view;
@@ -24,22 +22,16 @@ layout(location = 0) out vec4 frag_color;
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    vec3 p, n;
-    bool covered = gbuffer_surface(px, p, n);
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (!covered) {
-        frag_color = vec4(sh_background(rd, u_sh), 1.0);
+    GltfPixel g;
+    GltfSurface s;
+    if (!gltf_pixel(gl_FragCoord.xy, u_size, g, s)) {
+        frag_color = vec4(sh_background(-g.v, u_sh), 1.0);
         return;
     }
-    vec4 uv = texelFetch(u_gbuffer_uv, px, 0);
-    vec4 tangent = texelFetch(u_gbuffer_tangent, px, 0);
-    int m = int(uv.z + 0.5);
-    GltfSurface s = gltf_surface(m, uv.xy, texelFetch(u_gbuffer_uv_grad, px, 0), n, tangent, -rd);
     bool network = u_uvg_view == UVG_VIEW_NETWORK || (u_uvg_view == UVG_VIEW_SPLIT && gl_FragCoord.x >= 0.5 * u_size.x);
     if (network) {
-        uvg_decode(texelFetch(u_gbuffer_primitive, px, 0).x, texelFetch(u_gbuffer_barycentric, px, 0).xy, m, n,
-                   tangent, -rd, s);
+        uvg_decode(texelFetch(u_gbuffer_primitive, px, 0).x, texelFetch(u_gbuffer_barycentric, px, 0).xy, g.material,
+                   g.n, g.tangent, g.v, s);
     }
     vec3 c;
     if (u_uvg_channel == UVG_CHANNEL_BASE_COLOR) c = s.s.base_color;
@@ -48,6 +40,6 @@ void main() {
     else if (u_uvg_channel == UVG_CHANNEL_ROUGHNESS) c = vec3(s.s.roughness);
     else if (u_uvg_channel == UVG_CHANNEL_OCCLUSION) c = vec3(s.occlusion);
     else if (u_uvg_channel == UVG_CHANNEL_EMISSIVE) c = s.emissive;
-    else c = gltf_shade(s, p, -rd, u_sh, u_light_count);
+    else c = gltf_shade(s, g.p, g.v, u_sh, u_light_count);
     frag_color = vec4(c, 1.0);
 }
