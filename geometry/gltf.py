@@ -131,7 +131,7 @@ class GltfAsset:
 
 def copy_gltf(path, folder, stem: str = "source") -> str:
     """Copy a glTF file into ``folder`` as ``stem.glb`` / ``stem.gltf``, bytes unchanged (an asset
-    draws what was learnt from); a .gltf brings the buffers and images it names by relative path,
+    draws what was learnt from; any other single file, e.g. an OBJ, likewise); a .gltf brings the buffers and images it names by relative path,
     to the same relative paths. A uri outside the file's folder is a GltfError (pack it as .glb).
     Every file is written atomically. Returns the copy's name."""
     import json

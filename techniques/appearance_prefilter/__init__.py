@@ -9,6 +9,12 @@ coverage (M*M), albedo (3), phase (1), slice (B). Its ``render`` metadata holds 
 ``bins`` (B), optionally ``bins_theta`` / ``bins_phi`` (BT x BP = B; default BP = 2 BT), which
 this record turns into the chunk <dap_config>. The march: shaders/lib/dap_march.glsl (torch twin
 march.py).
+
+A glTF file's asset (``--scene FILE.glb``, user_scene.py) is drawn by a second program,
+passes/appearance_prefilter_gltf.frag: the file as the scene's mesh with its reference shading
+(lib/gltf_material) beside the prefiltered voxels, its views ``GLTF_VIEWS``; its bundle's ``render``
+also holds ``world`` ({"centre": [3], "scale": s}: box = (world - centre) * scale + 0.5), which
+becomes DAP_WORLD_CENTRE / DAP_WORLD_SCALE in <dap_config>.
 """
 from pathlib import Path
 
@@ -18,8 +24,11 @@ from inshade.technique import Choice, ProgramSpec, Technique
 KIND = "appearance_prefilter"
 PREFIX = "dap"
 PROGRAM = "passes/appearance_prefilter.frag"
+GLTF_PROGRAM = "passes/appearance_prefilter_gltf.frag"
 # u_dap_view's values in index order (the pass's DAP_VIEW_* come from the program's choices)
 VIEWS = ("prefiltered", "scale", "coverage", "albedo")
+# the glTF pass's: the same, then the file's reference shading and the two side by side
+GLTF_VIEWS = VIEWS + ("reference", "split")
 UNIFORM_DEFAULTS = {"u_dap_distance": 1.0, "u_dap_force_scale": -1, "u_dap_view": VIEWS.index("prefiltered"),
                     "u_dap_shadows": 0}
 # scene.json "settings" of an asset: the viewer's distance slider (`--set distance=...`), the debug
@@ -73,6 +82,24 @@ def _chunks(scene, bundles, networks, codegen_options) -> dict:
         from inshade.codegen.spherical_harmonics import sh_chunks
 
         out.update(sh_chunks(int(_environment(scene)["degree"])))
+    return out
+
+
+def _gltf_chunks(scene, bundles, networks, codegen_options) -> dict:
+    """_chunks, plus DAP_WORLD_CENTRE / DAP_WORLD_SCALE from the bundle's render.world."""
+    out = _chunks(scene, bundles, networks, codegen_options)
+    bundle = _dap_bundle(scene, bundles, networks)
+    world = (bundle.meta.get("render") or {}).get("world")
+    try:
+        centre = [float(c) for c in world["centre"]]
+        scale = float(world["scale"])
+        if len(centre) != 3 or not scale > 0.0:
+            raise ValueError
+    except (TypeError, KeyError, ValueError):
+        raise ValueError(f"bundle {bundle.name!r}: render.world: {GLTF_PROGRAM} needs {{\"centre\": [x, y, z], "
+                         f"\"scale\": s > 0}} (the file's map into the voxels' unit box), got {world!r}") from None
+    out["dap_config"] += (f"#define DAP_WORLD_CENTRE vec3({centre[0]:.9g}, {centre[1]:.9g}, {centre[2]:.9g})\n"
+                          f"#define DAP_WORLD_SCALE {scale:.9g}\n")
     return out
 
 
@@ -190,10 +217,13 @@ TECHNIQUE = Technique(
     kinds=(KIND,),
     programs=(ProgramSpec(PROGRAM, geometry="fullscreen", bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS,
                           chunks=_chunks, frame=_frame, validate=_validate, shadows=_shadows,
-                          choices=(Choice("u_dap_view", "DAP_VIEW", VIEWS),)),),
+                          choices=(Choice("u_dap_view", "DAP_VIEW", VIEWS),)),
+              ProgramSpec(GLTF_PROGRAM, geometry="mesh", mesh_attributes=("materials",), bundle_kinds=(KIND,),
+                          uniforms=UNIFORM_DEFAULTS, chunks=_gltf_chunks, frame=_frame, validate=_validate,
+                          shadows=_shadows, choices=(Choice("u_dap_view", "DAP_VIEW", GLTF_VIEWS),))),
     train="inshade.techniques.appearance_prefilter.train",
-    train_help="voxelise a procedural scene at several scales, bake per-voxel coverage/albedo/phase, "
-               "fit voxel latents + decoders",
+    train_help="voxelise a procedural scene or a glTF / OBJ file at several scales, bake per-voxel "
+               "coverage/albedo/phase, fit voxel latents + decoders",
     bench="inshade.techniques.appearance_prefilter.bench",
     bench_help="prefiltered voxels vs supersampled and 1-spp full geometry and a decimated mesh: quality, "
                "memory, speed",

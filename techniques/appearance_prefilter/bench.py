@@ -134,17 +134,18 @@ def bench_scale(s: int, ctx: dict, args, log) -> dict:
     from .reference import render_reference
 
     scene, renderer, geo, camera = ctx["scene"], ctx["renderer"], ctx["geometry"], ctx["camera"]
+    drawn_from = ctx["gl_camera"]
     side = image_side(camera, s, args.min_size)
     light = ctx["light"]
     trace = dict(camera=camera.to_dict(), size=(side, side), sun_dir=light["direction"],
                  sun_radiance=light["radiance"], env_sh=ctx["sh"], shadows=True, seed=s)
     ref, ref_s = _timed(lambda: render_reference(geo, spp=args.spp, **trace))
     renderer.set_setting("force_scale", s)
-    renderer.render_network(camera, side, side, force=True)   # first draw at this size (JIT), untimed
+    renderer.render_network(drawn_from, side, side, force=True)   # first draw at this size (JIT), untimed
     times = []
     for _ in range(args.rounds):
         t = time.perf_counter()
-        renderer.render_network(camera, side, side, force=True)
+        renderer.render_network(drawn_from, side, side, force=True)
         renderer.ctx.finish()
         times.append(time.perf_counter() - t)
     dap = renderer.read("network")[..., :3].copy()
@@ -207,11 +208,15 @@ def bench_asset(folder: Path, args, cache, log) -> dict:
 
     from .baseline import lod_bytes
     from .memory import memory_report
-    from .scene import build_scene
+    from .user_asset import asset_geometry
 
     scene, bundle, metrics = load_asset(folder)
     settings = metrics["settings"]
-    geo = build_scene(settings["scene"], settings["detail"])
+    # the traced methods see the unit box; a glTF file's pass is drawn from the camera in its coordinates
+    try:
+        geo, camera = asset_geometry(folder, settings, scene.make_camera())
+    except ValueError as exc:     # a file asset's copy that cannot be read, a camera with no box twin
+        raise BenchError(str(exc)) from None
     node = next(n for n in bundle.nodes if n.type == "sparse_voxels")
     cells = np.asarray(bundle.tensor(node, "cells"))
     mem = memory_report(bundle)
@@ -224,7 +229,8 @@ def bench_asset(folder: Path, args, cache, log) -> dict:
     values = dict(renderer.values)
     light = sun(scene)
     sh = np.asarray(environment_sh(scene, values), np.float32)
-    ctx = {"scene": scene, "renderer": renderer, "geometry": geo, "camera": scene.make_camera(), "cells": cells,
+    ctx = {"scene": scene, "renderer": renderer, "geometry": geo, "camera": camera, "gl_camera": scene.make_camera(),
+           "cells": cells,
            "memory": mem, "sh": sh, "scene_bytes": lod_bytes(len(geo.mesh.vertices), len(geo.mesh.faces)),
            "light": {"direction": [float(v) for v in light.direction], "radiance": float(np.mean(light.intensity))}}
     env_only = None
@@ -240,7 +246,7 @@ def bench_asset(folder: Path, args, cache, log) -> dict:
         return int((np.abs(ref - env_only).max(-1) > 1e-4).sum())
 
     ctx["coverage_of"] = coverage_of
-    log(f"{folder.name}: {settings['scene']} ({len(geo.mesh.faces)} faces), {len(cells)} voxels, scales {scales}")
+    log(f"{folder.name}: {geo.name} ({len(geo.mesh.faces)} faces), {len(cells)} voxels, scales {scales}")
     try:
         rows = [bench_scale(s, ctx, args, log) for s in scales]
     finally:

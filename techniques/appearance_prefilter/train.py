@@ -1,7 +1,7 @@
-"""Train Deep Appearance Prefiltering decoders (Bako et al. 2022) on a procedural scene and write the
-asset folder the runtime renders.
+"""Train Deep Appearance Prefiltering decoders (Bako et al. 2022) on a procedural scene or a user's
+scene file and write the asset folder the runtime renders.
 
-Command: ``inshade train appearance_prefilter [--scene grove|slabs] [--preset quick|ship]
+Command: ``inshade train appearance_prefilter [--scene grove|slabs|FILE] [--preset quick|ship]
 [--scales S_MIN S_MAX] [--views V] [--mask M] [--bins BT BP] [--rays-per-texel R] [--latent Z]
 [--width W] [--steps N] [--batch N] [--lr LR] [--latent-lr LR] [--seed S] [--device auto|cpu|cuda[:N]]
 [--workers N | --ray auto|ADDRESS] [--cache DIR] [--out DIR]``.
@@ -21,6 +21,18 @@ Asset folder (default ``trained/appearance_prefilter_<scene>``): ``bundle.json``
 (preset, resolved settings, bake and training seconds, losses, memory). Presets: ``ship`` (grove,
 scales 3..7, V 16, M 8, bins 4 x 8, the shipped asset) and ``quick`` (slabs at quick detail,
 scales 2..3, V 4, M 4, bins 2 x 4, seconds: tests).
+
+``--scene FILE``: a glTF 2.0 file (.glb/.gltf) or an OBJ (PLY, STL) mesh in place of a procedural
+scene (user_scene.py: per-face material from the glTF's base colour, roughness and metallic; a
+constant one for a mesh without materials), normalised into the unit box; the bake, the decoders
+and the reference are the procedural scenes'. The file is copied into the asset (``source.glb``,
+byte-identical) and the camera frames it (user_asset.py). A glTF file's scene draws the file as its
+mesh with passes/appearance_prefilter_gltf.frag (``view`` prefiltered | reference | split, ...:
+the file's reference shading beside the prefiltered voxels), and ``metrics.json`` adds the
+prefiltered render's PSNR against that reference and against the ray-traced ``reference.exr``
+(both at the scene's camera through the GL runtime); an OBJ's scene is the procedural scenes' pass.
+``--detail`` belongs to the procedural scenes. An unreadable file is one ``inshade: error: FILE:
+FIELD: problem`` line before any work.
 """
 from __future__ import annotations
 
@@ -40,20 +52,25 @@ from inshade.models import bake
 from inshade.models.bake import BakeError
 from inshade.components import ComponentError
 from inshade.files import atomic_write
+from inshade.geometry.gltf import GltfError
+from inshade.geometry.mesh import MeshError
 from inshade.trainer import Run, Trainer, setting
 
 from .data import DataError
 from .memory import memory_report
 from .model import KIND, RAW, build_decoders, losses, split_outputs
 from .scene import DETAILS, SCENES, SceneError
+from .user_scene import is_file_scene, scene_name
 from .voxels import VoxelError
 
 
 @dataclass(frozen=True)
 class Settings:
     """What an appearance_prefilter run is built from (metrics.json records it)."""
-    scene: str = setting("grove", "procedural scene", choices=sorted(SCENES))
-    detail: str = setting("ship", "the scene's level of detail", choices=DETAILS)
+    scene: str = setting("grove", f"procedural scene ({' | '.join(sorted(SCENES))}), or a glTF 2.0 / OBJ file",
+                         metavar="SCENE")
+    detail: str = setting("ship", "the procedural scene's level of detail", choices=DETAILS,
+                          only={"scene": tuple(sorted(SCENES))})
     scales: tuple[int, ...] = setting((3, 7), "voxel scales S_MIN S_MAX, 2^s cells per axis", metavar="S")
     views: int = setting(16, "view directions baked per voxel")
     mask: int = setting(8, "coverage mask side M")
@@ -94,14 +111,23 @@ class TrainError(ValueError):
 # ---------------------------------------------------------------------------------------------
 # data
 
+def prefilter_scene(settings: dict):
+    """The PrefilterScene a run's settings name: the procedural scene at its detail, or the file's."""
+    from .scene import build_scene
+    from .user_scene import load_user_scene
+
+    if is_file_scene(settings["scene"]):
+        return load_user_scene(settings["scene"]).scene
+    return build_scene(settings["scene"], settings["detail"])
+
+
 def bake_data(settings: dict, *, executor=None, cache_dir=None, progress=None) -> dict:
     """Scene -> voxels -> the baked per-voxel arrays (data.py), plus "bake_seconds"."""
     from .data import bake_voxel_data
-    from .scene import build_scene
     from .voxels import voxelise
 
     started = time.perf_counter()
-    scene = build_scene(settings["scene"], settings["detail"])
+    scene = prefilter_scene(settings)
     cells, spheres = voxelise(scene, *settings["scales"])
     data = bake_voxel_data(scene, cells, spheres, views=settings["views"], mask=settings["mask"],
                            bins=tuple(settings["bins"]), rays_per_texel=settings["rays_per_texel"],
@@ -232,14 +258,26 @@ def train(run: Run) -> int:
     provenance = {"command": run.command, "preset": preset, **settings, "voxels": int(len(data["cells"])),
                   "faces": int(data["faces"]), "torch": torch.__version__, "device": str(device),
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-    bundle = graph.export(KIND, settings["scene"], provenance=provenance, metrics=quality,
-                          render={"mask": settings["mask"], "bins": bt * bp, "bins_theta": bt, "bins_phi": bp})
+    user = None
+    render = {"mask": settings["mask"], "bins": bt * bp, "bins_theta": bt, "bins_phi": bp}
+    if is_file_scene(settings["scene"]):
+        from .user_scene import load_user_scene
+
+        user = load_user_scene(settings["scene"])
+        if user.kind == "gltf":    # the file's map into the voxels' box (passes/appearance_prefilter_gltf.frag)
+            render["world"] = user.world
+    bundle = graph.export(KIND, scene_name(settings["scene"]), provenance=provenance, metrics=quality, render=render)
     if settings["precision"] == "f16":   # fp16 latents (what an RGBA16F texture holds) stored as F16
         bundle.tensors = {k: (v.astype(np.float16) if k == "vox.latents" else v) for k, v in bundle.tensors.items()}
     out.mkdir(parents=True, exist_ok=True)
     bundle.save(out)
-    write_reference(out, settings, preset)
-    atomic_write(out / "scene.json", json.dumps(scene_description(out.name, settings), indent=2) + "\n")
+    if user is None:
+        write_reference(out, settings, preset)
+        atomic_write(out / "scene.json", json.dumps(scene_description(out.name, settings), indent=2) + "\n")
+    else:
+        from .user_asset import write_user_scene
+
+        write_user_scene(out, settings, user, scene_description(out.name, settings), REFERENCE_SPP[preset])
     counts = data["ray_counts"]
     m = {"device": str(device), "train_threads": torch.get_num_threads(), "voxels": int(len(data["cells"])),
          "voxels_per_scale": {str(s): int((data["cells"][:, 0] == s).sum())
@@ -248,11 +286,21 @@ def train(run: Run) -> int:
          "bake_rays": {"primary": int(counts[0]), "shadow": int(counts[1])},
          "train_seconds": round(train_seconds, 2), "losses": quality, "memory": memory_report(bundle),
          "history": history}
+    if user is not None:
+        from .user_asset import compare_with_references
+
+        m["user_scene"] = {"file": settings["scene"], "kind": user.kind, "notes": user.notes}
+        started = time.perf_counter()
+        m["reference"] = compare_with_references(out)
+        m["reference_seconds"] = round(time.perf_counter() - started, 2)
     run.write_metrics(m)
     q, mem = m["losses"], m["memory"]
     print(f"wrote {out}: {m['voxels']} voxels; loss {q['total']:.4f} (coverage {q['coverage']:.4f}, albedo "
           f"{q['albedo']:.4f}, phase {q['phase']:.4f}, slice {q['slice']:.4f}); {mem['bytes_per_voxel']:.0f} B/voxel; "
           f"bake {m['bake_seconds']:.0f} s, training {m['train_seconds']:.0f} s")
+    for name, r in m.get("reference", {}).items():
+        if isinstance(r, dict):
+            print(f"  PSNR against the {name} reference at the scene's camera: {r['psnr']:.2f} dB")
     return 0
 
 
@@ -313,7 +361,8 @@ def extra_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def check(s: Settings) -> None:
-    """A bad setting: TrainError naming the option."""
+    """A bad setting: TrainError naming the option (a scene file that cannot be read: the reader's
+    own one-line error, before any work)."""
     for name in ("views", "mask", "rays_per_texel", "width", "batch"):
         if getattr(s, name) < 1:
             raise TrainError(f"--{name.replace('_', '-')}: must be >= 1, got {getattr(s, name)}")
@@ -328,10 +377,17 @@ def check(s: Settings) -> None:
     for name in ("lr", "latent_lr"):
         if not (math.isfinite(getattr(s, name)) and getattr(s, name) > 0):
             raise TrainError(f"--{name.replace('_', '-')}: must be > 0, got {getattr(s, name)}")
+    if is_file_scene(s.scene):     # last: the file is read whole
+        from .user_scene import load_user_scene
+
+        if not Path(s.scene).exists():
+            raise TrainError(f"--scene: {s.scene}: no such file (the procedural scenes: {', '.join(sorted(SCENES))})")
+        load_user_scene(s.scene)
 
 
-TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: f"{KIND}_{s.scene}",
+TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: f"{KIND}_{scene_name(s.scene)}",
                   folder_hint=f"{KIND}_<scene>",
                   default_preset="ship", ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check,
-                  errors=(TrainError, ComponentError, BakeError, DataError, SceneError, VoxelError))
+                  errors=(TrainError, ComponentError, BakeError, DataError, SceneError, VoxelError, GltfError,
+                          MeshError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

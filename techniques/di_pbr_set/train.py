@@ -71,7 +71,7 @@ class Settings:
                                     choices=FINISH_OPTIMIZERS)
     gltf: str | None = setting(None, "compress this glTF file's material (.glb/.gltf) instead of the bricks; "
                                "--size then defaults to what its textures need", metavar="FILE", only=GLTF_RUN)
-    material: int | None = setting(None, "with --gltf: the material's index (default: the textured one "
+    material: int | None = setting(None, "with --gltf: the material's index (none given: the textured one "
                                    "covering most faces)", metavar="INDEX", only=GLTF_RUN)
 
 

@@ -1,6 +1,7 @@
 """prt: learnt-transfer precomputed radiance transfer. A transfer MLP maps a surface point and its
 normal to 16 SH coefficients of cosine-weighted visibility; diffuse and glossy (triple-product
-light matrix) shading on sphere-traced SDFs and rasterised meshes."""
+light matrix) shading on sphere-traced SDFs and rasterised meshes (a glTF file's with its base
+colour, next to its reference shading)."""
 from pathlib import Path
 
 from inshade.papers import LEARNT_TRANSFER
@@ -43,6 +44,8 @@ def _validate(scene):
 
 # u_shading's values in index order: lib/prt.glsl's PRT_DIFFUSE, PRT_GLOSSY come from the programs' choices
 SHADING_MODES = ("diffuse", "glossy")
+# u_prt_view's values in index order (passes/mesh_prt_gltf.frag's PRT_VIEW_* come from the program's choices)
+GLTF_VIEWS = ("prt", "reference", "split", "albedo")
 # Values of the PRT passes' uniforms a scene does not bind to a setting (twin.py PrtShading's defaults).
 UNIFORM_DEFAULTS = {"u_shading": SHADING_MODES.index("diffuse"), "u_phong_exponent": 16.0, "u_albedo": 1.0,
                     "u_kd": 1.0, "u_ks": 0.5, "u_prt_debug": 0}
@@ -74,7 +77,11 @@ TECHNIQUE = Technique(
               # the paper's baseline: transfer baked into a uv texture (texture_prt.py), same shading
               ProgramSpec("passes/mesh_prt_texture.frag", geometry="mesh", mesh_attributes=("uv",),
                           **{**_PRT, "bundle_kinds": ("prt_texture",), "chunks": _texture_chunks,
-                             "validate": _texture_validate})),
+                             "validate": _texture_validate}),
+              # a glTF file: PRT with its base colour next to its reference shading (lib/gltf_material)
+              ProgramSpec("passes/mesh_prt_gltf.frag", geometry="mesh", mesh_attributes=("materials",),
+                          **{**_PRT, "uniforms": {**UNIFORM_DEFAULTS, "u_prt_view": GLTF_VIEWS.index("prt")},
+                             "choices": (*_PRT["choices"], Choice("u_prt_view", "PRT_VIEW", GLTF_VIEWS))})),
     train="inshade.techniques.prt.train",
     train_help="a complete PRT asset: ground-truth transfer (cached), transfer MLP, scene, previews, quality",
     bench="inshade.techniques.prt.bench",

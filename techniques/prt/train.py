@@ -3,13 +3,15 @@
     inshade train prt --sdf trained/sdf_creature/sdf.json        # -> ./inshade-out/prt_creature
     inshade train prt --neural-sdf trained/prt_neural_bunny/sdf  # -> ./inshade-out/prt_neural_bunny
     inshade train prt --mesh trained/prt_mesh/mesh.ply           # -> ./inshade-out/prt_mesh
+    inshade train prt --gltf scene.glb                           # -> ./inshade-out/prt_scene
 
 ``--out DIR`` writes elsewhere; a folder that already holds files (a shipped asset) is refused
 unless ``--force``.
 
 Steps, all timed and recorded in ``OUT/metrics.json``:
 
-1. the geometry is copied into OUT (unless it is already there);
+1. the geometry is copied into OUT (unless it is already there; a glTF file as ``source.glb`` /
+   ``source.gltf``, byte-identical);
 2. ground-truth transfer data + the transfer network (techniques/prt/transfer_net.py, same options;
    the dataset cache lives outside the asset, in ``--cache``);
 3. ``OUT/scene.json``: the PRT pass for the geometry (sdf_prt or mesh_prt) with the settings
@@ -18,6 +20,13 @@ Steps, all timed and recorded in ``OUT/metrics.json``:
 4. previews (diffuse and glossy PNG, rendered by the GL driver through ``inshade render``'s path);
 5. quality against the per-pixel ground-truth-transfer render over an orbit (``techniques/prt/twin.py``
    ``quality_orbit``: PSNR / SSIM / MAE, diffuse and glossy).
+
+``--gltf FILE``: the transfer is learnt for the file's world-space mesh (with its own normals), and the
+scene draws the file through passes/mesh_prt_gltf.frag: PRT with the albedo of the file's base colour
+(texture x factor, linear) next to the file's reference shading, ``view`` prt | reference | split |
+albedo (techniques/prt/gltf_asset.py: previews, the quality with per-pixel albedo, and the PSNR of
+PRT against the reference at the scene's camera, which differ by design: see the scene's notes).
+An unreadable file is one ``inshade: error: FILE: FIELD: problem`` line before any work.
 
 ``--device auto|cpu|cuda[:N]`` (resolved before anything else): where step 2 runs -- the SDF
 sphere tracing of the transfer rays (mesh rays are embree's, on the CPU) and the network's
@@ -112,7 +121,9 @@ def resolve_settings(args: argparse.Namespace) -> dict:
     return settings
 
 
-PROGRAMS = {"sdf": "passes/sdf_prt.frag", "neural_sdf": "passes/sdf_prt.frag", "mesh": "passes/mesh_prt.frag"}
+PROGRAMS = {"sdf": "passes/sdf_prt.frag", "neural_sdf": "passes/sdf_prt.frag", "mesh": "passes/mesh_prt.frag",
+            "gltf": "passes/mesh_prt_gltf.frag"}
+GEOMETRY_OPTIONS = ("sdf", "neural_sdf", "mesh", "gltf")
 PREVIEW_SIZE = 256
 
 
@@ -141,11 +152,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def _geometry(args) -> tuple[str, Path]:
-    given = [(k, getattr(args, k)) for k in ("sdf", "neural_sdf", "mesh") if getattr(args, k)]
+    given = [(k, getattr(args, k)) for k in GEOMETRY_OPTIONS if getattr(args, k)]
     if len(given) != 1:
-        raise SystemExit("inshade train prt: give exactly one of --sdf, --neural-sdf, --mesh")
+        raise SystemExit("inshade train prt: give exactly one of --sdf, --neural-sdf, --mesh, --gltf")
     kind, path = given[0]
     path = Path(path)
+    if kind == "gltf":   # read once up front: a bad file is one GltfError line before any work
+        from inshade.techniques.prt.gltf_geometry import gltf_mesh
+
+        gltf_mesh(path)
     if not path.exists():
         raise SystemExit(f"inshade train prt: {path}: no such file or folder")
     return kind, path
@@ -162,6 +177,10 @@ def default_name(src: Path) -> str:
 
 def _copy_geometry(kind: str, src: Path, out: Path) -> str:
     """Copy the geometry into the asset; returns its name relative to OUT."""
+    if kind == "gltf":
+        from inshade.geometry.gltf import copy_gltf
+
+        return copy_gltf(src, out)
     name = {"sdf": "sdf.json", "neural_sdf": "sdf", "mesh": "mesh" + src.suffix.lower()}[kind]
     dst = out / name
     if src.resolve() != dst.resolve():
@@ -211,6 +230,10 @@ def previews_and_quality(out: Path, views: int, size: int, dirs: int) -> tuple[d
 
 
 def scene_dict(kind: str, geometry_name: str, name: str, title: str, camera: dict, bookmarks: dict) -> dict:
+    if kind == "gltf":
+        from inshade.techniques.prt.gltf_asset import gltf_scene
+
+        return gltf_scene(scene_dict("mesh", geometry_name, name, title, camera, bookmarks), PROGRAMS[kind])
     geometry = ({"mesh": geometry_name} if kind == "mesh" else
                 {"sdf": {"network": geometry_name}} if kind == "neural_sdf" else {"sdf": geometry_name})
     return {"format": "inshade.scene", "version": 1, "name": name, "title": title, "program": PROGRAMS[kind],
@@ -254,17 +277,27 @@ def run(args: argparse.Namespace) -> int:
     camera, bookmarks = scene_camera(*geometry_bound(geometry), args.camera_from)
     scene = scene_dict(kind, geometry_name, out.name, args.title or f"PRT: {out.name}", camera, bookmarks)
     atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
-    quality, shown = previews_and_quality(out, args.quality_views, args.quality_size, args.quality_dirs)
+    extra = {}
+    if kind == "gltf":
+        from inshade.techniques.prt.gltf_asset import gltf_previews_and_quality
+
+        quality, extra, shown = gltf_previews_and_quality(out, args.quality_views, args.quality_size,
+                                                          args.quality_dirs, PREVIEW_SIZE)
+    else:
+        quality, shown = previews_and_quality(out, args.quality_views, args.quality_size, args.quality_dirs)
     times.update(shown)
     bundle = load(out / "transfer")
     metrics = {"asset": out.name, "geometry": kind, "command": command, "preset": args.preset, "settings": settings,
                "transfer": bundle.meta.get("metrics", {}),
-               "provenance": bundle.meta.get("provenance", {}), "quality": quality, **times}
+               "provenance": bundle.meta.get("provenance", {}), "quality": quality, **extra, **times}
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=1, sort_keys=True) + "\n")
-    print(json.dumps({"quality": {m: quality[m] for m in ("diffuse", "glossy")}, **times}, indent=1))
+    print(json.dumps({"quality": {m: quality[m] for m in ("diffuse", "glossy")}, **extra, **times}, indent=1))
     return 0
 
 
 def main(argv=None) -> int:
-    return command.main("inshade train prt", __doc__, add_arguments, run, argv, errors=(DeviceError, BakeError))
+    from inshade.geometry.gltf import GltfError
+
+    return command.main("inshade train prt", __doc__, add_arguments, run, argv,
+                        errors=(DeviceError, BakeError, GltfError))
 

@@ -28,13 +28,16 @@ def geometry_bound(geometry) -> tuple[tuple[float, float, float], float]:
 
 
 def geometry_digest(geometry) -> str:
-    """sha256 of what the transfer depends on: mesh vertices + faces, or the SDF scene
-    (description tree, bound, trace settings) and any tensors of the SDF module (neural SDFs)."""
+    """sha256 of what the transfer depends on: mesh vertices + faces (+ the file's own normals where
+    it has them), or the SDF scene (description tree, bound, trace settings) and any tensors of the
+    SDF module (neural SDFs)."""
     h = hashlib.sha256()
     if is_mesh(geometry):
         h.update(b"mesh")
         h.update(np.ascontiguousarray(geometry.vertices, np.float64).tobytes())
         h.update(np.ascontiguousarray(geometry.faces, np.int64).tobytes())
+        if "normal" in geometry.vertex_attributes:   # a file's own normals (a glTF's) are sampled, not derived
+            h.update(np.ascontiguousarray(geometry.vertex_attributes["normal"], np.float64).tobytes())
         return h.hexdigest()
     scene = check_sdf(geometry)
     h.update(b"sdf")

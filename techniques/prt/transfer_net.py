@@ -1,7 +1,7 @@
 """The learnt-transfer network (Learnt Transfer, Dhawal et al. 2022): sigma(p, n) -> 16 SH coefficients of transfer.
 
 The command line that bakes ground-truth transfer data (techniques/prt/transfer.py ``build_dataset``)
-for an SDF, a mesh or a network SDF, trains the network on it (techniques/prt/transfer_training.py)
+for an SDF, a mesh, a glTF file's mesh or a network SDF, trains the network on it (techniques/prt/transfer_training.py)
 and writes its bundle (techniques/prt/transfer_model.py, where the bundle's contract is):
 python -m inshade.techniques.prt.transfer_net. `inshade train prt` runs it first, then builds the asset.
 """
@@ -59,6 +59,10 @@ def load_geometry(args: argparse.Namespace):
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise TransferError(f"{path}: mesh: no triangles")
         return mesh, {"mesh": str(path)}
+    if getattr(args, "gltf", None):
+        from inshade.techniques.prt.gltf_geometry import gltf_mesh
+
+        return gltf_mesh(args.gltf), {"gltf": str(args.gltf)}
     from inshade.bundle import load
 
     from inshade.models.network_sdf import NetworkSdfModule  # the neural-SDF twin (models/network_sdf.py)
@@ -74,6 +78,8 @@ def add_arguments(parser: argparse.ArgumentParser, out: bool = True) -> argparse
     geo.add_argument("--sdf", help="analytic SDF description (e.g. trained/sdf_creature/sdf.json)")
     geo.add_argument("--mesh", help="triangle mesh (OBJ/PLY/GLB), transfer by embree ray casting")
     geo.add_argument("--neural-sdf", help="network-SDF bundle folder")
+    geo.add_argument("--gltf", help="glTF 2.0 file (.glb/.gltf): transfer for its world-space mesh, read with its "
+                                    "own normals; `inshade train prt` shades it with the file's base colour")
     if out:
         parser.add_argument("--out", required=True, help="bundle folder to write")
     parser.add_argument("--cache", default=None, help="dataset cache folder (default: OUT/../.transfer_cache)%(default).0s")
@@ -155,8 +161,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv=None) -> int:
+    from inshade.geometry.gltf import GltfError
+
     return command.main("python -m inshade.techniques.prt.transfer_net", __doc__, add_arguments, run, argv,
-                        errors=(DeviceError, bake.BakeError))
+                        errors=(DeviceError, bake.BakeError, GltfError))
 
 
 if __name__ == "__main__":

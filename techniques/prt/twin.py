@@ -283,13 +283,17 @@ def scene_geometry(scene):
 
 def quality_orbit(scene, bundle=None, n_views: int = 30, size: int = 128, *, settings: dict | None = None,
                   n_dirs: int = 256, seed: int = 0, ctx=None, cache=None, progress: bool | None = None,
-                  geometry=None) -> dict:
+                  geometry=None, albedo_view: tuple[str, str, str] | None = None) -> dict:
     """GL image (the scene's PRT pass through SceneRenderer) vs the ground-truth render over
     ``n_views`` orbit views (yaw evenly spaced), diffuse and glossy. ``scene``: a viewer Scene (or
     what load_scene takes) of a PRT pass (SDF or mesh); ``bundle`` overrides its transfer bundle;
     ``geometry`` the ray-cast geometry (default ``scene_geometry(scene)``); ``ctx``/``cache``: GL
     context and ProgramCache for the SceneRenderer. The ground truth uses
-    the GL run's own surface for meshes (G-buffer) and the torch sphere trace for SDFs. Returns
+    the GL run's own surface for meshes (G-buffer) and the torch sphere trace for SDFs.
+    ``albedo_view`` (setting, shaded value, albedo value): a pass whose albedo varies over the
+    surface (passes/mesh_prt_gltf.frag: a glTF file's base colour) is measured with the setting at
+    the shaded value, and one render per view at the albedo value gives each pixel the albedo its
+    ground truth is shaded with (float32, as the pass reads it). Returns
     {"diffuse": {"psnr", "ssim", "mae", "views": [...]}, "glossy": {...}, "n_views", "size",
     "n_dirs", "gl_renderer"}; metrics as ``image_metrics``, averaged over views."""
     from tqdm import tqdm
@@ -310,6 +314,8 @@ def quality_orbit(scene, bundle=None, n_views: int = 30, size: int = 128, *, set
                              bundles=[bundle] if bundle is not None else None)
     results = {mode: [] for mode in SHADING_MODES}
     try:
+        if albedo_view is not None:
+            renderer.set_setting(albedo_view[0], albedo_view[1])
         sh = renderer.environment_sh()
         m = light_matrix_t(sh)
         for cam_dict in tqdm(orbit_cameras(scene, n_views), desc="orbit",
@@ -323,6 +329,8 @@ def quality_orbit(scene, bundle=None, n_views: int = 30, size: int = 128, *, set
                     u = cam.uniforms(size, size)
                     view = (gbuffer_view(*renderer.gbuffer.read()[:2], u, size, size) if renderer.gbuffer is not None
                             else trace_view(geometry, u, size, size))
+                    if albedo_view is not None:
+                        view.albedo = _albedo_at(renderer, albedo_view, cam, size, view)
                     gt_t = ground_truth_transfer(geometry, view, n_dirs, seed)
                 shading = PrtShading.from_settings(renderer.values, scene)
                 gt = compose(view, gt_t, sh, shading, m)
@@ -335,6 +343,18 @@ def quality_orbit(scene, bundle=None, n_views: int = 30, size: int = 128, *, set
         out[mode] = {k: float(np.mean([r[k] for r in rows])) for k in ("psnr", "ssim", "mae", "psnr_image")}
         out[mode]["views"] = rows
     return out
+
+
+def _albedo_at(renderer, albedo_view: tuple[str, str, str], cam, size: int, view: View) -> torch.Tensor:
+    """The albedo [M, 3] at the view's hits, read from a render of the pass's albedo view."""
+    from inshade.runtime.render import read_rgba
+
+    setting, shaded, albedo = albedo_view
+    renderer.set_setting(setting, albedo)
+    image = read_rgba(renderer.render_network(cam, size, size))
+    renderer.set_setting(setting, shaded)
+    rows = np.ascontiguousarray(image[..., :3], np.float32).reshape(-1, 3)[view.idx.numpy()]
+    return torch.from_numpy(rows)
 
 
 __all__ = ["PrtShading", "render", "render_gbuffer", "render_ground_truth", "quality_orbit", "trace_view",
