@@ -28,7 +28,7 @@ from inshade.geometry import gltf_scenes
 from inshade.geometry.gltf_sample import material_channels
 from inshade.geometry.gltf_write import GltfBuilder, Primitive
 from inshade.geometry.mesh import mesh_uv, shading_normals, torus
-from inshade.techniques.di_pbr_set import GLTF_VIEWS
+from inshade.techniques.di_pbr_set import ERROR_SCALE, GLTF_VIEWS
 from inshade.techniques.di_pbr_set import gltf_lanes as L
 from inshade.techniques.di_pbr_set.render import render_views
 from inshade.techniques.di_pbr_set.report import render_psnr
@@ -170,6 +170,9 @@ def test_split_is_the_reference_left_and_di_right(gl, asset):
     assert np.array_equal(views["reference"], reference)
     assert np.array_equal(views["split"][:, :half], reference[:, :half])
     assert np.array_equal(views["split"][:, half:], views["di"][:, half:])
+    # the error view: |DI - reference| x the scale, on every pixel (0 off the compressed material)
+    np.testing.assert_allclose(views["error"][..., :3], np.abs(views["di"] - reference)[..., :3] * ERROR_SCALE,
+                               atol=1e-5, rtol=1e-5)
     # the network is what the right half shows: it differs from the file's material on the mesh only
     assert np.abs(views["di"] - reference)[covered].max() > 0.05
     assert np.array_equal(views["di"][~covered], reference[~covered])

@@ -15,6 +15,7 @@ import pytest
 import torch
 
 from inshade.metrics import srgb_eotf
+from inshade.techniques.uvfree_material import ERROR_SCALE
 
 from parity import TOL, scaled_error
 
@@ -64,7 +65,7 @@ def test_asset_folder_holds_the_file_the_bundle_and_the_metrics(asset, torus):
     assert node.params["faces"] == len(load_gltf(asset / "source.glb").mesh.faces) == 4096
     scene = json.loads((asset / "scene.json").read_text())
     assert scene["mesh"] == "source.glb" and scene["program"] == "passes/mesh_uvfree_gltf.frag"
-    assert scene["settings"]["view"]["choices"] == ["reference", "network", "split"]
+    assert scene["settings"]["view"]["choices"] == ["reference", "network", "split", "error"]
     m = json.loads((asset / "metrics.json").read_text())
     assert m["preset"] == "quick" and m["channels"] == channels
     assert set(m["torch_quality"]) == {f"psnr_{c}" for c in channels} | {"normal_mean_deg"}
@@ -126,6 +127,8 @@ def test_split_is_the_reference_pass_left_and_the_network_right(asset):
     assert covered.mean() > 0.1
     assert np.abs(network - reference)[covered].max() > 0.05, "the network view must show the decoder"
     assert np.array_equal(network[~covered], reference[~covered])   # the background is the environment's
+    error = _render(asset, view="error")
+    np.testing.assert_allclose(error[..., :3], np.abs(network - reference)[..., :3] * ERROR_SCALE, atol=1e-5, rtol=1e-5)
 
 
 def test_network_view_shows_the_decoded_channels_like_torch(asset, graph):

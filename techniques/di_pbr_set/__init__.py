@@ -14,7 +14,8 @@ from inshade.technique import Choice, MaterialBake, ProgramSpec, Technique
 
 # u_pbr_view's values in index order (the pass's PBR_VIEW_* come from the program's choices)
 VIEWS = ("uncompressed", "di", "split")
-GLTF_VIEWS = ("reference", "di", "split")
+GLTF_VIEWS = ("reference", "di", "split", "error")
+ERROR_SCALE = 4.0    # the error view shows |DI - reference| times this (the "error_scale" setting)
 GLTF_PROGRAM = "passes/mesh_pbr_set_gltf.frag"
 
 
@@ -78,6 +79,7 @@ TECHNIQUE = Technique(
                           choices=(Choice("u_pbr_view", "PBR_VIEW", VIEWS),)),
               ProgramSpec(GLTF_PROGRAM, geometry="mesh", mesh_attributes=("materials",),
                           chunks=_gltf_chunks, validate=_gltf_validate, bake=_gltf_bake,
+                          uniforms={"u_pbr_error_scale": ERROR_SCALE},
                           choices=(Choice("u_pbr_view", "PBR_VIEW", GLTF_VIEWS),))),
     train="inshade.techniques.di_pbr_set.train",
     train_help="a DI-compressed PBR texture set (8 lanes) on a lit mesh, procedural or a glTF file's material",

@@ -31,7 +31,7 @@ from inshade.geometry.gltf import GltfError, copy_gltf
 from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import split_rgba8
 from inshade.models.texture_cascade import compress, torch_decode
-from inshade.techniques.di_pbr_set import GLTF_PROGRAM, GLTF_VIEWS
+from inshade.techniques.di_pbr_set import ERROR_SCALE, GLTF_PROGRAM, GLTF_VIEWS
 from inshade.techniques.di_pbr_set import gltf_lanes as L
 from inshade.techniques.di_pbr_set.render import render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, gltf_lane_metrics, gltf_markdown, render_psnr
@@ -65,6 +65,8 @@ def scene_dict(name: str, title: str, mesh_file: str, camera: dict, lights: list
                      "label": "material (split: left the file's, right DI)"},
             "lights": {"type": "int", "default": light_count, "min": 0, "max": len(lights),
                        "uniform": "u_light_count", "label": "point lights"},
+            "error_scale": {"type": "float", "default": ERROR_SCALE, "min": 1.0, "max": 64.0,
+                            "uniform": "u_pbr_error_scale", "label": "error view: |DI - reference| x"},
             "lut_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
                            "codegen": "lut_filter", "label": "LUT filtering"},
         },
@@ -76,6 +78,7 @@ def scene_dict(name: str, title: str, mesh_file: str, camera: dict, lights: list
             {"line": [[0.5, 0.0], [0.5, 1.0]], "when": {"view": "split"}},
             {"text": "reference", "at": [0.5, 0.95], "when": {"view": "reference"}},
             {"text": "DI", "at": [0.5, 0.95], "when": {"view": "di"}},
+            {"text": "|DI - reference|", "at": [0.5, 0.95], "when": {"view": "error"}},
         ],
     }
 

@@ -25,7 +25,7 @@ def scene_description(name: str, mesh: str, source_name: str, folder: Path, bund
                       channels) -> dict:
     from inshade import technique
 
-    from . import GLTF_CHANNEL_VIEWS, GLTF_VIEWS
+    from . import ERROR_SCALE, GLTF_CHANNEL_VIEWS, GLTF_VIEWS
 
     opened = technique.opener(Path(mesh).suffix)(folder / mesh)
     sky = opened["environment"].get("sky", "studio")
@@ -47,6 +47,8 @@ def scene_description(name: str, mesh: str, source_name: str, folder: Path, bund
                         "uniform": "u_uvg_channel", "label": "shaded, or one material channel as the shader sees it"},
             "lights": {"type": "int", "default": len(opened["lights"]), "min": 0, "max": len(opened["lights"]),
                        "uniform": "u_light_count", "label": "point lights"},
+            "error_scale": {"type": "float", "default": ERROR_SCALE, "min": 1.0, "max": 64.0,
+                            "uniform": "u_uvg_error_scale", "label": "error view: |network - reference| x"},
         },
         "notes": f"the decoder outputs {', '.join(channels)}; every other material input (alpha, ior, KHR lobes) "
                  "is the file's; the mesh's uv feed only the reference, the decoder reads the visibility buffer",

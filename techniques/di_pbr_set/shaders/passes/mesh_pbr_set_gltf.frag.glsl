@@ -5,7 +5,8 @@
 // the two differ by what DI learnt alone. Deferred: the G-buffer gives position, normal, uv (material
 // index in z), its footprint and the tangent per pixel; the network runs once per visible pixel.
 // u_pbr_view (GLTF_VIEWS in techniques/di_pbr_set/__init__.py; PBR_VIEW_* from <choices>): reference |
-// di | split (left half reference, right half DI). Faces of other materials stay the reference.
+// di | split (left half reference, right half DI) | error (|DI - reference| x u_pbr_error_scale).
+// Faces of other materials stay the reference.
 // DI is evaluated without a footprint (the base level), the reference samples the file's mip maps.
 #include <network>
 #include <lib/gltf_gbuffer>
@@ -19,18 +20,21 @@
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
 uniform int u_pbr_view;
+uniform float u_pbr_error_scale;
 uniform int u_light_count;
 layout(location = 0) out vec4 frag_color;
 
 void main() {
     GltfPixel g;
     GltfSurface s;
-    if (!gltf_pixel(gl_FragCoord.xy, u_size, g, s)) {
-        frag_color = vec4(sh_background(-g.v, u_sh), 1.0);
+    bool error = u_pbr_view == PBR_VIEW_ERROR;
+    if (!gltf_pixel(gl_FragCoord.xy, u_size, g, s)) {   // the sky: the same on both sides
+        frag_color = vec4(error ? vec3(0.0) : sh_background(-g.v, u_sh), 1.0);
         return;
     }
-    bool compressed = g.material == PBR_GLTF_MATERIAL && (u_pbr_view == PBR_VIEW_DI
+    bool compressed = g.material == PBR_GLTF_MATERIAL && (u_pbr_view == PBR_VIEW_DI || error
                                                  || (u_pbr_view == PBR_VIEW_SPLIT && gl_FragCoord.x >= 0.5 * u_size.x));
+    vec3 reference = error ? gltf_shade(s, g.p, g.v, u_sh, u_light_count) : vec3(0.0);
     if (compressed) {
         vec4 x[NET_IN_BLOCKS];
         x[0] = vec4(pbr_set_gltf_uv(g.uv.xy), 0.0, 0.0);
@@ -38,5 +42,6 @@ void main() {
         net_eval(x, y);
         pbr_set_gltf_decode(s, y[0], y[1], g.material, g.n, g.tangent, g.v);
     }
-    frag_color = vec4(gltf_shade(s, g.p, g.v, u_sh, u_light_count), 1.0);
+    vec3 c = gltf_shade(s, g.p, g.v, u_sh, u_light_count);
+    frag_color = vec4(error ? abs(c - reference) * u_pbr_error_scale : c, 1.0);
 }
