@@ -130,12 +130,12 @@ class SceneRenderer:
                                       visibility=self.spec.visibility)
         clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
-        self.notes = []                # what the setup changed that a user should know (e.g. resampled images)
         self.materials = None          # MaterialTextures of a glTF mesh's materials (lib/gltf_material)
         if "materials" in self.spec.mesh_attributes:
             self.materials = MaterialTextures(self.ctx, scene.mesh.gltf, self.gl)
             self.scene_textures.update(self.materials.textures)
-            self.notes += self.materials.notes
+            for note in [*scene.mesh.gltf.notes, *self.materials.notes]:   # conversions, generated tangents, ...
+                log.info("%s: %s", scene.mesh.name, note)
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
         self.environment = None        # EnvironmentTextures while the program samples lib/environment
         self._environment_key = None
