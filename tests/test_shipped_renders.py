@@ -118,6 +118,9 @@ def test_readme_examples_run(gl, tmp_path, monkeypatch, capsys):
                               "g", [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", 3])],
                               [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["N", 4])], [w])
     onnx.save(helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)]), tmp_path / "model.onnx")
+    from inshade.geometry import gltf_scenes
+
+    gltf_scenes.tiles_torus().write(tmp_path / "model.glb")        # "Bring your model": a glTF file of our own
     failed = []
     for command in readme_commands():
         argv = shlex.split(command)[1:]
