@@ -28,6 +28,7 @@
 // sphere centre moved toward the sun by r + sqrt(3) / 2^S_MAX (out of the voxel's own caster cubes).
 #define SHADOW_MAX_LAYERS 1
 #include <lib/dap_frame>
+#include <lib/lights>
 #include <lib/spherical_harmonics>
 #include <lib/shadow_map>
 #include <lib/unit_box>
@@ -205,4 +206,37 @@ DapResult dap_march(DapPixel p, int s, bool shadows) {
     }
     res.coverage = mean;
     return res;
+}
+
+// The scene's first directional light (the sun the voxels were baked under): its direction and
+// radiance; none (zero radiance, straight up) when the scene has no directional light.
+void dap_scene_sun(out vec3 dir, out vec3 radiance) {
+    dir = vec3(0.0, 1.0, 0.0);
+    radiance = vec3(0.0);
+    for (int i = 0; i < INSHADE_MAX_LIGHTS; ++i) {
+        if (i >= u_scene_light_count) break;
+        if (u_light_kinds[i] == INSHADE_LIGHT_DIRECTIONAL) {
+            dir = u_lights[i].xyz;
+            radiance = vec3(u_lights[i].w);
+            break;
+        }
+    }
+}
+
+// The pixel at fractional scale L: the marches of the two scales around it, blended linearly.
+// They run in one loop with a trip count the compiler cannot unroll: the decoder is inlined into
+// dap_march, and a second call site would double the program (llvmpipe compile time).
+DapResult dap_march_at(DapPixel p, float L, bool shadows) {
+    int lo = int(floor(L));
+    float f = L - float(lo);
+    DapResult a = DapResult(vec3(0.0), 0.0, vec3(0.0));
+    int marches = f > 0.0 ? 2 : 1;
+    for (int k = 0; k < marches; ++k) {
+        DapResult m = dap_march(p, min(lo + k, DAP_SCALE_MAX), shadows);
+        float weight = k == 0 ? (marches == 2 ? 1.0 - f : 1.0) : f;
+        a.radiance += weight * m.radiance;
+        a.coverage += weight * m.coverage;
+        a.albedo += weight * m.albedo;
+    }
+    return a;
 }

@@ -56,29 +56,10 @@ vec4 prefiltered_colour(vec3 ro_world, vec3 rd, vec3 background) {
     }
     float px = 2.0 / (u_proj[1][1] * u_size.y);
     float L = dap_footprint_scale(t0, px, u_dap_force_scale);
-    vec3 sun_dir = vec3(0.0, 1.0, 0.0);
-    vec3 sun = vec3(0.0);
-    for (int i = 0; i < INSHADE_MAX_LIGHTS; ++i) {
-        if (i >= u_scene_light_count) break;
-        if (u_light_kinds[i] == INSHADE_LIGHT_DIRECTIONAL) {
-            sun_dir = u_lights[i].xyz;
-            sun = vec3(u_lights[i].w);
-            break;
-        }
-    }
+    vec3 sun_dir, sun;
+    dap_scene_sun(sun_dir, sun);
     DapPixel p = dap_pixel(ro, rd, px, t0, sun_dir, sun, u_sh);
-    int lo = int(floor(L));
-    float f = L - float(lo);
-    // one loop, as passes/appearance_prefilter.frag: a second call site would double the program
-    DapResult a = DapResult(vec3(0.0), 0.0, vec3(0.0));
-    int marches = f > 0.0 ? 2 : 1;
-    for (int k = 0; k < marches; ++k) {
-        DapResult m = dap_march(p, min(lo + k, DAP_SCALE_MAX), u_dap_shadows != 0);
-        float weight = k == 0 ? (marches == 2 ? 1.0 - f : 1.0) : f;
-        a.radiance += weight * m.radiance;
-        a.coverage += weight * m.coverage;
-        a.albedo += weight * m.albedo;
-    }
+    DapResult a = dap_march_at(p, L, u_dap_shadows != 0);
     vec3 colour = a.radiance + (1.0 - a.coverage) * background;
     if (u_dap_view == DAP_VIEW_COVERAGE) colour = vec3(a.coverage);
     if (u_dap_view == DAP_VIEW_ALBEDO) colour = a.albedo;
