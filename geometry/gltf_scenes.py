@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.files import atomic_write
+
 from .gltf import GLB_BIN, GLB_JSON, GLB_MAGIC, linear_to_srgb
 from .gltf_write import GltfBuilder, Primitive
 from .mesh import mesh_uv, shading_normals, tangent_frames, torus
@@ -222,28 +224,28 @@ def malformed(folder) -> dict[str, Path]:
     doc, data = _triangle_doc()
     doc["buffers"][0]["uri"] = "absent.bin"
     out["missing_buffer"] = folder / "missing_buffer.gltf"
-    out["missing_buffer"].write_text(json.dumps(doc))
+    atomic_write(out["missing_buffer"], json.dumps(doc))
     doc, data = _triangle_doc(accessors__0__count=40)
     out["accessor_out_of_range"] = folder / "accessor_out_of_range.glb"
-    out["accessor_out_of_range"].write_bytes(_glb(doc, data))
+    atomic_write(out["accessor_out_of_range"], _glb(doc, data))
     doc, data = _triangle_doc(extensionsUsed=["VENDOR_magic"], extensionsRequired=["VENDOR_magic"])
     out["unknown_required_extension"] = folder / "unknown_required_extension.glb"
-    out["unknown_required_extension"].write_bytes(_glb(doc, data))
+    atomic_write(out["unknown_required_extension"], _glb(doc, data))
     doc, data = _triangle_doc()
     doc["meshes"][0]["primitives"][0]["mode"] = 1
     doc["accessors"][1]["count"] = 2
     out["lines"] = folder / "lines.glb"
-    out["lines"].write_bytes(_glb(doc, data))
+    atomic_write(out["lines"], _glb(doc, data))
     doc, _ = _triangle_doc()
     data = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes() + np.array([0, 1, 7], np.uint32).tobytes()
     out["index_out_of_range"] = folder / "index_out_of_range.glb"
-    out["index_out_of_range"].write_bytes(_glb(doc, data))
+    atomic_write(out["index_out_of_range"], _glb(doc, data))
     doc, data = _triangle_doc(asset={"version": "1.0"})
     out["not_gltf_2"] = folder / "not_gltf_2.glb"
-    out["not_gltf_2"].write_bytes(_glb(doc, data))
+    atomic_write(out["not_gltf_2"], _glb(doc, data))
     doc, data = _triangle_doc()
     out["truncated_glb"] = folder / "truncated_glb.glb"
-    out["truncated_glb"].write_bytes(_glb(doc, data)[:60])
+    atomic_write(out["truncated_glb"], _glb(doc, data)[:60])
     return out
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.files import atomic_write
 from inshade.geometry.gltf import copy_gltf
 
 from . import GLTF_PROGRAM, GLTF_VIEWS
@@ -75,7 +76,7 @@ def write_user_scene(out: Path, settings: dict, user, base: dict, spp: int) -> d
         own["view"] = {**own["view"], "default": "split", "choices": list(GLTF_VIEWS)}
         scene.update(program=GLTF_PROGRAM, mesh=source, camera=world, settings=own,
                      notes="; ".join([GLTF_NOTES, *user.notes]))
-    (out / "scene.json").write_text(json.dumps(scene, indent=2) + "\n")
+    atomic_write(out / "scene.json", json.dumps(scene, indent=2) + "\n")
     return scene
 
 
