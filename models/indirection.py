@@ -286,6 +286,16 @@ def texel_sampler(image, batch: int, seed: int = 0):
             yield uv[idx], values[idx]
 
 
+def mixed_sampler(image, batch: int, seed: int = 0):
+    """Endless batches, half `texel_sampler`'s texel centres (the points PSNR and the block
+    codecs are scored on) and half `image_sampler`'s stratified points with bilinear targets
+    (the points between texels that a renderer's filtering reads), so a fit to one does not
+    come at the other's cost."""
+    for (u0, t0), (u1, t1) in zip(texel_sampler(image, batch // 2, seed), image_sampler(image, batch - batch // 2,
+                                                                                           seed=seed + 1)):
+        yield torch.cat([u0, u1]), torch.cat([t0, t1])
+
+
 def image_sampler(image, batch: int, stratified: bool = True, seed: int = 0):
     """Endless (uv, target) batches. Stratified: one stratum per texel -- each epoch visits the
     texels in a random order, one uniformly jittered uv inside each -- and the target is the

@@ -1,9 +1,9 @@
 """Texture compression with Differentiable Indirection (Datta et al. 2023 §4.2.1), the library
 every DI texture shares: a k-channel texture (k <= 8, 8-bit) becomes a 2D primary array (4
-channels, the (u, v, u, v) repeated ramp, triangle F) looked up at uv, whose output indexes a 4D
+channels, triangle F) looked up at uv, whose output indexes a 4D
 cascaded array holding the k channels, both exported at 8 bits. `compress` sizes the cascade for a
-ratio, trains it (stratified L1 under Adam, then a texel-centre finish: see FINISH_OPTIMIZERS) and
-exports the bundle; `decode_nodes` appends the sRGB -> linear decode (per channel a one-hot pick and
+ratio, starts it from the image's principal colour axes (`pca_init`), trains it (the squared
+error on texel centres and stratified points under Adam: see DEFAULTS) and exports the bundle; `decode_nodes` appends the sRGB -> linear decode (per channel a one-hot pick and
 a 256-entry float32 EOTF table: the job an SRGB8 texture format does in hardware).
 
 Colour: the arrays hold the sRGB-*encoded* values (what an RGB8 texture, ASTC and BC compress), so
@@ -40,22 +40,36 @@ FIELD_PROGRAM = "passes/field2d.frag"   # a decoded texture draws as a 2D field
 # docs in the report of `inshade bench di_texture`): lr 1e-2 with cosine decay reaches in ~2 min what
 # 1e-3 does not reach in 10; batch 16384 stratified samples (4 batches an epoch at 256^2).
 DEFAULTS = dict(ratio=6.0, rho=None, steps=1500, lr=1e-2, batch=16384, schedule="cosine",
-                seed=0, clip_primary=None, finish=0.5, finish_optimizer="lbfgs")
-# The finish phase's optimiser. "adam": the same minibatch Adam and schedule on texel-centre
-# batches. "lbfgs": the Adam phase (schedule over its own steps) is followed by full-batch L-BFGS
+                seed=0, clip_primary=None, finish=1.0, finish_optimizer="adam", init="pca")
+# The recipe, measured on hubble_deep_field at 1K / 6x (3000 steps, the pca start, N_c 8; PSNR at
+# texel centres / between texels as `inshade bench di_texture` scores them): the paper's stratified
+# L1 for the first half then a texel-centre squared-error finish 37.85 / 38.58 dB (L-BFGS finish,
+# N_c 4: 37.34 / 38.64); the squared error throughout on texel centres only 39.20 / 37.86 (a fit
+# to the scored points at the cost of the points between them); on stratified points only
+# 37.96 / 40.05; on both (`indirection.mixed_sampler`) 38.64 / 39.73 -- the default: finish 1.0
+# on mixed points. The pca start: +1.9 dB on astronaut 256^2 (1500 steps), +2.6 dB on retina at
+# 1K, +5 dB on the 8-lane PBR bricks at 256^2 (3000 steps) over the ramp.
+# The finish phase's optimiser. "adam": the same minibatch Adam and schedule on mixed batches
+# (texel centres + stratified points). "lbfgs": the Adam phase (schedule over its own steps) is followed by full-batch L-BFGS
 # on all texel centres, given the same number of samples as the Adam finish would see
 # (finish steps * batch / texels evaluations of the whole texture), so it costs no more time.
 # Measured on astronaut 256^2 / 6x, 6000 steps, 1 thread (8-bit PSNR, seeds 0 / 1): Adam finish
 # 32.54 / 32.51 dB in 120 / 122 s, L-BFGS 32.62 / 33.02 dB in 110 / 116 s; 12000 steps, seed 0:
 # Adam 32.97 dB in 232 s, L-BFGS 33.33 dB in 208 s; the shipped 12000-step RGB assets gained
-# 0.25-0.72 dB. Hence the default; the gain follows the Adam phase's (seed-dependent) end point,
-# and on the 8-lane PBR set (144^2 primary) L-BFGS was 0.17 dB *worse* (the PBR set keeps
-# "adam"). (Full-batch Adam at lr 1e-2 matched L-BFGS: the gain is the full batch.)
+# 0.25-0.72 dB (the previous default); the gain follows the Adam phase's (seed-dependent) end
+# point, and on the 8-lane PBR set (144^2 primary) L-BFGS was 0.17 dB *worse*. At 1K its sample
+# budget buys few whole-texture evaluations (23 in 3000 steps): 0.7 dB below the Adam finish on
+# hubble_deep_field, and it fits the texel centres alone.
 FINISH_OPTIMIZERS = ("adam", "lbfgs")
-# rho = N_p / N_c. None: the largest primary that fits with the smallest cascaded array
-# (N_c = 4) -- at the small sizes trained here the primary is the one that carries detail
-# (paper: rho in [40, 128] for 1K-4K textures; a 256^2 texture at 6x fits N_p = 88 only).
-RHO_SMALLEST_CASCADE = None
+# rho = N_p / N_c. None: the cascaded side from CASCADE_SIDES -- the largest whose array stays
+# within CASCADE_SHARE of the budget -- next to the largest primary that fits. Measured with the
+# "pca" start (3000 steps, sRGB 8-bit PSNR): at 1K, N_c = 8 beat N_c = 4 by 0.47 dB (hubble, 6x:
+# N_p 352 vs 360), 0.74 dB (hubble, 12x) and 0.93 dB (retina, 6x), while N_c = 12 (12% of the
+# budget) only tied N_c = 8 and N_c = 16 (22%) lost 0.9 dB; at 256^2 / 6x an N_c = 8 cascade
+# would take 38% of the budget (N_p 64) and lost 0.8 dB to N_c = 4 (N_p 88). At the small sizes
+# the primary carries the detail (paper: rho in [40, 128] for 1K-4K textures).
+CASCADE_SIDES = (4, 8)
+CASCADE_SHARE = 0.05
 
 
 class CompressionError(ValueError):
@@ -190,17 +204,18 @@ def uncompressed_bytes(image_shape) -> int:
 
 
 def plan(image_shape, ratio: float, rho: float | None = None):
-    """The cascade for `ratio` (uncompressed 8-bit bytes / ratio). rho None: largest primary that
-    fits next to an N_c = 4 cascaded array."""
+    """The cascade for `ratio` (uncompressed 8-bit bytes / ratio). rho None: the cascaded side
+    CASCADE_SIDES / CASCADE_SHARE choose, and the largest primary that fits next to it."""
     h, w, k = image_shape
     if not (isinstance(ratio, (int, float)) and math.isfinite(ratio) and ratio >= 1.0):
         raise CompressionError(f"ratio must be a number >= 1, got {ratio!r}")
     budget = uncompressed_bytes(image_shape) / float(ratio)
     common = dict(primary_dims=2, primary_channels=4, cascaded_dims=4, cascaded_channels=int(k))
     if rho is None:
-        cascaded = di.array_bytes(4, 4, int(k), 8)
-        side = int(math.floor(math.sqrt(max(budget - cascaded, 0) / 4.0) / 8)) * 8
-        rho = max(side, 8) / 4.0
+        n_c = max([n for n in CASCADE_SIDES if di.array_bytes(n, 4, int(k), 8) <= CASCADE_SHARE * budget],
+                  default=CASCADE_SIDES[0])
+        side = int(math.floor(math.sqrt(max(budget - di.array_bytes(n_c, 4, int(k), 8), 0) / 4.0) / 8)) * 8
+        rho = max(side, 8) / n_c
     try:
         return di.size_cascade(int(budget), float(rho), **common)
     except ValueError as e:
@@ -209,6 +224,43 @@ def plan(image_shape, ratio: float, rho: float | None = None):
             f"ratio {ratio:g} cannot be met for a {w}x{h}x{k} texture: the budget is {int(budget)} bytes "
             f"and the smallest cascade (8x8x4 primary + 4^4x{k} cascaded) needs {smallest} bytes "
             f"(max ratio {uncompressed_bytes(image_shape) / smallest:.1f}); details: {e}") from None
+
+
+def pca_init(flipped: np.ndarray, n_primary: int, n_cascaded: int):
+    """A starting point drawn from the image itself: its colours' principal axes. The cascaded
+    array starts as the affine map from a 4D point to mean + sum_i p_i-scaled axis i (exact under
+    multilinear interpolation), and the primary as the image's coordinates on those axes,
+    box-filtered to its cells, so step 0 already decodes the image at the primary's resolution
+    (the paper starts from the uv ramp and a constant cascade, which at 1K spends most of a CPU
+    budget unfolding the ramp). Primary channels past the image's component count keep the
+    ramp (the cascade is constant along them). `flipped` is [H, W, k], row 0 at v = 0.
+    Returns (primary table [N_p, N_p, 4], cascaded table [N_c]*4 + [k]) in F's range."""
+    h, w, k = flipped.shape
+    x = torch.from_numpy(flipped.reshape(-1, k).astype(np.float64))
+    mean = x.mean(0)
+    d = x - mean
+    values, vectors = torch.linalg.eigh(d.T @ d / len(d))
+    axes = vectors[:, torch.argsort(values, descending=True)][:, :min(k, 4)]     # [k, n]
+    z = d @ axes                                                                     # [H*W, n]
+    lo, hi = z.min(0).values, z.max(0).values
+    span = torch.where(hi > lo, hi - lo, torch.ones_like(hi))
+    coords = ((z - lo) / span).reshape(h, w, -1).float()
+    n = coords.shape[-1]
+    primary = di._ramp([n_primary] * 2, 4)
+    pts = di.grid_points([n_primary] * 2).reshape(-1, 2)
+    taps = max(1, min(4, math.ceil(w / max(n_primary - 1, 1))))
+    offs = ((torch.arange(taps, dtype=torch.float32) + 0.5) / taps - 0.5) / max(n_primary - 1, 1)
+    acc = 0.0
+    for dx in offs:
+        for dy in offs:
+            acc = acc + di.bilinear(coords, (pts + torch.stack([dx, dy])).clamp(0, 1))
+    primary[..., :n] = (acc / taps ** 2).reshape(n_primary, n_primary, n)
+    grid = di.grid_points([n_cascaded] * 4).double()                                # [..., 4]
+    cascaded = mean + (lo + grid[..., :n] * span) @ axes.T
+    return primary.float(), cascaded.float()
+
+
+INITS = ("ramp", "pca")   # the paper's uv ramp + mean-colour cascade, or `pca_init`
 
 
 def decode_nodes(g: GraphModule, src: str, channels: int) -> str:
@@ -279,7 +331,7 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
              steps: int = DEFAULTS["steps"], lr: float = DEFAULTS["lr"], batch: int = DEFAULTS["batch"],
              schedule: str = DEFAULTS["schedule"], seed: int = DEFAULTS["seed"],
              clip_primary=DEFAULTS["clip_primary"], finish: float = DEFAULTS["finish"],
-             finish_optimizer: str = DEFAULTS["finish_optimizer"],
+             finish_optimizer: str = DEFAULTS["finish_optimizer"], init: str = DEFAULTS["init"],
              decode: bool | None = None, measure: Callable[[object, np.ndarray, bool], dict] | None = None,
              provenance: dict | None = None, name: str = KIND, kind: str = KIND, progress: bool | None = None,
              device=None) -> Result:
@@ -301,8 +353,13 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
     device = torch.device("cpu") if device is None else torch.device(device)
     torch.manual_seed(seed)
     flipped = np.ascontiguousarray(image[::-1])     # row 0 = v ~ 0 = bottom of the picture
-    core = di.cascade(2, k, sizing.n_primary, sizing.n_cascaded, redundant=2,
-                      cascaded_init="mean", cascaded_init_args={"target": image.reshape(-1, k)},
+    if init == "pca":
+        primary, cascaded = pca_init(flipped, sizing.n_primary, sizing.n_cascaded)
+        inits = dict(primary_init="tensor", primary_init_args={"values": primary},
+                     cascaded_init="tensor", cascaded_init_args={"values": cascaded})
+    else:
+        inits = dict(cascaded_init="mean", cascaded_init_args={"target": image.reshape(-1, k)})
+    core = di.cascade(2, k, sizing.n_primary, sizing.n_cascaded, redundant=2, **inits,
                       input_name="uv", input_semantic="uv", output_name="values").to(device)
     eval_set = di.image_eval_set(flipped)
     eval_on_device = tuple(t.to(device) for t in eval_set)
@@ -315,7 +372,7 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
     history = di.train_cascade(core, on_device(di.image_sampler(flipped, batch, seed=seed), device),
                                finish_at if lbfgs else steps,
                                lr=lr, schedule=schedule, seed=seed, eval_set=eval_on_device, clip_primary=clip_primary,
-                               finish=(finish_at, on_device(di.texel_sampler(flipped, batch, seed=seed + 1), device),
+                               finish=(finish_at, on_device(di.mixed_sampler(flipped, batch, seed=seed + 1), device),
                                        "mse") if finish_at < steps and not lbfgs else None,
                                progress=progress, desc=name)
     if lbfgs:   # the same sample budget as the Adam finish, as whole-texture evaluations
@@ -343,12 +400,12 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
     }
     prov = {
         "technique": "Differentiable Indirection texture compression (Datta et al. 2023), 2D primary "
-                     "(4 ch, (u,v,u,v) ramp, triangle F) -> 4D cascaded (k ch); 8-bit arrays",
-        "training": f"stratified uv (one stratum per texel), bilinear targets, L1, Adam lr {lr:g}, "
-                    f"{schedule} schedule, batch {batch}, {steps} steps, seed {seed}; the last "
-                    f"{steps - finish_at} steps on texel centres with the squared error"
-                    + (" by full-batch L-BFGS (as many texel samples as those steps' batches)"
-                       if lbfgs else ""),
+                     "(4 ch, triangle F) -> 4D cascaded (k ch); 8-bit arrays",
+        "training": f"{init} start; Adam lr {lr:g}, {schedule} schedule, batch {batch}, {steps} steps, "
+                    f"seed {seed}: {finish_at} steps on stratified uv (one stratum per texel) with bilinear "
+                    f"targets and L1, then {steps - finish_at} with the squared error"
+                    + (" by full-batch L-BFGS on the texel centres (as many samples as those steps' batches)"
+                       if lbfgs else " on batches of half texel centres, half stratified points"),
         "colour": "arrays hold sRGB-encoded values; the graph decodes to linear (sRGB EOTF tables)"
                   if decode else "arrays hold the channel values as given (no colour decode)",
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",

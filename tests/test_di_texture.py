@@ -52,10 +52,10 @@ def test_tiny_compression_improves_and_glsl_matches_torch(gl, tmp_path):
 
 
 def test_finish_optimizer_lbfgs_and_paper_protocol():
-    """"lbfgs" finishes better than "adam" at the same budget; finish 0 (the paper's protocol)
-    ignores the finish optimiser; an unknown one is one clear error."""
+    """On a small texture "lbfgs" finishes better than "adam" at the same budget; finish 0 (the
+    paper's protocol) ignores the finish optimiser; an unknown one is one clear error."""
     img = _tiny_image()
-    run = lambda **kw: tc.compress(img, 3, steps=80, batch=512, **kw).metrics
+    run = lambda **kw: tc.compress(img, 3, steps=80, batch=512, **{"finish": 0.5, "init": "ramp", **kw}).metrics
     adam, lbfgs = run(finish_optimizer="adam"), run(finish_optimizer="lbfgs")
     assert lbfgs["finish_optimizer"] == "lbfgs" and lbfgs["finish_steps"] == 40
     assert lbfgs["psnr_float"] > adam["psnr_float"]
@@ -64,6 +64,32 @@ def test_finish_optimizer_lbfgs_and_paper_protocol():
     assert paper[0]["history"][-1]["step"] == 80
     with pytest.raises(tc.CompressionError, match="unknown finish optimizer"):
         tc.compress(img, 3, steps=1, finish_optimizer="sgd")
+
+
+def test_pca_init_is_the_image_at_the_primary_resolution():
+    """The "pca" starting point: the cascaded array is exactly the affine map from the primary's
+    coordinates to colours along the image's principal axes (multilinear interpolation keeps
+    it affine), and the primary holds the image's coordinates on them, so step 0 decodes a
+    blurred copy of the image -- where the paper's ramp decodes its mean colour."""
+    import torch
+
+    from inshade.models.lookup_array import multilinear
+
+    img = _tiny_image(64).astype(np.float32) / 255
+    flipped = np.ascontiguousarray(img[::-1])
+    primary, cascaded = tc.pca_init(flipped, 24, 4)
+    assert primary.shape == (24, 24, 4) and cascaded.shape == (4, 4, 4, 4, 3)
+    assert float(primary.min()) >= 0 and float(primary.max()) <= 1
+    p = torch.rand(500, 4, generator=torch.Generator().manual_seed(1))
+    # affine: the value at p equals the corner-0 value plus the per-axis steps
+    corner = multilinear(cascaded, torch.zeros(1, 4))
+    steps = [multilinear(cascaded, torch.eye(4)[i:i + 1]) - corner for i in range(4)]
+    affine = corner + sum(p[:, i:i + 1] * steps[i] for i in range(4))
+    assert torch.allclose(multilinear(cascaded, p), affine, atol=1e-5)
+    assert float(steps[3].abs().max()) == 0.0          # 3 colour axes; the 4th channel keeps the ramp
+    ramp = tc.compress(img, 3, steps=0, finish=0.0, init="ramp").metrics["psnr_step0"]
+    pca = tc.compress(img, 3, steps=0, finish=0.0, init="pca").metrics["psnr_step0"]
+    assert pca > ramp + 10 and pca > 25
 
 
 # bad input: handled with a note, or one clear error --------------------------------------

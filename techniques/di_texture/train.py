@@ -1,17 +1,18 @@
 """Texture compression with Differentiable Indirection (Datta et al. 2023 §4.2.1).
 
-A texture (k <= 8 channels, 8-bit) becomes a 2D primary array (4 channels, the (u, v, u, v)
-repeated ramp, triangle F) looked up at uv, whose output indexes a 4D cascaded array holding the
+A texture (k <= 8 channels, 8-bit) becomes a 2D primary array (4 channels,
+triangle F) looked up at uv, whose output indexes a 4D cascaded array holding the
 k channels. Both arrays are exported at 8 bits; the byte budget is the uncompressed size
 (W * H * k bytes) divided by the ratio, solved by `indirection.size_cascade` (N_p a multiple of
-8, N_c a multiple of 4). Training (see DEFAULTS): the paper's stratified uv with bilinear targets
-and L1 under Adam with a cosine schedule first; then, for the last `finish` fraction of the sample
-budget, texel centres with the squared error -- the points and the error that PSNR (ours and the
-block codecs') scores -- as full-batch L-BFGS on all texel centres (`finish_optimizer="lbfgs"`),
-or as the same minibatch Adam and schedule on texel-centre batches ("adam"). Measured on
-astronaut 256^2 at 6x, 6000 steps: 30.9 dB with the paper's recipe throughout, 32.6 dB with the
-Adam finish at 0.5 (the L1 phase reached 30.9 dB at 3000 steps), 32.6-33.0 dB with L-BFGS (see
-FINISH_OPTIMIZERS); `finish=0` is the paper's protocol.
+8, N_c a multiple of 4; the cascaded side by models/texture_cascade.py CASCADE_SIDES). Training (see
+models/texture_cascade.py DEFAULTS, where the measurements are): both arrays start from the image's
+principal colour axes (`init="pca"`: the cascade an affine map along them, the primary the image's
+coordinates on them; the paper's uv ramp is `init="ramp"`), then Adam with a cosine schedule on the
+squared error over batches that are half texel centres -- the points PSNR (ours and the block
+codecs') scores -- and half stratified points with bilinear targets, which filtering reads between
+texels (`finish` = 1, the fraction of the steps on those batches; the rest runs first on the paper's
+stratified L1; `finish_optimizer="lbfgs"` runs that part as full-batch L-BFGS on the texel centres).
+`finish=0 --init ramp` is the paper's protocol.
 
 Colour: the arrays hold the sRGB-*encoded* values (what an RGB8 texture, ASTC and BC compress),
 so 8-bit cells lose no more than the source's own precision. The bundle then decodes to linear
@@ -49,7 +50,7 @@ from inshade.trainer import Run, Trainer, setting
 from inshade.metrics import psnr, srgb_eotf
 from inshade.models import indirection as di
 from inshade.models.texture_cascade import (DEFAULTS as CASCADE_DEFAULTS, FIELD_PROGRAM, FINISH_OPTIMIZERS,
-                                            CompressionError, Result, compress, load_image, to_srgb8,
+                                            INITS, CompressionError, Result, compress, load_image, to_srgb8,
                                             torch_decode)
 
 RENDER_PROGRAM = FIELD_PROGRAM
@@ -63,21 +64,23 @@ class Settings:
     size: int | None = setting(None, "centre-crop to a square and resize to SIZE x SIZE first")
     ratio: float = setting(CASCADE_DEFAULTS["ratio"], "compression ratio vs 8-bit")
     rho: float | None = setting(CASCADE_DEFAULTS["rho"],
-                                "N_p / N_c (None: the largest primary next to an N_c = 4 cascaded array)")
+                                "N_p / N_c (None: the cascaded side CASCADE_SIDES chooses, the largest primary next to it)")
     steps: int = setting(1500, "training steps")
     lr: float = setting(CASCADE_DEFAULTS["lr"], "Adam learning rate")
     batch: int = setting(CASCADE_DEFAULTS["batch"], "samples per step")
     schedule: str = setting(CASCADE_DEFAULTS["schedule"], "learning-rate schedule", choices=sorted(di.SCHEDULES))
-    finish: float = setting(CASCADE_DEFAULTS["finish"], "fraction of the steps trained last on texel centres "
-                            "with the squared error (0: the paper's stratified L1 throughout)")
+    finish: float = setting(CASCADE_DEFAULTS["finish"], "fraction of the steps trained last with the squared error "
+                            "on texel centres and stratified points (0: the paper's stratified L1 throughout)")
     finish_optimizer: str = setting(CASCADE_DEFAULTS["finish_optimizer"], "finish phase: minibatch Adam under "
                                     "the same schedule, or full-batch L-BFGS on all texel centres with the same "
                                     "sample budget", choices=FINISH_OPTIMIZERS)
+    init: str = setting(CASCADE_DEFAULTS["init"], "starting point: the image's principal colour axes (pca) or "
+                        "the paper's uv ramp with a mean-colour cascade (ramp)", choices=INITS)
     seed: int = setting(CASCADE_DEFAULTS["seed"], "random seed")
 
 
-# Training lengths: "quick" runs in a couple of minutes on one CPU thread; "ship" is what the
-# trained/ assets use (12000 steps, ~10 min a 256^2 texture on one thread of the 2-core machine).
+# Training lengths: "quick" runs in well under a minute at 256^2 on one CPU thread; "ship" is what the
+# trained/ assets use (12000 steps: ~4 min a 256^2 texture, ~6 min at 1K, on one thread of the 2-core machine).
 PRESETS = {"quick": {}, "ship": dict(steps=12000)}
 # The inputs of each shipped asset (IMAGE, --size, --ratio beside --preset ship).
 SHIP_ASSETS = {"di_texture_astronaut": dict(image="skimage:astronaut", size=256, ratio=6.0),
@@ -178,7 +181,7 @@ def train(run: Run) -> int:
     for n in notes:
         print(f"inshade: note: {n}", file=sys.stderr)
     result = compress(image, s.ratio, rho=s.rho, steps=s.steps, lr=s.lr, batch=s.batch, schedule=s.schedule,
-                      seed=s.seed, finish=s.finish, finish_optimizer=s.finish_optimizer,
+                      seed=s.seed, finish=s.finish, finish_optimizer=s.finish_optimizer, init=s.init,
                       measure=None if args.no_gl else decoded_metrics, name=run.out.name, device=run.device,
                       provenance={"command": run.command, "image": source, "image_notes": notes})
     title = args.title or f"DI texture: {source}, {result.metrics['ratio']:.2f}x"
