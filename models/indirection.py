@@ -462,6 +462,7 @@ class History:
 def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: float = 1e-3,
                   schedule: str = "cosine", seed: int = 0, eval_set=None, eval_every: int | None = None,
                   clip_primary: float | str | None = None, clip_mode: str = "cell",
+                  bounds: dict[str, tuple[float, float]] | None = None,
                   monotonicity: float = 0.0, monotonicity_args: dict | None = None,
                   primaries: list[str] | None = None, peak: float = 1.0, loss: str = "l1",
                   finish: tuple[int, Iterable, str] | None = None,
@@ -477,6 +478,8 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
     each eval) or "constant". `clip_primary` (a bound, or "auto" for the paper's half-cell
     bound) clips the primary arrays' gradients per cell (`clip_mode="cell"`) or as a whole
     ("global") before each step. Primaries default to the lookup arrays that feed another one.
+    `bounds` {node: (lo, hi)} keeps those arrays' cells within [lo, hi] after every step (a
+    projection: e.g. an 8-bit cascaded array whose range stays near its outputs' range).
 
     `finish` = (step, sampler, loss): from that step on, batches come from the second sampler and
     the loss is `LOSSES[loss]`, under the same optimiser and schedule (texture compression trains
@@ -549,6 +552,10 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
             if clip_primary is not None:
                 clip_primary_gradients(cascade, clip_primary, lr, clip_mode, prim)
             opt.step()
+            if bounds:
+                with torch.no_grad():
+                    for name, (lo, hi) in bounds.items():
+                        cascade.nodes[name].cells.clamp_(lo, hi)
             on_step()
             acc, count = acc + float(value.detach()), count + 1
             if step % eval_every == 0 or step == steps:

@@ -69,6 +69,12 @@ FINISH_OPTIMIZERS = ("adam", "lbfgs")
 # would take 38% of the budget (N_p 64) and lost 0.8 dB to N_c = 4 (N_p 88). At the small sizes
 # the primary carries the detail (paper: rho in [40, 128] for 1K-4K textures).
 CASCADE_SIDES = (4, 8)
+# The cascaded cells are kept within CASCADED_RANGE while training (None: unbounded). Its 8-bit
+# export steps by (hi - lo) / 255, and hardware filtering of unorm8 textures may round its
+# filtered value to that step (llvmpipe does): unbounded, the cascade of astronaut 256^2 / 6x
+# grew to a range of 6.5-8.4 (its fast path 0.97 dB below the exact one; 8-bit weights alone
+# cost 0.01 dB, simulated); clamped to [0, 1] the fast path lost 0.03 dB but the exact one 0.55.
+CASCADED_RANGE = (-0.5, 1.5)
 CASCADE_SHARE = 0.05
 
 
@@ -372,6 +378,7 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
     history = di.train_cascade(core, on_device(di.image_sampler(flipped, batch, seed=seed), device),
                                finish_at if lbfgs else steps,
                                lr=lr, schedule=schedule, seed=seed, eval_set=eval_on_device, clip_primary=clip_primary,
+                               bounds={"cascaded": CASCADED_RANGE} if CASCADED_RANGE else None,
                                finish=(finish_at, on_device(di.mixed_sampler(flipped, batch, seed=seed + 1), device),
                                        "mse") if finish_at < steps and not lbfgs else None,
                                progress=progress, desc=name)

@@ -65,8 +65,8 @@ class Settings:
     lr: float = setting(1e-2, "Adam learning rate")
     batch: int = setting(16384, "samples per step")
     seed: int = setting(0, "random seed")
-    # "adam": on this set the minibatch Adam finish beat full-batch L-BFGS (12000 steps, all lanes
-    # 27.67 vs 27.50 dB), unlike on RGB images (models/texture_cascade.py FINISH_OPTIMIZERS)
+    # "adam" on mixed texel-centre + stratified batches, as for RGB textures (models/texture_cascade.py
+    # DEFAULTS); on this set full-batch L-BFGS was 0.17 dB worse with the ramp start
     finish_optimizer: str = setting("adam", "finish phase of the training (inshade train di_texture --help)",
                                     choices=FINISH_OPTIMIZERS)
     gltf: str | None = setting(None, "compress this glTF file's material (.glb/.gltf) instead of the bricks; "

@@ -162,7 +162,8 @@ def di_bundles(name: str, image: np.ndarray, args) -> list[tuple[object, str]]:
         b = bundle_mod.load(folder)
         m = b.meta.get("metrics", {})
         if b.kind == tc.KIND and (m.get("width"), m.get("height")) == image.shape[1::-1]:
-            found.append((b, str(folder)))
+            command = b.meta.get("provenance", {}).get("command")
+            found.append((b, f"`{command}`" if command else str(folder)))
     for r in args.ratio_list:
         res = tc.compress(image, r, steps=args.steps, init=args.init, name=f"di_{name}_{r:g}x",
                           provenance={"command": f"inshade bench di_texture (ratio {r:g}, {args.steps} steps, "
@@ -287,13 +288,14 @@ def plot(result: dict, path: Path) -> None:
     """Rate-distortion: PSNR at and between texel centres and FLIP against bits per pixel, a
     line per codec family and image (DI at each trained ratio, ASTC at each block size)."""
     plt = matplotlib_pyplot()
+    from matplotlib import ticker
 
     metrics = [("psnr", "PSNR at texel centres (sRGB 8-bit), dB"), ("psnr_between", "PSNR between texels, dB")]
     if any("flip" in e for img in result["images"] for e in img["entries"]):
         metrics.append(("flip", "FLIP (mean, lower is better)"))
     fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4.5), squeeze=False)
     markers = "osD^v<>"
-    styles = {"ASTC": "-", "BC": "--", "DI exact": ":", "DI fast": "-."}
+    styles = {"ASTC": "-", "BC": "none", "DI exact": ":", "DI fast": "-."}   # BC1 / BC7: two codecs, no curve
     for ax, (key, label) in zip(axes[0], metrics):
         for i, img in enumerate(result["images"]):
             fams = {}
@@ -302,9 +304,12 @@ def plot(result: dict, path: Path) -> None:
                     fams.setdefault(e["family"], []).append((e["bpp"], e[key]))
             for fam, pts in sorted(fams.items()):
                 pts.sort()
-                ax.plot([p[0] for p in pts], [p[1] for p in pts], styles.get(fam, "-"), marker=markers[i % 7],
+                ax.plot([p[0] for p in pts], [p[1] for p in pts], linestyle=styles.get(fam, "-"), marker=markers[i % 7],
                         label=f"{fam} — {img['image'].split('.')[-1]} {img['size']}²")
         ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(ticker.FormatStrFormatter("%g"))
+        ax.xaxis.set_minor_formatter(ticker.NullFormatter())
+        ax.set_xticks([1, 2, 4, 8])
         ax.set_xlabel("bits per pixel (RGB8 = 24)")
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
