@@ -8,7 +8,10 @@ GL_MAX_TEXTURE_SIZE, or less for small data), item `index` at (index & (W-1), in
   share a row);
 - table: rows l*T + h of the [levels * T, F] feature table, one texture per 4 features (F = 8:
   two RGBA, 4: RGBA, 2: RG, 1: R), RGBA16F-family for precision f16 (the bundle's values are
-  fp16-representable: checked at load), 32F for f32; always texelFetch (nearest).
+  fp16-representable: checked at load), 32F for f32, unorm RGBA8-family for u8 (the uint8 codes q;
+  value = offset + scale * q / 255 per lane, applied once per level after the blend, as
+  `offset + scale * blend` with the bundle's float32 scale/offset as vec4 literals: the blend's
+  weights sum to 1, so the affine map commutes with it); always texelFetch (nearest).
 
 Input: the node's inputs as they are (separate_inputs): triangle id (a uint lane, or a float one
 holding an exact integer) then t0, t1. Levels are unrolled (L <= 16).
@@ -19,7 +22,7 @@ import numpy as np
 
 from inshade.geometry.mesh_topology import check_tables
 
-from .glsl import PlanRow, TextureResource
+from .glsl import PlanRow, TextureResource, vec4
 from .registry import emitter
 from .texture_rows import feature_textures, row_layout, rows_data, texture_formats
 from .values import declare
@@ -48,6 +51,10 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     tab_log2w, tab_rows = row_layout(node.id, "feature table", levels * size, ctx.limits)
     groups = feature_textures(ctx, node.id, table, p["precision"], tab_log2w, tab_rows,
                               f"{levels} levels x {size} rows")
+    u8 = p["precision"] == "u8"
+    if u8:
+        scale, offset = bundle.tensor(node, "scale"), bundle.tensor(node, "offset")
+        lanes4 = lambda a, g: np.pad(a[4 * g:4 * g + 4], (0, 4 - len(a[4 * g:4 * g + 4])))  # noqa: E731
 
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     k, t, c, e = (ctx.name(node.id, s) for s in ("k", "t", "corners", "edges"))
@@ -61,6 +68,8 @@ def emit_mesh_features(ctx, node, srcs, bundle):
         ctx.body.append(f"mf_level_taps({k}, {t}, {level}, {size}u, {c}, {e}, {idx}, {wt});")
         for g, (name, width) in enumerate(groups):
             blend = f"mf_blend({name}, {tab_log2w}, {idx}, {wt})"
+            if u8:
+                blend = f"{vec4(lanes4(offset, g))} + {vec4(lanes4(scale, g))} * {blend}"
             first = level * feats + 4 * g
             if width == 4:
                 ctx.body.append(f"{out.array}[{first // 4}] = {blend};")
@@ -74,6 +83,7 @@ def emit_mesh_features(ctx, node, srcs, bundle):
                             f"{levels} levels x {size} rows x {feats} ({p['precision']}), {faces} faces",
                             "texture/exact", f"RGB32UI topology (2 texels/face) + {fmt} table, "
                             f"rows of {1 << tab_log2w} texels", params=int(table.size),
-                            flops=levels * (3 * 2 * feats + 40), fetches=2 + 3 * levels * len(groups),
+                            flops=levels * (3 * 2 * feats + 40 + (2 * feats if u8 else 0)),
+                            fetches=2 + 3 * levels * len(groups),
                             texture_bytes=tex_bytes))
     return out

@@ -8,7 +8,8 @@ import numpy as np
 from .glsl import TextureResource
 from .limits import LimitError, limit, source
 
-FLOAT_FORMATS = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F")}   # precision -> texels
+# precision -> texels (moderngl dtype, numpy dtype, format suffix); "u8": unorm8, the shader reads q / 255
+FLOAT_FORMATS = {"f16": ("f2", np.float16, "16F"), "f32": ("f4", np.float32, "32F"), "u8": ("f1", np.uint8, "8")}
 CHANNELS = {1: "R", 2: "RG", 4: "RGBA"}
 
 
@@ -34,7 +35,8 @@ def rows_data(data: np.ndarray, log2w: int, rows: int) -> np.ndarray:
 def feature_textures(ctx, node_id: str, table: np.ndarray, precision: str, log2w: int, rows: int,
                      what: str) -> list[tuple[str, int]]:
     """A [items, F] feature table as one texture per 4 features (F = 8: two RGBA; 4: RGBA; 2: RG;
-    1: R) in rows of 2^log2w texels, RGBA16F-family for precision f16, 32F for f32: declared and
+    1: R) in rows of 2^log2w texels, RGBA16F-family for precision f16, 32F for f32, unorm RGBA8
+    for u8 (the table is then the uint8 codes; the caller applies its affine decode): declared and
     added to ctx's resources. Returns (sampler name, channels) per texture."""
     fdtype, np_dtype, _ = FLOAT_FORMATS[precision]
     feats, groups = table.shape[1], []

@@ -316,6 +316,8 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                 ohi = np.max([lv.max(0) for lv in levels], 0)
             elif t == "mesh_features":    # per level a barycentric (convex) blend of table rows
                 table = bundle.tensor(n, "table")
+                if p["precision"] == "u8":   # value = offset + scale * q / 255 per lane
+                    table = bundle.tensor(n, "offset") + bundle.tensor(n, "scale") * (table / np.float32(255.0))
                 olo, ohi = np.tile(table.min(0), p["levels"]), np.tile(table.max(0), p["levels"])
             elif t in ("hash_grid", "dense_grid"):   # per level a convex blend of the level's rows
                 olo, ohi = _grid(bundle, n, lo, hi, src_exact, warn)

@@ -30,6 +30,13 @@ off the grid). A sub-vertex (k, W) is canonicalised so every face sharing it nam
 ((w0 * f[index0]) + w1 * f[index1]) + w2 * f[index2]; the output concatenates levels 0..L-1.
 Barycentric gradients are not propagated (t is detached); gradients reach `table`.
 precision "f16": the table is rounded to fp16 in forward (straight-through) and at export.
+precision "u8": per feature lane c an affine 8-bit code, value = offset[c] + scale[c] * q / 255
+(q = clamp(rint((table - offset) / scale * 255), 0, 255)); forward blends the unit values q / 255
+(straight-through: gradients reach `table` as if unquantised) and applies offset + scale * blend
+per level, the order the shader uses (unorm8 texels, the affine decode after the blend: it
+commutes with the convex blend). The range (buffers `scale`, `offset`) is set by `calibrate()`
+(per-lane min/max of the table: on construction and by `from_node` from the bundle's tensors);
+export writes q with that range, so a quantisation-aware fit exports what it trained on.
 """
 from __future__ import annotations
 
@@ -103,6 +110,27 @@ def hash_index(k: torch.Tensor, w0: torch.Tensor, w1: torch.Tensor, level: int, 
     return level * table_size + (hash_value(k, w0, w1, level) & (table_size - 1))
 
 
+U8_LEVELS = 255
+
+
+def quantize_u8(table: np.ndarray, scale: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """[rows, F] float -> uint8 q = clamp(rint((table - offset) / scale * 255), 0, 255) per lane."""
+    u = (np.asarray(table, np.float32) - offset) / scale
+    return np.clip(np.rint(u * np.float32(U8_LEVELS)), 0, U8_LEVELS).astype(np.uint8)
+
+
+def dequantize_u8(q: np.ndarray, scale: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """uint8 q [rows, F] -> float32 offset + scale * (q / 255)."""
+    return (offset + scale * (q.astype(np.float32) / np.float32(U8_LEVELS))).astype(np.float32)
+
+
+def lane_range(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-lane (scale, offset) covering the table: offset = min, scale = max - min (1 when equal)."""
+    t = np.asarray(table, np.float32).reshape(-1, np.shape(table)[-1])
+    lo, hi = t.min(0), t.max(0)
+    return np.where(hi > lo, hi - lo, 1.0).astype(np.float32), lo.astype(np.float32)
+
+
 def _uint32(name: str, a) -> np.ndarray:
     a = np.asarray(a.cpu().numpy() if torch.is_tensor(a) else a)
     if a.dtype.kind not in "iu" or (a.size and (int(a.min()) < 0 or int(a.max()) > _MASK)):
@@ -137,6 +165,22 @@ class MeshFeatures(Component):
         if tuple(table.shape) != (rows, self.features):
             raise ComponentError(f"table: shape {list(table.shape)}, expected {[rows, self.features]}")
         self.table = torch.nn.Parameter(table.clone())
+        self.register_buffer("scale", torch.ones(self.features))
+        self.register_buffer("offset", torch.zeros(self.features))
+        self.calibrate()
+
+    def calibrate(self, scale=None, offset=None) -> None:
+        """Set the u8 range per lane: given (scale, offset), else the table's min/max."""
+        if scale is None:
+            scale, offset = lane_range(self.table.detach().cpu().numpy())
+        scale, offset = np.asarray(scale, np.float32), np.asarray(offset, np.float32)
+        if scale.shape != (self.features,) or offset.shape != (self.features,):
+            raise ComponentError(f"scale, offset: shape [{self.features}] each, got {list(scale.shape)}, "
+                                 f"{list(offset.shape)}")
+        if not (np.isfinite(scale).all() and np.isfinite(offset).all() and (scale > 0).all()):
+            raise ComponentError("scale: must be finite and > 0 per lane, offset finite")
+        self.scale.copy_(torch.from_numpy(scale))
+        self.offset.copy_(torch.from_numpy(offset))
 
     @classmethod
     def for_mesh(cls, vertices, faces, levels: int, features: int, table_size: int, **kw) -> "MeshFeatures":
@@ -156,9 +200,16 @@ class MeshFeatures(Component):
         return self.params_with(self.faces)
 
     def rows(self, index: torch.Tensor) -> torch.Tensor:
-        """Table rows as the lookup sees them (fp16-rounded for precision f16)."""
+        """Table rows as the lookup sees them (fp16-rounded for precision f16; for u8 the unit
+        values q / 255, straight-through)."""
         r = self.table[index]
-        return _round_fp16(r) if self.precision == "f16" else r
+        if self.precision == "f16":
+            return _round_fp16(r)
+        if self.precision == "u8":
+            u = (r - self.offset) / self.scale
+            q = torch.clamp(torch.round(u * U8_LEVELS), 0, U8_LEVELS) / U8_LEVELS
+            return u + (q - u).detach() if r.requires_grad else q   # q itself when nothing trains
+        return r
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         lead = x.shape[:-1]
@@ -174,18 +225,37 @@ class MeshFeatures(Component):
             kk, c0, c1 = canonical(k[:, None].expand_as(w0), w, self.corners, self.edges, level)
             rows = self.rows(hash_index(kk, c0, c1, level, self.table_size))   # [M, 3, F]
             weight = weight[..., None].to(rows.dtype)
-            outs.append((weight[:, 0] * rows[:, 0] + weight[:, 1] * rows[:, 1]) + weight[:, 2] * rows[:, 2])
+            blend = (weight[:, 0] * rows[:, 0] + weight[:, 1] * rows[:, 1]) + weight[:, 2] * rows[:, 2]
+            outs.append(self.offset + self.scale * blend if self.precision == "u8" else blend)
         return torch.cat(outs, -1).reshape(*lead, self.levels * self.features)
 
     def export_tensors(self):
         t = self.table.detach().cpu().float()
+        owners = {"corners": self.corners.cpu().numpy().astype(np.uint32),
+                  "edges": self.edges.cpu().numpy().astype(np.uint32)}
+        if self.precision == "u8":
+            scale, offset = self.scale.cpu().numpy().copy(), self.offset.cpu().numpy().copy()
+            stored = getattr(self, "_stored", None)
+            if stored is not None and np.array_equal(stored[0], t.numpy()) \
+                    and np.array_equal(stored[1], scale) and np.array_equal(stored[2], offset):
+                q = stored[3]      # loaded and untouched: the same integers, bit for bit
+            else:
+                q = quantize_u8(t.numpy(), scale, offset)
+            return {"table": np.ascontiguousarray(q), "scale": scale, "offset": offset, **owners}
         if self.precision == "f16":
             t = t.half().float()
-        return {"table": np.ascontiguousarray(t.numpy()),
-                "corners": self.corners.cpu().numpy().astype(np.uint32),
-                "edges": self.edges.cpu().numpy().astype(np.uint32)}
+        return {"table": np.ascontiguousarray(t.numpy()), **owners}
 
     @classmethod
     def from_node(cls, params, in_dim, tensors):
-        return cls(params["levels"], params["features"], params["table_size"], tensors["corners"],
-                   tensors["edges"], params["precision"], table=tensors["table"])
+        table = tensors["table"]
+        if params["precision"] == "u8":
+            q = np.asarray(table, np.uint8)
+            scale, offset = np.asarray(tensors["scale"], np.float32), np.asarray(tensors["offset"], np.float32)
+            table = dequantize_u8(q, scale, offset)
+        m = cls(params["levels"], params["features"], params["table_size"], tensors["corners"],
+                tensors["edges"], params["precision"], table=table)
+        if params["precision"] == "u8":
+            m.calibrate(scale, offset)
+            m._stored = (table, scale, offset, q.copy())
+        return m

@@ -2,7 +2,8 @@
 shaders/lib/mesh_features.glsl): canonical names and hashes bit-exact between torch and GLSL for
 every sub-vertex of small meshes, canonical names independent of the naming face, continuity
 across edges and vertices, decode parity through generate() (tests/parity.py rule, exact
-fp32 path; f16 tables are fp16 in both executors), the component spec, bundles, training.
+fp32 path; f16 tables are fp16 in both executors; u8 tables are the same uint8 codes and per-lane
+scale/offset in both), the component spec, bundles, training.
 """
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
-from inshade.bundle import load
+from inshade.bundle import Bundle, BundleError, load
 from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.components import ComponentError, check_node, resolve_params
@@ -282,7 +283,7 @@ def feature_cases(draw):
     size = 1 << draw(st.integers(1, 4 if small else 10))
     feats = draw(st.sampled_from([f for f in (1, 2, 4, 8) if levels * f <= 32]))   # <= 8 draw buffers
     return dict(mesh=mesh, levels=levels, feats=feats, size=size,
-                precision=draw(st.sampled_from(["f16", "f32"])), uint=draw(st.booleans()),
+                precision=draw(st.sampled_from(["f16", "f32", "u8"])), uint=draw(st.booleans()),
                 seed=draw(st.integers(0, 2 ** 31 - 1)), small=small)
 
 
@@ -334,6 +335,81 @@ def test_plan_resources_and_limits():
     assert generate(one).resources[1].data.shape == (1, 16, 1)            # F = 1: an R texture
     with pytest.raises(LimitError, match=r"node mf: the feature table needs 8192 texels.*GL_MAX_TEXTURE_SIZE is 64"):
         generate(feature_graph(MESHES["grid2"], 4, 2, 2048).export("t"), limits={"GL_MAX_TEXTURE_SIZE": 64})
+
+
+@pytest.mark.parametrize("feats,levels", [(4, 3), (2, 4), (8, 2), (1, 5)])
+def test_u8_decode_parity(gl, feats, levels):
+    """u8 tables: GLSL (unorm8 texels, affine decode after the blend) against torch on the bundle's
+    dequantised values, one lane range far from [0, 1] (offset -3, scale 7)."""
+    mesh = grid(3, 5)
+    g = feature_graph(mesh, levels, feats, 64, "u8", seed=feats, scale=1.0)
+    mf = g.nodes["mf"]
+    with torch.no_grad():
+        mf.table[:, 0].mul_(3.5).sub_(0.5)
+    mf.calibrate()
+    bundle = g.export("mesh_features_test")
+    table = bundle.tensor(bundle.node("mf"), "table")
+    assert table.dtype == np.uint8 and table.min() == 0 and table.max() == 255
+    x = surface_points(len(mesh[1]), levels, feats + 11)
+    for limits in (None, {"GL_MAX_TEXTURE_SIZE": 32}):      # 32: the tables wrap into rows
+        assert_parity(glsl_eval(gl, generate(bundle, limits=limits), x), torch_reference(bundle, x),
+                      what=f"u8 F={feats} L={levels} limits={limits}")
+
+
+def test_u8_quantises_round_trips_and_trains_straight_through(tmp_path):
+    m32 = MeshFeatures.for_mesh(*MESHES["grid2"], 3, 4, 64, precision="f32", init_scale=0.4, seed=3)
+    m8 = MeshFeatures(3, 4, 64, m32.corners, m32.edges, "u8", table=m32.table.detach())
+    scale, offset = m8.scale.numpy(), m8.offset.numpy()
+    np.testing.assert_allclose(offset, m32.table.detach().min(0).values.numpy())
+    np.testing.assert_allclose(scale + offset, m32.table.detach().max(0).values.numpy(), rtol=1e-6)
+    x = torch.from_numpy(surface_points(8, 3, 9))
+    with torch.no_grad():
+        err = (m8(x) - m32(x)).abs().reshape(len(x), 3, 4)
+    assert (err <= torch.from_numpy(scale) / 510 * 1.0001).all()     # half a code step at most
+    g = GraphModule([("x", 3)])
+    g.add("mf", m8, "x")
+    g.output("y", "mf")
+    bundle = load(g.export("mesh_features_test").save(tmp_path / "b"))
+    q = bundle.tensor(bundle.node("mf"), "table")
+    assert q.dtype == np.uint8 and q.shape == (3 * 64, 4)
+    with torch.no_grad():
+        np.testing.assert_array_equal(torch_reference(bundle, x.numpy()), m8(x).numpy())
+    again = GraphModule.from_bundle(bundle)
+    for slot in ("table", "scale", "offset"):     # loaded and re-exported: bit for bit
+        np.testing.assert_array_equal(again.export("t").tensors[f"mf.{slot}"], bundle.tensors[f"mf.{slot}"])
+    fresh = MeshFeatures(3, 4, 64, m8.corners, m8.edges, "u8", table=again.nodes["mf"].table.detach())
+    fresh.calibrate(bundle.tensors["mf.scale"], bundle.tensors["mf.offset"])
+    np.testing.assert_array_equal(fresh.export_tensors()["table"], q)          # requantising is exact
+    m8(x).square().sum().backward()                                            # straight-through
+    assert m8.table.grad.abs().sum() > 0
+
+
+def test_u8_plan_bytes_and_bad_input():
+    g16 = feature_graph(MESHES["grid2"], 4, 8, 1 << 10, "f16")
+    g8 = feature_graph(MESHES["grid2"], 4, 8, 1 << 10, "u8")
+    gen16, gen8 = generate(g16.export("t")), generate(g8.export("t"))
+    _, t0, t1 = gen8.resources
+    assert t0.dtype == t1.dtype == "f1" and t0.data.dtype == np.uint8 and t0.data.shape == (4, 1024, 4)
+    assert 2 * t0.nbytes == gen16.resources[1].nbytes
+    row = next(r for r in gen8.plan.rows if r.type == "mesh_features")
+    assert "RGBA8 + RGBA8" in row.storage + row.why and "(u8)" in row.shape
+    p = resolve_params("mesh_features", {"levels": 2, "table_size": 16, "faces": 8, "precision": "u8"})
+    assert check_node("mesh_features", p, 3) == 4
+    with pytest.raises(ComponentError, match="precision"):
+        resolve_params("mesh_features", {**p, "precision": "u4"})
+    m = MeshFeatures.for_mesh(*MESHES["octahedron"], 2, 2, 16, precision="u8")
+    for scale, offset, match in (([1.0, 0.0], [0.0, 0.0], "scale: must be finite and > 0"),
+                                 ([1.0, np.nan], [0.0, 0.0], "scale: must be finite"),
+                                 ([1.0, 1.0], [0.0, np.inf], "offset finite"),
+                                 ([1.0], [0.0], r"scale, offset: shape \[2\] each")):
+        with pytest.raises(ComponentError, match=match):
+            m.calibrate(scale, offset)
+    b = feature_graph(MESHES["octahedron"], 2, 2, 16, "u8").export("t")
+    bad = {k: v for k, v in b.tensors.items() if k != "mf.scale"}
+    with pytest.raises(BundleError, match="mf.scale.*missing tensor"):
+        Bundle(b.meta, bad)
+    with pytest.raises(BundleError, match="mf.table.*dtype float32 but uint8 expected"):
+        Bundle(b.meta, {**b.tensors, "mf.table": b.tensors["mf.table"].astype(np.float32)})
 
 
 # --- component, bundles --------------------------------------------------------------------------

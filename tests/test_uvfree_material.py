@@ -272,3 +272,35 @@ def test_cli_render_opens_the_asset(asset, tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-2000:]
     assert (tmp_path / "r.png").is_file() and (tmp_path / "r.png.json").is_file()
+
+
+def test_u8_quantised_asset_matches_torch_and_keeps_its_quality(gl, asset, tmp_path):
+    """quantize.py: post-training u8 tables (half the feature bytes), the whole material network
+    GLSL vs torch on the bundle's dequantised values; a short quantisation-aware fine-tune exports
+    what it trained on; bad inputs are one error line."""
+    from inshade.bundle import load
+    from inshade.models import GraphModule
+    from inshade.techniques.uvfree_material.quantize import main, quantize_asset
+
+    m = quantize_asset(asset, tmp_path / "u8")
+    bundle = load(tmp_path / "u8" / "material")
+    node = next(n for n in bundle.nodes if n.type == "mesh_features")
+    assert node.params["precision"] == "u8" and bundle.tensor(node, "table").dtype == np.uint8
+    src = m["memory_source"]
+    assert m["memory"]["features_bytes"] == src["features_bytes"] // 2 + 2 * 4 * node.params["features"]
+    assert m["memory"]["mlp_bytes"] == src["mlp_bytes"] and m["memory"]["features_precision"] == "u8"
+    assert m["torch_quality"]["psnr_albedo"] > m["torch_quality_source"]["psnr_albedo"] - 1.0
+    x, _ = _shared_points(asset, np.random.default_rng(5))
+    g8 = GraphModule.from_bundle(bundle)
+    with torch.no_grad():
+        want = g8(torch.from_numpy(x)).numpy()
+    assert_parity(glsl_eval(gl, bundle, x), want, what="u8 uvfree material network")
+    qat = quantize_asset(asset, tmp_path / "qat", steps=3, batch=256)
+    assert len(qat["history"]) == 2 and qat["memory"]["features_bytes"] == m["memory"]["features_bytes"]
+    b2 = load(tmp_path / "qat" / "material")
+    again = GraphModule.from_bundle(b2).export("t").tensors
+    n2 = next(n for n in b2.nodes if n.type == "mesh_features")
+    np.testing.assert_array_equal(again[n2.tensor_name("table")], b2.tensor(n2, "table"))
+    assert main([str(asset), "--out", str(asset)]) == 2
+    assert main([str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2
+    assert main([str(asset), "--out", str(tmp_path / "u8")]) == 2            # not empty, no --force

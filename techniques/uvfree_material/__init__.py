@@ -9,7 +9,9 @@ reads the mesh's visibility buffer (face id + barycentrics, ProgramSpec.visibili
 each visible pixel once, then shades the channels with lib/pbr_shading. An asset folder
 (``trained/uvfree_material_<object>_<config>``) holds the bundle ``material`` (kind
 ``uvfree_material``), the mesh and its reference uv textures (albedo, normal, rma) that the
-``reference`` view samples.
+``reference`` view samples. quantize.py (``python -m inshade.techniques.uvfree_material.quantize``)
+stores a trained asset's feature table at 8 bits per value (mesh_features precision ``u8``: half
+the feature bytes), post-training or with a short quantisation-aware fine-tune.
 
 From a glTF file (``inshade train uvfree_material --gltf FILE``) the decoder learns the file's
 material channels (gltf_channels.py) on the file's own mesh, and passes/mesh_uvfree_gltf.frag draws

@@ -15,6 +15,8 @@ QUALITY_HEADERS = ["albedo PSNR (dB)", "albedo FLIP", "normal mean (deg)", "norm
 QUALITY_KEYS = ["albedo_psnr", "albedo_flip", "normal_mean_deg", "normal_p95_deg", "roughness_psnr",
                 "metallic_psnr", "ao_psnr", "shaded_psnr", "shaded_flip"]
 
+FEATURE_STORAGE = {"f16": "fp16 textures", "f32": "fp32 textures", "u8": "unorm8 textures + per-lane scale/offset"}
+
 
 def _cell(v) -> str:
     if v is None:
@@ -85,7 +87,8 @@ def markdown(r: dict) -> str:
         lines += ["", "### Memory", ""]
         share = {k: f"{m[k] / m['reference_bytes']:.1%}" for k in ("features_bytes", "mlp_bytes", "topology_bytes")}
         lines += markdown_table(["part", "bytes", "rate"], [
-            ["feature tables (fp16 textures)", m["features_bytes"], share["features_bytes"]],
+            [f"feature tables ({FEATURE_STORAGE.get(m.get('features_precision', 'f16'), 'fp16 textures')})",
+             m["features_bytes"], share["features_bytes"]],
             ["MLP (fp32)", m["mlp_bytes"], share["mlp_bytes"]],
             ["owner tables (uint texture)", m["topology_bytes"], share["topology_bytes"]],
             ["neural: features + MLP", m["neural_bytes"], f"{m['rate_features_mlp']:.1%}"],

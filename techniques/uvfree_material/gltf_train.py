@@ -127,7 +127,8 @@ def write_gltf_material(run: Run, progress=None) -> dict:
     bundle = graph.export(KIND_GLTF, f"{s.object}_{s.config}", provenance=provenance, metrics=quality,
                           render=gltf_channels.render_meta(targets.channels, targets.scale))
     # the fp16 table (what an RGBA16F texture holds) stored as F16: half the file, widened exactly at load
-    bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") else v) for k, v in bundle.tensors.items()}
+    bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") and v.dtype.kind == "f" else v)
+                      for k, v in bundle.tensors.items()}
     bundle.save(out / BUNDLE)
     scene = gltf_scene.scene_description(out.name, mesh_name, Path(args.gltf).name, out, BUNDLE, s.config,
                                          targets.channels)

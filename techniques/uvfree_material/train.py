@@ -324,7 +324,8 @@ def write_material(run: Run, progress=None) -> dict:
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     bundle = graph.export(KIND, f"{s.object}_{s.config}", provenance=provenance, metrics=quality)
     # the fp16 table (what an RGBA16F texture holds) stored as F16: half the file, widened exactly at load
-    bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") else v) for k, v in bundle.tensors.items()}
+    bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") and v.dtype.kind == "f" else v)
+                      for k, v in bundle.tensors.items()}
     bundle.save(out / BUNDLE)
     memory = memory_report(bundle, tex_res)
     atomic_write(out / "scene.json", json.dumps(scene_description(out.name, s.object, s.config), indent=2) + "\n")
