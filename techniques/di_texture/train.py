@@ -80,7 +80,7 @@ class Settings:
 
 
 # Training lengths: "quick" runs in well under a minute at 256^2 on one CPU thread; "ship" is what the
-# trained/ assets use (12000 steps: ~4 min a 256^2 texture, ~6 min at 1K, on one thread of the 2-core machine).
+# trained/ assets use (12000 steps: 3-4 min a texture at 256^2 or 1K on one thread of the quiet 2-core machine).
 PRESETS = {"quick": {}, "ship": dict(steps=12000)}
 # The inputs of each shipped asset (IMAGE, --size, --ratio beside --preset ship).
 SHIP_ASSETS = {"di_texture_astronaut": dict(image="skimage:astronaut", size=256, ratio=6.0),
