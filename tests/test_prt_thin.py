@@ -126,3 +126,53 @@ def test_build_dataset_traces_the_chosen_scheme(tmp_path):
                                                            seed=0))
     with pytest.raises(TransferError, match="shadow: must be one of"):
         T.build_dataset(sdf, 10, 4, shadow="nope")
+
+
+def test_build_dataset_adds_near_occluder_samples(tmp_path):
+    """``near_points``: further training samples near occluders, cast like the uniform ones and
+    appended to them; the uniform samples and the held-out set are those of the uniform dataset,
+    the cache key differs, and a mesh is refused (the proximity is a distance query)."""
+    import trimesh
+
+    sdf = sdf_module(parse_sdf(SLOT))
+    kw = dict(cache_dir=tmp_path, holdout=8, holdout_dirs=16, progress=False)
+    uniform = T.build_dataset(sdf, 200, 16, **kw)
+    near = T.build_dataset(sdf, 200, 16, near_points=100, **kw)
+    assert near["key"] != uniform["key"] and (near["n_near"], uniform["n_near"]) == (100, 0)
+    assert near["position"].shape == (300, 3) and near["transfer"].shape == (300, 16)
+    assert torch.equal(near["position"][:200], uniform["position"])
+    assert torch.equal(near["transfer"][:200], uniform["transfer"])
+    for k in ("heldout_position", "heldout_transfer"):
+        assert torch.equal(near[k], uniform[k])
+    p_near, n_near = near["position"][200:], near["normal"][200:]
+    assert torch.equal(near["transfer"][200:], T.sdf_transfer(sdf, p_near, n_near, n_dirs=16, seed=2))
+    delta = T.NEAR_DELTA * float(sdf.scene.radius)
+    share = lambda p, n: float((thin.occluder_proximity(sdf, p, n, delta) > 0.2).float().mean())  # noqa: E731
+    assert share(p_near, n_near) > share(uniform["position"], uniform["normal"])
+    again = T.build_dataset(sdf, 200, 16, near_points=100, **kw)
+    assert again["cached"] and torch.equal(again["position"], near["position"])
+    with pytest.raises(TransferError, match="near_points: near-occluder samples need an SDF"):
+        T.build_dataset(trimesh.creation.box(), 10, 4, near_points=5)
+
+
+def test_near_points_is_recorded_only_where_a_recipe_uses_it():
+    """train.py: ``near_points`` is an optional setting: prt_mechanical's recipe names it, the other
+    recipes (and their metrics.json) do not, an explicit --near-points wins, 0 means none."""
+    import argparse
+
+    from inshade.techniques.prt import train as prt_train
+
+    def resolve(name, **given):
+        ns = argparse.Namespace(preset="ship", out=f"/x/{name}", **{k: None for k in prt_train.SETTINGS})
+        for k, v in given.items():
+            setattr(ns, k, v)
+        return prt_train.resolve_settings(ns), ns
+
+    s, ns = resolve("prt_mechanical")
+    assert s["near_points"] == ns.near_points == prt_train.SHIP_ASSETS["prt_mechanical"]["near_points"] > 0
+    s, ns = resolve("prt_creature")
+    assert "near_points" not in s and ns.near_points is None
+    s, ns = resolve("prt_creature", near_points=500)
+    assert s["near_points"] == ns.near_points == 500
+    s, ns = resolve("prt_mechanical", near_points=0)
+    assert "near_points" not in s and ns.near_points is None

@@ -59,6 +59,12 @@ DEFAULT_SHADOW = "offset4"
 SHADOW_STEPS = 160          # SDF shadow-ray step cap
 MESH_OFFSET = 1e-4          # mesh shadow-ray origin offset, fraction of the bounding-box diagonal
 HOLDOUT_DIRS = 1024        # rays per held-out sample (the reference the network is measured against)
+# near-occluder training samples (``build_dataset(near_points=...)``, SDFs): drawn with density ~ 1 +
+# NEAR_BOOST x thin.occluder_proximity at NEAR_DELTA x the bound radius, from their own seed
+# (seed + NEAR_SEED), added to the uniform training samples; the held-out samples stay uniform
+NEAR_BOOST = 3.0
+NEAR_DELTA = 0.03
+NEAR_SEED = 1_000_003
 CHUNK_RAYS = 1 << 20        # rays per batch (memory ~100 bytes/ray at peak)
 
 
@@ -169,7 +175,7 @@ def mesh_transfer(mesh, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool
 def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, seed: int = 0,
                   progress: bool | None = None, holdout: int | None = None,
                   holdout_dirs: int = HOLDOUT_DIRS, device="cpu", executor=None,
-                  chunk_rays: int = CHUNK_RAYS, shadow: str = DEFAULT_SHADOW) -> dict:
+                  chunk_rays: int = CHUNK_RAYS, shadow: str = DEFAULT_SHADOW, near_points: int = 0) -> dict:
     """Surface samples + ground-truth transfer of an SDF module or a trimesh.Trimesh.
 
     Returns {"position" [N, 3], "normal" [N, 3], "transfer" [N, 16] (float32 tensors; the training
@@ -188,7 +194,12 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     while the bake runs (a rerun resumes there; removed once the dataset is written). The shards
     replay the unsharded estimate's random stream (``chunk_generator``), so the data is bit-identical
     whatever the executor and to an unsharded run. ``shadow``: the SDF shadow-ray scheme
-    (``SHADOW_SCHEMES``; part of the cache key unless it is the default)."""
+    (``SHADOW_SCHEMES``; part of the cache key unless it is the default). ``near_points`` (SDFs):
+    that many further training samples drawn near occluders (``NEAR_BOOST``, ``NEAR_DELTA``:
+    contact shadows, slots, parts resting on a plate, where the transfer changes fastest and the
+    network's error concentrates), cast with ``n_dirs`` rays and appended to the training set
+    (``n_near`` in the result; part of the cache key when > 0); the held-out samples stay the
+    uniform ones, so held-out metrics compare with a uniform dataset's."""
     mesh = is_mesh(geometry)
     if not mesh:
         check_sdf(geometry)
@@ -203,6 +214,12 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
         raise TransferError(f"shadow: must be one of {list(SHADOW_SCHEMES)}, got {shadow!r}")
     if shadow != DEFAULT_SHADOW and not mesh:
         settings["shadow"] = shadow
+    near_points = 0 if near_points is None else int(near_points)
+    if near_points:
+        check_count(near_points, "near_points")
+        if mesh:
+            raise TransferError("near_points: near-occluder samples need an SDF (the proximity is a distance query)")
+        settings.update({"near_points": near_points, "near_boost": NEAR_BOOST, "near_delta": NEAR_DELTA})
     # SDF data traced on a GPU may differ from the CPU's in the last bits: its own cache entry (the
     # CPU keys stay as they were; mesh rays are embree's on every device)
     device = torch.device(device)
@@ -227,29 +244,39 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     else:
         geometry = sdf_on_device(geometry, device)     # moved once for sampling and rays
         p, nrm = sample_sdf_surface(geometry, total, seed, device=device)
+    sets = [("train", p[:n_points], nrm[:n_points], n_dirs, seed),
+            ("heldout", p[n_points:], nrm[n_points:], holdout_dirs, seed + 1)]
+    if near_points:
+        from inshade.techniques.prt.thin import sample_near_occluders
+
+        p_near, n_near = sample_near_occluders(geometry, near_points, seed=seed + NEAR_SEED, boost=NEAR_BOOST,
+                                               delta=NEAR_DELTA * radius, device=device)
+        sets.append(("near", p_near, n_near, n_dirs, seed + 2))
     ray_start = time.perf_counter()
     # a GPU worker of Ray sees only the GPU it was given, as cuda:0
     worker_device = "cuda" if executor.kind == "ray" and device.type == "cuda" else str(device)
     common = {"geometry": source if executor.remote else geometry, "mesh": mesh,
               "device": worker_device if executor.remote else device, "threads": torch.get_num_threads(),
               "chunk_rays": int(chunk_rays), "shadow": shadow}
-    sets = (("train", p[:n_points], nrm[:n_points], n_dirs, seed),
-            ("heldout", p[n_points:], nrm[n_points:], holdout_dirs, seed + 1))
     shards = transfer_shards(sets, chunk_rays, num_gpus=0.0 if mesh or device.type == "cpu" else 1.0)
     shard_dir = Path(cache_dir) / f"transfer-{key}.shards" if cache_dir is not None else None
-    with _bar(n_points * n_dirs + holdout * holdout_dirs, "transfer rays", progress) as bar:
+    with _bar((n_points + near_points) * n_dirs + holdout * holdout_dirs, "transfer rays", progress) as bar:
         results = run_shards(transfer_shard, shards, common, shard_dir, executor,
                              on_done=lambda s: bar.update(s.args["points"].shape[0] * s.args["n_dirs"]))
     # copies: Ray hands back read-only arrays
     parts = {name: [torch.tensor(r["transfer"]) for s, r in zip(shards, results) if s.args["set"] == name]
              for name, *_ in sets}
-    transfer, held = torch.cat(parts["train"]), torch.cat(parts["heldout"])
+    transfer, held = torch.cat(parts["train"] + parts.get("near", [])), torch.cat(parts["heldout"])
     end = time.perf_counter()
-    rays = n_points * n_dirs + holdout * holdout_dirs
-    data = {"position": p[:n_points].contiguous(), "normal": nrm[:n_points].contiguous(), "transfer": transfer,
+    rays = (n_points + near_points) * n_dirs + holdout * holdout_dirs
+    train_p, train_n = p[:n_points], nrm[:n_points]
+    if near_points:
+        train_p, train_n = torch.cat([train_p, p_near]), torch.cat([train_n, n_near])
+    data = {"position": train_p.contiguous(), "normal": train_n.contiguous(), "transfer": transfer,
             "heldout_position": p[n_points:].contiguous(), "heldout_normal": nrm[n_points:].contiguous(),
             "heldout_transfer": held, "center": list(center), "radius": radius,
-            "n_points": n_points, "n_dirs": n_dirs, "n_heldout": holdout, "heldout_dirs": holdout_dirs,
+            "n_points": n_points, "n_near": near_points, "n_dirs": n_dirs, "n_heldout": holdout,
+            "heldout_dirs": holdout_dirs,
             "seed": int(seed), "kind": "mesh" if mesh else "sdf",
             "key": key, "seconds": round(end - start, 3), "ray_seconds": round(end - ray_start, 3),
             "rays": rays, "rays_per_second": round(rays / max(end - ray_start, 1e-9), 1),

@@ -94,6 +94,10 @@ def add_arguments(parser: argparse.ArgumentParser, out: bool = True) -> argparse
     parser.add_argument("--normal-freqs", type=int, default=d["normal_freqs"], help="normal octaves (default: %(default)s)")
     parser.add_argument("--output", choices=("tanh", "identity"), default=d["output"],
                         help="output activation (tanh: targets scaled by 1/1.25) (default: %(default)s)")
+    parser.add_argument("--near-points", type=int, default=None,
+                        help="further training samples drawn near occluders (SDFs: contact shadows, slots; "
+                             "techniques/prt/transfer.py NEAR_BOOST / NEAR_DELTA), cast with --dirs rays; the "
+                             "held-out samples stay uniform (default: %(default)s)")
     parser.add_argument("--drop-enclosed", action="store_true",
                         help="train without samples whose every visibility ray is blocked (enclosed shells)")
     parser.add_argument("--checkpoint", default=None,
@@ -122,14 +126,18 @@ def run(args: argparse.Namespace) -> int:
     for k in ("width", "layers", "points", "dirs", "steps", "batch"):
         if getattr(args, k) < 1:
             raise SystemExit(f"--{k} must be >= 1")
+    if getattr(args, "near_points", None) is not None and args.near_points < 0:
+        raise SystemExit("--near-points must be >= 0")
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     geometry, source = load_geometry(args)
     out = Path(args.out)
     cache = Path(args.cache) if args.cache else out.parent / ".transfer_cache"
+    near = getattr(args, "near_points", None) or 0
     data = build_dataset(geometry, args.points, args.dirs, cache, args.seed, progress=None, device=device,
-                         executor=executor)
-    print(f"data ({bake.describe(executor)}): {args.points} points x {args.dirs} rays, {data['seconds']:.1f} s, "
+                         executor=executor, near_points=near)
+    print(f"data ({bake.describe(executor)}): {args.points} points{f' + {near} near occluders' if near else ''} x "
+          f"{args.dirs} rays, {data['seconds']:.1f} s, "
           f"{data['rays_per_second'] / 1e3:.1f} k rays/s{' (cached)' if data['cached'] else ''}")
     net, frame, metrics = train_transfer(
         data, width=args.width, layers=args.layers, steps=args.steps, batch=args.batch, lr=args.lr,
@@ -139,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
         drop_enclosed=args.drop_enclosed, device=device)
     metrics.update({"data_seconds": data["seconds"], "rays_per_second": data["rays_per_second"],
                     "points": args.points, "dirs": args.dirs})
+    if near:
+        metrics["near_points"] = near
     # not a wrapper's options; the device goes into the provenance, resolved, not into the recipe; where
     # data and checkpoints are cached changes nothing in the result and names one machine's folders
     own = {a.dest for a in add_arguments(argparse.ArgumentParser())._actions} - {
