@@ -3,7 +3,8 @@ every DI texture shares: a k-channel texture (k <= 8, 8-bit) becomes a 2D primar
 channels, triangle F) looked up at uv, whose output indexes a 4D
 cascaded array holding the k channels, both exported at 8 bits. `compress` sizes the cascade for a
 ratio, starts it from the image's principal colour axes (`pca_init`), trains it (the squared
-error on texel centres and stratified points under Adam: see DEFAULTS) and exports the bundle; `decode_nodes` appends the sRGB -> linear decode (per channel a one-hot pick and
+error on texel centres and stratified points under Adam: see DEFAULTS) and exports the bundle;
+`decode_nodes` appends the sRGB -> linear decode (per channel a one-hot pick and
 a 256-entry float32 EOTF table: the job an SRGB8 texture format does in hardware).
 
 Colour: the arrays hold the sRGB-*encoded* values (what an RGB8 texture, ASTC and BC compress), so
@@ -50,8 +51,8 @@ DEFAULTS = dict(ratio=6.0, rho=None, steps=1500, lr=1e-2, batch=16384, schedule=
 # on mixed points. The pca start: +1.9 dB on astronaut 256^2 (1500 steps), +2.6 dB on retina at
 # 1K, +5 dB on the 8-lane PBR bricks at 256^2 (3000 steps) over the ramp.
 # The finish phase's optimiser. "adam": the same minibatch Adam and schedule on mixed batches
-# (texel centres + stratified points). "lbfgs": the Adam phase (schedule over its own steps) is followed by full-batch L-BFGS
-# on all texel centres, given the same number of samples as the Adam finish would see
+# (texel centres + stratified points). "lbfgs": the Adam phase (schedule over its own steps) is
+# followed by full-batch L-BFGS on all texel centres, given the same number of samples as the Adam finish would see
 # (finish steps * batch / texels evaluations of the whole texture), so it costs no more time.
 # Measured on astronaut 256^2 / 6x, 6000 steps, 1 thread (8-bit PSNR, seeds 0 / 1): Adam finish
 # 32.54 / 32.51 dB in 120 / 122 s, L-BFGS 32.62 / 33.02 dB in 110 / 116 s; 12000 steps, seed 0:
@@ -69,13 +70,13 @@ FINISH_OPTIMIZERS = ("adam", "lbfgs")
 # would take 38% of the budget (N_p 64) and lost 0.8 dB to N_c = 4 (N_p 88). At the small sizes
 # the primary carries the detail (paper: rho in [40, 128] for 1K-4K textures).
 CASCADE_SIDES = (4, 8)
+CASCADE_SHARE = 0.05
 # The cascaded cells are kept within CASCADED_RANGE while training (None: unbounded). Its 8-bit
 # export steps by (hi - lo) / 255, and hardware filtering of unorm8 textures may round its
 # filtered value to that step (llvmpipe does): unbounded, the cascade of astronaut 256^2 / 6x
 # grew to a range of 6.5-8.4 (its fast path 0.97 dB below the exact one; 8-bit weights alone
 # cost 0.01 dB, simulated); clamped to [0, 1] the fast path lost 0.03 dB but the exact one 0.55.
 CASCADED_RANGE = (-0.5, 1.5)
-CASCADE_SHARE = 0.05
 
 
 class CompressionError(ValueError):

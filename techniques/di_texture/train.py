@@ -64,7 +64,8 @@ class Settings:
     size: int | None = setting(None, "centre-crop to a square and resize to SIZE x SIZE first")
     ratio: float = setting(CASCADE_DEFAULTS["ratio"], "compression ratio vs 8-bit")
     rho: float | None = setting(CASCADE_DEFAULTS["rho"],
-                                "N_p / N_c (None: the cascaded side CASCADE_SIDES chooses, the largest primary next to it)")
+                                "N_p / N_c (None: the cascaded side CASCADE_SIDES chooses, the largest primary "
+                                "next to it)")
     steps: int = setting(1500, "training steps")
     lr: float = setting(CASCADE_DEFAULTS["lr"], "Adam learning rate")
     batch: int = setting(CASCADE_DEFAULTS["batch"], "samples per step")
