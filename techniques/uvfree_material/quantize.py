@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -64,8 +63,8 @@ def quantize_asset(src, out, *, steps: int = 0, lr: float = 1e-3, mlp_lr: float 
     if bundle.kind != KIND:
         raise TrainError(f"{src / BUNDLE}: a {bundle.kind} bundle, not {KIND}")
     out.mkdir(parents=True, exist_ok=True)
-    for name in COPIED:
-        shutil.copyfile(src / name, out / name)
+    for name in COPIED:     # written atomically, like every file of an asset
+        atomic_write(out / name, (src / name).read_bytes())
     mesh, textures = load_mesh(out / objects.FILES["mesh"]), stored_textures(out)
     sampler = SurfaceSampler(mesh)
     graph = GraphModule.from_bundle(bundle)
