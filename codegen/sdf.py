@@ -10,7 +10,8 @@ torch reference). Rules that keep the two within float32 rounding of each other:
 - no division by a variable (drivers lower ``a / b`` to ``a * rcp(b)``): reciprocals of constants
   are computed in float64, rounded to float32 and multiplied; dot products are written out as
   ``x*x' + y*y' + z*z'`` as torch computes them;
-- ``round`` is ``floor(x + 0.5)`` (GLSL's ``round`` picks either way at .5).
+- ``round`` is ``floor(x + 0.5)`` (GLSL's ``round`` picks either way at .5);
+- hard union/intersect colours: the first child within ``TIE_EPS`` of a tie (geometry/sdf.py).
 
 Output bytes depend only on the description (deterministic; the program cache key hashes them).
 numpy only (no torch).
@@ -22,7 +23,7 @@ import math
 
 import numpy as np
 
-from inshade.geometry.sdf import DEFAULT_ALBEDO, SdfScene, f32
+from inshade.geometry.sdf import DEFAULT_ALBEDO, TIE_EPS, SdfScene, f32
 
 from .glsl import flt
 
@@ -171,7 +172,7 @@ class _Emitter:
             if k == 0:
                 self.emit(f"float {d} = min({a}, {b});")
                 if c:
-                    self.emit(f"vec3 {c} = {a} <= {b} ? {ca} : {cb};")
+                    self.emit(f"vec3 {c} = {a} <= {b} + {flt(TIE_EPS)} ? {ca} : {cb};")
                 return d, c
             h = self.name("h")
             self.emit(f"float {h} = clamp(0.5 + ({b} - {a}) * {flt(0.5 / k)}, 0.0, 1.0);")
@@ -200,7 +201,7 @@ class _Emitter:
             if k == 0:
                 self.emit(f"float {d} = max({a}, {b});")
                 if c:
-                    self.emit(f"vec3 {c} = {a} >= {b} ? {ca} : {cb};")
+                    self.emit(f"vec3 {c} = {a} >= {b} - {flt(TIE_EPS)} ? {ca} : {cb};")
                 return d, c
             h = self.name("h")
             self.emit(f"float {h} = clamp(0.5 - ({b} - {a}) * {flt(0.5 / k)}, 0.0, 1.0);")

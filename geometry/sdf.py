@@ -19,7 +19,10 @@ colour of its subtree's leaves unless a deeper node sets its own; with none at a
 - booleans over ``children`` (>= 2), left fold, ``k`` >= 0 the smoothing radius (0 = hard):
   ``union`` (polynomial smooth min), ``subtract`` (first child minus the others, smooth max of
   a and -b), ``intersect`` (smooth max). Colours: union/intersect blend with the same weight h
-  as the distances; subtract keeps the first child's colour.
+  as the distances; subtract keeps the first child's colour. Hard (k = 0) union/intersect take
+  the nearer/farther child's colour, and the first child's on a tie, i.e. where the distances
+  are within ``TIE_EPS`` (shared faces: the difference there is rounding, which differs between
+  executors).
 - ``transform`` {child, translate?, rotate?: {axis, angle (degrees)}, scale? (uniform, > 0)}:
   the child is scaled, then rotated, then translated; evaluated as
   ``q = R^T (p - t) / s``, ``d = s * child(q)``.
@@ -70,6 +73,11 @@ class SdfError(ValueError):
 def f32(v) -> float:
     """The float32 value every executor uses for a constant."""
     return float(np.float32(v))
+
+
+# hard union/intersect colour ties: distances this close pick the first child (above any rounding
+# difference the 1e-5 parity rule allows between executors; far below hit_eps)
+TIE_EPS = f32(1e-4)
 
 
 @dataclass

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import torch
 
-from inshade.geometry.sdf import DEFAULT_ALBEDO, SdfScene, f32
+from inshade.geometry.sdf import DEFAULT_ALBEDO, TIE_EPS, SdfScene, f32
 from inshade.sh import background_bands, band_of, lambert_bands, sh_basis
 
 INV_PI = f32(1.0 / math.pi)
@@ -116,7 +116,7 @@ class SdfModule(torch.nn.Module):
     def _union(self, node, p, col, colour):
         def combine(k, a, ca, b, cb):
             if k == 0:
-                return torch.minimum(a, b), (torch.where((a <= b)[:, None], ca, cb) if colour else None)
+                return torch.minimum(a, b), (torch.where((a <= b + TIE_EPS)[:, None], ca, cb) if colour else None)
             h = (0.5 + (b - a) * f32(0.5 / k)).clamp(0.0, 1.0)
             d = b + (a - b) * h - k * h * (1.0 - h)
             return d, (cb + (ca - cb) * h[:, None] if colour else None)
@@ -133,7 +133,7 @@ class SdfModule(torch.nn.Module):
     def _intersect(self, node, p, col, colour):
         def combine(k, a, ca, b, cb):
             if k == 0:
-                return torch.maximum(a, b), (torch.where((a >= b)[:, None], ca, cb) if colour else None)
+                return torch.maximum(a, b), (torch.where((a >= b - TIE_EPS)[:, None], ca, cb) if colour else None)
             h = (0.5 - (b - a) * f32(0.5 / k)).clamp(0.0, 1.0)
             d = b + (a - b) * h + k * h * (1.0 - h)
             return d, (cb + (ca - cb) * h[:, None] if colour else None)

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunk, sdf_chunks
 from inshade.models.sdf import SdfModule, camera_rays, gradient, normals, render, sh_background_t
-from inshade.geometry.sdf import SdfError, load_sdf, parse_sdf
+from inshade.geometry.sdf import SdfError, SdfScene, load_sdf, parse_sdf
 from parity import run_sample_pass
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,6 +61,76 @@ def test_scene_values_glsl_vs_torch(gl, name):
     # normals: central differences in both; differences of float32 distances over 2 * eps
     n_t = normals(m, torch.from_numpy(points)).numpy()
     assert np.percentile(np.abs(n_gl - n_t).max(-1), 99) < 1e-3
+
+
+# colour ties: hard union/intersect children at equal distance ------------------------------------
+def _children(scene, points):
+    """Each child of the root boolean alone, in torch: distances [C, N], albedos [C, N, 3]."""
+    d, a = [], []
+    for child in scene.root.children:
+        sub = SdfScene(root=child, center=scene.center, radius=scene.radius, trace=scene.trace)
+        with torch.no_grad():
+            dc, ac = SdfModule(sub).evaluate(torch.from_numpy(points))
+        d.append(dc.numpy())
+        a.append(ac.numpy())
+    return np.stack(d), np.stack(a)
+
+
+def test_mechanical_gear_tooth_ties_glsl_vs_torch(gl):
+    """The gears' meshing teeth share their side faces (z = +-0.055) and tops (y = +-0.09): there
+    the two gears' distances are equal up to rounding, which differs between torch and the driver
+    (polar folding, rotations). Both executors must colour those faces alike: the first child.
+    Points lie on and within ~1e-5 of the shared faces, between the teeth's fillets (x in
+    [0.395, 0.455], where the two distances agree to 1e-7)."""
+    scene = load_sdf(ROOT / "trained/sdf_mechanical/sdf.json")
+    rng = np.random.default_rng(3)
+    n = 2048
+    x, y, z = rng.uniform(0.395, 0.455, n), rng.uniform(-0.085, 0.085, n), rng.uniform(-0.03, 0.03, n)
+    side = rng.choice([-1.0, 1.0], n)
+    on = np.concatenate([np.stack([x, y, side * 0.055], -1), np.stack([x, side * 0.09, z], -1)])
+    near = on + rng.normal(0.0, 1e-5, on.shape)          # within a few 1e-5 of the shared faces
+    points = np.concatenate([on, near]).astype(np.float32)
+    _check_values(gl, scene, points)
+    with torch.no_grad():
+        alb = SdfModule(scene).albedo(torch.from_numpy(points)).numpy()
+    d, a = _children(scene, points)
+    assert (np.abs(d[0] - d[1]) <= 1e-6).all()
+    np.testing.assert_array_equal(alb, a[0])
+
+
+@pytest.mark.parametrize("op", ["union", "intersect"])
+def test_hard_boolean_ties_pick_the_first_child(gl, op):
+    """Two boxes sharing a face, one reached through a rotation by a full turn (same surface,
+    different rounding): on and within rounding of the shared face both executors take the first
+    child's colour; away from it, the nearer (union) or farther (intersect) child's."""
+    box = {"type": "box", "size": [0.3, 0.3, 0.3]}
+    root = {"type": op, "k": 0.0, "children": [
+        {"type": "transform", "translate": [0.1, 0.0, 0.0], "child": box, "albedo": [1.0, 0.0, 0.0]},
+        {"type": "transform", "translate": [-0.1, 0.0, 0.0], "rotate": {"axis": [0.3, 1.0, 0.2], "angle": 360.0},
+         "child": box, "albedo": [0.0, 0.0, 1.0]}]}
+    scene = parse_sdf({"format": "inshade.geometry.sdf", "version": 1, "bound": {"center": [0, 0, 0], "radius": 2},
+                       "root": root})
+    rng = np.random.default_rng(4)
+    n = 4096
+    # the shared faces y = +-0.3 and z = +-0.3 over the overlap x in [-0.2, 0.2], outside the boxes
+    u, v = rng.uniform(-0.2, 0.2, n), rng.uniform(-0.25, 0.25, n)
+    s = rng.choice([-1.0, 1.0], n)
+    off = rng.choice([0.0, 1e-3, 0.05], n)                # on the faces, and above them (equal distances)
+    pts = np.where((rng.uniform(size=n) < 0.5)[:, None],
+                   np.stack([u, s * (0.3 + off), v], -1), np.stack([u, v, s * (0.3 + off)], -1))
+    far = rng.uniform(-0.8, 0.8, (1024, 3))               # decided points (|d0 - d1| well above rounding)
+    points = np.concatenate([pts, far]).astype(np.float32)
+    _check_values(gl, scene, points)
+    d, _ = _children(scene, points)
+    with torch.no_grad():
+        alb = SdfModule(scene).albedo(torch.from_numpy(points)).numpy()
+    tied = np.abs(d[0] - d[1]) <= 1e-6
+    assert tied.sum() > 1000
+    assert (alb[tied] == [1.0, 0.0, 0.0]).all()
+    decided = np.abs(d[0] - d[1]) > 1e-3
+    first = d[0] < d[1] if op == "union" else d[0] > d[1]
+    want = np.where(first[:, None], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+    np.testing.assert_array_equal(alb[decided], want[decided])
 
 
 # hypothesis-random small scenes -------------------------------------------------------------------
