@@ -6,10 +6,11 @@ Resources (P = the network prefix, e.g. "dap"; node id v):
   checked at load), RGBA32F for f32; a 2D texture whose rows are 2^n texels wide (texel t at
   (t & (W-1), t >> n): codegen/mesh_features.py row_layout, within GL_MAX_TEXTURE_SIZE);
 - ``P_v_spheres``: spheres (centre, radius), one RGBA32F texel per slot, same row layout;
-- ``P_v_grid``: ONE R32UI 3D texture, the index grid: mip level 0 = scale_max (2^scale_max
-  texels per axis, texel (i, j, k) = cell (i, j, k)), level L = scale scale_max - L, down to
-  scale_min; texel = slot + 1, 0 = empty. It is built here from `cells`, so every non-zero texel
-  is slot + 1 with slot < N: it cannot point past the latent table.
+- the cell -> slot index, as param ``index`` says (codegen/voxel_index.py has the layouts):
+  ``dense`` (``P_v_grid``: ONE R32UI 3D texture, mip level L = scale scale_max - L, texel =
+  slot + 1, 0 = empty) or ``bricks`` (``P_v_top`` + ``P_v_bricks``: a table of B^3 bricks per
+  scale and R32UI bricks where voxels exist). It is built here from `cells`, so every non-zero
+  entry is slot + 1 with slot < N: it cannot point past the latent table.
 
 Globals with fixed names (the march pass calls them; defines upper-case):
 
@@ -28,26 +29,13 @@ import numpy as np
 from inshade.components import check_voxel_tables
 
 from .glsl import PlanRow, TextureResource, flt
-from .limits import LimitError, limit, source
 from .texture_rows import row_layout, rows_data
 from .registry import emitter
 from .values import declare
+from .voxel_index import EMIT as INDEX_EMIT
+from .voxel_index import index_grid  # noqa: F401  (the dense grid's levels)
 
 _FLOAT = {"f16": ("f2", np.float16, "RGBA16F"), "f32": ("f4", np.float32, "RGBA32F")}
-
-
-def index_grid(cells: np.ndarray, scale_min: int, scale_max: int) -> list[np.ndarray]:
-    """The grid's levels, finest first: level L is [n, n, n, 1] uint32 (n = 2^(scale_max - L)),
-    indexed [k, j, i], holding slot + 1 (0 = empty)."""
-    cells = np.asarray(cells, np.int64)
-    levels = []
-    for scale in range(scale_max, scale_min - 1, -1):
-        n = 1 << scale
-        grid = np.zeros((n, n, n, 1), np.uint32)
-        rows = np.flatnonzero(cells[:, 0] == scale)
-        grid[cells[rows, 3], cells[rows, 2], cells[rows, 1], 0] = (rows + 1).astype(np.uint32)
-        levels.append(grid)
-    return levels
 
 
 def _fetch(sampler: str, index: str, log2w: int) -> str:
@@ -68,37 +56,26 @@ def emit_sparse_voxels(ctx, node, srcs, bundle):
     fdtype, np_dtype, fmt = _FLOAT[p["precision"]]
     texels = z // 4
 
-    cap3 = limit(ctx.limits, "GL_MAX_3D_TEXTURE_SIZE")
-    if (1 << smax) > cap3:
-        raise LimitError(f"node {node.id}: the index grid of scale {smax} is {1 << smax}^3 texels; "
-                         f"GL_MAX_3D_TEXTURE_SIZE is {cap3} ({source(ctx.limits, 'GL_MAX_3D_TEXTURE_SIZE')})")
     lat_log2w, lat_rows = row_layout(node.id, f"latent table ({texels} texels per voxel)", n * texels, ctx.limits)
     sph_log2w, sph_rows = row_layout(node.id, "sphere table", n, ctx.limits)
-    lat, sph, grid = (ctx.name(node.id, s) for s in ("latents", "spheres", "grid"))
-    chain = index_grid(cells, smin, smax)
+    lat, sph = (ctx.name(node.id, s) for s in ("latents", "spheres"))
+    index_resources, index_decls, index_fns, index_plan = INDEX_EMIT[p["index"]](ctx, node, cells, up, slot_fn)
     resources = [
         TextureResource(lat, rows_data(np.ascontiguousarray(latents.reshape(n * texels, 4), dtype=np_dtype),
                                    lat_log2w, lat_rows), fdtype),
         TextureResource(sph, rows_data(np.ascontiguousarray(spheres, np.float32), sph_log2w, sph_rows), "f4"),
-        TextureResource(grid, chain[0], "u4", mips=tuple(chain[1:])),
+        *index_resources,
     ]
     ctx.resources += resources
     latent_fn = ctx.name(node.id, "latent")
     ctx.globals += [
         f"uniform sampler2D {lat};  // {node.id}: {n} voxels x {z} latents, {texels} texels each, {p['precision']}",
         f"uniform sampler2D {sph};  // {node.id}: bounding sphere (centre, radius) per voxel",
-        "#ifdef INSHADE_TARGET_ES300",
-        "precision highp usampler3D;",
-        "#endif",
-        f"uniform usampler3D {grid};  // {node.id}: slot + 1 per cell (0 = empty); mip level L = scale {smax} - L",
+        *index_decls,
         f"#define {up}_SCALE_MIN {smin}",
         f"#define {up}_SCALE_MAX {smax}",
         f"#define {up}_VOXELS {n}",
-        f"uint {slot_fn}(int scale, ivec3 cell) {{",
-        f"    if (scale < {up}_SCALE_MIN || scale > {up}_SCALE_MAX) return 0u;",
-        "    if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, ivec3(1 << scale)))) return 0u;",
-        f"    return texelFetch({grid}, cell, {up}_SCALE_MAX - scale).r;",
-        "}",
+        *index_fns,
         f"vec4 {sphere_fn}(uint slot) {{",
         f"    uint s = min(slot, {n - 1}u);",
         f"    return {_fetch(sph, 's', sph_log2w)};",
@@ -118,7 +95,7 @@ def emit_sparse_voxels(ctx, node, srcs, bundle):
     ctx.plan.append(PlanRow(node.id, "sparse_voxels",
                             f"{n} voxels x {z} ({p['precision']}), scales {smin}..{smax}", "texture/exact",
                             f"{fmt} latents ({texels} texels/voxel, rows of {1 << lat_log2w}) + RGBA32F spheres + "
-                            f"R32UI 3D index grid {1 << smax}^3 with {smax - smin + 1} levels",
+                            + index_plan,
                             params=int(latents.size), flops=2 * texels, fetches=texels,
                             texture_bytes=sum(r.nbytes for r in resources)))
     return out

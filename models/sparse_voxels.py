@@ -27,12 +27,13 @@ class SparseVoxels(Component):
     type = "sparse_voxels"
 
     def __init__(self, cells, spheres, channels: int, scale_min: int, scale_max: int, precision: str = "f16",
-                 latents=None, init_scale: float = 0.01, seed: int = 0):
+                 latents=None, init_scale: float = 0.01, seed: int = 0, index: str = "dense", brick: int = 4):
         super().__init__()
         cells = np.asarray(cells.cpu().numpy() if torch.is_tensor(cells) else cells)
         spheres = np.asarray(spheres.cpu().numpy() if torch.is_tensor(spheres) else spheres, np.float32)
         self.channels, self.scale_min, self.scale_max = int(channels), int(scale_min), int(scale_max)
         self.precision = precision
+        self.index, self.brick = index, brick   # the GLSL side's cell -> slot index (codegen/voxel_index.py)
         n = int(cells.shape[0]) if cells.ndim == 2 else 0
         check_node(self.type, resolve_params(self.type, self.params_with(n)), 1)
         if latents is None:
@@ -52,7 +53,7 @@ class SparseVoxels(Component):
 
     def params_with(self, voxels: int) -> dict:
         return {"voxels": voxels, "channels": self.channels, "scale_min": self.scale_min,
-                "scale_max": self.scale_max, "precision": self.precision}
+                "scale_max": self.scale_max, "precision": self.precision, "index": self.index, "brick": self.brick}
 
     def params(self):
         return self.params_with(self.voxels)
@@ -81,4 +82,5 @@ class SparseVoxels(Component):
     @classmethod
     def from_node(cls, params, in_dim, tensors):
         return cls(tensors["cells"], tensors["spheres"], params["channels"], params["scale_min"],
-                   params["scale_max"], params["precision"], latents=tensors["latents"])
+                   params["scale_max"], params["precision"], latents=tensors["latents"],
+                   index=params.get("index", "dense"), brick=params.get("brick", 4))

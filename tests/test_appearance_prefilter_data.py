@@ -23,6 +23,7 @@ from inshade.techniques.appearance_prefilter import frame
 from inshade.techniques.appearance_prefilter.brdf_np import brdf
 from inshade.techniques.appearance_prefilter.data import DataError, bake_voxel_data, phase_slice
 from inshade.techniques.appearance_prefilter.reference import ReferenceError, camera_rays, render_reference
+from inshade.techniques.appearance_prefilter import scene as scene_module
 from inshade.techniques.appearance_prefilter.scene import (SceneError, build_scene, scene_from_mesh)
 from inshade.techniques.appearance_prefilter.voxels import VoxelError, clip_to_boxes, count_voxels, voxelise
 
@@ -31,7 +32,7 @@ FAST = settings(max_examples=12, deadline=None, derandomize=True)
 
 # --- scenes ---------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("name", ["grove", "slabs"])
+@pytest.mark.parametrize("name", ["grove", "slabs", "forest"])
 def test_quick_scenes_are_deterministic_and_in_the_unit_box(name):
     a, b = build_scene(name, "quick"), build_scene(name, "quick")
     assert np.array_equal(a.mesh.vertices, b.mesh.vertices) and np.array_equal(a.base_colour, b.base_colour)
@@ -56,6 +57,24 @@ def test_grove_ship_has_every_ingredient():
     assert 0 < s.metallic[glossy].mean() < 1
 
 
+def test_forest_ship_is_in_the_papers_size_class():
+    """Over a million triangles: closed displaced-bark trunks and branches, two-sided leaf cards."""
+    s = build_scene("forest", "ship")
+    assert s.faces >= 1_000_000
+    names = [p[0] for p in s.parts]
+    leaves = np.concatenate([np.arange(a, b) for n, a, b in s.parts if n.endswith("leaves")])
+    assert s.two_sided[leaves].all() and s.two_sided.sum() == len(leaves)
+    trunk = next((a, b) for n, a, b in s.parts if n.endswith("trunk"))
+    piece = trimesh.Trimesh(s.mesh.vertices, s.mesh.faces[trunk[0]:trunk[1]], process=False)
+    piece.merge_vertices()
+    assert piece.is_watertight and piece.volume > 0
+    # displaced bark: the radius varies around a ring
+    bark = scene_module._bark(np.random.default_rng(0), 0.05, 1.0, 32, 8)
+    ring = np.linalg.norm(bark.vertices[:32, [0, 2]], axis=1)
+    assert bark.is_watertight and ring.std() > 0.02 * ring.mean()
+    assert len({n.split("_")[0] for n in names}) >= 10                   # trees
+
+
 def test_bad_scene_input_gets_one_clear_error():
     box = trimesh.creation.box()
     with pytest.raises(SceneError, match="mesh: empty geometry"):
@@ -72,8 +91,8 @@ def test_bad_scene_input_gets_one_clear_error():
         scene_from_mesh(box, np.ones((3, 3)), 0.5, 0.0, False)
     with pytest.raises(SceneError, match="roughness: values must be finite and in"):
         scene_from_mesh(box, 0.5, 1.5, 0.0, False)
-    with pytest.raises(SceneError, match="scene: unknown 'forest'"):
-        build_scene("forest")
+    with pytest.raises(SceneError, match="scene: unknown 'jungle'"):
+        build_scene("jungle")
     with pytest.raises(SceneError, match="detail: must be one of"):
         build_scene("grove", "huge")
 
@@ -558,3 +577,39 @@ def test_frame_twins_agree_with_the_march():
     tt, bt = march.view_frame(torch.tensor(w, dtype=torch.float32))
     assert np.allclose(tt.numpy(), t, atol=1e-6) and np.allclose(bt.numpy(), b, atol=1e-6)
     assert np.allclose(march.bin_centres(4, 8).numpy(), frame.bin_centres(4, 8), atol=1e-6)
+
+
+def test_decimated_lod_reaches_a_coarse_budget_and_can_vanish():
+    """A mesh a thousand times over a budget is decimated in several passes to fit it (one pass
+    stops at 1 % of the faces); a budget below one face leaves an empty mesh with empty materials."""
+    from inshade.techniques.appearance_prefilter.baseline import decimate, lod_bytes
+
+    sphere = trimesh.creation.icosphere(subdivisions=6, radius=0.3)
+    sphere.apply_translation([0.5, 0.5, 0.5])
+    scene = scene_from_mesh(sphere, [0.5, 0.4, 0.3], 0.5, 0.0, False, normalise=False)
+    budget = lod_bytes(40, 60)
+    assert budget < lod_bytes(len(sphere.vertices) // 100, len(sphere.faces) // 100)
+    lod, used = decimate(scene, budget)
+    assert 0 < used <= budget and used == lod_bytes(len(lod.mesh.vertices), len(lod.mesh.faces))
+    assert lod.base_colour.shape == (len(lod.mesh.faces), 3)
+    np.testing.assert_allclose(lod.base_colour, np.broadcast_to([0.5, 0.4, 0.3], lod.base_colour.shape), atol=1e-6)
+    empty, used = decimate(scene, 10)
+    assert used == 0 and len(empty.mesh.faces) == 0
+    assert empty.base_colour.shape == (0, 3) and empty.roughness.shape == empty.two_sided.shape == (0,)
+
+
+def test_a_miss_shows_the_background_the_gl_passes_draw():
+    """The reference's escaped rays show the windowed series (lib/spherical_harmonics sh_background,
+    torch twin sh_background_t), not the raw one the lighting uses."""
+    import torch
+
+    from inshade.codegen.sdf import environment_sh
+    from inshade.models.sdf import sh_background_t
+    from inshade.techniques.appearance_prefilter import reference
+
+    sh = environment_sh("overcast", 30.0, 4).astype(np.float64)
+    d = np.random.default_rng(3).normal(size=(256, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    want = sh_background_t(torch.as_tensor(sh, dtype=torch.float32), torch.as_tensor(d, dtype=torch.float32)).numpy()
+    np.testing.assert_allclose(reference._background(sh, d), want, atol=1e-5)
+    assert np.abs(reference._env(sh, d) - want).max() > 1e-3      # the lighting's series differs

@@ -244,8 +244,8 @@ def test_bad_files_are_one_line_before_any_work(tmp_path, capsys):
                                  "has TEXCOORD_0")
     absent = tmp_path / "absent.glb"
     assert train.main(["--scene", str(absent), "--out", str(tmp_path / "x"), *SMALL]) == 2
-    assert _one_line(capsys) == f"inshade: error: --scene: {absent}: no such file (the procedural scenes: grove, slabs)"
+    assert _one_line(capsys) == f"inshade: error: --scene: {absent}: no such file (the procedural scenes: forest, grove, slabs)"
     torus = write_torus(tmp_path / "torus.obj")
     assert train.main(["--scene", str(torus), "--detail", "quick", "--out", str(tmp_path / "x"), *SMALL]) == 2
-    assert _one_line(capsys) == "inshade: error: --detail: only with scene grove or slabs"
+    assert _one_line(capsys) == "inshade: error: --detail: only with scene forest or grove or slabs"
     assert not (tmp_path / "x").exists()

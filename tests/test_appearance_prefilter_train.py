@@ -15,6 +15,7 @@ import torch
 
 from inshade.bundle import load
 from inshade.codegen import generate
+from inshade.codegen.voxel_index import best_brick, brick_index
 from inshade.models import GraphModule
 from inshade.techniques.appearance_prefilter import memory, model, train
 
@@ -208,8 +209,13 @@ def test_quick_bundle_loads_and_matches_the_trained_module(quick_asset):
     mem = memory.memory_report(bundle)
     assert m["memory"] == mem
     n = mem["voxels"]
-    assert mem["latent_bytes_per_voxel"] == 64 and mem["index_bytes"] == 4 * (64 + 512)
-    assert mem["bytes_per_voxel"] == pytest.approx(64 + 16 + 4 * 576 / n, abs=0.01)
+    node = bundle.node("vox")
+    cells, brick = bundle.tensor(node, "cells"), node.params["brick"]
+    assert node.params["index"] == "bricks" and brick == best_brick(cells, 2, 3)
+    index = brick_index(cells, 2, 3, brick).nbytes
+    assert mem["latent_bytes_per_voxel"] == 64 and mem["index"] == "bricks" and mem["index_bytes"] == index
+    assert mem["dense_index_bytes"] == 4 * (64 + 512) and index < mem["dense_index_bytes"]
+    assert mem["bytes_per_voxel"] == pytest.approx(64 + 16 + index / n, abs=0.01)
     # the asset's torch forward equals the module rebuilt from the same tensors, on samples of the data
     graph = GraphModule.from_bundle(bundle)
     x = sample_inputs(n, 96, seed=1)
@@ -248,7 +254,8 @@ def test_quick_bundle_glsl_matches_torch(gl, quick_asset):
     x[:n, 0] = np.arange(n)
     assert_parity(glsl_eval(gl, bundle, x, storage="texture"), torch_reference(bundle, x),
                   what="appearance_prefilter quick")
-    assert "uniform usampler3D net_vox_grid;" in generate(bundle).chunk
+    chunk = generate(bundle).chunk
+    assert "uniform usampler2D net_vox_top;" in chunk and "usampler3D" not in chunk   # the bricks index
 
 
 def test_bad_options_are_one_error_line(tmp_path, capsys):

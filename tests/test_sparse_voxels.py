@@ -257,7 +257,8 @@ def test_one_sparse_voxels_node_per_network():
 
 def test_component_spec():
     p = resolve_params("sparse_voxels", {"voxels": 5, "channels": 8, "scale_min": 2, "scale_max": 4})
-    assert p == {"voxels": 5, "channels": 8, "scale_min": 2, "scale_max": 4, "precision": "f16"}
+    assert p == {"voxels": 5, "channels": 8, "scale_min": 2, "scale_max": 4, "precision": "f16", "index": "dense",
+                 "brick": 4}
     assert check_node("sparse_voxels", p, 1) == 8
     with pytest.raises(ComponentError, match="sparse_voxels cannot take a 2-wide input"):
         check_node("sparse_voxels", p, 2)

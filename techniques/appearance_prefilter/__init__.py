@@ -4,7 +4,7 @@ the paper's CNN encoders) and residual MLP decoders for coverage, albedo, phase 
 a full-screen pass marches each pixel's beam through the scale its footprint asks for.
 
 The bundle (kind ``appearance_prefilter``, network prefix ``dap``): inputs slot (uint), view (3),
-light (3); first node ``sparse_voxels`` (the latents, cells, spheres and the index grid); outputs
+light (3); first node ``sparse_voxels`` (the latents, cells, spheres and the cell index); outputs
 coverage (M*M), albedo (3), phase (1), slice (B). Its ``render`` metadata holds ``mask`` (M) and
 ``bins`` (B), optionally ``bins_theta`` / ``bins_phi`` (BT x BP = B; default BP = 2 BT), which
 this record turns into the chunk <dap_config>. The march: shaders/lib/dap_march.glsl (torch twin

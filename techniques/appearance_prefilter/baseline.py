@@ -20,13 +20,25 @@ def lod_bytes(vertices: int, faces: int) -> int:
     return VERTEX_BYTES * int(vertices) + FACE_BYTES * int(faces)
 
 
+MAX_STEP = 0.99   # the largest reduction asked of one decimator pass
+MAX_PASSES = 4
+
+
 def _simplify(vertices: np.ndarray, faces: np.ndarray, reduction: float):
+    """The mesh decimated toward (1 - reduction) of its faces, in passes of at most MAX_STEP each, so
+    a mesh of millions of faces still reaches the few hundred a coarse budget allows."""
     import fast_simplification
 
     if reduction <= 0.0:
         return vertices, faces
-    v, f = fast_simplification.simplify(vertices.astype(np.float32), faces.astype(np.int64),
-                                        target_reduction=float(min(reduction, 0.999)))
+    target = max(1.0, (1.0 - min(reduction, 0.999999)) * len(faces))
+    v, f = vertices.astype(np.float32), faces.astype(np.int64)
+    for _ in range(MAX_PASSES):
+        step = 1.0 - target / max(len(f), 1)
+        if step <= 1e-3 or len(f) == 0:
+            break
+        v, f = fast_simplification.simplify(v, f, target_reduction=float(min(step, MAX_STEP)))
+        v, f = np.asarray(v, np.float32), np.asarray(f, np.int64)
     return np.asarray(v, np.float64), np.asarray(f, np.int64)
 
 
@@ -67,6 +79,8 @@ def _with_material(scene, lod, owner: np.ndarray, area: np.ndarray):
 
     def average(values):
         values = np.asarray(values, np.float64)
+        if n == 0:   # the LoD has vanished: no face keeps a material
+            return np.zeros((0,) + values.shape[1:])
         flat = values.reshape(len(values), -1)
         sums = np.stack([np.bincount(owner, weights=area * flat[:, c], minlength=n)
                          for c in range(flat.shape[1])], 1)

@@ -15,7 +15,7 @@ half a pixel), at least ``--min-size``:
 - **decimated LoD**: the mesh decimated (quadric error, fast-simplification) to the prefiltered
   representation's bytes at scale s (see below), the
   material averaged onto the kept faces (baseline.py), ray traced at ``--spp``. The bytes are the
-  paper's per-voxel accounting: that scale's latents and spheres; the decoders and the index grid
+  paper's per-voxel accounting: that scale's latents and spheres; the decoders and the index
   are fixed costs, reported beside.
 
 Quality: MSE (linear RGB, whole image) and FLIP (LDR, sRGB of the radiance clipped to [0, 1]).
@@ -117,8 +117,8 @@ def quality(test: np.ndarray, ref: np.ndarray) -> dict:
 def scale_bytes(mem: dict, cells: np.ndarray, scale: int) -> int:
     """The prefiltered representation at one scale, counted as the paper counts it: that scale's
     voxels (latent + sphere). The decoders and the index grid are fixed costs reported beside it
-    (the paper calls them "relatively small and negligible"; here the dense index is not: see the
-    memory table)."""
+    (the paper calls them "relatively small and negligible"; the memory table shows both, and the
+    dense grid's bytes beside the index the bundle uses)."""
     n = int((cells[:, 0] == scale).sum())
     return n * (mem["latent_bytes_per_voxel"] + mem["sphere_bytes_per_voxel"])
 
@@ -201,6 +201,21 @@ def equal_quality(geo, trace: dict, ref: np.ndarray, target_mse: float) -> dict:
             last["reached"] = True
             break
     return last
+
+
+# how the memory table names each cell -> slot index layout (codegen/voxel_index.py)
+INDEX_LABELS = {"dense": "dense R32UI grid, every scale",
+                "bricks": "R32UI bricks of {brick}^3 where voxels are + a brick table per scale"}
+
+
+def index_label(m: dict) -> str:
+    """The index's layout, and the dense grid's bytes beside another layout's."""
+    kind = m.get("index", "dense")
+    label = INDEX_LABELS[kind].format(brick=m.get("brick"))
+    if kind == "dense":
+        return label
+    return (f"{label}; a dense R32UI grid of every scale: {m['dense_index_bytes']} B, "
+            f"{m['dense_index_bytes_per_voxel']} B per voxel")
 
 
 def bench_asset(folder: Path, args, cache, log) -> dict:
@@ -316,7 +331,8 @@ def markdown(r: dict) -> str:
                   "", "### Memory", ""]
         lines += [f"Per voxel: {m['bytes_per_voxel']} B (latents {m['latent_bytes_per_voxel']} B {m['precision']}, sphere "
                   f"{m['sphere_bytes_per_voxel']} B, index share {m['index_bytes_per_voxel']} B; the paper: "
-                  f"{m['paper_bytes_per_voxel']} B). Fixed costs: decoders {m['decoder_bytes']} B, index grid {m['index_bytes']} B (dense R32UI, every scale). "
+                  f"{m['paper_bytes_per_voxel']} B). Fixed costs: decoders {m['decoder_bytes']} B, index {m['index_bytes']} B "
+                  f"({index_label(m)}). "
                   f"Full scene {a['scene_bytes']} B (float32 positions, uint32 indices, 8-bit material per face). "
                   "Per-scale bytes (and the LoD's budget) count that scale's latents and spheres.", ""]
         lines += markdown_table(

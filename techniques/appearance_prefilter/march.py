@@ -11,7 +11,8 @@ Per pixel (the pixel-centre ray of lib/camera's camera_ray; models/sdf.py camera
     force_scale >= 0 replaces L; colour = mix(march(floor L), march(min(floor L + 1, S_MAX)), fract L);
  4. march(s): Amanatides-Woo DDA over the 2^s grid, at most 3 * 2^s + 3 cells, the next boundary
     of each axis recomputed from the integer cell ((cell + (step > 0)) / 2^s - ro) / rd, ties to x
-    then y; every occupied cell (slot + 1 != 0) with sphere (c, r) is shaded once:
+    then y; every occupied cell (slot + 1 != 0, from the node's index: dense grid or bricks) with
+    sphere (c, r) is shaded once:
     w = -rd, (t, b) = view_frame(w); d = (c - ro).rd, q = ro + rd d, wb = d px; beam mask texel
     (u, v) -> voxel mask coordinates x = ((q - c).t + o_u wb) / r, y = ((q - c).b + o_v wb) / r,
     o = (index + 0.5) / M - 0.5; NEAREST voxel texel floor((x + 1) M / 2), outside: alpha 0;
@@ -33,7 +34,7 @@ import math
 import numpy as np
 import torch
 
-from inshade.codegen.sparse_voxels import index_grid
+from inshade.codegen.voxel_index import brick_index, index_grid
 from inshade.models.sdf import camera_rays, sh_background_t, sh_radiance_t
 from inshade.models.unit_box import unit_box
 
@@ -124,8 +125,36 @@ class _Pixels:
         self.env = sh_radiance_t(coeffs, world.reshape(-1, 3)).clamp_min(0.0).reshape(*world.shape)
 
 
-def _march(pix: _Pixels, idx, s, grid, spheres, decoder, mask, bins, shadows, finest):
-    """march(s) for pixels idx: (radiance [K, 3], coverage [K], albedo [K, 3])."""
+def _dense_lookup(cells, smin, smax, brick):
+    """{scale: cell [K, 3] -> slot + 1}: the dense grid's texel (codegen/voxel_index.py)."""
+    grids = {smax - i: torch.from_numpy(g[..., 0].astype(np.int64))
+             for i, g in enumerate(index_grid(cells, smin, smax))}
+    return {s: (lambda c, g=g: g[c[:, 2], c[:, 1], c[:, 0]]) for s, g in grids.items()}
+
+
+def _brick_lookup(cells, smin, smax, brick):
+    """{scale: cell [K, 3] -> slot + 1}: the brick table, then the brick (codegen/voxel_index.py)."""
+    ix = brick_index(cells, smin, smax, brick)
+    top, bricks = torch.from_numpy(ix.top.astype(np.int64)), torch.from_numpy(ix.bricks.astype(np.int64))
+    lb, b = ix.log2b, ix.brick
+
+    def lookup(c, s):
+        m = max((1 << s) >> lb, 1)
+        bc = c >> lb
+        row = top[ix.offsets[s - smin] + (bc[:, 2] * m + bc[:, 1]) * m + bc[:, 0]]
+        lc = c & (b - 1)
+        u = ((row - 1).clamp_min(0) << (3 * lb)) + (lc[:, 2] * b + lc[:, 1]) * b + lc[:, 0]
+        return torch.where(row > 0, bricks[u], 0)
+    return {s: (lambda c, s=s: lookup(c, s)) for s in range(smin, smax + 1)}
+
+
+# the cell -> slot lookups of sparse_voxels' ``index`` layouts
+INDEX_LOOKUPS = {"dense": _dense_lookup, "bricks": _brick_lookup}
+
+
+def _march(pix: _Pixels, idx, s, slot_of, spheres, decoder, mask, bins, shadows, finest):
+    """march(s) for pixels idx: (radiance [K, 3], coverage [K], albedo [K, 3]); slot_of: cell [K, 3]
+    -> slot + 1 at scale s."""
     k = idx.numel()
     n = 1 << s
     ro, rd, t0, px = pix.ro[idx], pix.rd[idx], pix.t0[idx], pix.px
@@ -147,10 +176,10 @@ def _march(pix: _Pixels, idx, s, grid, spheres, decoder, mask, bins, shadows, fi
             break
         a = active.nonzero().squeeze(1)
         c = cell[a]
-        slot = grid[c[:, 2], c[:, 1], c[:, 0]]
+        slot = slot_of(c)
         occ = a[slot != 0]
         if occ.numel():
-            row = grid[cell[occ, 2], cell[occ, 1], cell[occ, 0]] - 1
+            row = slot[slot != 0] - 1
             sph = spheres[row]
             centre, r = sph[:, :3], sph[:, 3]
             x = torch.cat([row.float()[:, None], -rd[occ], light[occ]], -1)
@@ -194,7 +223,8 @@ def _march(pix: _Pixels, idx, s, grid, spheres, decoder, mask, bins, shadows, fi
 def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int, *, distance: float = 1.0,
                        sun_dir=(0.0, 1.0, 0.0), sun_radiance=0.0, sh, force_scale: int = -1, mask: int, bins: int,
                        bins_theta: int | None = None, bins_phi: int | None = None, scale_min: int | None = None,
-                       scale_max: int | None = None, shadows=None, view: str = "prefiltered") -> np.ndarray:
+                       scale_max: int | None = None, shadows=None, view: str = "prefiltered", index: str = "dense",
+                       brick: int = 4) -> np.ndarray:
     """The pass in torch: float32 [H, W, 4] in image orientation (row 0 = top).
 
     decoder: x [K, 7] = (slot row as an exact float, w, light in w's view frame) -> [K, M*M + 4 + B]
@@ -202,7 +232,8 @@ def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int,
     camera or its uniforms(width, height); sh: radiance SH [K, 3] float32; sun_dir: unit direction
     towards the sun; sun_radiance: E_sun (scalar or RGB); bins_theta x bins_phi = bins (default
     bins_phi = 2 bins_theta); scale range default: the cells'; shadows: None, or a callable
-    points [K, 3] (tensor) -> visibility [K] (module docstring); view: one of VIEWS."""
+    points [K, 3] (tensor) -> visibility [K] (module docstring); view: one of VIEWS; index, brick: the
+    sparse_voxels node's cell -> slot index (the same slots either way)."""
     if view not in VIEWS:
         raise ValueError(f"view: {view!r} is not one of {list(VIEWS)}")
     cells = np.asarray(cells, np.int64)
@@ -214,8 +245,9 @@ def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int,
     if bins_theta * bins_phi != bins:
         raise ValueError(f"bins: {bins} is not bins_theta x bins_phi ({bins_theta} x {bins_phi})")
     spheres_t = torch.as_tensor(np.asarray(spheres, np.float32))
-    grids = {smax - i: torch.from_numpy(g[..., 0].astype(np.int64))
-             for i, g in enumerate(index_grid(cells, smin, smax))}
+    if index not in INDEX_LOOKUPS:
+        raise ValueError(f"index: {index!r} is not one of {list(INDEX_LOOKUPS)}")
+    lookups = INDEX_LOOKUPS[index](cells, smin, smax, brick)
     ro, rd, px = pixel_rays(camera, width, height, distance)
     hit, t0, _ = unit_box(ro, rd)
     coeffs = torch.as_tensor(np.asarray(sh, np.float32))
@@ -238,7 +270,7 @@ def render_prefiltered(decoder, cells, spheres, camera, width: int, height: int,
             for side, scales, keep in (("lo", lo, torch.ones_like(f, dtype=torch.bool)), ("hi", hi, f > 0.0)):
                 sel = ((scales == s) & keep).nonzero().squeeze(1)
                 if sel.numel():
-                    r = _march(pix, sel, s, grids[s], spheres_t, decoder, mask, bins, shadows, smax)
+                    r = _march(pix, sel, s, lookups[s], spheres_t, decoder, mask, bins, shadows, smax)
                     res.setdefault(side, [torch.zeros(idx.numel(), 3), torch.zeros(idx.numel()),
                                           torch.zeros(idx.numel(), 3)])
                     for acc, part in zip(res[side], r):
@@ -269,4 +301,5 @@ def bundle_args(bundle) -> dict:
     mask, bins, bt, bp = bins_layout(bundle.meta.get("render") or {}, f"bundle {bundle.name!r}")
     return {"decoder": GraphModule.from_bundle(bundle), "cells": bundle.tensor(node, "cells"),
             "spheres": bundle.tensor(node, "spheres"), "mask": mask, "bins": bins, "bins_theta": bt,
-            "bins_phi": bp, "scale_min": int(node.params["scale_min"]), "scale_max": int(node.params["scale_max"])}
+            "bins_phi": bp, "scale_min": int(node.params["scale_min"]), "scale_max": int(node.params["scale_max"]),
+            "index": node.params.get("index", "dense"), "brick": int(node.params.get("brick", 4))}

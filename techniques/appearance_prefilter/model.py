@@ -17,6 +17,8 @@ default), and each decoder's first dense layer reads only its own lanes (+ its r
 the mean albedo, phase T(mean phase); coverage none) and the view encoding. The other columns of
 that layer are zero and kept zero by a gradient mask, so the phase loss's noisy gradients never
 reach the coverage latent (one table and one texture fetch loop still serve all three).
+The shader finds a cell's row through the sparse_voxels ``bricks`` index, with the brick side
+that takes the fewest bytes for these cells (codegen/voxel_index.py best_brick).
 
 Decoders (width W, 3 residual blocks each, Xavier-normal weights, zero biases):
 
@@ -43,6 +45,7 @@ import math
 import numpy as np
 import torch
 
+from inshade.codegen.voxel_index import best_brick
 from inshade.models import GraphModule
 from inshade.models.activations import ReLU, Sigmoid
 from inshade.models.binary import Add
@@ -155,7 +158,8 @@ def build_decoders(voxels, cells, spheres, *, latent: int = 28, raw: int = RAW, 
     smin = int(cells[:, 0].min()) if scale_min is None else scale_min
     smax = int(cells[:, 0].max()) if scale_max is None else scale_max
     g = GraphModule([("slot", 1, "voxel_slot", "uint"), ("view", 3, "direction"), ("light", 3, "direction")])
-    vox = SparseVoxels(cells, spheres, latent + raw, smin, smax, precision, latents=table)
+    vox = SparseVoxels(cells, spheres, latent + raw, smin, smax, precision, latents=table, index="bricks",
+                       brick=best_brick(cells, smin, smax))
     if raw:   # the raw lanes are data, not parameters: no gradient ever reaches them
         keep = torch.ones(latent + raw)
         keep[latent:] = 0.0

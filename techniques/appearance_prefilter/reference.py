@@ -9,7 +9,9 @@ baseline a rasteriser gives): the first hit's colour is
 
 with f = brdf_np.brdf and the face's real base colour, roughness and metallic; n the geometric
 normal, turned toward the viewer on two-sided faces; L_env(d) = max(0, SH(d)) (real orthonormal
-SH, inshade/sh.py). A miss shows L_env(ray direction). V = 1 when ``shadows`` is False.
+SH, inshade/sh.py). A miss shows the environment as the GL passes draw it (lib/spherical_harmonics
+sh_background: the series with inshade.sh background_bands' window, clamped at 0). V = 1 when
+``shadows`` is False.
 
 Camera: ``scene/camera.py``'s model -- a camera dict (``orbit`` / ``fly``) or (origin, target,
 fov_y degrees) as an orbit camera looking from origin at target -- and lib/camera.glsl's ray: the
@@ -26,7 +28,7 @@ import math
 
 import numpy as np
 
-from inshade.sh import sh_evaluate
+from inshade.sh import background_bands, band_of, sh_evaluate
 from inshade.techniques.appearance_prefilter.brdf_np import brdf
 
 RAY_OFFSET = 1e-5     # shadow/env rays leave the surface along n (unit-box scene, float32 embree)
@@ -82,6 +84,13 @@ def camera_rays(camera, width: int, height: int, offset=None):
 
 def _env(env_sh, dirs):
     return np.maximum(sh_evaluate(env_sh, dirs), 0.0)
+
+
+def _background(env_sh, dirs):
+    """What a ray that leaves the scene shows (lib/spherical_harmonics sh_background)."""
+    degree = round(math.sqrt(env_sh.shape[0]))
+    window = background_bands(degree)[band_of(degree)]
+    return np.maximum(sh_evaluate(env_sh * window[:, None], dirs), 0.0)
 
 
 def _check(size, spp, sun_dir, sun_radiance, env_sh, env_samples):
@@ -141,7 +150,7 @@ def _shade(scene, rt, normals, origin, dirs, sun, e_sun, sh, shadows, env_sample
     from inshade.techniques.appearance_prefilter.data import _cast, _occluded
 
     face, t = _cast(rt, origin, dirs, np.full(len(origin), 1e30))
-    out = _env(sh, dirs)
+    out = _background(sh, dirs)
     hit = face >= 0
     if not hit.any():
         return out

@@ -3,6 +3,9 @@
 - ``grove``: instanced trees (a closed cylinder trunk, a crown of many thin two-sided leaf cards
   in varied greens), a field of small glossy objects (closed icospheres and boxes, roughness
   0.2-0.5, some metallic) and the hidden-occlusion case, ``slabs``.
+- ``forest``: the paper's size class (ship: > 1 M triangles): a few detailed tree prototypes
+  (closed trunks and branches with displaced bark, crowns of tens of thousands of two-sided leaf
+  cards) instanced, turned and scaled over a jittered grid.
 - ``slabs``: a block of aligned thin parallel slabs (closed thin boxes). Seen along the slab
   planes the gaps line up at every depth (coverage strongly correlated across depth), which a
   statistical aggregate (SGGX/EGGX-style, exponential transmittance) gets wrong; seen across
@@ -204,6 +207,75 @@ def _slab_block(origin, count: int, thickness: float, gap: float, depth: float, 
     return parts
 
 
+def _bark(rng, radius: float, height: float, sections: int, rings: int, taper: float = 0.35) -> trimesh.Trimesh:
+    """A closed trunk along +y from the origin: a tapered cylinder grid (``sections`` around,
+    ``rings`` up) displaced radially by bark furrows (vertical ridges that wander with height, plus
+    a finer cross-grain), capped by a fan at each end: watertight."""
+    theta = 2.0 * math.pi * np.arange(sections) / sections
+    y = np.linspace(0.0, 1.0, rings + 1)
+    phase = rng.uniform(0.0, 2.0 * math.pi, 3)
+    t, v = np.meshgrid(theta, y)                                           # [rings + 1, sections]
+    furrows = np.abs(np.sin(0.5 * (sections // 4) * t + 2.5 * np.sin(7.0 * v + phase[0])))
+    grain = np.sin(60.0 * v + 3.0 * t + phase[1]) * np.sin(23.0 * t + phase[2])
+    r = radius * (1.0 - taper * v) * (0.9 + 0.12 * furrows + 0.025 * grain)
+    ring_pts = np.stack([r * np.cos(t), v * height, r * np.sin(t)], -1).reshape(-1, 3)
+    verts = np.concatenate([ring_pts, [[0.0, 0.0, 0.0], [0.0, height, 0.0]]])
+    i = np.arange(rings)[:, None] * sections
+    j = np.arange(sections)[None, :]
+    a, b = i + j, i + (j + 1) % sections
+    c, d = a + sections, b + sections
+    side = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    bottom, top = len(ring_pts), len(ring_pts) + 1
+    last = rings * sections
+    caps = np.concatenate([np.stack([np.full(sections, bottom), (j[0] + 1) % sections, j[0]], -1),
+                           np.stack([np.full(sections, top), last + j[0], last + (j[0] + 1) % sections], -1)])
+    mesh = trimesh.Trimesh(verts, np.concatenate([side, caps]), process=False)
+    if mesh.volume < 0:   # outward winding
+        mesh.invert()
+    return mesh
+
+
+def _placed(mesh: trimesh.Trimesh, origin, yaw: float, scale: float, tilt=None) -> trimesh.Trimesh:
+    m = mesh.copy()
+    if tilt is not None:
+        m.apply_transform(tilt)
+    m.apply_scale(scale)
+    m.apply_transform(trimesh.transformations.rotation_matrix(yaw, [0, 1, 0]))
+    m.apply_translation(origin)
+    return m
+
+
+def _forest_tree(rng, detail: dict) -> list[tuple]:
+    """One tree prototype at the origin, height 1: (name, mesh, colour, roughness, two_sided) pieces:
+    a displaced bark trunk, branches (thinner bark, tilted out of the crown's base) and a crown of
+    leaf cards gathered around the branch tips."""
+    sec, rings = detail["bark"]
+    trunk = _bark(rng, 0.045, 0.62, sec, rings)
+    pieces = [("trunk", trunk, [0.16, 0.1, 0.06], 0.85, False)]
+    tips = []
+    for k in range(detail["branches"]):
+        yaw = 2.0 * math.pi * (k + rng.random() * 0.5) / detail["branches"]
+        lift = 0.34 + 0.24 * rng.random()
+        length = 0.22 + 0.1 * rng.random()
+        tilt = trimesh.transformations.rotation_matrix(0.75 + 0.35 * rng.random(), [0, 0, -1])
+        bark = _bark(rng, 0.016, length, max(sec // 3, 6), max(rings // 4, 4))
+        branch = _placed(bark, [0.0, lift, 0.0], yaw, 1.0, tilt)
+        pieces.append((f"branch{k}", branch, [0.17, 0.11, 0.07], 0.85, False))
+        direction = tilt[:3, :3] @ [0.0, 1.0, 0.0]
+        tip = trimesh.transformations.rotation_matrix(yaw, [0, 1, 0])[:3, :3] @ (direction * length)
+        tips.append(np.array([0.0, lift, 0.0]) + tip)
+    tips.append(np.array([0.0, 0.7, 0.0]))
+    per = detail["cards"] // len(tips)
+    cards, colours = [], []
+    for tip in tips:
+        cards.append(_leaf_cards(rng, tip, [0.17, 0.13, 0.17], per, 0.045))
+        greens = np.array([0.06, 0.2, 0.035]) * (0.6 + 0.8 * rng.random((per, 1))) + \
+            np.array([0.05, 0.035, 0.0]) * rng.random((per, 1))
+        colours.append(np.tile(np.clip(greens, 0, 1), (2, 1)))   # a card's two triangles: i and per + i
+    pieces.append(("leaves", trimesh.util.concatenate(cards), np.concatenate(colours), 0.5, True))
+    return pieces
+
+
 # --- the scenes ---------------------------------------------------------------------------------
 
 def _grove(detail: str) -> list[Part]:
@@ -220,17 +292,41 @@ def _grove(detail: str) -> list[Part]:
     return parts
 
 
+# the forest's sizes per detail: bark grid (sections, rings), branches and leaf cards per tree
+# prototype, how many prototypes and how many trees they are instanced into
+FOREST = {"ship": dict(bark=(64, 160), branches=5, cards=36000, prototypes=3, trees=13),
+          "quick": dict(bark=(8, 6), branches=2, cards=240, prototypes=2, trees=3)}
+
+
+def _forest(detail: str) -> list[Part]:
+    """Instanced detailed trees (ship: > 1 M triangles): a few prototypes (_forest_tree), each tree
+    a prototype turned, scaled and placed on a jittered grid."""
+    rng = np.random.default_rng(41)
+    d = FOREST[detail]
+    protos = [_forest_tree(rng, d) for _ in range(d["prototypes"])]
+    side = math.ceil(math.sqrt(d["trees"]))
+    parts = []
+    for n in range(d["trees"]):
+        gx, gz = n % side, n // side
+        origin = [1.1 * (gx + 0.5 * (gz % 2) + 0.35 * (rng.random() - 0.5)), 0.0,
+                  0.95 * (gz + 0.35 * (rng.random() - 0.5))]
+        yaw, scale = 2.0 * math.pi * rng.random(), 0.8 + 0.45 * rng.random()
+        for name, mesh, colour, rough, two_sided in protos[n % len(protos)]:
+            parts.append(Part(f"tree{n:02d}_{name}", _placed(mesh, origin, yaw, scale), colour, rough, 0.0, two_sided))
+    return parts
+
+
 def _slabs(detail: str) -> list[Part]:
     return _slab_block((0.0, 0.0, 0.0), 8 if detail == "ship" else 5, 0.02, 0.06, 0.6, 0.6)
 
 
 # (parts builder, largest extent in the unit box): the slab block alone takes the central half, so
 # its big flat faces do not fill every cell of the finer scales (and a camera sees it whole)
-SCENES = {"grove": (_grove, 1.0 - 2.0 * MARGIN), "slabs": (_slabs, 0.47)}
+SCENES = {"grove": (_grove, 1.0 - 2.0 * MARGIN), "slabs": (_slabs, 0.47), "forest": (_forest, 1.0 - 2.0 * MARGIN)}
 
 
 def build_scene(name: str, detail: str = "ship") -> PrefilterScene:
-    """The named scene at ``detail`` ("ship": ~20k-60k faces, "quick": < 3k), in [0, 1]^3."""
+    """The named scene at ``detail`` ("ship": grove ~20k-60k faces, forest > 1 M; "quick": < 3k), in [0, 1]^3."""
     if name not in SCENES:
         raise SceneError(f"scene: unknown {name!r} (known: {', '.join(SCENES)})")
     if detail not in DETAILS:

@@ -1,7 +1,7 @@
 """Train Deep Appearance Prefiltering decoders (Bako et al. 2022) on a procedural scene or a user's
 scene file and write the asset folder the runtime renders.
 
-Command: ``inshade train appearance_prefilter [--scene grove|slabs|FILE] [--preset quick|ship]
+Command: ``inshade train appearance_prefilter [--scene grove|forest|slabs|FILE] [--preset quick|ship]
 [--scales S_MIN S_MAX] [--views V] [--mask M] [--bins BT BP] [--rays-per-texel R] [--latent Z]
 [--width W] [--steps N] [--batch N] [--lr LR] [--latent-lr LR] [--seed S] [--device auto|cpu|cuda[:N]]
 [--workers N | --ray auto|ADDRESS] [--cache DIR] [--out DIR]``.
