@@ -156,8 +156,8 @@ def test_build_dataset_adds_near_occluder_samples(tmp_path):
 
 
 def test_near_points_is_recorded_only_where_a_recipe_uses_it():
-    """train.py: ``near_points`` is an optional setting: no shipped recipe names it (nor their
-    metrics.json), an explicit --near-points wins and is recorded, 0 means none."""
+    """train.py: ``near_points`` is an optional setting: prt_mechanical's recipe names it, the other
+    recipes (and their metrics.json) do not, an explicit --near-points wins, 0 means none."""
     import argparse
 
     from inshade.techniques.prt import train as prt_train
@@ -169,7 +169,7 @@ def test_near_points_is_recorded_only_where_a_recipe_uses_it():
         return prt_train.resolve_settings(ns), ns
 
     s, ns = resolve("prt_mechanical")
-    assert "near_points" not in s and ns.near_points is None
+    assert s["near_points"] == ns.near_points == prt_train.SHIP_ASSETS["prt_mechanical"]["near_points"] > 0
     s, ns = resolve("prt_creature")
     assert "near_points" not in s and ns.near_points is None
     s, ns = resolve("prt_creature", near_points=500)
