@@ -18,8 +18,8 @@ Command: ``inshade train appearance_prefilter [--scene grove|forest|slabs|FILE] 
 Asset folder (default ``trained/appearance_prefilter_<scene>``): ``bundle.json`` +
 ``weights.safetensors`` (kind ``appearance_prefilter``; latents stored F16 for precision f16),
 ``scene.json`` (program passes/appearance_prefilter.frag, network prefix "dap") and ``metrics.json``
-(preset, resolved settings, bake and training seconds, losses, memory). Presets: ``ship`` (grove,
-scales 3..7, V 16, M 8, bins 4 x 8, the shipped asset) and ``quick`` (slabs at quick detail,
+(preset, resolved settings, bake and training seconds, losses, memory). Presets: ``ship`` (scales 3..7,
+V 16, M 8, bins 4 x 8: the shipped grove, forest and, at scales 3..6, slabs) and ``quick`` (slabs at quick detail,
 scales 2..3, V 4, M 4, bins 2 x 4, seconds: tests).
 
 ``--scene FILE``: a glTF 2.0 file (.glb/.gltf) or an OBJ (PLY, STL) mesh in place of a procedural
@@ -96,7 +96,11 @@ PRESETS = {"quick": dict(scene="slabs", detail="quick", scales=(2, 3), views=4, 
                          steps=150, batch=512),
            "ship": {}}
 # The inputs of each shipped asset (--scene beside --preset ship).
-SHIP_ASSETS = {f"{KIND}_grove": dict(scene="grove")}
+# forest: the paper's size class (1.3 M triangles; bake + train ~30 min with --workers 2). slabs: the
+# hidden-occlusion case alone, scales 3..6 (its 96 faces fit any budget past those; scale 7 would
+# quadruple the voxels of flat faces).
+SHIP_ASSETS = {f"{KIND}_grove": dict(scene="grove"), f"{KIND}_forest": dict(scene="forest"),
+               f"{KIND}_slabs": dict(scene="slabs", scales=(3, 6))}
 BLOCKS = 3
 VIEW_FREQS = 4
 LIGHT_FREQS = 4
