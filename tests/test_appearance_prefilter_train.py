@@ -180,6 +180,7 @@ def test_bench_measures_the_quick_asset_against_the_ray_traced_truth(quick_asset
     """`inshade bench appearance_prefilter` on the quick asset at one scale: every method measured
     against the reference, the memory and speed rows, JSON + markdown + plot."""
     from inshade.techniques.appearance_prefilter import bench
+    from inshade.techniques.appearance_prefilter import hidden_occlusion as bench_hidden
 
     out = tmp_path / "bench"
     assert bench.main(["--assets", str(quick_asset), "--scales", "3", "--spp", "4", "--rounds", "1",
@@ -195,6 +196,12 @@ def test_bench_measures_the_quick_asset_against_the_ray_traced_truth(quick_asset
     md = (out / "appearance_prefilter.md").read_text()
     assert "GL_RENDERER" in md and "### Speed (same run)" in md
     assert (out / "appearance_prefilter.png").stat().st_size > 0
+    # the quick scene is the slabs: masks against mean alpha, at the scene's view and along the slabs
+    hidden = r["assets"][quick_asset.name]["hidden_occlusion"]
+    assert [h["view"] for h in hidden] == [label for label, _ in bench_hidden.VIEWS]
+    for h in hidden:
+        assert h["scale"] == 3 and 0.0 < h["mse_masks"] != h["mse_mean_alpha"] > 0.0
+    assert "### Hidden occlusion" in md
     assert bench.main(["--assets", str(quick_asset), "--scales", "9", "--out", str(out)]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1].startswith("inshade: error: --scales: 9 is outside")
 
@@ -268,3 +275,16 @@ def test_bad_options_are_one_error_line(tmp_path, capsys):
         assert err == [f"inshade: error: {message}"]
     assert not (tmp_path / "x").exists()
 
+
+
+def test_mean_mask_averages_only_the_coverage_lanes():
+    """hidden_occlusion.MeanMask: each row's first mask² lanes become their mean, the rest are the
+    decoder's own."""
+    import torch
+
+    from inshade.techniques.appearance_prefilter.hidden_occlusion import MeanMask
+
+    x = torch.randn(5, 20, generator=torch.Generator().manual_seed(0))
+    y = MeanMask(torch.nn.Identity(), 16)(x)
+    assert torch.equal(y[:, 16:], x[:, 16:])
+    assert torch.allclose(y[:, :16], x[:, :16].mean(-1, keepdim=True).expand(5, 16))

@@ -25,7 +25,8 @@ Speed, in the same run: the prefiltered frame (GL, median of ``--rounds``) again
 equal-quality ray-traced render: the fewest spp of 1, 2, 4, ... 32 whose MSE against the
 reference is at most the prefiltered MSE, timed at that spp (embree on the CPU here). The
 crossover is the finest scale at which the prefiltered frame is the faster. Bake seconds (data,
-training) come from the asset's metrics.json. Writes ``appearance_prefilter.{json,md,png}`` into ``--out``.
+training) come from the asset's metrics.json. A scene of the hidden-occlusion case alone (``slabs``)
+adds the masks-vs-mean-alpha measurement of hidden_occlusion.py. Writes ``appearance_prefilter.{json,md,png}`` into ``--out``.
 """
 from __future__ import annotations
 
@@ -218,6 +219,10 @@ def index_label(m: dict) -> str:
             f"{m['dense_index_bytes_per_voxel']} B per voxel")
 
 
+# scenes made of the hidden-occlusion case alone: their report adds masks against mean alpha
+HIDDEN_OCCLUSION_SCENES = ("slabs",)
+
+
 def bench_asset(folder: Path, args, cache, log) -> dict:
     from inshade.runtime.renderer import SceneRenderer
 
@@ -267,7 +272,15 @@ def bench_asset(folder: Path, args, cache, log) -> dict:
     finally:
         renderer.release()
     crossover = max((r["scale"] for r in rows if r["prefiltered_ms"] < r["equal_quality"]["ms"]), default=None)
-    return {"folder": str(folder), "scene": settings["scene"], "faces": int(len(geo.mesh.faces)),
+    hidden = None
+    if settings["scene"] in HIDDEN_OCCLUSION_SCENES:
+        from .hidden_occlusion import measure
+
+        log(f"{folder.name}: hidden occlusion, coverage masks vs mean alpha")
+        hidden = measure(bundle, geo, camera, scales, spp=args.spp, sun_dir=ctx["light"]["direction"],
+                         sun_radiance=ctx["light"]["radiance"], sh=sh,
+                         image_side=lambda cam, s: image_side(cam, s, args.min_size))
+    return {"hidden_occlusion": hidden, "folder": str(folder), "scene": settings["scene"], "faces": int(len(geo.mesh.faces)),
             "scene_bytes": ctx["scene_bytes"], "memory": mem, "rows": rows, "crossover_scale": crossover,
             "bake": {"data_seconds": metrics.get("bake_seconds"), "train_seconds": metrics.get("train_seconds"),
                      "rays": metrics.get("bake_rays"), "preset": metrics.get("preset")},
@@ -351,6 +364,17 @@ def markdown(r: dict) -> str:
                       "(the paper: around scale 5).", "", "### Bake", ""]
         b = a["bake"]
         lines += [f"Preset {b['preset']}: data {b['data_seconds']} s ({b['rays']}), training {b['train_seconds']} s.", ""]
+        if a.get("hidden_occlusion"):
+            lines += ["### Hidden occlusion: coverage masks vs mean alpha", "",
+                      "The torch twin of the march with the decoded coverage masks (correlated transmittance) and "
+                      "with each mask replaced by its mean (uncorrelated alpha, a statistical aggregate's "
+                      "assumption), against the reference; sun shadows off on both sides "
+                      "(hidden_occlusion.py).", ""]
+            lines += markdown_table(
+                ["view", "scale", "image", "MSE coverage masks", "MSE mean alpha", "mean alpha / masks"],
+                [[h["view"], h["scale"], f"{h['size']}²", _g(h["mse_masks"]), _g(h["mse_mean_alpha"]),
+                  f"{h['ratio']:.2f}×"] for h in a["hidden_occlusion"]])
+            lines += [""]
     return "\n".join(lines)
 
 
