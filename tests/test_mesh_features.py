@@ -325,16 +325,70 @@ def test_plan_resources_and_limits():
     g = feature_graph(MESHES["grid2"], 4, 8, 1 << 10, "f16")
     gen = generate(g.export("mesh_features_test"))
     topo, t0, t1 = gen.resources
-    assert topo.dtype == "u4" and topo.data.dtype == np.uint32 and topo.data.shape == (1, 16, 3)
+    assert topo.dtype == "u4" and topo.data.dtype == np.uint32 and topo.data.shape == (1, 8, 3)   # 1 texel per face
     assert t0.dtype == t1.dtype == "f2" and t0.data.shape == (4, 1024, 4)
     row = next(r for r in gen.plan.rows if r.type == "mesh_features")
-    assert row.fetches == 2 + 3 * 4 * 2 and row.params == 4 * 1024 * 8
+    assert row.fetches == 1 + 3 * 4 * 2 and row.params == 4 * 1024 * 8
     assert row.texture_bytes == topo.nbytes + t0.nbytes + t1.nbytes
     assert "uniform usampler2D net_mf_topology;" in gen.chunk
     one = feature_graph(MESHES["grid2"], 2, 1, 8).export("mesh_features_test")
     assert generate(one).resources[1].data.shape == (1, 16, 1)            # F = 1: an R texture
     with pytest.raises(LimitError, match=r"node mf: the feature table needs 8192 texels.*GL_MAX_TEXTURE_SIZE is 64"):
         generate(feature_graph(MESHES["grid2"], 4, 2, 2048).export("t"), limits={"GL_MAX_TEXTURE_SIZE": 64})
+
+
+def owner_tables(seed: int, faces: int, corner_owners: int, edge_owners: int):
+    """Valid owner tables of ``faces`` faces that name no real mesh (parity needs none): corner
+    owners < corner_owners, edge owners < edge_owners, random slots, the last face holding the
+    largest of each."""
+    rng = np.random.default_rng(seed)
+    corners = (rng.integers(0, corner_owners, (faces, 3)) << 2) | rng.integers(0, 3, (faces, 3))
+    slots = np.array([(a, b) for a in range(3) for b in range(3) if a != b])[rng.integers(0, 6, (faces, 3))]
+    edges = (rng.integers(0, edge_owners, (faces, 3)) << 4) | (slots[..., 0] << 2) | slots[..., 1]
+    corners[-1, 1], edges[-1, 2] = ((corner_owners - 1) << 2) | 2, ((edge_owners - 1) << 4) | 9
+    return corners.astype(np.uint32), edges.astype(np.uint32)
+
+
+# layout -> (bytes per face, the limits that force it, owner tables for parity: every lane's top bits)
+LAYOUT_CASES = {
+    "pack16": (12, {}, lambda: owner_tables(4, 1 << 14, 1 << 14, 1 << 12)),          # ids up to 0xFFFE / 0xFFF9
+    "owners16": (16, {"PACK16_LIMIT": 0}, lambda: owner_tables(5, 1 << 16, 1 << 16, 1 << 16)),  # owners up to 0xFFFF
+    "pack32": (24, {"PACK16_LIMIT": 0, "OWNERS16_LIMIT": 0}, lambda: owner_tables(6, 1 << 14, 1 << 14, 1 << 14)),
+}
+
+
+@pytest.mark.parametrize("layout", list(LAYOUT_CASES))
+def test_topology_layouts(gl, monkeypatch, layout):
+    """The owner tables' texture: two 16-bit ids to a channel (12 bytes per face) where every id
+    fits, the owner faces two to a channel + slot bits (16 bytes) up to 2^16 faces, else 2 texels
+    (24 bytes); the others forced by lowering the limits. Decode parity for each, with ids using
+    the top bits of every lane, in wide rows and wrapped."""
+    from inshade.codegen import mesh_features as codegen
+
+    per_face, limits, tables = LAYOUT_CASES[layout]
+    for name, value in limits.items():
+        monkeypatch.setattr(codegen, name, value)
+    texels, function, _ = codegen.TOPOLOGY_LAYOUTS[layout]
+    small = feature_graph(MESHES["grid2"], 2, 2, 16).export("t")      # 8 faces: rows without padding
+    gen = generate(small)
+    assert gen.resources[0].name == "net_mf_topology" and gen.resources[0].nbytes == per_face * 8
+    assert next(r for r in gen.plan.rows if r.type == "mesh_features").fetches == texels + 3 * 2
+
+    corners, edges = tables()
+    faces = len(corners)
+    g = GraphModule([("triangle", 1, "generic", "uint"), ("bary", 2)])
+    # T = 2^14: the row index keeps hash bits up to 13, where an owner's bit 13 (corner id bit 15) lands
+    g.add("mf", MeshFeatures(3, 2, 1 << 14, corners, edges, "f32", init_scale=1.0, seed=4), ["triangle", "bary"])
+    g.output("y", "mf")
+    bundle = g.export("mesh_features_test")
+    x = surface_points(faces, 3, 5, 384)
+    x[-1, 0] = faces - 1                     # the face holding the largest ids
+    for cap in (1 << 14, 256):               # 256: the topology wraps into many rows
+        gen = generate(bundle, limits={"GL_MAX_TEXTURE_SIZE": cap})
+        width = min(cap, faces * texels)
+        assert gen.resources[0].data.shape[:2] == (faces * texels // width, width)
+        assert f"{function}(net_mf_topology" in gen.chunk
+        assert_parity(glsl_eval(gl, gen, x), torch_reference(bundle, x), what=f"{layout} cap={cap}")
 
 
 @pytest.mark.parametrize("feats,levels", [(4, 3), (2, 4), (8, 2), (1, 5)])

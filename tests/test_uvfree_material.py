@@ -44,6 +44,7 @@ def graph(asset):
 
 def test_asset_folder_holds_the_bundle_mesh_and_reference(asset):
     from inshade.bundle import load
+    from inshade.codegen.mesh_features import TOPOLOGY_LAYOUTS, topology_layout
     from inshade.geometry.mesh import load_mesh
     from inshade.techniques.uvfree_material.model import CHANNELS, KIND
 
@@ -56,8 +57,11 @@ def test_asset_folder_holds_the_bundle_mesh_and_reference(asset):
     assert np.array_equal(table, table.astype(np.float16).astype(np.float32)), "fp16 features, as the texture holds"
     metrics = json.loads((asset / "metrics.json").read_text())
     mem = metrics["memory"]
-    # as the textures hold them: fp16 rows, and the owner tables as RGB32UI, 2 texels (24 B) per face
-    assert mem["features_bytes"] == table.size * 2 and mem["topology_bytes"] >= 24 * node.params["faces"]
+    # as the textures hold them: fp16 rows, and the owner tables in their packed layout (12, 16 or 24 B
+    # per face) plus the rows' padding
+    corners, edges = bundle.tensor(node, "corners"), bundle.tensor(node, "edges")
+    packed = TOPOLOGY_LAYOUTS[topology_layout(corners, edges)][2](corners, edges)
+    assert mem["features_bytes"] == table.size * 2 and mem["topology_bytes"] >= packed.nbytes
     for name in ("albedo.png", "normal.png", "rma.png", "scene.json"):
         assert (asset / name).is_file()
 

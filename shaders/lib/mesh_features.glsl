@@ -76,6 +76,24 @@ void mf_face_tables(highp usampler2D topo, uint k, int log2w, out uvec3 corners,
     edges = texelFetch(topo, rows_texel(2u * k + 1u, log2w), 0).xyz;
 }
 
+// The same from 1 texel per face (12 bytes), every id < 2^16 and two to a channel:
+// (c0 | c1 << 16, c2 | e0 << 16, e1 | e2 << 16).
+void mf_face_tables16(highp usampler2D topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
+    uvec3 p = texelFetch(topo, rows_texel(k, log2w), 0).xyz;
+    corners = uvec3(p.x & 0xFFFFu, p.x >> 16u, p.y & 0xFFFFu);
+    edges = uvec3(p.y >> 16u, p.z & 0xFFFFu, p.z >> 16u);
+}
+
+// The same from 1 RGBA32UI texel per face (16 bytes), every owner face < 2^16: the six owners two
+// to a channel, their slot bits in w (corners 2 bits each from bit 0, edges 4 bits each from bit 6).
+void mf_face_owners16(highp usampler2D topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
+    uvec4 p = texelFetch(topo, rows_texel(k, log2w), 0);
+    corners = uvec3(p.x & 0xFFFFu, p.x >> 16u, p.y & 0xFFFFu) << 2u
+              | uvec3(p.w & 3u, (p.w >> 2u) & 3u, (p.w >> 4u) & 3u);
+    edges = uvec3(p.y >> 16u, p.z & 0xFFFFu, p.z >> 16u) << 4u
+            | uvec3((p.w >> 6u) & 15u, (p.w >> 10u) & 15u, (p.w >> 14u) & 15u);
+}
+
 // One table row blended: ((w0 * f0) + w1 * f1) + w2 * f2, as torch sums it.
 vec4 mf_blend(sampler2D table, int log2w, uint index[3], vec3 weight) {
     return (weight.x * texelFetch(table, rows_texel(index[0], log2w), 0)
