@@ -26,6 +26,7 @@ import gc
 import importlib
 import io
 import json
+import os
 import re
 import shlex
 import sys
@@ -293,8 +294,9 @@ def run(args) -> int:
     from inshade.runtime.context import gl_info, shared_context
 
     # This makes the process's first GL context, so a bench's own MESA_SHADER_CACHE_DISABLE default
-    # (the shared benches set one) comes too late: in the suite, shader caches stay as the environment sets them
-    # (first-draw times are then warm on a rerun; steady-state timings, the summary's, are not affected).
+    # (the shared benches set one) would come too late: the suite sets it first, unless the environment
+    # says otherwise, so that first draws and compile times are cold as each bench reports them.
+    os.environ.setdefault("MESA_SHADER_CACHE_DISABLE", "true")
     gl = gl_info(shared_context())
     out = Path(args.out) if args.out else Path("docs/bench") / slug(gl["renderer"])
     print(f"inshade bench suite: GL_RENDERER {gl['renderer']}; preset {args.preset}; writing {out}", file=sys.stderr)
