@@ -29,33 +29,11 @@ from inshade.models import GraphModule
 from inshade.models.sparse_voxels import SparseVoxels
 
 from parity import parity_settings, run_sample_pass
+from test_sparse_voxels import random_voxels
 
 from inshade.techniques.appearance_prefilter import march, memory
 
 GROVE = Path(__file__).resolve().parents[1] / "trained" / "appearance_prefilter_grove"
-
-
-def random_voxels(seed: int, scale_min: int, scale_max: int, density: float, clustered: bool):
-    """cells [N, 4] uint32 sorted by (scale, k, j, i), spheres inside each cell; clustered: the
-    occupied cells gather in a few blobs (as surfaces do), so many bricks stay empty."""
-    rng = np.random.default_rng(seed)
-    cells = []
-    for s in range(scale_min, scale_max + 1):
-        n = 1 << s
-        occupied = rng.random((n, n, n)) < density                 # [k, j, i]
-        if clustered:
-            k, j, i = np.meshgrid(*[np.arange(n)] * 3, indexing="ij")
-            centre = rng.uniform(0, n, 3)
-            occupied &= (np.abs(k - centre[2]) + np.abs(j - centre[1]) + np.abs(i - centre[0])) < 0.4 * n + 1
-        kji = np.argwhere(occupied)
-        cells.append(np.column_stack([np.full(len(kji), s), kji[:, 2], kji[:, 1], kji[:, 0]]))
-    cells = np.concatenate(cells).astype(np.uint32)
-    if not len(cells):
-        cells = np.array([[scale_max, 0, 0, 0]], np.uint32)
-    size = 1.0 / (1 << cells[:, 0].astype(np.int64))
-    centre = (cells[:, 1:].astype(np.float64) + rng.uniform(0.2, 0.8, (len(cells), 3))) * size[:, None]
-    radius = np.maximum(rng.uniform(0, 0.9, len(cells)) * size, 1e-6)
-    return cells, np.column_stack([centre, radius]).astype(np.float32)
 
 
 def queries(scale_min: int, scale_max: int) -> np.ndarray:

@@ -103,14 +103,19 @@ def test_add_emits_vec4_adds_for_aligned_blocks():
 
 # --- sparse voxels: random small grids --------------------------------------------------------------
 
-def random_voxels(seed: int, scale_min: int, scale_max: int, density: float):
-    """cells [N, 4] uint32 sorted by (scale, k, j, i) and spheres [N, 4] float32 inside each cell."""
+def random_voxels(seed: int, scale_min: int, scale_max: int, density: float, clustered: bool = False):
+    """cells [N, 4] uint32 sorted by (scale, k, j, i), spheres inside each cell; clustered: the
+    occupied cells gather in a few blobs (as surfaces do), so many bricks stay empty."""
     rng = np.random.default_rng(seed)
     cells = []
     for s in range(scale_min, scale_max + 1):
         n = 1 << s
         occupied = rng.random((n, n, n)) < density                 # [k, j, i]
-        kji = np.argwhere(occupied)                                # lexicographic: (k, j, i) order
+        if clustered:
+            k, j, i = np.meshgrid(*[np.arange(n)] * 3, indexing="ij")
+            centre = rng.uniform(0, n, 3)
+            occupied &= (np.abs(k - centre[2]) + np.abs(j - centre[1]) + np.abs(i - centre[0])) < 0.4 * n + 1
+        kji = np.argwhere(occupied)
         cells.append(np.column_stack([np.full(len(kji), s), kji[:, 2], kji[:, 1], kji[:, 0]]))
     cells = np.concatenate(cells).astype(np.uint32)
     if not len(cells):
