@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .components import COMPONENTS, ComponentError, check_node, resolve_params
+from .port_layout import check_shape
 
 FORMAT = "inshade.bundle"
 VERSION = 1
@@ -70,6 +71,7 @@ class Port:
     semantic: str
     node: str = ""
     dtype: str = "float"   # inputs only: "uint" lanes are unsigned integers (GLSL uvec4; torch: exact floats < 2^24)
+    shape: tuple | None = None   # the full tensor shape, None on the batch axes (port_layout.py); None: rows
 
 
 class Bundle:
@@ -380,7 +382,8 @@ def _parse_graph(meta, where):
         dtype = p.get("dtype", "float")
         if dtype not in INPUT_DTYPES:
             raise BundleError(where, f + ".dtype", f"must be one of {', '.join(INPUT_DTYPES)}, got {dtype!r}")
-        inputs.append(Port(name, dim, str(p.get("semantic", "generic")), dtype=dtype))
+        inputs.append(Port(name, dim, str(p.get("semantic", "generic")), dtype=dtype,
+                           shape=_port_shape(p, dim, where, f)))
         dims[name] = dim
     if not inputs:
         raise BundleError(where, "inputs", "a bundle needs at least one input")
@@ -418,10 +421,20 @@ def _parse_graph(meta, where):
         node = _req(p, "node", str, where, f + ".node")
         if node not in dims:
             raise BundleError(where, f + ".node", f"'{node}' is not a node or input")
-        outputs.append(Port(name, dims[node], str(p.get("semantic", "generic")), node))
+        outputs.append(Port(name, dims[node], str(p.get("semantic", "generic")), node,
+                            shape=_port_shape(p, dims[node], where, f)))
     if not outputs:
         raise BundleError(where, "outputs", "a bundle needs at least one output")
     return inputs, nodes, outputs
+
+
+def _port_shape(p: dict, dim: int, where, field: str) -> tuple | None:
+    if "shape" not in p:
+        return None
+    why = check_shape(p["shape"], dim)
+    if why:
+        raise BundleError(where, field + ".shape", why)
+    return tuple(p["shape"])
 
 
 def _check_tensors(bundle: Bundle, where):

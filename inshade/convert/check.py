@@ -42,17 +42,25 @@ class CheckResult:
 
 
 def check_inputs(example: np.ndarray, seed: int = 0, rows: int = RANDOM_ROWS) -> np.ndarray:
-    """The example rows, then ``rows`` uniform random rows in the example's range, lane by lane."""
+    """The example rows, then ``rows`` uniform random rows in the range of the example's finite
+    values, lane by lane (NaN and infinities are checked where the example has them, never drawn)."""
     example = np.asarray(example, np.float32).reshape(len(example), -1)
-    lo, hi = example.min(0), example.max(0)
-    wide = np.where(hi > lo, hi, lo + 1.0)   # a constant lane still gets a unit range
+    finite = np.where(np.isfinite(example), example, np.nan)
+    seen = np.isfinite(finite).any(0)
+    with np.errstate(all="ignore"):
+        lo = np.where(seen, np.nanmin(np.where(seen, finite, 0), 0), -1.0).astype(np.float64)
+        hi = np.where(seen, np.nanmax(np.where(seen, finite, 0), 0), 1.0).astype(np.float64)
+    # a constant lane still gets a unit range; a span past float32's would overflow the draw
+    wide = np.where(hi > lo, hi, lo + 1.0)
+    lo, wide = np.clip(lo, -1e37, 1e37), np.clip(wide, -1e37, 1e37)
     rng = np.random.default_rng(seed)
     return np.concatenate([example, rng.uniform(lo, wide, (rows, example.shape[1])).astype(np.float32)])
 
 
 def scaled_errors(glsl: np.ndarray, ref: np.ndarray) -> np.ndarray:
     glsl, ref = np.asarray(glsl, np.float64), np.asarray(ref, np.float64)
-    err = np.abs(glsl - ref) / np.maximum(1.0, np.abs(ref))
+    with np.errstate(invalid="ignore"):   # inf - inf: judged by the finiteness test below
+        err = np.abs(glsl - ref) / np.maximum(1.0, np.abs(ref))
     return np.where(np.isfinite(glsl) == np.isfinite(ref), np.where(np.isfinite(err), err, 0.0), np.inf)
 
 
@@ -80,7 +88,7 @@ def compare(glsl: np.ndarray, ref: np.ndarray, renderer: str, storage: str, seco
     err = scaled_errors(glsl, ref)
     worst = np.unravel_index(int(np.argmax(err)), err.shape) if err.size else (0, 0)
     finite = np.isfinite(glsl) & np.isfinite(ref)
-    max_abs = float(np.abs(glsl - ref)[finite].max()) if finite.any() else 0.0
+    max_abs = float(np.abs(glsl[finite] - ref[finite]).max()) if finite.any() else 0.0
     return CheckResult(max_abs, float(err.max()) if err.size else 0.0, tuple(int(i) for i in worst), len(ref),
                        renderer, storage, seconds)
 
@@ -112,7 +120,7 @@ def source_outputs(source, parts: list[np.ndarray], bundle) -> np.ndarray:
     if _is_onnx(source):
         from .onnx_model import run_onnxruntime
 
-        outs = run_onnxruntime(source, parts)
+        outs = run_onnxruntime(source, parts, bundle)
     else:
         import torch
 

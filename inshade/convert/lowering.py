@@ -23,6 +23,9 @@ from inshade.bundle import FORMAT, MAX_INPUT_DIM, VERSION, Bundle
 from inshade.components import COMPONENTS, MAX_WIDTH
 
 
+MAX_DENSE_GROUPS = 64   # a linear layer repeated over a row's other axes (each repeat is a node)
+
+
 class ConvertError(ValueError):
     """A network (or a part of it) that cannot become a bundle; the message is one line."""
 
@@ -72,10 +75,16 @@ class Lowering:
         self._counts[kind] = k + 1
         return f"{kind}{k}"
 
-    def input(self, name: str, dim: int, semantic: str = "generic") -> Feat:
+    def input(self, name: str, dim: int, semantic: str = "generic", shape=None) -> Feat:
+        """A bundle input of ``dim`` lanes; ``shape``: its full tensor shape, None on the batch axes
+        (port_layout.py), when it is not plain rows."""
         if dim > MAX_INPUT_DIM:
-            raise ConvertError(f"input {name!r}: {dim} lanes wide; an input takes at most {MAX_INPUT_DIM}")
-        self.inputs.append({"name": name, "dim": int(dim), "semantic": semantic})
+            posed = f" (shape {_shape_text(shape)}: each row holds the non-batch axes)" if shape else ""
+            raise ConvertError(f"input {name!r}: {dim} lanes wide{posed}; an input takes at most {MAX_INPUT_DIM}")
+        port = {"name": name, "dim": int(dim), "semantic": semantic}
+        if shape is not None and list(shape) != [None, dim]:
+            port["shape"] = list(shape)
+        self.inputs.append(port)
         return Feat(self._new_value(name, dim).reshape(1, dim), 0)
 
     def _sources(self, lanes: np.ndarray) -> list[str]:
@@ -111,6 +120,8 @@ class Lowering:
 
     def _emit(self, kind: str, feat_lanes: np.ndarray, params: dict, width: int, tensors=None) -> np.ndarray:
         """A node over the given lanes (flattened); its output lanes."""
+        if np.size(feat_lanes) == 0:
+            raise ConvertError("computes from a tensor with no elements (an empty slice or split)")
         vid = self._node(kind, self._sources(feat_lanes), params, width, tensors)
         base, _ = self.values[vid]
         return np.arange(base, base + width)
@@ -204,15 +215,48 @@ class Lowering:
             return self.affine(f, np.float32(1.0) / c, 0.0)
         return self.affine(self.unary(f, "reciprocal"), c, 0.0)   # c / x
 
-    def power(self, f: Feat, exponent: float) -> Feat:
-        """f ** exponent for the exponents a shader has exact forms of."""
+    def power(self, f: Feat, exponent) -> Feat:
+        """f ** exponent for a constant exponent (a scalar, or one per lane broadcast against f):
+        the exact forms where a shader has them, the ``power`` component otherwise."""
+        exponent = np.asarray(exponent, np.float32)
+        if exponent.size != 1:   # one power per distinct exponent, lanes picked from each
+            shape = self.broadcast_shape(f, exponent.shape)
+            per_lane = np.broadcast_to(_constant_in(exponent, f.batch, len(shape)), shape)
+            lanes = np.broadcast_to(self.resolve(f).lanes, shape).copy()
+            for e in np.unique(per_lane):
+                lanes = np.where(per_lane == e, np.broadcast_to(self.power(f, e).lanes, shape), lanes)
+            return Feat(lanes, f.batch)
+        e = float(exponent.reshape(()))
+        if not np.isfinite(e):
+            raise ConvertError(f"power {e:g}: the exponent must be finite")
         table = {1.0: lambda: f, 2.0: lambda: self.binary("mul", f, f),
                  3.0: lambda: self.binary("mul", self.binary("mul", f, f), f), 0.5: lambda: self.unary(f, "sqrt"),
                  -1.0: lambda: self.unary(f, "reciprocal"),
                  -0.5: lambda: self.unary(self.unary(f, "sqrt"), "reciprocal")}
-        if float(exponent) not in table:
-            raise ConvertError(f"power {exponent:g}: lowered are 1, 2, 3, 0.5, -1 and -0.5")
-        return table[float(exponent)]()
+        if e in table:
+            return table[e]()
+        if e == 0.0:
+            return self.constant(f, np.ones(f.shape, np.float32)[tuple(slice(0, 1) if a == f.batch else slice(None)
+                                                                         for a in range(f.rank))])
+        return self.unary(f, "power", {"exponent": e})
+
+    def base_power(self, base, f: Feat) -> Feat:
+        """base ** f for a constant base > 0 (a scalar or one per lane): exp(f ln base)."""
+        base = np.asarray(base, np.float64)
+        if not (np.all(base > 0) and np.isfinite(base).all()):
+            raise ConvertError(f"a constant base {base.reshape(-1)[:4].tolist()} raised to a computed power: "
+                               "positive finite bases are lowered")
+        return self.unary(self.affine(f, np.log(base).astype(np.float32), np.float32(0.0)), "exp")
+
+    def clamp(self, f: Feat, lo, hi) -> Feat:
+        """min(max(f, lo), hi) for scalar bounds (None: absent); lo > hi gives hi everywhere, as torch
+        and ONNX define it."""
+        params = {k: float(v) for k, v in (("min", lo), ("max", hi)) if v is not None}
+        if not params:
+            return f
+        if lo is not None and hi is not None and lo > hi:
+            return self.unary(self.unary(f, "clamp", {"min": float(lo)}), "clamp", {"max": float(hi)})
+        return self.unary(f, "clamp", params)
 
     def softmax(self, f: Feat, axis: int) -> Feat:
         """exp(x - max) / sum, over a feature axis, in the order torch and onnxruntime compute it."""
@@ -260,9 +304,18 @@ class Lowering:
         """y = x W^T + b over the last axis of a [B, in] tensor (or W x over [in, B], batch last)."""
         f = self.resolve(f)
         weight = np.asarray(weight, np.float32)
+        if f.rank > 2 and f.batch != f.rank - 1:   # [..., features]: one layer per position of the other axes
+            if weight.ndim != 2 or weight.shape[1] != f.shape[-1]:
+                raise ConvertError(f"linear layer: weight {list(weight.shape)} does not take {f.shape[-1]} features")
+            rows = f.lanes.reshape(-1, f.shape[-1])
+            if len(rows) > MAX_DENSE_GROUPS:
+                raise ConvertError(f"a linear layer over the last axis of {list(f.shape)}: {len(rows)} rows per pixel, "
+                                   f"more than {MAX_DENSE_GROUPS} layers")
+            outs = [self.dense(Feat(r.reshape(1, -1), 0), weight, bias).lanes.reshape(-1) for r in rows]
+            return Feat(np.stack(outs).reshape(*f.shape[:-1], weight.shape[0]), f.batch)
         if f.rank != 2:
-            raise ConvertError(f"a linear layer on a rank-{f.rank} tensor (shape {list(f.shape)}): inshade "
-                               "lowers it on [batch, features] only; flatten the other axes first")
+            raise ConvertError(f"a linear layer on a rank-{f.rank} tensor (shape {list(f.shape)}) with the batch "
+                               "last: inshade lowers it on [..., features]")
         feature_axis = 1 - f.batch
         if weight.ndim != 2 or weight.shape[1] != f.shape[feature_axis]:
             raise ConvertError(f"linear layer: weight {list(weight.shape)} does not take "
@@ -324,19 +377,24 @@ class Lowering:
         return out.reshape(*coords.shape[:-1], channels)
 
     # --- outputs and the bundle ------------------------------------------------------------
-    def output(self, name: str, f: Feat, semantic: str = "generic") -> None:
+    def output(self, name: str, f: Feat, semantic: str = "generic", batch_axes: int = 1) -> None:
+        """An output port: its row is ``f`` with the batch axis taken out, the other axes in order;
+        ``batch_axes``: how many axes of the source's tensor the batch axis stands for."""
         f = self.resolve(f)
-        if f.rank > 2 or f.rank == 2 and f.batch != 0:
-            raise ConvertError(f"output {name!r}: shape {list(f.shape)} with the batch on axis {f.batch}; an "
-                               "output is [batch, features] or [batch]")
         if any(o["name"] == name for o in self.outputs):
             raise ConvertError(f"output {name!r} is named twice")
-        sources = self._sources(f.lanes)
+        if f.lanes.size == 0:
+            raise ConvertError(f"output {name!r} has no elements (an empty slice or split)")
+        sources = self._sources(np.moveaxis(f.lanes, f.batch, 0).reshape(-1))
         if len(sources) == 1:
             vid = sources[0]
         else:   # several whole values side by side: one identity node concatenates them
             vid = self._node("identity", sources, {}, f.lanes.size)
-        self.outputs.append({"name": name, "node": vid, "semantic": semantic})
+        port = {"name": name, "node": vid, "semantic": semantic}
+        shape = [*f.shape[:f.batch], *[None] * batch_axes, *f.shape[f.batch + 1:]]
+        if shape != [None, f.lanes.size]:
+            port["shape"] = shape
+        self.outputs.append(port)
 
     def bundle(self, kind: str, name: str, provenance: dict, render: dict | None = None) -> Bundle:
         used = self._live()
@@ -478,6 +536,10 @@ def _constant_in(a: np.ndarray, batch: int, rank: int) -> np.ndarray:
         raise ConvertError(f"a constant of shape {list(a.shape)} varies along the batch axis (one pixel's value "
                            "would depend on its index in the batch)")
     return full
+
+
+def _shape_text(shape) -> str:
+    return "[" + ", ".join("*" if n is None else str(n) for n in shape) + "]"
 
 
 def component_types() -> list[str]:

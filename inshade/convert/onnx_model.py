@@ -45,7 +45,10 @@ def load_model(path):
         except Exception as exc:   # protobuf raises DecodeError and others for a file that is not ONNX
             raise ConvertError(f"{where}: not an ONNX model ({type(exc).__name__}: {str(exc)[:120]})") from None
     opset = next((o.version for o in model.opset_import if o.domain in ("", "ai.onnx")), None)
-    if opset is None or opset < MIN_OPSET:
+    if opset is None:
+        raise ConvertError(f"{where}: opset_import: no standard ONNX (ai.onnx) opset; only the standard operators "
+                           "are lowered")
+    if opset < MIN_OPSET:
         raise ConvertError(f"{where}: opset_import: opset {opset}; inshade reads opsets {MIN_OPSET} and newer "
                            "(onnx.version_converter can upgrade it)")
     others = sorted({n.domain for n in model.graph.node if n.domain not in ("", "ai.onnx")})
@@ -61,57 +64,155 @@ class Condition:
     b: object
 
 
+@dataclass(frozen=True)
+class InputSpec:
+    name: str
+    dims: list          # the tensor's shape: ints, None where symbolic
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Which axes of the inputs are the batch: ``merged`` leading axes folded into one batch axis
+    (every op then acts on the last axes only), or the axis ``from_end`` places from the end alone
+    (the other leading axes are part of each row)."""
+    merged: int = 1
+    from_end: int = 2
+
+    def text(self) -> str:
+        return (f"the {self.merged} leading axes as the batch" if self.merged > 1
+                else f"axis -{self.from_end} as the batch")
+
+
+class NotPosable(ConvertError):
+    """The graph needs more of its tensors' axes than this pose leaves it (another pose may do)."""
+
+
 class OnnxLowering:
-    def __init__(self, model, where: str, opset: int):
+    def __init__(self, model, where: str, opset: int, pose: Pose = Pose()):
         onnx = _onnx()
         from onnx import numpy_helper
 
-        self.model, self.where, self.opset = model, where, opset
+        self.model, self.where, self.opset, self.pose = model, where, opset, pose
         self.graph = model.graph
         self.L = Lowering()
         self.env: dict[str, object] = {i.name: numpy_helper.to_array(i) for i in self.graph.initializer}
         self.helper, self.numpy_helper = onnx.helper, numpy_helper
         self.batch = SYMBOLIC_BATCH
 
-    def input_specs(self) -> list[tuple[str, int, int | None]]:
-        """(name, width, static batch or None) of every graph input that is not an initializer."""
+    def input_specs(self) -> list[InputSpec]:
+        """Every graph input that is not an initializer: a float32 tensor with a known rank."""
         out = []
         for inp in self.graph.input:
             if inp.name in self.env:
                 continue
-            t = inp.type.tensor_type
             field = f"{self.where}: graph.input {inp.name!r}"
+            kind = inp.type.WhichOneof("value")
+            if kind != "tensor_type":
+                what = {"sequence_type": "a sequence", "optional_type": "an optional", "map_type": "a map",
+                        "sparse_tensor_type": "a sparse tensor"}.get(kind, f"of type {kind}")
+                raise ConvertError(f"{field}: {what}; inputs must be float32 tensors")
+            t = inp.type.tensor_type
             if t.elem_type != _FLOAT:
                 name = self.helper.tensor_dtype_to_string(t.elem_type).removeprefix("TensorProto.")
                 raise ConvertError(f"{field}: element type {name}; inputs must be float32")
-            dims = list(t.shape.dim)
-            if len(dims) != 2 or not dims[1].HasField("dim_value"):
-                shape = [d.dim_value if d.HasField("dim_value") else (d.dim_param or "?") for d in dims]
-                raise ConvertError(f"{field}: shape {shape}; inputs must be [batch, features] with a fixed "
-                                   "feature count")
-            out.append((inp.name, int(dims[1].dim_value), int(dims[0].dim_value) if dims[0].HasField("dim_value")
-                        else None))
+            if not t.HasField("shape"):
+                raise ConvertError(f"{field}: no shape; inputs need a known rank and a fixed last axis")
+            dims = [int(d.dim_value) if d.HasField("dim_value") else None for d in t.shape.dim]
+            if not dims:
+                raise ConvertError(f"{field}: a scalar; inputs need a batch axis ([batch, features], [1, N, F], "
+                                   "[H, W, F])")
+            if 0 in dims:
+                raise ConvertError(f"{field}: shape {_dims_text(dims)} holds no values (an empty tensor)")
+            out.append(InputSpec(inp.name, dims))
+        self._weights_as_inputs(out)
         return out
+
+    def _weights_as_inputs(self, specs: list[InputSpec]) -> None:
+        """A MatMul / Gemm whose weight operand is a graph input: the shader's weights are constants."""
+        names = {s.name for s in specs}
+        for node in self.graph.node:
+            if node.op_type in ("Gemm", "MatMul") and len(node.input) > 1:
+                for slot, name in list(enumerate(node.input))[1:]:
+                    if name in names:
+                        what = "B" if slot == 1 else "C"
+                        raise ConvertError(f"{self.where}: node {node.name or node.output[0]!r} ({node.op_type}): "
+                                           f"its {what} is graph.input {name!r}; the weights must be initializers "
+                                           "(constants), as a trained network's are")
+
+    def _feeds(self, specs: list[InputSpec]) -> list[tuple[InputSpec, Feat]]:
+        """Each input as a Feat under ``self.pose``; sets ``self.batch``."""
+        pose, sizes, feeds = self.pose, set(), []
+        for spec in specs:
+            dims, field = spec.dims, f"{self.where}: graph.input {spec.name!r}"
+            if pose.merged > 1:
+                if len(dims) != pose.merged + 1:
+                    raise NotPosable(f"{field}: shape {_dims_text(dims)}: the inputs' leading axes differ")
+                lead = dims[:-1]
+                sizes.add(None if None in lead else int(np.prod(lead)))
+                shape, lanes = [*[None] * pose.merged, dims[-1]], np.zeros((1, dims[-1]))
+            else:
+                if len(dims) < pose.from_end:
+                    raise NotPosable(f"{field}: shape {_dims_text(dims)} has no axis -{pose.from_end} to be the batch "
+                                     "with the other inputs' (inputs broadcast against each other on their batch axes)")
+                b = len(dims) - pose.from_end
+                sizes.add(dims[b])
+                shape = [None if a == b else n for a, n in enumerate(dims)]
+                if any(n is None for a, n in enumerate(dims) if a != b):
+                    raise NotPosable(f"{field}: shape {_dims_text(dims)}: a symbolic axis besides the batch (each "
+                                     "row's lanes must be fixed)")
+                lanes = np.zeros([1 if a == b else n for a, n in enumerate(dims)])
+            dim = int(np.prod([n for n in shape if n is not None]))
+            try:
+                f = self.L.input(_port_name(spec.name), dim, shape=shape)
+            except ConvertError as exc:
+                raise NotPosable(f"{self.where}: graph.{exc}") from None
+            feeds.append((spec, Feat(f.lanes.reshape(lanes.shape), 0 if pose.merged > 1 else
+                                     len(dims) - pose.from_end)))
+        fixed = sorted(n for n in sizes if n is not None)
+        if len(fixed) > 1:
+            raise NotPosable(f"{self.where}: graph.input: the batch axes differ in size ({fixed}) under "
+                             f"{pose.text()}")
+        if fixed:
+            self.batch = fixed[0]
+        return feeds
 
     def run(self) -> list[tuple[str, Feat]]:
         specs = self.input_specs()
-        statics = {b for _, _, b in specs if b is not None}
-        if len(statics) > 1:
-            raise ConvertError(f"{self.where}: graph.input: inputs with different fixed batch sizes {sorted(statics)}")
-        if statics:
-            self.batch = statics.pop()
-        for name, dim, _ in specs:
-            self.env[name] = self.L.input(_port_name(name), dim)
+        if not specs:
+            raise ConvertError(f"{self.where}: graph.input: none that is not an initializer (a shader network "
+                               "computes from its inputs)")
+        for spec, f in self._feeds(specs):
+            self.env[spec.name] = f
         for node in self.graph.node:
             self._node(node)
         outs = []
         for o in self.graph.output:
             v = self.env.get(o.name)
+            if isinstance(v, Condition):
+                raise ConvertError(f"{self.where}: graph.output {o.name!r} is a boolean (a comparison); shader "
+                                   "outputs are float32: choose values with Where, or Cast it to float")
             if not isinstance(v, Feat):
+                producer = next((n for n in self.graph.node if o.name in n.output), None)
+                if producer is not None and v is None:
+                    raise ConvertError(f"{self.where}: node {producer.name or producer.output[0]!r} "
+                                       f"({producer.op_type}): output {o.name!r} is not computed (inshade computes "
+                                       "the node's main output only); leave it out of graph.output")
                 raise ConvertError(f"{self.where}: graph.output {o.name!r} is a constant (it does not depend on "
                                    "the input)")
             outs.append((o.name, v))
         return outs
+
+    def axis(self, f: Feat, a: int, rank_change: int = 0) -> int:
+        """The Feat axis of the source's axis ``a`` of ``f`` (whose rank is ``rank_change`` more in
+        the op's output, for Unsqueeze); under merged leading axes, one of them is refused."""
+        merged = self.pose.merged - 1
+        rank = f.rank + merged + rank_change
+        a = int(a) % rank if -rank <= int(a) < rank else int(a)
+        if not merged:
+            return a
+        if a <= merged:
+            raise NotPosable(f"axis {a} is one of the leading axes taken as the batch")
+        return a - merged
 
     def _node(self, node) -> None:
         ins = [self.env[n] if n else None for n in node.input]
@@ -124,10 +225,12 @@ class OnnxLowering:
             handler = HANDLERS.get(node.op_type)
             if handler is None:
                 raise ConvertError(f"{label}: no shader lowering (see inshade convert --ops)")
+            if self.pose.merged > 1 and node.op_type in LAYOUT_OPS:
+                raise NotPosable(f"{label}: reads whole shapes, while several leading axes are the batch")
             try:
                 results = handler(self, ins, attrs)
             except ConvertError as exc:
-                raise ConvertError(f"{label}: {exc}") from None
+                raise type(exc)(f"{label}: {exc}") from None
             results = results if isinstance(results, tuple) else (results,)
         for name, value in zip(node.output, results):
             if name:
@@ -167,6 +270,10 @@ class OnnxLowering:
 
     def ints(self, v, what: str) -> list[int]:
         return [int(i) for i in np.asarray(self.const(v, what)).reshape(-1)]
+
+
+def _dims_text(dims) -> str:
+    return "[" + ", ".join("?" if n is None else str(n) for n in dims) + "]"
 
 
 def _port_name(name: str) -> str:
@@ -224,13 +331,19 @@ def _matmul(O, ins, attrs):
 def _clip(O, ins, attrs):
     lo = ins[1] if len(ins) > 1 else attrs.get("min")
     hi = ins[2] if len(ins) > 2 else attrs.get("max")
-    params = {k: float(np.asarray(O.const(v, f"Clip {k}")).reshape(())) for k, v in (("min", lo), ("max", hi))
-              if v is not None}
-    return O.L.unary(ins[0], "clamp", params) if params else ins[0]
+    lo, hi = (None if v is None else float(np.asarray(O.const(v, f"Clip {k}")).reshape(()))
+              for k, v in (("min", lo), ("max", hi)))
+    return O.L.clamp(ins[0], lo, hi)
 
 
 def _pow(O, ins, attrs):
-    return O.L.power(ins[0], float(np.asarray(O.const(ins[1], "Pow exponent")).reshape(())))
+    x, e = ins
+    if isinstance(e, Feat):
+        if isinstance(x, Feat):
+            raise ConvertError("Pow of a computed base to a computed exponent (a constant base or exponent is "
+                               "lowered)")
+        return O.L.base_power(np.asarray(x, np.float32), e)
+    return O.L.power(x, np.asarray(e, np.float32))
 
 
 def _leaky_relu(O, ins, attrs):
@@ -275,9 +388,9 @@ def _dropout(O, ins, attrs):
 
 
 def _cast(O, ins, attrs):
-    if attrs.get("to") not in (1, 10, 11):   # float, float16, double
+    if attrs.get("to") not in (1, 11):   # float, double (a shader computes both in float32)
         name = O.helper.tensor_dtype_to_string(attrs.get("to")).removeprefix("TensorProto.")
-        raise ConvertError(f"Cast to {name}: shader values are float32")
+        raise ConvertError(f"Cast to {name}: shader values are float32 (rounding to {name} is not lowered)")
     return ins[0]
 
 
@@ -297,7 +410,7 @@ def _where(O, ins, attrs):
 def _concat(O, ins, attrs):
     feats = [O.L.resolve(v) for v in ins if isinstance(v, Feat)]
     like = feats[0]
-    axis = int(attrs["axis"]) % like.rank
+    axis = O.axis(like, attrs["axis"])
     if axis == like.batch:
         raise ConvertError("concatenates along the batch axis")
     parts = []
@@ -315,7 +428,7 @@ def _slice(O, ins, attrs):
     axes = O.ints(ins[3], "Slice axes") if len(ins) > 3 and ins[3] is not None else list(range(len(starts)))
     steps = O.ints(ins[4], "Slice steps") if len(ins) > 4 and ins[4] is not None else [1] * len(starts)
     for s, e, a, st in zip(starts, ends, axes, steps):
-        a = a % f.rank
+        a = O.axis(f, a)
         n = O.batch if a == f.batch else f.shape[a]
         s, e = _clip_index(s, n, st), _clip_index(e, n, st)
         if a == f.batch:
@@ -334,7 +447,7 @@ def _clip_index(i: int, n: int, step: int) -> int:
 
 def _split(O, ins, attrs):
     f = ins[0]
-    axis = int(attrs.get("axis", 0)) % f.rank
+    axis = O.axis(f, attrs.get("axis", 0))
     if axis == f.batch:
         raise ConvertError("splits the batch axis")
     n = f.shape[axis]
@@ -385,7 +498,8 @@ def _reshape(O, ins, attrs):
 def _flatten(O, ins, attrs):
     f = ins[0]
     full = O.full_shape(f)
-    axis = int(attrs.get("axis", 1)) % (f.rank + 1) if f.rank else 0
+    axis = int(attrs.get("axis", 1))
+    axis = axis + f.rank if axis < 0 else axis   # ONNX: in [-r, r]
     return reshape(f, [int(np.prod(full[:axis])), int(np.prod(full[axis:]))], O.batch)
 
 
@@ -397,7 +511,7 @@ def _transpose(O, ins, attrs):
 def _gather(O, ins, attrs):
     f, idx = ins
     indices = np.asarray(O.const(idx, "Gather indices")).astype(np.int64)
-    axis = int(attrs.get("axis", 0)) % f.rank
+    axis = O.axis(f, attrs.get("axis", 0))
     n = f.shape[axis]
     return take(f, axis, np.where(indices < 0, indices + n, indices))
 
@@ -421,7 +535,7 @@ def _shape(O, ins, attrs):
 
 def _layer_norm(O, ins, attrs):
     f = ins[0]
-    axis = int(attrs.get("axis", -1)) % f.rank
+    axis = O.axis(f, attrs.get("axis", -1))
     scale = O.const(ins[1], "LayerNormalization Scale") if len(ins) > 1 and ins[1] is not None else None
     bias = O.const(ins[2], "LayerNormalization B") if len(ins) > 2 and ins[2] is not None else None
     return O.L.layer_norm(f, f.rank - axis, scale, bias, float(attrs.get("epsilon", 1e-5))), None, None
@@ -456,13 +570,13 @@ def _reduce(op):
         if not axes:
             if attrs.get("noop_with_empty_axes", 0):
                 return f
-            axes = list(range(f.rank))
-        return O.L.reduce(f, op, axes, bool(attrs.get("keepdims", 1)))
+            axes = list(range(f.rank + O.pose.merged - 1))
+        return O.L.reduce(f, op, [O.axis(f, a) for a in axes], bool(attrs.get("keepdims", 1)))
     return lower
 
 
 def _softmax(O, ins, attrs):
-    return O.L.softmax(ins[0], int(attrs.get("axis", -1)))
+    return O.L.softmax(ins[0], O.axis(ins[0], attrs.get("axis", -1)))
 
 
 HANDLERS = {
@@ -481,17 +595,34 @@ HANDLERS = {
     "GridSample": _grid_sample, "ReduceSum": _reduce("sum"), "ReduceMean": _reduce("mean"),
     "ReduceMax": _reduce("max"), "ReduceMin": _reduce("min"), "ReduceL2": _reduce("norm"), "Softmax": _softmax,
 }
+# ops that name axes of the whole tensor (or need its full shape): not lowered under merged batch axes
+LAYOUT_OPS = {"Squeeze", "Unsqueeze", "Reshape", "Flatten", "Transpose", "Expand", "Shape", "Gemm", "GridSample",
+              "BatchNormalization"}
 
 
 # --- the command ---------------------------------------------------------------------------
 
 def to_bundle(source, *, name: str | None = None):
-    """(bundle, model, lowering) of an ONNX file or ModelProto."""
+    """(bundle, model, lowering) of an ONNX file or ModelProto. Inputs of rank 3 and more are posed
+    in turn (poses()); the first pose the whole graph lowers under is kept."""
     model, where, opset = load_model(source)
-    lowering = OnnxLowering(model, where, opset)
-    outs = lowering.run()
-    for out_name, f in outs:
-        lowering.L.output(_port_name(out_name), f)
+    specs = OnnxLowering(model, where, opset).input_specs()
+    first = None
+    for pose in poses(specs):
+        lowering = OnnxLowering(model, where, opset, pose)
+        try:
+            outs = lowering.run()
+            for out_name, f in outs:
+                try:
+                    lowering.L.output(_port_name(out_name), f, batch_axes=pose.merged)
+                except ConvertError as exc:
+                    raise ConvertError(f"{where}: graph.output {out_name!r}: {exc}") from None
+            break
+        except ConvertError as exc:
+            if first is None or isinstance(first, NotPosable) and not isinstance(exc, NotPosable):
+                first = exc
+    else:
+        raise ConvertError(str(first)) from None
     onnx = _onnx()
     provenance = {"source": "onnx", "file": where, "opset": opset, "producer": model.producer_name or "",
                   "onnx": onnx.__version__,
@@ -501,11 +632,27 @@ def to_bundle(source, *, name: str | None = None):
     return bundle, model, lowering
 
 
+def poses(specs: list[InputSpec]):
+    """The ways to read the inputs' leading axes as the batch, most rows first: all of them merged
+    (when every input has the same leading axes), then each one alone, the largest first."""
+    ranks = {len(s.dims) for s in specs}
+    if not specs or ranks == {2} and all(s.dims[-1] is not None for s in specs):
+        yield Pose()
+        return
+    if len(ranks) == 1 and len({tuple(s.dims[:-1]) for s in specs}) == 1:
+        yield Pose(merged=ranks.pop() - 1)
+    widest = max(specs, key=lambda s: len(s.dims)).dims
+    yield from (Pose(from_end=k) for k in sorted(range(2, len(widest) + 1), key=lambda k: -(widest[-k] or 1 << 30)))
+    yield Pose(from_end=1)   # the last axis as the batch: rows of the other axes (a vector: one lane a row)
+
+
 def convert(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
             force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None):
     """An ONNX file (or ModelProto) -> a bundle folder, its GLSL checked against onnxruntime on
-    ``example`` ([N, in_dim], default uniform [-1, 1]) plus random rows in its range."""
+    ``example`` ([N, in_dim] rows, or one input's whole tensor; default uniform [-1, 1]) plus
+    random rows in its range."""
     from inshade import asset_folder
+    from inshade.port_layout import LayoutError, port_shape, to_rows
 
     from .export import finish
 
@@ -515,34 +662,54 @@ def convert(source, folder, *, name: str | None = None, as_: str | None = None, 
     if example is None:
         example = np.random.default_rng(0).uniform(-1, 1, (64, bundle.in_dim)).astype(np.float32)
     example = np.asarray(example, np.float32)
+    if example.ndim != 2 and len(bundle.inputs) == 1:
+        try:
+            example = to_rows(example, port_shape(bundle.inputs[0]), "example")[0]
+        except LayoutError as exc:
+            raise ConvertError(str(exc)) from None
     if example.ndim != 2 or example.shape[1] != bundle.in_dim:
         raise ConvertError(f"example: shape {list(example.shape)}; the model takes [N, {bundle.in_dim}] "
-                           "(its inputs side by side)")
+                           "(its inputs' rows side by side)")
     bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
     parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
     return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_, semantics=semantics)
 
 
-def run_onnxruntime(source, parts: list[np.ndarray]) -> list[np.ndarray]:
-    """The model's outputs on ``parts`` (one array per graph input) by onnxruntime (CPU), in chunks
-    of a fixed batch size when the model has one."""
+def run_onnxruntime(source, parts: list[np.ndarray], bundle=None) -> list[np.ndarray]:
+    """The model's outputs as rows ([N, lanes] each) on ``parts`` (rows [N, lanes] per graph input,
+    laid out as ``bundle``'s ports say) by onnxruntime (CPU), in chunks of the model's fixed batch
+    size where it has one (the last chunk padded with copies of its first row)."""
     try:
         import onnxruntime as ort
     except ImportError:
         raise ConvertError("checking against onnxruntime needs it: pip install -e '.[onnx]'") from None
+    from inshade.port_layout import batch_axes, from_rows, port_shape, to_rows
+
     model, where, _ = load_model(source)
-    session = ort.InferenceSession(model.SerializeToString(), providers=["CPUExecutionProvider"])
-    names = [i.name for i in session.get_inputs()]
-    fixed = session.get_inputs()[0].shape[0]
+    options = ort.SessionOptions()
+    options.log_severity_level = 3   # its notes on unused initializers are not the user's concern
+    session = ort.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
+    inputs = session.get_inputs()
+    shapes = ([port_shape(p) for p in bundle.inputs] if bundle is not None
+              else [[None, *np.shape(p)[1:]] for p in parts])
+    declared = [inputs[0].shape[a] for a in batch_axes(shapes[0])]
+    fixed = int(np.prod([d for d in declared if isinstance(d, int) and d > 0]))
     n = len(parts[0])
-    step = fixed if isinstance(fixed, int) and fixed > 0 else n
+    symbolic = [i for i, d in enumerate(declared) if not (isinstance(d, int) and d > 0)]
+    step = fixed * (-(-n // fixed) if symbolic else 1)
+    sizes = tuple(step // fixed if i == (symbolic or [None])[0] else (1 if i in symbolic else d)
+                  for i, d in enumerate(declared))
     chunks = []
     for start in range(0, n, step):
         feed = {}
-        for name, p in zip(names, parts):
+        for inp, shape, p in zip(inputs, shapes, parts):
             rows = p[start:start + step]
-            if len(rows) < step:   # a fixed batch: pad the last chunk with copies of its first row
+            if len(rows) < step:
                 rows = np.concatenate([rows, np.repeat(rows[:1], step - len(rows), 0)])
-            feed[name] = np.ascontiguousarray(rows, np.float32)
-        chunks.append([o[:min(step, n - start)] for o in session.run(None, feed)])
+            feed[inp.name] = np.ascontiguousarray(from_rows(rows, shape, sizes), np.float32)
+        outs = session.run(None, feed)
+        out_shapes = ([port_shape(p) for p in bundle.outputs] if bundle is not None
+                      else [[None, *o.shape[1:]] for o in outs])
+        chunks.append([to_rows(o, s, "onnxruntime output")[0][:min(step, n - start)]
+                       for o, s in zip(outs, out_shapes)])
     return [np.concatenate([c[k] for c in chunks]) for k in range(len(chunks[0]))]
