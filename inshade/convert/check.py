@@ -41,18 +41,19 @@ class CheckResult:
                 "rows": self.rows, "gl_renderer": self.gl_renderer, "storage": self.storage}
 
 
-def check_inputs(example: np.ndarray, seed: int = 0, rows: int = RANDOM_ROWS) -> np.ndarray:
-    """The example rows, then ``rows`` uniform random rows in the range of the example's finite
-    values, lane by lane (NaN and infinities are checked where the example has them, never drawn)."""
+def finite_rows(example: np.ndarray) -> np.ndarray:
+    """The example's rows without NaN or infinities (a driver's NaN and inf handling is its own:
+    GLSL leaves max(NaN, 0) and the like undefined, so such rows are left out of the check)."""
     example = np.asarray(example, np.float32).reshape(len(example), -1)
-    finite = np.where(np.isfinite(example), example, np.nan)
-    seen = np.isfinite(finite).any(0)
-    with np.errstate(all="ignore"):
-        lo = np.where(seen, np.nanmin(np.where(seen, finite, 0), 0), -1.0).astype(np.float64)
-        hi = np.where(seen, np.nanmax(np.where(seen, finite, 0), 0), 1.0).astype(np.float64)
-    # a constant lane still gets a unit range; a span past float32's would overflow the draw
-    wide = np.where(hi > lo, hi, lo + 1.0)
-    lo, wide = np.clip(lo, -1e37, 1e37), np.clip(wide, -1e37, 1e37)
+    return example[np.isfinite(example).all(1)]
+
+
+def check_inputs(example: np.ndarray, seed: int = 0, rows: int = RANDOM_ROWS) -> np.ndarray:
+    """The example's finite rows, then ``rows`` uniform random rows in their range, lane by lane."""
+    example = finite_rows(example)
+    lo, hi = (example.min(0), example.max(0)) if len(example) else (np.full(example.shape[1], -1.0),) * 2
+    lo, hi = np.clip(lo.astype(np.float64), -1e37, 1e37), np.clip(hi.astype(np.float64), -1e37, 1e37)
+    wide = np.where(hi > lo, hi, lo + 1.0)   # a constant lane still gets a unit range
     rng = np.random.default_rng(seed)
     return np.concatenate([example, rng.uniform(lo, wide, (rows, example.shape[1])).astype(np.float32)])
 

@@ -64,7 +64,10 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     p = sub.add_parser("eval", help="run a bundle's GLSL on inputs.npy through the GL driver",
                        description="Evaluate a bundle's generated GLSL on a batch through the GL driver (the "
                                    "same pass the parity tests use): INPUTS.npy [N, inputs] float32 -> "
-                                   "OUTPUTS.npy [N, outputs] float32, outputs concatenated in the bundle's order.")
+                                   "OUTPUTS.npy [N, outputs] float32, outputs concatenated in the bundle's order. "
+                                   "A one-input bundle whose input has a tensor shape (an ONNX [1, N, F] or "
+                                   "[H, W, F] input) also takes that shape, and gives its one output shaped the "
+                                   "same way.")
     p.add_argument("bundle", metavar="BUNDLE", help="bundle folder, or an asset with one network")
     p.add_argument("inputs", metavar="INPUTS.npy", help="[N, inputs] array (.npy, read without pickles)")
     p.add_argument("-o", "--output", required=True, metavar="OUTPUTS.npy", help="file to write (- : standard output)")
@@ -170,12 +173,22 @@ def cmd_eval(args) -> int:
     from .check import evaluate
     from .lowering import ConvertError
 
+    from inshade.port_layout import LayoutError, from_rows, port_shape, to_rows
+
     bundle = load(args.bundle)
     x = _read_npy(args.inputs)
+    shaped = len(bundle.inputs) == 1 and bundle.inputs[0].shape is not None and x.ndim != 2
+    if shaped:   # the input's own tensor shape (bundle.json inputs[0].shape): rows in, the outputs shaped back
+        try:
+            x, sizes = to_rows(x, port_shape(bundle.inputs[0]), args.inputs)
+        except LayoutError as exc:
+            raise ConvertError(str(exc)) from None
     if x.ndim != 2 or x.shape[1] != bundle.in_dim or x.dtype.kind not in "fiu":
         raise ConvertError(f"{args.inputs}: shape {list(x.shape)} ({x.dtype}); {bundle.name} takes "
                            f"[N, {bundle.in_dim}] numbers")
     out, renderer, storage = evaluate(bundle, x.astype(np.float32), storage=args.storage, lut_filter=args.lut_filter)
+    if shaped and len(bundle.outputs) == 1:
+        out = from_rows(out, port_shape(bundle.outputs[0]), sizes)
     if args.output == "-":   # the .npy bytes on standard output
         np.save(sys.stdout.buffer, out)
         sys.stdout.buffer.flush()
@@ -184,7 +197,7 @@ def cmd_eval(args) -> int:
         with open(tmp, "wb") as f:
             np.save(f, out)
     if not args.quiet:
-        print(f"wrote {args.output}: [{out.shape[0]}, {out.shape[1]}] ({renderer}, storage {storage})", file=sys.stderr)
+        print(f"wrote {args.output}: {list(out.shape)} ({renderer}, storage {storage})", file=sys.stderr)
     return 0
 
 

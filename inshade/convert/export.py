@@ -92,7 +92,7 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
     from inshade.codegen.limits import limit
     from inshade.files import atomic_write
 
-    from .check import check as run_check, check_inputs
+    from .check import check as run_check, check_inputs, finite_rows
 
     if limits is None and check:
         from inshade.runtime.context import gl_info, shared_context
@@ -111,6 +111,10 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
     if check:
         shapes = [np.shape(e)[1:] for e in examples]
         x = check_inputs(flat)
+        left_out = len(flat) - len(finite_rows(flat))
+        if left_out and not quiet:
+            print(f"example: {left_out} of {len(flat)} rows hold NaN or infinities; left out of the check (the "
+                  "random rows span the finite ones)", file=sys.stderr)
         try:
             result = run_check(source, bundle, x, shapes=shapes, limits=limits, storage=check_storage)
         except ValueError as exc:
@@ -119,7 +123,7 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
             print(result.line(), file=sys.stderr)
         if not result.ok:
             raise ConvertError(f"{result.line()}; nothing written (check=False / --no-check writes it anyway)")
-        bundle.meta["provenance"]["check"] = result.record()
+        bundle.meta["provenance"]["check"] = {**result.record(), "example_rows_left_out": left_out}
     scene = None
     if as_ is not None:
         bundle, scene = apply_shown_as(bundle, as_, flat)

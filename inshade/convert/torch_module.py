@@ -384,7 +384,9 @@ def _identity(T, node, f, *args, **kwargs):
 def _to_copy(T, node, f, *args, dtype=None, **kwargs):
     dtype = dtype or next((a for a in args if isinstance(a, torch.dtype)), None)
     if dtype is not None and dtype not in (torch.float32, torch.float16, torch.float64):
-        raise ConvertError(f"converts a value to {dtype}: shader values are float32")
+        kind = ("an integer index: integer lanes are not lowered" if not dtype.is_floating_point and dtype != torch.bool
+                else "shader values are float32")
+        raise ConvertError(f"converts a computed value to {dtype} ({kind})")
     return f
 
 
@@ -566,6 +568,27 @@ def _norm(T, node, f, p=2, dims=None, keepdim=False, *_, dtype=None):
     return _vector_norm(T, node, f, 2 if p is None else p, dims, keepdim)
 
 
+def _linalg_norm(T, node, f, ord=None, dims=None, keepdim=False, *_, dtype=None):
+    """torch.linalg.norm: the vector 2-norm (ord None over one axis, or 'fro' over two)."""
+    if ord not in (None, 2, 2.0, "fro") or ord == 2 and isinstance(dims, (list, tuple)) and len(dims) == 2:
+        raise ConvertError(f"linalg.norm of order {ord!r}: the 2-norm of vectors (and 'fro') is lowered")
+    return _reduce("norm")(T, node, f, dims, keepdim)
+
+
+def _expand_as(T, node, f, other):
+    return expand(f, T.out_shape(node))
+
+
+def _no_op(T, node, *args, **kwargs):
+    """Trace-time assertions torch.export records (shapes, dtypes): nothing to compute."""
+    return None
+
+
+def _selu(T, node, f):
+    out = T.L.unary(f, "elu", {"alpha": 1.6732632423543772848170429916717})
+    return T.L.affine(out, np.float32(1.0507009873554804934193349852946), 0.0)
+
+
 def _softmax(T, node, f, dim, *_):
     return T.L.softmax(f, dim)
 
@@ -606,7 +629,8 @@ HANDLERS = {
     "layer_norm": _layer_norm, "native_layer_norm": _native_layer_norm, "batch_norm": _batch_norm,
     "_native_batch_norm_legit_no_training": _bn_no_training, "native_batch_norm": _native_batch_norm,
     "sum": _reduce("sum"), "mean": _reduce("mean"), "amax": _reduce("max"), "amin": _reduce("min"),
-    "linalg_vector_norm": _vector_norm, "norm": _norm, "softmax": _softmax, "_softmax": _softmax,
+    "linalg_vector_norm": _vector_norm, "norm": _norm, "linalg_norm": _linalg_norm, "softmax": _softmax,
+    "_softmax": _softmax, "expand_as": _expand_as, "_assert_tensor_metadata": _no_op, "selu": _selu,
     "gt": _compare("gt"), "ge": _compare("ge"), "lt": _compare("lt"), "le": _compare("le"), "where": _where_op,
     "grid_sampler": _grid_sample, "grid_sampler_2d": _grid_sample, "grid_sampler_3d": _grid_sample,
 }

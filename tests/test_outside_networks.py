@@ -1,0 +1,155 @@
+"""Networks written the way other people's packages write them, through both ways in: the torch
+route (``inshade.export``) and the ONNX route (``torch.onnx.export``, then ``inshade convert``),
+each checked through the driver; and the inputs and graphs that used to crash or name the wrong
+thing (non-finite example values, per-lane Pow exponents, Clip with min > max, an Embedding
+indexed by a computed integer, exporters' [1, N, F] inputs)."""
+from __future__ import annotations
+
+import numpy as np
+import onnx
+import pytest
+import torch
+import torch.nn.functional as F
+from onnx import TensorProto, helper, numpy_helper
+
+import inshade
+from inshade.bundle import load
+from inshade.cli import main
+from inshade.convert.check import check_inputs
+from inshade.convert.lowering import ConvertError
+from inshade.convert.onnx_model import convert, run_onnxruntime
+
+from parity import assert_parity
+
+
+class NerfDirections(torch.nn.Module):
+    """nerf-pytorch's view directions: normalised with torch.linalg.norm, then a layer."""
+
+    def __init__(self):
+        super().__init__()
+        self.layer = torch.nn.Linear(6, 8)
+
+    def forward(self, x):
+        d = x[:, 3:] / torch.linalg.norm(x[:, 3:], dim=-1, keepdim=True)
+        return torch.relu(self.layer(torch.cat([x[:, :3], d], -1)))
+
+
+class Normalized(torch.nn.Module):
+    def __init__(self):
+        super().__init__()
+        self.layer = torch.nn.Linear(6, 4)
+
+    def forward(self, x):
+        return F.normalize(self.layer(x), dim=-1)
+
+
+class OnnxActivations(torch.nn.Module):
+    """The activations ONNX names (Selu, Mish, HardSigmoid, HardSwish) written in torch."""
+
+    def forward(self, x):
+        return torch.cat([torch.selu(x), F.mish(x), F.hardsigmoid(x), F.hardswish(x)], -1)
+
+
+ZOO = {"nerf_directions": NerfDirections, "normalize": Normalized, "onnx_activations": OnnxActivations}
+
+
+@pytest.mark.parametrize("name", sorted(ZOO))
+@pytest.mark.filterwarnings("ignore:You are using the legacy TorchScript-based ONNX export")
+def test_both_routes_match(gl, name, tmp_path):
+    torch.manual_seed(0)
+    module = ZOO[name]().eval()
+    x = torch.rand(32, 6) * 2 - 1
+    inshade.export(module, x, tmp_path / "torch", quiet=True)
+    path = tmp_path / f"{name}.onnx"
+    torch.onnx.export(module, (x,), str(path), dynamo=False, input_names=["x"], output_names=["y"],
+                      dynamic_axes={"x": {0: "N"}, "y": {0: "N"}})
+    convert(path, tmp_path / "onnx", example=x.numpy(), quiet=True)
+    rows = check_inputs(x.numpy(), seed=5)
+    with torch.no_grad():
+        ref = module(torch.from_numpy(rows)).numpy()
+    from inshade.convert.check import evaluate
+
+    for route in ("torch", "onnx"):
+        out, _, _ = evaluate(load(tmp_path / route), rows)
+        assert_parity(out, ref, what=f"{name} by the {route} route")
+
+
+def test_embedding_by_computed_index_says_why(tmp_path):
+    class Lookup(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.table = torch.nn.Embedding(16, 4)
+
+        def forward(self, x):
+            return self.table((x[:, 0] * 15.99).long())
+
+    with pytest.raises(ConvertError, match=r"test_outside_networks\.py:\d+: torch\.to: converts a computed value to "
+                                           r"torch\.int64 \(an integer index: integer lanes are not lowered\)"):
+        inshade.export(Lookup(), torch.rand(8, 1), tmp_path / "b", quiet=True)
+    assert not (tmp_path / "b").exists()
+
+
+def _model(nodes, inputs, outputs, inits=(), opset=17):
+    graph = helper.make_graph(nodes, "g", inputs, outputs, list(inits))
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", opset)])
+    model.ir_version = 8
+    onnx.checker.check_model(model)
+    return model
+
+
+def _float(name, shape):
+    return helper.make_tensor_value_info(name, TensorProto.FLOAT, shape)
+
+
+def test_non_finite_example_rows_are_left_out(gl, tmp_path, capsys):
+    model = _model([helper.make_node("Relu", ["x"], ["y"])], [_float("x", ["N", 4])], [_float("y", ["N", 4])])
+    example = np.float32([[0.5, np.nan, np.inf, -np.inf], [0.25, -1, 2, 3], [-0.5, 1, 1, 1]])
+    bundle = convert(model, tmp_path / "b", example=example)
+    assert "example: 1 of 3 rows hold NaN or infinities; left out of the check" in capsys.readouterr().err
+    assert bundle.meta["provenance"]["check"]["ok"] and bundle.meta["provenance"]["check"]["example_rows_left_out"] == 1
+    rows = check_inputs(example)
+    assert len(rows) == 2 + 1024 and np.isfinite(rows).all()
+    assert rows[:, 1].min() >= -1 and rows[:, 1].max() <= 1
+
+
+def test_per_lane_pow_and_inverted_clip_match_onnxruntime(gl, tmp_path):
+    model = _model([helper.make_node("Pow", ["x", "e"], ["p"]),
+                    helper.make_node("Clip", ["x", "lo", "hi"], ["c"]),
+                    helper.make_node("Concat", ["p", "c"], ["y"], axis=-1)],
+                   [_float("x", ["N", 3])], [_float("y", ["N", 6])],
+                   [numpy_helper.from_array(np.float32([1, 2, 3]), "e"), numpy_helper.from_array(np.float32(2), "lo"),
+                    numpy_helper.from_array(np.float32(1), "hi")])
+    x = np.random.default_rng(1).uniform(-2, 2, (64, 3)).astype(np.float32)
+    convert(model, tmp_path / "b", example=x, quiet=True)
+    from inshade.convert.check import evaluate
+
+    out, _, _ = evaluate(load(tmp_path / "b"), x)
+    ref = run_onnxruntime(model, [x])[0]
+    assert_parity(out, ref, what="Pow [1, 2, 3] and Clip(2, 1)")
+    assert np.all(ref[:, 3:] == 1.0)
+
+
+@pytest.mark.parametrize("shape,batch", [([1, "N", 3], [None, None, 3]), (["H", "W", 3], [None, None, 3]),
+                                         (["N", 1, 3], [None, None, 3])])
+def test_exporters_shapes_keep_their_layout(gl, tmp_path, shape, batch):
+    """An MLP over the last axis of [1, N, F], [H, W, F] and [N, 1, F] inputs: the leading axes are
+    the batch, and `inshade eval` shapes its outputs back the same way."""
+    rng = np.random.default_rng(2)
+    model = _model([helper.make_node("MatMul", ["x", "W"], ["h"]), helper.make_node("Tanh", ["h"], ["y"])],
+                   [_float("x", shape)], [_float("y", [*shape[:-1], 5])],
+                   [numpy_helper.from_array(rng.uniform(-1, 1, (3, 5)).astype(np.float32), "W")])
+    path = tmp_path / "m.onnx"
+    onnx.save(model, path)
+    assert main(["convert", str(path), "-o", str(tmp_path / "b"), "--quiet"]) == 0
+    bundle = load(tmp_path / "b")
+    assert [bundle.inputs[0].dim, bundle.outputs[0].dim] == [3, 5]
+    assert bundle.meta["inputs"][0]["shape"] == batch
+    full = rng.uniform(-1, 1, [4 if d in ("N", "H") else 6 if d == "W" else d for d in shape]).astype(np.float32)
+    np.save(tmp_path / "in.npy", full)
+    assert main(["eval", str(tmp_path / "b"), str(tmp_path / "in.npy"), "-o", str(tmp_path / "out.npy"), "--quiet"]) == 0
+    out = np.load(tmp_path / "out.npy")
+    import onnxruntime as ort
+
+    ref = ort.InferenceSession(model.SerializeToString(), providers=["CPUExecutionProvider"]).run(None, {"x": full})[0]
+    assert out.shape == ref.shape
+    assert_parity(out, ref, what=f"{shape} through inshade eval")
