@@ -153,3 +153,60 @@ def test_exporters_shapes_keep_their_layout(gl, tmp_path, shape, batch):
     ref = ort.InferenceSession(model.SerializeToString(), providers=["CPUExecutionProvider"]).run(None, {"x": full})[0]
     assert out.shape == ref.shape
     assert_parity(out, ref, what=f"{shape} through inshade eval")
+
+
+class SineLayer(torch.nn.Module):
+    """INR_collection's SIREN layer: sin(omega0 (W x + b)), the first layer's weights in
+    [-1/in, 1/in], the others in [-sqrt(6/in)/omega0, sqrt(6/in)/omega0]."""
+
+    def __init__(self, n_in, n_out, first, omega0=30.0):
+        super().__init__()
+        self.omega0, self.linear = omega0, torch.nn.Linear(n_in, n_out)
+        bound = 1 / n_in if first else (6 / n_in) ** 0.5 / omega0
+        with torch.no_grad():
+            self.linear.weight.uniform_(-bound, bound)
+
+    def forward(self, x):
+        return torch.sin(self.omega0 * self.linear(x))
+
+
+def trained_siren() -> torch.nn.Module:
+    """2 -> 64 x 3 -> 3, omega0 = 30, its hidden weights grown 8x as training grows them: sin
+    arguments reach the tens to hundreds, where fp32 itself is ~1e-5 from the exact answer."""
+    torch.manual_seed(0)
+    net = torch.nn.Sequential(SineLayer(2, 64, True), SineLayer(64, 64, False), SineLayer(64, 64, False),
+                              torch.nn.Linear(64, 3))
+    with torch.no_grad():
+        for layer in list(net)[1:3]:
+            layer.linear.weight.mul_(8.0)
+    return net.eval()
+
+
+@pytest.mark.filterwarnings("ignore:You are using the legacy TorchScript-based ONNX export")
+def test_siren_exports_under_the_conditioning_rule(gl, tmp_path, capsys):
+    """Both routes accept the SIREN: where the 1e-5 rule against fp32 torch fails, the shader is no
+    farther from the float64 answer than twice torch's own fp32 distance from it."""
+    net, x = trained_siren(), torch.rand(64, 2) * 2 - 1
+    bundle = inshade.export(net, x, tmp_path / "torch")
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    check = bundle.meta["provenance"]["check"]
+    assert check["ok"] and check["max_scaled"] > 1e-5 and check["by_conditioning"], line
+    assert check["glsl_f64"] <= 2 * check["source_f64"]
+    assert "|glsl - f64| = " in line and line.endswith("ok (conditioning)")
+    path = tmp_path / "siren.onnx"
+    torch.onnx.export(net, (x,), str(path), dynamo=False, input_names=["xy"], output_names=["rgb"],
+                      dynamic_axes={"xy": {0: "N"}, "rgb": {0: "N"}})
+    assert convert(path, tmp_path / "onnx", example=x.numpy(), quiet=True).meta["provenance"]["check"]["ok"]
+
+
+def test_conditioning_rule_still_refuses_a_wrong_shader(gl, tmp_path):
+    """A weight off by 1e-3 is farther from the float64 answer than fp32 explains: refused."""
+    from inshade.convert.check import check
+
+    net, x = trained_siren(), torch.rand(64, 2) * 2 - 1
+    bundle = inshade.export(net, x, tmp_path / "b", quiet=True)
+    name = next(k for k in bundle.tensors if k.endswith(".weight"))
+    bundle.tensors[name] = bundle.tensors[name] + np.float32(1e-3)
+    result = check(net, bundle, check_inputs(x.numpy()))
+    assert not result.ok and result.glsl_f64 > 2 * result.source_f64
+    assert "FAILED" in result.line() and "|glsl - f64|" in result.line()
