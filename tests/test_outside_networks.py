@@ -50,7 +50,23 @@ class OnnxActivations(torch.nn.Module):
         return torch.cat([torch.selu(x), F.mish(x), F.hardsigmoid(x), F.hardswish(x)], -1)
 
 
-ZOO = {"nerf_directions": NerfDirections, "normalize": Normalized, "onnx_activations": OnnxActivations}
+class EinsumHeads(torch.nn.Module):
+    """Linear maps written as einsums: a layer ('bi,oi->bo'), per-head weights ('hoi,bi->bho'),
+    a sum over features ('bi->b')."""
+
+    def __init__(self):
+        super().__init__()
+        self.w = torch.nn.Parameter(torch.randn(5, 6) / 3)
+        self.heads = torch.nn.Parameter(torch.randn(2, 3, 5) / 3)
+
+    def forward(self, x):
+        h = torch.tanh(torch.einsum("bi,oi->bo", x, self.w))
+        per_head = torch.einsum("hoi,bi->bho", self.heads, h).reshape(-1, 6)
+        return torch.cat([per_head, torch.einsum("bi->b", h)[:, None]], -1)
+
+
+ZOO = {"nerf_directions": NerfDirections, "normalize": Normalized, "onnx_activations": OnnxActivations,
+       "einsum_heads": EinsumHeads}
 
 
 @pytest.mark.parametrize("name", sorted(ZOO))

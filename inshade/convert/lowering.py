@@ -328,6 +328,32 @@ class Lowering:
                          weight.shape[0], tensors)
         return Feat(out.reshape((1, -1) if f.batch == 0 else (-1, 1)), f.batch)
 
+    def linear_map(self, f: Feat, apply) -> Feat:
+        """A map linear in ``f`` (an einsum of f with constants) as one dense layer. ``apply`` takes
+        an array shaped like f with any size on its batch axis and returns the map's result; the
+        matrix is read off the one-hot basis, and the output's batch axis is the one whose size
+        follows the input's."""
+        f = self.resolve(f)
+        row = [n for a, n in enumerate(f.shape) if a != f.batch]
+        lanes = int(np.prod(row))
+
+        def on_basis(extra: int) -> np.ndarray:
+            basis = np.concatenate([np.eye(lanes), np.zeros((extra, lanes))]).reshape(lanes + extra, *row)
+            return np.asarray(apply(np.moveaxis(basis, 0, f.batch)), np.float64)
+
+        try:
+            y, y1 = on_basis(0), on_basis(1)
+        except (ValueError, RuntimeError) as exc:   # numpy's and torch's words for operands that do not fit
+            raise ConvertError(f"cannot be read as a linear map of the input ({str(exc).splitlines()[0][:100]})") from None
+        moved = [a for a in range(y.ndim) if y.shape[a] != y1.shape[a]]
+        if len(moved) != 1:
+            raise ConvertError("sums over the batch axis (one pixel's value would depend on the others)")
+        b = moved[0]
+        matrix = np.moveaxis(y, b, 0).reshape(lanes, -1).T
+        out = self.dense(Feat(np.moveaxis(f.lanes, f.batch, 0).reshape(1, -1), 0), matrix.astype(np.float32), None)
+        out_row = [n for a, n in enumerate(y.shape) if a != b]
+        return Feat(np.expand_dims(out.lanes.reshape(out_row), b), b)
+
     def reduce(self, f: Feat, op: str, axes, keepdim: bool) -> Feat:
         f = self.resolve(f)
         axes = sorted({a % f.rank for a in axes})

@@ -575,6 +575,19 @@ def _reduce(op):
     return lower
 
 
+def _einsum(O, ins, attrs):
+    """An Einsum of one computed value with constants: linear in it, so one dense layer."""
+    feats = [i for i, v in enumerate(ins) if isinstance(v, Feat)]
+    if len(feats) != 1:
+        raise ConvertError("Einsum of several computed values (an Einsum of one value with constants is lowered)")
+    k, equation = feats[0], attrs["equation"]
+    equation = equation.decode() if isinstance(equation, bytes) else equation
+
+    def apply(basis):
+        return np.einsum(equation, *[basis if i == k else np.asarray(v, np.float64) for i, v in enumerate(ins)])
+    return O.L.linear_map(ins[k], apply)
+
+
 def _softmax(O, ins, attrs):
     return O.L.softmax(ins[0], O.axis(ins[0], attrs.get("axis", -1)))
 
@@ -594,9 +607,10 @@ HANDLERS = {
     "Shape": _shape, "LayerNormalization": _layer_norm, "BatchNormalization": _batch_norm,
     "GridSample": _grid_sample, "ReduceSum": _reduce("sum"), "ReduceMean": _reduce("mean"),
     "ReduceMax": _reduce("max"), "ReduceMin": _reduce("min"), "ReduceL2": _reduce("norm"), "Softmax": _softmax,
+    "Einsum": _einsum,
 }
 # ops that name axes of the whole tensor (or need its full shape): not lowered under merged batch axes
-LAYOUT_OPS = {"Squeeze", "Unsqueeze", "Reshape", "Flatten", "Transpose", "Expand", "Shape", "Gemm", "GridSample",
+LAYOUT_OPS = {"Einsum", "Squeeze", "Unsqueeze", "Reshape", "Flatten", "Transpose", "Expand", "Shape", "Gemm", "GridSample",
               "BatchNormalization"}
 
 

@@ -579,6 +579,20 @@ def _expand_as(T, node, f, other):
     return expand(f, T.out_shape(node))
 
 
+def _einsum(T, node, equation, tensors, *_):
+    """An einsum of one computed value with constants: linear in it, so one dense layer."""
+    feats = [i for i, t in enumerate(tensors) if isinstance(t, Feat)]
+    if len(feats) != 1:
+        raise ConvertError("einsum of several computed values (an einsum of one value with constants is lowered)")
+    k = feats[0]
+
+    def apply(basis):
+        operands = [torch.from_numpy(basis) if i == k else torch.as_tensor(t).detach().to(torch.float64)
+                    for i, t in enumerate(tensors)]
+        return torch.einsum(equation, *operands).numpy()
+    return T.L.linear_map(tensors[k], apply)
+
+
 def _no_op(T, node, *args, **kwargs):
     """Trace-time assertions torch.export records (shapes, dtypes): nothing to compute."""
     return None
@@ -630,7 +644,7 @@ HANDLERS = {
     "_native_batch_norm_legit_no_training": _bn_no_training, "native_batch_norm": _native_batch_norm,
     "sum": _reduce("sum"), "mean": _reduce("mean"), "amax": _reduce("max"), "amin": _reduce("min"),
     "linalg_vector_norm": _vector_norm, "norm": _norm, "linalg_norm": _linalg_norm, "softmax": _softmax,
-    "_softmax": _softmax, "expand_as": _expand_as, "_assert_tensor_metadata": _no_op, "selu": _selu,
+    "_softmax": _softmax, "expand_as": _expand_as, "einsum": _einsum, "_assert_tensor_metadata": _no_op, "selu": _selu,
     "gt": _compare("gt"), "ge": _compare("ge"), "lt": _compare("lt"), "le": _compare("le"), "where": _where_op,
     "grid_sampler": _grid_sample, "grid_sampler_2d": _grid_sample, "grid_sampler_3d": _grid_sample,
 }
