@@ -66,10 +66,25 @@ def _same(p, d):
     return d
 
 
+def _float32(v) -> np.float32:
+    """v as the float32 both executors compute with (inf beyond float32's range)."""
+    with np.errstate(over="ignore"):
+        return np.float32(v)
+
+
+def _finite32(v):
+    return bool(np.isfinite(_float32(v)))
+
+
 ACTIVATIONS = ("relu", "leaky_relu", "sigmoid", "tanh", "softplus", "sin", "cos", "exp", "expm1", "identity",
                "silu", "gelu", "elu", "abs", "clamp", "erf")
-# elementwise too, but defined on part of the line only (x >= 0, x != 0)
-PARTIAL_ELEMENTWISE = ("sqrt", "reciprocal")
+# elementwise too, but defined on part of the line only (x >= 0, x != 0, x > 0; power: x >= 0 for a
+# non-integer exponent, x != 0 for a negative one): random MLP generators must not feed them
+PARTIAL_ELEMENTWISE = ("sqrt", "reciprocal", "log", "log2", "power")
+# elementwise and exact (bit-identical on both sides for the same input), but stepped: at integers
+# (half-integers for round) or multiples of the divisor, where a computed argument one ulp across
+# moves the output by the whole step; not for random MLPs either
+STEPPED_ELEMENTWISE = ("floor", "ceil", "trunc", "round", "frac", "fmod", "remainder")
 GELU_FORMS = ("none", "tanh")
 
 COMPONENTS: dict[str, ComponentSpec] = {}
@@ -88,8 +103,32 @@ _register(ComponentSpec(
     in_dim=lambda p, d: 1 <= d <= MAX_WIDTH,
     category="layer",
 ))
-for _name in ("relu", "sigmoid", "tanh", "exp", "expm1", "identity", "silu", "abs", "erf", *PARTIAL_ELEMENTWISE):
+for _name in ("relu", "sigmoid", "tanh", "exp", "expm1", "identity", "silu", "abs", "erf", "sqrt", "reciprocal"):
     _register(ComponentSpec(_name, f"elementwise {_name}", {}, out_dim=_same))
+for _name, _doc in (
+        ("log", "natural logarithm as torch.log: NaN below 0, -inf at +-0, +inf at +inf"),
+        ("log2", "base-2 logarithm as torch.log2: NaN below 0, -inf at +-0, +inf at +inf"),
+        ("floor", "largest integer <= x (torch.floor)"),
+        ("ceil", "smallest integer >= x (torch.ceil)"),
+        ("trunc", "x rounded toward 0 (torch.trunc)"),
+        ("round", "x rounded to the nearest integer, halves to even as torch.round: 0.5 -> 0, 1.5 -> 2, -2.5 -> -2"),
+        ("frac", "x - trunc(x) as torch.frac: the sign of x (not GLSL's fract, x - floor(x))")):
+    _register(ComponentSpec(_name, _doc, {}, out_dim=_same))
+_DIVISOR = Param(float, check=lambda v: _finite32(v) and abs(_float32(v)) >= np.finfo(np.float32).tiny,
+                 doc="finite and normal in float32, |divisor| >= 2^-126 (both sides use it rounded to float32; "
+                     "torch's fmod of a subnormal divisor is NaN)")
+_register(ComponentSpec(
+    "fmod", "torch.fmod(x, divisor), exact (C's fmod): x - n divisor, n = trunc(x / divisor), the sign of x, "
+            "|result| < |divisor|; NaN for an infinite x", {"divisor": _DIVISOR}, out_dim=_same))
+_register(ComponentSpec(
+    "remainder", "torch.remainder(x, divisor) (Python's %): fmod, plus divisor where that is non-zero and of the "
+                 "other sign (one rounding: the result may equal the divisor, as torch's)",
+    {"divisor": _DIVISOR}, out_dim=_same))
+_register(ComponentSpec(
+    "power", "torch.pow(x, exponent), exponent constant: torch's special cases (0, 1, 0.5, -0.5, -1) and C's pow "
+             "(x < 0: NaN unless the exponent is an integer, signed for an odd one; x = 0: 0 or +-inf)",
+    {"exponent": Param(float, check=_finite32, doc="finite in float32 (both sides use it rounded to float32)")},
+    out_dim=_same))
 _register(ComponentSpec("leaky_relu", "x if x>0 else slope*x",
                         {"slope": Param(float, 0.01, _finite)}, out_dim=_same))
 _register(ComponentSpec("sin", "sin(omega0 * x), SIREN's activation",
@@ -137,9 +176,11 @@ _register(ComponentSpec(
     {"lanes": Param(list, check=lambda v: 1 <= len(v) <= MAX_WIDTH, doc=f"1..{MAX_WIDTH} lane indices")},
     out_dim=lambda p, d: len(p["lanes"]), extra_checks=_lanes_check, category="layer",
 ))
-for _name, _sym in (("sub", "-"), ("mul", "*"), ("div", "/")):
+for _name, _expr in (("sub", "a - b"), ("mul", "a * b"), ("div", "a / b"),
+                     ("atan2", "atan2(a, b) as torch.atan2(a, b): the angle of the point (x = b, y = a), C's "
+                               "special values (atan2(+-0, -0) = +-pi, atan2(+-0, +0) = +-0)")):
     _register(ComponentSpec(
-        _name, f"two branches: input [a (n lanes), b (n lanes)] -> a {_sym} b (n lanes)", {},
+        _name, f"two branches: input [a (n lanes), b (n lanes)] -> {_expr} (n lanes)", {},
         out_dim=lambda p, d: d // 2, in_dim=lambda p, d: d >= 2 and d % 2 == 0, category="layer"))
 
 COMPARISONS = ("gt", "ge", "lt", "le")

@@ -49,6 +49,26 @@ that leaves the measured envelope:
   ``LOOKUP_GAIN`` (measured on llvmpipe, a 16- or 64-input dense feeding it: 1.2e-7 to 2.9e-7 * gain).
   An input is bit-identical on both sides (no limit).
 
+- ``power`` (x^p, p constant): torch's own paths (p = 0, 1, 0.5, -0.5, -1) agree to an ulp or two, and an
+  integer p with |p| <= 32 is computed by repeated squaring (|p| - 1 roundings: measured <= 3.2e-6 at
+  p = -32). Other exponents are exp2(p log2|x|), whose error grows with q = p log2|x| (the log2 of the
+  result) and with |p| (log2's absolute error near x = 1, times p): measured on llvmpipe ~6e-8 q +
+  1.1e-7 |p| (6.1e-6 at p = 2.5, q in [112, 127); 1.1e-5 at p = 100.5 near x = 1; a 16-input dense
+  feeding it: 6.6e-6 at p = 31.5). Limits ``POW_ARG`` = 64 on the largest q and ``POW_EXPONENT`` = 32 on
+  |p| there (<= 6e-6 measured inside both). Any path: a warning from q = 127 (float32 overflows at 128).
+  The domain: x < 0 with a non-integer p is NaN, x = 0 with p < 0 is inf (warnings).
+- ``log`` / ``log2``: measured <= 2.3e-7 scaled; an argument range reaching 0 or below is a warning
+  (-inf at 0, NaN below).
+- stepped ops (``floor``, ``ceil``, ``trunc``, ``round``, ``frac``, ``fmod``, ``remainder``): exact on both
+  sides, so an input stays bit-identical through them. A computed argument whose range holds a step
+  (an integer; a half-integer for round; a multiple of the divisor) can land one ulp on the other side
+  of it in GLSL and move the output by the whole step: a note. ``fmod`` / ``remainder`` where
+  |x / divisor| can reach 2^128: a warning (torch's vectorised CPU kernel returns NaN there, its
+  scalar tail and the shader the exact value).
+- ``atan2``: measured <= 2.4e-7. Where the box of its two inputs reaches the negative x axis or the
+  origin and they are computed: a note (a 1-ulp discrepancy in a flips the result between pi and
+  -pi; near the origin a discrepancy d moves it by d / |(a, b)|).
+
 Saturating activations (sigmoid, tanh, softplus) are safe at any argument: lib/activations
 evaluates them in overflow-free forms. The probes behind these numbers are described in the
 README's "Parity envelope" section.
@@ -63,7 +83,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .bundle import Bundle, Node
-from .components import grid_node_levels
+from .components import STEPPED_ELEMENTWISE, grid_node_levels
 
 TOL = 1e-5
 PERIODIC_ARG_INPUT = 2.0 ** 7 * math.pi    # ~402: sin/cos of a bundle input
@@ -74,6 +94,9 @@ DENSE_MAGNITUDE_WARN = 2.0 ** 24 / 16      # ~1.05e6: one ulp of S >= 1/16
 LOOKUP_GAIN = 50.0                         # gain / max(1, max|cell|), coordinate from a dense etc.
 LOOKUP_GAIN_CHAINED = 200.0                # same, coordinate straight from another lookup array
 GRID_GAIN = 100.0                          # sum_d scale * neighbour difference / max(1, max|feature|)
+POW_ARG = 64.0                             # log2 of the largest |x^p| computed as exp2(p log2|x|)
+POW_EXPONENT = 32.0                        # |p| there
+POW_SQUARING = 32                          # integer |p| up to this: repeated squaring (lib/activations)
 
 WARNING, NOTE = "warning", "note"
 
@@ -274,8 +297,13 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                 if p["max"] is not None:
                     olo, ohi = np.minimum(olo, p["max"]), np.minimum(ohi, p["max"])
                 is_exact = src_exact
-            elif t in ("sqrt", "reciprocal"):
+            elif t in ("sqrt", "reciprocal", "log", "log2"):
                 olo, ohi = _partial(n, t, lo, hi, warn)
+            elif t in STEPPED_ELEMENTWISE:
+                olo, ohi = _stepped(n, t, lo, hi, src_exact, warn)
+                is_exact = src_exact
+            elif t == "power":
+                olo, ohi = _power(n, p["exponent"], lo, hi, warn)
             elif t == "affine":
                 s_, o_ = bundle.tensor(n, "scale").astype(np.float64), bundle.tensor(n, "offset").astype(np.float64)
                 a, b = lo * s_ + o_, hi * s_ + o_
@@ -287,6 +315,9 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             elif t in ("sub", "mul", "div"):
                 half = n.out_dim
                 olo, ohi = _binary_range(n, t, (lo[:half], hi[:half]), (lo[half:], hi[half:]), warn)
+            elif t == "atan2":
+                half = n.out_dim
+                olo, ohi = _atan2_range(n, (lo[:half], hi[:half]), (lo[half:], hi[half:]), src_exact, warn)
             elif t == "where":            # one of the two branches
                 k = n.out_dim
                 olo, ohi = np.minimum(lo[2 * k:3 * k], lo[3 * k:]), np.maximum(hi[2 * k:3 * k], hi[3 * k:])
@@ -462,11 +493,18 @@ _DIPPING = {   # x0 and the minimum from the closed forms, rounded outwards
 
 
 def _partial(n: Node, t: str, lo, hi, warn):
-    """sqrt / reciprocal: bounds, and a warning where the input range reaches outside the domain."""
+    """sqrt / reciprocal / log / log2: bounds, and a warning where the input range reaches outside the domain."""
     if t == "sqrt":
         if np.any(lo < 0):
             warn(n.id, "sqrt argument (lowest)", float(np.min(lo)), 0.0, "sqrt of a negative value is NaN")
         return np.sqrt(np.maximum(lo, 0)), np.sqrt(np.maximum(hi, 0))
+    if t in ("log", "log2"):
+        if np.any(lo <= 0):
+            warn(n.id, f"{t} argument (lowest)", float(np.min(lo)), 0.0,
+                 f"{t} of 0 is -inf and of a negative value NaN: no bound downstream")
+        fn = np.log if t == "log" else np.log2
+        with np.errstate(divide="ignore"):
+            return fn(np.maximum(lo, 0)), fn(np.maximum(hi, 0))
     spans = (lo <= 0) & (hi >= 0)
     if np.any(spans):
         warn(n.id, "reciprocal argument range includes 0", float(np.max(_mag(lo, hi))), math.nan,
@@ -491,6 +529,101 @@ def _binary_range(n: Node, t: str, a, b, warn):
         corners = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
     corners = np.where(np.isnan(corners), np.inf, corners)
     return corners.min(0), corners.max(0)
+
+
+_ROUNDING = {"floor": np.floor, "ceil": np.ceil, "trunc": np.trunc, "round": np.round}   # np.round: halves to even
+# the piece of the line an argument lies in, per stepped op: a step between two arguments' pieces
+_PIECE = {"floor": np.floor, "ceil": np.ceil, "trunc": np.trunc, "frac": np.trunc, "fmod": np.trunc,
+          "remainder": np.floor, "round": lambda x: np.floor(x + 0.5)}
+
+
+def _stepped(n: Node, t: str, lo, hi, src_exact: bool, warn):
+    """floor / ceil / trunc / round / frac / fmod / remainder: bounds, and what a step can do."""
+    c = n.params.get("divisor", 1.0)
+    with np.errstate(invalid="ignore"):
+        plo, phi = _PIECE[t](lo / c), _PIECE[t](hi / c)
+    one_piece = np.isfinite(lo) & np.isfinite(hi) & (plo == phi)
+    if not src_exact and not one_piece.all():
+        what = {"round": "a half-integer", "fmod": "a multiple of the divisor",
+                "remainder": "a multiple of the divisor"}.get(t, "an integer")
+        warn(n.id, f"{t} argument range holds {what} (computed argument)",
+             float(np.max(_mag(lo, hi))), math.nan,
+             "an upstream discrepancy of an ulp can put the argument on the other side of a step in GLSL, and "
+             "the output then differs by the whole step", NOTE)
+    if t in _ROUNDING:   # non-decreasing: the ends map to the ends
+        return _ROUNDING[t](lo), _ROUNDING[t](hi)
+    if t in ("fmod", "remainder") and float(np.max(_mag(lo, hi))) / abs(c) >= 2.0 ** 128:
+        warn(n.id, f"{t} quotient |x / divisor|", float(np.max(_mag(lo, hi))) / abs(c), 2.0 ** 128,
+             "torch's vectorised CPU kernel (Sleef) returns NaN where x / divisor overflows float32; its "
+             "scalar tail and the shader return the exact value")
+    # within one piece the op is x - k c; across pieces, its whole range: |r| < |c| with the sign of x
+    # (frac, fmod), or between 0 and c inclusive (remainder: r + c can round to c)
+    if t == "remainder":
+        full_lo, full_hi = np.full_like(lo, min(c, 0.0)), np.full_like(hi, max(c, 0.0))
+    else:
+        c = abs(c)
+        full_lo = np.where(lo < 0, np.maximum(lo, -c), 0.0)
+        full_hi = np.where(hi > 0, np.minimum(hi, c), 0.0)
+    k = np.where(one_piece, plo, 0.0) * n.params.get("divisor", 1.0)
+    return np.where(one_piece, lo - k, full_lo), np.where(one_piece, hi - k, full_hi)
+
+
+def _power(n: Node, p: float, lo, hi, warn):
+    """power: bounds, domain warnings, and the accuracy limits of its exp2(p log2|x|) path."""
+    if p == 0:
+        return np.ones_like(lo), np.ones_like(hi)
+    integer = float(p).is_integer()
+    odd = integer and abs(p) < 2 ** 24 and int(p) % 2 == 1
+    if not integer:
+        if np.any(lo < 0):
+            warn(n.id, "power base (lowest)", float(np.min(lo)), 0.0,
+                 f"a negative base with the non-integer exponent {p:g} is NaN")
+        lo, hi = np.maximum(lo, 0.0), np.maximum(hi, 0.0)
+    spans = (lo <= 0) & (hi >= 0)
+    if p < 0 and np.any(spans):
+        warn(n.id, f"power base range includes 0 (exponent {p:g})", float(np.max(_mag(lo, hi))), math.nan,
+             "0 to a negative power is inf: no bound downstream")
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        if odd:     # increasing (p > 0) or decreasing on each side of 0 (p < 0)
+            a, b = np.power(lo, p), np.power(hi, p)
+            olo = np.where(spans & (p < 0), -np.inf, np.minimum(a, b))
+            ohi = np.where(spans & (p < 0), np.inf, np.maximum(a, b))
+        else:       # a function of |x| (x >= 0 after the domain clamp), monotone in it
+            a, b = np.power(_min_abs(lo, hi), p), np.power(_mag(lo, hi), p)
+            olo, ohi = np.minimum(a, b), np.maximum(a, b)
+        q = float(np.max(np.log2(_mag(olo, ohi))))
+    if not np.isfinite(q):
+        return olo, ohi
+    squared = integer and abs(p) <= POW_SQUARING
+    if squared or p in (0.5, -0.5, 1.0):
+        if q > 127:
+            warn(n.id, f"power result log2|x^p| (exponent {p:g})", q, 127.0,
+                 "float32 overflows to inf at 2^128: near it the two sides can round to inf differently")
+        return olo, ohi
+    if q > POW_ARG:
+        warn(n.id, f"power result log2|x^p| = p log2|x| (exponent {p:g})", q, POW_ARG,
+             "exp2(p log2|x|) loses relative accuracy as it grows: measured ~6e-8 q + 1.1e-7 |p| scaled error "
+             "(6.1e-6 at q = 127, p = 2.5), near 1e-5 beyond (and float32 overflows at 128)")
+    if abs(p) > POW_EXPONENT:
+        warn(n.id, "power exponent |p| (exp2(p log2|x|) path)", abs(p), POW_EXPONENT,
+             "log2's absolute error near x = 1 is multiplied by p: measured ~1.1e-7 |p| scaled error "
+             "(1.1e-5 at p = 100.5)")
+    return olo, ohi
+
+
+def _atan2_range(n: Node, a, b, src_exact: bool, warn):
+    """atan2(a, b), the angle of the point (x = b, y = a): the corners' angles where the box of the
+    two inputs keeps off the negative x axis and the origin (the angle is continuous there), else
+    [-pi, pi]."""
+    (alo, ahi), (blo, bhi) = a, b
+    cut = (blo <= 0) & (alo <= 0) & (ahi >= 0)
+    with np.errstate(invalid="ignore"):
+        corners = np.stack([np.arctan2(y, x) for y in (alo, ahi) for x in (blo, bhi)])
+    if not src_exact and np.any(cut):
+        warn(n.id, "atan2 inputs reach the negative x axis or the origin (computed)", float(np.max(_mag(alo, ahi))),
+             math.nan, "a 1-ulp discrepancy in a there flips the result between pi and -pi, and near the "
+             "origin a discrepancy d moves it by d / |(a, b)|", NOTE)
+    return np.where(cut, -np.pi, corners.min(0)), np.where(cut, np.pi, corners.max(0))
 
 
 def _reduce_range(op: str, lo, hi):

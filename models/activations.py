@@ -1,6 +1,8 @@
-"""Elementwise activations; their GLSL twins are in codegen/activations.py."""
+"""Elementwise activations and ops (logarithms, rounding, fmod / remainder, power); their GLSL twins
+are in codegen/activations.py."""
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from .registry import Component, register
@@ -205,3 +207,101 @@ class Clamp(Component):
 
     def forward(self, x):
         return torch.clamp(x, self.min, self.max)
+
+
+@register
+class Log(_Elementwise):
+    type = "log"
+    fn = staticmethod(torch.log)
+
+
+@register
+class Log2(_Elementwise):
+    type = "log2"
+    fn = staticmethod(torch.log2)
+
+
+@register
+class Floor(_Elementwise):
+    type = "floor"
+    fn = staticmethod(torch.floor)
+
+
+@register
+class Ceil(_Elementwise):
+    type = "ceil"
+    fn = staticmethod(torch.ceil)
+
+
+@register
+class Trunc(_Elementwise):
+    type = "trunc"
+    fn = staticmethod(torch.trunc)
+
+
+@register
+class Round(_Elementwise):
+    """Halves to even (torch.round's only mode without `decimals`)."""
+
+    type = "round"
+    fn = staticmethod(torch.round)
+
+
+@register
+class Frac(_Elementwise):
+    """x - trunc(x): the sign of x."""
+
+    type = "frac"
+    fn = staticmethod(torch.frac)
+
+
+def _float32(v: float) -> float:
+    """A parameter as the float32 the shader's literal holds (torch rounds a divisor so too; an
+    exponent it would keep in double, a difference of ~1e-9 |log x| relative)."""
+    return float(np.float32(v))
+
+
+class _WithDivisor(Component):
+    fn = staticmethod(torch.fmod)
+
+    def __init__(self, divisor: float):
+        super().__init__()
+        self.divisor = _float32(divisor)
+
+    def params(self):
+        return {"divisor": self.divisor}
+
+    def forward(self, x):
+        return self.fn(x, self.divisor)
+
+
+@register
+class Fmod(_WithDivisor):
+    """C's fmod by a constant: the sign of x."""
+
+    type = "fmod"
+
+
+@register
+class Remainder(_WithDivisor):
+    """Python's % by a constant: the sign of the divisor."""
+
+    type = "remainder"
+    fn = staticmethod(torch.remainder)
+
+
+@register
+class Power(Component):
+    """x ** exponent for a constant exponent (torch.pow(x, exponent))."""
+
+    type = "power"
+
+    def __init__(self, exponent: float):
+        super().__init__()
+        self.exponent = _float32(exponent)
+
+    def params(self):
+        return {"exponent": self.exponent}
+
+    def forward(self, x):
+        return torch.pow(x, self.exponent)

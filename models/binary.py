@@ -1,12 +1,12 @@
 """Elementwise operations between two branches: input [a | b] (2n lanes) -> a op b (n lanes), for
-op in add (residual connections), sub, mul, div. GLSL twin in codegen/binary.py."""
+op in add (residual connections), sub, mul, div, atan2 (torch.atan2(a, b)). GLSL twin in codegen/binary.py."""
 from __future__ import annotations
 
 import torch
 
 from .registry import Component, register
 
-OPS = {"add": torch.add, "sub": torch.sub, "mul": torch.mul, "div": torch.div}
+OPS = {"add": torch.add, "sub": torch.sub, "mul": torch.mul, "div": torch.div, "atan2": torch.atan2}
 
 
 class _Binary(Component):
@@ -18,7 +18,7 @@ class _Binary(Component):
 
 
 def _make(op: str) -> type:
-    return register(type(op.capitalize(), (_Binary,), {"type": op, "__doc__": f"a {op} b of the halves [a | b]"}))
+    return register(type(op.capitalize(), (_Binary,), {"type": op, "__doc__": f"{op}(a, b) of the halves [a | b]"}))
 
 
-Add, Sub, Mul, Div = (_make(op) for op in OPS)
+Add, Sub, Mul, Div, Atan2 = (_make(op) for op in OPS)
