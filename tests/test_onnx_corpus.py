@@ -37,7 +37,8 @@ REASONS = {
                        r"merges or splits the batch axis|reads whole shapes, while several leading axes",
     "weights are inputs": r"its [BC] is graph\.input '[^']*'; the weights must be initializers|"
                           r"\w+ (Scale|B) must be a constant|GridSample of a constant X",
-    "computed by computed": r"(MatMul|Pow) of (two computed values|a computed base to a computed exponent)",
+    "computed by computed": r"(MatMul|Pow) of (two computed values|a computed base to a computed exponent)|"
+                            r"of a computed value by a constant divisor is lowered|fmod = 0 is integer modulo",
     "random": r"in training mode is random|in training mode normalises over the batch",
     "base": r"raised to a computed power: positive finite bases are lowered",
     "float32 only": r"Cast to \w+: shader values are float32",

@@ -226,3 +226,43 @@ def test_conditioning_rule_still_refuses_a_wrong_shader(gl, tmp_path):
     result = check(net, bundle, check_inputs(x.numpy()))
     assert not result.ok and result.glsl_f64 > 2 * result.source_f64
     assert "FAILED" in result.line() and "|glsl - f64|" in result.line()
+
+
+class PeriodicOps(torch.nn.Module):
+    """What coordinate networks compute besides layers: logarithms, rounding, periodic wraps,
+    polar angles, constant-exponent and constant-base powers."""
+
+    def __init__(self):
+        super().__init__()
+        self.layer = torch.nn.Linear(2, 3)
+
+    def forward(self, x):
+        h = self.layer(x) * 3
+        first = torch.cat([torch.log(h.abs() + 0.5), torch.log2(x.abs() + 1), torch.floor(h), torch.ceil(h),
+                           torch.round(h), torch.frac(h), torch.fmod(h, 0.7)], -1)
+        return torch.cat([first, h % 0.7, torch.atan2(h, x[:, :1]), (x.abs() + 0.1) ** 1.5, 2 ** h[:, :2]], -1)
+
+
+def test_coordinate_network_ops_export(gl, tmp_path):
+    torch.manual_seed(3)
+    bundle = inshade.export(PeriodicOps().eval(), torch.rand(32, 2) * 2 - 1, tmp_path / "b", quiet=True)
+    types = {n.type for n in bundle.nodes}
+    assert {"log", "log2", "floor", "ceil", "round", "frac", "fmod", "remainder", "atan2", "power", "exp"} <= types
+    assert bundle.meta["provenance"]["check"]["ok"]
+
+
+def test_onnx_rounding_and_mod_match_onnxruntime(gl, tmp_path):
+    nodes = [helper.make_node(op, ["x"], [op.lower()]) for op in ("Floor", "Ceil", "Round")]
+    nodes += [helper.make_node("Abs", ["x"], ["ax"]), helper.make_node("Log", ["ax"], ["log"]),
+              helper.make_node("Mod", ["x", "d"], ["mod"], fmod=1),
+              helper.make_node("Concat", ["floor", "ceil", "round", "log", "mod"], ["y"], axis=-1)]
+    model = _model(nodes, [_float("x", ["N", 4])], [_float("y", ["N", 20])],
+                   [numpy_helper.from_array(np.float32(0.75), "d")])
+    # integers, halves (round to even), multiples of the divisor, and points between
+    x = np.float32([[-2.5, -1.5, -0.5, 0.5], [1.5, 2.5, -0.75, 0.75], [1.5, -2.25, 3.0, -3.0],
+                    *np.random.default_rng(4).uniform(-4, 4, (61, 4))]).astype(np.float32)
+    convert(model, tmp_path / "b", example=x, quiet=True)
+    from inshade.convert.check import evaluate
+
+    out, _, _ = evaluate(load(tmp_path / "b"), x)
+    assert_parity(out, run_onnxruntime(model, [x])[0], what="Floor, Ceil, Round, Log, Mod")

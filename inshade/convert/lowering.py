@@ -248,6 +248,25 @@ class Lowering:
                                "positive finite bases are lowered")
         return self.unary(self.affine(f, np.log(base).astype(np.float32), np.float32(0.0)), "exp")
 
+    def atan2(self, a, b, batch_size: int) -> Feat:
+        """atan2(a, b), either operand a constant (broadcast, as wide as the batch at most one row)."""
+        like = a if isinstance(a, Feat) else b
+        a, b = (self.constant(like, const_against(np.asarray(v, np.float32), like, batch_size))
+                if not isinstance(v, Feat) else v for v in (a, b))
+        return self.binary("atan2", a, b)
+
+    def modulo(self, f: Feat, divisor, kind: str) -> Feat:
+        """fmod (the sign of f) or remainder (the sign of the divisor) by a constant scalar divisor."""
+        divisor = np.asarray(divisor, np.float32)
+        if divisor.size != 1:
+            per_lane = np.unique(divisor)
+            if per_lane.size != 1:
+                raise ConvertError(f"{kind} by a divisor per lane: one constant divisor is lowered")
+        d = float(divisor.reshape(-1)[0])
+        if d == 0.0 or not np.isfinite(d):
+            raise ConvertError(f"{kind} by {d:g}: a finite non-zero divisor is lowered")
+        return self.unary(f, kind, {"divisor": d})
+
     def clamp(self, f: Feat, lo, hi) -> Feat:
         """min(max(f, lo), hi) for scalar bounds (None: absent); lo > hi gives hi everywhere, as torch
         and ONNX define it."""

@@ -575,6 +575,15 @@ def _reduce(op):
     return lower
 
 
+def _mod(O, ins, attrs):
+    a, b = ins
+    if isinstance(b, Feat) or not isinstance(a, Feat):
+        raise ConvertError("Mod of a computed value by a constant divisor is lowered")
+    if not attrs.get("fmod", 0):
+        raise ConvertError("Mod with fmod = 0 is integer modulo; float values need fmod = 1")
+    return O.L.modulo(a, np.asarray(b, np.float32), "fmod")
+
+
 def _einsum(O, ins, attrs):
     """An Einsum of one computed value with constants: linear in it, so one dense layer."""
     feats = [i for i, v in enumerate(ins) if isinstance(v, Feat)]
@@ -607,7 +616,8 @@ HANDLERS = {
     "Shape": _shape, "LayerNormalization": _layer_norm, "BatchNormalization": _batch_norm,
     "GridSample": _grid_sample, "ReduceSum": _reduce("sum"), "ReduceMean": _reduce("mean"),
     "ReduceMax": _reduce("max"), "ReduceMin": _reduce("min"), "ReduceL2": _reduce("norm"), "Softmax": _softmax,
-    "Einsum": _einsum,
+    "Einsum": _einsum, "Log": _unary("log"), "Floor": _unary("floor"), "Ceil": _unary("ceil"),
+    "Round": _unary("round"), "Mod": _mod,
 }
 # ops that name axes of the whole tensor (or need its full shape): not lowered under merged batch axes
 LAYOUT_OPS = {"Einsum", "Squeeze", "Unsqueeze", "Reshape", "Flatten", "Transpose", "Expand", "Shape", "Gemm", "GridSample",

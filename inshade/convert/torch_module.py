@@ -421,9 +421,29 @@ def _neg(T, node, f):
 
 
 def _pow(T, node, f, exponent):
-    if isinstance(exponent, Feat) or not isinstance(f, Feat):
-        raise ConvertError("only a value raised to a constant power is lowered")
-    return T.L.power(f, float(exponent))
+    if isinstance(exponent, Feat):
+        if isinstance(f, Feat):
+            raise ConvertError("a computed value raised to a computed power (a constant base or exponent is lowered)")
+        return T.L.base_power(_np(f), exponent)
+    return T.L.power(f, _np(exponent))
+
+
+def _round(T, node, f, *args, decimals=0):
+    if decimals:
+        raise ConvertError(f"round to {decimals} decimals: round to integers is lowered")
+    return T.L.unary(f, "round")
+
+
+def _modulo(kind):
+    def lower(T, node, a, b):
+        if isinstance(b, Feat) or not isinstance(a, Feat):
+            raise ConvertError(f"{kind} of a computed value by a constant divisor is lowered")
+        return T.L.modulo(a, _np(b), kind)
+    return lower
+
+
+def _atan2(T, node, a, b):
+    return T.L.atan2(a if isinstance(a, Feat) else _np(a), b if isinstance(b, Feat) else _np(b), T.batch)
 
 
 def _unary(kind, **fixed):
@@ -644,7 +664,10 @@ HANDLERS = {
     "_native_batch_norm_legit_no_training": _bn_no_training, "native_batch_norm": _native_batch_norm,
     "sum": _reduce("sum"), "mean": _reduce("mean"), "amax": _reduce("max"), "amin": _reduce("min"),
     "linalg_vector_norm": _vector_norm, "norm": _norm, "linalg_norm": _linalg_norm, "softmax": _softmax,
-    "_softmax": _softmax, "expand_as": _expand_as, "einsum": _einsum, "_assert_tensor_metadata": _no_op, "selu": _selu,
+    "_softmax": _softmax, "expand_as": _expand_as, "einsum": _einsum,
+    "log": _unary("log"), "log2": _unary("log2"), "floor": _unary("floor"), "ceil": _unary("ceil"),
+    "trunc": _unary("trunc"), "fix": _unary("trunc"), "frac": _unary("frac"), "round": _round,
+    "fmod": _modulo("fmod"), "remainder": _modulo("remainder"), "atan2": _atan2, "arctan2": _atan2, "_assert_tensor_metadata": _no_op, "selu": _selu,
     "gt": _compare("gt"), "ge": _compare("ge"), "lt": _compare("lt"), "le": _compare("le"), "where": _where_op,
     "grid_sampler": _grid_sample, "grid_sampler_2d": _grid_sample, "grid_sampler_3d": _grid_sample,
 }
