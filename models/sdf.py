@@ -215,7 +215,7 @@ def camera_rays(uniforms: dict, width: int, height: int):
 
 
 def trace(sdf: SdfModule, ro: torch.Tensor, rd: torch.Tensor):
-    """Sphere tracing as ``sdf_trace``: (hit [N] bool, t [N]). Enter the bound sphere, step
+    """Sphere tracing as ``sdf_hit``: (hit [N] bool, t [N]). Enter the bound sphere, step
     d * step_scale, stop when d < hit_eps (hit), t > t_exit or after max_steps."""
     tr, scene = sdf.scene.trace, sdf.scene
     oc = ro - torch.tensor(scene.center, dtype=torch.float32)

@@ -18,9 +18,9 @@ void main() {
     vec3 ro, rd;
     camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     float t;
-    if (sdf_trace(ro, rd, t)) {
+    vec3 n;
+    if (sdf_hit(ro, rd, t, n)) {
         vec3 p = ro + rd * t;
-        vec3 n = sdf_normal(p);
         frag_color = vec4(scene_albedo(p) * sh_irradiance(n, u_sh) * SDF_INV_PI, 1.0);
     } else {
         frag_color = vec4(sh_background(rd, u_sh), 1.0);

@@ -14,7 +14,7 @@ radius; default 0.1): the target is ``clamp(d / radius, -τ, τ)``. The paper tr
 sign field: only the zero crossing is learned); a linear band of a few primary cells keeps what a
 sphere tracer and central-difference normals need -- distances near the surface -- and is the
 paper's choice in the limit τ -> 0. After training the cascaded cells are clamped to [-τ, τ], so
-every interpolated distance lies in the band too: the tracer (lib/sdf.glsl ``sdf_trace``) then
+every interpolated distance lies in the band too: the tracer (lib/sdf.glsl ``sdf_hit``) then
 never steps more than ``τ · radius · step_scale``, i.e. its step is ``min(d, τ) · step_scale``
 by construction, and stays inside the bound sphere. Far from the surface the field is flat at
 +τ (steps of τ, ~2/τ of them across the bound), so ``max_steps`` is sized from τ (``trace_settings``).

@@ -25,9 +25,9 @@ void main() {
     vec3 ro, rd;
     camera_ray(gl_FragCoord.xy, u_size, ro, rd);
     float t;
-    if (sdf_trace(ro, rd, t)) {
+    vec3 n;
+    if (sdf_hit(ro, rd, t, n)) {
         vec3 p = ro + rd * t;
-        vec3 n = sdf_normal(p);
         vec4 tr[PRT_BLOCKS];
         prt_transfer(p, n, tr);
         if (u_prt_debug > 0) {
