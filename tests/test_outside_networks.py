@@ -171,6 +171,44 @@ def test_exporters_shapes_keep_their_layout(gl, tmp_path, shape, batch):
     assert_parity(out, ref, what=f"{shape} through inshade eval")
 
 
+class LastAxisNet(torch.nn.Module):
+    """Written for [..., F] tensors as exporters pass them: normalise along dim 2, a layer, and the
+    input concatenated back along the last axis."""
+
+    def __init__(self):
+        super().__init__()
+        self.layer = torch.nn.Linear(3, 4)
+
+    def forward(self, x):
+        return torch.cat([torch.tanh(self.layer(F.normalize(x, dim=2))), x[..., :1]], dim=2)
+
+
+@pytest.mark.parametrize("example", [(1, 40, 3), (5, 6, 3), (40, 1, 3)])
+def test_torch_route_takes_leading_axes_as_the_batch(gl, tmp_path, example):
+    """The torch route poses [1, N, F], [H, W, F] and [N, 1, F] examples as the ONNX route does:
+    the leading axes are the batch; `inshade eval` takes and gives arrays of that rank."""
+    torch.manual_seed(3)
+    net = LastAxisNet().eval()
+    inshade.export(net, torch.rand(example) * 2 - 1, tmp_path / "b", quiet=True)
+    bundle = load(tmp_path / "b")
+    assert bundle.meta["inputs"][0]["shape"] == [None, None, 3]
+    assert bundle.meta["outputs"][0]["shape"] == [None, None, 5]
+    full = np.random.default_rng(4).uniform(-1, 1, (4, 7, 3)).astype(np.float32)
+    np.save(tmp_path / "in.npy", full)
+    assert main(["eval", str(tmp_path / "b"), str(tmp_path / "in.npy"), "-o", str(tmp_path / "out.npy"), "--quiet"]) == 0
+    out = np.load(tmp_path / "out.npy")
+    with torch.no_grad():
+        ref = net(torch.from_numpy(full)).numpy()
+    assert out.shape == ref.shape == (4, 7, 5)
+    assert_parity(out, ref, what=f"torch route, example {list(example)}")
+
+
+def test_torch_route_refuses_inputs_of_different_batch_axes(tmp_path):
+    with pytest.raises(ConvertError, match=r"example_input: shapes \[2, 3, 3\], \[2, 4, 3\]: every input needs"):
+        inshade.export(torch.nn.Bilinear(3, 3, 2), (torch.rand(2, 3, 3), torch.rand(2, 4, 3)), tmp_path / "b")
+    assert not (tmp_path / "b").exists()
+
+
 class SineLayer(torch.nn.Module):
     """INR_collection's SIREN layer: sin(omega0 (W x + b)), the first layer's weights in
     [-1/in, 1/in], the others in [-sqrt(6/in)/omega0, sqrt(6/in)/omega0]."""

@@ -26,7 +26,8 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
            check: bool = True, as_: str | None = None, force: bool = False, quiet: bool = False,
            limits: dict | None = None, check_storage: str = "auto", semantics: dict | None = None):
     """Capture ``module`` on ``example_input`` (a [batch, features] tensor, or a tuple of them, one
-    per input), lower it onto bundle components, check its GLSL against the module through the GL
+    per input; an input of higher rank, e.g. [1, N, F] or [H, W, F], takes its leading axes as the
+    batch, and `inshade eval` then takes and gives arrays of that rank), lower it onto bundle components, check its GLSL against the module through the GL
     driver (unless ``check=False``), and write the bundle into ``folder`` (refused if it holds
     files, unless ``force``). ``as_``: what the network is, for ``inshade render`` / ``view``
     ("image": uv -> colour; "sdf": xyz -> distance; "field": xyz + direction -> rgb + density).
@@ -39,7 +40,7 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
 
     from inshade import asset_folder
 
-    from .torch_module import TRACE_BATCH, TorchLowering, capture
+    from .torch_module import TRACE_BATCH, LeadingAxes, TorchLowering, capture
 
     if not isinstance(module, torch.nn.Module):
         raise ConvertError(f"module: expected a torch.nn.Module, got {type(module).__name__}")
@@ -50,6 +51,10 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
         if not isinstance(x, torch.Tensor) or x.ndim < 2 or not x.is_floating_point():
             what = f"a {x.ndim}-D {x.dtype} tensor" if isinstance(x, torch.Tensor) else type(x).__name__
             raise ConvertError(f"example_input[{i}]: expected a [batch, features] float tensor, got {what}")
+    lead = max(x.ndim for x in examples) - 1   # batch axes: all but the last (features)
+    if lead > 1 and len({tuple(x.shape[:-1]) for x in examples}) != 1:
+        shapes = ", ".join(str(list(x.shape)) for x in examples)
+        raise ConvertError(f"example_input: shapes {shapes}: every input needs the same leading (batch) axes")
     if len({len(x) for x in examples}) != 1:
         raise ConvertError("example_input: every input needs the same number of rows (the batch)")
     names = list(input_names or (["x"] if len(examples) == 1 else [f"x{i}" for i in range(len(examples))]))
@@ -58,11 +63,16 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     folder = Path(folder)
     asset_folder.claim(folder, folder.name, force=force, option="folder", force_option="force=True")
 
-    # the trace batch: the example's rows, repeated to TRACE_BATCH (the batch axis is found by its size)
-    trace = [x.detach().float().cpu()[torch.arange(TRACE_BATCH) % len(x)] for x in examples]
+    # the trace batch: the example's rows, repeated to TRACE_BATCH (the batch axis is found by its size).
+    # An input of rank > 2 ([1, N, F], [H, W, F]) takes its leading axes as the batch: it is traced
+    # as [1, .., 1, TRACE_BATCH, F], and its rows are the leading axes flattened.
+    rows = [x.detach().float().cpu().reshape(-1, x.shape[-1]) if lead > 1 else x.detach().float().cpu()
+            for x in examples]
+    posed = (1,) * (lead - 1)
+    trace = [r[torch.arange(TRACE_BATCH) % len(r)].reshape(*posed, TRACE_BATCH, *r.shape[1:]) for r in rows]
     gm, consts, user = capture(module, tuple(trace))
     lowering = Lowering()
-    specs = [(n, tuple(int(d) for d in x.shape[1:]), "generic") for n, x in zip(names, examples)]
+    specs = [(n, tuple(int(d) for d in x.shape[1:]), "generic", lead) for n, x in zip(names, rows)]
     outputs = TorchLowering(lowering, consts, TRACE_BATCH).run(gm, user, specs)
     flat = _flat(outputs)
     out_names = list(output_names or (["y"] if len(flat) == 1 else [f"y{i}" for i in range(len(flat))]))
@@ -71,12 +81,13 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     for out_name, f in zip(out_names, flat):
         if not hasattr(f, "lanes"):
             raise ConvertError(f"output {out_name!r} is a constant (it does not depend on the input)")
-        lowering.output(out_name, f)
+        lowering.output(out_name, f, leading=lead)
     provenance = {"source": "torch", "module": type(module).__qualname__, "exported_by": "inshade.export",
                   "torch": torch.__version__,
                   "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
-    return finish(bundle, module, [x.detach().float().cpu().numpy() for x in examples], folder, check=check,
+    source = module if lead == 1 else LeadingAxes(module, lead)
+    return finish(bundle, source, [r.numpy() for r in rows], folder, check=check,
                   force=force, quiet=quiet, limits=limits, as_=as_, check_storage=check_storage, semantics=semantics)
 
 

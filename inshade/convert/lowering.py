@@ -422,9 +422,11 @@ class Lowering:
         return out.reshape(*coords.shape[:-1], channels)
 
     # --- outputs and the bundle ------------------------------------------------------------
-    def output(self, name: str, f: Feat, semantic: str = "generic", batch_axes: int = 1) -> None:
+    def output(self, name: str, f: Feat, semantic: str = "generic", batch_axes: int = 1, leading: int = 1) -> None:
         """An output port: its row is ``f`` with the batch axis taken out, the other axes in order;
-        ``batch_axes``: how many axes of the source's tensor the batch axis stands for."""
+        ``batch_axes``: how many axes of the source's tensor the batch axis stands for; ``leading``:
+        the inputs' batch axes were [1, .., 1, batch] (a traced [H, W, F]), so an output that keeps
+        them in front has them all as batch axes."""
         f = self.resolve(f)
         if any(o["name"] == name for o in self.outputs):
             raise ConvertError(f"output {name!r} is named twice")
@@ -437,6 +439,8 @@ class Lowering:
             vid = self._node("identity", sources, {}, f.lanes.size)
         port = {"name": name, "node": vid, "semantic": semantic}
         shape = [*f.shape[:f.batch], *[None] * batch_axes, *f.shape[f.batch + 1:]]
+        if leading > 1 and f.batch == leading - 1 and all(n == 1 for n in f.shape[:f.batch]):
+            shape = [None] * leading + shape[leading:]
         if shape != [None, f.lanes.size]:
             port["shape"] = shape
         self.outputs.append(port)

@@ -26,6 +26,19 @@ from .lowering import (ConvertError, Feat, Lowering, const_against, expand, grid
 TRACE_BATCH = 97
 
 
+class LeadingAxes(torch.nn.Module):
+    """``module`` called on rows: each input [N, F] posed as [1, .., 1, N, F] (``lead`` batch axes),
+    each output's leading axes flattened back to rows (the parity check feeds and compares rows)."""
+
+    def __init__(self, module, lead: int):
+        super().__init__()
+        self.module, self.lead = module, lead
+
+    def forward(self, *xs):
+        out = self.module(*[x.reshape(*(1,) * (self.lead - 1), *x.shape) for x in xs])
+        return torch.utils._pytree.tree_map(lambda t: t.reshape(-1, *t.shape[self.lead:]), out)
+
+
 # --- capture ---------------------------------------------------------------------------------
 
 @contextlib.contextmanager
@@ -154,16 +167,19 @@ class TorchLowering:
         self.L, self.consts, self.batch = lowering, consts, batch
 
     def run(self, gm, user_inputs: list[str], input_specs: list[tuple[str, tuple, str]]):
-        """``input_specs``: (port name, shape of one row, semantic) per user input."""
+        """``input_specs``: (port name, shape of one row, semantic[, batch axes]) per user input; an
+        input of several batch axes was traced as [1, .., 1, TRACE_BATCH, *row]."""
         env = {}
         feeds = dict(zip(user_inputs, input_specs))
         outputs = None
         for node in gm.graph.nodes:
             if node.op == "placeholder":
                 if node.name in feeds:
-                    name, row, semantic = feeds[node.name]
-                    f = self.L.input(name, int(np.prod(row)), semantic)
-                    env[node] = Feat(f.lanes.reshape((1, *row)), 0)
+                    name, row, semantic, *lead = feeds[node.name]
+                    lead = lead[0] if lead else 1
+                    shape = [None] * lead + list(row) if lead > 1 else None
+                    f = self.L.input(name, int(np.prod(row)), semantic, shape=shape)
+                    env[node] = Feat(f.lanes.reshape((1,) * lead + tuple(row)), lead - 1)
                 else:
                     env[node] = self.consts[node.name]
             elif node.op == "get_attr":
