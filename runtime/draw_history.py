@@ -23,6 +23,7 @@ def _path() -> Path:
     return cache_dir() / "draws.json"
 
 
+_DROP = object()   # record(key=_DROP) removes the field
 _MEMO: dict = {}   # the file as last read, by (path, mtime, size): a frame asks without re-reading
 
 
@@ -50,7 +51,11 @@ def record(renderer: str, key: str, **values) -> None:
 
     data = dict(_read())   # the memo stays as read; the file is the record
     name = f"{renderer}|{key}"
-    data[name] = {**(data.get(name) if isinstance(data.get(name), dict) else {}), **values}
+    entry = {**(data.get(name) if isinstance(data.get(name), dict) else {}), **values}
+    entry = {k: v for k, v in entry.items() if v is not _DROP}
+    data.pop(name, None)
+    if entry:
+        data[name] = entry   # last written goes last: the oldest entries go first below
     if len(data) > MAX_ENTRIES:   # the oldest entries go first (dicts keep insertion order)
         data = dict(list(data.items())[-MAX_ENTRIES:])
     try:
@@ -63,3 +68,41 @@ def record(renderer: str, key: str, **values) -> None:
 def shader_cache_on() -> bool:
     """Mesa keeps compiled shaders between runs unless MESA_SHADER_CACHE_DISABLE says not to."""
     return os.environ.get("MESA_SHADER_CACHE_DISABLE", "").lower() not in ("1", "true", "yes")
+
+
+def mesa_cache_dir() -> Path:
+    """Where Mesa keeps compiled shaders between runs (MESA_SHADER_CACHE_DIR, else the XDG cache)."""
+    if os.environ.get("MESA_SHADER_CACHE_DIR"):
+        return Path(os.environ["MESA_SHADER_CACHE_DIR"])
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "mesa_shader_cache"
+
+
+def compile_started(renderer: str, key: str, what: str) -> str | None:
+    """Marks ``key`` as being compiled by this process, and returns a warning if the last process
+    that compiled it ended during the compile (killed, or crashed in the driver): a compile cut off
+    while the driver wrote its shader cache can leave an entry that crashes every later run."""
+    last = lookup(renderer, key).get("compiling")
+    record(renderer, key, compiling={"pid": os.getpid(), "what": what})
+    if not isinstance(last, dict) or last.get("pid") == os.getpid() or _alive(last.get("pid")):
+        return None
+    said = f"the last compile of {last.get('what') or what} on this machine did not finish (its process ended during it)"
+    if not shader_cache_on():
+        return said
+    return (f"{said}; if the driver crashes now, its shader cache holds a broken entry: run again with "
+            f"MESA_SHADER_CACHE_DISABLE=true, or remove {mesa_cache_dir()}")
+
+
+def compile_finished(renderer: str, key: str) -> None:
+    record(renderer, key, compiling=_DROP)
+
+
+def _alive(pid) -> bool:
+    if not isinstance(pid, int) or pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:   # exists, owned by someone else
+        return True
+    return True

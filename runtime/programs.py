@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import logging
 import os
 import re
 import tempfile
@@ -12,9 +14,17 @@ import moderngl
 
 from inshade.shaders import Assembled, ShaderCompileError, assemble, explain_compile_error
 
+from . import draw_history
+
+log = logging.getLogger("inshade")
 # moderngl's compile log: "GLSL Compiler failed\n\nfragment_shader\n=====\n<driver log>";
 # a link failure is "GLSL Linker failed\n\nProgram\n=====\n<driver log>".
 _STAGE_HEADING = re.compile(r"^(vertex_shader|fragment_shader)\n=+\n", re.MULTILINE)
+
+
+def program_key(key: tuple[str, str]) -> str:
+    """A stable name of a program's sources (both stages' assembly keys)."""
+    return hashlib.sha256(repr(key).encode()).hexdigest()[:24]
 
 
 def default_dump_dir() -> Path:
@@ -51,21 +61,25 @@ class ProgramCache:
         key = (vertex.key, fragment.key)
         if key not in self._programs:
             start = time.perf_counter()
+            renderer, name = self.ctx.info["GL_RENDERER"], program_key(key)
+            warning = draw_history.compile_started(renderer, name, fragment_entry)
+            if warning:
+                log.warning("%s", warning)
             try:
                 program = self.ctx.program(vertex_shader=vertex.source, fragment_shader=fragment.source)
             except moderngl.Error as exc:
                 raise self._explain(str(exc), vertex, fragment) from None
+            finally:
+                draw_history.compile_finished(renderer, name)
             self._programs[key] = (program, time.perf_counter() - start)
         program, self.last_compile_seconds = self._programs[key]
         return program
 
     def key_of(self, program: moderngl.Program) -> str:
         """A stable name of ``program``'s sources (both stages' assembly keys), '' if not cached here."""
-        import hashlib
-
         for key, (cached, _) in self._programs.items():
             if cached is program:
-                return hashlib.sha256(repr(key).encode()).hexdigest()[:24]
+                return program_key(key)
         return ""
 
     def discard(self, program: moderngl.Program) -> None:

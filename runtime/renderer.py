@@ -446,10 +446,19 @@ class SceneRenderer:
             log.warning("this view took about %s to draw last time at these settings (scaled to this size)",
                         format_seconds(estimate))
         what = "compiling" if announce and announce.startswith("compiling") else "drawing"
-        with waiting(f"{what} {self.scene.name}", enabled=bool(announce) or estimate >= SLOW_FRAME_S) as w:
-            self._net_pass.render(target, uniforms=uniforms)
-            if self.first_draw_pending or w.enabled:
-                self.ctx.finish()
+        marked = self.first_draw_pending and program_key and self.gl.get("software")
+        if marked:   # a software driver compiles at the first draw: a crash here is a compile's
+            warning = draw_history.compile_started(renderer, program_key, f"{self.scene.name} ({self.scene.program})")
+            if warning:
+                log.warning("%s", warning)
+        try:
+            with waiting(f"{what} {self.scene.name}", enabled=bool(announce) or estimate >= SLOW_FRAME_S) as w:
+                self._net_pass.render(target, uniforms=uniforms)
+                if self.first_draw_pending or w.enabled:
+                    self.ctx.finish()
+        finally:   # an exception is not a crash: the mark goes either way
+            if marked:
+                draw_history.compile_finished(renderer, program_key)
         if self.first_draw_pending:
             self.first_draw_seconds = w.seconds
             self.first_draw_pending = False
