@@ -121,6 +121,7 @@ class EmitContext:
     resources: list = field(default_factory=list)
     plan: list[PlanRow] = field(default_factory=list)
     storage: dict = field(default_factory=dict)   # dense node id -> (mode, why)
+    loop_chunks: dict = field(default_factory=dict)   # looped dense node id -> (blocks per iteration, why)
 
     def option(self, component_type: str, name: str):
         return self.options[component_type][name]

@@ -31,6 +31,19 @@ GL33_MINIMUMS = {
 }
 
 
+# Mesa's llvmpipe ends every loop of a pixel once its loops, all together, have iterated 65535
+# times (LP_MAX_TGSI_LOOP_ITERATIONS, shared by every loop in a shader): the work past it is lost
+# without an error, e.g. a sphere tracer calling a looped network stops marching. No other driver
+# measured has such a cap.
+LOOP_ITERATION_CAPS = {"llvmpipe": 65535}
+
+
+def loop_iteration_cap(limits: dict) -> int | None:
+    """The driver's cap on a pixel's loop iterations (all loops together), or None."""
+    renderer = str(limits.get("renderer", limits.get("GL_RENDERER", ""))).lower()
+    return next((cap for name, cap in LOOP_ITERATION_CAPS.items() if name in renderer), None)
+
+
 class LimitError(ValueError):
     """A network (or one of its GL resources) does not fit the context's limits. The message
     names the node or resource, the limit and both values; planned against a GL 3.3 minimum, it

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .glsl import PlanRow, TextureResource, UniformBlockResource, blocks, mat4, vec4
-from .limits import LimitError, limit, source
+from .limits import LimitError, limit, loop_iteration_cap, source
 from .registry import emitter
 from .values import declare
 
@@ -39,6 +39,7 @@ SPLIT = 4                    # partial sums per output block (breaks the add dep
 UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
                              # on unrolled UBO gathers: 32x3 took minutes); GPUs don't mind loops
 LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (measured best)
+NIR_UNROLL_MAX = 32          # loops of more iterations stay loops (Mesa NIR's max_unroll_iterations)
 UNROLL_MAX_BLOCKS = 4096     # inline layers beyond this loop over a const array instead
 # auto: whole networks at most this many floats become literals. On GPUs (4096, ~ 32 wide x 3)
 # UBOs are as fast as literals and compile in a fraction of the time. On software renderers
@@ -104,6 +105,44 @@ def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str,
         else:
             out[n.id] = ("texture", "no uniform block binding left (GL_MAX_FRAGMENT_UNIFORM_BLOCKS)")
     return out
+
+
+def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str, tuple[int, str]]:
+    """Output blocks per iteration of each looped dense layer, and why. A driver that caps a
+    pixel's loop iterations (limits.loop_iteration_cap) must fit ``calls`` evaluations (a march's
+    steps, each one iteration of the caller's loop) of every loop here: the layers with the most
+    iterations unroll more (chunk x2, up to no loop over outputs) until they fit, else LimitError."""
+    chunks, shapes = {}, {}
+    for n in bundle.nodes:
+        if n.type != "dense":
+            continue
+        mode = storage[n.id][0]
+        ob, ib = blocks(n.out_dim), blocks(n.in_dim)
+        if (mode == "texture" or (mode == "ubo" and ob * ib > UBO_UNROLL_MAX_BLOCKS)
+                or (mode == "inline" and ob * ib > UNROLL_MAX_BLOCKS)):
+            chunk = LOOP_CHUNK.get(mode, 1)
+            chunks[n.id], shapes[n.id] = (chunk if ob % chunk == 0 else 1), (ob, ib)
+    cap = loop_iteration_cap(limits)
+    if cap is None or not chunks:
+        return {k: (c, "") for k, c in chunks.items()}
+
+    def count(k):   # the loop over outputs, and per pass the loop over inputs unless it unrolls
+        ob, ib = shapes[k]
+        passes = max(1, ob // chunks[k])
+        return (passes if ob > chunks[k] else 0) + passes * (ib if ib > NIR_UNROLL_MAX else 0)
+    budget, base = max(0, (cap - calls) // calls), dict(chunks)
+    while sum(count(k) for k in chunks) > budget:
+        open_ = [k for k in chunks if chunks[k] < shapes[k][0]]
+        if not open_:
+            raise LimitError(f"nodes {', '.join(chunks)}: {sum(count(k) for k in chunks)} loop iterations per "
+                             f"evaluation x {calls} evaluations per pixel exceed this driver's {cap} (it ends "
+                             f"every loop of a pixel there); use fewer march steps or a narrower network")
+        k = max(open_, key=count)
+        ob = shapes[k][0]
+        chunks[k] = chunks[k] * 2 if ob % (chunks[k] * 2) == 0 else ob
+    why = (f"; unrolled x{{}}: this driver ends a pixel's loops after {cap} iterations in all, "
+           f"and the caller evaluates this network {calls} times")
+    return {k: (c, why.format(c) if c != base[k] else "") for k, c in chunks.items()}
 
 
 def ubo_bytes(node) -> int:
@@ -196,7 +235,6 @@ def _emit_unrolled(ctx, out, wb, bias_expr, terms):
 
 def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
     """for o in chunks of output blocks: acc = bias; for i: acc += W(o, i) * x[i]."""
-    chunk = chunk if ob % chunk == 0 else 1
     obase = "o" if ob > chunk else "0"
     lines = [f"for (int o = 0; o < {ob}; o += {chunk}) {{" if ob > chunk else "{"]
     lines += [f"    vec4 acc{c} = {bias_expr(f'{obase} + {c}')};" for c in range(chunk)]
@@ -216,6 +254,8 @@ def emit_dense(ctx, node, src, bundle):
     wb, bb = pack(weight, bias)
     ob, ib = wb.shape[:2]
     mode, why = ctx.storage[node.id]
+    chunk, unrolled = ctx.loop_chunks.get(node.id, (1, ""))
+    why += unrolled
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     ctx.body.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim} ({ob}x{ib} mat4 blocks, {mode})")
     row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
@@ -232,7 +272,7 @@ def emit_dense(ctx, node, src, bundle):
             ctx.globals.append(f"const mat4 {name}_W[{ob * ib}] = mat4[](\n    "
                                + ",\n    ".join(mat4(wb[o, i]) for o in range(ob) for i in range(ib)) + ");")
             ctx.globals.append(f"const vec4 {name}_b[{ob}] = vec4[](" + ", ".join(vec4(b) for b in bb) + ");")
-            _emit_loop(ctx, out, ob, ib, 1, lambda o: f"{name}_b[{o}]", lambda o, i: f"{name}_W[({o}) * {ib} + {i}]", src)
+            _emit_loop(ctx, out, ob, ib, chunk, lambda o: f"{name}_b[{o}]", lambda o, i: f"{name}_W[({o}) * {ib} + {i}]", src)
     elif mode == "ubo":
         data = std140(wb, bb)
         ctx.globals.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim}, std140 block of {len(data)} B")
@@ -245,7 +285,7 @@ def emit_dense(ctx, node, src, bundle):
                            lambda o, i: _column_terms(i, node.in_dim, f"{x}[{i}]",
                                                       lambda k: f"{name}.W[{o * ib + i}][{k}]"))
         else:
-            _emit_loop(ctx, out, ob, ib, LOOP_CHUNK["ubo"], lambda o: f"{name}.b[{o}]",
+            _emit_loop(ctx, out, ob, ib, chunk, lambda o: f"{name}.b[{o}]",
                        lambda o, i: f"{name}.W[({o}) * {ib} + {i}]", src)
     elif mode == "texture":
         tex = ctx.weight_texture
@@ -255,7 +295,7 @@ def emit_dense(ctx, node, src, bundle):
         def fetch(o, i):
             r, c = f"{row0} + {o}", f"1 + 4 * {i}"
             return ("mat4(" + ", ".join(f"texelFetch({t}, ivec2({c} + {k}, {r}), 0)" for k in range(4)) + ")")
-        _emit_loop(ctx, out, ob, ib, LOOP_CHUNK["texture"],
+        _emit_loop(ctx, out, ob, ib, chunk,
                    lambda o: f"texelFetch({t}, ivec2(0, {row0} + {o}), 0)", fetch, src)
         row.fetches = ob * (1 + 4 * ib)
         row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.option("dense", "texture_format") == "f2" else 1)

@@ -25,7 +25,7 @@ from . import activations, binary, encodings, feature_ops, hash_grid, latent_pyr
 from .glsl import EmitContext, PlanRow, TextureResource, UniformBlockResource, blocks
 from .limits import LimitError, limit, source
 from .lookup_array import FILTERS
-from .mlp import STORAGE_MODES, TEXTURE_FORMATS, WeightTexture, choose_storage
+from .mlp import STORAGE_MODES, TEXTURE_FORMATS, WeightTexture, choose_storage, loop_chunks
 from .plan import Plan
 from .registry import EMITTERS, OPTIONS, SEPARATE_INPUTS, resolve_options
 from .values import Value, gather
@@ -65,7 +65,7 @@ class Generated:
 
 
 def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330", prefix: str = "net",
-             limits: dict | None = None, **shorthands) -> Generated:
+             limits: dict | None = None, calls: int = 1, **shorthands) -> Generated:
     """The bundle's GLSL function, resources and plan.
 
     ``options``: per component type, e.g. ``{"dense": {"storage": "ubo"}, "lookup_array": {"filter":
@@ -77,7 +77,8 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
     e.g. ``{"GL_MAX_TEXTURE_SIZE": 4096}``). A missing limit means the GL 3.3 minimum
     (``codegen.limits.GL33_MINIMUMS``: 16 KiB uniform blocks, 1024-texel textures), so code
     generated without limits runs on every GL 3.3 driver; the plan records each limit's use, value
-    and source.
+    and source. ``calls``: how many times one pixel evaluates the function in the caller's loop
+    (a march's steps), for a driver that caps a pixel's loop iterations (``limits.loop_iteration_cap``).
     """
     if target not in TARGETS:
         raise ValueError(f"unknown target {target!r} (choose from {', '.join(TARGETS)})")
@@ -96,6 +97,7 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
     limits = dict(limits or {})
     ctx = EmitContext(prefix, target, options, limits)
     ctx.storage = choose_storage(bundle, storage, limits)
+    ctx.loop_chunks = loop_chunks(bundle, ctx.storage, limits, calls)
     ctx.weight_texture = WeightTexture(ctx)
 
     values, off, uint_lanes, lane = {}, {"float": 0, "uint": 0}, [], 0

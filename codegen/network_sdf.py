@@ -126,6 +126,9 @@ def _numbers(v, n, where, fld) -> list[float]:
     return [float(x) for x in v]
 
 
+NORMAL_TAPS = 6   # lib/sdf's SDF_NORMAL_TAPS: central differences on three axes
+
+
 def network_sdf_chunk(scene: NetworkSdfScene, generated: Generated) -> str:
     """The ``sdf_scene`` chunk around a generated network (its function from ``generated``)."""
     tr = scene.trace
@@ -164,5 +167,6 @@ def network_sdf_chunks(bundle: Bundle, prefix: str = DEFAULT_PREFIX, scene: Netw
     ``scene`` overrides the bundle's ``render.sdf`` (e.g. a torch module's, before export)."""
     check_io(bundle)
     scene = scene if scene is not None else NetworkSdfScene.from_bundle(bundle)
-    generated = generate(bundle, prefix=prefix, **generate_options)
+    calls = int(scene.trace["max_steps"]) + NORMAL_TAPS   # sdf_hit's loop: the march, then the taps
+    generated = generate(bundle, prefix=prefix, calls=calls, **generate_options)
     return {SDF_CHUNK: network_sdf_chunk(scene, generated), NETWORK_CHUNK: generated.chunk}, generated
