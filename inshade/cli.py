@@ -81,7 +81,7 @@ def _int_at_least(minimum: int, not_int: str, too_small: str):
     return parse
 
 
-_count = _int_at_least(1, "must be an integer", "must be >= 1")   # --spp
+_count = _int_at_least(1, "must be an integer", "must be >= 1")   # --spp, --calls
 
 
 def _size(text: str) -> int:
@@ -268,7 +268,7 @@ def _codegen(args, b, prefix, output) -> int:
 
     limits = "query" if not args.no_gl else {}   # plan against this machine's limits when it can make a context
     gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
-                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits)
+                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits, calls=args.calls)
     if output == STDOUT:   # the GLSL alone on stdout; the plan goes to stderr
         if gen.resources:
             raise UserError(f"-o -: this GLSL binds {len(gen.resources)} resources "
@@ -733,6 +733,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--target", choices=TARGETS, default="330", help="GLSL target")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")
+    p.add_argument("--calls", type=_count, default=1, metavar="N",
+                   help="how many times your shader evaluates the function per pixel (e.g. a march's steps): on "
+                        "a driver that caps a pixel's loop iterations (llvmpipe) the dense loops unroll to fit")
     p.add_argument("--prefix", help="name prefix of the generated symbols (default: the network's prefix in "
                                     "the asset's scene.json, else net)")
     p.add_argument("--no-gl", action="store_true", help="plan against GL 3.3's minimum limits instead of this "

@@ -93,3 +93,16 @@ def test_the_budget_unrolls_only_what_it_needs(tmp_path):
     assert [c for c, _ in loop_chunks(bundle, storage, llvmpipe, CALLS).values()] == [2, 1]
     with pytest.raises(LimitError, match=r"exceed this driver's 65535 .*fewer march steps"):
         loop_chunks(bundle, storage, llvmpipe, 2000)   # 40 inputs a pass is the floor: 2000 x 40 > 65535
+
+
+def test_codegen_says_which_layer_unrolled_for_the_callers_loop(gl, tmp_path, capsys):
+    from inshade.cli import main
+
+    deep_bundle(tmp_path / "b")
+    assert main(["codegen", str(tmp_path / "b"), "--storage", "texture", "--calls", str(CALLS)]) == 0
+    report = capsys.readouterr().out
+    if loop_iteration_cap(gl_info(gl)) is not None:
+        assert "unrolled x2: this driver ends a pixel's loops after 65535 iterations in all" in report
+    with pytest.raises(SystemExit):
+        main(["codegen", str(tmp_path / "b"), "--calls", "0"])
+    assert "--calls: must be >= 1, got 0" in capsys.readouterr().err
