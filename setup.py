@@ -10,5 +10,13 @@ FIXED = ["inshade", "inshade.bench", "inshade.convert", "inshade.codegen", "insh
          "inshade.viewer", "inshade.shaders", "inshade.techniques", "inshade.web"]
 TECHNIQUES = sorted(f"inshade.techniques.{d.name}" for d in (HERE / "techniques").iterdir()
                     if (d / "__init__.py").is_file())
+# The GLSL folders and the web page's folder are data packages (their files ship through
+# package-data): listed, so the build neither skips nor warns about them.
+SHADER_ROOTS = [("inshade.shaders", HERE / "shaders")] + [
+    (f"{t}.shaders", HERE / "techniques" / t.rsplit(".", 1)[1] / "shaders") for t in TECHNIQUES]
+SHADER_FOLDERS = sorted({
+    ".".join([name, *d.relative_to(root).parts])
+    for name, root in SHADER_ROOTS if root.is_dir()
+    for d in [root, *root.rglob("*")] if d.is_dir() and any(d.glob("*.glsl")) and d != HERE / "shaders"})
 
-setup(packages=FIXED + TECHNIQUES)
+setup(packages=FIXED + TECHNIQUES + SHADER_FOLDERS + ["inshade.web.page"])
