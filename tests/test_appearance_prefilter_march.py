@@ -314,8 +314,8 @@ def test_scale_view_shows_the_footprint_scale(blended, camera, eye, force):
     assert (glsl[~hit] == 0.0).all()
     covered = hit & (glsl[..., 3] > 0.05)
     assert covered.any()
-    shown = 2.0 + glsl[..., 0] / glsl[..., 3] * 3.0   # red = coverage x (L - S_MIN) / (S_MAX - S_MIN)
-    np.testing.assert_allclose(shown[covered], L[covered], rtol=0, atol=2e-3)
+    shown = 2.0 + glsl[..., 0][covered] / glsl[..., 3][covered] * 3.0   # red = coverage x (L - S_MIN) / (S_MAX - S_MIN)
+    np.testing.assert_allclose(shown, L[covered], rtol=0, atol=2e-3)
 
 
 def test_coverage_saturates_behind_opaque_voxels(coarse):

@@ -53,7 +53,7 @@ def fitted_siren(steps=150):
             opt.step()
     finally:
         torch.set_num_threads(threads)
-    return net.eval(), uv, float(loss)
+    return net.eval(), uv, loss.item()
 
 
 def test_siren_image(gl, tmp_path):

@@ -21,6 +21,10 @@ from inshade.convert.onnx_model import convert, run_onnxruntime
 
 from parity import assert_parity
 
+# torch's TorchScript ONNX exporter (dynamo=False, as these packages' users call it) warns on every
+# export about a logging helper of its own: nothing the test or inshade can act on.
+pytestmark = pytest.mark.filterwarnings("ignore:The feature will be removed:DeprecationWarning")
+
 
 class NerfDirections(torch.nn.Module):
     """nerf-pytorch's view directions: normalised with torch.linalg.norm, then a layer."""
