@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from inshade.bundle import Bundle
 
-from . import activations, binary, encodings, feature_ops, hash_grid, latent_pyramid, lookup_array, mesh_features, mlp, proxy, shading_frames, sparse_voxels  # noqa: F401,E501  (register emitters)
+from . import activations, binary, encodings, feature_ops, hash_grid, int_gather, latent_pyramid, lookup_array, mesh_features, mlp, proxy, shading_frames, sparse_voxels  # noqa: F401,E501  (register emitters)
 from .glsl import EmitContext, PlanRow, TextureResource, UniformBlockResource, blocks
 from .limits import LimitError, limit, source
 from .lookup_array import FILTERS

@@ -183,6 +183,50 @@ for _name, _expr in (("sub", "a - b"), ("mul", "a * b"), ("div", "a / b"),
         _name, f"two branches: input [a (n lanes), b (n lanes)] -> {_expr} (n lanes)", {},
         out_dim=lambda p, d: d // 2, in_dim=lambda p, d: d >= 2 and d % 2 == 0, category="layer"))
 
+# integer lanes: uint32 arithmetic, wrapping modulo 2^32 (torch's int64 agrees on every result
+# whose true value lies in 0..2^32-1, which is what a table index must be)
+INT_OPS = {"lane": 1, "const": 1, "add": 2, "sub": 2, "mul": 2, "xor": 2, "and": 2, "or": 2, "shl": 2}
+MAX_INT_PROGRAM = 4096
+MAX_GATHER_ROWS = 1 << 26
+
+
+def _int_gather_checks(p, d):
+    prog = p["program"]
+    for k, op in enumerate(prog):
+        if not (isinstance(op, list) and op and op[0] in INT_OPS and len(op) == 1 + INT_OPS[op[0]]
+                and all(isinstance(a, int) and not isinstance(a, bool) for a in op[1:])):
+            raise ComponentError(f"program[{k}]: {op!r} is not [op, arg...] with op one of {', '.join(INT_OPS)}")
+        name, args = op[0], op[1:]
+        if name == "lane" and not 0 <= args[0] < d:
+            raise ComponentError(f"program[{k}]: lane {args[0]} is not in 0..{d - 1}")
+        if name == "const" and not 0 <= args[0] < 1 << 32:
+            raise ComponentError(f"program[{k}]: constant {args[0]} is not a uint32")
+        if name == "shl" and not (0 <= args[0] < k and 0 <= args[1] < 32):
+            raise ComponentError(f"program[{k}]: shl takes an earlier entry and a shift in 0..31")
+        if name not in ("lane", "const", "shl") and not all(0 <= a < k for a in args):
+            raise ComponentError(f"program[{k}]: {name} must refer to earlier entries")
+    bad = [i for i in p["indices"] if not (isinstance(i, int) and 0 <= i < len(prog))]
+    if bad:
+        raise ComponentError(f"indices: {bad[0]!r} is not an entry of the program")
+
+
+_register(ComponentSpec(
+    "int_gather",
+    "rows of a learned table at computed integer indices: each program entry is a uint32 "
+    "(['lane', k]: input lane k truncated toward 0, as torch's float -> int cast; ['const', c]; "
+    "add, sub, mul, xor, and, or of two earlier entries, shl of an entry by a constant: all modulo 2^32); "
+    "output = table[entry] for each entry in indices, concatenated (zeros where an index is >= the "
+    "table's rows)",
+    {"program": Param(list, check=lambda v: 1 <= len(v) <= MAX_INT_PROGRAM,
+                      doc=f"1..{MAX_INT_PROGRAM} entries"),
+     "indices": Param(list, check=lambda v: 1 <= len(v) <= MAX_WIDTH, doc="program entries used as row indices"),
+     "rows": Param(int, check=_pos_int(MAX_GATHER_ROWS)),
+     "features": Param(int, check=_pos_int(MAX_WIDTH))},
+    out_dim=lambda p, d: len(p["indices"]) * p["features"],
+    tensors=lambda p, d: {"table": TensorSpec((p["rows"], p["features"]), "float32")},
+    category="lookup", extra_checks=_int_gather_checks,
+))
+
 COMPARISONS = ("gt", "ge", "lt", "le")
 _register(ComponentSpec(
     "where", "a comparison choosing between branches: input [a, b, x, y] (n lanes each) -> "

@@ -65,6 +65,8 @@ that leaves the measured envelope:
   of it in GLSL and move the output by the whole step: a note. ``fmod`` / ``remainder`` where
   |x / divisor| can reach 2^128: a warning (torch's vectorised CPU kernel returns NaN there, its
   scalar tail and the shader the exact value).
+- ``int_gather``: the uint32 program and the fetch are exact on both sides; like the stepped ops, a
+  computed value one ulp across an integer lands on another row (a note).
 - ``atan2``: measured <= 2.4e-7. Where the box of its two inputs reaches the negative x axis or the
   origin and they are computed: a note (a 1-ulp discrepancy in a flips the result between pi and
   -pi; near the origin a discrepancy d moves it by d / |(a, b)|).
@@ -359,6 +361,14 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                          "an upstream discrepancy is multiplied by the blob's slope: measured ~2.9e-7 * gain "
                          "(1.6e-5 at n_bins 64 after a 64-input dense)")
                 olo, ohi = np.zeros(n.out_dim), np.ones(n.out_dim)
+            elif t == "int_gather":       # table rows as stored (zeros past the table)
+                table = bundle.tensor(n, "table").astype(np.float64)
+                olo = np.tile(np.minimum(table.min(0), 0.0), len(p["indices"]))
+                ohi = np.tile(np.maximum(table.max(0), 0.0), len(p["indices"]))
+                if not src_exact:
+                    warn(n.id, "integer index from a computed value", float(np.max(_mag(lo, hi))), math.nan,
+                         "exact on both sides, but a value one ulp across an integer picks another row", NOTE)
+                is_exact = src_exact
             elif t == "sparse_voxels":    # one latent row per slot, fetched as stored
                 latents = bundle.tensor(n, "latents").astype(np.float64)
                 olo, ohi = latents.min(0), latents.max(0)

@@ -5,7 +5,7 @@ import torch
 
 from inshade.bundle import FORMAT, VERSION, Bundle
 
-from . import activations, binary, encodings, feature_ops, hash_grid, latent_pyramid, lookup_array, mesh_features, mlp, proxy_lobe, shading_frames, sparse_voxels  # noqa: F401,E501  (register components)
+from . import activations, binary, encodings, feature_ops, hash_grid, int_gather, latent_pyramid, lookup_array, mesh_features, mlp, proxy_lobe, shading_frames, sparse_voxels  # noqa: F401,E501  (register components)
 from .registry import TORCH_COMPONENTS, Component
 
 

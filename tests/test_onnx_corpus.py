@@ -49,6 +49,10 @@ REASONS = {
     "opset": r"opset_import: (opset \d+; inshade reads opsets|no standard ONNX)",
     "domain": r"a node of domain '[^']*': only the standard ONNX operators",
     "outputs too wide": r"outputs: \d+ lanes in all; a pass writes at most",
+    "integer lanes": r"GatherND: a constant table read at computed indices|Gather at computed indices: a constant|"
+                     r"Div of integers|BitShift RIGHT needs|integer remainder by .* power-of-two divisors|"
+                     r"an integer computed by .* is used as a float|combines an integer with|"
+                     r"an integer operation on values that are not integers",
 }
 
 

@@ -1,8 +1,9 @@
 """Networks written the way other people's packages write them, through both ways in: the torch
 route (``inshade.export``) and the ONNX route (``torch.onnx.export``, then ``inshade convert``),
 each checked through the driver; and the inputs and graphs that used to crash or name the wrong
-thing (non-finite example values, per-lane Pow exponents, Clip with min > max, an Embedding
-indexed by a computed integer, exporters' [1, N, F] inputs)."""
+thing (non-finite example values, per-lane Pow exponents, Clip with min > max, exporters' [1, N, F]
+inputs). Integer lanes (an Embedding indexed by a computed integer, a hash encoding) are in
+test_int_lanes.py."""
 from __future__ import annotations
 
 import numpy as np
@@ -92,21 +93,6 @@ def test_both_routes_match(gl, name, tmp_path):
     for route in ("torch", "onnx"):
         out, _, _ = evaluate(load(tmp_path / route), rows)
         assert_parity(out, ref, what=f"{name} by the {route} route")
-
-
-def test_embedding_by_computed_index_says_why(tmp_path):
-    class Lookup(torch.nn.Module):
-        def __init__(self):
-            super().__init__()
-            self.table = torch.nn.Embedding(16, 4)
-
-        def forward(self, x):
-            return self.table((x[:, 0] * 15.99).long())
-
-    with pytest.raises(ConvertError, match=r"test_outside_networks\.py:\d+: torch\.to: converts a computed value to "
-                                           r"torch\.int64 \(an integer index: integer lanes are not lowered\)"):
-        inshade.export(Lookup(), torch.rand(8, 1), tmp_path / "b", quiet=True)
-    assert not (tmp_path / "b").exists()
 
 
 def _model(nodes, inputs, outputs, inits=(), opset=17):

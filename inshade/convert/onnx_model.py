@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .lowering import (ConvertError, Feat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
+from .lowering import (ConvertError, Feat, IntFeat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
                        squeeze, take, unsqueeze)
 
 MIN_OPSET = 13
@@ -228,6 +228,8 @@ class OnnxLowering:
             if self.pose.merged > 1 and node.op_type in LAYOUT_OPS:
                 raise NotPosable(f"{label}: reads whole shapes, while several leading axes are the batch")
             try:
+                if node.op_type not in INT_HANDLERS:   # an integer meets a float op: the float it was cast from
+                    ins = [self.L.int_to_float(v) if isinstance(v, IntFeat) else v for v in ins]
                 results = handler(self, ins, attrs)
             except ConvertError as exc:
                 raise type(exc)(f"{label}: {exc}") from None
@@ -291,6 +293,10 @@ def _unary(kind, **fixed):
 def _arith(op):
     def lower(O, ins, attrs):
         a, b = ins
+        if isinstance(a, IntFeat) or isinstance(b, IntFeat):   # ONNX keeps integers integers
+            if op == "div":
+                raise ConvertError("Div of integers (integer division) is not lowered: Cast to float first")
+            return O.L.int_arithmetic(op, a, b, O.batch)
         return O.L.arithmetic(op, a if isinstance(a, Feat) else np.asarray(a, np.float32),
                               b if isinstance(b, Feat) else np.asarray(b, np.float32), O.batch)
     return lower
@@ -387,7 +393,22 @@ def _dropout(O, ins, attrs):
     return ins[0], None
 
 
+def _int_op(op):
+    def lower(O, ins, attrs):
+        a, b = ins
+        if not (isinstance(a, IntFeat) or isinstance(b, IntFeat)):
+            raise ConvertError("an integer operation on values that are not integers")
+        if op == "shl" and attrs.get("direction") != b"LEFT" and attrs.get("direction") != "LEFT":
+            raise ConvertError("BitShift RIGHT needs the integer's high bits, which a 32-bit lane does not keep")
+        return O.L.int_arithmetic(op, a, b, O.batch)
+    return lower
+
+
 def _cast(O, ins, attrs):
+    if attrs.get("to") in INT_CASTS:
+        return O.L.to_int(ins[0])
+    if isinstance(ins[0], IntFeat) and attrs.get("to") in (1, 11):
+        return O.L.int_to_float(ins[0])
     if attrs.get("to") not in (1, 11):   # float, double (a shader computes both in float32)
         name = O.helper.tensor_dtype_to_string(attrs.get("to")).removeprefix("TensorProto.")
         raise ConvertError(f"Cast to {name}: shader values are float32 (rounding to {name} is not lowered)")
@@ -410,6 +431,9 @@ def _where(O, ins, attrs):
 def _concat(O, ins, attrs):
     feats = [O.L.resolve(v) for v in ins if isinstance(v, Feat)]
     like = feats[0]
+    if isinstance(like, IntFeat):
+        parts = [O.L.int_operand(v, like, O.batch) for v in ins if isinstance(v, Feat) or np.size(v)]
+        return like.moved(np.concatenate([p.lanes for p in parts], O.axis(like, attrs["axis"])))
     axis = O.axis(like, attrs["axis"])
     if axis == like.batch:
         raise ConvertError("concatenates along the batch axis")
@@ -510,10 +534,23 @@ def _transpose(O, ins, attrs):
 
 def _gather(O, ins, attrs):
     f, idx = ins
+    if isinstance(idx, IntFeat):
+        if isinstance(f, Feat) or attrs.get("axis", 0) != 0:
+            raise ConvertError("Gather at computed indices: a constant table along axis 0 is lowered")
+        return O.L.gather(np.asarray(f, np.float32), idx)
     indices = np.asarray(O.const(idx, "Gather indices")).astype(np.int64)
     axis = O.axis(f, attrs.get("axis", 0))
     n = f.shape[axis]
     return take(f, axis, np.where(indices < 0, indices + n, indices))
+
+
+def _gather_nd(O, ins, attrs):
+    """GatherND of a constant table at computed indices [..., 1] (how torch.onnx writes table[idx])."""
+    f, idx = ins
+    if (not isinstance(idx, IntFeat) or isinstance(f, Feat) or attrs.get("batch_dims", 0) or idx.shape[-1] != 1
+            or idx.batch == idx.rank - 1):
+        raise ConvertError("GatherND: a constant table read at computed indices [..., 1] (batch_dims 0) is lowered")
+    return O.L.gather(np.asarray(f, np.float32), squeeze(idx, [idx.rank - 1]))
 
 
 def _expand(O, ins, attrs):
@@ -577,6 +614,8 @@ def _reduce(op):
 
 def _mod(O, ins, attrs):
     a, b = ins
+    if isinstance(a, IntFeat) and not attrs.get("fmod", 0):
+        return O.L.int_arithmetic("remainder", a, O.const(b, "Mod divisor"), O.batch)
     if isinstance(b, Feat) or not isinstance(a, Feat):
         raise ConvertError("Mod of a computed value by a constant divisor is lowered")
     if not attrs.get("fmod", 0):
@@ -617,8 +656,15 @@ HANDLERS = {
     "GridSample": _grid_sample, "ReduceSum": _reduce("sum"), "ReduceMean": _reduce("mean"),
     "ReduceMax": _reduce("max"), "ReduceMin": _reduce("min"), "ReduceL2": _reduce("norm"), "Softmax": _softmax,
     "Einsum": _einsum, "Log": _unary("log"), "Floor": _unary("floor"), "Ceil": _unary("ceil"),
-    "Round": _unary("round"), "Mod": _mod,
+    "Round": _unary("round"), "Mod": _mod, "BitwiseXor": _int_op("xor"), "BitwiseAnd": _int_op("and"),
+    "BitwiseOr": _int_op("or"), "BitShift": _int_op("shl"),
+    "GatherND": _gather_nd,
 }
+INT_CASTS = (6, 7)   # Cast to INT32, INT64: integer lanes
+# ops that take integer tensors as they are (layout, casts, integer arithmetic, table reads)
+INT_HANDLERS = {"Add", "Sub", "Mul", "Div", "Cast", "Concat", "Slice", "Split", "Squeeze", "Unsqueeze", "Reshape",
+                "Flatten", "Transpose", "Gather", "Expand", "Identity", "Mod", "BitwiseXor", "BitwiseAnd", "BitwiseOr",
+                "BitShift", "Shape", "GatherND"}
 # ops that name axes of the whole tensor (or need its full shape): not lowered under merged batch axes
 LAYOUT_OPS = {"Einsum", "Squeeze", "Unsqueeze", "Reshape", "Flatten", "Transpose", "Expand", "Shape", "Gemm", "GridSample",
               "BatchNormalization"}

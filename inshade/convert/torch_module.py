@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .lowering import (ConvertError, Feat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
+from .lowering import (ConvertError, Feat, IntFeat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
                        squeeze, take, unsqueeze)
 
 TRACE_BATCH = 97
@@ -207,6 +207,8 @@ class TorchLowering:
             raise ConvertError(f"{where + ': ' if where else ''}torch.{name} has no shader lowering "
                                "(see inshade convert --ops)")
         try:
+            if name not in INT_HANDLERS:   # an integer meets a float op: the float it was cast from
+                args, kwargs = _map_ints((args, kwargs), self.L.int_to_float)
             return handler(self, node, *args, **kwargs)
         except ConvertError as exc:
             raise ConvertError(f"{where + ': ' if where else ''}torch.{name}: {exc}") from None
@@ -250,6 +252,29 @@ def _has_feat(obj) -> bool:
     if isinstance(obj, dict):
         return any(_has_feat(o) for o in obj.values())
     return False
+
+
+def _map_ints(obj, fn):
+    if isinstance(obj, IntFeat):
+        return fn(obj)
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_map_ints(o, fn) for o in obj)
+    if isinstance(obj, dict):
+        return {k: _map_ints(v, fn) for k, v in obj.items()}
+    return obj
+
+
+def _int_result(node) -> bool:
+    """The traced op's result is an integer tensor (torch's type promotion decided it)."""
+    val = node.meta.get("val")
+    dtype = getattr(val, "dtype", None)
+    return dtype is not None and not dtype.is_floating_point and dtype != torch.bool
+
+
+def _ints(c) -> np.ndarray:
+    if isinstance(c, torch.Tensor):
+        return c.detach().cpu().numpy()
+    return np.asarray(c)
 
 
 def _np(c) -> np.ndarray:
@@ -327,6 +352,14 @@ def _unbind(T, node, f, dim=0):
 
 def _cat(T, node, tensors, dim=0):
     feats = [t for t in tensors if isinstance(t, Feat)]
+    if any(isinstance(t, IntFeat) for t in feats):
+        if not _int_result(node):
+            return _cat(T, node, _map_ints(list(tensors), T.L.int_to_float), dim)
+        like = next(t for t in feats if isinstance(t, IntFeat))
+        parts = [T.L.int_operand(t if isinstance(t, IntFeat) else _ints(t), like, T.batch) for t in tensors]
+        if any(p.batch != like.batch for p in parts):
+            raise ConvertError("concatenates tensors whose batch axes differ")
+        return like.moved(np.concatenate([p.lanes for p in parts], dim % like.rank))
     like = T.L.resolve(feats[0])
     rank = like.rank
     dim = dim % rank
@@ -359,8 +392,13 @@ def _flatten(T, node, f, *_):
 
 
 def _index(T, node, f, indices):
-    """x[..., idx] with constant integer indices on one non-batch axis."""
+    """x[..., idx] with constant integer indices on one non-batch axis, or table[idx] with a
+    computed integer index into a constant table."""
     picks = [(a, i) for a, i in enumerate(indices) if i is not None]
+    if len(picks) == 1 and picks[0][0] == 0 and isinstance(picks[0][1], IntFeat) and not isinstance(f, Feat):
+        return T.L.gather(_np(f), picks[0][1])
+    if any(isinstance(i, IntFeat) for _, i in picks):
+        raise ConvertError("indexing with a computed integer: a constant table's first axis, table[idx], is lowered")
     if len(picks) != 1 or isinstance(picks[0][1], Feat):
         raise ConvertError("indexing: only one constant integer index tensor on one non-batch axis is lowered")
     axis, idx = picks[0]
@@ -383,14 +421,14 @@ def _repeat(T, node, f, repeats):
     batch = f.batch + lead
     if reps[batch] != 1:
         raise ConvertError("repeats the batch axis")
-    return Feat(np.tile(lanes, reps), batch, f.pending)
+    return f.moved(np.tile(lanes, reps), batch)
 
 
 def _flip(T, node, f, dims):
     dims = [d % f.rank for d in dims]
     if f.batch in dims:
         raise ConvertError("flips the batch axis")
-    return Feat(np.flip(f.lanes, dims), f.batch, f.pending)
+    return f.moved(np.flip(f.lanes, dims))
 
 
 def _identity(T, node, f, *args, **kwargs):
@@ -399,11 +437,12 @@ def _identity(T, node, f, *args, **kwargs):
 
 def _to_copy(T, node, f, *args, dtype=None, **kwargs):
     dtype = dtype or next((a for a in args if isinstance(a, torch.dtype)), None)
+    if dtype in INT_DTYPES:
+        return T.L.to_int(f)
     if dtype is not None and dtype not in (torch.float32, torch.float16, torch.float64):
-        kind = ("an integer index: integer lanes are not lowered" if not dtype.is_floating_point and dtype != torch.bool
-                else "shader values are float32")
-        raise ConvertError(f"converts a computed value to {dtype} ({kind})")
-    return f
+        raise ConvertError(f"converts a computed value to {dtype} (shader values are float32 or integer lanes "
+                           f"of {', '.join(str(d) for d in INT_DTYPES)})")
+    return T.L.int_to_float(f) if isinstance(f, IntFeat) else f
 
 
 def _dropout(T, node, f, p=0.5, train=False, *args):
@@ -416,10 +455,38 @@ def _dropout(T, node, f, p=0.5, train=False, *args):
 
 def _arith(op):
     def lower(T, node, a, b, alpha=1, **_):
+        if isinstance(a, IntFeat) or isinstance(b, IntFeat):
+            return _int_or_float_arith(T, node, op, a, b, alpha)
         if op in ("add", "sub") and alpha != 1:
             b = _arith("mul")(T, node, b, alpha)
         return T.L.arithmetic(op, a if isinstance(a, Feat) else _np(a), b if isinstance(b, Feat) else _np(b), T.batch)
     return lower
+
+
+def _int_or_float_arith(T, node, op, a, b, alpha=1):
+    """An integer operand: integer arithmetic where torch's result is an integer, else the float
+    path with the integer as the float it was cast from."""
+    if not _int_result(node):
+        a, b = _map_ints((a, b), T.L.int_to_float)
+        return _arith(op)(T, node, a, b, alpha)
+    if alpha != 1:
+        b = T.L.int_arithmetic("mul", b if isinstance(b, Feat) else _ints(b), _ints(alpha), T.batch)
+    return T.L.int_arithmetic(op, a if isinstance(a, Feat) else _ints(a), b if isinstance(b, Feat) else _ints(b),
+                              T.batch)
+
+
+def _bitwise(op):
+    def lower(T, node, a, b):
+        if not (isinstance(a, IntFeat) or isinstance(b, IntFeat)):
+            raise ConvertError(f"bitwise {op} of float values")
+        return _int_or_float_arith(T, node, op, a, b)
+    return lower
+
+
+def _embedding(T, node, weight, indices, *_):
+    if isinstance(weight, Feat) or not isinstance(indices, IntFeat):
+        raise ConvertError("embedding: a learned table (a parameter) read at computed integer indices is lowered")
+    return T.L.gather(_np(weight), indices)
 
 
 def _like(value):
@@ -452,6 +519,10 @@ def _round(T, node, f, *args, decimals=0):
 
 def _modulo(kind):
     def lower(T, node, a, b):
+        if isinstance(a, IntFeat) and kind == "remainder" and _int_result(node):
+            return T.L.int_arithmetic("remainder", a, _ints(b) if not isinstance(b, Feat) else b, T.batch)
+        if isinstance(a, IntFeat):
+            raise ConvertError(f"{kind} of an integer: torch.remainder (Python's %) by a power of two is lowered")
         if isinstance(b, Feat) or not isinstance(a, Feat):
             raise ConvertError(f"{kind} of a computed value by a constant divisor is lowered")
         return T.L.modulo(a, _np(b), kind)
@@ -686,4 +757,16 @@ HANDLERS = {
     "fmod": _modulo("fmod"), "remainder": _modulo("remainder"), "atan2": _atan2, "arctan2": _atan2, "_assert_tensor_metadata": _no_op, "selu": _selu,
     "gt": _compare("gt"), "ge": _compare("ge"), "lt": _compare("lt"), "le": _compare("le"), "where": _where_op,
     "grid_sampler": _grid_sample, "grid_sampler_2d": _grid_sample, "grid_sampler_3d": _grid_sample,
+    # integer lanes
+    "bitwise_xor": _bitwise("xor"), "bitwise_and": _bitwise("and"), "bitwise_or": _bitwise("or"),
+    "bitwise_left_shift": _bitwise("shl"), "__lshift__": _bitwise("shl"), "embedding": _embedding,
+}
+INT_DTYPES = (torch.int32, torch.int64)
+# handlers that take integer tensors as they are (layout, casts, integer arithmetic, table reads)
+INT_HANDLERS = {
+    "view", "reshape", "_unsafe_view", "flatten", "unflatten", "permute", "transpose", "t", "unsqueeze", "squeeze",
+    "expand", "slice", "select", "narrow", "split", "split_with_sizes", "chunk", "unbind", "cat", "concat", "stack",
+    "index", "index_select", "repeat", "flip", "contiguous", "clone", "alias", "detach", "_to_copy", "to",
+    "add", "sub", "mul", "rsub", "remainder", "bitwise_xor", "bitwise_and", "bitwise_or", "bitwise_left_shift",
+    "__lshift__", "embedding", "_assert_tensor_metadata", "expand_as",
 }
