@@ -23,6 +23,8 @@ LLVM 15, 256-bit, 2 cores; see the bench report for numbers):
   be inactive, so the scalar fast path is off): ubo and texture run 10-20x slower than inline
   there, and unrolled UBO code takes minutes to JIT. Hence big layers loop (small code), and
   on software renderers `auto` keeps literals up to a much larger size.
+- Runs of identical texture layers loop over the layers too (layer_loop.py): code emitted once
+  is JIT-compiled once.
 """
 from __future__ import annotations
 
@@ -111,7 +113,9 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
     """Output blocks per iteration of each looped dense layer, and why. A driver that caps a
     pixel's loop iterations (limits.loop_iteration_cap) must fit ``calls`` evaluations (a march's
     steps, each one iteration of the caller's loop) of every loop here: the layers with the most
-    iterations unroll more (chunk x2, up to no loop over outputs) until they fit, else LimitError."""
+    iterations unroll more (chunk x2, up to no loop over outputs) until they fit, else LimitError.
+    Runs folded into a loop over layers add an iteration a layer: layer_loop.fold_runs folds
+    only while those fit the same budget."""
     chunks, shapes = {}, {}
     for n in bundle.nodes:
         if n.type != "dense":
@@ -126,11 +130,9 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
     if cap is None or not chunks:
         return {k: (c, "") for k, c in chunks.items()}
 
-    def count(k):   # the loop over outputs, and per pass the loop over inputs unless it unrolls
-        ob, ib = shapes[k]
-        passes = max(1, ob // chunks[k])
-        return (passes if ob > chunks[k] else 0) + passes * (ib if ib > NIR_UNROLL_MAX else 0)
-    budget, base = max(0, (cap - calls) // calls), dict(chunks)
+    def count(k):
+        return loop_iterations(*shapes[k], chunks[k])
+    budget, base = loop_budget(cap, calls), dict(chunks)
     while sum(count(k) for k in chunks) > budget:
         open_ = [k for k in chunks if chunks[k] < shapes[k][0]]
         if not open_:
@@ -143,6 +145,19 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
     why = (f"; unrolled x{{}}: this driver ends a pixel's loops after {cap} iterations in all, "
            f"and the caller evaluates this network {calls} times")
     return {k: (c, why.format(c) if c != base[k] else "") for k, c in chunks.items()}
+
+
+def loop_iterations(ob: int, ib: int, chunk: int) -> int:
+    """A looped layer's iterations per evaluation: the loop over outputs (unless one pass does
+    them all), and per pass the loop over inputs unless the compiler unrolls it."""
+    passes = max(1, ob // chunk)
+    return (passes if ob > chunk else 0) + passes * (ib if ib > NIR_UNROLL_MAX else 0)
+
+
+def loop_budget(cap: int, calls: int) -> int:
+    """Loop iterations one evaluation may take when the caller's loop runs it ``calls`` times
+    (each of the caller's iterations counts too)."""
+    return max(0, (cap - calls) // calls)
 
 
 def ubo_bytes(node) -> int:
@@ -233,18 +248,45 @@ def _emit_unrolled(ctx, out, wb, bias_expr, terms):
         ctx.body.append("\n".join(lines))
 
 
-def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
+def loop_lines(out: str, ob, ib, chunk, bias_expr, w_expr, src: str) -> list[str]:
     """for o in chunks of output blocks: acc = bias; for i: acc += W(o, i) * x[i]."""
     obase = "o" if ob > chunk else "0"
     lines = [f"for (int o = 0; o < {ob}; o += {chunk}) {{" if ob > chunk else "{"]
     lines += [f"    vec4 acc{c} = {bias_expr(f'{obase} + {c}')};" for c in range(chunk)]
     lines.append(f"    for (int i = 0; i < {ib}; ++i) {{")
-    lines.append(f"        vec4 xi = {src.array}[i];")
+    lines.append(f"        vec4 xi = {src}[i];")
     lines += [f"        acc{c} += {w_expr(f'{obase} + {c}', 'i')} * xi;" for c in range(chunk)]
     lines.append("    }")
-    lines += [f"    {out.array}[{obase} + {c}] = acc{c};" for c in range(chunk)]
+    lines += [f"    {out}[{obase} + {c}] = acc{c};" for c in range(chunk)]
     lines.append("}")
-    ctx.body.append("\n".join(lines))
+    return lines
+
+
+def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
+    ctx.body.append("\n".join(loop_lines(out.array, ob, ib, chunk, bias_expr, w_expr, src.array)))
+
+
+def texture_exprs(t: str, row: str):
+    """Bias and weight-block expressions of a layer whose rows start at ``row`` in texture t."""
+    def bias(o):
+        return f"texelFetch({t}, ivec2(0, {row} + {o}), 0)"
+
+    def weight(o, i):
+        r, c = f"{row} + {o}", f"1 + 4 * {i}"
+        return "mat4(" + ", ".join(f"texelFetch({t}, ivec2({c} + {k}, {r}), 0)" for k in range(4)) + ")"
+    return bias, weight
+
+
+def dense_row(ctx, node, weight, bias, mode: str, why: str) -> PlanRow:
+    """A dense layer's plan row; a texture layer's fetches and bytes filled in."""
+    row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
+                  params=weight.size + (0 if bias is None else bias.size),
+                  flops=2 * node.in_dim * node.out_dim + (node.out_dim if bias is not None else 0))
+    if mode == "texture":
+        ob, ib = blocks(node.out_dim), blocks(node.in_dim)
+        row.fetches = ob * (1 + 4 * ib)
+        row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.option("dense", "texture_format") == "f2" else 1)
+    return row
 
 
 @emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4")})
@@ -258,9 +300,7 @@ def emit_dense(ctx, node, src, bundle):
     why += unrolled
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     ctx.body.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim} ({ob}x{ib} mat4 blocks, {mode})")
-    row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
-                  params=weight.size + (0 if bias is None else bias.size),
-                  flops=2 * node.in_dim * node.out_dim + (node.out_dim if bias is not None else 0))
+    row = dense_row(ctx, node, weight, bias, mode, why)
     name = ctx.name(node.id)
     x = src.array
     if mode == "inline":
@@ -288,17 +328,8 @@ def emit_dense(ctx, node, src, bundle):
             _emit_loop(ctx, out, ob, ib, chunk, lambda o: f"{name}.b[{o}]",
                        lambda o, i: f"{name}.W[({o}) * {ib} + {i}]", src)
     elif mode == "texture":
-        tex = ctx.weight_texture
-        row0 = tex.add(wb, bb, node.id)
-        t = tex.name
-
-        def fetch(o, i):
-            r, c = f"{row0} + {o}", f"1 + 4 * {i}"
-            return ("mat4(" + ", ".join(f"texelFetch({t}, ivec2({c} + {k}, {r}), 0)" for k in range(4)) + ")")
-        _emit_loop(ctx, out, ob, ib, chunk,
-                   lambda o: f"texelFetch({t}, ivec2(0, {row0} + {o}), 0)", fetch, src)
-        row.fetches = ob * (1 + 4 * ib)
-        row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.option("dense", "texture_format") == "f2" else 1)
+        row0 = ctx.weight_texture.add(wb, bb, node.id)
+        _emit_loop(ctx, out, ob, ib, chunk, *texture_exprs(ctx.weight_texture.name, str(row0)), src)
     else:
         raise ValueError(f"unknown weight storage {mode!r} (choose from {', '.join(STORAGE_MODES)})")
     ctx.plan.append(row)

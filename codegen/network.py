@@ -23,6 +23,7 @@ from inshade.bundle import Bundle
 
 from . import activations, binary, encodings, feature_ops, hash_grid, int_gather, latent_pyramid, lookup_array, mesh_features, mlp, proxy, shading_frames, sparse_voxels  # noqa: F401,E501  (register emitters)
 from .glsl import EmitContext, PlanRow, TextureResource, UniformBlockResource, blocks
+from .layer_loop import emit_run, fold_runs
 from .limits import LimitError, limit, source
 from .lookup_array import FILTERS
 from .mlp import STORAGE_MODES, TEXTURE_FORMATS, WeightTexture, choose_storage, loop_chunks
@@ -99,6 +100,8 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
     ctx.storage = choose_storage(bundle, storage, limits)
     ctx.loop_chunks = loop_chunks(bundle, ctx.storage, limits, calls)
     ctx.weight_texture = WeightTexture(ctx)
+    runs = fold_runs(bundle, ctx.storage, ctx.loop_chunks, limits, calls)
+    in_runs = {i for run in runs.values() for i in run.ids}
 
     values, off, uint_lanes, lane = {}, {"float": 0, "uint": 0}, [], 0
     for p in bundle.inputs:
@@ -107,9 +110,14 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
         uint_lanes += range(lane, lane + p.dim) if p.dtype == "uint" else []
         lane += p.dim
     for node in bundle.nodes:
+        if node.id in in_runs and node.id not in runs:
+            continue   # emitted with its run (nothing outside a run reads its inner nodes)
         sources = [values[s] for s in node.inputs]
         src = sources if node.type in SEPARATE_INPUTS else gather(ctx, f"c_{node.id}", sources)
-        values[node.id] = EMITTERS[node.type](ctx, node, src, bundle)
+        if node.id in runs:
+            values[runs[node.id].output.id] = emit_run(ctx, runs[node.id], src, bundle)
+        else:
+            values[node.id] = EMITTERS[node.type](ctx, node, src, bundle)
     result = gather(ctx, "r_out", [values[p.node] for p in bundle.outputs])
     wt = ctx.weight_texture.resource()
     if wt is not None:
