@@ -146,7 +146,7 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
         *(f"    y[{b}] = {result.array}[{b}];" for b in range(blocks(bundle.out_dim))),
         "}",
     ]
-    plan = Plan(bundle.name, target, ctx.plan, ctx.resources, check_limits(ctx.resources, lines, limits))
+    plan = Plan(bundle.name, target, ctx.plan, ctx.resources, check_limits(ctx.resources, lines, limits), calls)
     return Generated("\n".join(lines) + "\n", fn, prefix, bundle.in_dim, bundle.out_dim, ctx.resources, plan,
                      tuple(uint_lanes))
 

@@ -254,6 +254,11 @@ class SceneRenderer:
         self._net_key = None
         return outcome
 
+    @property
+    def pixel_flops(self) -> int:
+        """The plans' upper bound on what one pixel of the scene pass spends in its networks."""
+        return sum(g.plan.pixel_flops for g in self.generated)
+
     def assembled(self) -> dict:
         """The scene pass as the driver compiles it, every include resolved: {"vertex": source,
         "fragment": source} (``inshade codegen ASSET --program``)."""

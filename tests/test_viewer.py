@@ -641,6 +641,43 @@ def test_exported_networks_open_in_the_window(app, tmp_path, as_):
     _reset(app)
 
 
+def test_a_costly_scene_is_drawn_smaller_on_a_software_renderer(app, tmp_path, monkeypatch):
+    """Past the frame budget a software renderer draws the scene pass smaller (never below the
+    scene's own size) and the window shows it enlarged, texel for block; screenshots save what was drawn."""
+    import sys
+
+    from inshade.viewer import app as app_module
+
+    code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import inshade; from zoo import zoo; "
+            f"m, x = zoo()['sdf']; inshade.export(m, x, {str(tmp_path / 'sdf')!r}, as_='sdf', quiet=True)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    try:
+        assert app.open(tmp_path / "sdf"), app.messages[-1:]
+        _, _, w, h = app.scene_rect()
+        assert app.draw_size(w, h) == (w, h)             # a small network: the viewport's own size
+        assert app.renderer.gl["software"] and app.renderer.pixel_flops > 0
+        monkeypatch.setattr(app_module, "SOFTWARE_FRAME_FLOPS", app.renderer.pixel_flops * w * h / 2)
+        app.scene.size = (w // 4, h // 4)
+        assert app.draw_size(w, h) == (round(w / 2 ** 0.5), round(h / 2 ** 0.5))   # what the budget allows
+        monkeypatch.setattr(app_module, "SOFTWARE_FRAME_FLOPS", 1.0)
+        assert app.draw_size(w, h) == (w // 4, h // 4)   # never below the scene's own size
+        app.step(3)
+        drawn = _encode(app.renderer.read())
+        assert drawn.shape[:2] == (h // 4, w // 4) and drawn.std() > 5
+        pixels = _scene_pixels(app, app.read_window())
+        enlarged = np.repeat(np.repeat(drawn, 4, axis=0), 4, axis=1)
+        assert np.abs(pixels - enlarged).max() <= 1
+        shot = app.screenshot(tmp_path / "shot.png")
+        render = json.loads(Path(shot["sidecar"]).read_text())["render"]
+        assert (render["width"], render["height"]) == (w // 4, h // 4)
+    finally:
+        monkeypatch.undo()
+        assert app.open(ASSET)
+        app.step(3)
+    _reset(app)
+
+
 def test_window_after_the_osmesa_backend_is_one_clear_error():
     """A process that used the osmesa backend cannot open the window (PyOpenGL's platform is fixed):
     ViewerApp says so before touching GL."""

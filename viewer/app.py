@@ -20,6 +20,7 @@ from __future__ import annotations
 import collections
 import datetime
 import logging
+import math
 import os
 import time
 import warnings
@@ -52,6 +53,7 @@ FLASH_SECONDS = 3.0       # how long a viewport message (e.g. "no reference") st
 HISTORY = 240             # frames in the timing plots
 PSNR_INTERVAL = 0.25      # seconds between live PSNR updates (only when the view changed)
 MAX_SPP = 256             # stochastic programs: samples a still view accumulates, one per frame
+SOFTWARE_FRAME_FLOPS = 1e12   # a software renderer draws a frame costing more (the plans' bound) smaller
 
 
 class NoDisplayError(RuntimeError):
@@ -298,6 +300,19 @@ class ViewerApp:
         x0 = int(round(self.panel_width * scale))
         return x0, 0, max(fw - x0, 0), fh
 
+    def draw_size(self, width: int, height: int) -> tuple[int, int]:
+        """The size the scene pass draws at for a (width, height) viewport, presented scaled up to it.
+        The viewport's own size, except on a software renderer where a frame would cost more than
+        SOFTWARE_FRAME_FLOPS by the plans' upper bound (a big network marched per pixel takes minutes
+        a frame on a CPU); then the cost allows, but never smaller than the scene's own size."""
+        r = self.renderer
+        cost = r.pixel_flops * width * height if r is not None else 0
+        if not (r is not None and r.gl.get("software") and cost > SOFTWARE_FRAME_FLOPS):
+            return width, height
+        pixels = max(self.scene.size[0] * self.scene.size[1], SOFTWARE_FRAME_FLOPS / r.pixel_flops)
+        scale = min(1.0, math.sqrt(pixels / (width * height)))
+        return max(1, round(width * scale)), max(1, round(height * scale))
+
     # frames -------------------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
         for _ in range(n):
@@ -342,15 +357,17 @@ class ViewerApp:
         if draw_scene:
             self.compiling = False
         if draw_scene:
+            dw, dh = self.draw_size(w, h)
             with self.timer:
-                out = self.renderer.render(self.camera, w, h, mode=self.mode, split=self.split)
+                out = self.renderer.render(self.camera, dw, dh, mode=self.mode, split=self.split)
             self.gpu_ms.append(self.timer.elapsed / 1e6)
-            self._update_psnr(w, h)
+            self._update_psnr(dw, dh)
             self.ctx.scissor = None
             self.ctx.disable(moderngl.BLEND)
             self.ctx.screen.use()
             self.ctx.viewport = (x, y, w, h)
-            self.present.render(self.ctx.screen, uniforms={"u_origin": (float(x), float(y))},
+            self.present.render(self.ctx.screen, uniforms={"u_origin": (float(x), float(y)),
+                                                           "u_scale": (dw / w, dh / h)},
                                 textures={"u_source": out.color_attachments[0]})
             self.ctx.viewport = (0, 0, *self.framebuffer_size)
 
@@ -424,8 +441,8 @@ class ViewerApp:
         from PIL import Image
         with atomic_files(out["window"]) as tmp:
             Image.fromarray(window).save(tmp, format="PNG")
-        if self.renderer is not None:
-            _, _, w, h = self.scene_rect()
+        if self.renderer is not None:   # the scene view as drawn (draw_size), not the window's scaled copy
+            w, h = self.draw_size(*self.scene_rect()[2:])
             self.renderer.render(self.camera, w, h, mode=self.mode, split=self.split)
             image = self.renderer.read()
             info = self.renderer.info(self.camera, w, h, mode=self.mode, split=self.split)

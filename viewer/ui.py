@@ -282,6 +282,11 @@ def _performance(app) -> None:
     gpu = np.asarray(app.gpu_ms, np.float32)
     if frame.size:
         imgui.text(f"frame {frame[-1]:.1f} ms   GPU {gpu[-1] if gpu.size else float('nan'):.2f} ms")
+    _, _, w, h = app.scene_rect()
+    dw, dh = app.draw_size(w, h)
+    if (dw, dh) != (w, h):
+        imgui.text_wrapped(f"drawn at {dw}x{dh}, shown at {w}x{h}: a software renderer, and the networks' "
+                           f"{app.renderer.pixel_flops / 1e6:.1f} MFLOPs/px")
     if app.renderer.first_draw_seconds is not None:
         imgui.push_style_color(imgui.Col_.text, GREY)
         imgui.text_wrapped(f"first network draw (JIT on llvmpipe): {app.renderer.first_draw_seconds:.1f} s")

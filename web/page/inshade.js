@@ -506,6 +506,7 @@ export class Viewer {
     gl.useProgram(present.program);
     bindResources(gl, present, [{...this.targets.output.textures[0], uniform: "u_source"}]);
     setUniform(gl, present, "u_origin", [0, 0]);
+    setUniform(gl, present, "u_scale", [1, 1]);   // the page draws the scene at the canvas size
     this._fullscreen(present, null);
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));   // waits for the frame
     this.frameMs = performance.now() - start;
