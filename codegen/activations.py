@@ -25,8 +25,8 @@ _EXPR = {
     "sigmoid": lambda v, p: f"inshade_sigmoid({v})",
     "tanh": lambda v, p: f"inshade_tanh({v})",
     "softplus": _softplus,
-    "sin": lambda v, p: f"sin({flt(p['omega0'])} * {v})",
-    "cos": lambda v, p: f"cos({flt(p['omega0'])} * {v})",
+    "sin": lambda v, p: f"{p['fn']}({flt(p['omega0'])} * {v})",   # fn: sin or inshade_sin (EmitContext.periodic)
+    "cos": lambda v, p: f"{p['fn']}({flt(p['omega0'])} * {v})",
     "exp": lambda v, p: f"exp({v})",
     # GLSL has no expm1; exp(x) - 1 is within ~1e-7 absolute of it, inside the parity rule
     "expm1": lambda v, p: f"(exp({v}) - 1.0)",
@@ -75,12 +75,15 @@ def emit_activation(ctx, node, src, bundle):
     ctx.include("lib/activations")
     if node.type in _LOOPING and not src.aligned:
         src = gather(ctx, f"g_{node.id}", [src])
+    params = node.params
+    if node.type in ("sin", "cos"):
+        params = {**params, "fn": ctx.periodic(node.type, node.id)}
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     whole = 0
     if src.aligned:   # whole blocks, the last one's padding lanes too unless that makes them infinite
         whole = node.in_dim // 4 if _infinite_at_zero(node.type, node.params) else blocks(node.in_dim)
         for b in range(whole):
-            ctx.body.append(f"{out.array}[{b}] = {_EXPR[node.type](f'{src.array}[{b}]', node.params)};")
+            ctx.body.append(f"{out.array}[{b}] = {_EXPR[node.type](f'{src.array}[{b}]', params)};")
     for i in range(4 * whole, node.in_dim):
-        ctx.body.append(f"{out.lane(i)} = {_EXPR[node.type](src.lane(i), node.params)};")
+        ctx.body.append(f"{out.lane(i)} = {_EXPR[node.type](src.lane(i), params)};")
     return out

@@ -23,8 +23,9 @@ def emit_frequency(ctx, node, src, bundle):
     for fn in ("sin", "cos"):
         for f in range(n):
             scale = flt(np.float32((2.0 ** f) * math.pi))
+            call = ctx.periodic(fn, node.id, f)
             for i in range(d):
-                ctx.body.append(f"{out.lane(k)} = {fn}({src.lane(i)} * {scale});")
+                ctx.body.append(f"{out.lane(k)} = {call}({src.lane(i)} * {scale});")
                 k += 1
     ctx.plan.append(PlanRow(node.id, node.type, f"{d}->{node.out_dim}", flops=4 * d * n))
     return out

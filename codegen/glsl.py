@@ -1,6 +1,8 @@
 """GLSL literal formatting and the per-network emission context."""
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,6 +124,17 @@ class EmitContext:
     plan: list[PlanRow] = field(default_factory=list)
     storage: dict = field(default_factory=dict)   # dense node id -> (mode, why)
     loop_chunks: dict = field(default_factory=dict)   # looped dense node id -> (blocks per iteration, why)
+    periodic_args: dict = field(default_factory=dict)  # sin/cos/frequency node id -> |argument| bounds (envelope)
+
+    def periodic(self, fn: str, node_id: str, group: int = 0) -> str:
+        """``fn`` ("sin" / "cos") as this call should spell it: the range-reduced form
+        (lib/activations) where the plan's bound of the argument passes pi, else the built-in."""
+        bounds = self.periodic_args.get(node_id)
+        bound = bounds[group] if bounds else math.inf
+        if not bound <= math.pi:   # nan / inf: unbounded
+            self.include("lib/activations")
+            return f"inshade_{fn}"
+        return fn
 
     def option(self, component_type: str, name: str):
         return self.options[component_type][name]

@@ -20,6 +20,7 @@ import re
 from dataclasses import dataclass
 
 from inshade.bundle import Bundle
+from inshade.envelope import analyse
 
 from . import activations, binary, encodings, feature_ops, hash_grid, int_gather, latent_pyramid, lookup_array, mesh_features, mlp, proxy, shading_frames, sparse_voxels  # noqa: F401,E501  (register emitters)
 from .glsl import EmitContext, PlanRow, TextureResource, UniformBlockResource, blocks
@@ -97,6 +98,7 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
         limits = gl_info(shared_context())
     limits = dict(limits or {})
     ctx = EmitContext(prefix, target, options, limits)
+    ctx.periodic_args = analyse(bundle).periodic_args
     ctx.storage = choose_storage(bundle, storage, limits)
     ctx.loop_chunks = loop_chunks(bundle, ctx.storage, limits, calls)
     ctx.weight_texture = WeightTexture(ctx)

@@ -126,6 +126,9 @@ class Envelope:
     findings: list[Finding]
     ranges: dict[str, tuple[float, float]]
     intervals: dict[str, tuple[np.ndarray, np.ndarray]] = field(repr=False, default_factory=dict)
+    # per sin / cos / frequency node: the bound of |argument| of each GLSL call group (a sin / cos
+    # node: one; a frequency encoding: one per frequency), for codegen's range reduction
+    periodic_args: dict[str, list[float]] = field(repr=False, default_factory=dict)
 
     @property
     def warnings(self) -> list[Finding]:
@@ -223,6 +226,7 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
         findings = [f for f in findings if f.node not in ranges]
 
     iv: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    periodic_args: dict[str, list[float]] = {}
     exact: dict[str, bool] = {}       # value bit-identical on both sides (bundle inputs, relu of them)
     lut_ids: set[str] = set()
     for p in bundle.inputs:
@@ -382,7 +386,8 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
             elif t in ("sin", "cos"):     # cos(t) = sin(t + pi/2)
                 w0 = p["omega0"]
                 alo, ahi = np.minimum(w0 * lo, w0 * hi), np.maximum(w0 * lo, w0 * hi)
-                periodic(n.id, f"{t} argument |omega0 * x| (omega0 {w0:g})", float(np.max(_mag(alo, ahi))), src_exact)
+                periodic_args[n.id] = [float(np.max(_mag(alo, ahi)))]
+                periodic(n.id, f"{t} argument |omega0 * x| (omega0 {w0:g})", periodic_args[n.id][0], src_exact)
                 shift = math.pi / 2 if t == "cos" else 0.0
                 olo, ohi = _sin_range(alo + shift, ahi + shift)
             elif t == "frequency":
@@ -398,6 +403,7 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                         parts_lo.append(slo)
                         parts_hi.append(shi)
                 bound = (2.0 ** (nf - 1)) * math.pi * float(np.max(_mag(lo, hi)))
+                periodic_args[n.id] = [(2.0 ** k) * math.pi * float(np.max(_mag(lo, hi))) for k in range(nf)]
                 periodic(n.id, f"frequency argument 2^{nf - 1} pi |x| (n_freqs {nf})", bound, src_exact)
                 olo, ohi = np.concatenate(parts_lo), np.concatenate(parts_hi)
                 assert olo.size == n.out_dim == d * (2 * nf + int(p["include_input"]))
@@ -443,7 +449,7 @@ def analyse(bundle: Bundle, ranges: dict[str, tuple[float, float]] | None = None
                 olo, ohi = np.full(n.out_dim, -np.inf), np.full(n.out_dim, np.inf)
             iv[n.id] = (np.asarray(olo, np.float64).reshape(n.out_dim), np.asarray(ohi, np.float64).reshape(n.out_dim))
             exact[n.id] = is_exact
-    return Envelope(findings, rng, iv)
+    return Envelope(findings, rng, iv, periodic_args)
 
 
 def _grid_steps(rows: np.ndarray, level, dims: int, wraps: bool) -> np.ndarray:

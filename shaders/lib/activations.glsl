@@ -13,6 +13,26 @@ vec4 inshade_softplus(vec4 x) { return max(x, 0.0) + log(1.0 + exp(-abs(x))); }
 float inshade_softplus(float x) { return max(x, 0.0) + log(1.0 + exp(-abs(x))); }
 
 // Non-negative triangle wave, period 2, identity on [0, 1] (Differentiable Indirection's F).
+// sin / cos of an argument past pi: reduced by 2 pi first, in three parts (Cody-Waite: 2 pi = A + B + C
+// with A and B of 8 and 12 significant bits, so k * A and k * B are exact for |k| < 2^12, |x| < 25,700),
+// so the built-in only sees |r| <= ~pi, where drivers are most accurate (GPU sin/cos lose accuracy with
+// |x|); past that range x goes to the built-in as it is. Codegen calls these where the plan's range of
+// the argument passes pi (below it k = 0 and r = x).
+float inshade_reduce_2pi(float x) {
+    float k = roundEven(x * 0.15915494);
+    float r = ((x - k * 6.28125) - k * 1.9354820251464844e-3) + k * 1.7484555314695172e-7;
+    return abs(k) < 4096.0 ? r : x;
+}
+vec4 inshade_reduce_2pi(vec4 x) {
+    vec4 k = roundEven(x * 0.15915494);
+    vec4 r = ((x - k * 6.28125) - k * 1.9354820251464844e-3) + k * 1.7484555314695172e-7;
+    return mix(x, r, lessThan(abs(k), vec4(4096.0)));
+}
+float inshade_sin(float x) { return sin(inshade_reduce_2pi(x)); }
+vec4 inshade_sin(vec4 x) { return sin(inshade_reduce_2pi(x)); }
+float inshade_cos(float x) { return cos(inshade_reduce_2pi(x)); }
+vec4 inshade_cos(vec4 x) { return cos(inshade_reduce_2pi(x)); }
+
 float inshade_triangle(float t) { return 1.0 - abs(mod(t, 2.0) - 1.0); }
 vec4 inshade_triangle(vec4 t) { return 1.0 - abs(mod(t, 2.0) - 1.0); }
 
