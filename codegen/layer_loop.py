@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 from .activations import emit_activation
 from .glsl import blocks
 from .limits import loop_iteration_cap
-from .mlp import dense_row, loop_budget, loop_iterations, loop_lines, pack, texture_exprs
+from .mlp import dense_row, loop_budget, loop_iterations, loop_lines, loop_spare, pack, texture_exprs
 from .registry import EMITTERS
 from .values import Value, declare
 
@@ -143,10 +143,10 @@ def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     tex = ctx.weight_texture
     row0 = [tex.add(*pack(*_weights(bundle, d)), d.id) for d, _ in run.layers][0]   # consecutive rows
     h = f"h_{first.id}"
-    y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim))
+    y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=loop_spare(ob, chunk)))
     body += loop_lines(y.array, ob, ib, chunk, *texture_exprs(tex.name, f"{row0} + {ob} * l"), h)
     out, act_body, act_rows = _captured(ctx, lambda: EMITTERS[act0.type](ctx, act0, y, bundle))
-    body += act_body + [f"{h} = {out.array};"]
+    body += act_body + [f"{h}[{b}] = {out.array}[{b}];" for b in range(ib)]
 
     dense_ids = [d.id for d, _ in run.layers]
     ctx.body.append(f"// {', '.join(dense_ids)}: {len(run)} dense {first.in_dim} -> {first.out_dim} layers "

@@ -249,17 +249,28 @@ def _emit_unrolled(ctx, out, wb, bias_expr, terms):
 
 
 def loop_lines(out: str, ob, ib, chunk, bias_expr, w_expr, src: str) -> list[str]:
-    """for o in chunks of output blocks: acc = bias; for i: acc += W(o, i) * x[i]."""
+    """for o in chunks of output blocks: acc = bias; acc += W(o, i) * x[i] over the inputs, written
+    out when there are few enough for the compiler to unroll them anyway (NIR_UNROLL_MAX), a loop
+    otherwise. The output array needs a spare block (``declare(spare=1)``) when the loop over
+    outputs runs one block per pass, so that the compiler keeps that loop a loop."""
     obase = "o" if ob > chunk else "0"
     lines = [f"for (int o = 0; o < {ob}; o += {chunk}) {{" if ob > chunk else "{"]
     lines += [f"    vec4 acc{c} = {bias_expr(f'{obase} + {c}')};" for c in range(chunk)]
-    lines.append(f"    for (int i = 0; i < {ib}; ++i) {{")
-    lines.append(f"        vec4 xi = {src}[i];")
-    lines += [f"        acc{c} += {w_expr(f'{obase} + {c}', 'i')} * xi;" for c in range(chunk)]
-    lines.append("    }")
+    if ib > NIR_UNROLL_MAX:
+        lines.append(f"    for (int i = 0; i < {ib}; ++i) {{")
+        lines.append(f"        vec4 xi = {src}[i];")
+        lines += [f"        acc{c} += {w_expr(f'{obase} + {c}', 'i')} * xi;" for c in range(chunk)]
+        lines.append("    }")
+    else:
+        lines += [f"    acc{c} += {w_expr(f'{obase} + {c}', str(i))} * {src}[{i}];" for i in range(ib) for c in range(chunk)]
     lines += [f"    {out}[{obase} + {c}] = acc{c};" for c in range(chunk)]
     lines.append("}")
     return lines
+
+
+def loop_spare(ob: int, chunk: int) -> int:
+    """Spare output blocks a looped layer declares (see loop_lines)."""
+    return 1 if ob > chunk and chunk == 1 else 0
 
 
 def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
@@ -298,7 +309,9 @@ def emit_dense(ctx, node, src, bundle):
     mode, why = ctx.storage[node.id]
     chunk, unrolled = ctx.loop_chunks.get(node.id, (1, ""))
     why += unrolled
-    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    looped = (mode == "texture" or mode == "inline" and ob * ib > UNROLL_MAX_BLOCKS
+              or mode == "ubo" and ob * ib > UBO_UNROLL_MAX_BLOCKS)
+    out = declare(ctx, f"v_{node.id}", node.out_dim, spare=loop_spare(ob, chunk) if looped else 0)
     ctx.body.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim} ({ob}x{ib} mat4 blocks, {mode})")
     row = dense_row(ctx, node, weight, bias, mode, why)
     name = ctx.name(node.id)

@@ -49,9 +49,11 @@ def gather(ctx: EmitContext, name: str, sources: list[Value]) -> Value:
     return out
 
 
-def declare(ctx: EmitContext, name: str, dim: int) -> Value:
-    """A new array; a partly used last block starts at zero so padding lanes are defined."""
-    ctx.body.append(f"vec4 {name}[{blocks(dim)}];")
+def declare(ctx: EmitContext, name: str, dim: int, spare: int = 0) -> Value:
+    """A new array; a partly used last block starts at zero so padding lanes are defined. ``spare``
+    blocks past the value: a loop that writes the array must not iterate exactly its length, or
+    Mesa's NIR unrolls it whatever its size (a loop over a whole array is unrolled to drop the indexing)."""
+    ctx.body.append(f"vec4 {name}[{blocks(dim) + spare}];")
     if dim % 4:
         ctx.body.append(f"{name}[{blocks(dim) - 1}] = vec4(0.0);")
     return Value(name, 0, dim)

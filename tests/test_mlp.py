@@ -136,11 +136,9 @@ def test_wide_square_texture(gl, width):
     check_parity(gl, bundle, uniform_inputs(3, 8, 3), storage="texture")
 
 
-@pytest.mark.slow
-@pytest.mark.skipif(not os.environ.get("INSHADE_SLOW"), reason="minutes of llvmpipe JIT; set INSHADE_SLOW=1")
 def test_ubo_big_layer(gl, gl_limits):
-    """A uniform-block layer of 272 mat4 blocks (64 -> 68). llvmpipe unrolls the generated loop
-    and JIT-compiles every UBO gather: measured > 200 s on 2 cores, hence opt-in."""
+    """A uniform-block layer of 272 mat4 blocks (64 -> 68), looped: its output array's spare block
+    keeps Mesa from unrolling the loop over outputs (it took over 200 s to JIT unrolled, 4 s looped)."""
     torch.manual_seed(4)
     bundle = mlp_graph(64, [68], 4, "tanh").export("ubo_big")
     check_parity(gl, bundle, uniform_inputs(5, 32, 64), storage="ubo", limits=gl_limits)
@@ -253,3 +251,14 @@ def test_random_spec_param_count_and_activations():
     assert sum(p.numel() for p in g.parameters()) == spec.param_count()
     bundle = g.export("m")
     assert GraphModule.from_bundle(bundle)(torch.zeros(4, 3)).shape == (4, 9 + 5)
+
+
+def test_a_looped_layer_keeps_its_loop_over_outputs():
+    """Mesa's NIR unrolls any loop that runs exactly the length of an array it indexes, whatever the
+    body's size (a 128-wide texture layer became 1024 unrolled mat4 blocks: 20 s of JIT instead of
+    under one): a layer looping one output block per pass writes an array one block longer, and
+    its inputs (at most NIR_UNROLL_MAX blocks, which NIR would unroll anyway) are written out."""
+    torch.manual_seed(0)
+    chunk = generate(mlp_graph(3, [128, 128], 1, "relu").export("looped"), storage="texture").chunk
+    assert re.search(r"vec4 v_\w+\[33\];", chunk) and "for (int o = 0; o < 32; o += 1)" in chunk
+    assert "for (int i" not in chunk
