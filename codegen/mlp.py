@@ -41,7 +41,10 @@ SPLIT = 4                    # partial sums per output block (breaks the add dep
 UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
                              # on unrolled UBO gathers: 32x3 took minutes); GPUs don't mind loops
 LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (measured best)
-NIR_UNROLL_MAX = 32          # loops of more iterations stay loops (Mesa NIR's max_unroll_iterations)
+# A looped layer's inputs are written out up to this many blocks (1024 lanes), not looped over: an
+# array read at a loop index is a per-lane gather on llvmpipe (a 512-wide layer's check took 168 s
+# to compile looping over its inputs, 13 s with them written out)
+INPUTS_WRITTEN_MAX = 256
 UNROLL_MAX_BLOCKS = 4096     # inline layers beyond this loop over a const array instead
 # auto: whole networks at most this many floats become literals. On GPUs (4096, ~ 32 wide x 3)
 # UBOs are as fast as literals and compile in a fraction of the time. On software renderers
@@ -149,9 +152,9 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
 
 def loop_iterations(ob: int, ib: int, chunk: int) -> int:
     """A looped layer's iterations per evaluation: the loop over outputs (unless one pass does
-    them all), and per pass the loop over inputs unless the compiler unrolls it."""
+    them all), and per pass the loop over inputs unless they are written out (loop_lines)."""
     passes = max(1, ob // chunk)
-    return (passes if ob > chunk else 0) + passes * (ib if ib > NIR_UNROLL_MAX else 0)
+    return (passes if ob > chunk else 0) + passes * (ib if ib > INPUTS_WRITTEN_MAX else 0)
 
 
 def loop_budget(cap: int, calls: int) -> int:
@@ -250,13 +253,12 @@ def _emit_unrolled(ctx, out, wb, bias_expr, terms):
 
 def loop_lines(out: str, ob, ib, chunk, bias_expr, w_expr, src: str) -> list[str]:
     """for o in chunks of output blocks: acc = bias; acc += W(o, i) * x[i] over the inputs, written
-    out when there are few enough for the compiler to unroll them anyway (NIR_UNROLL_MAX), a loop
-    otherwise. The output array needs a spare block (``declare(spare=1)``) when the loop over
+    out up to INPUTS_WRITTEN_MAX blocks, a loop beyond. The output array needs a spare block (``declare(spare=1)``) when the loop over
     outputs runs one block per pass, so that the compiler keeps that loop a loop."""
     obase = "o" if ob > chunk else "0"
     lines = [f"for (int o = 0; o < {ob}; o += {chunk}) {{" if ob > chunk else "{"]
     lines += [f"    vec4 acc{c} = {bias_expr(f'{obase} + {c}')};" for c in range(chunk)]
-    if ib > NIR_UNROLL_MAX:
+    if ib > INPUTS_WRITTEN_MAX:
         lines.append(f"    for (int i = 0; i < {ib}; ++i) {{")
         lines.append(f"        vec4 xi = {src}[i];")
         lines += [f"        acc{c} += {w_expr(f'{obase} + {c}', 'i')} * xi;" for c in range(chunk)]

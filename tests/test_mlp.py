@@ -6,7 +6,6 @@ Tolerance: tests/parity.py's rule, |glsl - torch| <= 1e-5 * max(1, |torch|), eve
 """
 from __future__ import annotations
 
-import os
 import re
 
 import numpy as np
@@ -119,18 +118,16 @@ def test_multiple_inputs_and_outputs_blocks(gl):
 def test_wide_texture(gl, width):
     """Widths beyond 128 (where the Learnt Transfer paper's GLSL path failed) in texture mode:
     a width-wide hidden layer between 3 inputs and 8 outputs (a weight-texture row of
-    1 + width texels), small batch. The square 256x256 / 512x512 layers are below (slow)."""
+    1 + width texels), small batch. The square 256x256 / 512x512 layers are below."""
     torch.manual_seed(width)
     g = mlp_graph(3, [width], 8, "relu")
     bundle = g.export("wide")
     check_parity(gl, bundle, uniform_inputs(width, 16, 3), storage="texture")
 
 
-@pytest.mark.slow
-@pytest.mark.skipif(not os.environ.get("INSHADE_SLOW"), reason="10-60 s of llvmpipe JIT; set INSHADE_SLOW=1")
 @pytest.mark.parametrize("width", [256, 512])
 def test_wide_square_texture(gl, width):
-    """width x width layers (4096 / 16384 mat4 blocks) in texture mode."""
+    """width x width layers (4096 / 16384 mat4 blocks) in texture mode (2 s and 9 s of llvmpipe JIT)."""
     torch.manual_seed(width)
     bundle = mlp_graph(3, [width, width], 5, "relu").export("wide")
     check_parity(gl, bundle, uniform_inputs(3, 8, 3), storage="texture")
@@ -256,8 +253,8 @@ def test_random_spec_param_count_and_activations():
 def test_a_looped_layer_keeps_its_loop_over_outputs():
     """Mesa's NIR unrolls any loop that runs exactly the length of an array it indexes, whatever the
     body's size (a 128-wide texture layer became 1024 unrolled mat4 blocks: 20 s of JIT instead of
-    under one): a layer looping one output block per pass writes an array one block longer, and
-    its inputs (at most NIR_UNROLL_MAX blocks, which NIR would unroll anyway) are written out."""
+    under one): a layer looping one output block per pass writes an array one block longer; and
+    its inputs are written out (an array read at a loop index is a per-lane gather on llvmpipe)."""
     torch.manual_seed(0)
     chunk = generate(mlp_graph(3, [128, 128], 1, "relu").export("looped"), storage="texture").chunk
     assert re.search(r"vec4 v_\w+\[33\];", chunk) and "for (int o = 0; o < 32; o += 1)" in chunk
