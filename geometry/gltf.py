@@ -41,11 +41,14 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from .gltf_codecs import DRACO, MESHOPT, CodecError, draco_attributes, meshopt_view
+from .gltf_codecs import EXTENSIONS as CODEC_EXTENSIONS
+
 # what this reader understands; a required extension outside it is refused, an optional one ignored
 SUPPORTED_EXTENSIONS = (
     "KHR_texture_transform", "KHR_materials_clearcoat", "KHR_materials_anisotropy", "KHR_materials_sheen",
     "KHR_materials_pbrSpecularGlossiness", "KHR_materials_emissive_strength", "KHR_materials_ior",
-    "KHR_mesh_quantization", "EXT_mesh_gpu_instancing",
+    "KHR_mesh_quantization", "EXT_mesh_gpu_instancing", *CODEC_EXTENSIONS,
 )
 SPECULAR_GLOSSINESS = "KHR_materials_pbrSpecularGlossiness"
 
@@ -295,6 +298,10 @@ class _Reader:
     def view(self, index: int, where: str) -> tuple[bytes, int | None]:
         v = self._item("bufferViews", index, where)
         w = f"bufferViews[{index}]"
+        packed = next(((name, e) for name, e in (v.get("extensions") or {}).items() if name in MESHOPT), None)
+        if packed is not None:   # compressed: the view's bytes are decoded from the extension's range
+            name, ext = packed
+            return self._decoded_view(ext, f"{w}.extensions.{name}"), ext.get("byteStride")
         data = self.buffer(v.get("buffer"), f"{w}.buffer")
         offset, length = v.get("byteOffset", 0), v.get("byteLength")
         if not isinstance(length, int) or length < 1 or not isinstance(offset, int) or offset < 0:
@@ -303,6 +310,20 @@ class _Reader:
             raise _err(w, f"bytes {offset}..{offset + length} lie past the end of buffer {v.get('buffer')} "
                        f"({len(data)} bytes)")
         return data[offset: offset + length], v.get("byteStride")
+
+    def _decoded_view(self, ext, where: str) -> bytes:
+        if not isinstance(ext, dict):
+            raise _err(where, "must be an object")
+        data = self.buffer(ext.get("buffer"), f"{where}.buffer")
+        offset, length = ext.get("byteOffset", 0), ext.get("byteLength")
+        if not isinstance(length, int) or length < 1 or not isinstance(offset, int) or offset < 0 \
+                or offset + length > len(data):
+            raise _err(where, f"byteOffset {offset!r} / byteLength {length!r}: not a range of buffer "
+                       f"{ext.get('buffer')} ({len(data)} bytes)")
+        try:
+            return meshopt_view(data[offset: offset + length], ext, where)
+        except CodecError as exc:
+            raise _err(exc.where, exc.what) from None
 
     def accessor(self, index, where: str) -> np.ndarray:
         """An accessor's elements as float64 (normalised ints scaled) or int64 [count, width]."""
@@ -625,11 +646,21 @@ class _Reader:
         attrs = prim.get("attributes")
         if not isinstance(attrs, dict) or "POSITION" not in attrs:
             raise _err(f"{where}.attributes", "needs POSITION")
-        pos = self.accessor(attrs["POSITION"], f"{where}.attributes.POSITION")
+        draco = (prim.get("extensions") or {}).get(DRACO)
+        decoded, draco_idx = self._draco(draco, f"{where}.extensions.{DRACO}") if draco is not None else ({}, None)
+
+        def attribute(name: str) -> np.ndarray:
+            if name in decoded:
+                return self._draco_values(attrs[name], decoded[name], f"{where}.attributes.{name}")
+            return self.accessor(attrs[name], f"{where}.attributes.{name}")
+
+        pos = attribute("POSITION")
         if pos.shape[1] != 3:
             raise _err(f"{where}.attributes.POSITION", "must be VEC3")
         v = len(pos)
-        if "indices" in prim:
+        if draco_idx is not None:
+            idx = draco_idx
+        elif "indices" in prim:
             idx = self.accessor(prim["indices"], f"{where}.indices")
             if idx.shape[1] != 1 or idx.dtype != np.int64:
                 raise _err(f"{where}.indices", "must be an unsigned int SCALAR accessor")
@@ -643,7 +674,7 @@ class _Reader:
                "material": prim.get("material"), "needs_tangent": True, "where": where}
         for key, name, width in (("normal", "NORMAL", 3), ("tangent", "TANGENT", 4), ("uv", "TEXCOORD_0", 2)):
             if name in attrs:
-                a = self.accessor(attrs[name], f"{where}.attributes.{name}")
+                a = attribute(name)
                 if a.shape != (v, width):
                     raise _err(f"{where}.attributes.{name}", f"must be {v} elements of {width} components "
                                f"(POSITION's count), got {list(a.shape)}")
@@ -653,6 +684,29 @@ class _Reader:
         if out["normal"] is None:   # the spec: flat normals; a vertex per face corner
             out = _flat(out)
         return out
+
+    def _draco(self, ext, where: str) -> tuple[dict, np.ndarray]:
+        if not isinstance(ext, dict):
+            raise _err(where, "must be an object")
+        data, _ = self.view(ext.get("bufferView"), f"{where}.bufferView")
+        try:
+            return draco_attributes(data, ext, where)
+        except CodecError as exc:
+            raise _err(exc.where, exc.what) from None
+
+    def _draco_values(self, index, values: np.ndarray, where: str) -> np.ndarray:
+        """A Draco-decoded attribute as ``accessor`` returns it: its accessor gives count and width,
+        and whether integers are normalised."""
+        a = self._item("accessors", index, where)
+        if a.get("componentType") not in COMPONENTS or a.get("type") not in WIDTHS:
+            raise _err(f"accessors[{index}]", "not a glTF accessor layout")
+        if values.shape != (a.get("count"), WIDTHS[a["type"]]):
+            raise _err(where, f"the Draco bitstream holds {list(values.shape)} values; accessors[{index}] "
+                       f"declares {a.get('count')} x {WIDTHS[a['type']]}")
+        _, norm = COMPONENTS[a["componentType"]]
+        if a.get("normalized") and norm is not None and values.dtype.kind in "iu":
+            return np.maximum(values.astype(np.float64) / norm, -1.0)
+        return values.astype(np.float64 if values.dtype.kind == "f" else np.int64)
 
 
 def _floats(value, n: int, where: str) -> tuple:

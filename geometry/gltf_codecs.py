@@ -1,0 +1,96 @@
+"""The compression extensions real glTF files ship with, decoded by their maintained libraries:
+
+- ``KHR_draco_mesh_compression`` (a primitive's attributes and indices in one Draco bitstream):
+  PyPI ``DracoPy`` (Google's Draco); the primitive's accessors give count, type and component type,
+  the extension maps each attribute to its Draco attribute id.
+- ``EXT_meshopt_compression`` / ``KHR_meshopt_compression`` (a bufferView encoded by
+  meshoptimizer's vertex / index codecs, with an optional octahedral / quaternion / exponential
+  filter): PyPI ``meshoptimizer``; the view's bytes come back as if they had never been compressed.
+
+Both are the optional ``gltf`` extra; a file that needs one when it is missing gets one line naming
+the extension and the install. Decoded data is what the same libraries give other readers
+(tests/test_gltf_codecs.py compares with glTF Transform's decode, bit for bit).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+DRACO = "KHR_draco_mesh_compression"
+MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
+EXTENSIONS = (DRACO, *MESHOPT)
+MESHOPT_MODES = ("ATTRIBUTES", "TRIANGLES", "INDICES")
+MESHOPT_FILTERS = {"NONE": None, "OCTAHEDRAL": "decode_filter_oct", "QUATERNION": "decode_filter_quat",
+                   "EXPONENTIAL": "decode_filter_exp"}
+
+
+class CodecError(ValueError):
+    """(field, problem): the reader turns it into its FILE: FIELD: problem line."""
+
+    def __init__(self, where: str, what: str):
+        super().__init__(where, what)
+        self.where, self.what = where, what
+
+
+def _library(module: str, distribution: str, extension: str, where: str):
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise CodecError(where, f"{extension} needs {distribution}, which is not installed: "
+                                "pip install 'inshade[gltf]'") from None
+
+
+def draco_attributes(data: bytes, ext: dict, where: str) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """({semantic: values [count, width] as Draco decodes them}, triangle indices [3F]) of a
+    primitive's ``KHR_draco_mesh_compression`` bitstream."""
+    draco = _library("DracoPy", "DracoPy", DRACO, where)
+    ids = ext.get("attributes")
+    if not isinstance(ids, dict) or not all(isinstance(v, int) and not isinstance(v, bool) for v in ids.values()):
+        raise CodecError(f"{where}.attributes", "must map attribute names to Draco attribute ids")
+    try:
+        mesh = draco.decode(data)
+    except Exception as exc:   # the decoder's own failure types: a bad bitstream is the file's problem
+        raise CodecError(where, f"cannot decode the Draco bitstream ({exc})") from None
+    faces = getattr(mesh, "faces", None)
+    if faces is None or not len(faces):
+        raise CodecError(where, "the Draco bitstream is a point cloud: only triangle meshes can be drawn")
+    out = {}
+    for name, uid in ids.items():
+        attribute = mesh.get_attribute_by_unique_id(uid)
+        if attribute is None:
+            raise CodecError(f"{where}.attributes.{name}", f"no Draco attribute with id {uid} in the bitstream")
+        out[name] = np.asarray(attribute["data"]).reshape(len(attribute["data"]), -1)
+    return out, np.asarray(faces, np.int64).reshape(-1)
+
+
+def meshopt_view(data: bytes, ext: dict, where: str) -> bytes:
+    """The bytes of a bufferView compressed with meshopt (``data``: the compressed range)."""
+    meshopt = _library("meshoptimizer", "meshoptimizer", "EXT_meshopt_compression", where)
+    count, stride = ext.get("count"), ext.get("byteStride")
+    mode, filter_ = ext.get("mode"), ext.get("filter", "NONE")
+    if not isinstance(count, int) or count < 1 or not isinstance(stride, int) or stride < 1:
+        raise CodecError(where, f"count {count!r} / byteStride {stride!r}: must be ints >= 1")
+    if mode not in MESHOPT_MODES:
+        raise CodecError(f"{where}.mode", f"{mode!r} is not one of {', '.join(MESHOPT_MODES)}")
+    if filter_ not in MESHOPT_FILTERS:
+        raise CodecError(f"{where}.filter", f"{filter_!r} is not one of {', '.join(MESHOPT_FILTERS)}")
+    # the wrapper's default forms only: its dtype= form allocates count elements, not count x stride bytes;
+    # its index decoders fill the first count x stride bytes of a uint32 array
+    try:
+        if mode == "ATTRIBUTES":
+            out = np.ascontiguousarray(meshopt.decode_vertex_buffer(count, stride, data)).view(np.uint8)
+            if MESHOPT_FILTERS[filter_] is not None:
+                out = np.ascontiguousarray(getattr(meshopt, MESHOPT_FILTERS[filter_])(out, count, stride))
+        elif filter_ != "NONE":
+            raise CodecError(f"{where}.filter", f"{filter_}: filters apply to ATTRIBUTES only")
+        elif mode == "TRIANGLES":
+            out = meshopt.decode_index_buffer(count, stride, data)
+        else:
+            out = meshopt.decode_index_sequence(count, stride, data)
+    except (ValueError, RuntimeError) as exc:
+        raise CodecError(where, f"cannot decode the meshopt {mode.lower()} data ({exc})") from None
+    raw = np.ascontiguousarray(out).tobytes()[:count * stride]
+    if len(raw) != count * stride:
+        raise CodecError(where, f"decoded {len(raw)} bytes, expected count x byteStride = {count * stride}")
+    return raw
