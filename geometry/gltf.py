@@ -48,8 +48,10 @@ from .gltf_codecs import EXTENSIONS as CODEC_EXTENSIONS
 SUPPORTED_EXTENSIONS = (
     "KHR_texture_transform", "KHR_materials_clearcoat", "KHR_materials_anisotropy", "KHR_materials_sheen",
     "KHR_materials_pbrSpecularGlossiness", "KHR_materials_emissive_strength", "KHR_materials_ior",
-    "KHR_mesh_quantization", "EXT_mesh_gpu_instancing", *CODEC_EXTENSIONS,
+    "KHR_mesh_quantization", "EXT_mesh_gpu_instancing", "EXT_texture_webp", *CODEC_EXTENSIONS,
 )
+# image formats a texture's source may have: the core's, and those an extension brings
+IMAGE_FORMATS = {"PNG": None, "JPEG": None, "WEBP": "EXT_texture_webp"}
 SPECULAR_GLOSSINESS = "KHR_materials_pbrSpecularGlossiness"
 
 COMPONENTS = {5120: ("i1", 127.0), 5121: ("u1", 255.0), 5122: ("i2", 32767.0), 5123: ("u2", 65535.0),
@@ -405,8 +407,8 @@ class _Reader:
 
         try:
             with Image.open(io.BytesIO(data)) as pil:
-                if pil.format not in ("PNG", "JPEG"):
-                    raise _err(w, f"{pil.format} image: glTF images are PNG or JPEG")
+                if pil.format not in IMAGE_FORMATS or IMAGE_FORMATS[pil.format] not in (None, *self.extensions):
+                    raise _err(w, f"{pil.format} image: glTF images are PNG or JPEG (WebP with EXT_texture_webp)")
                 array = np.asarray(pil.convert("RGBA"), np.uint8)
         except (UnidentifiedImageError, OSError) as exc:
             raise _err(w, f"cannot decode ({exc})") from None
@@ -421,6 +423,9 @@ class _Reader:
             raise _err(where, "must be a textureInfo object")
         tex = self._item("textures", info.get("index"), f"{where}.index")
         source = tex.get("source")
+        webp = (tex.get("extensions") or {}).get("EXT_texture_webp")
+        if isinstance(webp, dict) and "source" in webp:   # the extension's image first, the core's the fallback
+            source = webp["source"]
         if source is None:
             raise _err(f"textures[{info['index']}].source", "missing (no image)")
         image = self.image(source, f"textures[{info['index']}].source")

@@ -97,3 +97,30 @@ def test_a_missing_decoder_is_one_line_with_the_install(files, monkeypatch):
     with pytest.raises(GltfError, match=r"KHR_draco_mesh_compression needs DracoPy, which is not installed: "
                                         r"pip install 'inshade\[gltf\]'"):
         load_gltf(files["tiles_torus", "draco"][0])
+
+
+def test_webp_textures_read_as_libwebp_decodes_them(tmp_path):
+    """EXT_texture_webp (glTF Transform's `webp`, through sharp / libwebp): each texture's WebP image
+    is read, RGBA as libwebp (Pillow) decodes its bytes, near the PNG it was made from (lossy)."""
+    import io
+
+    from PIL import Image
+
+    source = gltf_scenes.write_all(tmp_path)["tiles_torus"]
+    packed = tmp_path / "webp.glb"
+    _run(str(TOOLS / "node_modules" / ".bin" / "gltf-transform"), "webp", str(source), str(packed))
+    doc = _json(packed)
+    assert doc["extensionsRequired"] == ["EXT_texture_webp"] and "source" not in doc["textures"][0]
+    a, b = load_gltf(packed), load_gltf(source)
+    raw = packed.read_bytes()
+    (size,) = struct.unpack_from("<I", raw, 12)
+    blob = raw[20 + size + 8:]
+    decoded = []
+    for view in (doc["bufferViews"][im["bufferView"]] for im in doc["images"]):
+        data = blob[view.get("byteOffset", 0): view.get("byteOffset", 0) + view["byteLength"]]
+        decoded.append(np.asarray(Image.open(io.BytesIO(data)).convert("RGBA")))
+    assert len(a.images) == len(decoded)
+    assert all(any(np.array_equal(image, d) for d in decoded) for image in a.images)
+    for x, y in zip(a.images, b.images):   # both in the order the materials use them
+        mse = np.mean((x.astype(np.float64) - y) ** 2)
+        assert 10 * np.log10(255 ** 2 / mse) > 20
