@@ -65,7 +65,7 @@ def test_asset_folder_holds_the_file_the_bundle_and_the_metrics(asset, torus):
     assert node.params["faces"] == len(load_gltf(asset / "source.glb").mesh.faces) == 4096
     scene = json.loads((asset / "scene.json").read_text())
     assert scene["mesh"] == "source.glb" and scene["program"] == "passes/mesh_uvfree_gltf.frag"
-    assert scene["settings"]["view"]["choices"] == ["reference", "network", "split", "error"]
+    assert scene["settings"]["view"]["choices"] == ["reference", "decoded", "split", "error"]
     m = json.loads((asset / "metrics.json").read_text())
     assert m["preset"] == "quick" and m["channels"] == channels
     assert set(m["torch_quality"]) == {f"psnr_{c}" for c in channels} | {"normal_mean_deg"}
@@ -118,12 +118,12 @@ def test_split_is_the_reference_pass_left_and_the_network_right(asset):
 
     split = _render(asset, view="split")
     reference = _render(asset / "source.glb")          # the glTF reference pass, not this technique's
-    network = _render(asset, view="network")
+    network = _render(asset, view="decoded")
     half = W // 2
     assert np.array_equal(split[:, :half], reference[:, :half])
     assert np.array_equal(split[:, half:], network[:, half:])
     assert np.array_equal(_render(asset, view="reference"), reference)
-    _, covered = render_views(asset, views=("network",), size=(W, H))
+    _, covered = render_views(asset, views=("decoded",), size=(W, H))
     assert covered.mean() > 0.1
     assert np.abs(network - reference)[covered].max() > 0.05, "the network view must show the decoder"
     assert np.array_equal(network[~covered], reference[~covered])   # the background is the environment's
@@ -137,7 +137,7 @@ def test_network_view_shows_the_decoded_channels_like_torch(asset, graph):
     from inshade.runtime.renderer import SceneRenderer
     from inshade.scene.description import load_scene
 
-    r = SceneRenderer(load_scene(asset), settings={"view": "network"})
+    r = SceneRenderer(load_scene(asset), settings={"view": "decoded"})
     shown = {}
     try:
         camera = r.scene.make_camera()

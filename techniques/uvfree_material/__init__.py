@@ -38,7 +38,7 @@ UNIFORM_DEFAULTS = {"u_uvf_view": VIEWS.index("split"), "u_uvf_channel": CHANNEL
 
 
 # u_uvg_view / u_uvg_channel of passes/mesh_uvfree_gltf.frag, in index order (UVG_VIEW_*, UVG_CHANNEL_*)
-GLTF_VIEWS = ("reference", "network", "split", "error")
+GLTF_VIEWS = ("reference", "decoded", "split", "error")   # "decoded": as VIEWS names it
 ERROR_SCALE = 4.0   # the error view shows |network - reference| times this (the "error_scale" setting)
 GLTF_CHANNEL_VIEWS = ("shaded", "base_color", "normal", "metallic", "roughness", "occlusion", "emissive")
 GLTF_CHOICES = (Choice("u_uvg_view", "UVG_VIEW", GLTF_VIEWS), Choice("u_uvg_channel", "UVG_CHANNEL", GLTF_CHANNEL_VIEWS))

@@ -38,7 +38,7 @@ def scene_description(name: str, mesh: str, source_name: str, folder: Path, bund
         "mesh": mesh,
         "camera": opened["camera"], "lights": opened["lights"], "environment": opened["environment"],
         "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "labels": split_labels("reference", "network"),
+        "labels": split_labels("reference", "decoded"),
         "settings": {
             **lit_settings(sky),
             "view": {"type": "choice", "default": "split", "choices": list(GLTF_VIEWS), "uniform": "u_uvg_view",
@@ -62,7 +62,7 @@ def display_psnr(test: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
     return psnr(a, b, 255.0, mask=mask)
 
 
-def render_views(folder, views=("reference", "network"), size=None, ctx=None) -> tuple[dict, np.ndarray]:
+def render_views(folder, views=("reference", "decoded"), size=None, ctx=None) -> tuple[dict, np.ndarray]:
     """({view: linear RGBA [H, W, 4], image orientation}, mesh coverage [H, W]) at the scene's camera."""
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
@@ -86,7 +86,7 @@ def render_views(folder, views=("reference", "network"), size=None, ctx=None) ->
 def render_metrics(folder) -> dict:
     """Network vs reference at the scene's camera and size, over the mesh's pixels."""
     views, covered = render_views(folder)
-    ref, net = views["reference"], views["network"]
+    ref, net = views["reference"], views["decoded"]
     return {"render_psnr_vs_reference": round(display_psnr(net, ref, covered), 3),
             "render_psnr_linear": round(psnr(net[..., :3], ref[..., :3], mask=covered), 3),
             "render_size": list(ref.shape[1::-1]), "covered_pixels": int(covered.sum())}

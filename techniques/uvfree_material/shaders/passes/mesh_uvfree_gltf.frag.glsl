@@ -3,7 +3,7 @@
 // at the mesh's uv, what passes/gltf_pbr.frag draws); where the network is shown, the visibility
 // buffer's (face, barycentrics) point is decoded (lib/uvf_gltf) and its channels replace the file's.
 // Both sides are shaded by gltf_shade (the spec's BRDF, the scene's lights and SH environment).
-// u_uvg_view (GLTF_VIEWS in techniques/uvfree_material/__init__.py): reference | network | split
+// u_uvg_view (GLTF_VIEWS in techniques/uvfree_material/__init__.py): reference | decoded | split
 // (left half reference, right half network) | error (|network - reference| x u_uvg_error_scale, of the
 // channel shown). u_uvg_channel (GLTF_CHANNEL_VIEWS): shaded, or one
 // channel as passes/gltf_pbr.frag shows it (linear base colour, mapped normal 0.5 + 0.5 n, metallic,
@@ -43,7 +43,7 @@ void main() {
         return;
     }
     GltfSurface reference = s;
-    bool network = u_uvg_view == UVG_VIEW_NETWORK || error
+    bool network = u_uvg_view == UVG_VIEW_DECODED || error
                    || (u_uvg_view == UVG_VIEW_SPLIT && gl_FragCoord.x >= 0.5 * u_size.x);
     if (network) {
         uvg_decode(texelFetch(u_gbuffer_primitive, px, 0).x, texelFetch(u_gbuffer_barycentric, px, 0).xy, g.material,
