@@ -79,18 +79,28 @@ def gbuffer_attributes(mesh, visibility: bool = False) -> tuple[dict, np.ndarray
             faces, has_uv)
 
 
+def cutout_chunks(masked: bool) -> dict:
+    """The G-buffer pass's <gbuffer_cutout>: lib/gltf_cutout where a glTF mesh's alpha-masked
+    materials are bound to it, else lib/gbuffer_opaque (nothing cut)."""
+    return {"gbuffer_cutout": f"#include <{'lib/gltf_cutout' if masked else 'lib/gbuffer_opaque'}>"}
+
+
 class MeshGBuffer:
     """A mesh's G-buffer pass: ``draw`` -> (position texture, normal texture)."""
 
     def __init__(self, ctx: moderngl.Context, mesh, cache: ProgramCache | None = None, *, version: str = "330",
-                 visibility: bool = False):
+                 visibility: bool = False, materials=None):
+        """``materials``: the glTF mesh's ``MaterialTextures``; where a material is alpha MASK, its
+        surface is cut out below alphaCutoff here, so every pass after sees what lies behind."""
         self.ctx = ctx
         self.cache = cache if cache is not None else ProgramCache(ctx)
         self.visibility = bool(visibility)
         self.names = GBUFFER + (VISIBILITY if self.visibility else ())
         self.formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if self.visibility else ())
+        self.materials = materials if materials is not None and materials.masked else None
         self.program = self.cache.get(VERTEX, FRAGMENT, version=version,
-                                      defines={"GBUFFER_VISIBILITY": 1} if self.visibility else None)
+                                      defines={"GBUFFER_VISIBILITY": 1} if self.visibility else None,
+                                      chunks=cutout_chunks(self.materials is not None))
         attributes, faces, self.has_uv = gbuffer_attributes(mesh, self.visibility)
         vertices = attributes["in_position"][0]
         self.bounds = (vertices.min(0), vertices.max(0))
@@ -125,6 +135,10 @@ class MeshGBuffer:
         model = np.eye(4) if model is None else model
         for name, m in (("u_view", view), ("u_proj", proj), ("u_model", model)):
             self.program[name].write(_mat_bytes(m))
+        if self.materials is not None:
+            for unit, (name, tex) in enumerate(self.materials.textures.items()):
+                tex.use(location=unit)
+                self.program[name].value = unit
         self.vao.render(moderngl.TRIANGLES)
         return tuple(fbo.color_attachments)
 

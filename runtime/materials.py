@@ -107,6 +107,7 @@ class MaterialTextures:
         self.images.anisotropy = min(ANISOTROPY, ctx.max_anisotropy)
         self.images.repeat_x = self.images.repeat_y = True
         self.textures = {"u_material_params": self.params, "u_material_images": self.images}
+        self.masked = any(m.alpha_mode == "MASK" for m in asset.materials)   # the G-buffer cuts them out
 
     def release(self) -> None:
         for t in self.textures.values():

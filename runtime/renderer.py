@@ -125,9 +125,6 @@ class SceneRenderer:
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self.shadow_maps = ShadowMaps(self.ctx)   # ProgramSpec.shadows: GL objects made on first use, then reused
         self._build()
-        if scene.mesh is not None:
-            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, version=target,
-                                      visibility=self.spec.visibility)
         clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
         self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
         self.materials = None          # MaterialTextures of a glTF mesh's materials (lib/gltf_material)
@@ -136,6 +133,9 @@ class SceneRenderer:
             self.scene_textures.update(self.materials.textures)
             for note in [*scene.mesh.gltf.notes, *self.materials.notes]:   # conversions, generated tangents, ...
                 log.info("%s: %s", scene.mesh.name, note)
+        if scene.mesh is not None:
+            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, version=target,
+                                      visibility=self.spec.visibility, materials=self.materials)
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
         self.environment = None        # EnvironmentTextures while the program samples lib/environment
         self._environment_key = None

@@ -38,7 +38,7 @@ from inshade.codegen.limits import LimitError
 from inshade.runtime.context import shared_context
 from inshade.runtime.environment import ENV_UNIFORMS
 from inshade.runtime.geometry import FRAGMENT as GBUFFER_FRAGMENT, GBUFFER, VERTEX as MESH_VERTEX, \
-    VISIBILITY, VISIBILITY_FORMATS, gbuffer_attributes
+    VISIBILITY, VISIBILITY_FORMATS, cutout_chunks, gbuffer_attributes
 from inshade.runtime.network import texture_levels
 from inshade.runtime.renderer import VERTEX, SceneRenderer
 from inshade.scene.description import load_scene
@@ -274,8 +274,12 @@ class WebExport:
         attributes, faces, _ = gbuffer_attributes(mesh.data, visibility)
         names = GBUFFER + (VISIBILITY if visibility else ())
         formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if visibility else ())
+        if self.renderer.materials is not None and self.renderer.materials.masked:
+            log.warning("%s: the page draws alphaMode MASK surfaces opaque (inshade render cuts them out)",
+                        self.scene.name)
         return {"program": self._program("gbuffer", MESH_VERTEX, GBUFFER_FRAGMENT,
-                                         defines={"GBUFFER_VISIBILITY": 1} if visibility else None),
+                                         defines={"GBUFFER_VISIBILITY": 1} if visibility else None,
+                                         chunks=cutout_chunks(False)),
                 "attributes": {n: {"size": int(a.shape[1]), "data": self.blob.add(a)} for n, (a, _) in attributes.items()},
                 "indices": None if visibility else self.blob.add(np.ascontiguousarray(faces, np.uint32)),
                 "count": int(faces.size), "targets": [{"uniform": f"u_gbuffer_{n}", "format": f}

@@ -1,0 +1,84 @@
+"""alphaMode MASK: a cut-out card in front of an opaque one. Where the card's alpha (its base colour
+texture's alpha times the factor's, read on the CPU from the file at the card's uv) is below
+alphaCutoff, the pixel shows the card behind; elsewhere the card itself, in the G-buffer every glTF
+pass starts from and in the reference pass's colours."""
+from __future__ import annotations
+
+import numpy as np
+
+from inshade.geometry.gltf_write import GltfBuilder, Primitive
+
+CHECKS = 4          # checker squares per side of the card's alpha
+SIDE = 64           # texels of the alpha image
+CUTOFF = 0.4
+
+
+def _card(z: float, material: int) -> Primitive:
+    v = np.array([[-1, -1, z], [1, -1, z], [1, 1, z], [-1, 1, z]], np.float64)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
+    n = np.tile([0.0, 0.0, 1.0], (4, 1))
+    t = np.tile([1.0, 0.0, 0.0, 1.0], (4, 1))
+    return Primitive(v, np.array([[0, 1, 2], [0, 2, 3]]), n, uv, t, material)
+
+
+def _alpha() -> np.ndarray:
+    """RGBA8 [SIDE, SIDE, 4], row 0 = the top (glTF v = 0): white, alpha a checkerboard of 0.2 / 0.9."""
+    i = np.arange(SIDE) * CHECKS // SIDE
+    a = np.where((i[:, None] + i[None, :]) % 2 == 0, 0.2, 0.9)
+    out = np.full((SIDE, SIDE, 4), 255, np.uint8)
+    out[..., 3] = np.round(a * 255)
+    return out
+
+
+def _file(path, mode: str):
+    b = GltfBuilder()
+    tex = b.texture(b.image(_alpha()))
+    front = b.material({"name": "card", "alphaMode": mode, **({"alphaCutoff": CUTOFF} if mode == "MASK" else {}),
+                        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.05, 0.05, 1.0], "metallicFactor": 0.0,
+                                                 "baseColorTexture": {"index": tex}}})
+    back = b.material({"name": "wall", "pbrMetallicRoughness": {"baseColorFactor": [0.05, 1.0, 0.05, 1.0],
+                                                                 "metallicFactor": 0.0}})
+    b.node(b.mesh([_card(0.0, front)], "card"), name="card")
+    b.node(b.mesh([_card(-0.5, back)], "wall"), scale=[1.5, 1.5, 1.0], name="wall")
+    return b.write(path)
+
+
+def _draw(path):
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.scene.description import load_scene
+
+    scene = load_scene(path)
+    r = SceneRenderer(scene)
+    try:
+        r.render(scene.make_camera(), 128, 128)
+        return r.gbuffer.read()[2], r.read()
+    finally:
+        r.release()
+
+
+def test_a_mask_card_is_cut_out_where_its_alpha_is_below_the_cutoff(gl, tmp_path):
+    opaque_uv, _ = _draw(_file(tmp_path / "opaque.glb", "OPAQUE"))
+    masked_uv, image = _draw(_file(tmp_path / "mask.glb", "MASK"))
+    # the CPU reading: the card's alpha at the uv the opaque draw puts at each pixel (nearest texel,
+    # glTF v down), away from the checker's edges where the texture filter blends the two values
+    card = (opaque_uv[..., 3] > 0) & (np.abs(opaque_uv[..., 2] - 0.0) < 0.5)
+    u, v = opaque_uv[..., 0], 1.0 - opaque_uv[..., 1]
+    cell = np.stack([u, v], -1) * CHECKS
+    inner = (np.abs(cell - np.round(cell)) > 0.1).all(-1) & card
+    texel = np.clip((np.stack([v, u], -1) * SIDE).astype(int), 0, SIDE - 1)
+    alpha = _alpha()[texel[..., 0], texel[..., 1], 3] / 255.0
+    cut = inner & (alpha < CUTOFF)
+    kept = inner & (alpha >= CUTOFF)
+    assert cut.sum() > 300 and kept.sum() > 300
+    material = np.round(masked_uv[..., 2])
+    assert (material[cut] == 1).all() and (material[kept] == 0).all()   # the wall behind / the card
+    rgb = image[::-1][..., :3]   # image rows -> the G-buffer's data rows
+    assert (rgb[cut][:, 1] > rgb[cut][:, 0]).all() and (rgb[kept][:, 0] > rgb[kept][:, 1]).all()
+
+
+def test_a_blend_card_stays_whole(gl, tmp_path):
+    """BLEND is drawn opaque (one surface per G-buffer pixel): the card covers what the OPAQUE card does."""
+    opaque, _ = _draw(_file(tmp_path / "opaque.glb", "OPAQUE"))
+    blend, _ = _draw(_file(tmp_path / "blend.glb", "BLEND"))
+    card = (opaque[..., 3] > 0) & (np.round(opaque[..., 2]) == 0)
+    assert card.sum() > 300 and np.array_equal(card, (blend[..., 3] > 0) & (np.round(blend[..., 2]) == 0))
