@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .gltf_codecs import DRACO, MESHOPT, CodecError, draco_attributes, meshopt_view
+from .gltf_codecs import DRACO, KTX2_MAGIC, MESHOPT, CodecError, draco_attributes, ktx2_rgba, meshopt_view
 from .gltf_codecs import EXTENSIONS as CODEC_EXTENSIONS
 
 # what this reader understands; a required extension outside it is refused, an optional one ignored
@@ -403,18 +403,29 @@ class _Reader:
             data, _ = self.view(im["bufferView"], f"{w}.bufferView")
         else:
             raise _err(w, "needs a uri or a bufferView")
+        if data[:12] == KTX2_MAGIC and "KHR_texture_basisu" in self.extensions:
+            try:
+                array = ktx2_rgba(data, w)
+            except CodecError as exc:
+                raise _err(exc.where, exc.what) from None
+        else:
+            array = self._picture(data, w)
+        self.images.append(np.ascontiguousarray(array))
+        self._images[index] = len(self.images) - 1
+        return self._images[index]
+
+    def _picture(self, data: bytes, w: str) -> np.ndarray:
+        """A PNG / JPEG (or WebP, with its extension) image as RGBA8."""
         from PIL import Image, UnidentifiedImageError
 
         try:
             with Image.open(io.BytesIO(data)) as pil:
                 if pil.format not in IMAGE_FORMATS or IMAGE_FORMATS[pil.format] not in (None, *self.extensions):
-                    raise _err(w, f"{pil.format} image: glTF images are PNG or JPEG (WebP with EXT_texture_webp)")
-                array = np.asarray(pil.convert("RGBA"), np.uint8)
+                    raise _err(w, f"{pil.format} image: glTF images are PNG or JPEG (WebP with EXT_texture_webp, "
+                               "KTX2 with KHR_texture_basisu)")
+                return np.asarray(pil.convert("RGBA"), np.uint8)
         except (UnidentifiedImageError, OSError) as exc:
             raise _err(w, f"cannot decode ({exc})") from None
-        self.images.append(np.ascontiguousarray(array))
-        self._images[index] = len(self.images) - 1
-        return self._images[index]
 
     def texture(self, info, where: str, scale_key: str | None = None) -> TextureRef | None:
         if info is None:
@@ -423,9 +434,11 @@ class _Reader:
             raise _err(where, "must be a textureInfo object")
         tex = self._item("textures", info.get("index"), f"{where}.index")
         source = tex.get("source")
-        webp = (tex.get("extensions") or {}).get("EXT_texture_webp")
-        if isinstance(webp, dict) and "source" in webp:   # the extension's image first, the core's the fallback
-            source = webp["source"]
+        for name in ("KHR_texture_basisu", "EXT_texture_webp"):   # an extension's image first, the core's the fallback
+            ext = (tex.get("extensions") or {}).get(name)
+            if isinstance(ext, dict) and "source" in ext:
+                source = ext["source"]
+                break
         if source is None:
             raise _err(f"textures[{info['index']}].source", "missing (no image)")
         image = self.image(source, f"textures[{info['index']}].source")

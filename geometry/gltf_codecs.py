@@ -6,6 +6,9 @@
 - ``EXT_meshopt_compression`` / ``KHR_meshopt_compression`` (a bufferView encoded by
   meshoptimizer's vertex / index codecs, with an optional octahedral / quaternion / exponential
   filter): PyPI ``meshoptimizer``; the view's bytes come back as if they had never been compressed.
+- ``KHR_texture_basisu`` (KTX2 images with Basis Universal ETC1S or UASTC payloads): transcoded to
+  RGBA8 by Binomial's basisu through PyPI ``alktx2``; level 0 is read (the renderer builds its own
+  mip chain, as for PNG and JPEG).
 
 Both are the optional ``gltf`` extra; a file that needs one when it is missing gets one line naming
 the extension and the install. Decoded data is what the same libraries give other readers
@@ -17,7 +20,9 @@ import numpy as np
 
 DRACO = "KHR_draco_mesh_compression"
 MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
-EXTENSIONS = (DRACO, *MESHOPT)
+BASISU = "KHR_texture_basisu"
+EXTENSIONS = (DRACO, *MESHOPT, BASISU)
+KTX2_MAGIC = b"\xabKTX 20\xbb\r\n\x1a\n"
 MESHOPT_MODES = ("ATTRIBUTES", "TRIANGLES", "INDICES")
 MESHOPT_FILTERS = {"NONE": None, "OCTAHEDRAL": "decode_filter_oct", "QUATERNION": "decode_filter_quat",
                    "EXPONENTIAL": "decode_filter_exp"}
@@ -94,3 +99,18 @@ def meshopt_view(data: bytes, ext: dict, where: str) -> bytes:
     if len(raw) != count * stride:
         raise CodecError(where, f"decoded {len(raw)} bytes, expected count x byteStride = {count * stride}")
     return raw
+
+
+def ktx2_rgba(data: bytes, where: str) -> np.ndarray:
+    """A KTX2 image's level 0 as RGBA8 [H, W, 4], row 0 = the top (glTF's v = 0)."""
+    import io
+
+    from PIL import Image
+
+    ktx2 = _library("alktx2", "alktx2", BASISU, where)
+    try:
+        png, _ = ktx2.decode_ktx2_to_bytes(bytes(data), format="png", level=0)
+    except (ValueError, RuntimeError) as exc:
+        raise CodecError(where, f"cannot transcode the KTX2 image ({exc})") from None
+    with Image.open(io.BytesIO(png)) as image:
+        return np.asarray(image.convert("RGBA"), np.uint8)

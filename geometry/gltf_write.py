@@ -94,11 +94,21 @@ class GltfBuilder:
                                                                     compress_level=6)
         return self._add("images", {"bufferView": self._view(buf.getvalue()), "mimeType": "image/png"})
 
-    def texture(self, image: int, wrap: tuple[str, str] = ("repeat", "repeat"), mipmaps: bool = True) -> int:
+    def encoded_image(self, payload: bytes, mime: str) -> int:
+        """An image already encoded (e.g. ``image/ktx2``, ``image/webp``), stored as it is."""
+        return self._add("images", {"bufferView": self._view(bytes(payload)), "mimeType": mime})
+
+    def texture(self, image: int, wrap: tuple[str, str] = ("repeat", "repeat"), mipmaps: bool = True,
+                extension: str | None = None) -> int:
+        """``extension``: the image is that extension's source (KHR_texture_basisu, EXT_texture_webp),
+        required, with no core fallback."""
         sampler = self._add("samplers", {"magFilter": LINEAR,
                                          "minFilter": LINEAR_MIPMAP_LINEAR if mipmaps else LINEAR,
                                          "wrapS": WRAP_CODES[wrap[0]], "wrapT": WRAP_CODES[wrap[1]]})
-        return self._add("textures", {"source": image, "sampler": sampler})
+        if extension is None:
+            return self._add("textures", {"source": image, "sampler": sampler})
+        self.use(extension, required=True)
+        return self._add("textures", {"sampler": sampler, "extensions": {extension: {"source": image}}})
 
     def material(self, spec: dict) -> int:
         """A material as glTF JSON; the extensions it names are declared used."""
