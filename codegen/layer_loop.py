@@ -143,7 +143,7 @@ def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     tex = ctx.weight_texture
     row0 = [tex.add(*pack(*_weights(bundle, d)), d.id) for d, _ in run.layers][0]   # consecutive rows
     h = f"h_{first.id}"
-    y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=loop_spare(ob, chunk)))
+    y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=loop_spare(ob, ib, chunk)))
     body += loop_lines(y.array, ob, ib, chunk, *texture_exprs(tex.name, f"{row0} + {ob} * l"), h)
     out, act_body, act_rows = _captured(ctx, lambda: EMITTERS[act0.type](ctx, act0, y, bundle))
     body += act_body + [f"{h}[{b}] = {out.array}[{b}];" for b in range(ib)]

@@ -45,6 +45,9 @@ LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (m
 # array read at a loop index is a per-lane gather on llvmpipe (a 512-wide layer's check took 168 s
 # to compile looping over its inputs, 13 s with them written out)
 INPUTS_WRITTEN_MAX = 256
+# Looped layers of more mat4 blocks keep their loop over outputs (loop_spare): 64 x 64 (256 blocks)
+# and smaller unroll, as a network of many small layers compiles fastest unrolled
+KEEP_LOOP_MIN_BLOCKS = 256
 UNROLL_MAX_BLOCKS = 4096     # inline layers beyond this loop over a const array instead
 # auto: whole networks at most this many floats become literals. On GPUs (4096, ~ 32 wide x 3)
 # UBOs are as fast as literals and compile in a fraction of the time. On software renderers
@@ -270,9 +273,11 @@ def loop_lines(out: str, ob, ib, chunk, bias_expr, w_expr, src: str) -> list[str
     return lines
 
 
-def loop_spare(ob: int, chunk: int) -> int:
-    """Spare output blocks a looped layer declares (see loop_lines)."""
-    return 1 if ob > chunk and chunk == 1 else 0
+def loop_spare(ob: int, ib: int, chunk: int) -> int:
+    """Spare output blocks a looped layer declares (see loop_lines): one where the loop over outputs
+    runs a block per pass and the layer is big (KEEP_LOOP_MIN_BLOCKS); a small layer's loop is left for
+    the compiler to unroll, since llvmpipe's compile time doubles with each loop that follows another."""
+    return 1 if ob > chunk and chunk == 1 and ob * ib > KEEP_LOOP_MIN_BLOCKS else 0
 
 
 def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
@@ -313,7 +318,7 @@ def emit_dense(ctx, node, src, bundle):
     why += unrolled
     looped = (mode == "texture" or mode == "inline" and ob * ib > UNROLL_MAX_BLOCKS
               or mode == "ubo" and ob * ib > UBO_UNROLL_MAX_BLOCKS)
-    out = declare(ctx, f"v_{node.id}", node.out_dim, spare=loop_spare(ob, chunk) if looped else 0)
+    out = declare(ctx, f"v_{node.id}", node.out_dim, spare=loop_spare(ob, ib, chunk) if looped else 0)
     ctx.body.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim} ({ob}x{ib} mat4 blocks, {mode})")
     row = dense_row(ctx, node, weight, bias, mode, why)
     name = ctx.name(node.id)
