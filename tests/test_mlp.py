@@ -253,7 +253,7 @@ def test_random_spec_param_count_and_activations():
 def test_a_looped_layer_keeps_its_loop_over_outputs():
     """Mesa's NIR unrolls any loop that runs exactly the length of an array it indexes, whatever the
     body's size (a 128-wide texture layer became 1024 unrolled mat4 blocks: 20 s of JIT instead of
-    under one): a layer looping one output block per pass writes an array one block longer; and
+    under one): a big layer looping one output block per pass writes an array one block longer; and
     its inputs are written out (an array read at a loop index is a per-lane gather on llvmpipe)."""
     torch.manual_seed(0)
     chunk = generate(mlp_graph(3, [128, 128], 1, "relu").export("looped"), storage="texture").chunk
