@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 from .activations import emit_activation
 from .glsl import blocks
 from .limits import loop_iteration_cap
-from .mlp import dense_row, loop_budget, loop_iterations, loop_lines, loop_spare, pack, texture_exprs
+from .mlp import dense_row, inputs_written_max, loop_budget, loop_iterations, loop_lines, loop_spare, pack, texture_exprs
 from .registry import EMITTERS
 from .values import Value, declare
 
@@ -105,7 +105,7 @@ def fold_runs(bundle, storage: dict, chunks: dict, limits: dict, calls: int = 1)
     budget for ``calls`` evaluations (a run that does not fit stays unfolded)."""
     cap = loop_iteration_cap(limits)
     shapes = {n.id: (blocks(n.out_dim), blocks(n.in_dim)) for n in bundle.nodes if n.id in chunks}
-    used = sum(loop_iterations(*shapes[k], c) for k, (c, _) in chunks.items())
+    used = sum(loop_iterations(*shapes[k], c, inputs_written_max(limits)) for k, (c, _) in chunks.items())
     out = {}
     for run in find_runs(bundle, storage):
         if len({chunks.get(d.id, (1, ''))[0] for d, _ in run.layers}) != 1:
@@ -144,7 +144,8 @@ def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     row0 = [tex.add(*pack(*_weights(bundle, d)), d.id) for d, _ in run.layers][0]   # consecutive rows
     h = f"h_{first.id}"
     y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=loop_spare(ob, ib, chunk)))
-    body += loop_lines(y.array, ob, ib, chunk, *texture_exprs(tex.name, f"{row0} + {ob} * l"), h)
+    body += loop_lines(y.array, ob, ib, chunk, *texture_exprs(tex.name, f"{row0} + {ob} * l"), h,
+                       inputs_written_max(ctx.limits))
     out, act_body, act_rows = _captured(ctx, lambda: EMITTERS[act0.type](ctx, act0, y, bundle))
     body += act_body + [f"{h}[{b}] = {out.array}[{b}];" for b in range(ib)]
 

@@ -41,9 +41,11 @@ SPLIT = 4                    # partial sums per output block (breaks the add dep
 UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
                              # on unrolled UBO gathers: 32x3 took minutes); GPUs don't mind loops
 LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (measured best)
-# A looped layer's inputs are written out up to this many blocks (1024 lanes), not looped over: an
-# array read at a loop index is a per-lane gather on llvmpipe (a 512-wide layer's check took 168 s
-# to compile looping over its inputs, 13 s with them written out)
+# On a software renderer a looped layer's inputs are written out up to this many blocks (1024 lanes),
+# not looped over: an array read at a loop index is a per-lane gather on llvmpipe (a 512-wide layer's
+# check took 168 s to compile looping over its inputs, 13 s with them written out). GPU compilers
+# unroll such loops as they see fit, and Chromium's SwiftShader WebGL2 loses its context on the
+# written-out form of a 91 -> 32 x 7 UBO network that it runs looped.
 INPUTS_WRITTEN_MAX = 256
 # Looped layers of more mat4 blocks keep their loop over outputs (loop_spare): 64 x 64 (256 blocks)
 # and smaller unroll, as a network of many small layers compiles fastest unrolled
@@ -82,6 +84,18 @@ def std140(wblocks: np.ndarray, bias: np.ndarray) -> bytes:
     return cols.astype("<f4").tobytes() + bias.astype("<f4").tobytes()
 
 
+def is_software(limits: dict) -> bool:
+    """Whether the plan is for a software renderer (llvmpipe and the like), by the limits' own say or
+    the renderer's name."""
+    renderer = str(limits.get("renderer", limits.get("GL_RENDERER", ""))).lower()
+    return bool(limits.get("software", any(s in renderer for s in SOFTWARE_RENDERERS)))
+
+
+def inputs_written_max(limits: dict) -> int:
+    """Input blocks a looped layer writes out rather than loops over (INPUTS_WRITTEN_MAX)."""
+    return INPUTS_WRITTEN_MAX if is_software(limits) else 0
+
+
 def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str, str]]:
     """Storage per dense node, with the reason the plan report prints."""
     dense = [n for n in bundle.nodes if n.type == "dense"]
@@ -90,8 +104,7 @@ def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str,
     if requested != "auto":
         return {n.id: (requested, "requested") for n in dense}
     floats = sum(blocks(n.in_dim) * blocks(n.out_dim) * 16 + blocks(n.out_dim) * 4 for n in dense)
-    renderer = str(limits.get("renderer", limits.get("GL_RENDERER", ""))).lower()
-    software = bool(limits.get("software", any(s in renderer for s in SOFTWARE_RENDERERS)))
+    software = is_software(limits)
     inline_max = INLINE_MAX_FLOATS_SOFTWARE if software else INLINE_MAX_FLOATS
     if floats <= inline_max:
         why = (f"network has {floats} floats <= {inline_max}: literals compile quickly"
@@ -137,7 +150,7 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
         return {k: (c, "") for k, c in chunks.items()}
 
     def count(k):
-        return loop_iterations(*shapes[k], chunks[k])
+        return loop_iterations(*shapes[k], chunks[k], inputs_written_max(limits))
     budget, base = loop_budget(cap, calls), dict(chunks)
     while sum(count(k) for k in chunks) > budget:
         open_ = [k for k in chunks if chunks[k] < shapes[k][0]]
@@ -153,11 +166,11 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
     return {k: (c, why.format(c) if c != base[k] else "") for k, c in chunks.items()}
 
 
-def loop_iterations(ob: int, ib: int, chunk: int) -> int:
+def loop_iterations(ob: int, ib: int, chunk: int, written: int) -> int:
     """A looped layer's iterations per evaluation: the loop over outputs (unless one pass does
-    them all), and per pass the loop over inputs unless they are written out (loop_lines)."""
+    them all), and per pass the loop over inputs unless they are ``written`` out (loop_lines)."""
     passes = max(1, ob // chunk)
-    return (passes if ob > chunk else 0) + passes * (ib if ib > INPUTS_WRITTEN_MAX else 0)
+    return (passes if ob > chunk else 0) + passes * (ib if ib > written else 0)
 
 
 def loop_budget(cap: int, calls: int) -> int:
@@ -254,14 +267,14 @@ def _emit_unrolled(ctx, out, wb, bias_expr, terms):
         ctx.body.append("\n".join(lines))
 
 
-def loop_lines(out: str, ob, ib, chunk, bias_expr, w_expr, src: str) -> list[str]:
+def loop_lines(out: str, ob, ib, chunk, bias_expr, w_expr, src: str, written: int) -> list[str]:
     """for o in chunks of output blocks: acc = bias; acc += W(o, i) * x[i] over the inputs, written
-    out up to INPUTS_WRITTEN_MAX blocks, a loop beyond. The output array needs a spare block (``declare(spare=1)``) when the loop over
+    out up to ``written`` blocks (inputs_written_max), a loop beyond. The output array needs a spare block (``declare(spare=1)``) when the loop over
     outputs runs one block per pass, so that the compiler keeps that loop a loop."""
     obase = "o" if ob > chunk else "0"
     lines = [f"for (int o = 0; o < {ob}; o += {chunk}) {{" if ob > chunk else "{"]
     lines += [f"    vec4 acc{c} = {bias_expr(f'{obase} + {c}')};" for c in range(chunk)]
-    if ib > INPUTS_WRITTEN_MAX:
+    if ib > written:
         lines.append(f"    for (int i = 0; i < {ib}; ++i) {{")
         lines.append(f"        vec4 xi = {src}[i];")
         lines += [f"        acc{c} += {w_expr(f'{obase} + {c}', 'i')} * xi;" for c in range(chunk)]
@@ -281,7 +294,8 @@ def loop_spare(ob: int, ib: int, chunk: int) -> int:
 
 
 def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
-    ctx.body.append("\n".join(loop_lines(out.array, ob, ib, chunk, bias_expr, w_expr, src.array)))
+    lines = loop_lines(out.array, ob, ib, chunk, bias_expr, w_expr, src.array, inputs_written_max(ctx.limits))
+    ctx.body.append("\n".join(lines))
 
 
 def texture_exprs(t: str, row: str):

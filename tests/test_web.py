@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -189,6 +190,22 @@ def test_your_own_network_exports_through_the_same_path(gl, browser, tmp_path):
     with torch.no_grad():
         ref = module(torch.from_numpy(x.reshape(e["count"], e["in_dim"]))).numpy()
     assert_parity(out, ref, what="a torch module's page")
+
+
+def test_a_lost_context_is_an_error_not_a_blank_page(browser, tmp_path):
+    """A browser that drops the page's WebGL context (a GPU process reset) leaves draws and reads
+    blank without a GL error; the viewer and the evaluation page say so instead."""
+    export_web(TRAINED / "neural_image", tmp_path / "page", width=32, height=32)
+    lose = "document.getElementById('canvas').getContext('webgl2').getExtension('WEBGL_lose_context').loseContext();"
+    with serve(tmp_path / "page") as url:
+        for page in ("index.html", "evaluate.html"):
+            state = browser.open(url + page)
+            assert state["error"] is None and state["ready"], state
+            browser.driver.execute_script(lose)
+            deadline = time.perf_counter() + 10
+            while browser.driver.execute_script("return window.inshade.error") is None and time.perf_counter() < deadline:
+                time.sleep(0.05)
+            assert "WebGL context was lost" in str(browser.driver.execute_script("return window.inshade.error")), page
 
 
 def test_camera_uniforms_match_the_runtime(browser, tmp_path):

@@ -58,10 +58,25 @@ export async function loadExport(base = "./") {
   return {manifest, data, sources, images};
 }
 
+const CONTEXT_LOST = "the WebGL context was lost (the browser reset its GPU process or gave up on a draw)";
+
+// Resolves a frame later, once the browser has had the chance to report a lost context (it does so
+// asynchronously: draws and reads before that return blanks); rejects if it has.
+export async function settled(gl) {
+  await new Promise((resolve) => requestAnimationFrame(resolve));
+  if (gl.isContextLost()) throw new WebGLError(CONTEXT_LOST);
+}
+
 export function createContext(canvas, manifest) {
   const gl = canvas.getContext("webgl2", {antialias: false, preserveDrawingBuffer: true, alpha: false,
                                           depth: false, premultipliedAlpha: false});
   if (!gl) throw new WebGLError("this browser has no WebGL2");
+  // A lost context draws and reads nothing, without a GL error: the page says so instead of showing
+  // (or handing back) blanks
+  canvas.addEventListener("webglcontextlost", () => {
+    const page = window.inshade;
+    if (page && !page.error) page.error = CONTEXT_LOST;
+  });
   for (const name of manifest.requires.extensions) {
     if (!gl.getExtension(name)) throw new WebGLError(`WebGL2: this browser lacks ${name}, which this asset needs`);
   }
@@ -579,7 +594,7 @@ export function evaluate(canvas, {manifest, data, sources}) {
   for (let i = 0; i < n; ++i) for (let j = 0; j < e.out_dim; ++j) outputs[i * e.out_dim + j] = out[j >> 2][i * 4 + (j & 3)];
   const error = gl.getError();
   if (error !== gl.NO_ERROR) throw new WebGLError(`evaluating: GL error 0x${error.toString(16)}`);
-  return {outputs, count: n, outDim: e.out_dim, ms, base64: base64(new Uint8Array(outputs.buffer))};
+  return {gl, outputs, count: n, outDim: e.out_dim, ms, base64: base64(new Uint8Array(outputs.buffer))};
 }
 
 // --- controls ------------------------------------------------------------------------------------
@@ -630,6 +645,7 @@ export async function main({base = "./", canvas, panel, status} = {}) {
     attachPointer(canvas, viewer, redraw);
     viewer.render();
     page.firstFrameMs = performance.now() - t0;
+    await settled(viewer.gl);
     page.ready = true;
     const tick = () => {
       if (dirty || (viewer.manifest.accumulate && viewer.samples < SAMPLE_CAP)) {
