@@ -534,9 +534,21 @@ def test_side_panel_fits_its_longest_label(app):
         app.step(3)
 
 
-@pytest.mark.parametrize("scene", [p.name for p in list_scenes(ROOT / "trained")])
+# Scenes drawn by another shipped scene's program, whose first frame costs half a minute on llvmpipe:
+# grove stands for them here (their decoders' parity is in test_appearance_prefilter_train.py);
+# INSHADE_SLOW=1 opens them too.
+SAME_PROGRAM_AS_GROVE = {"appearance_prefilter_forest", "appearance_prefilter_slabs"}
+
+
+@pytest.mark.parametrize("scene", [
+    pytest.param(p.name, marks=pytest.mark.skipif(
+        p.name in SAME_PROGRAM_AS_GROVE and not os.environ.get("INSHADE_SLOW"),
+        reason="drawn by appearance_prefilter_grove's program (~35 s a first frame); set INSHADE_SLOW=1"))
+    for p in list_scenes(ROOT / "trained")])
 def test_every_shipped_scene_opens_and_draws(app, scene):
-    """The promise: every asset in trained/ opens in the window and shows a picture."""
+    """The promise: every asset in trained/ opens in the window and shows a picture, with the settings
+    ``inshade view`` gives it (the app fixture's texture storage is for the tests that drag and switch)."""
+    overrides, app.overrides = app.overrides, {}
     try:
         assert app.open(ROOT / "trained" / scene), app.messages[-1:]
         app.step(3)
@@ -544,6 +556,7 @@ def test_every_shipped_scene_opens_and_draws(app, scene):
         pixels = _scene_pixels(app, app.read_window())
         assert pixels.std() > 5, f"{scene}: the scene region is flat"
     finally:
+        app.overrides = overrides
         assert app.open(ASSET)
         app.step(3)
 
