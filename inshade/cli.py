@@ -756,8 +756,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_info)
 
     p = sub.add_parser("render", help="render a bundle headless to PNG/EXR + JSON sidecar",
-                       description="Render an asset headless (EGL). .png: exposure applied, then sRGB-encoded 8-bit, no tonemap "
-                                   "operator (values above 1 clip); .exr: linear float32, exposure-scaled; "
+                       description="Render an asset headless (EGL). .png: exposure applied, then the scene's tone mapper "
+                                   "(--set tonemap=none|reinhard|pbr_neutral; none unless the scene says otherwise, "
+                                   "e.g. pbr_neutral for glTF files; none clips values above 1), sRGB-encoded 8-bit; "
+                                   ".exr: linear float32, exposure-scaled, never tone mapped; "
                                    "a JSON sidecar records the settings, bundle digest and GL renderer.")
     p.add_argument("bundle", nargs="?", metavar="ASSET",
                    help="asset folder (scene.json, or a bundle with a 'render' field), scene.json, bundle, "

@@ -62,12 +62,18 @@ def _map(path: str) -> np.ndarray:
 def environment_image(scene_environment: dict, values: dict | None = None) -> np.ndarray:
     """The environment as float32 [H, W, 3] linear radiance (the convention above).
 
-    ``scene_environment`` is a scene's "environment" ({"sky", "rotation", ["map"]}); ``values``
-    overrides its "sky"/"rotation" (what "environment" settings target). Rotation by r degrees about
+    ``scene_environment`` is a scene's "environment" ({"sky", "rotation", ["map"], ["intensity"]});
+    ``values`` overrides them (what "environment" settings target); "intensity" scales the radiance. Rotation by r degrees about
     +y is the SH path's (runtime/renderer.py ``environment_sh``): the rotated radiance at w is the
     original at R^T w, i.e. at azimuth phi + r. Presets are evaluated there exactly; a map's columns
     are shifted by r / 360 * W with periodic linear interpolation (exact for whole-texel shifts)."""
     env = {**scene_environment, **(values or {})}
+    gain = float(env.get("intensity", 1.0))
+    image = _unscaled_image(env)
+    return image if gain == 1.0 else (image * np.float32(gain)).astype(np.float32)
+
+
+def _unscaled_image(env: dict) -> np.ndarray:
     sky, rotation = env.get("sky"), env.get("rotation", 0.0)
     if isinstance(rotation, bool) or not isinstance(rotation, (int, float)) or not math.isfinite(rotation):
         raise ValueError(f"environment.rotation: must be a finite number of degrees, got {rotation!r}")

@@ -28,6 +28,7 @@ from .context import make_current, shared_context
 from inshade.files import atomic_files
 
 from inshade.scene.image_io import sidecar_path, sidecar_text, write_exr, write_png
+from inshade.scene.tonemap import presented_tonemap
 from .programs import ProgramCache
 from .renderer import SceneRenderer
 from inshade.scene.description import MAX_SIZE, RenderSpecError, Scene, load_scene, render_spec, scene_from_bundle  # noqa: F401
@@ -196,12 +197,16 @@ def render_from_sidecar(sidecar, *, ctx=None, cache: ProgramCache | None = None)
 
 
 def save_render(image: np.ndarray, info: dict, out_path, *, exposure: float = 1.0,
-                tonemap: str = "none") -> tuple[Path, Path]:
+                tonemap: str | None = None) -> tuple[Path, Path]:
     """Write ``image`` (linear, image orientation) by suffix: ``.png`` = exposure, tonemap, sRGB,
     8-bit, with the scene's labels drawn over it (scene/labels.py; the built-in setting ``labels``
-    turns them off); ``.exr`` = linear float32, never labelled. A sidecar ``<out_path>.json``
-    records ``info``. Returns ``(image_path, sidecar_path)``."""
+    turns them off); ``.exr`` = linear float32, never tone mapped or labelled. ``tonemap`` defaults
+    to what the window shows for the recorded view (the ``tonemap`` setting, scene/tonemap.py). A
+    sidecar ``<out_path>.json`` records ``info``. Returns ``(image_path, sidecar_path)``."""
     out_path = Path(out_path)
+    if tonemap is None:
+        view = info.get("view") or {}
+        tonemap = presented_tonemap(view.get("settings") or {}, view.get("mode", "final"))
     suffix = out_path.suffix.lower()
     if suffix not in IMAGE_SUFFIXES:
         raise ValueError(f"{out_path}: unknown image type {suffix or '(none)'!r}; use .png or .exr")

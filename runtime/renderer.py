@@ -279,7 +279,7 @@ class SceneRenderer:
             raise SceneError(f"unknown setting {name!r} (this scene has: {', '.join(self.scene.settings)})")
         setting = self.scene.settings[name]
         value = setting.check(value)
-        if setting.binding in ("uniform", "environment", "frame"):
+        if setting.binding in ("uniform", "environment", "frame", "present"):
             self.values[name] = value
             if setting.binding == "environment" and self.environment is not None:
                 self._sync_environment()   # the importance-sampled texture follows sky / rotation
@@ -382,8 +382,11 @@ class SceneRenderer:
             if s.binding == "environment":
                 env[s.target] = self.values[name]
         if env["sky"] == "map":   # environment.map, projected at load time (scene/description.py)
-            return _rotated_map_sh(self.scene.environment_map, float(env["rotation"]))
-        return environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
+            sh = _rotated_map_sh(self.scene.environment_map, float(env["rotation"]))
+        else:
+            sh = environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
+        gain = float(env.get("intensity", 1.0))
+        return sh if gain == 1.0 else (sh * np.float32(gain)).astype(np.float32)
 
     def render_network(self, camera, width: int, height: int, *, force: bool = False) -> moderngl.Framebuffer:
         """The scene pass alone (linear float, alpha = coverage); redrawn only when its inputs change,

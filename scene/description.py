@@ -25,8 +25,9 @@ program that reads ``u_lights`` as positions only is refused a directional light
 
 An analytic SDF scene (geometry/sdf.py) names its description file in ``"sdf": "sdf.json"``, may
 have ``"networks": []``, and lights the scene with ``"environment": {"sky": preset, "rotation":
-degrees, "degree": 4}`` (a procedural sky of inshade.sh, projected to SH); settings bound to
-``"environment": "sky" | "rotation"`` override those two at run time. A network SDF (an MLP fitted
+degrees, "degree": 4, "intensity": 1}`` (a procedural sky of inshade.sh, projected to SH, its
+radiance scaled by the intensity); settings bound to ``"environment": "sky" | "rotation" |
+"intensity"`` override those at run time. A network SDF (an MLP fitted
 to a mesh, codegen/network_sdf.py) is ``"sdf": {"network": "sdf_bundle"}`` instead: the bundle is
 compiled into the same ``sdf_scene`` chunk, so every SDF pass traces it unchanged.
 
@@ -66,6 +67,7 @@ from inshade.shaders import find_chunk
 from .camera import CameraError, camera_from_dict
 from .display import UI_MODES, DisplayMode, parse_mode
 from .labels import parse_labels
+from .tonemap import TONEMAPS
 
 SCENE_FILE = "scene.json"
 BUNDLE_FILE = "bundle.json"
@@ -73,10 +75,12 @@ MAX_SIZE = 16384
 REFERENCE_SPACES = ("field", "screen")
 SETTING_TYPES = ("float", "int", "bool", "choice")
 # "frame": read only by the program's per-frame hook (ProgramSpec.frame), which turns it into uniforms.
-BINDINGS = ("uniform", "define", "codegen", "environment", "frame")
+# "present": a uniform of the present pass (the window, the page) that PNGs follow too, never seen by the
+# float image (the tone mapper).
+BINDINGS = ("uniform", "define", "codegen", "environment", "frame", "present")
 # "environment" settings drive the lighting the renderer computes on the CPU (SDF scenes: the
 # radiance SH uniform u_sh); a change re-uploads a uniform, no recompile.
-ENVIRONMENT_TARGETS = ("sky", "rotation")
+ENVIRONMENT_TARGETS = ("sky", "rotation", "intensity")
 # Codegen options a setting may drive: "<component type>.<option>" (codegen.OPTIONS) or a shorthand
 # ("storage", "lut_filter", codegen.SHORTHANDS) -> its choices.
 CODEGEN_OPTIONS = {**{f"{t}.{name}": choices for t, opts in OPTIONS.items() for name, (choices, _) in opts.items()},
@@ -94,6 +98,9 @@ BUILTIN_SETTINGS = {
                    "label": "LUT filtering"},
     # scene labels (scene/labels.py): drawn over the window and the PNG, never in the float image
     "labels": {"type": "bool", "default": True, "frame": "labels", "label": "labels"},
+    # the tone mapper of the window, the page and PNGs (scene/tonemap.py); the float image and EXRs stay linear
+    "tonemap": {"type": "choice", "default": "none", "choices": list(TONEMAPS), "present": "u_tonemap",
+                "label": "tone mapping"},
 }
 
 
@@ -677,17 +684,21 @@ def _check_mesh_attributes(mesh: MeshRef, program: str, needs) -> None:
 def _lit_environment(env, root: Path) -> tuple[dict, object]:
     """The lighting of an SDF or mesh scene: a procedural sky preset ("sky") or an equirectangular map
     ("map": .exr/.png/.jpg relative to the scene file, projected to SH once here; "sky" is then
-    "map"), rotated about +y by "rotation" degrees. Returns (environment, map SH or None)."""
+    "map"), rotated about +y by "rotation" degrees, its radiance scaled by "intensity". Returns
+    (environment, map SH or None)."""
     from inshade.sh import MAX_DEGREE, SKY_PRESETS, load_environment, project_environment
 
     given = dict(env or {})
-    env = {"sky": "map" if "map" in given else "overcast", "rotation": 0.0, "degree": 4, **given}
-    extra = sorted(set(env) - {"sky", "rotation", "degree", "map"})
+    env = {"sky": "map" if "map" in given else "overcast", "rotation": 0.0, "degree": 4, "intensity": 1.0, **given}
+    extra = sorted(set(env) - {"sky", "rotation", "degree", "map", "intensity"})
     if extra:
-        raise SceneError(f"environment.{extra[0]}: unknown field (known: degree, map, rotation, sky)")
+        raise SceneError(f"environment.{extra[0]}: unknown field (known: degree, intensity, map, rotation, sky)")
     rot = env["rotation"]
     if isinstance(rot, bool) or not isinstance(rot, (int, float)) or not math.isfinite(rot):
         raise SceneError(f"environment.rotation: must be a finite number of degrees, got {rot!r}")
+    gain = env["intensity"]
+    if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not math.isfinite(gain) or gain < 0:
+        raise SceneError(f"environment.intensity: must be a finite number >= 0, got {gain!r}")
     if env["degree"] not in range(1, MAX_DEGREE + 1):
         raise SceneError(f"environment.degree: must be an int in 1..{MAX_DEGREE}, got {env['degree']!r}")
     sh = None

@@ -1,5 +1,5 @@
-"""Writing renders: PNG for eyes (exposure, then sRGB-encoded 8-bit; no tonemap operator unless
-``tonemap="reinhard"`` is asked for: values above 1 clip), EXR for numbers (linear float32).
+"""Writing renders: PNG for eyes (exposure, a tone mapper of scene/tonemap.py (none unless asked for:
+values above 1 clip), then sRGB-encoded 8-bit), EXR for numbers (linear float32).
 
 Arrays are image-oriented ([H, W, C], row 0 = top), as returned by ``render.read_rgba``.
 Each output can get a JSON sidecar saying how it was made. Every file is written atomically
@@ -18,8 +18,7 @@ import OpenEXR
 from PIL import Image
 
 from inshade.files import atomic_files
-
-TONEMAPS = ("none", "reinhard")
+from inshade.scene.tonemap import check_tonemap, tonemap as apply_tonemap
 
 
 def srgb_oetf(linear: np.ndarray) -> np.ndarray:
@@ -33,21 +32,20 @@ def to_8bit(values: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(values, np.float64) * 255.0).astype(np.uint8)
 
 
-def write_png(path: str | Path, linear_rgb: np.ndarray, exposure: float = 1.0, tonemap: str = "none") -> Path:
-    """Write linear ``[H, W, 3|4]`` as an 8-bit sRGB PNG: scale by exposure, apply ``tonemap``
-    (``"none"``, the default: no operator, values above 1 clip; ``"reinhard"``: x / (1 + x)),
-    clip to [0, 1], sRGB-encode.
-
-    Alpha (if present) is written linearly, without exposure or tonemap.
-    """
-    if tonemap not in TONEMAPS:
-        raise ValueError(f"unknown tonemap {tonemap!r}; expected one of {TONEMAPS}")
+def display_pixels(linear_rgb: np.ndarray, exposure: float = 1.0, tonemap: str = "none") -> np.ndarray:
+    """Linear ``[H, W, 3|4]`` -> the 8-bit sRGB pixels a PNG holds (and the present pass shows):
+    scale by exposure, apply ``tonemap`` (scene/tonemap.py TONEMAPS; ``"none"``: values above 1
+    clip), clip to [0, 1], sRGB-encode. Alpha (if present) stays linear, without exposure or tonemap."""
+    check_tonemap(tonemap)
     image = _check_image(linear_rgb).astype(np.float64)
-    rgb = np.maximum(image[..., :3] * exposure, 0.0)
-    if tonemap == "reinhard":
-        rgb = rgb / (1.0 + rgb)
+    rgb = apply_tonemap(np.maximum(image[..., :3] * exposure, 0.0), tonemap)
     channels = [srgb_oetf(rgb)] + ([np.clip(image[..., 3:], 0.0, 1.0)] if image.shape[2] == 4 else [])
-    pixels = to_8bit(np.concatenate(channels, axis=2))
+    return to_8bit(np.concatenate(channels, axis=2))
+
+
+def write_png(path: str | Path, linear_rgb: np.ndarray, exposure: float = 1.0, tonemap: str = "none") -> Path:
+    """Write linear ``[H, W, 3|4]`` as an 8-bit sRGB PNG of ``display_pixels``."""
+    pixels = display_pixels(linear_rgb, exposure, tonemap)
     path = Path(path)
     with atomic_files(path) as tmp:
         Image.fromarray(pixels).save(tmp, format="PNG")

@@ -176,7 +176,7 @@ def test_split_is_the_gltf_reference_pass_left_and_the_network_right(torus):
     width, height = scene.size
     plain = load_scene(asset / "source.glb")
     assert plain.program == "passes/gltf_pbr.frag"
-    r = SceneRenderer(plain)
+    r = SceneRenderer(plain, settings={k: scene.settings[k].default for k in ("sky", "lights")})
     try:
         r.accumulate(camera, width, height, 1)
         reference = r.read("network")

@@ -323,6 +323,7 @@ def test_a_gltf_file_exports_as_a_page_of_its_reference_shading(gl, browser, tmp
         assert state["error"] is None, state
         assert not _errors(state["console"]), state["console"]
         page = browser.canvas()
-    image, _ = render_scene(load_scene(path), width=128, height=128)
-    db = psnr8(page, srgb8(image))
+    image, info = render_scene(load_scene(path), width=128, height=128)
+    assert info["view"]["settings"]["tonemap"] == "pbr_neutral"   # the page presents it as the PNG does
+    db = psnr8(page, srgb8(image, tonemap="pbr_neutral"))
     assert db >= MIN_PSNR_DB, f"tiles.glb: the page is {db:.2f} dB from inshade render's"

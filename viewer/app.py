@@ -37,6 +37,8 @@ from . import navigation
 from inshade.runtime.context import pyopengl_bound_to_osmesa, release_shared
 from inshade.scene.display import UI_MODES, DisplayMode, parse_mode
 from inshade.scene.labels import active as active_labels
+from inshade.scene.tonemap import TONEMAPS, presented_tonemap
+from inshade.scene.tonemap import glsl_chunk as tonemap_chunk
 from inshade.runtime.headless import save_render
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass
@@ -113,7 +115,8 @@ class ViewerApp:
         glfw.set_window_size_callback(self.window, self.impl.resize_callback)
 
         self.cache = ProgramCache(self.ctx)
-        self.present_program = self.cache.get("common/fullscreen.vert", "passes/present.frag")
+        self.present_program = self.cache.get("common/fullscreen.vert", "passes/present.frag",
+                                              chunks={"tonemaps": tonemap_chunk()})
         self.present = FullscreenPass(self.ctx, self.present_program)
         self.timer = self.ctx.query(time=True)
         self.frame_ms: collections.deque = collections.deque(maxlen=HISTORY)
@@ -366,8 +369,10 @@ class ViewerApp:
             self.ctx.disable(moderngl.BLEND)
             self.ctx.screen.use()
             self.ctx.viewport = (x, y, w, h)
+            tonemap = presented_tonemap(self.renderer.values, self.mode.name.lower())
             self.present.render(self.ctx.screen, uniforms={"u_origin": (float(x), float(y)),
-                                                           "u_scale": (dw / w, dh / h)},
+                                                           "u_scale": (dw / w, dh / h),
+                                                           "u_tonemap": TONEMAPS.index(tonemap)},
                                 textures={"u_source": out.color_attachments[0]})
             self.ctx.viewport = (0, 0, *self.framebuffer_size)
 

@@ -133,11 +133,11 @@ class Browser:
         self.close()
 
 
-def srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear RGB -> 8-bit sRGB as ``inshade render`` writes a PNG (scene/image_io.py write_png)."""
-    from inshade.scene.image_io import srgb_oetf, to_8bit
+def srgb8(linear: np.ndarray, tonemap: str = "none") -> np.ndarray:
+    """Linear RGB -> 8-bit sRGB as ``inshade render`` writes a PNG (scene/image_io.py display_pixels)."""
+    from inshade.scene.image_io import display_pixels
 
-    return to_8bit(srgb_oetf(np.maximum(np.asarray(linear, np.float64)[..., :3], 0.0)))
+    return display_pixels(np.asarray(linear)[..., :3], tonemap=tonemap)
 
 
 def psnr8(a: np.ndarray, b: np.ndarray) -> float:

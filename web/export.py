@@ -42,7 +42,9 @@ from inshade.runtime.geometry import FRAGMENT as GBUFFER_FRAGMENT, GBUFFER, VERT
 from inshade.runtime.network import texture_levels
 from inshade.runtime.renderer import VERTEX, SceneRenderer
 from inshade.scene.description import load_scene
-from inshade.scene.display import UI_MODES, glsl_chunk
+from inshade.scene.display import UI_MODES, glsl_chunk, parse_mode
+from inshade.scene.tonemap import TONEMAPPED_MODES
+from inshade.scene.tonemap import glsl_chunk as tonemap_chunk
 from inshade.shaders import assemble
 from inshade.technique import FrameInputs
 
@@ -247,6 +249,12 @@ class WebExport:
                 rec.update(min=s.min, max=s.max)
             if s.type == "choice":
                 rec["choices"] = list(s.choices)
+            if s.binding == "present":   # the present pass's own uniform (the tone mapper): always live
+                rec["present"] = s.target
+                if s.type == "choice":
+                    rec["indices"] = [s.index(c) for c in s.choices]
+                out.append(rec)
+                continue
             fixed = {"define": "compiled into the program", "codegen": "a code generation option",
                      "environment": "the environment is exported as data"}.get(s.binding)
             if fixed is None:
@@ -344,7 +352,8 @@ class WebExport:
             "requires": {"extensions": _extensions(all_textures), "limits": limits},
             "programs": {"scene": "scene", "display": self._program("display", VERTEX, "passes/display.frag",
                                                                     chunks={"display_modes": glsl_chunk()}),
-                         "present": self._program("present", VERTEX, "passes/present.frag")},
+                         "present": self._program("present", VERTEX, "passes/present.frag",
+                                                  chunks={"tonemaps": tonemap_chunk()})},
             "attachments": attachments,
             "accumulate": spec.accumulate,
             "textures": textures,
@@ -356,7 +365,8 @@ class WebExport:
                         "modes": {m.name.lower(): int(m) for m in scene.display_modes if m in UI_MODES},
                         "reference": reference,
                         "reference_space": scene.reference.space if scene.reference is not None else None,
-                        "exposure": 1.0, "error_scale": 4.0},
+                        "exposure": 1.0, "error_scale": 4.0,
+                        "tonemapped_modes": [int(parse_mode(m)) for m in TONEMAPPED_MODES]},
             "evaluate": evaluation,
         }
         if spec.accumulate:

@@ -14,7 +14,3 @@ vec3 srgb_eotf(vec3 encoded) {
     return mix(hi, lo, lessThanEqual(encoded, vec3(0.04045)));
 }
 
-// Reinhard tonemap per channel, x / (1 + x): maps [0, inf) into [0, 1).
-vec3 tonemap_reinhard(vec3 linear_rgb) {
-    return linear_rgb / (1.0 + linear_rgb);
-}

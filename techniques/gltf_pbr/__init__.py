@@ -4,20 +4,23 @@ the scene's lights and SH environment. No network: the honest reference the lear
 glTF files are compared with, and what ``inshade render|view|info FILE.glb`` draws.
 
 ``scene_data(path)`` makes the scene a glTF file opens as (``Technique.opens``): the file as the
-mesh (its normals, tangents, materials; geometry/gltf.py), an orbit camera framing its bounds, two
-point lights scaled to its size, the studio sky, and the views of ``VIEWS`` (the shaded result or
-one material channel).
+mesh (its normals, tangents, materials; geometry/gltf.py), an orbit camera framing its bounds, and
+the views of ``VIEWS`` (the shaded result or one material channel). Its first look is the one glTF
+viewers share (the Khronos Sample Viewer, three.js's): a neutral environment, Khronos PBR Neutral
+tone mapping, exposure 1; two point lights scaled to the file's size are there to turn on
+(``lights``). The look before that is ``--set sky=studio --set lights=2 --set tonemap=none``.
 """
 from pathlib import Path
 
 import numpy as np
 
+from inshade.scene.tonemap import TONEMAPS
 from inshade.technique import Choice, ProgramSpec, Technique
 
 PROGRAM = "passes/gltf_pbr.frag"
 # u_gltf_view's values in index order (GLTF_VIEW_* in the pass, from <choices>)
 VIEWS = ("shaded", "base_color", "normal", "metallic", "roughness", "occlusion", "emissive")
-SKIES = ["studio", "sunset", "overcast", "noon"]
+SKIES = ["neutral", "studio", "sunset", "overcast", "noon"]
 
 
 def scene_data(path) -> dict:
@@ -41,17 +44,21 @@ def scene_data(path) -> dict:
             "camera": {"type": "orbit", "fov_y": 40.0, "target": centre.tolist(), "distance": 3.0 * radius,
                        "yaw": 30.0, "pitch": -20.0},
             "lights": [light((2.0, 2.5, 2.0), 4.0), light((-2.5, 1.0, 1.5), 1.5)],
-            "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
+            "environment": {"sky": "neutral", "rotation": 0.0, "degree": 3},
             "display": {"mode": "final", "modes": ["final"], "split": 0.5},
             "settings": {
                 "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
                              "label": "exposure"},
                 "view": {"type": "choice", "default": "shaded", "choices": list(VIEWS), "uniform": "u_gltf_view",
                          "label": "view (shaded, or one material channel)"},
-                "lights": {"type": "int", "default": 2, "min": 0, "max": 2, "uniform": "u_light_count",
+                "tonemap": {"type": "choice", "default": "pbr_neutral", "choices": list(TONEMAPS),
+                            "present": "u_tonemap", "label": "tone mapping"},
+                "lights": {"type": "int", "default": 0, "min": 0, "max": 2, "uniform": "u_light_count",
                            "label": "point lights"},
-                "sky": {"type": "choice", "default": "studio", "choices": SKIES, "environment": "sky",
+                "sky": {"type": "choice", "default": "neutral", "choices": SKIES, "environment": "sky",
                         "label": "environment"},
+                "env_intensity": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0,
+                                  "environment": "intensity", "label": "env intensity"},
                 "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0,
                                  "environment": "rotation", "label": "env rotation (deg)"}},
             "notes": "; ".join(asset.notes)}

@@ -35,7 +35,13 @@ def scene_description(out: Path, source: str, material: int, material_name: str,
     if opens is None:
         raise ValueError(f"{source}: no technique draws {Path(source).suffix} files (the glTF reference pass)")
     base = opens(Path(out) / source)
-    settings = {k: v for k, v in base["settings"].items() if k in ("exposure", "lights", "sky", "env_rotation")}
+    settings = {k: v for k, v in base["settings"].items()
+                if k in ("exposure", "tonemap", "lights", "sky", "env_rotation", "env_intensity")}
+    # lit as its renders were measured: the studio sky (a brighter sky is more Monte Carlo noise in the
+    # environment's share) and the point lights its "lights" view needs, which the file's own scene
+    # leaves off
+    settings["lights"] = {**settings["lights"], "default": len(base["lights"])}
+    settings["sky"] = {**settings["sky"], "default": "studio"}
     lo, hi = (np.asarray(b, np.float64) for b in bounds)
     # as the opener frames the file (3 bounding radii away), around the learnt material only
     camera = {**base["camera"], "target": ((lo + hi) / 2).tolist(),
@@ -48,7 +54,7 @@ def scene_description(out: Path, source: str, material: int, material_name: str,
         "networks": [{"bundle": folder, "prefix": prefix} for folder, prefix in NETWORKS],
         "mesh": source,
         "camera": camera, "bookmarks": {"file": base["camera"]},
-        "lights": base["lights"], "environment": base["environment"],
+        "lights": base["lights"], "environment": {**base["environment"], "sky": "studio"},
         "display": {"mode": "final", "modes": ["final"], "split": 0.5},
         "labels": split_labels("reference", "neural"),
         "settings": {

@@ -522,6 +522,10 @@ export class Viewer {
     bindResources(gl, present, [{...this.targets.output.textures[0], uniform: "u_source"}]);
     setUniform(gl, present, "u_origin", [0, 0]);
     setUniform(gl, present, "u_scale", [1, 1]);   // the page draws the scene at the canvas size
+    const pictured = d.tonemapped_modes.includes(this.mode);   // error views and raw lanes: 0, as they are
+    for (const s of m.settings) {
+      if (s.present) setUniform(gl, present, s.present, pictured ? s.indices[s.choices.indexOf(this.values[s.name])] : 0);
+    }
     this._fullscreen(present, null);
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));   // waits for the frame
     this.frameMs = performance.now() - start;
