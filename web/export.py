@@ -282,12 +282,10 @@ class WebExport:
         attributes, faces, _ = gbuffer_attributes(mesh.data, visibility)
         names = GBUFFER + (VISIBILITY if visibility else ())
         formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if visibility else ())
-        if self.renderer.materials is not None and self.renderer.materials.masked:
-            log.warning("%s: the page draws alphaMode MASK surfaces opaque (inshade render cuts them out)",
-                        self.scene.name)
+        masked = self.renderer.materials is not None and self.renderer.materials.masked
         return {"program": self._program("gbuffer", MESH_VERTEX, GBUFFER_FRAGMENT,
                                          defines={"GBUFFER_VISIBILITY": 1} if visibility else None,
-                                         chunks=cutout_chunks(False)),
+                                         chunks=cutout_chunks(masked)),
                 "attributes": {n: {"size": int(a.shape[1]), "data": self.blob.add(a)} for n, (a, _) in attributes.items()},
                 "indices": None if visibility else self.blob.add(np.ascontiguousarray(faces, np.uint32)),
                 "count": int(faces.size), "targets": [{"uniform": f"u_gbuffer_{n}", "format": f}

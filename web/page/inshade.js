@@ -468,6 +468,7 @@ export class Viewer {
       gl.clearBufferfi(gl.DEPTH_STENCIL, 0, 1.0, 0);
       gl.disable(gl.BLEND); gl.disable(gl.CULL_FACE); gl.enable(gl.DEPTH_TEST); gl.depthFunc(gl.LESS);
       gl.useProgram(prog.program);
+      bindResources(gl, prog, this.textures);   // the material textures, where MASK surfaces are cut out
       this._apply(prog, {u_view: uniforms.u_view_matrix, u_proj: uniforms.u_proj,
                          u_model: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]});
       gl.bindVertexArray(vao);
