@@ -258,12 +258,13 @@ SKY_PRESETS: dict[str, dict] = {
                  gradient=0.6, ground_blend=0.3,
                  lobes=[((65.0, -30.0), (60.0, 57.0, 50.0), 3000.0)]),
     # a grey room lit by soft panels above and around, no colour cast: the first look of a glTF file, as
-    # viewers show one (a neutral studio environment); its irradiance is near three.js's RoomEnvironment's
-    "neutral": dict(zenith=(0.75, 0.75, 0.75), horizon=(0.55, 0.55, 0.55), ground=(0.30, 0.30, 0.30),
+    # viewers show one (a neutral studio environment); its level lights a diffuse surface as three.js's
+    # RoomEnvironment does (tests/test_three_peer.py: the same mean brightness within a few percent)
+    "neutral": dict(zenith=(1.5, 1.5, 1.5), horizon=(1.1, 1.1, 1.1), ground=(0.6, 0.6, 0.6),
                     gradient=1.0, ground_blend=0.5,
-                    lobes=[((75.0, 0.0), (1.6, 1.6, 1.6), 6.0),        # ceiling panels
-                           ((15.0, -60.0), (0.8, 0.8, 0.8), 8.0),      # wall panels
-                           ((15.0, 120.0), (0.8, 0.8, 0.8), 8.0)]),
+                    lobes=[((75.0, 0.0), (3.2, 3.2, 3.2), 6.0),        # ceiling panels
+                           ((15.0, -60.0), (1.6, 1.6, 1.6), 8.0),      # wall panels
+                           ((15.0, 120.0), (1.6, 1.6, 1.6), 8.0)]),
     "studio": dict(zenith=(0.05, 0.05, 0.05), horizon=(0.02, 0.02, 0.02), ground=(0.01, 0.01, 0.01),
                    gradient=1.0, ground_blend=0.5,
                    lobes=[((35.0, -45.0), (4.0, 3.9, 3.7), 40.0),      # key softbox
