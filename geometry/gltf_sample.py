@@ -1,8 +1,9 @@
 """A glTF material's values on the CPU: what trainers learn from and exporters write.
 
-- ``sample_texture(asset, ref, uv)``: a material texture at glTF uv [N, 2] (v down) through its
-  KHR_texture_transform and the sampler's wrap modes, bilinear (the base level: trainers sample at
-  the texture's own resolution), [N, 4] float64 in [0, 1] as stored (no colour decode).
+- ``sample_texture(asset, ref, uv, colour=False)``: a material texture at glTF uv [N, 2] (v down)
+  through its KHR_texture_transform and the sampler's wrap modes, bilinear (the base level: trainers
+  sample at the texture's own resolution), [N, 4] float64 in [0, 1]: as stored, or with ``colour``
+  the texels' RGB sRGB-decoded before filtering (as the GPU's linear-light image array filters).
 - ``material_channels(asset, m, uv)``: material ``m`` at those uv, factors applied, colours linear:
   ``base_color`` [N, 3], ``alpha``, ``metallic``, ``roughness``, ``normal`` (tangent space, unit,
   normal scale applied; +y along the project's +v), ``occlusion`` (strength applied), ``emissive``
@@ -33,9 +34,12 @@ def _wrap(x: np.ndarray, mode: str) -> np.ndarray:
     return x
 
 
-def sample_texture(asset: GltfAsset, ref: TextureRef, uv_gltf: np.ndarray) -> np.ndarray:
-    """[N, 4] float64 in [0, 1]: bilinear at the transformed, wrapped glTF uv (texel centres at (i + 0.5) / W)."""
+def sample_texture(asset: GltfAsset, ref: TextureRef, uv_gltf: np.ndarray, colour: bool = False) -> np.ndarray:
+    """[N, 4] float64 in [0, 1]: bilinear at the transformed, wrapped glTF uv (texel centres at (i + 0.5) / W);
+    ``colour``: the RGB of each texel sRGB-decoded first, so light is what gets filtered."""
     image = asset.images[ref.image].astype(np.float64) / 255.0
+    if colour:
+        image[..., :3] = srgb_to_linear(image[..., :3])
     h, w = image.shape[:2]
     uv = np.asarray(uv_gltf, np.float64)
     t = uv @ ref.transform[:2, :2].T + ref.transform[:2, 2]
@@ -66,12 +70,13 @@ def material_channels(asset: GltfAsset, m: int, uv: np.ndarray) -> dict[str, np.
     g = gltf_uv(uv)
     n = len(g)
 
-    def tex(ref, default):
-        return sample_texture(asset, ref, g) if ref is not None else np.tile(np.asarray(default, np.float64), (n, 1))
+    def tex(ref, default, colour=False):
+        return sample_texture(asset, ref, g, colour) if ref is not None else np.tile(np.asarray(default, np.float64),
+                                                                                     (n, 1))
 
-    base = tex(mat.base_color_texture, (1, 1, 1, 1))
+    base = tex(mat.base_color_texture, (1, 1, 1, 1), colour=True)
     mr = tex(mat.metallic_roughness_texture, (1, 1, 1, 1))
-    out = {"base_color": np.asarray(mat.base_color[:3]) * srgb_to_linear(base[:, :3]),
+    out = {"base_color": np.asarray(mat.base_color[:3]) * base[:, :3],
            "alpha": mat.base_color[3] * base[:, 3],
            "metallic": np.clip(mat.metallic * mr[:, 2], 0, 1), "roughness": np.clip(mat.roughness * mr[:, 1], 0, 1)}
     nt = tex(mat.normal_texture, (0.5, 0.5, 1.0, 1.0))[:, :3] * 2.0 - 1.0
@@ -80,10 +85,10 @@ def material_channels(asset: GltfAsset, m: int, uv: np.ndarray) -> dict[str, np.
     ao = tex(mat.occlusion_texture, (1, 1, 1, 1))[:, 0]
     strength = mat.occlusion_texture.scale if mat.occlusion_texture is not None else 1.0
     out["occlusion"] = 1.0 + strength * (ao - 1.0)
-    out["emissive"] = np.asarray(mat.emissive) * srgb_to_linear(tex(mat.emissive_texture, (1, 1, 1, 1))[:, :3])
+    out["emissive"] = np.asarray(mat.emissive) * tex(mat.emissive_texture, (1, 1, 1, 1), colour=True)[:, :3]
     out["clearcoat"] = mat.clearcoat * tex(mat.clearcoat_texture, (1, 1, 1, 1))[:, 0]
     out["clearcoat_roughness"] = mat.clearcoat_roughness * tex(mat.clearcoat_roughness_texture, (1, 1, 1, 1))[:, 1]
-    out["sheen_color"] = np.asarray(mat.sheen_color) * srgb_to_linear(tex(mat.sheen_color_texture, (1, 1, 1, 1))[:, :3])
+    out["sheen_color"] = np.asarray(mat.sheen_color) * tex(mat.sheen_color_texture, (1, 1, 1, 1), colour=True)[:, :3]
     out["sheen_roughness"] = mat.sheen_roughness * tex(mat.sheen_roughness_texture, (1, 1, 1, 1))[:, 3]
     an = tex(mat.anisotropy_texture, (1.0, 0.5, 1.0, 1.0))
     out["anisotropy"] = mat.anisotropy_strength * an[:, 2]

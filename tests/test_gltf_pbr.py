@@ -83,9 +83,8 @@ def test_lights_share_matches_the_numpy_twin_at_every_untextured_pixel(gl, asset
 
 def test_channel_views_match_the_cpu_reading(gl, assets):
     """Where the textures are seen at their base level (a pixel's footprint under one texel), the
-    base-colour view equals material_channels' bilinear reading of the file (8-bit texels, sRGB
-    decoded) within 0.01: the hardware's 8-bit filter weights and its sRGB-decode-after-filter
-    order."""
+    base-colour view equals material_channels' bilinear reading of the file (8-bit texels sRGB-decoded,
+    then filtered) within 0.01: the hardware's 8-bit filter weights and the half-float texels."""
     scene = load_scene(assets["tiles_torus"])
     renderer = SceneRenderer(scene, gl)
     try:
@@ -157,3 +156,31 @@ def test_reference_pass_is_deterministic_and_lit(gl, assets):
     np.testing.assert_array_equal(a, b)
     assert np.isfinite(a).all() and a.max() > 0.2
     assert math.isclose(load_gltf(assets["tiles_torus"]).materials[0].emissive[0], 1.0)
+
+
+def test_minified_colour_textures_average_light(gl, tmp_path):
+    """A base colour texture of black and white texels seen from afar reads as their mean in light,
+    0.5, as the spec asks (filtering in linear light): decoding after an 8-bit filter reads 0.22."""
+    from inshade.geometry.gltf_write import GltfBuilder, Primitive
+
+    side = 64
+    i = np.arange(side)
+    image = np.full((side, side, 4), 255, np.uint8)
+    image[..., :3] = np.where((i[:, None] + i[None, :]) % 2 == 0, 0, 255)[..., None]
+    b = GltfBuilder()
+    mat = b.material({"pbrMetallicRoughness": {"baseColorTexture": {"index": b.texture(b.image(image))},
+                                               "metallicFactor": 0.0}})
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float64)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
+    b.node(b.mesh([Primitive(v, np.array([[0, 1, 2], [0, 2, 3]]), np.tile([0.0, 0.0, 1.0], (4, 1)), uv,
+                             np.tile([1.0, 0.0, 0.0, 1.0], (4, 1)), mat)]))
+    scene = load_scene(b.write(tmp_path / "checker.glb"))
+    renderer = SceneRenderer(scene, gl)
+    try:
+        view = _draw(renderer, scene.make_camera(), 16, 16, view="base_color")   # ~8 texels a pixel
+        covered = renderer.gbuffer.read()[0][::-1][..., 3] > 0
+    finally:
+        renderer.release()
+    inner = covered & np.roll(covered, 1, 0) & np.roll(covered, -1, 0) & np.roll(covered, 1, 1) & np.roll(covered, -1, 1)
+    assert inner.sum() > 10
+    np.testing.assert_allclose(view[inner], 0.5, atol=0.03)

@@ -179,7 +179,7 @@ class WebExport:
             out.append(_texture(self.blob, "u_material_params",
                                 TextureResource("u_material_params", a["u_material_params"], "f4")))
             out.append(_texture(self.blob, "u_material_images",
-                                TextureResource("u_material_images", a["u_material_images"], "f1", "linear",
+                                TextureResource("u_material_images", a["u_material_images"], "f2", "linear",
                                                 wrap="repeat", array=True),
                                 generate_mipmaps=True, anisotropy=ANISOTROPY))
         env = r.environment

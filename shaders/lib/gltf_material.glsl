@@ -62,7 +62,7 @@ GltfSurface gltf_surface(int m, vec2 uv, vec4 uv_grad, vec3 ng, vec4 tangent, ve
     GltfSurface s;
     vec4 base = material_texture(m, MATERIAL_BASE_COLOR, g, dx, dy, vec4(1.0));
     vec4 mr = material_texture(m, MATERIAL_METALLIC_ROUGHNESS, g, dx, dy, vec4(1.0));
-    s.s.base_color = base_f.rgb * srgb_eotf(base.rgb);
+    s.s.base_color = base_f.rgb * base.rgb;
     s.alpha = base_f.a * base.a;
     s.s.metallic = clamp(mr_f.x * mr.b, 0.0, 1.0);
     s.s.roughness = clamp(mr_f.y * mr.g, MATERIAL_MIN_ROUGHNESS, 1.0);
@@ -70,12 +70,12 @@ GltfSurface gltf_surface(int m, vec2 uv, vec4 uv_grad, vec3 ng, vec4 tangent, ve
     s.n = material_normal(m, MATERIAL_NORMAL, g, dx, dy, t, b, ng);
     float ao = material_texture(m, MATERIAL_OCCLUSION, g, dx, dy, vec4(1.0)).r;
     s.occlusion = 1.0 + material_scale(m, MATERIAL_OCCLUSION) * (ao - 1.0);
-    s.emissive = emissive_f.rgb * srgb_eotf(material_texture(m, MATERIAL_EMISSIVE, g, dx, dy, vec4(1.0)).rgb);
+    s.emissive = emissive_f.rgb * material_texture(m, MATERIAL_EMISSIVE, g, dx, dy, vec4(1.0)).rgb;
     s.s.clearcoat = layer_f.x * material_texture(m, MATERIAL_CLEARCOAT, g, dx, dy, vec4(1.0)).r;
     s.s.clearcoat_roughness = clamp(layer_f.y * material_texture(m, MATERIAL_CLEARCOAT_ROUGHNESS, g, dx, dy,
                                                                  vec4(1.0)).g, MATERIAL_MIN_ROUGHNESS, 1.0);
     s.nc = material_normal(m, MATERIAL_CLEARCOAT_NORMAL, g, dx, dy, t, b, ng);
-    s.s.sheen_color = sheen_f.rgb * srgb_eotf(material_texture(m, MATERIAL_SHEEN_COLOR, g, dx, dy, vec4(1.0)).rgb);
+    s.s.sheen_color = sheen_f.rgb * material_texture(m, MATERIAL_SHEEN_COLOR, g, dx, dy, vec4(1.0)).rgb;
     s.s.sheen_roughness = layer_f.z * material_texture(m, MATERIAL_SHEEN_ROUGHNESS, g, dx, dy, vec4(1.0)).a;
     vec4 an = material_texture(m, MATERIAL_ANISOTROPY, g, dx, dy, vec4(1.0, 0.5, 1.0, 1.0));
     s.s.anisotropy = layer_f.w * an.b;

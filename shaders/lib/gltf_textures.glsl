@@ -1,7 +1,8 @@
 // A glTF mesh's materials as runtime/materials.py packs them (u_material_params: a row per material;
-// u_material_images: every image, a layer each): a material's factors (material_param) and a texture
-// slot sampled with KHR_texture_transform and the sampler's wrap, the uv footprint choosing the mip
-// level (material_texture). What lib/gltf_material shades and lib/gltf_cutout tests alpha with.
+// u_material_images: every image in linear light, colour ones decoded from sRGB before upload, a layer
+// each): a material's factors (material_param) and a texture slot sampled with KHR_texture_transform
+// and the sampler's wrap, the uv footprint choosing the mip level (material_texture). What
+// lib/gltf_material shades and lib/gltf_cutout tests alpha with.
 
 uniform sampler2D u_material_params;
 uniform sampler2DArray u_material_images;
