@@ -41,7 +41,7 @@ import numpy as np
 from inshade.geometry.mesh import mesh_uv, shading_normals, vertex_tangents
 
 from .programs import ProgramCache
-from .render import TARGET_FORMATS, float_target, read_rgba_raw
+from .render import TARGET_FORMATS, float_target, read_rgba_raw, release_target
 
 VERTEX = "common/mesh.vert"
 FRAGMENT = "passes/mesh_gbuffer.frag"
@@ -80,8 +80,8 @@ def gbuffer_attributes(mesh, visibility: bool = False) -> tuple[dict, np.ndarray
 
 
 def cutout_chunks(masked: bool) -> dict:
-    """The G-buffer pass's <gbuffer_cutout>: lib/gltf_cutout where a glTF mesh's alpha-masked
-    materials are bound to it, else lib/gbuffer_opaque (nothing cut)."""
+    """The G-buffer pass's <gbuffer_cutout>: lib/gltf_cutout where a glTF mesh's alpha-masked or
+    blended materials are bound to it, else lib/gbuffer_opaque (nothing cut)."""
     return {"gbuffer_cutout": f"#include <{'lib/gltf_cutout' if masked else 'lib/gbuffer_opaque'}>"}
 
 
@@ -89,15 +89,19 @@ class MeshGBuffer:
     """A mesh's G-buffer pass: ``draw`` -> (position texture, normal texture)."""
 
     def __init__(self, ctx: moderngl.Context, mesh, cache: ProgramCache | None = None, *, version: str = "330",
-                 visibility: bool = False, materials=None):
+                 visibility: bool = False, materials=None, peel: bool = False):
         """``materials``: the glTF mesh's ``MaterialTextures``; where a material is alpha MASK, its
-        surface is cut out below alphaCutoff here, so every pass after sees what lies behind."""
+        surface is cut out below alphaCutoff here, so every pass after sees what lies behind.
+        ``peel``: BLEND surfaces are left out of ``draw`` for ``draw_layer`` to peel; else they are
+        drawn as opaque ones."""
+        self.peel = bool(peel)
         self.ctx = ctx
         self.cache = cache if cache is not None else ProgramCache(ctx)
         self.visibility = bool(visibility)
         self.names = GBUFFER + (VISIBILITY if self.visibility else ())
         self.formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if self.visibility else ())
-        self.materials = materials if materials is not None and materials.masked else None
+        self.materials = materials if materials is not None and (materials.masked or materials.blended) else None
+        self.layers: dict[int, moderngl.Framebuffer] = {}   # peeled BLEND layers' targets (draw_layer)
         self.program = self.cache.get(VERTEX, FRAGMENT, version=version,
                                       defines={"GBUFFER_VISIBILITY": 1} if self.visibility else None,
                                       chunks=cutout_chunks(self.materials is not None))
@@ -125,8 +129,31 @@ class MeshGBuffer:
         return self.fbo
 
     def draw(self, view, proj, model=None, width: int = 512, height: int = 512):
-        """Rasterise into the (reused) target of this size; returns its textures in GBUFFER order."""
-        fbo = self._target(int(width), int(height))
+        """Rasterise into the (reused) target of this size; returns its textures in GBUFFER order
+        (a glTF mesh's BLEND surfaces left out when they are peeled: ``draw_layer``)."""
+        return self._draw(self._target(int(width), int(height)), view, proj, model, width, height,
+                          0 if self.peel else -1)
+
+    def draw_layer(self, layer: int, view, proj, model=None, width: int = 512, height: int = 512):
+        """Depth peeling of a glTF mesh's BLEND surfaces: layer k >= 1 holds, per pixel, the k-th
+        nearest BLEND surface in front of ``draw``'s opaque one (lib/gltf_cutout); call ``draw``
+        first, then the layers in order. Returns the layer's textures (two targets, alternating)."""
+        w, h = int(width), int(height)
+        slot = 1 + (layer - 1) % 2
+        fbo = self.layers.get(slot)
+        if fbo is None or fbo.size != (w, h):
+            if fbo is not None:
+                release_target(fbo)
+            fbo = self.layers[slot] = float_target(self.ctx, w, h, depth=True, formats=self.formats)
+        previous = self.fbo if layer == 1 else self.layers[1 + (layer - 2) % 2]
+        units = len(self.materials.textures)
+        self.fbo.color_attachments[0].use(location=units)
+        previous.color_attachments[0].use(location=units + 1)
+        self.program["u_peel_back"].value = units
+        self.program["u_peel_front"].value = units + 1
+        return self._draw(fbo, view, proj, model, w, h, layer)
+
+    def _draw(self, fbo, view, proj, model, width, height, layer: int):
         fbo.use()
         self.ctx.viewport = (0, 0, int(width), int(height))
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -139,6 +166,7 @@ class MeshGBuffer:
             for unit, (name, tex) in enumerate(self.materials.textures.items()):
                 tex.use(location=unit)
                 self.program[name].value = unit
+            self.program["u_gbuffer_layer"].value = layer
         self.vao.render(moderngl.TRIANGLES)
         return tuple(fbo.color_attachments)
 
@@ -165,6 +193,9 @@ class MeshGBuffer:
         return tuple(out)
 
     def _release_target(self) -> None:
+        for fbo in self.layers.values():
+            release_target(fbo)
+        self.layers = {}
         if self.fbo is not None:
             for a in self.fbo.color_attachments:
                 a.release()

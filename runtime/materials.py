@@ -148,6 +148,7 @@ class MaterialTextures:
         self.images.repeat_x = self.images.repeat_y = True
         self.textures = {"u_material_params": self.params, "u_material_images": self.images}
         self.masked = any(m.alpha_mode == "MASK" for m in asset.materials)   # the G-buffer cuts them out
+        self.blended = any(m.alpha_mode == "BLEND" for m in asset.materials)   # peeled layers (runtime/geometry.py)
 
     def release(self) -> None:
         for t in self.textures.values():

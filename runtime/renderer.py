@@ -122,6 +122,7 @@ class SceneRenderer:
         self.samples = 0               # samples in the "network" target since the last reset (accumulate)
         self.sample_cap = None         # accumulating programs stop adding samples here (None: one per render)
         self._accumulate_pass = None   # passes/accumulate.frag, built on the first accumulated sample
+        self._blend_passes = None      # passes/gltf_blend_layer + gltf_blend_resolve, built on the first peel
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self.shadow_maps = ShadowMaps(self.ctx)   # ProgramSpec.shadows: GL objects made on first use, then reused
         self._build()
@@ -131,11 +132,15 @@ class SceneRenderer:
         if "materials" in self.spec.mesh_attributes:
             self.materials = MaterialTextures(self.ctx, scene.mesh.gltf, self.gl)
             self.scene_textures.update(self.materials.textures)
+            if self.materials.blended and not self.blend_layers:
+                self.materials.notes.append(f"{scene.program} accumulates samples: its alphaMode BLEND surfaces "
+                                            "are drawn opaque")
             for note in [*scene.mesh.gltf.notes, *self.materials.notes]:   # conversions, generated tangents, ...
                 log.info("%s: %s", scene.mesh.name, note)
         if scene.mesh is not None:
             self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, version=target,
-                                      visibility=self.spec.visibility, materials=self.materials)
+                                      visibility=self.spec.visibility, materials=self.materials,
+                                      peel=self.blend_layers > 0)
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
         self.environment = None        # EnvironmentTextures while the program samples lib/environment
         self._environment_key = None
@@ -409,30 +414,72 @@ class SceneRenderer:
             self.ctx.scissor = None
             gbuffer = self.gbuffer.draw_camera(camera, width, height) if self.gbuffer is not None else None
             self.ctx.viewport = (0, 0, width, height)
-            unit = 0
-            for block, res in enumerate(self.resources):
-                unit = res.bind(self.program, first_unit=unit, first_block=block * 16)
-            for name, tex in self.scene_textures.items():   # scene.json "textures"
-                if name in self.program:
-                    tex.use(location=unit)
-                    self.program[name].value = unit
-                    unit += 1
-            if "u_env_radiance" in self.program:   # lib/environment: the importance-sampled environment
-                unit = self._sync_environment().bind(self.program, unit)
-            if "u_shadow_map" in self.program or "u_shadow_layers" in self.program:   # lib/shadow_map
-                unit = self.shadow_maps.bind(self.program, unit)
-            if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
-                for name, tex in zip([f"u_gbuffer_{n}" for n in self.gbuffer.names], gbuffer):
-                    if name in self.program:
-                        tex.use(location=unit)
-                        self.program[name].value = unit
-                        unit += 1
-            self._draw_timed(draw_into, uniforms, width * height, key)
+            self._bind_scene_resources(gbuffer)
+            if self.blend_layers:
+                opaque = self._target("opaque", width, height, self.spec.attachments)
+                self._draw_timed(opaque, uniforms, width * height, key)
+                self._peel(camera, width, height, uniforms, opaque, draw_into)
+            else:
+                self._draw_timed(draw_into, uniforms, width * height, key)
             self._net_key = key
             if self.spec.accumulate:
                 return self._fold_sample(draw_into, width, height)
             self.samples = 1
         return fbo
+
+    def _bind_scene_resources(self, gbuffer) -> None:
+        """Bind what the scene program samples: its networks' resources, the scene's textures, the
+        environment, the shadow maps and the G-buffer's textures (``gbuffer``, or none)."""
+        unit = 0
+        for block, res in enumerate(self.resources):
+            unit = res.bind(self.program, first_unit=unit, first_block=block * 16)
+        for name, tex in self.scene_textures.items():   # scene.json "textures"
+            if name in self.program:
+                tex.use(location=unit)
+                self.program[name].value = unit
+                unit += 1
+        if "u_env_radiance" in self.program:   # lib/environment: the importance-sampled environment
+            unit = self._sync_environment().bind(self.program, unit)
+        if "u_shadow_map" in self.program or "u_shadow_layers" in self.program:   # lib/shadow_map
+            unit = self.shadow_maps.bind(self.program, unit)
+        if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
+            for name, tex in zip([f"u_gbuffer_{n}" for n in self.gbuffer.names], gbuffer):
+                if name in self.program:
+                    tex.use(location=unit)
+                    self.program[name].value = unit
+                    unit += 1
+
+    @property
+    def blend_layers(self) -> int:
+        """BLEND surfaces of a glTF mesh are depth-peeled into this many layers, each shaded by the
+        scene program and laid under the ones in front (front to back), then over the opaque
+        surfaces; 0 where there are none, or where the program accumulates samples (there they are
+        drawn opaque, as the G-buffer's one surface a pixel)."""
+        blended = self.materials is not None and self.materials.blended and self.scene.mesh is not None
+        return BLEND_LAYERS if blended and not self.spec.accumulate and self.spec.attachments == 1 else 0
+
+    def _peel(self, camera, width: int, height: int, uniforms: dict, opaque, out) -> None:
+        """The BLEND layers (MeshGBuffer.draw_layer) through the scene program, composited into ``out``."""
+        if self._blend_passes is None:
+            self._blend_passes = tuple(FullscreenPass(self.ctx, self.cache.get(VERTEX, f"passes/{name}.frag"))
+                                       for name in ("gltf_blend_layer", "gltf_blend_resolve"))
+        layer_pass, resolve_pass = self._blend_passes
+        accum = [self._target("blend_accum_a", width, height), self._target("blend_accum_b", width, height)]
+        accum[0].clear(0.0, 0.0, 0.0, 1.0)
+        shaded = self._target("blend_layer", width, height)
+        view, proj = camera.view_matrix(), camera.projection(width, height)
+        uv, grad = self.gbuffer.names.index("uv"), self.gbuffer.names.index("uv_grad")
+        for k in range(1, self.blend_layers + 1):
+            layer = self.gbuffer.draw_layer(k, view, proj, None, width, height)
+            self.ctx.viewport = (0, 0, width, height)
+            self._bind_scene_resources(layer)
+            self._net_pass.render(shaded, uniforms=uniforms)
+            src, dst = accum[(k - 1) % 2], accum[k % 2]
+            layer_pass.render(dst, textures={**self.materials.textures, "u_accum": src.color_attachments[0],
+                                             "u_layer_colour": shaded.color_attachments[0],
+                                             "u_layer_uv": layer[uv], "u_layer_uv_grad": layer[grad]})
+        resolve_pass.render(out, textures={"u_accum": accum[self.blend_layers % 2].color_attachments[0],
+                                           "u_opaque": opaque.color_attachments[0]})
 
     def _draw_timed(self, target, uniforms, pixels: int, view_key) -> None:
         """The scene pass, with what to expect said first: on a software renderer the first draw of
@@ -675,10 +722,10 @@ class SceneRenderer:
             self.gbuffer = None
         if self._accumulate_pass is not None:
             programs.append(self._accumulate_pass.program)
-        for p in (self._net_pass, self._display_pass, self._accumulate_pass):
+        for p in (self._net_pass, self._display_pass, self._accumulate_pass, *(self._blend_passes or ())):
             if p is not None:
                 p.vao.release()
-        self._net_pass = self._display_pass = self._accumulate_pass = None
+        self._net_pass = self._display_pass = self._accumulate_pass = self._blend_passes = None
         self._reference_tex.release()
         for tex in self.scene_textures.values():
             tex.release()
@@ -697,6 +744,7 @@ class SceneRenderer:
 _DRAWN: set[str] = set()   # program keys this process has drawn (their first draw is said once)
 SRGB_SEMANTIC = "srgb"   # an output port whose values are sRGB-encoded (e.g. fitted to sRGB pixels)
 SLOW_FRAME_S = 30.0   # a view whose last draw took this long is warned about before it starts
+BLEND_LAYERS = 4      # BLEND surfaces peeled per pixel: a fifth one behind four others is not drawn
 
 
 def hash_values(values) -> str:

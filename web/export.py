@@ -282,10 +282,16 @@ class WebExport:
         attributes, faces, _ = gbuffer_attributes(mesh.data, visibility)
         names = GBUFFER + (VISIBILITY if visibility else ())
         formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if visibility else ())
-        masked = self.renderer.materials is not None and self.renderer.materials.masked
+        materials = self.renderer.materials
+        peel = self.renderer.blend_layers
+        if peel:   # the BLEND layers' passes (runtime/renderer.py _peel)
+            for name in ("blend_layer", "blend_resolve"):
+                self._program(name, VERTEX, f"passes/gltf_{name}.frag")
         return {"program": self._program("gbuffer", MESH_VERTEX, GBUFFER_FRAGMENT,
                                          defines={"GBUFFER_VISIBILITY": 1} if visibility else None,
-                                         chunks=cutout_chunks(masked)),
+                                         chunks=cutout_chunks(materials is not None
+                                                              and (materials.masked or materials.blended))),
+                "peel": peel,
                 "attributes": {n: {"size": int(a.shape[1]), "data": self.blob.add(a)} for n, (a, _) in attributes.items()},
                 "indices": None if visibility else self.blob.add(np.ascontiguousarray(faces, np.uint32)),
                 "count": int(faces.size), "targets": [{"uniform": f"u_gbuffer_{n}", "format": f}
@@ -367,6 +373,8 @@ class WebExport:
                         "tonemapped_modes": [int(parse_mode(m)) for m in TONEMAPPED_MODES]},
             "evaluate": evaluation,
         }
+        if mesh is not None and mesh["peel"]:
+            manifest["programs"].update(blend_layer="blend_layer", blend_resolve="blend_resolve")
         if spec.accumulate:
             manifest["programs"]["accumulate"] = self._program("accumulate", VERTEX, "passes/accumulate.frag",
                                                                defines={"ACCUMULATE_ATTACHMENTS": attachments})

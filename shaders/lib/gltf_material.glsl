@@ -3,7 +3,8 @@
 // lights and SH environment. The reference every learnt material of a glTF file is compared with.
 // The G-buffer's uv run v up (the project's convention); glTF's run v down: g = (u, 1 - v).
 // Alpha: MASK surfaces are cut out by the G-buffer pass (passes/mesh_gbuffer with lib/gltf_cutout); BLEND
-// surfaces are drawn opaque (a deferred G-buffer keeps one surface per pixel).
+// surfaces are peeled into layers of their own, each shaded here and laid over what lies behind by its
+// alpha (runtime/renderer.py _peel, passes/gltf_blend_layer).
 #include <lib/colour>
 #include <lib/gltf_textures>
 #include <lib/gltf_brdf>

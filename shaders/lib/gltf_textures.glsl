@@ -21,6 +21,7 @@ uniform sampler2DArray u_material_images;
 #define MATERIAL_SHEEN_ROUGHNESS 9
 #define MATERIAL_ANISOTROPY 10
 #define MATERIAL_ALPHA_MASK 1.0   // runtime/materials.py ALPHA_CODES
+#define MATERIAL_ALPHA_BLEND 2.0
 
 vec4 material_param(int m, int texel) {
     return texelFetch(u_material_params, ivec2(texel, m), 0);
@@ -48,4 +49,9 @@ vec4 material_texture(int m, int slot, vec2 g, vec2 dx, vec2 dy, vec4 fallback) 
 
 float material_scale(int m, int slot) {
     return material_param(m, MATERIAL_SCALARS + 3 * slot).w;
+}
+
+// The material's alpha at glTF uv g: base colour factor x texture alpha (MASK's cut-out, BLEND's weight).
+float material_alpha(int m, vec2 g, vec2 dx, vec2 dy) {
+    return material_param(m, 0).a * material_texture(m, MATERIAL_BASE_COLOR, g, dx, dy, vec4(1.0)).a;
 }

@@ -10,8 +10,9 @@
 // one draw, so vertex 3i + c is corner c of face i: the vertex pass sends gl_VertexID / 3, which ES 3.00
 // has where it lacks gl_PrimitiveID); 6: perspective-correct barycentrics (t0, t1) of the
 // face's vertices 0 and 1. Built and read by runtime/geometry.py MeshGBuffer.
-// <gbuffer_cutout> (lib/gbuffer_opaque, or lib/gltf_cutout for a glTF mesh with alphaMode MASK
-// materials): a fragment it cuts is discarded, so the depth test keeps what lies behind.
+// <gbuffer_cutout> (lib/gbuffer_opaque, or lib/gltf_cutout for a glTF mesh with alphaMode MASK or BLEND
+// materials): a fragment it cuts is discarded, so the depth test keeps what lies behind (and BLEND
+// surfaces are drawn as layers of their own, peeled front to back).
 #include <gbuffer_cutout>
 
 in vec3 v_world_position;
@@ -33,7 +34,7 @@ layout(location = 6) out vec2 out_barycentric;
 #endif
 
 void main() {
-    if (gbuffer_cut(v_uv, v_material)) discard;
+    if (gbuffer_cut(v_uv, v_material, v_world_position)) discard;
     out_position = vec4(v_world_position, 1.0);
     // interpolation shortens the normal between vertices: renormalise per fragment
     out_normal = vec4(v_normal * (1.0 / length(v_normal)), 1.0);

@@ -415,8 +415,17 @@ export class Viewer {
       gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, new Uint32Array(data, mesh.indices[0], mesh.indices[1] / 4), gl.STATIC_DRAW);
     }
     gl.bindVertexArray(null);
-    const target = renderTarget(gl, this.width, this.height, mesh.targets.map((t) => t.format), true);
-    target.textures.forEach((t, k) => { t.uniform = mesh.targets[k].uniform; });
+    const formats = mesh.targets.map((t) => t.format);
+    const named = (target) => { target.textures.forEach((t, k) => { t.uniform = mesh.targets[k].uniform; }); return target; };
+    const target = named(renderTarget(gl, this.width, this.height, formats, true));
+    // BLEND surfaces peeled front to back (runtime/geometry.py draw_layer): two G-buffers in turn, the
+    // scene pass over each into `shaded`, laid under the ones in front in `accum`, then over the opaque
+    if (mesh.peel) {
+      this.peel = {layers: mesh.peel, gbuffers: [0, 1].map(() => named(renderTarget(gl, this.width, this.height, formats, true))),
+                   shaded: renderTarget(gl, this.width, this.height, ["rgba32f"]),
+                   opaque: renderTarget(gl, this.width, this.height, ["rgba32f"]),
+                   accum: [0, 1].map(() => renderTarget(gl, this.width, this.height, ["rgba32f"]))};
+    }
     return {prog, vao, target, count: mesh.count, indexed: !!mesh.indices};
   }
 
@@ -458,33 +467,69 @@ export class Viewer {
     }
     let gbuffer = [];
     if (this.mesh) {
-      const {prog, vao, target, count, indexed} = this.mesh;
-      gl.bindFramebuffer(gl.FRAMEBUFFER, target.fb);
-      gl.viewport(0, 0, this.width, this.height);
-      target.textures.forEach((t, k) => {
-        if (t.format === gl.RED_INTEGER) gl.clearBufferuiv(gl.COLOR, k, new Uint32Array(4));
-        else gl.clearBufferfv(gl.COLOR, k, new Float32Array(4));
-      });
-      gl.clearBufferfi(gl.DEPTH_STENCIL, 0, 1.0, 0);
-      gl.disable(gl.BLEND); gl.disable(gl.CULL_FACE); gl.enable(gl.DEPTH_TEST); gl.depthFunc(gl.LESS);
-      gl.useProgram(prog.program);
-      bindResources(gl, prog, this.textures);   // the material textures, where MASK surfaces are cut out
-      this._apply(prog, {u_view: uniforms.u_view_matrix, u_proj: uniforms.u_proj,
-                         u_model: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]});
-      gl.bindVertexArray(vao);
-      if (indexed) gl.drawElements(gl.TRIANGLES, count, gl.UNSIGNED_INT, 0);
-      else gl.drawArrays(gl.TRIANGLES, 0, count);
-      gbuffer = target.textures;
+      this._gbuffer(this.mesh.target, this.peel ? 0 : -1, uniforms);
+      gbuffer = this.mesh.target.textures;
     }
-    const scene = this.programs[m.programs.scene];
-    gl.useProgram(scene.program);
-    bindResources(gl, scene, [...this.textures, ...gbuffer], this.blocks);
-    this._apply(scene, uniforms);
     const into = m.accumulate ? this.targets.sample : this.targets.network;
-    this._fullscreen(scene, into);
+    this._scenePass(gbuffer, uniforms, this.peel ? this.peel.opaque : into);
+    if (this.peel) this._peelLayers(uniforms, into);
     this.key = key;
     if (m.accumulate) this._fold();
     else this.samples = 1;
+  }
+
+  // the mesh's G-buffer into `target`: layer 0 the opaque surfaces (BLEND ones left to peel), -1 with
+  // BLEND ones drawn opaque, k > 0 the k-th nearest BLEND surface (lib/gltf_cutout)
+  _gbuffer(target, layer, uniforms, front = null) {
+    const gl = this.gl, {prog, vao, count, indexed} = this.mesh;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, target.fb);
+    gl.viewport(0, 0, this.width, this.height);
+    target.textures.forEach((t, k) => {
+      if (t.format === gl.RED_INTEGER) gl.clearBufferuiv(gl.COLOR, k, new Uint32Array(4));
+      else gl.clearBufferfv(gl.COLOR, k, new Float32Array(4));
+    });
+    gl.clearBufferfi(gl.DEPTH_STENCIL, 0, 1.0, 0);
+    gl.disable(gl.BLEND); gl.disable(gl.CULL_FACE); gl.enable(gl.DEPTH_TEST); gl.depthFunc(gl.LESS);
+    gl.useProgram(prog.program);
+    const peel = layer > 0 ? [{...this.mesh.target.textures[0], uniform: "u_peel_back"},
+                              {...(front || this.mesh.target).textures[0], uniform: "u_peel_front"}] : [];
+    bindResources(gl, prog, [...this.textures, ...peel]);   // the material textures: MASK cut-outs, BLEND layers
+    this._apply(prog, {u_view: uniforms.u_view_matrix, u_proj: uniforms.u_proj, u_gbuffer_layer: layer,
+                       u_model: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]});
+    gl.bindVertexArray(vao);
+    if (indexed) gl.drawElements(gl.TRIANGLES, count, gl.UNSIGNED_INT, 0);
+    else gl.drawArrays(gl.TRIANGLES, 0, count);
+  }
+
+  _scenePass(gbuffer, uniforms, target) {
+    const scene = this.programs[this.manifest.programs.scene];
+    this.gl.useProgram(scene.program);
+    bindResources(this.gl, scene, [...this.textures, ...gbuffer], this.blocks);
+    this._apply(scene, uniforms);
+    this._fullscreen(scene, target);
+  }
+
+  _peelLayers(uniforms, into) {
+    const gl = this.gl, p = this.peel, m = this.manifest;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, p.accum[0].fb);
+    gl.clearBufferfv(gl.COLOR, 0, new Float32Array([0, 0, 0, 1]));
+    const layerPass = this.programs[m.programs.blend_layer], resolve = this.programs[m.programs.blend_resolve];
+    let front = null;
+    for (let k = 1; k <= p.layers; ++k) {
+      const g = p.gbuffers[(k - 1) % 2];
+      this._gbuffer(g, k, uniforms, front);
+      this._scenePass(g.textures, uniforms, p.shaded);
+      gl.useProgram(layerPass.program);
+      bindResources(gl, layerPass, [...this.textures, {...p.accum[(k - 1) % 2].textures[0], uniform: "u_accum"},
+                                    {...p.shaded.textures[0], uniform: "u_layer_colour"},
+                                    {...g.textures[2], uniform: "u_layer_uv"}, {...g.textures[4], uniform: "u_layer_uv_grad"}]);
+      this._fullscreen(layerPass, p.accum[k % 2]);
+      front = g;
+    }
+    gl.useProgram(resolve.program);
+    bindResources(gl, resolve, [{...p.accum[p.layers % 2].textures[0], uniform: "u_accum"},
+                                {...p.opaque.textures[0], uniform: "u_opaque"}]);
+    this._fullscreen(resolve, into);
   }
 
   _fold() {   // mean of n samples = mean of n - 1 + this one, ping-pong between two targets
