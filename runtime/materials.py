@@ -89,6 +89,19 @@ def layer_side(images, max_side: int, layers: int | None = None, budget: int = I
     return side
 
 
+def resampling_notes(images, used, side: int) -> list[str]:
+    """One line per image the array resamples: enlarged ones keep their detail, reduced ones lose it."""
+    notes = []
+    for i in used:
+        h, w = images[i].shape[:2]
+        if (h, w) == (side, side):
+            continue
+        what = (f"reduced (detail is lost: GL_MAX_TEXTURE_SIZE or the {IMAGE_BUDGET >> 20} MB budget caps the "
+                "layers)" if max(h, w) > side else "enlarged (no detail lost)")
+        notes.append(f"image {i} ({w}x{h}) resampled to the {side}x{side} layers of one array: {what}")
+    return notes
+
+
 def srgb_decode(encoded: np.ndarray) -> np.ndarray:
     """sRGB EOTF of values in [0, 1] (lib/colour's srgb_eotf), float64."""
     c = np.asarray(encoded, np.float64)
@@ -132,10 +145,7 @@ class MaterialTextures:
             raise ValueError(f"{asset.path.name}: {len(layer_of)} image layers; GL_MAX_ARRAY_TEXTURE_LAYERS is {max_layers}")
         used = sorted({i for i, _ in layer_of})
         side = layer_side([images[i] for i in used], limit(gl, "GL_MAX_TEXTURE_SIZE"), len(layer_of))
-        resized = sorted({f"{images[i].shape[1]}x{images[i].shape[0]}" for i in used
-                          if images[i].shape[:2] != (side, side)})
-        if resized:
-            self.notes.append(f"images of {', '.join(resized)} resampled to the {side}x{side} layers of one array")
+        self.notes += resampling_notes(images, used, side)
         data = layers(images, side, layer_of)
         params = pack(asset.materials, layer_of)
         self.arrays = {"u_material_params": params, "u_material_images": data}   # what was uploaded

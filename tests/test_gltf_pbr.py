@@ -184,3 +184,13 @@ def test_minified_colour_textures_average_light(gl, tmp_path):
     inner = covered & np.roll(covered, 1, 0) & np.roll(covered, -1, 0) & np.roll(covered, 1, 1) & np.roll(covered, -1, 1)
     assert inner.sum() > 10
     np.testing.assert_allclose(view[inner], 0.5, atol=0.03)
+
+
+def test_each_resampled_image_is_named_with_what_it_costs():
+    from inshade.runtime.materials import resampling_notes
+
+    images = [np.zeros((64, 64, 4), np.uint8), np.zeros((16, 32, 4), np.uint8), np.zeros((128, 128, 4), np.uint8)]
+    notes = resampling_notes(images, [0, 1, 2], 64)
+    assert notes == ["image 1 (32x16) resampled to the 64x64 layers of one array: enlarged (no detail lost)",
+                     "image 2 (128x128) resampled to the 64x64 layers of one array: reduced (detail is lost: "
+                     "GL_MAX_TEXTURE_SIZE or the 512 MB budget caps the layers)"]
