@@ -114,3 +114,55 @@ def ktx2_rgba(data: bytes, where: str) -> np.ndarray:
         raise CodecError(where, f"cannot transcode the KTX2 image ({exc})") from None
     with Image.open(io.BytesIO(png)) as image:
         return np.asarray(image.convert("RGBA"), np.uint8)
+
+
+# --- writing ---------------------------------------------------------------------------------------
+
+# Draco attribute types (draco::GeometryAttribute::Type) -> the glTF semantic it holds
+DRACO_SEMANTICS = {0: "POSITION", 1: "NORMAL", 3: "TEXCOORD_0", 4: "TANGENT"}
+# bits per component, as glTF Transform's defaults: positions 14, normals 10, uv 12 (tangents: generic, 12)
+DRACO_BITS = {"quantization_bits": 14, "normal_quantization_bits": 10, "tex_coord_quantization_bits": 12}
+TEXTURE_CODECS = ("png", "ktx2")
+
+
+class EncoderMissing(ValueError):
+    """A codec's library is not installed (the message names the install)."""
+
+
+def _encoder(module: str, extension: str):
+    try:
+        return _library(module, module, extension, "")
+    except CodecError as exc:
+        raise EncoderMissing(exc.what) from None
+
+
+def draco_encode(vertices, faces, normals=None, uv=None, tangents=None) -> tuple[bytes, dict[str, np.ndarray]]:
+    """(the Draco bitstream of one triangle list, {semantic: the values it decodes to}) with vertex
+    order kept (the accessors' counts are the input's); uv in glTF's convention."""
+    draco = _encoder("DracoPy", DRACO)
+    extra = {}
+    if uv is not None:
+        extra["tex_coord"] = np.asarray(uv, np.float64)
+    if normals is not None:
+        extra["normals"] = np.asarray(normals, np.float64)
+    if tangents is not None:
+        extra["generic_attributes"] = {0: np.asarray(tangents, np.float64)}
+    payload = draco.encode(np.asarray(vertices, np.float64), np.asarray(faces, np.uint32).reshape(-1, 3),
+                           compression_level=7, preserve_order=True, **DRACO_BITS, **extra)
+    decoded = draco.decode(payload)
+    out = {}
+    for uid in range(1 + len(extra)):
+        a = decoded.get_attribute_by_unique_id(uid)
+        if a is not None:
+            out[DRACO_SEMANTICS[a["attribute_type"]]] = (uid, np.asarray(a["data"], np.float32).reshape(
+                len(a["data"]), -1))
+    return payload, out
+
+
+def ktx2_encode(rgba: np.ndarray, colour: bool) -> bytes:
+    """A KTX2 file of ``rgba`` [H, W, 4] uint8 (UASTC, Basis Universal, through basisu), marked sRGB
+    for colour images (base colour, emissive, sheen colour) and linear for data (normals, roughness...)."""
+    alktx2 = _encoder("alktx2", BASISU)
+    rgba = np.ascontiguousarray(rgba, np.uint8)
+    return alktx2.encode_raw_rgba_to_ktx2(rgba.tobytes(), rgba.shape[1], rgba.shape[0], codec="uastc",
+                                          srgb=bool(colour), linear=not colour, threads=1)

@@ -47,12 +47,17 @@ class Primitive:
 
 
 class GltfBuilder:
-    def __init__(self, generator: str = "inshade"):
+    def __init__(self, generator: str = "inshade", *, draco: bool = False, textures: str = "png"):
+        """``draco``: meshes as KHR_draco_mesh_compression bitstreams; ``textures``: "png", or "ktx2"
+        (KHR_texture_basisu, UASTC). Both need the gltf extra's encoders (geometry/gltf_codecs.py)."""
         self.doc: dict = {"asset": {"version": "2.0", "generator": generator}}
         self.data = bytearray()
         self.used: set[str] = set()
         self.required: set[str] = set()
         self.roots: list[int] = []
+        self.draco = bool(draco)
+        self.textures = textures
+        self.sources: dict[int, str] = {}   # image -> the extension a texture names it through
 
     def _add(self, key: str, item: dict) -> int:
         self.doc.setdefault(key, []).append(item)
@@ -85,10 +90,20 @@ class GltfBuilder:
         if required:
             self.required.add(extension)
 
-    def image(self, rgba: np.ndarray) -> int:
-        """A PNG image of ``rgba`` [H, W, 3|4] uint8 (row 0 = the top, glTF's v = 0)."""
+    def image(self, rgba: np.ndarray, colour: bool = True) -> int:
+        """A PNG image of ``rgba`` [H, W, 3|4] uint8 (row 0 = the top, glTF's v = 0), or a KTX2 one
+        (sRGB where ``colour``, else linear) when the builder writes KTX2 textures."""
         from PIL import Image
 
+        if self.textures == "ktx2":
+            from .gltf_codecs import BASISU, ktx2_encode
+
+            rgba = np.asarray(rgba, np.uint8)
+            if rgba.shape[2] == 3:
+                rgba = np.dstack([rgba, np.full(rgba.shape[:2], 255, np.uint8)])
+            index = self.encoded_image(ktx2_encode(rgba, colour), "image/ktx2")
+            self.sources[index] = BASISU
+            return index
         buf = io.BytesIO()
         Image.fromarray(np.ascontiguousarray(rgba, np.uint8)).save(buf, format="PNG", optimize=False,
                                                                     compress_level=6)
@@ -101,7 +116,8 @@ class GltfBuilder:
     def texture(self, image: int, wrap: tuple[str, str] = ("repeat", "repeat"), mipmaps: bool = True,
                 extension: str | None = None) -> int:
         """``extension``: the image is that extension's source (KHR_texture_basisu, EXT_texture_webp),
-        required, with no core fallback."""
+        required, with no core fallback (a KTX2 image the builder encoded is one by itself)."""
+        extension = self.sources.get(image, extension)
         sampler = self._add("samplers", {"magFilter": LINEAR,
                                          "minFilter": LINEAR_MIPMAP_LINEAR if mipmaps else LINEAR,
                                          "wrapS": WRAP_CODES[wrap[0]], "wrapT": WRAP_CODES[wrap[1]]})
@@ -122,6 +138,9 @@ class GltfBuilder:
     def mesh(self, primitives: list[Primitive], name: str = "") -> int:
         prims = []
         for p in primitives:
+            if self.draco:
+                prims.append(self._draco_primitive(p))
+                continue
             v = np.asarray(p.vertices, np.float64)
             attrs = {"POSITION": self.accessor(v, "VEC3", bounds=True)}
             if p.normals is not None:
@@ -138,6 +157,31 @@ class GltfBuilder:
                 prim["material"] = int(p.material)
             prims.append(prim)
         return self._add("meshes", {"name": name, "primitives": prims} if name else {"primitives": prims})
+
+    def _draco_primitive(self, p: Primitive) -> dict:
+        """A primitive whose attributes and indices are one Draco bitstream: its accessors hold no
+        data, only what the decoded values are (count, type; POSITION's bounds as decoded)."""
+        from .gltf_codecs import DRACO, draco_encode
+
+        n = None if p.normals is None else np.asarray(p.normals, np.float64)
+        payload, decoded = draco_encode(p.vertices, p.faces, None if n is None else n / np.linalg.norm(n, axis=1,
+                                                                                                      keepdims=True),
+                                        None if p.uv is None else gltf_uv(p.uv), p.tangents)
+        attrs, ids = {}, {}
+        for name, (uid, values) in decoded.items():
+            acc = {"componentType": 5126, "count": len(values), "type": f"VEC{values.shape[1]}"}
+            if name == "POSITION":
+                acc["min"] = [float(x) for x in values.min(0)]
+                acc["max"] = [float(x) for x in values.max(0)]
+            attrs[name], ids[name] = self._add("accessors", acc), uid
+        indices = self._add("accessors", {"componentType": 5125, "count": int(np.asarray(p.faces).size),
+                                          "type": "SCALAR"})
+        self.use(DRACO, required=True)
+        prim = {"attributes": attrs, "indices": indices, "mode": 4,
+                "extensions": {DRACO: {"bufferView": self._view(payload), "attributes": ids}}}
+        if p.material is not None:
+            prim["material"] = int(p.material)
+        return prim
 
     def node(self, mesh: int | None = None, *, translation=None, rotation=None, scale=None, matrix=None,
              children=(), instances: dict | None = None, root: bool = True, name: str = "") -> int:
@@ -237,10 +281,13 @@ _SLOTS = {
 }
 
 
+COLOUR_TEXTURES = ("base_color_texture", "emissive_texture", "sheen_color_texture")   # sRGB-encoded slots
+
+
 def add_material(builder: GltfBuilder, material, images: list, image_index: dict) -> int:
     """Add a ``geometry.gltf.Material`` (a converted one comes out metallic-roughness) and return its
-    index; its images (``images`` of the asset it came from) are added once each (``image_index``
-    maps the asset's image index to the builder's)."""
+    index; its images (``images`` of the asset it came from) are added once each per use as colour or
+    data (``image_index`` maps (the asset's image index, colour) to the builder's)."""
     m = material
     spec: dict = {"name": m.name, "pbrMetallicRoughness": {"baseColorFactor": list(m.base_color),
                                                           "metallicFactor": m.metallic, "roughnessFactor": m.roughness}}
@@ -270,9 +317,10 @@ def add_material(builder: GltfBuilder, material, images: list, image_index: dict
         ref = getattr(m, field_name)
         if ref is None:
             continue
-        if ref.image not in image_index:
-            image_index[ref.image] = builder.image(images[ref.image])
-        info: dict = {"index": builder.texture(image_index[ref.image], ref.wrap)}
+        key = (ref.image, field_name in COLOUR_TEXTURES)   # a KTX2 image says whether it is sRGB
+        if key not in image_index:
+            image_index[key] = builder.image(images[ref.image], colour=key[1])
+        info: dict = {"index": builder.texture(image_index[key], ref.wrap)}
         if scalar is not None and ref.scale != 1.0:
             info[scalar] = ref.scale
         transform = transform_extension(ref.transform)
