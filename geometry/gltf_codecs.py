@@ -123,6 +123,7 @@ DRACO_SEMANTICS = {0: "POSITION", 1: "NORMAL", 3: "TEXCOORD_0", 4: "TANGENT"}
 # bits per component, as glTF Transform's defaults: positions 14, normals 10, uv 12 (tangents: generic, 12)
 DRACO_BITS = {"quantization_bits": 14, "normal_quantization_bits": 10, "tex_coord_quantization_bits": 12}
 TEXTURE_CODECS = ("png", "ktx2")
+MESH_CODECS = ("none", "draco", "meshopt")
 
 
 class EncoderMissing(ValueError):
@@ -157,6 +158,18 @@ def draco_encode(vertices, faces, normals=None, uv=None, tangents=None) -> tuple
             out[DRACO_SEMANTICS[a["attribute_type"]]] = (uid, np.asarray(a["data"], np.float32).reshape(
                 len(a["data"]), -1))
     return payload, out
+
+
+def meshopt_encode(a: np.ndarray, indices: bool) -> tuple[bytes, int]:
+    """(meshopt's stream of ``a``, its byteStride): uint32 triangle indices [3F] (or [F, 3]), or
+    vertices [N, k] of 4-byte components, one row a vertex; lossless."""
+    meshopt = _encoder("meshoptimizer", MESHOPT[0])
+    if indices:
+        flat = np.ascontiguousarray(a, np.uint32).reshape(-1)
+        return bytes(meshopt.encode_index_buffer(flat, len(flat), int(flat.max()) + 1)), 4
+    rows = np.ascontiguousarray(a).reshape(len(a), -1)
+    return bytes(meshopt.encode_vertex_buffer(rows, len(rows), rows.itemsize * rows.shape[1])), \
+        rows.itemsize * rows.shape[1]
 
 
 def ktx2_encode(rgba: np.ndarray, colour: bool) -> bytes:

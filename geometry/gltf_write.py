@@ -47,9 +47,16 @@ class Primitive:
 
 
 class GltfBuilder:
-    def __init__(self, generator: str = "inshade", *, draco: bool = False, textures: str = "png"):
-        """``draco``: meshes as KHR_draco_mesh_compression bitstreams; ``textures``: "png", or "ktx2"
-        (KHR_texture_basisu, UASTC). Both need the gltf extra's encoders (geometry/gltf_codecs.py)."""
+    def __init__(self, generator: str = "inshade", *, draco: bool = False, meshopt: bool = False,
+                 textures: str = "png"):
+        """``draco``: meshes as KHR_draco_mesh_compression bitstreams; ``meshopt``: their vertex and
+        index views as EXT_meshopt_compression streams (lossless; a fallback buffer without data);
+        ``textures``: "png", or "ktx2" (KHR_texture_basisu, UASTC). They need the gltf extra's encoders
+        (geometry/gltf_codecs.py)."""
+        if draco and meshopt:
+            raise ValueError("draco and meshopt: a mesh is compressed by one of them")
+        self.meshopt = bool(meshopt)
+        self.fallback = 0        # bytes of the meshopt views as decoded (buffer 1, no data)
         self.doc: dict = {"asset": {"version": "2.0", "generator": generator}}
         self.data = bytearray()
         self.used: set[str] = set()
@@ -77,13 +84,33 @@ class GltfBuilder:
         a = np.asarray(array)
         integer = np.issubdtype(a.dtype, np.integer)
         a = np.ascontiguousarray(a, np.uint32 if integer else np.float32)
-        acc = {"bufferView": self._view(a.tobytes(), target), "componentType": 5125 if integer else 5126,
-               "count": int(a.shape[0]), "type": kind}
+        packed = self.meshopt and target in (ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER)
+        view = self._meshopt_view(a, target) if packed else self._view(a.tobytes(), target)
+        acc = {"bufferView": view, "componentType": 5125 if integer else 5126, "count": int(a.shape[0]), "type": kind}
         if bounds:
             flat = a.reshape(len(a), -1)
             acc["min"] = [float(x) for x in flat.min(0)]
             acc["max"] = [float(x) for x in flat.max(0)]
         return self._add("accessors", acc)
+
+    def _meshopt_view(self, a: np.ndarray, target: int) -> int:
+        """A bufferView whose bytes are meshopt's vertex (ATTRIBUTES) or index (TRIANGLES) stream of
+        ``a``, decoded into the fallback buffer's range it names."""
+        from .gltf_codecs import MESHOPT, meshopt_encode
+
+        indices = target == ELEMENT_ARRAY_BUFFER
+        payload, stride = meshopt_encode(a, indices)
+        self.data += b"\0" * (-len(self.data) % 4)
+        ext = {"buffer": 0, "byteOffset": len(self.data), "byteLength": len(payload), "byteStride": stride,
+               "count": int(a.size if indices else a.shape[0]), "mode": "TRIANGLES" if indices else "ATTRIBUTES"}
+        self.data += payload
+        view = {"buffer": 1, "byteOffset": self.fallback, "byteLength": int(a.nbytes), "target": target,
+                "extensions": {MESHOPT[0]: ext}}
+        if not indices:
+            view["byteStride"] = stride
+        self.fallback += int(a.nbytes) + (-int(a.nbytes) % 4)
+        self.use(MESHOPT[0], required=True)
+        return self._add("bufferViews", view)
 
     def use(self, extension: str, required: bool = False) -> None:
         self.used.add(extension)
@@ -222,6 +249,9 @@ class GltfBuilder:
             doc["buffers"] = [{"byteLength": len(self.data) + (-len(self.data) % 4)}]
             if buffer_uri is not None:
                 doc["buffers"][0]["uri"] = buffer_uri
+        if self.fallback:   # what the meshopt views decode into: no data, readers decode instead
+            doc["buffers"].append({"byteLength": self.fallback,
+                                   "extensions": {"EXT_meshopt_compression": {"fallback": True}}})
         return doc
 
     def glb(self) -> bytes:

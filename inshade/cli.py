@@ -564,7 +564,7 @@ def cmd_export_gltf(args) -> int:
     from inshade.runtime.gltf_export import export_gltf
 
     done = export_gltf(_resolve(args.asset), args.output, material=args.material, size=args.size,
-                       settings=_settings(args), force=args.force, draco=args.draco, textures=args.textures)
+                       settings=_settings(args), force=args.force, compress=args.compress, textures=args.textures)
     for note in done.notes:
         log.info("%s", note)
     print(f"wrote {done.path} ({done.material} material, {done.primitives} primitive"
@@ -808,8 +808,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--material", choices=("auto", "decoded", "reference"), default="auto",
                    help="which material to write (default auto)")
     p.add_argument("--size", type=_size, default=512, help="side of the baked textures in texels (default 512)")
-    p.add_argument("--draco", action="store_true",
-                   help="compress the mesh (KHR_draco_mesh_compression; needs the gltf extra)")
+    p.add_argument("--compress", choices=("none", "draco", "meshopt"), default="none",
+                   help="the mesh as it is (default), or compressed: draco (KHR_draco_mesh_compression, "
+                        "quantized) or meshopt (EXT_meshopt_compression, lossless); both need the gltf extra")
     p.add_argument("--textures", choices=("png", "ktx2"), default="png",
                    help="texture images: png (default), or ktx2 (KHR_texture_basisu, UASTC; needs the gltf extra)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")

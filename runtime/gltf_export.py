@@ -127,10 +127,12 @@ def _primitive(arrays, faces_of, material) -> Primitive:
 
 
 def export_gltf(source, out, *, material: str = "auto", size: int = DEFAULT_SIZE, settings: dict | None = None,
-                force: bool = False, draco: bool = False, textures: str = "png") -> GltfExport:
-    """Write ``out`` (a .glb) from the asset at ``source``; see the module docstring. ``draco``: the
-    mesh as KHR_draco_mesh_compression; ``textures``: "png" or "ktx2" (KHR_texture_basisu, UASTC)."""
-    from inshade.geometry.gltf_codecs import TEXTURE_CODECS
+                force: bool = False, compress: str = "none", textures: str = "png") -> GltfExport:
+    """Write ``out`` (a .glb) from the asset at ``source``; see the module docstring. ``compress``:
+    the mesh as it is ("none"), KHR_draco_mesh_compression ("draco", quantized) or
+    EXT_meshopt_compression ("meshopt", lossless); ``textures``: "png" or "ktx2" (KHR_texture_basisu,
+    UASTC)."""
+    from inshade.geometry.gltf_codecs import MESH_CODECS, TEXTURE_CODECS
     from inshade.scene.description import load_scene
 
     out = Path(out)
@@ -140,6 +142,8 @@ def export_gltf(source, out, *, material: str = "auto", size: int = DEFAULT_SIZE
         raise GltfExportError(f"{out}: -o: export-gltf writes a binary glTF; name it .glb")
     if out.exists() and not force:
         raise GltfExportError(f"{out}: -o: exists; add --force to replace it")
+    if compress not in MESH_CODECS:
+        raise GltfExportError(f"--compress: must be one of {', '.join(MESH_CODECS)}, got {compress!r}")
     if textures not in TEXTURE_CODECS:
         raise GltfExportError(f"--textures: must be one of {', '.join(TEXTURE_CODECS)}, got {textures!r}")
     scene = load_scene(source)
@@ -158,7 +162,7 @@ def export_gltf(source, out, *, material: str = "auto", size: int = DEFAULT_SIZE
                               "file, so there is no reference material to write")
     if material == "decoded" and mesh_uv(scene.mesh.data) is None:
         raise GltfExportError(f"{source}: the mesh {scene.mesh.name} has no uv to bake the decoded material into")
-    builder = GltfBuilder(draco=draco, textures=textures)
+    builder = GltfBuilder(draco=compress == "draco", meshopt=compress == "meshopt", textures=textures)
     arrays = _mesh_arrays(scene.mesh.data)
     notes = []
     materials = list(gltf.materials) if gltf is not None else [None]
