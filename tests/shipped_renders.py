@@ -22,6 +22,12 @@ ROOT = Path(__file__).resolve().parents[1]
 RECORD = Path(__file__).resolve().parent / "data" / "shipped_renders.npz"
 MADE_BY = RECORD.with_suffix(".json")   # the renderer that wrote the record
 MIN_PSNR_DB = 50.0   # another renderer's render against the record (linear float, peak max(1, |record|))
+# One shipped asset per technique: what the slower paths (the window, the browser) open by default;
+# INSHADE_SLOW=1 opens every one (test_shipped_renders draws every one headless through the same renderer).
+ONE_PER_TECHNIQUE = ["appearance_prefilter_grove", "di_brdf_ggx", "di_footprint", "di_pbr_set_bricks",
+                     "di_radiance_field_trinket", "di_sdf", "di_shading_bricks", "di_texture_astronaut",
+                     "hash_grid_image", "neural_appearance_ceramic", "neural_image", "prt_mesh_texture",
+                     "sdf_creature", "uvfree_material_fruit_balanced"]
 FLOORS: dict[str, float] = {}   # a case's own PSNR floor where its program is less stable than that
 
 # (asset, settings): each asset once at its defaults, plus the settings that select other shader paths.

@@ -21,6 +21,7 @@ from inshade.scene.description import list_scenes
 from inshade.scene.camera import CameraError, FlyCamera, OrbitCamera, Plane2DCamera, camera_from_dict
 from inshade.scene.display import DisplayMode, UI_MODES, glsl_chunk, parse_mode
 from inshade.scene.description import SceneError, load_scene
+from shipped_renders import ONE_PER_TECHNIQUE
 
 ROOT = Path(__file__).resolve().parents[1]
 ASSET = ROOT / "trained" / "neural_image"
@@ -534,21 +535,14 @@ def test_side_panel_fits_its_longest_label(app):
         app.step(3)
 
 
-# Scenes drawn by another shipped scene's program, whose first frame costs half a minute on llvmpipe:
-# grove stands for them here (their decoders' parity is in test_appearance_prefilter_train.py);
-# INSHADE_SLOW=1 opens them too.
-SAME_PROGRAM_AS_GROVE = {"appearance_prefilter_forest", "appearance_prefilter_slabs"}
-
-
 @pytest.mark.parametrize("scene", [
     pytest.param(p.name, marks=pytest.mark.skipif(
-        p.name in SAME_PROGRAM_AS_GROVE and not os.environ.get("INSHADE_SLOW"),
-        reason="drawn by appearance_prefilter_grove's program (~35 s a first frame); set INSHADE_SLOW=1"))
+        p.name not in ONE_PER_TECHNIQUE and not os.environ.get("INSHADE_SLOW"),
+        reason="one asset per technique opens in the window here (every one renders headless in "
+               "test_shipped_renders); set INSHADE_SLOW=1"))
     for p in list_scenes(ROOT / "trained")])
 def test_every_shipped_scene_opens_and_draws(app, scene):
-    """The promise: every asset in trained/ opens in the window and shows a picture, with the settings
-    ``inshade view`` gives it (the app fixture's texture storage is for the tests that drag and switch)."""
-    overrides, app.overrides = app.overrides, {}
+    """The promise: every asset in trained/ opens in the window and shows a picture."""
     try:
         assert app.open(ROOT / "trained" / scene), app.messages[-1:]
         app.step(3)
@@ -556,7 +550,6 @@ def test_every_shipped_scene_opens_and_draws(app, scene):
         pixels = _scene_pixels(app, app.read_window())
         assert pixels.std() > 5, f"{scene}: the scene region is flat"
     finally:
-        app.overrides = overrides
         assert app.open(ASSET)
         app.step(3)
 

@@ -25,7 +25,7 @@ from inshade.web.browser import Browser, psnr8, serve, srgb8
 from inshade.web.export import WebLimitError, export_web
 
 from parity import TOL, assert_parity, glsl_eval, scaled_error, torch_reference
-from shipped_renders import MADE_BY, RECORD, key, size
+from shipped_renders import MADE_BY, ONE_PER_TECHNIQUE, RECORD, key, size
 
 MIN_PSNR_DB = 40.0
 # Compared at the scene's own size, not the record's quarter: its bricks repeat every few pixels there,
@@ -42,10 +42,6 @@ DESKTOP_MARGIN = 1.25
 # march compile for minutes in SwiftShader, so those networks are held to this bound instead.
 BROWSER_SIN_TOL = 5e-3
 TRAINED = Path(__file__).resolve().parents[1] / "trained"
-ONE_PER_TECHNIQUE = ["appearance_prefilter_grove", "di_brdf_ggx", "di_footprint", "di_pbr_set_bricks",
-                     "di_radiance_field_trinket", "di_sdf", "di_shading_bricks", "di_texture_astronaut",
-                     "hash_grid_image", "neural_appearance_ceramic", "neural_image", "prt_mesh_texture",
-                     "sdf_creature", "uvfree_material_fruit_balanced"]
 ASSETS = sorted(p.name for p in TRAINED.iterdir() if p.is_dir()) if os.environ.get("INSHADE_SLOW") \
     else ONE_PER_TECHNIQUE
 
