@@ -334,10 +334,9 @@ def render_spec(bundle: Bundle) -> dict:
     where = _where(bundle)
     spec = bundle.meta.get("render")
     if spec is None:
-        raise RenderSpecError(f"bundle '{bundle.name}' ({where}) has no 'render' field, so it does not say "
-                              "how to render it headless; add one, e.g. {\"program\": "
-                              "\"passes/field2d.frag\", \"width\": 256, \"height\": 256, "
-                              "\"input\": \"uv\", \"output\": \"rgb\"}")
+        raise RenderSpecError(f"bundle '{bundle.name}' ({where}) does not say what it is, so it cannot be drawn: "
+                              "convert it again with --as image|sdf|field (inshade.export(..., as_=...); an image "
+                              "also takes --colour srgb|linear)")
     if not isinstance(spec, dict):
         raise RenderSpecError(f"{where}: render: must be an object")
     program = spec.get("program")

@@ -7,10 +7,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import torch
 
 import inshade
 from inshade.cli import main
+from inshade.convert.lowering import ConvertError
 from inshade.scene.image_io import read_exr
 from inshade.scene.description import load_scene
 
@@ -67,6 +69,42 @@ def test_siren_image(gl, tmp_path):
     with torch.no_grad():
         ref = net(grid).numpy().reshape(SIZE, SIZE, 3)
     assert psnr(shot, ref) >= 50.0, psnr(shot, ref)
+
+
+def test_an_image_network_says_its_colour_or_is_warned(gl, tmp_path, capsys):
+    """The SIREN fitted to the photograph's pixels (sRGB values, as files hold them): exported as an
+    image with no colour said, it is taken as linear light and a warning names colour="srgb"; with
+    colour="srgb" the PNG holds the network's own values (>= 50 dB against torch, 8-bit), where
+    the linear reading shows it pale."""
+    from PIL import Image
+
+    net, uv, _ = fitted_siren()
+    inshade.export(net, uv, tmp_path / "assumed", as_="image")
+    err = capsys.readouterr().err
+    assert 'colour="srgb"' in err and "taken as linear light" in err, err
+    inshade.export(net, uv, tmp_path / "said", as_="image", colour="srgb")
+    assert "taken as linear light" not in capsys.readouterr().err
+    ys = (SIZE - 0.5 - np.arange(SIZE)) / SIZE
+    xs = (np.arange(SIZE) + 0.5) / SIZE
+    grid = torch.from_numpy(np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2).astype(np.float32))
+    with torch.no_grad():
+        want = np.clip(net(grid).numpy().reshape(SIZE, SIZE, 3), 0.0, 1.0)
+    shots = {}
+    for name in ("assumed", "said"):
+        out = tmp_path / f"{name}.png"
+        assert main(["render", str(tmp_path / name), "-o", str(out), "--width", str(SIZE), "--height",
+                     str(SIZE)]) == 0
+        shots[name] = np.asarray(Image.open(out).convert("RGB"), np.float64) / 255.0
+    assert psnr(shots["said"], want) >= 50.0, psnr(shots["said"], want)
+    assert psnr(shots["assumed"], want) < 25.0 and shots["assumed"].mean() > want.mean() + 0.1
+
+
+def test_colour_goes_with_an_image(tmp_path):
+    module, example = zoo()["sdf"]
+    with pytest.raises(ConvertError, match='colour: goes with as_="image"'):
+        inshade.export(module, example, tmp_path / "x", as_="sdf", colour="srgb", check=False)
+    with pytest.raises(ConvertError, match="colour: 'sRGB' is not one of linear, srgb"):
+        inshade.export(module, example, tmp_path / "y", as_="image", colour="sRGB", check=False)
 
 
 def test_sdf(gl, tmp_path):

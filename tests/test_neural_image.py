@@ -159,7 +159,7 @@ def test_bundle_without_render_field_is_refused(shipped):
     from inshade.bundle import Bundle
 
     bare = Bundle(dict(meta, name="no_render_here"), shipped.tensors)
-    with pytest.raises(RenderSpecError, match="no_render_here.*no 'render' field"):
+    with pytest.raises(RenderSpecError, match="no_render_here.*does not say what it is.*--as image"):
         render_bundle(bare)
 
 

@@ -49,6 +49,9 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
                                                        ".safetensors file holding several (default: params)")
     p.add_argument("--as", dest="as_", choices=SHOWN_AS,
                    help="what the network is, so `inshade render` / `view` can draw it (image: uv -> colour)")
+    p.add_argument("--colour", choices=("srgb", "linear"),
+                   help="with --as image: the colour the network gives: srgb for one fitted to image pixels as "
+                        "files hold them, linear for light (not given: linear, with a warning)")
     p.add_argument("--name", help="bundle name (default: the file's stem)")
     p.add_argument("--semantic", action="append", metavar="PORT=SEMANTIC",
                    help="a port's semantic, e.g. --semantic rgb=srgb for colour fitted to sRGB pixels (the "
@@ -101,7 +104,7 @@ def cmd_convert(args) -> int:
             raise ConvertError(f"--semantic {item!r}: expected PORT=SEMANTIC, e.g. rgb=srgb")
         semantics[port] = semantic
     common = dict(name=args.name, as_=args.as_, check=not args.no_check, force=args.force, quiet=args.quiet,
-                  example=example, semantics=semantics)
+                  example=example, semantics=semantics, colour=args.colour)
     if kind == "tiny-cuda-nn":
         if args.params is None:
             raise ConvertError(f"{source}: a tiny-cuda-nn config needs its PARAMS file too: "

@@ -17,14 +17,15 @@ from pathlib import Path
 import numpy as np
 
 from .lowering import ConvertError, Lowering
-from .shown_as import SHOWN_AS, apply_shown_as, with_semantics
+from .shown_as import SHOWN_AS, apply_shown_as, check_colour, colour_warning, with_semantics
 
 KIND = "imported"   # the kind of a user's own network (techniques/imported draws the 3D ones)
 
 
 def export(module, example_input, folder, *, name: str | None = None, input_names=None, output_names=None,
            check: bool = True, as_: str | None = None, force: bool = False, quiet: bool = False,
-           limits: dict | None = None, check_storage: str = "auto", semantics: dict | None = None):
+           limits: dict | None = None, check_storage: str = "auto", semantics: dict | None = None,
+           colour: str | None = None):
     """Capture ``module`` on ``example_input`` (a [batch, features] tensor, or a tuple of them, one
     per input; an input of higher rank, e.g. [1, N, F] or [H, W, F], takes its leading axes as the
     batch, and `inshade eval` then takes and gives arrays of that rank), lower it onto bundle components, check its GLSL against the module through the GL
@@ -34,7 +35,9 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     ``limits``: the GL limits the GLSL must fit (e.g. a target GPU's; default: this driver's);
     ``check_storage``: the dense weight placement the check compiles (codegen's storage modes);
     ``semantics``: {port name: semantic}, e.g. ``{"y": "srgb"}`` for colour fitted to sRGB pixels
-    (the display decodes it to linear).
+    (the display decodes it to linear). ``colour`` ("srgb" | "linear", with ``as_="image"``): what the
+    shown colour is; a network fitted to image pixels (PNG, PIL, skimage.data: sRGB-encoded) is "srgb".
+    Not given, it is taken as linear, with a warning.
     Returns the saved ``Bundle``. Raises ``ConvertError`` (one line) for what cannot be lowered."""
     import torch
 
@@ -88,14 +91,16 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
     source = module if lead == 1 else LeadingAxes(module, lead)
     return finish(bundle, source, [r.numpy() for r in rows], folder, check=check,
-                  force=force, quiet=quiet, limits=limits, as_=as_, check_storage=check_storage, semantics=semantics)
+                  force=force, quiet=quiet, limits=limits, as_=as_, check_storage=check_storage, semantics=semantics,
+                  colour=colour)
 
 
 def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, quiet: bool, limits=None,
-           as_: str | None = None, check_storage: str = "auto", semantics: dict | None = None):
+           as_: str | None = None, check_storage: str = "auto", semantics: dict | None = None,
+           colour: str | None = None):
     """Check (through the GL driver, against ``source``), record the check, make the bundle what
-    ``as_`` says, write it (and its scene.json for 3D). ``limits``: GL limits to plan the GLSL
-    against (default: the driver's). Returns the written bundle."""
+    ``as_`` (and ``colour``, for an image) says, write it (and its scene.json for 3D). ``limits``: GL
+    limits to plan the GLSL against (default: the driver's). Returns the written bundle."""
     import json
 
     from inshade import asset_folder
@@ -105,6 +110,7 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
 
     from .check import check as run_check, check_inputs, finite_rows
 
+    check_colour(as_, colour)
     if limits is None and check:
         from inshade.runtime.context import gl_info, shared_context
 
@@ -137,7 +143,10 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
         bundle.meta["provenance"]["check"] = {**result.record(), "example_rows_left_out": left_out}
     scene = None
     if as_ is not None:
-        bundle, scene = apply_shown_as(bundle, as_, flat)
+        bundle, scene = apply_shown_as(bundle, as_, flat, colour)
+        warning = colour_warning(bundle, as_, colour, semantics)
+        if warning and not quiet:
+            print(warning, file=sys.stderr)
     if semantics:
         bundle = with_semantics(bundle, semantics)
     asset_folder.claim(folder, folder.name, force=force, option="folder", force_option="force=True")

@@ -717,7 +717,8 @@ def poses(specs: list[InputSpec]):
 
 
 def convert(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
-            force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None):
+            force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None,
+            colour: str | None = None):
     """An ONNX file (or ModelProto) -> a bundle folder, its GLSL checked against onnxruntime on
     ``example`` ([N, in_dim] rows, or one input's whole tensor; default uniform [-1, 1]) plus
     random rows in its range."""
@@ -742,7 +743,8 @@ def convert(source, folder, *, name: str | None = None, as_: str | None = None, 
                            "(its inputs' rows side by side)")
     bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
     parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_, semantics=semantics)
+    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_, semantics=semantics,
+                  colour=colour)
 
 
 def float64_model(model):

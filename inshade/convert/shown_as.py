@@ -3,8 +3,11 @@
 draw it with the generic programs. Applied after the parity check: the network itself is checked
 as the user wrote it.
 
-- ``image``: one 2-wide input (uv in [0, 1]^2, (0, 0) bottom left) -> a 1, 3 or 4-wide colour in
-  linear light, drawn by passes/field2d.frag over the unit square.
+- ``image``: one 2-wide input (uv in [0, 1]^2, (0, 0) bottom left) -> a 1, 3 or 4-wide colour,
+  drawn by passes/field2d.frag over the unit square. Its ``colour`` is asked for: "linear" (light),
+  or "srgb" for a network fitted to image pixels as files hold them (decoded by the pass, so the
+  PNG shows the values the network gives); not given, it is taken as linear and a warning says so,
+  since an sRGB-fitted network shown as linear light looks pale.
 - ``sdf``: position (3) -> distance (1), in the user's world units, sphere traced by
   passes/sdf_diffuse.frag (environment light). The traced bound is the sphere around the example
   points' box; the network SDF contract (codegen/network_sdf.py) normalises positions into that
@@ -23,15 +26,40 @@ from inshade.bundle import Bundle
 from .lowering import ConvertError
 
 SHOWN_AS = ("image", "sdf", "field")
+COLOURS = {"linear": "linear_rgb", "srgb": "srgb"}   # an image's colour -> its output port's semantic
 SDF_STEP_SCALE = 0.5
 FIELD_SAMPLES = 128        # steps across the box diagonal
 SIZE = 256
 
 
-def apply_shown_as(bundle: Bundle, as_: str, example: np.ndarray) -> tuple[Bundle, dict | None]:
+def check_colour(as_: str | None, colour: str | None) -> None:
+    if colour is None:
+        return
+    if colour not in COLOURS:
+        raise ConvertError(f"colour: {colour!r} is not one of {', '.join(COLOURS)}")
+    if as_ != "image":
+        raise ConvertError(f"colour: goes with as_=\"image\" (--as image), not {as_!r}")
+
+
+def colour_warning(bundle: Bundle, as_: str, colour: str | None, semantics: dict | None) -> str | None:
+    """The line that says an image's colour was assumed (None when it was said, one way or another)."""
+    if as_ != "image" or colour is not None:
+        return None
+    shown = bundle.meta["render"]["output"]
+    if semantics and shown in semantics:
+        return None
+    return (f"as image: the output {shown!r} is taken as linear light; a network fitted to image pixels as files "
+            "hold them (PNG, PIL, skimage.data: sRGB-encoded) shows pale that way: say colour=\"srgb\" "
+            "(--colour srgb), or colour=\"linear\" to keep this and drop the warning")
+
+
+def apply_shown_as(bundle: Bundle, as_: str, example: np.ndarray, colour: str | None = None
+                   ) -> tuple[Bundle, dict | None]:
     """(the bundle as ``as_`` says, the scene.json to write beside it or None); ``example`` the
-    check's input rows [N, in_dim] (their box is the 3D domain)."""
-    return {"image": _image, "sdf": _sdf, "field": _field}[as_](bundle, np.asarray(example, np.float64))
+    check's input rows [N, in_dim] (their box is the 3D domain); ``colour``: an image's (COLOURS)."""
+    if as_ == "image":
+        return _image(bundle, colour or "linear")
+    return {"sdf": _sdf, "field": _field}[as_](bundle, np.asarray(example, np.float64))
 
 
 def _ports(bundle: Bundle) -> str:
@@ -39,7 +67,7 @@ def _ports(bundle: Bundle) -> str:
         ", ".join(f"{p.name}[{p.dim}]" for p in bundle.outputs)
 
 
-def _image(bundle: Bundle, example) -> tuple[Bundle, None]:
+def _image(bundle: Bundle, colour: str) -> tuple[Bundle, None]:
     meta = dict(bundle.meta)
     ins, outs = [dict(p) for p in meta["inputs"]], [dict(p) for p in meta["outputs"]]
     if len(ins) != 1 or ins[0]["dim"] != 2:
@@ -49,7 +77,7 @@ def _image(bundle: Bundle, example) -> tuple[Bundle, None]:
     if shown is None:
         raise ConvertError("as image: no output of 1, 3 or 4 lanes (grey, rgb, rgba) to show")
     ins[0]["semantic"] = "uv"
-    shown["semantic"] = "linear_rgb"
+    shown["semantic"] = COLOURS[colour]
     meta.update(inputs=ins, outputs=outs,
                 render={"program": "passes/field2d.frag", "width": SIZE, "height": SIZE,
                         "input": ins[0]["name"], "output": shown["name"]})
