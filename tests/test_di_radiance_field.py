@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from inshade import technique
@@ -123,16 +123,19 @@ def test_cli_bad_input_is_one_error(tmp_path, capsys):
 
 
 # --- lookup graphs: the 1e-5 rule on the exact path ------------------------------------------------
+# The cascade is steep where the primary arrays' rounding lands: at seed 30919 torch's fp32 answer is
+# itself 5.8e-6 from the float64 one (the shader's 4.6e-6), 1.04e-5 apart; the conditioning rule decides.
 
 @parity_settings(max_examples=3)
 @given(seed=st.integers(0, 2**16))
+@example(seed=30919)
 def test_lookup_graphs_exact_path_parity(gl, asset, seed):
     rng = np.random.default_rng(seed)
     x = rng.uniform(0.0, 1.0, (512, 3)).astype(np.float32)
     x[:8] = rng.integers(0, 2, (8, 3))          # box corners and faces (clamp, last cell)
     fp32 = model.grid_graph(*field.bake(16)).export(record.KIND, "grid_fp32")   # the bench's reference grids
     for bundle in (load(asset), load(asset / "grid"), fp32):
-        check_parity(gl, bundle, x, options={"lookup_array": {"filter": "exact"}},
+        check_parity(gl, bundle, x, options={"lookup_array": {"filter": "exact"}}, conditioned=True,
                      what=f"{bundle.name} exact path")
 
 
