@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 from pathlib import Path
 
@@ -642,8 +643,10 @@ def test_bench_prt_quick_writes_reports(tmp_path):
 # The quality targets for k=64 (diffuse >= 45 dB, glossy >= 38 dB against the per-pixel
 # ground-truth transfer render, surface pixels), re-measured on the shipped assets with a small
 # orbit (3 views, 48², 256 ground-truth rays: estimator noise ~51 dB diffuse) to keep CI fast; the
-# 30-view numbers are in each asset's metrics.json.
-@pytest.mark.parametrize("asset", ["prt_creature", "prt_neural_bunny", "prt_mesh"])
+# 30-view numbers are in each asset's metrics.json. The neural-SDF asset (its transfer network
+# evaluated per ground-truth sample) takes ~35 s: under INSHADE_SLOW.
+@pytest.mark.parametrize("asset", ["prt_creature", pytest.param("prt_neural_bunny", marks=pytest.mark.skipif(
+    not os.environ.get("INSHADE_SLOW"), reason="~35 s; set INSHADE_SLOW=1")), "prt_mesh"])
 def test_shipped_prt_asset_meets_quality_targets(asset, cache):
     from inshade.techniques.prt.twin import quality_orbit
 

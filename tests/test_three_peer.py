@@ -12,6 +12,8 @@ shipped -> without its departures): metal_rough 41.4 -> 64.7, clearcoat 41.9 -> 
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -177,6 +179,8 @@ LOOK_FILES = {"duck_obj2gltf": 0.10,   # 0.996: the saturated textured OBJ, held
               "clearcoat": 0.25,       # 1.097
               "showcase": 0.25,        # 0.918
               "tiles_torus": 0.25}     # 1.233: its glossy tiles mirror the two environments' differences
+# the duck, the darkest and the brightest by default; every file under INSHADE_SLOW
+LOOK_DEFAULT = ("duck_obj2gltf", "showcase", "tiles_torus")
 
 
 def test_the_first_look_is_as_bright_as_three_js_shows_it(browser, files, capsys):
@@ -188,6 +192,8 @@ def test_the_first_look_is_as_bright_as_three_js_shows_it(browser, files, capsys
 
     rows, worst = [], []
     for name, margin in LOOK_FILES.items():
+        if name not in LOOK_DEFAULT and not os.environ.get("INSHADE_SLOW"):
+            continue
         three = three_peer.three_render(browser, files[name], SIZE, SIZE, settings={"lights": 0},
                                         environment="room", tone_mapping="neutral", exposure=1.0)
         theirs = three_peer.picture_stats(three["srgb8"], three_peer.erode(three_peer.three_coverage(three), 1))
