@@ -166,6 +166,9 @@ def copy_gltf(path, folder, stem: str = "source") -> str:
     return name
 
 
+UV_SETS = (0, 1)   # TEXCOORD_n a texture may read (G-buffer targets "uv" and "uv1", runtime/geometry.py)
+
+
 def gltf_uv(uv: np.ndarray) -> np.ndarray:
     """The project's uv (v up) as glTF's (v down) and back: the same flip both ways."""
     uv = np.asarray(uv, np.float64).copy()
@@ -568,21 +571,38 @@ class _Reader:
             raise _err("scenes", "the default scene draws no triangles (no node with a mesh)")
         materials = [self.material(i) for i in range(len(self._list("materials")))]
         default = len(materials)
-        positions, normals, tangents, uvs, faces, face_material = [], [], [], [], [], []
+        for m in materials:
+            for slot, t in m.textures().items():
+                if t.texcoord not in UV_SETS:
+                    raise _err(f"materials ({m.name}).{slot}", f"reads uv set {t.texcoord}; TEXCOORD_0 and "
+                               "TEXCOORD_1 are supported")
+        positions, normals, tangents, uvs, uv1s, faces, face_material = [], [], [], [], [], [], []
         base, any_uv, generated = 0, False, False
+        any_uv1 = any(t.texcoord == 1 for m in materials for t in m.textures().values())
         for p in parts:
             if p["uv"] is not None:
                 any_uv = True
+        if not any_uv and any(m.textures() for m in materials):
+            raise _err("meshes", "materials have textures, but no primitive has TEXCOORD_0")
         for p in parts:
             v = len(p["position"])
             positions.append(p["position"])
             normals.append(p["normal"])
+            sets = [p["uv"], p["uv1"]]
+            used = materials[p["material"]].textures() if p["material"] is not None else {}
+            for slot, t in used.items():
+                if sets[t.texcoord] is None:
+                    raise _err(p["where"], f"material {p['material']} ({materials[p['material']].name}).{slot} reads "
+                               f"TEXCOORD_{t.texcoord}, but the primitive has none")
             uv = p["uv"] if p["uv"] is not None else np.zeros((v, 2))
             uvs.append(uv)
+            uv1s.append(p["uv1"] if p["uv1"] is not None else np.zeros((v, 2)))
             if p["tangent"] is None:
-                generated |= p["uv"] is not None and p["needs_tangent"]
-                tangents.append(mikktspace_tangents(p["position"], p["normal"], uv, p["faces"]) if p["uv"] is not None
-                                else np.zeros((v, 4)))
+                # MikkTSpace on the normal texture's uv set (the spec's tangent space), else TEXCOORD_0
+                tangent_uv = sets[used["normal"].texcoord] if "normal" in used else p["uv"]
+                generated |= tangent_uv is not None and p["needs_tangent"]
+                tangents.append(mikktspace_tangents(p["position"], p["normal"], tangent_uv, p["faces"])
+                                if tangent_uv is not None else np.zeros((v, 4)))
             else:
                 tangents.append(p["tangent"])
             faces.append(p["faces"] + base)
@@ -603,18 +623,14 @@ class _Reader:
         material = np.zeros(len(mesh.vertices))
         material[mesh.faces.reshape(-1)] = np.repeat(face_material, 3)
         mesh.vertex_attributes["material"] = material
-        textured = [m for m in materials if m.textures()]
-        if textured and not any_uv:
-            raise _err("meshes", "materials have textures, but no primitive has TEXCOORD_0")
-        for p in parts:
-            if p["uv"] is None and p["material"] is not None and materials[p["material"]].textures():
-                raise _err(p["where"], f"material {p['material']} ({materials[p['material']].name}) has textures, "
-                           "but the primitive has no TEXCOORD_0")
-        for m in materials:
-            for slot, t in m.textures().items():
-                if t.texcoord != 0:
-                    raise _err(f"materials ({m.name}).{slot}", f"reads uv set {t.texcoord}; only TEXCOORD_0 is "
-                               "supported")
+        if any_uv1:   # the second uv set, v up as the first (only where a texture reads it)
+            mesh.vertex_attributes["uv1"] = gltf_uv(np.concatenate(uv1s))
+        see_through = [f"{materials[i].name} ({materials[i].alpha_mode})" for i in np.unique(face_material)
+                       if materials[i].alpha_mode != "OPAQUE"]
+        if see_through:
+            self.notes.append(f"alpha: {', '.join(see_through)} drawn with the file's own alpha in every view (MASK "
+                              "cut out, BLEND peeled and laid over what lies behind, as the reference pass draws "
+                              "them); a learnt material learns their colour, not their alpha")
         return GltfAsset(self.path, mesh, face_material, materials, self.images, self.notes, self.extensions)
 
     def _walk(self, index, parent: np.ndarray, parts: list, seen: set, where: str) -> None:
@@ -690,7 +706,9 @@ class _Reader:
         faces = _triangles(idx, mode, where)
         out = {"position": pos, "faces": faces, "uv": None, "normal": None, "tangent": None,
                "material": prim.get("material"), "needs_tangent": True, "where": where}
-        for key, name, width in (("normal", "NORMAL", 3), ("tangent", "TANGENT", 4), ("uv", "TEXCOORD_0", 2)):
+        out["uv1"] = None
+        for key, name, width in (("normal", "NORMAL", 3), ("tangent", "TANGENT", 4), ("uv", "TEXCOORD_0", 2),
+                                 ("uv1", "TEXCOORD_1", 2)):
             if name in attrs:
                 a = attribute(name)
                 if a.shape != (v, width):
@@ -789,7 +807,7 @@ def _triangles(idx: np.ndarray, mode: int, where: str) -> np.ndarray:
 def _flat(p: dict) -> dict:
     corner = p["faces"].reshape(-1)
     out = dict(p)
-    for key in ("position", "uv", "tangent"):
+    for key in ("position", "uv", "uv1", "tangent"):
         if p[key] is not None:
             out[key] = p[key][corner]
     v = out["position"]

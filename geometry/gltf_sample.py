@@ -4,7 +4,8 @@
   through its KHR_texture_transform and the sampler's wrap modes, bilinear (the base level: trainers
   sample at the texture's own resolution), [N, 4] float64 in [0, 1]: as stored, or with ``colour``
   the texels' RGB sRGB-decoded before filtering (as the GPU's linear-light image array filters).
-- ``material_channels(asset, m, uv)``: material ``m`` at those uv, factors applied, colours linear:
+- ``material_channels(asset, m, uv, uv1=None)``: material ``m`` at those uv (and a texture that
+  reads TEXCOORD_1 at ``uv1``, the same points' second set), factors applied, colours linear:
   ``base_color`` [N, 3], ``alpha``, ``metallic``, ``roughness``, ``normal`` (tangent space, unit,
   normal scale applied; +y along the project's +v), ``occlusion`` (strength applied), ``emissive``
   [N, 3], ``clearcoat``, ``clearcoat_roughness``, ``sheen_color`` [N, 3], ``sheen_roughness``,
@@ -22,7 +23,7 @@ import math
 
 import numpy as np
 
-from .gltf import GltfAsset, TextureRef, gltf_uv, srgb_to_linear
+from .gltf import GltfAsset, GltfError, TextureRef, gltf_uv, srgb_to_linear
 
 
 def _wrap(x: np.ndarray, mode: str) -> np.ndarray:
@@ -64,15 +65,22 @@ def sample_texture(asset: GltfAsset, ref: TextureRef, uv_gltf: np.ndarray, colou
     return top * (1 - fy) + bottom * fy
 
 
-def material_channels(asset: GltfAsset, m: int, uv: np.ndarray) -> dict[str, np.ndarray]:
-    """Material ``m``'s channels at the project's uv [N, 2] (v up); see the module docstring."""
+def material_channels(asset: GltfAsset, m: int, uv: np.ndarray, uv1: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Material ``m``'s channels at the project's uv [N, 2] (v up), and ``uv1`` the same points'
+    second uv set where a texture reads TEXCOORD_1 (a GltfError without it: the caller samples
+    in the first set's space only); see the module docstring."""
     mat = asset.materials[m]
-    g = gltf_uv(uv)
-    n = len(g)
+    sets = [gltf_uv(uv), None if uv1 is None else gltf_uv(uv1)]
+    n = len(sets[0])
 
     def tex(ref, default, colour=False):
-        return sample_texture(asset, ref, g, colour) if ref is not None else np.tile(np.asarray(default, np.float64),
-                                                                                     (n, 1))
+        if ref is None:
+            return np.tile(np.asarray(default, np.float64), (n, 1))
+        if sets[ref.texcoord] is None:
+            slot = next(k for k, t in mat.textures().items() if t is ref)
+            raise GltfError(f"{asset.path}: materials ({mat.name}).{slot}: reads TEXCOORD_{ref.texcoord}; "
+                            "this is sampled in TEXCOORD_0's space only (the reference pass draws it)")
+        return sample_texture(asset, ref, sets[ref.texcoord], colour)
 
     base = tex(mat.base_color_texture, (1, 1, 1, 1), colour=True)
     mr = tex(mat.metallic_roughness_texture, (1, 1, 1, 1))

@@ -37,13 +37,14 @@ LINEAR, LINEAR_MIPMAP_LINEAR = 9729, 9987
 @dataclass
 class Primitive:
     """One triangle list: vertices [V, 3], faces [F, 3] (counter-clockwise), optional unit normals,
-    uv (v up), tangents [V, 4] and a material index."""
+    uv (v up), tangents [V, 4], a material index and a second uv set (TEXCOORD_1, v up)."""
     vertices: np.ndarray
     faces: np.ndarray
     normals: np.ndarray | None = None
     uv: np.ndarray | None = None
     tangents: np.ndarray | None = None
     material: int | None = None
+    uv1: np.ndarray | None = None
 
 
 class GltfBuilder:
@@ -175,8 +176,9 @@ class GltfBuilder:
                 attrs["NORMAL"] = self.accessor(n / np.linalg.norm(n, axis=1, keepdims=True), "VEC3")
             if p.tangents is not None:
                 attrs["TANGENT"] = self.accessor(p.tangents, "VEC4")
-            if p.uv is not None:
-                attrs["TEXCOORD_0"] = self.accessor(gltf_uv(p.uv), "VEC2")
+            for name, uv in (("TEXCOORD_0", p.uv), ("TEXCOORD_1", p.uv1)):
+                if uv is not None:
+                    attrs[name] = self.accessor(gltf_uv(uv), "VEC2")
             prim = {"attributes": attrs, "indices": self.accessor(np.asarray(p.faces).reshape(-1, 1), "SCALAR",
                                                                    target=ELEMENT_ARRAY_BUFFER),
                     "mode": 4}
@@ -189,6 +191,9 @@ class GltfBuilder:
         """A primitive whose attributes and indices are one Draco bitstream: its accessors hold no
         data, only what the decoded values are (count, type; POSITION's bounds as decoded)."""
         from .gltf_codecs import DRACO, draco_encode
+
+        if p.uv1 is not None:
+            raise ValueError("a second uv set is not written into Draco bitstreams here")
 
         n = None if p.normals is None else np.asarray(p.normals, np.float64)
         payload, decoded = draco_encode(p.vertices, p.faces, None if n is None else n / np.linalg.norm(n, axis=1,

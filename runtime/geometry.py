@@ -48,6 +48,20 @@ FRAGMENT = "passes/mesh_gbuffer.frag"
 GBUFFER = ("position", "normal", "uv", "tangent", "uv_grad")   # attachment order; sampler u_gbuffer_<name>
 VISIBILITY = ("primitive", "barycentric")                      # after GBUFFER with visibility=True
 VISIBILITY_FORMATS = ("r32ui", "rg32f")
+UV1 = ("uv1", "uv1_dy")                                        # last, where a texture reads TEXCOORD_1
+
+
+def gbuffer_layout(mesh, visibility: bool = False) -> tuple[tuple, tuple, dict]:
+    """The G-buffer targets of a mesh: (names, formats, defines for the pass and its readers).
+    ``GBUFFER``, then ``VISIBILITY`` when asked, then ``UV1`` where the mesh carries a second uv set
+    (a glTF texture reads TEXCOORD_1, geometry/gltf.py ``vertex_attributes["uv1"]``)."""
+    names = GBUFFER + (VISIBILITY if visibility else ())
+    formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if visibility else ())
+    defines = {"GBUFFER_VISIBILITY": 1} if visibility else {}
+    if "uv1" in mesh.vertex_attributes:
+        defines.update(GBUFFER_UV1=len(names), GBUFFER_UV1_DY=len(names) + 1)
+        names, formats = names + UV1, formats + ("rgba32f",) * len(UV1)
+    return names, formats, defines
 
 
 def _mat_bytes(m) -> bytes:
@@ -72,11 +86,17 @@ def gbuffer_attributes(mesh, visibility: bool = False) -> tuple[dict, np.ndarray
     material = np.reshape(own["material"], (-1, 1)) if "material" in own else np.zeros((len(mesh.vertices), 1))
     attributes = {"in_position": (mesh.vertices, "3f"), "in_normal": (normals, "3f"), "in_uv": (uv, "2f"),
                   "in_tangent": (tangents, "4f"), "in_material": (material, "1f")}
+    if "uv1" in own:
+        attributes["in_uv1"] = (own["uv1"], "2f")
     if visibility:
         attributes = {name: (np.asarray(a)[faces.reshape(-1)], layout) for name, (a, layout) in attributes.items()}
         attributes["in_barycentric"] = (np.tile(np.eye(3, dtype=np.float32)[:, :2], (len(faces), 1)), "2f")
     return ({name: (np.ascontiguousarray(a, np.float32), layout) for name, (a, layout) in attributes.items()},
             faces, has_uv)
+
+
+class GeometryLimitError(ValueError):
+    """The G-buffer would exceed a queried GL limit (the message names both)."""
 
 
 def cutout_chunks(masked: bool) -> dict:
@@ -98,12 +118,14 @@ class MeshGBuffer:
         self.ctx = ctx
         self.cache = cache if cache is not None else ProgramCache(ctx)
         self.visibility = bool(visibility)
-        self.names = GBUFFER + (VISIBILITY if self.visibility else ())
-        self.formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if self.visibility else ())
+        self.names, self.formats, self.defines = gbuffer_layout(mesh, self.visibility)
+        limit = ctx.info["GL_MAX_DRAW_BUFFERS"]
+        if len(self.names) > limit:
+            raise GeometryLimitError(f"the G-buffer needs {len(self.names)} targets ({', '.join(self.names)}); "
+                                     f"this driver draws to {limit} at once (GL_MAX_DRAW_BUFFERS)")
         self.materials = materials if materials is not None and (materials.masked or materials.blended) else None
         self.layers: dict[int, moderngl.Framebuffer] = {}   # peeled BLEND layers' targets (draw_layer)
-        self.program = self.cache.get(VERTEX, FRAGMENT, version=version,
-                                      defines={"GBUFFER_VISIBILITY": 1} if self.visibility else None,
+        self.program = self.cache.get(VERTEX, FRAGMENT, version=version, defines=self.defines or None,
                                       chunks=cutout_chunks(self.materials is not None))
         attributes, faces, self.has_uv = gbuffer_attributes(mesh, self.visibility)
         vertices = attributes["in_position"][0]

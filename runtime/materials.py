@@ -2,8 +2,8 @@
 
 - ``u_material_params`` (RGBA32F, one row per material, ``TEXELS`` texels): the factors in
   ``SCALARS`` order, then per texture slot (``SLOTS``) three texels: (image layer or -1, wrap s,
-  wrap t, the slot's scale), (m00, m01, m02, m10), (m11, m12, 0, 0), the KHR_texture_transform
-  rows on glTF uv. ``pack`` writes it; the GLSL reads the same offsets (MATERIAL_* there).
+  wrap t, the slot's scale), (m00, m01, m02, m10), (m11, m12, uv set, 0): the KHR_texture_transform
+  rows on glTF uv, and the TEXCOORD_n the slot reads (0 or 1: G-buffer "uv" or "uv1"). ``pack`` writes it; the GLSL reads the same offsets (MATERIAL_* there).
 - ``u_material_images`` (RGBA16F 2D array, mipmapped, trilinear (``ANISOTROPY``), repeat): every image
   the materials use, in linear light: a colour slot's image (``COLOUR_SLOTS``, sRGB-encoded in the
   file) decoded before upload, so filtering and the mip chain average light as the spec asks (an
@@ -75,7 +75,7 @@ def pack(materials, layer_of: dict[tuple[int, bool], int] | None = None) -> np.n
             out[i, at] = (layer_of[t.image, slot in COLOUR_SLOTS], WRAP_CODES[t.wrap[0]], WRAP_CODES[t.wrap[1]],
                           t.scale)
             out[i, at + 1] = (t.transform[0, 0], t.transform[0, 1], t.transform[0, 2], t.transform[1, 0])
-            out[i, at + 2] = (t.transform[1, 1], t.transform[1, 2], 0.0, 0.0)
+            out[i, at + 2] = (t.transform[1, 1], t.transform[1, 2], float(t.texcoord), 0.0)
     return out
 
 

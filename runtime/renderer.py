@@ -36,7 +36,7 @@ from inshade.technique import FrameInputs, choice_chunks
 from .context import GLContextError, gl_info, make_current, shared_context
 from inshade.scene.display import DisplayMode, glsl_chunk, parse_mode
 from .environment import EnvironmentSampler, EnvironmentTextures, environment_image, scene_environment
-from .geometry import MeshGBuffer
+from .geometry import MeshGBuffer, gbuffer_layout
 from .materials import MaterialTextures
 from inshade.scene.image_io import read_exr
 from .network import NetworkResources
@@ -198,9 +198,16 @@ class SceneRenderer:
                 raise SceneError(f"{self.scene.source or self.scene.name}: {exc}") from None
         return chunks, extra
 
+    def _gbuffer_defines(self) -> dict:
+        """What the G-buffer's readers are told of its targets (runtime/geometry.py gbuffer_layout)."""
+        if self.scene.mesh is None:
+            return {}
+        return gbuffer_layout(self.scene.mesh.data, self.spec.visibility)[2]
+
     def _defines(self, bundles) -> dict:
         defines = {s.target: self.values[n] if s.declared is None else s.index(self.values[n])
                    for n, s in self.scene.settings.items() if s.binding == "define"}
+        defines.update(self._gbuffer_defines())
         if not bundles:
             return defines
         primary, ref = bundles[0], self.scene.networks[0]
@@ -461,14 +468,15 @@ class SceneRenderer:
     def _peel(self, camera, width: int, height: int, uniforms: dict, opaque, out) -> None:
         """The BLEND layers (MeshGBuffer.draw_layer) through the scene program, composited into ``out``."""
         if self._blend_passes is None:
-            self._blend_passes = tuple(FullscreenPass(self.ctx, self.cache.get(VERTEX, f"passes/{name}.frag"))
-                                       for name in ("gltf_blend_layer", "gltf_blend_resolve"))
+            self._blend_passes = tuple(FullscreenPass(self.ctx, self.cache.get(
+                VERTEX, f"passes/{name}.frag", defines=self._gbuffer_defines() or None))
+                for name in ("gltf_blend_layer", "gltf_blend_resolve"))
         layer_pass, resolve_pass = self._blend_passes
         accum = [self._target("blend_accum_a", width, height), self._target("blend_accum_b", width, height)]
         accum[0].clear(0.0, 0.0, 0.0, 1.0)
         shaded = self._target("blend_layer", width, height)
         view, proj = camera.view_matrix(), camera.projection(width, height)
-        uv, grad = self.gbuffer.names.index("uv"), self.gbuffer.names.index("uv_grad")
+        read = [n for n in self.gbuffer.names if n in BLEND_LAYER_READS]   # u_layer_<name>
         for k in range(1, self.blend_layers + 1):
             layer = self.gbuffer.draw_layer(k, view, proj, None, width, height)
             self.ctx.viewport = (0, 0, width, height)
@@ -477,7 +485,7 @@ class SceneRenderer:
             src, dst = accum[(k - 1) % 2], accum[k % 2]
             layer_pass.render(dst, textures={**self.materials.textures, "u_accum": src.color_attachments[0],
                                              "u_layer_colour": shaded.color_attachments[0],
-                                             "u_layer_uv": layer[uv], "u_layer_uv_grad": layer[grad]})
+                                             **{f"u_layer_{n}": layer[self.gbuffer.names.index(n)] for n in read}})
         resolve_pass.render(out, textures={"u_accum": accum[self.blend_layers % 2].color_attachments[0],
                                            "u_opaque": opaque.color_attachments[0]})
 
@@ -745,6 +753,7 @@ _DRAWN: set[str] = set()   # program keys this process has drawn (their first dr
 SRGB_SEMANTIC = "srgb"   # an output port whose values are sRGB-encoded (e.g. fitted to sRGB pixels)
 SLOW_FRAME_S = 30.0   # a view whose last draw took this long is warned about before it starts
 BLEND_LAYERS = 4      # BLEND surfaces peeled per pixel: a fifth one behind four others is not drawn
+BLEND_LAYER_READS = ("uv", "uv_grad", "uv1", "uv1_dy")   # a layer's G-buffer targets passes/gltf_blend_layer reads
 
 
 def hash_values(values) -> str:

@@ -255,8 +255,8 @@ def test_a_textured_primitive_without_uv_is_refused_even_when_another_has_uv(tmp
     b.node(b.mesh([Primitive(tri, np.array([[0, 1, 2]]), uv=tri[:, :2], material=mat),
                    Primitive(tri + 2.0, np.array([[0, 1, 2]]), material=mat)]))
     path = b.write(tmp_path / "half.glb")
-    with pytest.raises(GltfError, match=r"half.glb: meshes\[0\].primitives\[1\]: material 0 \(material 0\) has textures, "
-                                        r"but the primitive has no TEXCOORD_0"):
+    with pytest.raises(GltfError, match=r"half.glb: meshes\[0\].primitives\[1\]: material 0 \(material 0\).base_color reads "
+                                        r"TEXCOORD_0, but the primitive has none"):
         load_gltf(path)
 
 

@@ -159,3 +159,14 @@ def test_two_blend_cards_are_laid_in_depth_order(gl, tmp_path):
     got, was = a[under], behind[under]
     assert (got[:, 0] > 0.45 * was[:, 0]).all() and (got[:, 0] < 0.6 * was[:, 0]).all()
     assert (got[:, 2] > was[:, 2] + 0.05).all()
+
+
+def test_the_reader_says_how_see_through_materials_are_drawn(tmp_path):
+    """Learnt materials learn colour, not alpha: every view draws MASK and BLEND with the file's own
+    alpha, and the asset's notes (logged by every renderer of it) say so, naming the materials."""
+    from inshade.geometry.gltf import load_gltf
+
+    notes = load_gltf(_file(tmp_path / "blend.glb", "BLEND", second_card=True)).notes
+    said = [n for n in notes if n.startswith("alpha: ")]
+    assert len(said) == 1 and "card (BLEND), glass (BLEND)" in said[0] and "not their alpha" in said[0], notes
+    assert not any(n.startswith("alpha: ") for n in load_gltf(_file(tmp_path / "opaque.glb", "OPAQUE")).notes)

@@ -37,10 +37,10 @@ from inshade.codegen.glsl import TextureResource, UniformBlockResource
 from inshade.codegen.limits import LimitError
 from inshade.runtime.context import shared_context
 from inshade.runtime.environment import ENV_UNIFORMS
-from inshade.runtime.geometry import FRAGMENT as GBUFFER_FRAGMENT, GBUFFER, VERTEX as MESH_VERTEX, \
-    VISIBILITY, VISIBILITY_FORMATS, cutout_chunks, gbuffer_attributes
+from inshade.runtime.geometry import FRAGMENT as GBUFFER_FRAGMENT, VERTEX as MESH_VERTEX, cutout_chunks, \
+    gbuffer_attributes, gbuffer_layout
 from inshade.runtime.network import texture_levels
-from inshade.runtime.renderer import VERTEX, SceneRenderer
+from inshade.runtime.renderer import BLEND_LAYER_READS, VERTEX, SceneRenderer
 from inshade.scene.description import load_scene
 from inshade.scene.display import UI_MODES, glsl_chunk, parse_mode
 from inshade.scene.tonemap import TONEMAPPED_MODES
@@ -280,18 +280,16 @@ class WebExport:
             return None
         visibility = self.scene.spec.visibility
         attributes, faces, _ = gbuffer_attributes(mesh.data, visibility)
-        names = GBUFFER + (VISIBILITY if visibility else ())
-        formats = ("rgba32f",) * len(GBUFFER) + (VISIBILITY_FORMATS if visibility else ())
+        names, formats, defines = gbuffer_layout(mesh.data, visibility)
         materials = self.renderer.materials
         peel = self.renderer.blend_layers
         if peel:   # the BLEND layers' passes (runtime/renderer.py _peel)
             for name in ("blend_layer", "blend_resolve"):
-                self._program(name, VERTEX, f"passes/gltf_{name}.frag")
-        return {"program": self._program("gbuffer", MESH_VERTEX, GBUFFER_FRAGMENT,
-                                         defines={"GBUFFER_VISIBILITY": 1} if visibility else None,
+                self._program(name, VERTEX, f"passes/gltf_{name}.frag", defines=defines or None)
+        return {"program": self._program("gbuffer", MESH_VERTEX, GBUFFER_FRAGMENT, defines=defines or None,
                                          chunks=cutout_chunks(materials is not None
                                                               and (materials.masked or materials.blended))),
-                "peel": peel,
+                "peel": peel, "layer_reads": [n for n in names if n in BLEND_LAYER_READS],
                 "attributes": {n: {"size": int(a.shape[1]), "data": self.blob.add(a)} for n, (a, _) in attributes.items()},
                 "indices": None if visibility else self.blob.add(np.ascontiguousarray(faces, np.uint32)),
                 "count": int(faces.size), "targets": [{"uniform": f"u_gbuffer_{n}", "format": f}

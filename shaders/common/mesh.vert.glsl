@@ -11,6 +11,10 @@ in vec3 in_normal;
 in vec2 in_uv;
 in vec4 in_tangent;   // (tangent along +u, handedness); zero for meshes without uv
 in float in_material; // the face's material (a glTF mesh's index into its materials; 0 otherwise)
+#ifdef GBUFFER_UV1
+in vec2 in_uv1;       // a glTF mesh's TEXCOORD_1 (v up), where a texture reads it
+#endif
+out vec2 v_uv1;       // in_uv without a second set
 #ifdef GBUFFER_VISIBILITY
 in vec2 in_barycentric;   // the corner's unit barycentrics (t0, t1): the mesh is drawn de-indexed
 out vec2 v_barycentric;
@@ -28,6 +32,11 @@ void main() {
     v_world_position = world.xyz;
     v_normal = normalize(transpose(inverse(mat3(u_model))) * in_normal);
     v_uv = in_uv;
+#ifdef GBUFFER_UV1
+    v_uv1 = in_uv1;
+#else
+    v_uv1 = in_uv;
+#endif
     v_material = in_material;
     v_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
 #ifdef GBUFFER_VISIBILITY

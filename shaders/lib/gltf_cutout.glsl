@@ -19,7 +19,7 @@ float peel_depth(vec3 p) {
     return -(u_view * vec4(p, 1.0)).z;
 }
 
-bool gbuffer_cut(vec2 uv, float material, vec3 p) {
+bool gbuffer_cut(vec2 uv, vec2 uv1, float material, vec3 p) {
     int m = int(material + 0.5);
     float mode = material_param(m, 1).w;
     if (u_gbuffer_layer > 0) {
@@ -36,7 +36,7 @@ bool gbuffer_cut(vec2 uv, float material, vec3 p) {
     }
     if (mode == MATERIAL_ALPHA_BLEND) return u_gbuffer_layer == 0;   // -1: drawn opaque, not peeled
     if (mode != MATERIAL_ALPHA_MASK) return false;
-    vec2 g = vec2(uv.x, 1.0 - uv.y);   // glTF uv (v down)
-    vec2 dx = dFdx(uv) * vec2(1.0, -1.0), dy = dFdy(uv) * vec2(1.0, -1.0);
-    return material_alpha(m, g, dx, dy) < material_param(m, 2).w;
+    MaterialUV t = material_uv(uv, vec4(dFdx(uv), dFdy(uv)));
+    material_uv1(t, vec4(uv1, dFdx(uv1)), vec4(dFdy(uv1), 0.0, 0.0));
+    return material_alpha(m, t) < material_param(m, 2).w;
 }

@@ -6,6 +6,10 @@
 #include <lib/gltf_material>
 
 uniform sampler2D u_gbuffer_uv_grad;
+#ifdef GBUFFER_UV1   // a texture reads TEXCOORD_1: its uv and footprint (runtime/geometry.py)
+uniform sampler2D u_gbuffer_uv1;
+uniform sampler2D u_gbuffer_uv1_dy;
+#endif
 
 struct GltfPixel {
     vec3 p;          // world position
@@ -27,6 +31,10 @@ bool gltf_pixel(vec2 frag, vec2 size, out GltfPixel g, out GltfSurface s) {
     g.uv = texelFetch(u_gbuffer_uv, px, 0);
     g.tangent = texelFetch(u_gbuffer_tangent, px, 0);
     g.material = int(g.uv.z + 0.5);
-    s = gltf_surface(g.material, g.uv.xy, texelFetch(u_gbuffer_uv_grad, px, 0), g.n, g.tangent, g.v);
+    MaterialUV uv = material_uv(g.uv.xy, texelFetch(u_gbuffer_uv_grad, px, 0));
+#ifdef GBUFFER_UV1
+    material_uv1(uv, texelFetch(u_gbuffer_uv1, px, 0), texelFetch(u_gbuffer_uv1_dy, px, 0));
+#endif
+    s = gltf_surface(g.material, uv, g.n, g.tangent, g.v);
     return true;
 }

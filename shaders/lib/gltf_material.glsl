@@ -39,20 +39,18 @@ vec3 gltf_mapped_normal(vec3 nt, vec3 t, vec3 b, vec3 ng) {
     return n * inversesqrt(max(gltf_dot(n, n), 1e-30));
 }
 
-vec3 material_normal(int m, int slot, vec2 g, vec2 dx, vec2 dy, vec3 t, vec3 b, vec3 ng) {
-    vec4 tex = material_texture(m, slot, g, dx, dy, vec4(0.5, 0.5, 1.0, 1.0));
+vec3 material_normal(int m, int slot, MaterialUV uv, vec3 t, vec3 b, vec3 ng) {
+    vec4 tex = material_texture(m, slot, uv, vec4(0.5, 0.5, 1.0, 1.0));
     vec3 nt = tex.xyz * 2.0 - 1.0;
     nt.xy *= material_scale(m, slot);
     return gltf_mapped_normal(nt, t, b, ng);
 }
 
-// The material of face material m at the pixel: uv (G-buffer, v up), uv_grad (d uv / dx, d uv / dy),
-// ng the interpolated normal, tangent (xyz, handedness), v towards the camera.
+// The material of face material m at the pixel: uv its uv sets and footprints (lib/gltf_textures
+// material_uv), ng the interpolated normal, tangent (xyz, handedness), v towards the camera.
 // A pass that decodes some channels with a network starts from this reference surface and replaces
 // them (e.g. s.s.base_color, s.s.roughness, s.n = gltf_mapped_normal(...)): the rest stays the file's.
-GltfSurface gltf_surface(int m, vec2 uv, vec4 uv_grad, vec3 ng, vec4 tangent, vec3 v) {
-    vec2 g = vec2(uv.x, 1.0 - uv.y);
-    vec2 dx = vec2(uv_grad.x, -uv_grad.y), dy = vec2(uv_grad.z, -uv_grad.w);
+GltfSurface gltf_surface(int m, MaterialUV uv, vec3 ng, vec4 tangent, vec3 v) {
     vec4 base_f = material_param(m, 0), emissive_f = material_param(m, 1), mr_f = material_param(m, 2);
     vec4 layer_f = material_param(m, 3), sheen_f = material_param(m, 4), sided = material_param(m, 5);
     vec3 t, b;
@@ -61,24 +59,24 @@ GltfSurface gltf_surface(int m, vec2 uv, vec4 uv_grad, vec3 ng, vec4 tangent, ve
         ng = -ng; t = -t; b = -b;
     }
     GltfSurface s;
-    vec4 base = material_texture(m, MATERIAL_BASE_COLOR, g, dx, dy, vec4(1.0));
-    vec4 mr = material_texture(m, MATERIAL_METALLIC_ROUGHNESS, g, dx, dy, vec4(1.0));
+    vec4 base = material_texture(m, MATERIAL_BASE_COLOR, uv, vec4(1.0));
+    vec4 mr = material_texture(m, MATERIAL_METALLIC_ROUGHNESS, uv, vec4(1.0));
     s.s.base_color = base_f.rgb * base.rgb;
     s.alpha = base_f.a * base.a;
     s.s.metallic = clamp(mr_f.x * mr.b, 0.0, 1.0);
     s.s.roughness = clamp(mr_f.y * mr.g, MATERIAL_MIN_ROUGHNESS, 1.0);
     s.s.f0 = mr_f.z;
-    s.n = material_normal(m, MATERIAL_NORMAL, g, dx, dy, t, b, ng);
-    float ao = material_texture(m, MATERIAL_OCCLUSION, g, dx, dy, vec4(1.0)).r;
+    s.n = material_normal(m, MATERIAL_NORMAL, uv, t, b, ng);
+    float ao = material_texture(m, MATERIAL_OCCLUSION, uv, vec4(1.0)).r;
     s.occlusion = 1.0 + material_scale(m, MATERIAL_OCCLUSION) * (ao - 1.0);
-    s.emissive = emissive_f.rgb * material_texture(m, MATERIAL_EMISSIVE, g, dx, dy, vec4(1.0)).rgb;
-    s.s.clearcoat = layer_f.x * material_texture(m, MATERIAL_CLEARCOAT, g, dx, dy, vec4(1.0)).r;
-    s.s.clearcoat_roughness = clamp(layer_f.y * material_texture(m, MATERIAL_CLEARCOAT_ROUGHNESS, g, dx, dy,
+    s.emissive = emissive_f.rgb * material_texture(m, MATERIAL_EMISSIVE, uv, vec4(1.0)).rgb;
+    s.s.clearcoat = layer_f.x * material_texture(m, MATERIAL_CLEARCOAT, uv, vec4(1.0)).r;
+    s.s.clearcoat_roughness = clamp(layer_f.y * material_texture(m, MATERIAL_CLEARCOAT_ROUGHNESS, uv,
                                                                  vec4(1.0)).g, MATERIAL_MIN_ROUGHNESS, 1.0);
-    s.nc = material_normal(m, MATERIAL_CLEARCOAT_NORMAL, g, dx, dy, t, b, ng);
-    s.s.sheen_color = sheen_f.rgb * material_texture(m, MATERIAL_SHEEN_COLOR, g, dx, dy, vec4(1.0)).rgb;
-    s.s.sheen_roughness = layer_f.z * material_texture(m, MATERIAL_SHEEN_ROUGHNESS, g, dx, dy, vec4(1.0)).a;
-    vec4 an = material_texture(m, MATERIAL_ANISOTROPY, g, dx, dy, vec4(1.0, 0.5, 1.0, 1.0));
+    s.nc = material_normal(m, MATERIAL_CLEARCOAT_NORMAL, uv, t, b, ng);
+    s.s.sheen_color = sheen_f.rgb * material_texture(m, MATERIAL_SHEEN_COLOR, uv, vec4(1.0)).rgb;
+    s.s.sheen_roughness = layer_f.z * material_texture(m, MATERIAL_SHEEN_ROUGHNESS, uv, vec4(1.0)).a;
+    vec4 an = material_texture(m, MATERIAL_ANISOTROPY, uv, vec4(1.0, 0.5, 1.0, 1.0));
     s.s.anisotropy = layer_f.w * an.b;
     vec2 d = an.rg * 2.0 - 1.0;
     float c = cos(sheen_f.w), sn = sin(sheen_f.w);

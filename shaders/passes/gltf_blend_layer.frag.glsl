@@ -8,6 +8,10 @@ uniform sampler2D u_accum;           // (sum of alpha-weighted colours so far, t
 uniform sampler2D u_layer_colour;    // the scene pass over this layer's G-buffer
 uniform sampler2D u_layer_uv;        // the layer's G-buffer uv: (u, v, material, coverage)
 uniform sampler2D u_layer_uv_grad;   // its uv footprint (dFdx(uv), dFdy(uv))
+#ifdef GBUFFER_UV1
+uniform sampler2D u_layer_uv1;       // its second uv set and footprint (runtime/geometry.py)
+uniform sampler2D u_layer_uv1_dy;
+#endif
 
 layout(location = 0) out vec4 frag_color;
 
@@ -19,10 +23,11 @@ void main() {
         frag_color = acc;
         return;
     }
-    vec4 grad = texelFetch(u_layer_uv_grad, px, 0);
-    vec2 g = vec2(uvm.x, 1.0 - uvm.y);   // glTF uv (v down)
-    float a = clamp(material_alpha(int(uvm.z + 0.5), g, grad.xy * vec2(1.0, -1.0), grad.zw * vec2(1.0, -1.0)),
-                    0.0, 1.0);
+    MaterialUV uv = material_uv(uvm.xy, texelFetch(u_layer_uv_grad, px, 0));
+#ifdef GBUFFER_UV1
+    material_uv1(uv, texelFetch(u_layer_uv1, px, 0), texelFetch(u_layer_uv1_dy, px, 0));
+#endif
+    float a = clamp(material_alpha(int(uvm.z + 0.5), uv), 0.0, 1.0);
     vec3 c = texelFetch(u_layer_colour, px, 0).rgb;
     frag_color = vec4(acc.rgb + acc.a * a * c, acc.a * (1.0 - a));
 }

@@ -70,13 +70,16 @@ def _gltf_materials(asset, mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     faces = np.asarray(mesh.faces)
     uv = mesh_uv(mesh)
     uv = np.zeros((len(mesh.vertices), 2)) if uv is None else uv
+    uv1 = mesh.vertex_attributes.get("uv1")
     weights = face_samples()
     base = np.zeros((len(faces), 3))
     rough, metal = np.zeros(len(faces)), np.zeros(len(faces))
     for m in np.unique(asset.face_material):
         sel = np.flatnonzero(asset.face_material == m)
         points = np.einsum("sc,fcx->fsx", weights, uv[faces[sel]]).reshape(-1, 2)
-        ch = material_channels(asset, int(m), points)
+        points1 = (None if uv1 is None else
+                   np.einsum("sc,fcx->fsx", weights, uv1[faces[sel]]).reshape(-1, 2))   # a texture's TEXCOORD_1
+        ch = material_channels(asset, int(m), points, points1)
         base[sel] = ch["base_color"].reshape(len(sel), -1, 3).mean(1)
         rough[sel] = ch["roughness"].reshape(len(sel), -1).mean(1)
         metal[sel] = ch["metallic"].reshape(len(sel), -1).mean(1)

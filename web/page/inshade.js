@@ -520,9 +520,10 @@ export class Viewer {
       this._gbuffer(g, k, uniforms, front);
       this._scenePass(g.textures, uniforms, p.shaded);
       gl.useProgram(layerPass.program);
+      const targets = m.mesh.targets.map((t) => t.uniform);   // what passes/gltf_blend_layer reads of the layer
+      const reads = m.mesh.layer_reads.map((n) => ({...g.textures[targets.indexOf(`u_gbuffer_${n}`)], uniform: `u_layer_${n}`}));
       bindResources(gl, layerPass, [...this.textures, {...p.accum[(k - 1) % 2].textures[0], uniform: "u_accum"},
-                                    {...p.shaded.textures[0], uniform: "u_layer_colour"},
-                                    {...g.textures[2], uniform: "u_layer_uv"}, {...g.textures[4], uniform: "u_layer_uv_grad"}]);
+                                    {...p.shaded.textures[0], uniform: "u_layer_colour"}, ...reads]);
       this._fullscreen(layerPass, p.accum[k % 2]);
       front = g;
     }
