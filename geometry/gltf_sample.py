@@ -106,6 +106,17 @@ def material_channels(asset: GltfAsset, m: int, uv: np.ndarray, uv1: np.ndarray 
     return out
 
 
+def require_first_uv_set(asset: GltfAsset) -> None:
+    """A GltfError naming the first texture of a drawn material that reads another set than
+    TEXCOORD_0: for learners that sample a material over the first set's space."""
+    for i in asset.used_materials():
+        m = asset.materials[i]
+        for slot, t in m.textures().items():
+            if t.texcoord != 0:
+                raise GltfError(f"{asset.path}: materials ({m.name}).{slot}: reads TEXCOORD_{t.texcoord}; a learnt "
+                                "material is sampled over TEXCOORD_0 (gltf_pbr draws the file as it is)")
+
+
 def texel_uv(size: int) -> np.ndarray:
     """[size * size, 2] uv (v up) of the texel centres, row-major from the image's top row."""
     c = (np.arange(size) + 0.5) / size

@@ -125,3 +125,18 @@ def test_the_page_reads_the_second_set(gl, tmp_path):
     diff = np.abs(page - desktop).max(-1)
     assert (diff > 3).mean() < 0.01, f"{(diff > 3).sum()} pixels differ by more than 3 levels"
     assert (diff > 10).mean() < 0.005, f"{(diff > 10).sum()} pixels differ by more than 10 levels"
+
+
+@pytest.mark.parametrize("technique", ["uvfree_material", "neural_appearance", "di_pbr_set"])
+def test_a_learnt_material_refuses_the_second_set_before_any_work(tmp_path, capsys, technique):
+    """Learnt materials sample the file over TEXCOORD_0: a texture on TEXCOORD_1 is one line, exit 2,
+    and no asset folder."""
+    from inshade.cli import main
+
+    path = _file(tmp_path / "a.glb", swapped=False)
+    out = tmp_path / "out"
+    assert main(["-q", "train", technique, "--gltf", str(path), "--out", str(out), "--preset", "quick"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"inshade: error: {path}: materials (card).occlusion: reads TEXCOORD_1; a learnt material is "
+                   "sampled over TEXCOORD_0 (gltf_pbr draws the file as it is)"], err
+    assert not out.exists()

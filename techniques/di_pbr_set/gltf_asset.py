@@ -100,12 +100,12 @@ def build_gltf(out, path, *, material: int | None, size: int | None, ratio: floa
     file ``path``; ``size`` None: the bake side the textures ask for. Returns the metrics."""
     path = Path(path)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     asset, m, domain = L.load(path, material)
     auto_size, capped = L.bake_size(asset, m, domain)
     side = auto_size if size is None else int(size)
     if side < 8:
         raise GltfError(f"{path}: --size {side}: the bake needs at least 8x8 texels")
+    out.mkdir(parents=True, exist_ok=True)
     lanes = L.bake_lanes(asset, m, domain, side)
     mat = asset.materials[m]
     sha = hashlib.sha256(path.read_bytes()).hexdigest()

@@ -233,8 +233,10 @@ def source_bytes(asset, material: int) -> int:
 def load(path, material: int | None):
     """(asset, material, domain) of a glTF file, or one ``FILE: FIELD: problem`` error."""
     from inshade.geometry.gltf import load_gltf
+    from inshade.geometry.gltf_sample import require_first_uv_set
 
     path = Path(path)
     asset = load_gltf(path)             # GltfError: FILE: FIELD: problem
+    require_first_uv_set(asset)
     m = choose_material(asset, path, material)
     return asset, m, uv_domain(asset, path, m)

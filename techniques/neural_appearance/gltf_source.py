@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from inshade.geometry.gltf import GltfError, copy_gltf, gltf_uv, load_gltf
-from inshade.geometry.gltf_sample import material_channels, sample_texture
+from inshade.geometry.gltf_sample import material_channels, require_first_uv_set, sample_texture
 from inshade.geometry.mesh import mesh_uv
 from inshade.models import gltf_brdf
 
@@ -74,6 +74,7 @@ class GltfSource:
     def __init__(self, path, material: str | None = None):
         self.path = Path(path)
         self.asset = load_gltf(self.path)          # GltfError: FILE: FIELD: problem
+        require_first_uv_set(self.asset)
         uv = mesh_uv(self.asset.mesh)
         if uv is None:
             raise GltfError(f"{self.path}: meshes: no primitive has TEXCOORD_0; a neural material is learnt "

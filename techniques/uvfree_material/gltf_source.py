@@ -14,6 +14,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from inshade.geometry.gltf import GLB_JSON, GLB_MAGIC, GltfError, load_gltf
+from inshade.geometry.gltf_sample import require_first_uv_set
 from inshade.geometry.mesh import GLTF_SUFFIXES, mesh_uv
 
 SOURCE = "source"   # the copy's name in the asset folder: source.glb | source.gltf
@@ -32,7 +33,9 @@ def read(path):
     if not path.is_file():
         raise GltfSourceError(f"{path}: --gltf: no such file")
     try:
-        return load_gltf(path)
+        asset = load_gltf(path)
+        require_first_uv_set(asset)
+        return asset
     except GltfError as exc:   # a textured material without TEXCOORD_0 is one of these
         raise GltfSourceError(str(exc)) from None
 
