@@ -73,7 +73,7 @@ that leaves the measured envelope:
 
 Saturating activations (sigmoid, tanh, softplus) are safe at any argument: lib/activations
 evaluates them in overflow-free forms. The probes behind these numbers are described in the
-README's "Parity envelope" section.
+docs' parity page (docs/parity.md, "The parity envelope").
 
 API: ``analyse(bundle, ranges=None) -> Envelope``; ``format_findings(envelope) -> list[str]``.
 """

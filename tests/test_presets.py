@@ -1,6 +1,6 @@
 """Presets, not hidden recipes: every shipped asset records the preset that built it and
 the settings that preset resolved to, and those settings are what the trainer's `--preset ship`
-gives today -- so the README's rebuild command (`inshade train NAME --preset ship ...`) rebuilds the
+gives today -- so the docs' rebuild command (each technique's page, `inshade train NAME --preset ship ...`) rebuilds the
 asset with the same recipe. A new asset without the fields fails here.
 
 Each trainer exposes `preset_settings(preset, asset)` (asset: the folder name under trained/, for
