@@ -3,6 +3,9 @@ imported only when used).
 
 - ``machine(gl)``: the machine record of every result (GL_VENDOR / GL_RENDERER / GL_VERSION, GLSL
   version, software renderer or not, CPUs, Python, the Mesa variables that change timings).
+- ``portable_path(path)`` / ``portable_command(text)``: the paths a report records, the same on every
+  machine: repository-relative inside the checkout, ``<scratch>/NAME`` for a folder elsewhere (a
+  temporary folder of the machine that ran it).
 - Clocks: ``clock_for(ctx)`` picks a GL timer query (``GL_TIME_ELAPSED``, ns) on a hardware driver
   and ``draw(); glFinish()`` wall time otherwise; every timing records the clock it used. On Mesa
   llvmpipe the timer query is supported but wrong (it reported 17 ms for a draw whose
@@ -27,6 +30,7 @@ import json
 import math
 import os
 import platform
+import re
 import statistics
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -85,6 +89,38 @@ def machine_markdown(m: Mapping) -> str:
     soft = " (software rasteriser: CPU timings, not GPU timings)" if m.get("software_renderer") else ""
     return (f"- GL_RENDERER: `{m['gl_renderer']}`; GL_VERSION: `{m['gl_version']}`; "
             f"GL_VENDOR: `{m['gl_vendor']}`{soft}")
+
+
+# ---------------------------------------------------------------------------------------------
+# paths in a report
+
+REPOSITORY = Path(__file__).resolve().parents[1]   # bench/ sits at the checkout's top level
+SCRATCH = "<scratch>"
+# an absolute path starting a word or an option's value, or quoted whole (it may hold spaces)
+_ABSOLUTE = re.compile(r"""(?<![^\s=])(['"])(/[^'"]*)\1|(?<![^\s='"`(])/[^\s'"`)]+""")
+
+
+def portable_path(path: str | os.PathLike) -> str:
+    """A path as a report records it, the same on every machine: inside the repository as its
+    repository-relative path (``trained/di_footprint``); elsewhere as its name under ``<scratch>``
+    (``<scratch>/di_footprint``), a folder of the machine that ran the bench, meaningless elsewhere.
+    A relative path is taken from the working folder. Markdown shows a ``<scratch>`` path in a code
+    span (bare, it is read as an HTML tag)."""
+    given = Path(os.path.abspath(Path(path).expanduser()))
+    for candidate in (given, given.resolve()):   # the checkout reached through a link, too
+        if candidate.is_relative_to(REPOSITORY):
+            return candidate.relative_to(REPOSITORY).as_posix()
+    return f"{SCRATCH}/{given.name}" if given.name else SCRATCH
+
+
+def portable_command(text: str | None) -> str | None:
+    """A recorded command line (or a note holding paths) with each absolute path made
+    ``portable_path``; the rest verbatim. Relative paths stay: they are what was typed, relative to
+    wherever it ran."""
+    if text is None:
+        return None
+    return _ABSOLUTE.sub(lambda m: m.group(1) + portable_path(m.group(2)) + m.group(1) if m.group(1)
+                         else portable_path(m.group(0)), text)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -37,7 +37,8 @@ from pathlib import Path
 
 from inshade import command, technique
 from inshade.bench.entry import PRESETS, Sizing, SuiteEntry
-from inshade.bench.harness import BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot, write_report
+from inshade.bench.harness import (BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot,
+                                   portable_path, write_report)
 from inshade.technique import Paper
 
 DEVICE_MINUTES = 10         # the device preset's budget, all benches together
@@ -167,7 +168,7 @@ def run_suite(out: Path, plan: Mapping[str, Sizing | None], mains: Mapping[str, 
     """Run each bench of ``plan`` (name -> its sizing, None: not in the preset) into ``out`` and
     write the summary after each one (a suite stopped half way leaves the summary so far)."""
     out.mkdir(parents=True, exist_ok=True)
-    result = {"benchmark": "suite", "preset": preset, "out": str(out), "machine": machine(gl),
+    result = {"benchmark": "suite", "preset": preset, "out": portable_path(out), "machine": machine(gl),
               "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
               "budget_s": sum(s.budget_s for s in plan.values() if s is not None), "seconds": 0.0,
               "benches": [], "headlines": []}
@@ -179,6 +180,7 @@ def run_suite(out: Path, plan: Mapping[str, Sizing | None], mains: Mapping[str, 
             argv = [*sizing.argv, "--out", str(out)]
             log(f"suite: {name} ({sizing.budget_s:g} s budget): inshade bench {name} {shlex.join(argv)}")
             record = run_bench(name, mains[name], argv, out)
+            record["argv"] = [*sizing.argv, "--out", portable_path(out)]   # as any machine would type it
             record["budget_s"] = sizing.budget_s
             record["over_budget"] = record["seconds"] > sizing.budget_s
             bench_result = record.pop("result")

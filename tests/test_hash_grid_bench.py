@@ -90,7 +90,7 @@ def test_marched_fields_count_evaluations_and_project_the_mlp_frame(report):
         assert ours["evaluations_per_pixel"] > 1 and mlp["evaluations_per_pixel"] == ours["evaluations_per_pixel"]
         assert ours["evaluation"]["points"] == 8 ** 3 and ours["evaluation"]["ns_per_evaluation"] > 0
         ratio = mlp["evaluation"]["ns_per_evaluation"] / ours["evaluation"]["ns_per_evaluation"]
-        assert mlp["cost_ratio"] == pytest.approx(ratio, rel=0.01)
+        assert mlp["cost_ratio"] == pytest.approx(ratio, abs=0.0051)   # recorded to 2 decimals
         extra_ms = 1e-6 * (mlp["evaluation"]["ns_per_evaluation"] - ours["evaluation"]["ns_per_evaluation"])
         assert mlp["frames"]["64"]["ms_projected"] == pytest.approx(
             ours["frames"]["64"]["ms_median"] + extra_ms * ours["evaluations_per_pixel"] * 64 ** 2, abs=0.1)

@@ -41,7 +41,8 @@ import numpy as np
 
 from inshade import command
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot, write_report
+from inshade.bench.harness import (BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot,
+                                   portable_path, write_report)
 from inshade.files import atomic_write
 
 from . import KIND, PREFIX, environment_sh, sun
@@ -280,7 +281,7 @@ def bench_asset(folder: Path, args, cache, log) -> dict:
         hidden = measure(bundle, geo, camera, scales, spp=args.spp, sun_dir=ctx["light"]["direction"],
                          sun_radiance=ctx["light"]["radiance"], sh=sh,
                          image_side=lambda cam, s: image_side(cam, s, args.min_size))
-    return {"hidden_occlusion": hidden, "folder": str(folder), "scene": settings["scene"], "faces": int(len(geo.mesh.faces)),
+    return {"hidden_occlusion": hidden, "folder": portable_path(folder), "scene": settings["scene"], "faces": int(len(geo.mesh.faces)),
             "scene_bytes": ctx["scene_bytes"], "memory": mem, "rows": rows, "crossover_scale": crossover,
             "bake": {"data_seconds": metrics.get("bake_seconds"), "train_seconds": metrics.get("train_seconds"),
                      "rays": metrics.get("bake_rays"), "preset": metrics.get("preset")},

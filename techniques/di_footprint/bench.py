@@ -36,7 +36,7 @@ import numpy as np
 from inshade import command
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, atomic_path, machine, machine_markdown, matplotlib_pyplot,
-                                   write_report)
+                                   portable_command, portable_path, write_report)
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
 from inshade.techniques.di_footprint import MODES
 
@@ -237,7 +237,7 @@ def _asset(args):
         image = np.asarray(Image.open(path / "texture.png").convert("RGB"), np.float32) / 255.0
         if bundle.meta["metrics"].get("channels") == 1:
             image = image[..., :1]
-        return bundle, image, load_scene(path), f"asset {path}"
+        return bundle, image, load_scene(path), f"asset `{portable_path(path)}`"
     d = fp.Settings()       # the trainer's quick preset
     size, steps = (32, 60) if args.quick else (d.size, args.steps or d.steps)
     image, _, source = fp.load_texture(d.image, size)
@@ -327,7 +327,8 @@ def run(args) -> int:
         "machine": machine(gl, max_anisotropy=float(ctx.max_anisotropy)),
         "view": {"width": w, "height": h, "camera": camera.to_dict(), "tile": tile, "extent": extent, "ss": args.ss,
                  "pixels_scored": int(mask.sum()), "ground_truth_seconds": round(truth_seconds, 2)},
-        "texture": {"size": size, "channels": k, "source": bundle.meta["provenance"].get("image", "")},
+        "texture": {"size": size, "channels": k,
+                    "source": portable_command(bundle.meta["provenance"].get("image", ""))},
         "di": {key: m.get(key) for key in ("n_primary", "n_footprint", "n_cascaded", "n_lod", "rho", "bytes",
                                            "ratio_vs_base", "ratio_vs_mip_chain", "train_seconds", "steps",
                                            "psnr_heldout", "psnr_per_lod")},

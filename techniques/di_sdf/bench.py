@@ -36,7 +36,7 @@ import numpy as np
 
 from inshade import command
 from inshade.bench.harness import (BenchError, WallClock, add_clock_argument, clock_for, clock_record, machine,
-                                   machine_markdown, matplotlib_pyplot, measure, write_report)
+                                   machine_markdown, matplotlib_pyplot, measure, portable_path, write_report)
 from inshade.metrics import psnr
 
 DEFAULT_OUT = "bench-out/di_sdf"
@@ -183,7 +183,7 @@ def di_bundles(mesh, args) -> list[tuple[object, str]]:
     for p in (p.strip() for p in args.di_bundles.split(",")):
         if p:
             b = bundle_mod.load(p)
-            out.append((b, f"{p} ({b.meta.get('metrics', {}).get('steps')} steps)"))
+            out.append((b, f"{portable_path(p)} ({b.meta.get('metrics', {}).get('steps')} steps)"))
     return out
 
 
@@ -273,7 +273,7 @@ def run(args) -> int:
     result = {
         "benchmark": "di_sdf", "quick": bool(args.quick),
         "machine": machine(info), **clock_record(args.timer),
-        "mesh": {"path": str(args.mesh), "faces": int(len(mesh.faces)), "radius": float(mesh_radius)},
+        "mesh": {"path": portable_path(args.mesh), "faces": int(len(mesh.faces)), "radius": float(mesh_radius)},
         "render": {"size": args.size, "sky": SKY, "camera": cam, "frames": args.frames,
                    "ground_truth": "embree first hits of the mesh, interpolated vertex normals, same shading"},
         "budgets": [],

@@ -42,7 +42,7 @@ import numpy as np
 
 from inshade import command
 from inshade.bench.harness import (BenchError, clock_for, clock_record, interleave, machine, machine_markdown,
-                                   markdown_table, matplotlib_pyplot, write_report)
+                                   markdown_table, matplotlib_pyplot, portable_path, write_report)
 from inshade.metrics import flip, flip_unavailable, psnr, srgb_oetf
 
 DEFAULT_OUT = "bench-out/di_shading"
@@ -289,7 +289,7 @@ def run(args) -> int:
     best = max((x for x in rows if x["lambda"] > 0), key=lambda x: x["psnr"], default=base)
     px = ts * ts
     result = {
-        "benchmark": "di_shading", "asset": str(folder),
+        "benchmark": "di_shading", "asset": portable_path(folder),
         "machine": machine(gl), "clock": clock_record(clock),
         "view": {"width": w, "height": h, "camera": camera.to_dict(), "rows_scored": int(rows_ok.sum()),
                  "pixels_scored": int(rows_ok.sum()) * w, "reference_seconds": round(ref_seconds, 2)},

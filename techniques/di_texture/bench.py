@@ -37,7 +37,8 @@ from inshade import command
 
 from inshade.bench import codecs
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
+from inshade.bench.harness import (BenchError, machine, machine_markdown, matplotlib_pyplot, portable_command,
+                                   portable_path, write_report)
 from inshade.bench.codecs import ASTC_BLOCKS, ASTC_QUALITY, RGB8_BPP
 from inshade.metrics import flip as flip_mean
 from inshade.metrics import flip_unavailable, psnr, srgb_oetf
@@ -163,7 +164,7 @@ def di_bundles(name: str, image: np.ndarray, args) -> list[tuple[object, str]]:
         m = b.meta.get("metrics", {})
         if b.kind == tc.KIND and (m.get("width"), m.get("height")) == image.shape[1::-1]:
             command = b.meta.get("provenance", {}).get("command")
-            found.append((b, f"`{command}`" if command else str(folder)))
+            found.append((b, f"`{portable_command(command) if command else portable_path(folder)}`"))
     for r in args.ratio_list:
         res = tc.compress(image, r, steps=args.steps, init=args.init, name=f"di_{name}_{r:g}x",
                           provenance={"command": f"inshade bench di_texture (ratio {r:g}, {args.steps} steps, "

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.bench.harness import portable_command, portable_path
+
 from .bench_measure import (ScenePass, asset_record, evaluation_cost, folder_bytes, lattice, load_asset,
                             march_evaluations, plan_summary, sdf_evaluations)
 
@@ -105,8 +107,10 @@ def measure_sdf(folder: Path, opts, ctx, workdir: Path, log) -> dict:
     graph = sdf.build_baseline(s, int(metrics["bytes"]))
     mlp = mlp_row(ctx, graph, sdf.KIND, q, opts, ours, metrics.get("mlp_baseline"), SDF_QUALITY)
     neural = metrics.get("neural_sdf_shipped")
-    return {"app": "sdf", "asset": str(folder), "trained": asset_record(bundle, metrics), "kind": sdf.KIND,
-            "mesh": bundle.meta["provenance"].get("mesh"),
+    if neural and "folder" in neural:   # as the trainer recorded it: relative paths are relative to where it ran
+        neural = {**neural, "folder": portable_command(neural["folder"])}
+    return {"app": "sdf", "asset": portable_path(folder), "trained": asset_record(bundle, metrics), "kind": sdf.KIND,
+            "mesh": portable_command(bundle.meta["provenance"].get("mesh")),
             "bytes_file": folder_bytes(folder), "table_bytes": int(metrics["encoding"]["table_bytes_fp16"]),
             "lipschitz": {k: metrics.get(k) for k in ("lipschitz_measured", "lipschitz_sound", "step_scale")},
             "rows": [ours, mlp],
@@ -164,8 +168,8 @@ def measure_radiance_field(folder: Path, opts, ctx, workdir: Path, log) -> dict:
     log(f"radiance field: MLP-only network of {metrics['bytes']} bytes, cost per evaluation")
     graph = rf.baseline_graph(s.n_freqs, s.baseline_depth, s.width, s.depth, int(metrics["bytes"]), s.seed)
     mlp = mlp_row(ctx, graph, KIND, inputs, opts, ours, metrics.get("mlp_baseline"), ("heldout_psnr",))
-    return {"app": "radiance_field", "asset": str(folder), "trained": asset_record(bundle, metrics), "kind": KIND,
-            "scene": s.scene,
+    return {"app": "radiance_field", "asset": portable_path(folder), "trained": asset_record(bundle, metrics),
+            "kind": KIND, "scene": s.scene,
             "march": {"step": m.step, "max_steps": m.max_steps, "occupancy_resolution": m.occupancy_resolution,
                       "occupied_fraction": metrics.get("occupied_fraction")},
             "bytes_file": folder_bytes(folder, ("occupancy",)), "occupancy_bytes": int(metrics["occupancy_bytes"]),

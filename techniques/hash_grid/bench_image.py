@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.bench.harness import portable_path
+
 from .bench_measure import ScenePass, asset_record, folder_bytes, load_asset, plan_summary
 
 
@@ -142,8 +144,8 @@ def measure(folder: Path, opts, ctx, workdir: Path, log) -> dict:
                      f"here: {record['steps']} steps, {record['train_seconds']:.0f} s",
                      **drawn(ctx, variant_scene(folder, di_bundle, workdir / "image_di"), opts.timing, size,
                              target, opts.flip)})
-    return {"app": "image", "asset": str(folder), "trained": asset_record(bundle, metrics), "kind": image.KIND,
-            "size": size,
+    return {"app": "image", "asset": portable_path(folder), "trained": asset_record(bundle, metrics),
+            "kind": image.KIND, "size": size,
             "target": f"{size}x{size} photograph collage (techniques/hash_grid/mosaic.py)",
             "uncompressed_bytes": int(target.size), "bytes_file": folder_bytes(folder),
             "table_bytes": int(metrics["encoding"]["table_bytes_fp16"]), "rows": rows}

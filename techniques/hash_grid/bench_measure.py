@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.bench.harness import WallClock, measure
+from inshade.bench.harness import WallClock, measure, portable_command
 
 BUNDLE_FILES = ("bundle.json", "weights.safetensors")
 
@@ -58,8 +58,8 @@ def load_asset(folder: Path, kind: str):
 def asset_record(bundle, metrics: dict) -> dict:
     """Which training run an asset is: its command, preset and date (the bundle's provenance)."""
     prov = bundle.meta.get("provenance", {})
-    return {"command": metrics.get("command"), "preset": metrics.get("preset"), "date_utc": prov.get("date_utc"),
-            "train_seconds": metrics.get("train_seconds")}
+    return {"command": portable_command(metrics.get("command")), "preset": metrics.get("preset"),
+            "date_utc": prov.get("date_utc"), "train_seconds": metrics.get("train_seconds")}
 
 
 def plan_summary(plan) -> dict:

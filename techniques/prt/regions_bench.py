@@ -34,7 +34,7 @@ import numpy as np
 
 from inshade import command
 from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, machine, machine_markdown,
-                                   matplotlib_pyplot, measure, write_report)
+                                   matplotlib_pyplot, measure, portable_path, write_report)
 
 PAPER = "Sponza: 12 even parts merged to 9 MLPs, 200+ FPS at 1024² (RTX 3090, GLSL)"
 
@@ -185,7 +185,7 @@ def run_report(asset, settings: dict, report_dir=None, baselines=("k64",), ctx=N
     for name in quality:
         quality[name].update({"n_views": len(cams), "size": size, "n_dirs": n_dirs, "gl_renderer": info["renderer"]})
     result = {"benchmark": "prt_regions", "machine": machine(info), **clock_record(clock), "paper": PAPER,
-              "asset": str(asset),
+              "asset": portable_path(asset),
               "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.items()},
               "regions": {"grid": rs.grid.to_dict(), "table": list(rs.table), "networks": rs.count,
                           "band_cells": list(rs.band), "seam_band_world": band_world},

@@ -32,17 +32,11 @@ import numpy as np
 
 from inshade import command
 from inshade.bench.harness import (BenchError, WallClock, add_clock_argument, clock_for, clock_record, machine,
-                                   machine_markdown, markdown_table, matplotlib_pyplot, measure, write_report)
+                                   machine_markdown, markdown_table, matplotlib_pyplot, measure, portable_path,
+                                   write_report)
 
 PAPER_VERTEX_MB_PER_MILLION = 70.0       # §5.4 of the paper
 PAPER_NETWORK_BYTES = (64 << 10, 5 << 20)
-
-
-def _shown(path) -> str:
-    """A path as a report shows it: relative to the working folder when under it (no machine's
-    folders in a committed report)."""
-    path = Path(path).resolve()
-    return str(path.relative_to(Path.cwd())) if path.is_relative_to(Path.cwd()) else str(path)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -184,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
         table.append({"variant": label, **meta, "quality": q, "frame": frames[label], "gbuffer_max_diff": gdiff[label]})
     vertices = int(len(mesh.vertices))
     result = {"benchmark": "prt_texture", "quick": bool(args.quick), "machine": machine(info), **clock_record(clock),
-              "mesh": _shown(learnt_scene.mesh.path), "vertices": vertices, "faces": int(len(mesh.faces)),
+              "mesh": portable_path(learnt_scene.mesh.path), "vertices": vertices, "faces": int(len(mesh.faces)),
               "protocol": {"views": args.views, "size": args.size, "truth_dirs": args.truth_dirs,
                            "bake_dirs": args.bake_dirs, "truth": "mesh_transfer at the G-buffer points, one per view"},
               "memory": {"vertex_f32_bytes": tp.vertex_bytes(vertices), "vertex_f16_bytes": tp.vertex_bytes(vertices, 2),

@@ -46,7 +46,7 @@ from pathlib import Path
 
 from inshade import command
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import BenchError, add_clock_argument, machine, write_report
+from inshade.bench.harness import BenchError, add_clock_argument, machine, portable_path, write_report
 from inshade.files import atomic_write
 
 from . import KIND
@@ -135,7 +135,7 @@ def bench_asset(folder: Path, args, codecs_: list[str], renders: Renders, memo: 
         f"shaded {pooled(quality)['shaded_psnr']} dB")
     rows = baselines(folder, codecs_, reference, renders, views, args.quality_size, mem["reference_bytes"],
                      memo, log)
-    return {"folder": str(folder), "object": prov.get("object"), "config": prov.get("config"),
+    return {"folder": portable_path(folder), "object": prov.get("object"), "config": prov.get("config"),
             "levels": prov.get("levels"), "table_size": prov.get("table_size"), "faces": prov.get("faces"),
             "views": list(views), "first_draw_s": None if first is None else round(first, 2),
             "memory": mem, "quality": quality, "baselines": rows,
