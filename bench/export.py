@@ -170,7 +170,7 @@ def time_onnx(widths) -> dict:
 
     import torch
 
-    from inshade.convert.onnx_model import convert
+    from inshade.convert.export import convert_onnx as convert
     from inshade.convert.check import check, check_inputs
 
     net = _mlp(widths, seed=1)

@@ -14,6 +14,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .grid_layout import MAX_DENSE_RESOLUTION, GridLayoutError, grid_levels, table_rows
+
 MAX_WIDTH = 4096          # widest dense layer a bundle may declare
 MAX_LUT_CELLS = 1 << 28   # cells x channels of one lookup array
 MAX_FREQS = 16
@@ -461,13 +463,14 @@ MAX_GRID_ROWS = 1 << 26
 
 def grid_node_levels(node_type: str, p: dict, d: int):
     """The levels (inshade/grid_layout.py) of a resolved hash_grid / dense_grid node."""
-    from .grid_layout import grid_levels
-    return grid_levels(d, p["levels"], p["base_resolution"], p["per_level_scale"],
-                       p.get("log2_table_size", 24), GRID_KINDS[node_type])
+    try:
+        return grid_levels(d, p["levels"], p["base_resolution"], p["per_level_scale"],
+                           p.get("log2_table_size", 24), GRID_KINDS[node_type])
+    except GridLayoutError as exc:
+        raise ComponentError(str(exc)) from None
 
 
 def _grid_tensors(node_type):
-    from .grid_layout import table_rows
     return lambda p, d: {"table": TensorSpec((table_rows(grid_node_levels(node_type, p, d)), p["features"]),
                                              "float32", GRID_PRECISIONS[p["precision"]])}
 
@@ -477,7 +480,6 @@ def _grid_checks(node_type):
 
 
 def _check_grid(node_type, p, d):
-    from .grid_layout import MAX_DENSE_RESOLUTION, table_rows
     levels = grid_node_levels(node_type, p, d)
     if GRID_KINDS[node_type] == "dense" and levels[-1].resolution > MAX_DENSE_RESOLUTION[d]:
         raise ComponentError(f"levels: the finest dense level has {levels[-1].resolution} vertices per axis, "

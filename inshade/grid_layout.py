@@ -59,14 +59,17 @@ def level_scale(level: int, per_level_scale: float, base_resolution: int) -> np.
         return np.float32(np.float32(e * np.float32(base_resolution)) - np.float32(1.0))
 
 
+class GridLayoutError(ValueError):
+    """Levels that float32 cannot lay out (the component check names the node)."""
+
+
 def grid_levels(dims: int, levels: int, base_resolution: int, per_level_scale: float,
                 log2_table_size: int = MAX_LOG2_TABLE, grid: str = "hash") -> list[GridLevel]:
     out, offset = [], 0
     for level in range(levels):
         scale = level_scale(level, per_level_scale, base_resolution)
         if not scale < MAX_SCALE:
-            from .components import ComponentError
-            raise ComponentError(f"levels: level {level} has scale {float(scale):.4g}, not below 2^24 (float32 "
+            raise GridLayoutError(f"levels: level {level} has scale {float(scale):.4g}, not below 2^24 (float32 "
                                  f"p = scale * x + 0.5 keeps no fraction there): fewer levels, a smaller "
                                  f"base_resolution or per_level_scale")
         resolution = int(np.ceil(scale)) + 1

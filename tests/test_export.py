@@ -71,7 +71,7 @@ def test_zoo_covers_every_op_export_supports():
 @pytest.mark.parametrize("dynamo", [False, True], ids=["torchscript", "dynamo"])
 @pytest.mark.parametrize("name", sorted(ZOO))
 def test_zoo_through_onnx_matches_onnxruntime(gl, name, dynamo, tmp_path):
-    from inshade.convert.onnx_model import convert
+    from inshade.convert.export import convert_onnx as convert
 
     module, example = ZOO[name]
     path = tmp_path / f"{name}.onnx"

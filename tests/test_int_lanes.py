@@ -18,7 +18,7 @@ import inshade
 from inshade.bundle import load
 from inshade.convert.check import evaluate
 from inshade.convert.lowering import ConvertError
-from inshade.convert.onnx_model import convert
+from inshade.convert.export import convert_onnx as convert
 from inshade.grid_layout import HASH_PRIMES, grid_levels
 from inshade.models.graph import GraphModule
 from inshade.models.hash_grid import HashGrid

@@ -19,7 +19,8 @@ from onnx import numpy_helper
 
 from inshade.convert.check import RULE
 from inshade.convert.lowering import ConvertError
-from inshade.convert.onnx_model import convert, to_bundle
+from inshade.convert.export import convert_onnx as convert
+from inshade.convert.onnx_model import to_bundle
 from inshade.port_layout import port_shape, to_rows
 
 # Where a refusal points (after the model's name): a node, or a field of the graph.

@@ -14,7 +14,7 @@ from onnx import TensorProto, helper, numpy_helper
 from inshade.bundle import load
 from inshade.cli import main
 from inshade.convert.check import check_inputs, evaluate, source_outputs
-from inshade.convert.onnx_model import convert
+from inshade.convert.export import convert_onnx as convert
 
 from parity import assert_parity
 

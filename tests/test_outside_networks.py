@@ -18,7 +18,8 @@ from inshade.bundle import load
 from inshade.cli import main
 from inshade.convert.check import check_inputs
 from inshade.convert.lowering import ConvertError
-from inshade.convert.onnx_model import convert, run_onnxruntime
+from inshade.convert.export import convert_onnx as convert
+from inshade.convert.onnx_model import run_onnxruntime
 
 from parity import assert_parity
 

@@ -16,7 +16,7 @@ import pytest
 import torch
 
 from inshade.geometry.sdf import parse_sdf
-from inshade.techniques.prt import thin
+from inshade.techniques.prt import near_occluders, thin
 from inshade.techniques.prt import transfer as T
 from inshade.techniques.prt.transfer_directions import hemisphere_directions
 from inshade.techniques.prt.transfer_inputs import TransferError
@@ -87,8 +87,8 @@ def test_near_occluder_sampling_prefers_contact_regions(mech_points):
     sdf, _, _ = mech_points
     delta = 0.03
     uni_p, uni_n = sample_sdf_surface(sdf, 3000, seed=1)
-    near_p, near_n = thin.sample_near_occluders(sdf, 3000, seed=1, boost=3.0, delta=delta)
-    share = lambda p, n: float((thin.occluder_proximity(sdf, p, n, delta) > 0.2).float().mean())  # noqa: E731
+    near_p, near_n = near_occluders.sample_near_occluders(sdf, 3000, seed=1, boost=3.0, delta=delta)
+    share = lambda p, n: float((near_occluders.occluder_proximity(sdf, p, n, delta) > 0.2).float().mean())  # noqa: E731
     assert share(near_p, near_n) > 1.5 * share(uni_p, uni_n) > 0
     with torch.no_grad():
         assert float(sdf(near_p).abs().max()) < HIT
@@ -147,7 +147,7 @@ def test_build_dataset_adds_near_occluder_samples(tmp_path):
     p_near, n_near = near["position"][200:], near["normal"][200:]
     assert torch.equal(near["transfer"][200:], T.sdf_transfer(sdf, p_near, n_near, n_dirs=16, seed=2))
     delta = T.NEAR_DELTA * float(sdf.scene.radius)
-    share = lambda p, n: float((thin.occluder_proximity(sdf, p, n, delta) > 0.2).float().mean())  # noqa: E731
+    share = lambda p, n: float((near_occluders.occluder_proximity(sdf, p, n, delta) > 0.2).float().mean())  # noqa: E731
     assert share(p_near, n_near) > share(uniform["position"], uniform["normal"])
     again = T.build_dataset(sdf, 200, 16, near_points=100, **kw)
     assert again["cached"] and torch.equal(again["position"], near["position"])

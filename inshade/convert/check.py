@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lowering import Float64Unavailable
+
 RULE = 1e-5
 RANDOM_ROWS = 1024
 # The conditioning rule: where fp32 itself is far from the exact answer (a SIREN's sin arguments in
@@ -149,10 +151,6 @@ def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=Non
     return dataclasses.replace(result, glsl_f64=float(np.max(scaled_errors(glsl, exact), initial=0.0)),
                                source_f64=float(np.max(scaled_errors(ref, exact), initial=0.0)),
                                seconds=time.perf_counter() - start)
-
-
-class Float64Unavailable(Exception):
-    """The source cannot be evaluated in float64 (the message says why)."""
 
 
 def source_outputs(source, parts: list[np.ndarray], bundle, float64: bool = False) -> np.ndarray:

@@ -119,7 +119,7 @@ def cmd_convert(args) -> int:
         if tcnn_only:
             raise ConvertError(f"{source}: {tcnn_only[0]} is for tiny-cuda-nn models (CONFIG.json PARAMS); an ONNX "
                                "file holds its own weights and shapes")
-        from .onnx_model import convert
+        from .export import convert_onnx as convert
 
         bundle = convert(source, args.output, **common)
     if not args.quiet:

@@ -1,6 +1,6 @@
 """``inshade.export``: the torch.onnx.export of shaders. A user's torch module becomes a bundle
 folder (bundle.json + weights.safetensors) whose GLSL is checked against the module through the
-GL driver before anything is written.
+GL driver before anything is written; an ONNX file goes the same way (``convert_onnx``).
 
     import inshade
     net = torch.nn.Sequential(torch.nn.Linear(2, 64), torch.nn.ReLU(), torch.nn.Linear(64, 3))
@@ -154,6 +154,37 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
     if scene is not None:
         atomic_write(folder / "scene.json", json.dumps(scene, indent=1) + "\n")
     return bundle
+
+
+def convert_onnx(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
+            force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None,
+            colour: str | None = None):
+    """An ONNX file (or ModelProto) -> a bundle folder, its GLSL checked against onnxruntime on
+    ``example`` ([N, in_dim] rows, or one input's whole tensor; default uniform [-1, 1]) plus
+    random rows in its range."""
+    from inshade import asset_folder
+    from inshade.port_layout import LayoutError, port_shape, to_rows
+
+    from .onnx_model import to_bundle
+
+    folder = Path(folder)
+    asset_folder.claim(folder, folder.name, force=force, option="-o")
+    bundle, model, lowering = to_bundle(source, name=name)
+    if example is None:
+        example = np.random.default_rng(0).uniform(-1, 1, (64, bundle.in_dim)).astype(np.float32)
+    example = np.asarray(example, np.float32)
+    if example.ndim != 2 and len(bundle.inputs) == 1:
+        try:
+            example = to_rows(example, port_shape(bundle.inputs[0]), "example")[0]
+        except LayoutError as exc:
+            raise ConvertError(str(exc)) from None
+    if example.ndim != 2 or example.shape[1] != bundle.in_dim:
+        raise ConvertError(f"example: shape {list(example.shape)}; the model takes [N, {bundle.in_dim}] "
+                           "(its inputs' rows side by side)")
+    bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
+    parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_, semantics=semantics,
+                  colour=colour)
 
 
 def _flat(outputs) -> list:

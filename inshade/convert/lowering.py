@@ -32,6 +32,11 @@ INT_OP_NAMES = {"mul": "a multiply", "add": "an add", "sub": "a subtraction", "x
 INTEGRAL_NODES = ("floor", "ceil", "trunc", "round")   # their outputs are whole numbers already   # a linear layer repeated over a row's other axes (each repeat is a node)
 
 
+class Float64Unavailable(Exception):
+    """A source cannot be evaluated in float64 (the message says why): the check then judges by the
+    1e-5 rule alone."""
+
+
 class ConvertError(ValueError):
     """A network (or a part of it) that cannot become a bundle; the message is one line."""
 

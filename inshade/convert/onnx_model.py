@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .lowering import (ConvertError, Feat, IntFeat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
+from .lowering import (ConvertError, Feat, Float64Unavailable, IntFeat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
                        squeeze, take, unsqueeze)
 
 MIN_OPSET = 13
@@ -716,37 +716,6 @@ def poses(specs: list[InputSpec]):
     yield Pose(from_end=1)   # the last axis as the batch: rows of the other axes (a vector: one lane a row)
 
 
-def convert(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
-            force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None,
-            colour: str | None = None):
-    """An ONNX file (or ModelProto) -> a bundle folder, its GLSL checked against onnxruntime on
-    ``example`` ([N, in_dim] rows, or one input's whole tensor; default uniform [-1, 1]) plus
-    random rows in its range."""
-    from inshade import asset_folder
-    from inshade.port_layout import LayoutError, port_shape, to_rows
-
-    from .export import finish
-
-    folder = Path(folder)
-    asset_folder.claim(folder, folder.name, force=force, option="-o")
-    bundle, model, lowering = to_bundle(source, name=name)
-    if example is None:
-        example = np.random.default_rng(0).uniform(-1, 1, (64, bundle.in_dim)).astype(np.float32)
-    example = np.asarray(example, np.float32)
-    if example.ndim != 2 and len(bundle.inputs) == 1:
-        try:
-            example = to_rows(example, port_shape(bundle.inputs[0]), "example")[0]
-        except LayoutError as exc:
-            raise ConvertError(str(exc)) from None
-    if example.ndim != 2 or example.shape[1] != bundle.in_dim:
-        raise ConvertError(f"example: shape {list(example.shape)}; the model takes [N, {bundle.in_dim}] "
-                           "(its inputs' rows side by side)")
-    bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
-    parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_, semantics=semantics,
-                  colour=colour)
-
-
 def float64_model(model):
     """A copy of ``model`` computing in double precision: float32 initializers, constants, casts and
     value types widened (exactly: every float32 is a float64)."""
@@ -785,8 +754,6 @@ def run_onnxruntime(source, parts: list[np.ndarray], bundle=None, float64: bool 
     except ImportError:
         raise ConvertError("checking against onnxruntime needs it: pip install -e '.[onnx]'") from None
     from inshade.port_layout import batch_axes, from_rows, port_shape, to_rows
-
-    from .check import Float64Unavailable
 
     model, where, _ = load_model(source)
     options = ort.SessionOptions()

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from inshade.grid_layout import MAX_LEVELS, grid_levels, table_rows
+from inshade.grid_layout import MAX_LEVELS, GridLayoutError, grid_levels, table_rows
 
 from .lowering import ConvertError
 
@@ -270,8 +270,11 @@ class Grid(Encoding):
         if n_dims not in (2, 3):
             raise err(where, f"a grid over {n_dims} input lanes: inshade lowers 2D and 3D grids (tiny-cuda-nn "
                              f"also has 4D)")
-        self.grid_levels = grid_levels(n_dims, self.levels, self.base_resolution, self.per_level_scale,
-                                       self.log2_hashmap_size, self.type)
+        try:
+            self.grid_levels = grid_levels(n_dims, self.levels, self.base_resolution, self.per_level_scale,
+                                           self.log2_hashmap_size, self.type)
+        except GridLayoutError as exc:
+            raise err(where, str(exc)) from None
         self.alignment = self.features
         self.out = self.levels * self.features
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from inshade.bench.harness import machine_markdown, markdown_table, matplotlib_pyplot
 
-from .bench import CLAIMS, PRIMARY, headlines
+from .bench_claims import CLAIMS, PRIMARY, headlines
 
 TITLES = {"image": "Image", "sdf": "SDF", "radiance_field": "Radiance field"}
 MB = 1e6
@@ -98,7 +98,7 @@ def _sdf(app: dict, sizes) -> list[str]:
               f"- step: 1 / (safety x measured slope {app['lipschitz']['lipschitz_measured']:.3g}) = "
               f"{app['lipschitz']['step_scale']:.3g} (sound bound {app['lipschitz']['lipschitz_sound']:.3g})"]
     for name, a in app.get("also", {}).items():
-        notes.append(f"- {name} ({a.get('folder')}, {a.get('bytes')} bytes, not equal bytes): surface err / diag "
+        notes.append(f"- {name} (`{a.get('folder')}`, {a.get('bytes')} bytes, not equal bytes): surface err / diag "
                      f"{_f(a.get('surface_abs_mean_per_diagonal'), '.2e')}, IoU {_f(a.get('iou_uniform'), '.4f')}")
     return markdown_table(head, rows, "lrrrrrrrrr" + "r" * len(sizes)) + [""] + notes
 

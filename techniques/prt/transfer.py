@@ -60,7 +60,7 @@ SHADOW_STEPS = 160          # SDF shadow-ray step cap
 MESH_OFFSET = 1e-4          # mesh shadow-ray origin offset, fraction of the bounding-box diagonal
 HOLDOUT_DIRS = 1024        # rays per held-out sample (the reference the network is measured against)
 # near-occluder training samples (``build_dataset(near_points=...)``, SDFs): drawn with density ~ 1 +
-# NEAR_BOOST x thin.occluder_proximity at NEAR_DELTA x the bound radius, from their own seed
+# NEAR_BOOST x near_occluders.occluder_proximity at NEAR_DELTA x the bound radius, from their own seed
 # (seed + NEAR_SEED), added to the uniform training samples; the held-out samples stay uniform
 NEAR_BOOST = 3.0
 NEAR_DELTA = 0.03
@@ -247,7 +247,7 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     sets = [("train", p[:n_points], nrm[:n_points], n_dirs, seed),
             ("heldout", p[n_points:], nrm[n_points:], holdout_dirs, seed + 1)]
     if near_points:
-        from inshade.techniques.prt.thin import sample_near_occluders
+        from inshade.techniques.prt.near_occluders import sample_near_occluders
 
         p_near, n_near = sample_near_occluders(geometry, near_points, seed=seed + NEAR_SEED, boost=NEAR_BOOST,
                                                delta=NEAR_DELTA * radius, device=device)

@@ -40,7 +40,7 @@ from inshade.trainer import Run
 from . import KIND_GLTF, gltf_channels, gltf_scene, gltf_source
 from .memory import network_bytes
 from .model import CONFIGS, choose_levels, choose_table_size, material_graph
-from .train import BUNDLE, SurfaceSampler, fit, render_preview
+from .fitting import BUNDLE, SurfaceSampler, fit, render_preview
 
 
 class GltfTargets:

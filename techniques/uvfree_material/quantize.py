@@ -39,7 +39,8 @@ from inshade.models import GraphModule
 from . import objects
 from .memory import memory_report
 from .model import KIND
-from .train import BUNDLE, Settings, SurfaceSampler, TrainError, evaluate, fit, stored_textures, targets
+from .fitting import BUNDLE, SurfaceSampler, TrainError, fit
+from .train import Settings, evaluate, stored_textures, targets
 
 COPIED = (objects.FILES["mesh"], *(objects.FILES[k] for k in objects.TEXTURES), "scene.json")
 

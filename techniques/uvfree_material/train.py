@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import math
 import shlex
 import time
 from dataclasses import dataclass
@@ -53,17 +52,12 @@ from inshade.metrics import psnr
 from inshade.trainer import Run, Trainer, setting
 
 from . import objects
+from .fitting import BUNDLE, SurfaceSampler, TrainError, fit, render_preview
+from .gltf_train import write_gltf_material
 from .gltf_source import GltfSourceError
 from .memory import memory_report, reference_bytes
 from .model import CONFIGS, FEATURES, GROUPS, HIDDEN, KIND, choose_levels, choose_table_size, material_graph
 from .object_textures import sample_textures, write_object
-
-BUNDLE = "material"
-
-
-class TrainError(ValueError):
-    """Bad training input; the message names the file or option."""
-
 
 class Widths(tuple):
     """A decoder's hidden layer widths, spelled ``64,64,64,64`` on the command line."""
@@ -131,49 +125,6 @@ def stored_textures(folder: Path) -> dict:
     if len(set(shapes.values())) != 1:
         raise TrainError(f"{folder}: textures differ in size: {shapes}")
     return out
-
-
-def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Vose's alias method: (prob [N] float64, alias [N] int64); draw i uniform, keep it with
-    probability prob[i], else take alias[i]. Zero-weight entries are never drawn."""
-    w = np.asarray(weights, np.float64)
-    if w.ndim != 1 or not len(w) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
-        raise TrainError("faces: triangle areas must be finite, non-negative and not all zero")
-    n = len(w)
-    scaled = w * (n / w.sum())
-    prob, alias = np.ones(n), np.arange(n)
-    small = [i for i in range(n) if scaled[i] < 1.0]
-    large = [i for i in range(n) if scaled[i] >= 1.0]
-    while small and large:
-        s, g = small.pop(), large.pop()
-        prob[s], alias[s] = scaled[s], g
-        scaled[g] -= 1.0 - scaled[s]
-        (small if scaled[g] < 1.0 else large).append(g)
-    for i in small:   # float leftovers: keep
-        prob[i] = 1.0 if w[i] > 0 else 0.0
-    return prob, alias
-
-
-class SurfaceSampler:
-    """Area-weighted points (face, t0, t1) on a mesh and their uv."""
-
-    def __init__(self, mesh):
-        self.faces = np.asarray(mesh.faces, np.int64)
-        uv = mesh_uv(mesh)
-        # a mesh without uv (a glTF file without textures) has targets that do not vary over uv
-        self.uv = uv if uv is not None else np.zeros((len(mesh.vertices), 2))
-        self.prob, self.alias = alias_table(np.asarray(mesh.area_faces))
-
-    def __call__(self, n: int, rng: np.random.Generator):
-        i = rng.integers(0, len(self.prob), n)
-        face = np.where(rng.random(n) < self.prob[i], i, self.alias[i])
-        r0, r1 = rng.random(n), rng.random(n)
-        s = np.sqrt(r0)
-        t0, t1 = (1.0 - s).astype(np.float32), (s * (1.0 - r1)).astype(np.float32)
-        t2 = 1.0 - t0.astype(np.float64) - t1
-        corners = self.uv[self.faces[face]]                       # [n, 3, 2]
-        uv = t0[:, None] * corners[:, 0] + t1[:, None] * corners[:, 1] + t2[:, None] * corners[:, 2]
-        return face, t0, t1, uv
 
 
 def targets(textures: dict, uv: np.ndarray) -> np.ndarray:
@@ -249,43 +200,10 @@ def train(*, object_name="rock", mesh_path=None, textures_dir=None, config="bala
                                  table_size=table_size, no_preview=not write_preview)
     run = Run(settings, preset, device, out, command_line, options)
     if gltf_path is not None:
-        from .gltf_train import write_gltf_material
-
         write_gltf_material(run, progress)
     else:
         write_material(run, progress)
     return out
-
-
-def fit(graph, batch, s: Settings, device, desc: str, progress=None) -> list:
-    """Adam on the feature table (``s.lr``) and the decoder (``s.mlp_lr``), MSE, cosine decay to 2 %
-    over ``s.steps``; ``batch(rng)`` gives each step's (inputs [n, 3] float32: face, t0, t1; targets
-    [n, C] float32). Returns the loss every 50 steps."""
-    from inshade.progress import progress as progress_bar
-
-    table = graph.nodes["features"].table
-    mlp = [q for n, q in graph.named_parameters() if not n.startswith("nodes.features.")]
-    opt = torch.optim.Adam([{"params": [table], "lr": s.lr}, {"params": mlp, "lr": s.mlp_lr}], betas=(0.9, 0.99),
-                           eps=1e-15)
-    base = [g["lr"] for g in opt.param_groups]
-    rng = np.random.default_rng(s.seed)
-    history = []
-    steps = s.steps
-    bar = progress_bar(range(steps), desc=desc, enabled=progress)
-    for step in bar:
-        t = step / max(steps, 1)
-        for g, lr0 in zip(opt.param_groups, base):
-            g["lr"] = lr0 * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
-        x, y = batch(rng)
-        x, y = torch.from_numpy(x).to(device), torch.from_numpy(y).to(device)
-        loss = torch.mean((graph(x) - y) ** 2)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        if step % 50 == 0 or step == steps - 1:
-            history.append({"step": step, "mse": round(loss.item(), 7)})
-            bar.set_postfix(mse=f"{loss.item():.5f}")
-    return history
 
 
 def write_material(run: Run, progress=None) -> dict:
@@ -381,15 +299,6 @@ def scene_description(name: str, object_name: str, config: str) -> dict:
     }
 
 
-def render_preview(out: Path) -> None:
-    """preview.png: the asset's scene, split view (left reference, right decoded)."""
-    from inshade.runtime.headless import render_scene, save_render
-
-    image, info = render_scene(out, settings={"view": "split"})
-    save_render(image, info, out / "preview.png")
-    Path(f"{out / 'preview.png'}.json").unlink()   # a shipped picture: its sidecar would hold this machine's paths
-
-
 # ---------------------------------------------------------------------------------------------
 # command line
 
@@ -415,8 +324,6 @@ def extra_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def build_gltf(run: Run) -> int:
-    from .gltf_train import write_gltf_material
-
     args = run.args
     if args.mesh or args.textures:
         raise TrainError(f"--{'mesh' if args.mesh else 'textures'}: goes without --gltf (the file holds the mesh "
