@@ -51,8 +51,9 @@ class LimitError(ValueError):
 
     def __init__(self, message: str):
         if "GL 3.3 minimum" in message:
-            message += ("; these are GL 3.3's minimums: generate(..., limits=\"query\") plans with this machine's "
-                        "(inshade codegen does when it can make a context), limits={...} with another's")
+            message += ("; these are GL 3.3's minimums: generate(..., limits=machine_limits()) (inshade.runtime."
+                        "context) plans with this machine's (inshade codegen does when it can make a context), "
+                        "limits={...} with another's")
         super().__init__(message)
 
 

@@ -74,9 +74,9 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
     "fast"}}`` (the types and options the emitters declare: ``codegen.registry.OPTIONS``).
     ``storage=``, ``lut_filter=``, ``texture_format=`` are shorthands for the same (``SHORTHANDS``).
     ``limits``: the GL limits to plan against (``auto`` storage chooses by them; every resource is
-    laid out to fit them, else LimitError): ``"query"`` queries this machine's headless context
-    (``runtime.context.gl_info``), a dict gives them (a context's ``gl_info``, or a target GPU's,
-    e.g. ``{"GL_MAX_TEXTURE_SIZE": 4096}``). A missing limit means the GL 3.3 minimum
+    laid out to fit them, else LimitError): a dict, e.g. this machine's
+    (``runtime.context.machine_limits()``), a context's ``gl_info`` or a target GPU's
+    (``{"GL_MAX_TEXTURE_SIZE": 4096}``). A missing limit means the GL 3.3 minimum
     (``codegen.limits.GL33_MINIMUMS``: 16 KiB uniform blocks, 1024-texel textures), so code
     generated without limits runs on every GL 3.3 driver; the plan records each limit's use, value
     and source. ``calls``: how many times one pixel evaluates the function in the caller's loop
@@ -92,10 +92,6 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
         merged.setdefault(component, {})[option] = value
     options = resolve_options(merged)
     storage, lut_filter = options["dense"]["storage"], options["lookup_array"]["filter"]
-    if limits == "query":   # this machine's (a headless context: the GL runtime, loaded only here)
-        from inshade.runtime.context import gl_info, shared_context
-
-        limits = gl_info(shared_context())
     limits = dict(limits or {})
     ctx = EmitContext(prefix, target, options, limits)
     ctx.periodic_args = analyse(bundle).periodic_args

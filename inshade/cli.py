@@ -266,7 +266,12 @@ def _codegen(args, b, prefix, output) -> int:
     from inshade.codegen import generate
     from inshade.shaders import flatten
 
-    limits = "query" if not args.no_gl else {}   # plan against this machine's limits when it can make a context
+    if args.no_gl:
+        limits = {}
+    else:   # plan against this machine's limits when it can make a context
+        from inshade.runtime.context import machine_limits
+
+        limits = machine_limits()
     gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
                    lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits, calls=args.calls)
     if output == STDOUT:   # the GLSL alone on stdout; the plan goes to stderr

@@ -72,7 +72,6 @@ def sh_basis(dirs, degree: int, xp=np):
 
 import functools
 import math
-from pathlib import Path
 
 MAX_DEGREE = int(round(math.sqrt(len(SH_TERMS))))  # 5: bands l = 0..4
 
@@ -179,7 +178,7 @@ def equirect_solid_angles(width: int, height: int) -> np.ndarray:
     return np.broadcast_to(band[:, None], (height, width))
 
 
-def _check_environment(env, what: str = "environment") -> np.ndarray:
+def check_environment(env, what: str = "environment") -> np.ndarray:
     env = np.asarray(env)
     if env.ndim != 3 or env.shape[2] not in (3, 4):
         raise ValueError(f"{what}: expected an equirectangular [H, W, 3] RGB image, got shape {list(env.shape)}")
@@ -201,7 +200,7 @@ def project_environment(env, degree: int = 4) -> np.ndarray:
     """SH coefficients [degree**2, 3] of a linear HDR equirectangular map [H, W, 3] (the
     convention above), summing radiance * Y_i * texel solid angle. Alpha is ignored."""
     degree = _check_degree(degree)
-    env = _check_environment(env)
+    env = check_environment(env)
     h, w = env.shape[:2]
     y = sh_basis(equirect_directions(w, h), degree)                    # [H, W, K]
     y = y * equirect_solid_angles(w, h)[..., None]
@@ -211,33 +210,6 @@ def project_environment(env, degree: int = 4) -> np.ndarray:
 def sh_to_equirect(coeffs, width: int, height: int) -> np.ndarray:
     """Renders SH coefficients [K, C] back to an equirectangular [H, W, C] image."""
     return sh_evaluate(np.asarray(coeffs, np.float64), equirect_directions(width, height))
-
-
-def load_environment(path) -> np.ndarray:
-    """Reads an equirectangular environment (.exr linear HDR; .png/.jpg sRGB decoded to linear)
-    as float32 [H, W, 3]. Any problem (missing/unreadable file, wrong shape, NaN/inf, negative
-    values) raises one ValueError naming the file."""
-    path = Path(path)
-    try:
-        if not path.is_file():
-            raise ValueError("no such file")
-        suffix = path.suffix.lower()
-        if suffix == ".exr":
-            from inshade.scene.image_io import read_exr
-            try:
-                image = read_exr(path)
-            except Exception as exc:  # OpenEXR's own errors differ by version
-                raise ValueError(f"not a readable RGB(A) EXR ({exc})") from None
-        elif suffix in (".png", ".jpg", ".jpeg"):
-            from PIL import Image
-            with Image.open(path) as im:
-                srgb = np.asarray(im.convert("RGB"), np.float64) / 255.0
-            image = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
-        else:
-            raise ValueError(f"unsupported format {suffix!r}; expected .exr, .png or .jpg")
-        return _check_environment(image, "image").astype(np.float32)
-    except ValueError as exc:
-        raise ValueError(f"environment map {path}: {exc}") from None
 
 
 # --- procedural skies (data, not code paths) --------------------------------------------------

@@ -266,6 +266,12 @@ def make_current(ctx: moderngl.Context) -> moderngl.Context:
     return ctx
 
 
+def machine_limits() -> dict:
+    """This machine's driver identity and limits (``gl_info`` of the shared headless context): what
+    codegen plans against when the code runs here."""
+    return gl_info(shared_context())
+
+
 def gl_info(ctx: moderngl.Context) -> dict:
     """Driver identity and the limits codegen chooses weight placement from (leaves ctx current)."""
     info = ctx.info

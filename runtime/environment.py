@@ -29,7 +29,8 @@ import math
 import moderngl
 import numpy as np
 
-from inshade.sh import load_environment, procedural_sky, rotation_matrix, sky_radiance, equirect_directions
+from inshade.scene.image_io import load_environment
+from inshade.sh import procedural_sky, rotation_matrix, sky_radiance, equirect_directions
 
 PRESET_WIDTH = 512   # sky presets at 512x256: texels of 0.7 deg resolve the sharpest sun lobe
 # ("noon", sharpness 3000: ~1 deg wide); 256x128 would spread it over ~2 texels.

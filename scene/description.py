@@ -685,7 +685,8 @@ def _lit_environment(env, root: Path) -> tuple[dict, object]:
     ("map": .exr/.png/.jpg relative to the scene file, projected to SH once here; "sky" is then
     "map"), rotated about +y by "rotation" degrees, its radiance scaled by "intensity". Returns
     (environment, map SH or None)."""
-    from inshade.sh import MAX_DEGREE, SKY_PRESETS, load_environment, project_environment
+    from inshade.scene.image_io import load_environment
+    from inshade.sh import MAX_DEGREE, SKY_PRESETS, project_environment
 
     given = dict(env or {})
     env = {"sky": "map" if "map" in given else "overcast", "rotation": 0.0, "degree": 4, "intensity": 1.0, **given}

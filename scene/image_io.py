@@ -4,6 +4,7 @@ values above 1 clip), then sRGB-encoded 8-bit), EXR for numbers (linear float32)
 Arrays are image-oriented ([H, W, C], row 0 = top), as returned by ``render.read_rgba``.
 Each output can get a JSON sidecar saying how it was made. Every file is written atomically
 (inshade/files.py): a temporary file in the same folder, renamed into place when complete.
+Reading: EXR (``read_exr``) and equirectangular environment maps (``load_environment``).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import OpenEXR
 from PIL import Image
 
 from inshade.files import atomic_files
+from inshade.sh import check_environment
 from inshade.scene.tonemap import check_tonemap, tonemap as apply_tonemap
 
 
@@ -81,6 +83,31 @@ def read_exr(path: str | Path) -> np.ndarray:
 
 MAX_IMAGE_SIDE = 16384
 IMAGE_READ_SUFFIXES = (".png", ".jpg", ".jpeg", ".exr")
+
+
+def load_environment(path) -> np.ndarray:
+    """Reads an equirectangular environment (.exr linear HDR; .png/.jpg sRGB decoded to linear)
+    as float32 [H, W, 3]. Any problem (missing/unreadable file, wrong shape, NaN/inf, negative
+    values) raises one ValueError naming the file."""
+    path = Path(path)
+    try:
+        if not path.is_file():
+            raise ValueError("no such file")
+        suffix = path.suffix.lower()
+        if suffix == ".exr":
+            try:
+                image = read_exr(path)
+            except Exception as exc:  # OpenEXR's own errors differ by version
+                raise ValueError(f"not a readable RGB(A) EXR ({exc})") from None
+        elif suffix in (".png", ".jpg", ".jpeg"):
+            with Image.open(path) as im:
+                srgb = np.asarray(im.convert("RGB"), np.float64) / 255.0
+            image = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+        else:
+            raise ValueError(f"unsupported format {suffix!r}; expected .exr, .png or .jpg")
+        return check_environment(image, "image").astype(np.float32)
+    except ValueError as exc:
+        raise ValueError(f"environment map {path}: {exc}") from None
 
 
 def check_image_file(path: str | Path, *, exr: bool | None = None, max_side: int = MAX_IMAGE_SIDE) -> tuple[int, int]:

@@ -339,15 +339,17 @@ def test_codegen_network_all_and_program(tmp_path, capsys):
 
 
 def test_generate_plans_with_the_machines_limits_when_asked(gl_limits):
-    """GL 3.3's 16 KiB uniform block refuses a 64-wide layer; limits="query" takes this machine's, and the
-    refusal says so."""
+    """GL 3.3's 16 KiB uniform block refuses a 64-wide layer; limits=machine_limits() takes this machine's, and
+    the refusal says so."""
     from inshade.codegen import generate
     from inshade.codegen.limits import LimitError
     from inshade.models import mlp_graph
 
     bundle = mlp_graph(2, [64] * 3, 3).export("m")
-    with pytest.raises(LimitError, match=r"GL 3\.3 minimum.*limits=\"query\"\) plans with this machine's"):
+    with pytest.raises(LimitError, match=r"GL 3\.3 minimum.*limits=machine_limits\(\)\) \(inshade\.runtime\.context\) plans with this machine's"):
         generate(bundle, storage="ubo")
     if gl_limits["GL_MAX_UNIFORM_BLOCK_SIZE"] >= 16640:
-        g = generate(bundle, storage="ubo", limits="query")
+        from inshade.runtime.context import machine_limits
+
+        g = generate(bundle, storage="ubo", limits=machine_limits())
         assert g.plan.limits["GL_MAX_UNIFORM_BLOCK_SIZE"]["source"] == "context"

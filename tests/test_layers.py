@@ -4,8 +4,9 @@ sideways:
 
 - no technique imports another technique (what two share lives in a shared layer: ``models/``
   for torch, ``shaders/lib`` for GLSL, the runtime for GL);
-- the shared layers import only what is below them (``LAYER_RULES``); the few stated exceptions
-  are data with their reason (``ALLOWED``).
+- the shared layers import only what is below them (``LAYER_RULES``), the core (``CORE``: modules
+  of inshade/ itself) none of them, the technique registry only the shader library; the few stated
+  exceptions are data with their reason (``ALLOWED``).
 """
 from __future__ import annotations
 
@@ -29,11 +30,21 @@ LAYER_RULES = {
     "inshade.runtime": ("inshade.models", *ABOVE_SHARED),
     "inshade.viewer": ("inshade.models", "inshade.techniques", "inshade.bench", "inshade.convert", "inshade.cli"),
 }
+# The core (inshade/*.py: the bundle, the component specs, SH math, files, the trainer's command shell)
+# sits below every folder; the registry of techniques sits on the shader library; the apps on top.
+SHARED = ("inshade.shaders", "inshade.geometry", "inshade.codegen", "inshade.scene", "inshade.models",
+          "inshade.runtime", "inshade.web")
+REGISTRY = ("inshade.technique", "inshade.papers", "inshade.trainer")
+APPS = ("inshade.cli", "inshade.notebook")
+CORE = ("inshade.asset_folder", "inshade.bundle", "inshade.command", "inshade.components", "inshade.devices",
+        "inshade.envelope", "inshade.extras", "inshade.files", "inshade.grid_layout", "inshade.lit_settings",
+        "inshade.metrics", "inshade.pixels", "inshade.port_layout", "inshade.progress", "inshade.random", "inshade.sh")
+LAYER_RULES.update({m: (*SHARED, *REGISTRY, *APPS, *ABOVE_SHARED) for m in CORE})
+LAYER_RULES.update({m: (*[s for s in SHARED if s != "inshade.shaders"], *APPS, *ABOVE_SHARED) for m in REGISTRY})
 # (importing file, imported module) -> why this edge is allowed.
-ALLOWED = {
-    ("codegen/network.py", "inshade.runtime.context"):
-        'generate(limits="query") plans against this machine\'s GL limits: it opens the headless context '
-        "only when asked",
+ALLOWED: dict[tuple[str, str], str] = {
+    ("inshade/technique.py", "inshade.techniques"):
+        "the registry imports the built-in technique records by name, as it loads plug-in folders",
 }
 
 
@@ -141,3 +152,12 @@ def test_checks_see_imports_inside_functions(tmp_path):
         "alpha imports inshade.techniques.gamma.bench"}
     assert layers == ["models/thing.py:2: inshade.models imports inshade.runtime.context",
                       "models/thing.py:2: inshade.models imports inshade.runtime.context.shared_context"]
+
+
+def test_every_core_module_has_a_layer():
+    """A new module of inshade/ itself is placed in the core, the registry or the apps, so its imports
+    are checked."""
+    top = {m for m in _module_files() if m.count(".") == 1 and m.startswith("inshade.")}
+    folders = {"inshade." + f for f in ("bench", "codegen", "convert", "geometry", "models", "runtime", "scene",
+                                        "shaders", "techniques", "viewer", "web")}
+    assert top - folders == set(CORE) | set(REGISTRY) | set(APPS)

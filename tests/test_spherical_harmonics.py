@@ -11,7 +11,7 @@ from PIL import Image
 
 from inshade import sh
 from inshade.codegen.spherical_harmonics import sh_chunk, sh_chunks
-from inshade.scene.image_io import write_exr
+from inshade.scene.image_io import load_environment, write_exr
 
 from parity import assert_parity, unit_directions
 
@@ -108,10 +108,10 @@ def test_unknown_sky_preset():
 def test_load_environment_roundtrip(tmp_path):
     env = sh.procedural_sky("studio", 64)
     p = write_exr(tmp_path / "studio.exr", env)
-    np.testing.assert_array_equal(sh.load_environment(p), env)
+    np.testing.assert_array_equal(load_environment(p), env)
     png = tmp_path / "grey.png"
     Image.fromarray(np.full((16, 32, 3), 255, np.uint8)).save(png)
-    np.testing.assert_allclose(sh.load_environment(png), 1.0)
+    np.testing.assert_allclose(load_environment(png), 1.0)
 
 
 @pytest.mark.parametrize("case", ["shape", "nan", "missing", "format", "negative"])
@@ -132,7 +132,7 @@ def test_load_environment_bad_inputs(tmp_path, case):
     if case not in ("missing", "format"):
         write_exr(path, image)
     with pytest.raises(ValueError) as info:
-        sh.load_environment(path)
+        load_environment(path)
     msg = str(info.value)
     assert msg.startswith(f"environment map {path}:") and expect in msg and msg.count("\n") == 0, msg
 
