@@ -19,7 +19,7 @@ from inshade.codegen.sdf import environment_sh
 from inshade.scene.camera import camera_from_dict
 from inshade.runtime.environment import (EnvironmentSampler, EnvironmentTextures, environment_image, mis_power,
                                          scene_environment)
-from inshade.scene.image_io import write_exr
+from inshade.scene.image_io import load_environment, write_exr
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
 from inshade.runtime.renderer import SceneRenderer, _rotated_map_sh
@@ -141,7 +141,7 @@ def test_map_image_projects_to_the_rotated_map_sh(tmp_path, rotation):
     path = write_exr(tmp_path / "env.exr", sh.procedural_sky("sunset", 256))
     env = {"sky": "map", "map": str(path), "rotation": 0.0}
     img = environment_image(env, {"rotation": rotation})
-    want = _rotated_map_sh(sh.project_environment(sh.load_environment(path), 4), rotation)
+    want = _rotated_map_sh(sh.project_environment(load_environment(path), 4), rotation)
     got = sh.project_environment(img, 4)
     tol = 1e-5 if (rotation / 360 * 256).is_integer() else 1e-3
     scale = np.abs(want).max()
