@@ -4,6 +4,7 @@
 against the module through the GL driver); ``inshade.check(source, bundle, inputs)`` measures a
 bundle against its source. Both import torch only when called: the runtime stays torch-free.
 """
+from inshade.notebook import show  # Jupyter: an asset's page; in a notebook bundles and scenes draw themselves
 
 
 def export(module, example_input, folder, **options):

@@ -1,5 +1,5 @@
-"""Package architecture: the torch-free side stays torch-free, and module-level imports between
-the project's modules form no cycle.
+"""Package architecture: the torch-free side stays torch-free, and imports between the project's
+modules form no cycle, neither at module load nor through function bodies.
 
 - torch-free: the runtime, the scene model, geometry sources, codegen, the shader library, the viewer app, the technique registry
   (with every technique's record imported) and the CLI's parser are imported in a fresh
@@ -8,7 +8,8 @@ the project's modules form no cycle.
   project frames of the import chain that reached it.
 - no import cycle: the graph of imports executed at module load (top level, class bodies,
   top-level if/try/with; not function bodies nor ``if TYPE_CHECKING:``) over every .py of the
-  packages in pyproject.toml's ``package-dir``, with relative imports resolved.
+  packages in pyproject.toml's ``package-dir``, with relative imports resolved; then the graph of
+  every import, function bodies included.
 """
 from __future__ import annotations
 
@@ -165,14 +166,21 @@ def _ancestors(module: str) -> list[str]:
     return [".".join(parts[:i]) for i in range(1, len(parts))]
 
 
-def import_graph(files: dict[str, Path], root: Path = ROOT) -> dict[str, dict[str, str]]:
+def _every_import(tree: ast.Module):
+    """Every import statement of the module, function bodies included (what runs when it is called)."""
+    return (n for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom)))
+
+
+def import_graph(files: dict[str, Path], root: Path = ROOT, *, function_bodies: bool = False) -> dict[str, dict[str, str]]:
     """module -> {imported project module: 'file:line'}. Importing a.b.c also runs a and a.b,
-    so those are edges too, except the importer's own ancestors (already initialised first)."""
+    so those are edges too, except the importer's own ancestors (already initialised first).
+    ``function_bodies``: the imports inside functions too (a circle there is one a reader follows)."""
     graph: dict[str, dict[str, str]] = {m: {} for m in files}
+    imports = _every_import if function_bodies else _load_time_imports
     for module, path in files.items():
         is_package = path.name == "__init__.py"
         own = set(_ancestors(module)) | {module}
-        for node in _load_time_imports(ast.parse(path.read_text(), str(path))):
+        for node in imports(ast.parse(path.read_text(), str(path))):
             targets = []
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
@@ -296,6 +304,8 @@ def test_import_graph_resolves_relative_and_package_imports(tmp_path):
         "p": ["p.a"], "p.a": ["p.b"], "p.b": ["p.c", "p.q", "p.q.r"], "p.c": ["p.a"],
         "p.q": [], "p.q.r": ["p.a"]}
     assert ["p.a", "p.b", "p.c", "p.a"] in find_cycles(graph)
+    every = import_graph(files, tmp_path, function_bodies=True)
+    assert sorted(every["p.a"]) == ["p.b", "p.c"]   # the function body's and the TYPE_CHECKING import
 
 
 def test_no_import_cycles():
@@ -307,4 +317,13 @@ def test_no_import_cycles():
     assert sum(map(len, graph.values())) > len(files) // 2, "suspiciously few imports: parsing broke?"
     cycles = find_cycles(graph)
     assert not cycles, "import cycles between the project's modules (module-level imports):\n  " + \
+        "\n  ".join(_describe(c, graph) for c in cycles)
+
+
+def test_no_import_cycles_through_function_bodies():
+    """The same with every import, function bodies included: a lazy import keeps start-up light, it
+    does not make a circle of modules any easier to read."""
+    graph = import_graph(_module_files(), function_bodies=True)
+    cycles = find_cycles(graph)
+    assert not cycles, "import cycles between the project's modules (function bodies included):\n  " + \
         "\n  ".join(_describe(c, graph) for c in cycles)
