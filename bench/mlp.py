@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from inshade import command
+from inshade.provenance import utc_now
 from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
 from inshade.bench.harness import (BenchError, add_clock_argument, cold_shader_cache, clock_for, clock_record, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
@@ -226,7 +227,7 @@ def _run(args) -> int:
             networks.append(entry)
 
     targets = evaluate_targets(networks, peak)
-    result = {"benchmark": "mlp", "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    result = {"benchmark": "mlp", "created": utc_now(),
               "batch": {"size": args.size, "pixels": int(x.shape[0])}, "repeats": args.repeats,
               "quick": bool(args.quick),
               "machine": host, **clock_record(clock), "sgemm": peak, "parity_tolerance": PARITY_TOL,

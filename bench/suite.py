@@ -36,6 +36,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from inshade import command, technique
+from inshade.provenance import utc_now
 from inshade.bench.entry import PRESETS, Sizing, SuiteEntry
 from inshade.bench.harness import (BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot,
                                    portable_path, write_report)
@@ -169,7 +170,7 @@ def run_suite(out: Path, plan: Mapping[str, Sizing | None], mains: Mapping[str, 
     write the summary after each one (a suite stopped half way leaves the summary so far)."""
     out.mkdir(parents=True, exist_ok=True)
     result = {"benchmark": "suite", "preset": preset, "out": portable_path(out), "machine": machine(gl),
-              "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+              "created": utc_now(),
               "budget_s": sum(s.budget_s for s in plan.values() if s is not None), "seconds": 0.0,
               "benches": [], "headlines": []}
     for name, sizing in plan.items():

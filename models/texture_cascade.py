@@ -13,7 +13,6 @@ picture; `inshade.pixels.pixel_uvs` gives the pixel centres.
 """
 from __future__ import annotations
 
-import datetime
 import math
 import sys
 import time
@@ -31,6 +30,7 @@ from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models.lookup_array import LookupArray
 from inshade.models.mlp import Dense
+from inshade.provenance import utc_now
 
 KIND = "di_texture"          # the bundle kind of a DI texture
 MAX_CHANNELS = 8
@@ -418,7 +418,7 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
                   if decode else "arrays hold the channel values as given (no colour decode)",
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
         "notes": notes, "torch": torch.__version__, "device": str(device),
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
     }
     prov.update(provenance or {})
     render = {"program": FIELD_PROGRAM, "width": w, "height": h, "input": "uv",

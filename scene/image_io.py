@@ -9,7 +9,6 @@ Reading: EXR (``read_exr``) and equirectangular environment maps (``load_environ
 
 from __future__ import annotations
 
-import datetime
 import json
 from importlib import metadata
 from pathlib import Path
@@ -21,6 +20,7 @@ from PIL import Image
 from inshade.files import atomic_files
 from inshade.sh import check_environment
 from inshade.scene.tonemap import check_tonemap, tonemap as apply_tonemap
+from inshade.provenance import utc_now
 
 
 def srgb_oetf(linear: np.ndarray) -> np.ndarray:
@@ -167,7 +167,7 @@ def sidecar_text(info: dict) -> str:
     """The sidecar JSON of ``info`` plus the inshade version and the UTC time."""
     record = dict(info)
     record["inshade_version"] = metadata.version("inshade")
-    record["timestamp_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    record["timestamp_utc"] = utc_now()
     return json.dumps(record, sort_keys=True, indent=2, default=_to_json) + "\n"
 
 

@@ -93,15 +93,18 @@ def scaled_errors(glsl: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(glsl) == np.isfinite(ref), np.where(np.isfinite(err), err, 0.0), np.inf)
 
 
-def evaluate(bundle, inputs: np.ndarray, *, storage: str = "auto", ctx=None, limits=None, lut_filter: str = "exact"):
+def evaluate(bundle, inputs: np.ndarray, *, storage: str = "auto", ctx=None, limits=None, lut_filter: str = "exact",
+             generated=None):
     """(outputs [N, out_dim] of the bundle's GLSL through the driver, GL_RENDERER, storage used);
-    the GLSL planned against ``limits`` (default: the driver's)."""
+    the GLSL planned against ``limits`` (default: the driver's), unless ``generated`` is given."""
     from inshade.codegen import generate
     from inshade.runtime.context import gl_info, shared_context
     from inshade.runtime.network import NetworkEvaluator
 
     ctx = shared_context() if ctx is None else ctx
-    generated = generate(bundle, storage=storage, lut_filter=lut_filter, limits=gl_info(ctx) if limits is None else limits)
+    if generated is None:
+        generated = generate(bundle, storage=storage, lut_filter=lut_filter,
+                             limits=gl_info(ctx) if limits is None else limits)
     ev = NetworkEvaluator(ctx, generated)
     try:
         out = ev(np.asarray(inputs, np.float32))
@@ -122,11 +125,12 @@ def compare(glsl: np.ndarray, ref: np.ndarray, renderer: str, storage: str, seco
                        renderer, storage, seconds)
 
 
-def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=None, limits=None) -> CheckResult:
+def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=None, limits=None,
+          generated=None) -> CheckResult:
     """Run ``bundle``'s GLSL on ``inputs`` ([N, in_dim] concatenated, or a tuple of arrays, one per
     input) and compare with ``source``: a torch module (called on the inputs split per bundle
     input, each reshaped to [N, *shape] when ``shapes`` gives one per input) or an ONNX file path /
-    ModelProto (onnxruntime)."""
+    ModelProto (onnxruntime). ``generated``: the bundle's GLSL already planned (else generated here)."""
     from inshade.bundle import Bundle, load
 
     if not isinstance(bundle, Bundle):
@@ -140,7 +144,7 @@ def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=Non
         parts = [p.reshape(len(p), *shape) for p, shape in zip(parts, shapes)]
     start = time.perf_counter()
     ref = source_outputs(source, parts, bundle)
-    glsl, renderer, storage = evaluate(bundle, x, storage=storage, ctx=ctx, limits=limits)
+    glsl, renderer, storage = evaluate(bundle, x, storage=storage, ctx=ctx, limits=limits, generated=generated)
     result = compare(glsl, ref, renderer, storage, time.perf_counter() - start)
     if result.ok:
         return result

@@ -10,11 +10,12 @@ GL driver before anything is written; an ONNX file goes the same way (``convert_
 """
 from __future__ import annotations
 
-import datetime
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from inshade.provenance import utc_now
 
 from .lowering import ConvertError, Lowering
 from .shown_as import SHOWN_AS, apply_shown_as, check_colour, colour_warning, with_semantics
@@ -87,23 +88,22 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
         lowering.output(out_name, f, leading=lead)
     provenance = {"source": "torch", "module": type(module).__qualname__, "exported_by": "inshade.export",
                   "torch": torch.__version__,
-                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+                  "date_utc": utc_now()}
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
     source = module if lead == 1 else LeadingAxes(module, lead)
-    return finish(bundle, source, [r.numpy() for r in rows], folder, check=check,
-                  force=force, quiet=quiet, limits=limits, as_=as_, check_storage=check_storage, semantics=semantics,
-                  colour=colour)
+    return finish(bundle, source, [r.numpy() for r in rows], folder, check=check, quiet=quiet, limits=limits, as_=as_,
+                  check_storage=check_storage, semantics=semantics, colour=colour)
 
 
-def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, quiet: bool, limits=None,
+def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, limits=None,
            as_: str | None = None, check_storage: str = "auto", semantics: dict | None = None,
            colour: str | None = None):
-    """Check (through the GL driver, against ``source``), record the check, make the bundle what
-    ``as_`` (and ``colour``, for an image) says, write it (and its scene.json for 3D). ``limits``: GL
-    limits to plan the GLSL against (default: the driver's). Returns the written bundle."""
+    """Plan the GLSL once against ``limits`` (default: the driver's), check it (through the GL driver,
+    against ``source``), record the check, make the bundle what ``as_`` (and ``colour``, for an image)
+    says, write it (and its scene.json for 3D) into ``folder``, which the caller claimed before any
+    work. Returns the written bundle."""
     import json
 
-    from inshade import asset_folder
     from inshade.codegen import generate
     from inshade.codegen.limits import limit
     from inshade.files import atomic_write
@@ -119,9 +119,11 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
     if bundle.out_dim > lanes:
         raise ConvertError(f"outputs: {bundle.out_dim} lanes in all; a pass writes at most {lanes} "
                            f"(4 per draw buffer, GL_MAX_DRAW_BUFFERS {lanes // 4}): split the network")
+    generated = None   # planned once against the limits, then run by the check
     if limits is not None:
         try:
-            generate(bundle, limits=limits)
+            for storage in dict.fromkeys(("auto", check_storage)):   # the default plan must fit, whatever is checked
+                generated = generate(bundle, storage=storage, limits=limits)
         except ValueError as exc:   # LimitError: a grid or a layer past the limits
             raise ConvertError(f"the generated GLSL does not fit the GL limits: {exc}") from None
     flat = np.concatenate([np.asarray(e, np.float32).reshape(len(e), -1) for e in examples], 1)
@@ -133,7 +135,8 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
             print(f"example: {left_out} of {len(flat)} rows hold NaN or infinities; left out of the check (the "
                   "random rows span the finite ones)", file=sys.stderr)
         try:
-            result = run_check(source, bundle, x, shapes=shapes, limits=limits, storage=check_storage)
+            result = run_check(source, bundle, x, shapes=shapes, limits=limits, storage=check_storage,
+                               generated=generated)
         except ValueError as exc:
             raise ConvertError(f"the generated GLSL cannot run here: {exc}") from None
         if not quiet:
@@ -149,8 +152,7 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, force: bool, 
             print(warning, file=sys.stderr)
     if semantics:
         bundle = with_semantics(bundle, semantics)
-    asset_folder.claim(folder, folder.name, force=force, option="folder", force_option="force=True")
-    bundle.save(folder)
+    bundle.save(folder)   # claimed by the caller before any work
     if scene is not None:
         atomic_write(folder / "scene.json", json.dumps(scene, indent=1) + "\n")
     return bundle
@@ -183,7 +185,7 @@ def convert_onnx(source, folder, *, name: str | None = None, as_: str | None = N
                            "(its inputs' rows side by side)")
     bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
     parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-    return finish(bundle, model, parts, folder, check=check, force=force, quiet=quiet, as_=as_, semantics=semantics,
+    return finish(bundle, model, parts, folder, check=check, quiet=quiet, as_=as_, semantics=semantics,
                   colour=colour)
 
 

@@ -8,11 +8,12 @@ emit around Reshape costs nothing.
 """
 from __future__ import annotations
 
-import datetime
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from inshade.provenance import utc_now
 
 from .lowering import (ConvertError, Feat, Float64Unavailable, IntFeat, Lowering, const_against, expand, grid_sample, permute, reshape, slice_axis,
                        squeeze, take, unsqueeze)
@@ -696,7 +697,7 @@ def to_bundle(source, *, name: str | None = None):
     onnx = _onnx()
     provenance = {"source": "onnx", "file": where, "opset": opset, "producer": model.producer_name or "",
                   "onnx": onnx.__version__,
-                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+                  "date_utc": utc_now()}
     default = Path(where).stem if where != "<model>" else (model.graph.name or "model")
     bundle = lowering.L.bundle("imported", name or _port_name(default), provenance)
     return bundle, model, lowering

@@ -26,11 +26,12 @@ its weight columns are permuted to match (the same sum), so no lane is moved at 
 """
 from __future__ import annotations
 
-import datetime
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from inshade.provenance import utc_now
 
 from .lowering import ConvertError
 from .tcnn_config import (Composite, Empty, Frequency, Grid, Identity, Model, OneBlob, SphericalHarmonics,
@@ -305,7 +306,7 @@ def provenance(model: Model, config_path, params_path, dtype: str, count: int) -
     out = {"source": "tiny-cuda-nn", "model": model.kind, "config": str(config_path), "params": str(params_path),
            "params_dtype": dtype, "params_count": int(count), "resolved": model.resolved(),
            "checked_against": "the bundle's torch twin (tiny-cuda-nn needs CUDA; docs/tcnn.md)",
-           "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+           "date_utc": utc_now()}
     if model.ctx.ignored:
         out["ignored_keys"] = list(model.ctx.ignored)
     return out
@@ -360,5 +361,5 @@ def convert(config_path, params_path, folder, *, n_input_dims: int | None = None
         raise ConvertError(f"example: shape {list(example.shape)}; the model takes [N, {bundle.in_dim}]")
     if check and not quiet:
         print(TWIN_NOTE, file=sys.stderr)
-    return finish(bundle, GraphModule.from_bundle(bundle), [example], folder, check=check, force=force, quiet=quiet,
+    return finish(bundle, GraphModule.from_bundle(bundle), [example], folder, check=check, quiet=quiet,
                   as_=as_, semantics=semantics, colour=colour)

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import json
 import math
 import time
@@ -55,6 +54,7 @@ from inshade.files import atomic_write
 from inshade.geometry.gltf import GltfError
 from inshade.geometry.mesh import MeshError
 from inshade.trainer import GIVEN, Run, Trainer, setting
+from inshade.provenance import utc_now
 
 from .data import DataError
 from .memory import memory_report
@@ -270,7 +270,7 @@ def train(run: Run) -> int:
     bt, bp = settings["bins"]
     provenance = {"command": run.command, "preset": preset, **settings, "voxels": int(len(data["cells"])),
                   "faces": int(data["faces"]), "torch": torch.__version__, "device": str(device),
-                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+                  "date_utc": utc_now()}
     user = None
     render = {"mask": settings["mask"], "bins": bt * bp, "bins_theta": bt, "bins_phi": bp}
     if is_file_scene(settings["scene"]):

@@ -55,7 +55,6 @@ this module trains, writes the asset folder and is the command line.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
 import time
@@ -71,6 +70,7 @@ from inshade.models import indirection as di
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
 from inshade.trainer import Run, Trainer, setting
+from inshade.provenance import utc_now
 
 from .data import (GGX_ALPHA_RANGE, SWEEP_COLUMNS, disney_samples, ggx_ball_display, ggx_ball_sampler, ggx_sampler,
                    sweep_grid)
@@ -239,7 +239,7 @@ def scene_dict(name: str, title: str, model: str, size, cols: int, rows: int, ba
 
 def _provenance(command, extra):
     return {"command": command, "torch": torch.__version__,
-            "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"), **extra}
+            "date_utc": utc_now(), **extra}
 
 
 def _write_scene(out: Path, scene: dict, preview: np.ndarray):

@@ -45,7 +45,6 @@ records the preset and the resolved settings.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import sys
 import time
@@ -65,6 +64,7 @@ from inshade.models.footprint_sampler import (CAMERA, EXTENT, N_CASCADED, PRIMAR
                                               plan, sampler_graph, texture_bytes, texture_tensor)
 from inshade.models.graph import GraphModule
 from inshade.techniques.di_footprint import MODES
+from inshade.provenance import utc_now
 
 KIND = "di_footprint"
 RENDER_PROGRAM = "passes/footprint_plane.frag"
@@ -209,7 +209,7 @@ def _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenanc
         "colour": "arrays hold sRGB-encoded values; the graph decodes to linear (sRGB EOTF tables)",
         "uv_convention": "uv (0,0) = bottom-left of the picture; the shader passes fract(tiled uv)",
         "torch": torch.__version__, "device": str(device),
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
     }
     prov.update(provenance or {})
     metrics = {

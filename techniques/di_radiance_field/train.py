@@ -21,7 +21,6 @@ arrays, model.py). ``--preset ship`` is what built trained/di_radiance_field_tri
 """
 from __future__ import annotations
 
-import datetime
 import json
 import math
 import time
@@ -34,6 +33,7 @@ import torch
 from inshade.scene.labels import split_labels
 from inshade.files import atomic_write
 from inshade.trainer import Run, Trainer, setting
+from inshade.provenance import utc_now
 
 from . import KIND, PREFIX_DI, PREFIX_GRID, PROGRAM, SETTINGS as SCENE_SETTINGS
 from . import field, march, model
@@ -153,7 +153,7 @@ def fit(settings: dict, device="cpu", progress=None, provenance: dict | None = N
                     f"Adam (colour lr {settings['lr_colour']:g}, density lr {settings['lr_density']:g}), cosine, "
                     f"batch {settings['batch']}, {settings['steps']} steps, primary clip auto, seed {settings['seed']}",
         "device": str(device), "torch": torch.__version__,
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
         **(provenance or {}),
     }
     di_bundle = graph.export(KIND, "di_radiance_field", provenance=prov, metrics=metrics, render=render)

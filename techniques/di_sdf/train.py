@@ -21,7 +21,6 @@ resolved settings.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
 import time
@@ -40,6 +39,7 @@ from inshade.models.graph import GraphModule
 from inshade.models.network_sdf import NetworkSdfModule
 from inshade.models.threads import torch_threads
 from inshade.trainer import Run, Trainer, setting
+from inshade.provenance import utc_now
 
 from .data import (MARGIN, NEAR_SIGMAS, UNIFORM_FRACTION, DiSdfError, DistanceQuery, Frame, check_mesh, eval_set,
                    load_mesh, make_samples, mesh_frame, nearest_init, sample_batches, sdf_metrics)
@@ -164,7 +164,7 @@ def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, sample
         "contract": "q = (p - center) / radius; distance = radius * graph(q) (models/network_sdf.py)",
         "device": str(device),
         "torch": torch.__version__,
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
     }
     prov.update(provenance or {})
     bundle = graph.export(KIND, name, provenance=prov, metrics=metrics, render=module.render_meta())

@@ -55,7 +55,6 @@ export. OUT/metrics.json records the preset, the resolved settings, the device a
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import time
 from dataclasses import dataclass, field
@@ -69,6 +68,7 @@ from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models import footprint_sampler as fp
 from inshade.trainer import Run, Trainer, setting
+from inshade.provenance import utc_now
 
 from . import VIEWS
 from .data import VIEW_SIZE, Samples, batches, material, plane_samples
@@ -360,7 +360,7 @@ def train(run: Run) -> int:
                "note": "psnr_*: torch, 8-bit samplers, held-out plane pixels, display domain sRGB(clamp(x)); "
                        "the GLSL-rendered numbers are inshade bench di_shading's"}
     prov = {"command": run.command, "torch": torch.__version__, "device": str(run.device),
-            "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+            "date_utc": utc_now(),
             "technique": "Differentiable Indirection end-to-end shading (Datta et al. 2023 supp. 1.5): "
                          "footprint sampler trained through the frozen DI Disney decoder"}
     out = write_asset(run.out, runs, decoder, image, lambda_folder(best.lam), prov)

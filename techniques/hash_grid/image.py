@@ -11,7 +11,6 @@ its centre. Batches are random pixels drawn on a CPU generator (the same on ever
 """
 from __future__ import annotations
 
-import datetime
 import io
 import json
 import time
@@ -22,6 +21,7 @@ import torch
 from inshade.metrics import psnr, psnr_from_mse, srgb_eotf
 from inshade.models.graph import GraphModule
 from inshade.pixels import pixel_uvs
+from inshade.provenance import utc_now
 
 from . import mosaic
 from .network import add_frequency_mlp, add_hash_grid, add_mlp, cosine, grid_shape, network_bytes, optimizer
@@ -133,7 +133,7 @@ def train(run) -> int:
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
         "optimizer": "adam betas (0.9, 0.99), tables and MLP in separate groups, cosine decay to 5%",
         "device": str(run.device), "torch": torch.__version__,
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
     }
     render = {"program": RENDER_PROGRAM, "width": s.size, "height": s.size, "input": "uv", "output": "rgb"}
     bundle = g.export(KIND, run.out.name, provenance=provenance, render=render)

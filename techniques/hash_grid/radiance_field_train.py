@@ -31,7 +31,6 @@ trained by the same loop on the same rays and measured the same way.
 """
 from __future__ import annotations
 
-import datetime
 import json
 import math
 import time
@@ -42,6 +41,7 @@ import torch
 from inshade.files import atomic_write
 from inshade.metrics import psnr
 from inshade.models.graph import GraphModule
+from inshade.provenance import utc_now
 
 from . import radiance_field as rf
 from . import radiance_field_march as march
@@ -360,7 +360,7 @@ def train(run) -> int:
         "training": "occupancy-guided samples of the march, MSE on composited pixels + empty-space term, Adam "
                     "(instant-NGP's split), cosine decay to 5%",
         "device": str(run.device), "torch": torch.__version__,
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
     }
     bundle = g.export(KIND, run.out.name, provenance=provenance, render=m.to_render())
     shipped = GraphModule.from_bundle(bundle)        # fp16 tables as exported: what the shader reads

@@ -29,7 +29,6 @@ over a surface: the network is positive along every miss and up to every hit.
 """
 from __future__ import annotations
 
-import datetime
 import json
 import math
 import time
@@ -47,6 +46,7 @@ from inshade.models.mlp import Dense
 from inshade.models.mlp_sdf import trace_settings
 from inshade.models.mlp_sdf_fit import BOUND_MARGIN, SIGMAS, sample_points, signed_distance
 from inshade.models.network_sdf import NetworkSdfModule
+from inshade.provenance import utc_now
 
 from .lipschitz import measured_slope, sound_bound
 from .network import add_frequency_mlp, add_hash_grid, add_mlp, cosine, grid_shape, network_bytes, optimizer
@@ -249,7 +249,7 @@ def train(run) -> int:
         "loss": f"L1 on distance / radius + {s.eikonal} * eikonal (forward differences, {h:.3g} in q)",
         "step": f"step_scale = 1 / ({s.step_safety} * measured slope {measured:.4g}); sound bound {sound:.4g}",
         "device": str(run.device), "torch": torch.__version__,
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
     }
     bundle = module.export(KIND, run.out.name, provenance=provenance, metrics={
         k: v for k, v in metrics.items() if k not in ("mlp_baseline", "neural_sdf_shipped", "l1_batches")})

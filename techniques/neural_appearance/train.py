@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import json
 import math
 import shlex
@@ -54,10 +53,11 @@ from inshade import asset_folder
 from inshade.devices import resolve_device
 from inshade.files import atomic_write
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
+from inshade.models.latent_pyramid import LatentPyramid
+from inshade.provenance import utc_now
 from inshade.trainer import GIVEN, Run, Trainer, setting
 
 from . import KIND, NETWORKS
-from inshade.models.latent_pyramid import LatentPyramid
 
 from .data import Targets, direction_pairs, draw_levels
 from .model import LATENT, NeuralMaterial, decoder_loss, export_graphs, sampler_loss
@@ -301,7 +301,7 @@ def write_asset(out: Path, model: NeuralMaterial, source, raw, config, command_l
     out.mkdir(parents=True, exist_ok=True)
     provenance = {"command": command_line, "preset": preset, "material": source.name, **config,
                   "torch": torch.__version__, "device": str(device),
-                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+                  "date_utc": utc_now()}
     graphs = export_graphs(model.to("cpu"))
     sizes = {}
     for folder, _prefix in NETWORKS:

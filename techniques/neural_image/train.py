@@ -25,7 +25,6 @@ trained for fewer steps; any option given explicitly overrides the preset's valu
 """
 from __future__ import annotations
 
-import datetime
 import json
 import math
 import time
@@ -42,6 +41,7 @@ from inshade.models import activations as _act
 from inshade.models import encodings as _enc
 from inshade.models.graph import GraphModule
 from inshade.models.lookup_array import LookupArray
+from inshade.provenance import utc_now
 
 IMAGES = ("astronaut", "chelsea", "coffee", "camera", "rocket")  # skimage.data names (RGB or grey)
 ARCHES = ("multires", "siren", "frequency_relu")
@@ -305,7 +305,7 @@ def train(run: Run) -> int:
         "loss": "mse, linear rgb",
         "device": str(device),
         "torch": torch.__version__,
-        "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date_utc": utc_now(),
     }
     provenance = {k: v for k, v in provenance.items() if v is not None}
     render = {"program": RENDER_PROGRAM, "width": s.size, "height": s.size, "input": "uv", "output": "rgb"}

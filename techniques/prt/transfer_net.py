@@ -8,7 +8,6 @@ python -m inshade.techniques.prt.transfer_net. `inshade train prt` runs it first
 from __future__ import annotations
 
 import argparse
-import datetime
 import hashlib
 import json
 import shlex
@@ -24,6 +23,7 @@ from inshade.devices import DeviceError, add_device_argument, resolve_device
 
 from inshade.techniques.prt.transfer_model import export_transfer
 from inshade.techniques.prt.transfer_training import DEFAULTS, EVAL_SKY, train_transfer, training_config
+from inshade.provenance import utc_now
 
 
 def command_options(args: argparse.Namespace, names) -> list[str]:
@@ -159,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
                   "estimator": "cosine-weighted Fibonacci lattice, per-point Cranley-Patterson shift",
                   "loss": "l1 on transfer / scale", "optimizer": "adam, cosine decay to 5%",
                   "device": str(device), "torch": torch.__version__,
-                  "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+                  "date_utc": utc_now()}
     name = getattr(getattr(geometry, "scene", None), "name", "") or "transfer"
     export_transfer(net, frame, out, metrics, provenance, name=f"{name}_transfer")
     resumed = (f" (went on from step {metrics['resumed_from']} of a checkpoint)"
