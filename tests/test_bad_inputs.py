@@ -1,7 +1,7 @@
 """Corpus of malformed inputs: every one is refused by the CLI with one line and exit status 2.
 
-Each case builds a bad input in a fresh folder, runs ``python -m inshade.cli -q ...`` as a
-subprocess and checks the project rule (README, "Nothing silent, nothing partial"):
+Each case builds a bad input in a fresh folder, runs ``python -m inshade.cli -q ...`` in a process
+of its own (see below) and checks the project rule (README, "Nothing silent, nothing partial"):
 
 * exit status 2;
 * stderr is exactly one line, starting with ``inshade: error:`` and naming the file or field;
@@ -12,8 +12,22 @@ subprocess and checks the project rule (README, "Nothing silent, nothing partial
   that makes the loader allocate what a file merely claims (a 1e12-element tensor) fails as a
   MemoryError traceback instead of passing.
 
-Cases are grouped by class; the test id is ``CLASS(N)-case`` with N the size of the class. The
-cases run in parallel once per module (each process is ~0.2 s, ~1 s where a GL context starts).
+How cases run: a ``python -m inshade.cli`` process spends ~1.3 s of its ~1.5 s importing (numpy,
+scipy, trimesh, moderngl, Pillow, the technique records). So the module fixture starts one fork
+server (tests/bad_input_worker.py, with the environment such a subprocess would have) that imports
+those modules once (modules only: no GL context, no thread, no torch), then forks one child per
+case, JOBS at a time. The child sets ``RLIMIT_AS``, changes to the case folder, sends fds 1 and 2 to
+files (fd 0 from /dev/null), and runs ``runpy.run_module("inshade.cli", run_name="__main__",
+alter_sys=True)`` as ``python -m`` does, at the server script's top level, so the interpreter
+itself ends it (SystemExit's status; an uncaught exception's traceback and status 1; atexit,
+flushes, finalization). A child still running after TIMEOUT is killed. A child costs ~0.13 s of
+CPU instead of ~1.5 s: the corpus ~20 s of CPU instead of ~210 s (~10 s on 2 idle cores). ``test_child_is_a_limited_interpreter`` runs control scripts
+through the same server (an 8 GiB allocation must end as a MemoryError traceback, a raise as a
+traceback with status 1, statuses and output pass through, the limit/folder/argv are the case's,
+a sleeper is killed at its timeout); ``test_fork_server_answers_as_python_m`` runs one case again
+as a real ``python -m inshade.cli`` subprocess and compares status, stdout and stderr.
+
+Cases are grouped by class; the test id is ``CLASS(N)-case`` with N the size of the class.
 """
 from __future__ import annotations
 
@@ -25,7 +39,6 @@ import struct
 import subprocess
 import sys
 import zlib
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -573,13 +586,13 @@ _pbr_edit("light_directional_old_program", lambda d: d["lights"].__setitem__(
 
 # --- running ------------------------------------------------------------------------------------------
 IDS = [(cls, name) for cls, cases in CASES.items() for name in cases]
+WORKER = Path(__file__).resolve().with_name("bad_input_worker.py")
+TIMEOUT = 120                                   # seconds per case; a child still running is killed
+JOBS = max(2, min(8, os.cpu_count() or 2))      # children at once
 
 
-def _limit_memory():
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
-
-
-def _run(root: Path, cls: str, name: str) -> dict:
+def _prepare(root: Path, cls: str, name: str) -> dict:
+    """Build the case's folder; what the child is to run, and what to compare after."""
     tmp = root / f"{cls}-{name}"
     tmp.mkdir()
     built = CASES[cls][name](tmp)
@@ -589,25 +602,68 @@ def _run(root: Path, cls: str, name: str) -> dict:
     outputs = [p for p in outputs if not p.exists()]   # e.g. a folder given as -o: it stays, no file appears
     folders = {p.parent for p in [*outputs, *existing] if p.parent.is_dir()}
     listing = {d: sorted(os.listdir(d)) for d in folders if d != Path("/proc")}
-    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    r = subprocess.run([sys.executable, "-m", "inshade.cli", "-q", *argv], capture_output=True, text=True,
-                       errors="replace", cwd=tmp, env=env, timeout=120, preexec_fn=_limit_memory)
     return {"argv": argv, "expect": expect, "outputs": outputs, "existing": existing, "before": before,
-            "listing": listing, "rc": r.returncode, "stderr": r.stderr, "stdout": r.stdout}
+            "listing": listing, "request": {"module": "inshade.cli", "argv": ["-q", *argv], "cwd": str(tmp)}}
+
+
+# Controls: the same worker runs these scripts, to show that a child is what the cases need it to
+# be (test_child_is_a_limited_interpreter): python script.py's status, traceback and output.
+CONTROLS = {
+    "allocates_8_GiB": ("data = bytearray(8 << 30)\nprint('allocated', len(data))\n", {}),
+    "raises": ("raise RuntimeError('deliberate')\n", {}),
+    "exits_3": ("import sys\nprint('to stdout')\nprint('inshade: error: x', file=sys.stderr)\nsys.exit(3)\n", {}),
+    "exits_message": ("raise SystemExit('a message')\n", {}),
+    "limits_and_folder": ("import json, os, resource, sys\nprint(json.dumps([resource.getrlimit(resource.RLIMIT_AS), "
+                          "os.getcwd(), sys.argv, sys.path[0], os.getppid()]))\n", {}),
+    "sleeps_past_timeout": ("import time\ntime.sleep(60)\n", {"timeout": 0.5}),
+}
+
+
+def _run_all(root: Path, jobs: dict[object, dict]) -> dict[object, dict]:
+    """Run every job's request in the fork server; each job gains rc, stdout, stderr, timed_out."""
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    io = root / "_io"   # outside every case folder (their listings are compared)
+    io.mkdir()
+    worker = subprocess.Popen([sys.executable, str(WORKER), str(JOBS), str(MEMORY_LIMIT), str(TIMEOUT)],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              env=env, cwd=root)
+    keys = list(jobs)
+    lines = []
+    for i, key in enumerate(keys):
+        request = dict(jobs[key]["request"], key=i, stdout=str(io / f"{i}.out"), stderr=str(io / f"{i}.err"))
+        lines.append(json.dumps(request))
+    try:   # each child ends by its TIMEOUT at the latest
+        out, err = worker.communicate("\n".join(lines) + "\n", timeout=TIMEOUT * len(keys) / JOBS + 60)
+    finally:
+        if worker.poll() is None:
+            worker.kill()
+    done = {r["key"]: r for r in map(json.loads, out.splitlines())}
+    assert worker.returncode == 0 and len(done) == len(keys), f"fork server: status {worker.returncode}\n{err}"
+    for i, key in enumerate(keys):
+        jobs[key].update(rc=done[i]["rc"], timed_out=done[i]["timed_out"],
+                         stdout=(io / f"{i}.out").read_text(errors="replace"),
+                         stderr=(io / f"{i}.err").read_text(errors="replace"))
+    return jobs
 
 
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
     root = tmp_path_factory.mktemp("bad_inputs")
-    with ThreadPoolExecutor(max_workers=max(2, min(8, os.cpu_count() or 2))) as pool:
-        futures = {key: pool.submit(_run, root, *key) for key in IDS}
-        return {key: f.result() for key, f in futures.items()}
+    jobs = {key: _prepare(root, *key) for key in IDS}
+    for name, (source, extra) in CONTROLS.items():
+        folder = root / f"control-{name}"
+        folder.mkdir()
+        (folder / "control.py").write_text(source)
+        jobs[("control", name)] = {"request": {"path": str(folder / "control.py"), "argv": ["an", "arg"],
+                                               "cwd": str(folder), **extra}}
+    return _run_all(root, jobs)
 
 
 @pytest.mark.parametrize("cls,name", IDS, ids=[f"{c}({len(CASES[c])})-{n}" for c, n in IDS])
 def test_bad_input_is_one_line_exit_2(results, cls, name):
     r = results[(cls, name)]
     what = f"inshade {' '.join(r['argv'])}\nstderr:\n{r['stderr']}"
+    assert not r["timed_out"], f"still running after {TIMEOUT} s: killed\n{what}"
     assert "Traceback" not in r["stderr"], what
     assert r["rc"] == 2, what
     lines = r["stderr"].splitlines()
@@ -619,6 +675,50 @@ def test_bad_input_is_one_line_exit_2(results, cls, name):
         assert p.read_bytes() == r["before"][p], f"{p} changed\n{what}"
     for d, names in r["listing"].items():
         assert sorted(os.listdir(d)) == names, f"files left in {d}\n{what}"
+
+
+@pytest.mark.parametrize("name", CONTROLS)
+def test_child_is_a_limited_interpreter(results, name):
+    """Each case's child is a process of its own under RLIMIT_AS, in its folder, whose status,
+    output and traceback are those of `python script.py`: the checks above would see a loader
+    that allocates what a file claims (a MemoryError traceback), a crash, a wrong status."""
+    r = results[("control", name)]
+    folder = Path(r["request"]["cwd"])
+    what = f"control {name}: status {r['rc']}\nstdout:\n{r['stdout']}\nstderr:\n{r['stderr']}"
+    if name == "sleeps_past_timeout":
+        assert r["timed_out"] and r["rc"] == -9, what
+        return
+    assert not r["timed_out"], what
+    if name in ("allocates_8_GiB", "raises"):
+        lines = r["stderr"].splitlines()
+        assert r["rc"] == 1 and lines[0] == "Traceback (most recent call last):", what
+        assert lines[-1] == ("MemoryError" if name == "allocates_8_GiB" else "RuntimeError: deliberate"), what
+        assert r["stdout"] == "", what
+    elif name == "exits_3":
+        assert (r["rc"], r["stdout"], r["stderr"]) == (3, "to stdout\n", "inshade: error: x\n"), what
+    elif name == "exits_message":
+        assert (r["rc"], r["stdout"], r["stderr"]) == (1, "", "a message\n"), what
+    else:
+        limit, cwd, argv, path0, parent = json.loads(r["stdout"])
+        assert r["rc"] == 0 and r["stderr"] == "", what
+        assert limit == [MEMORY_LIMIT, MEMORY_LIMIT], what
+        assert Path(cwd) == folder and Path(path0) == folder, what
+        assert argv == [str(folder / "control.py"), "an", "arg"], what
+        assert parent != os.getpid(), what
+
+
+def test_fork_server_answers_as_python_m(results):
+    """A case (a weights file that claims 1e12 values) run again as a `python -m inshade.cli`
+    subprocess under the same limit gives the same status, stdout and stderr as its forked child."""
+    r = results[("weights", "tensor_1e12_elements")]
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
+
+    p = subprocess.run([sys.executable, "-m", "inshade.cli", *r["request"]["argv"]], capture_output=True, text=True,
+                       errors="replace", cwd=r["request"]["cwd"], env=env, timeout=TIMEOUT, preexec_fn=limit)
+    assert (p.returncode, p.stdout, p.stderr) == (r["rc"], r["stdout"], r["stderr"]), r["argv"]
 
 
 def test_corpus_size():
