@@ -15,38 +15,34 @@ program (``ProgramSpec.accumulate``) is the exception: each call draws one more 
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import logging
-import math
-from pathlib import Path
 
 import moderngl
 import numpy as np
-from PIL import Image
 
 from inshade.bundle import Bundle, load
-from inshade.codegen.network import generate
-from inshade.codegen.network_sdf import network_sdf_chunks
-from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunks
-from inshade.codegen.spherical_harmonics import sh_chunks
-from inshade.progress import format_seconds
-from inshade.technique import FrameInputs, choice_chunks
+from inshade.scene.description import NetworkSdfRef, Scene, SceneError
+from inshade.scene.display import DisplayMode, glsl_chunk, parse_mode
 
 from .context import GLContextError, gl_info, make_current, shared_context
-from inshade.scene.display import DisplayMode, glsl_chunk, parse_mode
-from .environment import EnvironmentSampler, EnvironmentTextures, environment_image, scene_environment
-from .geometry import MeshGBuffer, gbuffer_layout
+from .environment import EnvironmentTextures
+from .first_draw import draw_timed, first_draw_note
+from .first_draw import first_draw_message  # noqa: F401 (imported from here)
+from .geometry import MeshGBuffer
 from .materials import MaterialTextures
-from inshade.scene.image_io import read_exr
 from .network import NetworkResources
 from .programs import ProgramCache
-from .render import (FullscreenPass, check_gl_error, clear_gl_error, float_target, read_rgba, read_rgba_raw,
-                     release_target)
-from inshade.scene.description import MAX_LIGHTS, NetworkSdfRef, Scene, SceneError, codegen_option_path
+from .render import FullscreenPass, check_gl_error, clear_gl_error, read_rgba, read_rgba_raw
+from .scene_inputs import (SceneEnvironment, bind_scene_resources, environment_sh, reference_texture, scene_texture,
+                           scene_uniforms, sync_shadows)
+from .scene_inputs import rotated_map_sh as _rotated_map_sh  # noqa: F401 (imported from here)
+from .scene_passes import BLEND_LAYERS, Accumulation, BlendPeel, RenderTargets
+from .scene_passes import BLEND_LAYER_READS  # noqa: F401 (imported from here)
+from .scene_program import VERTEX, build_scene_program, codegen_options, gbuffer_defines
 from .shadow import ShadowMaps
+from .sidecar import render_info
 
-VERTEX = "common/fullscreen.vert"
+_scene_texture = scene_texture   # the name callers import it by
 log = logging.getLogger("inshade")
 
 
@@ -71,15 +67,6 @@ def check_capabilities(ctx: moderngl.Context, scene: Scene) -> None:
             raise CapabilityError(f"scene '{scene.name}' needs {name} >= {low}; this context has {have}")
 
 
-def load_reference(path: Path, colour: str = "srgb") -> np.ndarray:
-    """Reference image as linear float32 RGB [H, W, 3], image orientation (row 0 = top)."""
-    if colour == "linear":
-        return np.asarray(read_exr(path), np.float32)[..., :3]
-    encoded = np.asarray(Image.open(path).convert("RGB"), np.float64) / 255.0
-    linear = np.where(encoded <= 0.04045, encoded / 12.92, ((encoded + 0.055) / 1.055) ** 2.4)
-    return linear.astype(np.float32)
-
-
 class SceneRenderer:
     """GL objects and state to draw one scene; call ``release()`` when done (no GL leaks).
 
@@ -91,6 +78,10 @@ class SceneRenderer:
     GL_MAX_TEXTURE_SIZE to exercise a layout that fits it.
     ``target`` is the GLSL every program is assembled and generated for ("330", "450", "es300": the
     WebGL2 export draws the ES programs here first; desktop Mesa compiles them).
+
+    The parts: runtime/scene_program.py builds the scene program, runtime/scene_inputs.py binds
+    what it reads, runtime/scene_passes.py holds the targets and the passes around it,
+    runtime/first_draw.py says what a draw will cost, runtime/sidecar.py records a render.
     """
 
     def __init__(self, scene: Scene, ctx: moderngl.Context | None = None, *, cache: ProgramCache | None = None,
@@ -118,16 +109,27 @@ class SceneRenderer:
         self.resources: list[NetworkResources] = []
         self._net_pass = None
         self._net_key = None
-        self._targets: dict[str, moderngl.Framebuffer] = {}
+        self._targets = RenderTargets(self.ctx)
         self.samples = 0               # samples in the "network" target since the last reset (accumulate)
         self.sample_cap = None         # accumulating programs stop adding samples here (None: one per render)
-        self._accumulate_pass = None   # passes/accumulate.frag, built on the first accumulated sample
-        self._blend_passes = None      # passes/gltf_blend_layer + gltf_blend_resolve, built on the first peel
+        self._accumulation = None      # passes/accumulate.frag, built on the first accumulated sample
+        self._blend_peel = None        # passes/gltf_blend_layer + gltf_blend_resolve, built on the first peel
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self.shadow_maps = ShadowMaps(self.ctx)   # ProgramSpec.shadows: GL objects made on first use, then reused
         self._build()
+        self._init_textures()
+        self._environment = SceneEnvironment(self.ctx)   # while the program samples lib/environment
+        self._sync_environment()
+        self.display_program = self._compile_display()
+        self._display_pass = FullscreenPass(self.ctx, self.display_program)
+        self.reference_image, self._reference_tex = reference_texture(self.ctx, scene)
+        check_gl_error(self.ctx, f"scene '{scene.name}': reference texture")
+
+    def _init_textures(self) -> None:
+        """The scene's textures, a glTF mesh's materials and its G-buffer."""
+        scene = self.scene
         clear_gl_error(self.ctx, f"the textures of scene '{scene.name}'")
-        self.scene_textures = {t.uniform: _scene_texture(self.ctx, t) for t in scene.textures}
+        self.scene_textures = {t.uniform: scene_texture(self.ctx, t) for t in scene.textures}
         self.materials = None          # MaterialTextures of a glTF mesh's materials (lib/gltf_material)
         if "materials" in self.spec.mesh_attributes:
             self.materials = MaterialTextures(self.ctx, scene.mesh.gltf, self.gl)
@@ -138,89 +140,19 @@ class SceneRenderer:
             for note in [*scene.mesh.gltf.notes, *self.materials.notes]:   # conversions, generated tangents, ...
                 log.info("%s: %s", scene.mesh.name, note)
         if scene.mesh is not None:
-            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, version=target,
-                                      visibility=self.spec.visibility, materials=self.materials,
-                                      peel=self.blend_layers > 0)
+            self.gbuffer = MeshGBuffer(self.ctx, scene.mesh.data, self.cache, version=self.target,
+                                       visibility=self.spec.visibility, materials=self.materials,
+                                       peel=self.blend_layers > 0)
         check_gl_error(self.ctx, f"scene '{scene.name}': textures {[t.image.name for t in scene.textures]}")
-        self.environment = None        # EnvironmentTextures while the program samples lib/environment
-        self._environment_key = None
-        self._sync_environment()
-        self.display_program = self.cache.get(VERTEX, "passes/display.frag", version=target,
-                                              chunks={"display_modes": glsl_chunk()})
-        self._display_pass = FullscreenPass(self.ctx, self.display_program)
-        self.reference_image = None
-        if scene.reference is not None:
-            self.reference_image = load_reference(scene.reference.image, scene.reference.colour)
-            self._reference_tex = self.ctx.texture(
-                self.reference_image.shape[1::-1], 3,
-                np.ascontiguousarray(self.reference_image[::-1]).tobytes(), dtype="f4")  # uv (0,0) = bottom-left
-            self._reference_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        else:
-            self._reference_tex = self.ctx.texture((1, 1), 3, np.zeros(3, "f4").tobytes(), dtype="f4")
-        self._reference_tex.repeat_x = self._reference_tex.repeat_y = False
-        check_gl_error(self.ctx, f"scene '{scene.name}': reference texture")
 
     # building ---------------------------------------------------------------------------------------
+    def _compile_display(self) -> moderngl.Program:
+        """passes/display.frag: modes, compare, heat map (the cache has it when nothing changed)."""
+        return self.cache.get(VERTEX, "passes/display.frag", version=self.target,
+                              chunks={"display_modes": glsl_chunk()})
+
     def _codegen_options(self) -> dict:
-        options = {}
-        for n, s in self.scene.settings.items():
-            if s.binding == "codegen":
-                component, option = codegen_option_path(s.target)
-                options.setdefault(component, {})[option] = self.values[n]
-        return {"limits": dict(self.gl), "options": options}  # GL_MAX_* limits, software or not (auto storage)
-
-    def _generate(self, bundles):
-        options = self._codegen_options()
-        return [generate(b, prefix=n.prefix, target=self.target, **options)
-                for b, n in zip(bundles, self.scene.networks)]
-
-    def _geometry_chunks(self, bundles) -> tuple[dict, list]:
-        """Chunks for the scene's geometry and shading besides the networks': the SDF (analytic, or
-        a network SDF with its Generated, returned to get GL resources), the SH basis, the
-        program's declared choices (<choices>) and what its technique generates
-        (``ProgramSpec.chunks``, e.g. PRT's <prt_network>)."""
-        chunks, extra = {}, []
-        sdf = self.scene.sdf
-        if isinstance(sdf, NetworkSdfRef):
-            sdf_ch, gen = network_sdf_chunks(self.sdf_bundle, prefix=sdf.prefix, target=self.target,
-                                                **self._codegen_options())
-            chunks.update(sdf_ch)
-            extra.append(gen)
-        elif sdf is not None:
-            chunks.update(sdf_chunks(sdf))
-        if self.scene.lit:
-            chunks.update(sh_chunks(int(self.scene.environment["degree"])))
-        chunks.update(choice_chunks(self.spec))
-        if self.spec.chunks is not None:
-            try:
-                chunks.update(self.spec.chunks(self.scene, bundles, self.scene.networks, self._codegen_options()))
-            except ValueError as exc:
-                raise SceneError(f"{self.scene.source or self.scene.name}: {exc}") from None
-        return chunks, extra
-
-    def _gbuffer_defines(self) -> dict:
-        """What the G-buffer's readers are told of its targets (runtime/geometry.py gbuffer_layout)."""
-        if self.scene.mesh is None:
-            return {}
-        return gbuffer_layout(self.scene.mesh.data, self.spec.visibility)[2]
-
-    def _defines(self, bundles) -> dict:
-        defines = {s.target: self.values[n] if s.declared is None else s.index(self.values[n])
-                   for n, s in self.scene.settings.items() if s.binding == "define"}
-        defines.update(self._gbuffer_defines())
-        if not bundles:
-            return defines
-        primary, ref = bundles[0], self.scene.networks[0]
-        name = ref.output or primary.outputs[0].name
-        lanes = primary.output_lanes(name)
-        if lanes is None:
-            raise SceneError(f"scene '{self.scene.name}': network {primary.name!r} has no output {name!r} "
-                             f"(outputs: {', '.join(p.name for p in primary.outputs)})")
-        defines.update(FIELD_OUT_OFFSET=lanes[0], FIELD_OUT_DIM=lanes[1])
-        port = next(p for p in primary.outputs if p.name == name)
-        if port.semantic == SRGB_SEMANTIC:   # the network outputs sRGB-encoded colour: decoded for display
-            defines["FIELD_OUT_SRGB"] = 1
-        return defines
+        return codegen_options(self.scene, self.values, self.gl)
 
     def _build(self, bundles=None) -> str:
         """(Re)generate and compile. On failure nothing changes (the last good program keeps
@@ -228,20 +160,15 @@ class SceneRenderer:
         "reuploaded" or "recompiled"."""
         bundles = bundles or self.bundles
         try:
-            generated = self._generate(bundles)
-            chunks = {n.chunk: g.chunk for n, g in zip(self.scene.networks, generated)}
-            geometry, extra = self._geometry_chunks(bundles)
-            chunks.update(geometry)
-            generated = generated + extra   # GL resources of a network SDF bind like a network's
-            check_program_limits(generated, self.gl, self.scene)
-            defines = self._defines(bundles)
-            program = self.cache.get(VERTEX, self.scene.program, version=self.target, defines=defines, chunks=chunks)
-            self._sources = (defines, chunks)
+            built = build_scene_program(self.scene, self.spec, bundles, values=self.values, gl=self.gl,
+                                        target=self.target, sdf_bundle=self.sdf_bundle, cache=self.cache)
+            self._sources = (built.defines, built.chunks)
         except Exception as exc:
             self.error = exc
             raise
         self.error = None
         self.compile_seconds = self.cache.last_compile_seconds
+        generated, program = built.generated, built.program
         same_code = [g.chunk for g in generated] == [g.chunk for g in self.generated]
         if self.resources and same_code:
             for res, g in zip(self.resources, generated):
@@ -307,21 +234,16 @@ class SceneRenderer:
             self.values[name] = old
             raise
 
+    @property
+    def environment(self) -> EnvironmentTextures | None:
+        """The importance-sampled environment textures while the program samples lib/environment."""
+        return self._environment.textures
+
     def _sync_environment(self) -> EnvironmentTextures | None:
         """(Re)build the environment textures when the program uses them and sky/rotation changed."""
         if self.program is None or "u_env_radiance" not in self.program:
             return self.environment
-        try:
-            env = scene_environment(self.scene, self.values)
-        except ValueError as exc:
-            raise SceneError(str(exc)) from None
-        key = (env.get("sky"), float(env.get("rotation", 0.0)), env.get("map"))
-        if self.environment is None or key != self._environment_key:
-            textures = EnvironmentTextures(self.ctx, EnvironmentSampler(environment_image(env)))
-            if self.environment is not None:
-                self.environment.release()
-            self.environment, self._environment_key = textures, key
-        return self.environment
+        return self._environment.sync(self.scene, self.values)
 
     def reload_weights(self) -> str:
         """Re-read every bundle from disk; re-upload without recompiling when the code is unchanged
@@ -336,8 +258,7 @@ class SceneRenderer:
         """Re-assemble the programs from the chunk files (after a .glsl edit)."""
         outcome = self._build(self.bundles)
         try:
-            display = self.cache.get(VERTEX, "passes/display.frag", version=self.target,
-                                     chunks={"display_modes": glsl_chunk()})
+            display = self._compile_display()
         except Exception as exc:
             self.error = exc
             raise
@@ -352,59 +273,19 @@ class SceneRenderer:
         return outcome
 
     # drawing ----------------------------------------------------------------------------------------
-    def _target(self, name: str, width: int, height: int, attachments: int = 1) -> moderngl.Framebuffer:
-        fbo = self._targets.get(name)
-        if fbo is not None and fbo.size == (width, height) and len(fbo.color_attachments) == attachments:
-            return fbo
-        if fbo is not None:
-            release_target(fbo)
-        fbo = self._targets[name] = float_target(self.ctx, width, height, attachments=attachments)
-        return fbo
-
     def _uniforms(self, program, camera, width, height) -> dict:
-        out = {"u_size": (float(width), float(height))}
-        out.update(self.spec.uniforms)
-        out.update(camera.uniforms(width, height))
-        for name, s in self.scene.settings.items():
-            if s.binding == "uniform":
-                v = self.values[name]
-                if isinstance(v, bool):
-                    v = int(v)
-                elif s.type == "choice":   # a choice drives an int uniform: its (declared) index
-                    v = s.index(v)
-                out[s.target] = v
-        if "u_lights" in program:   # lib/lights.glsl: the scene's lights
-            from inshade.scene.description import light_uniforms
-            # a program that never calls scene_light (u_light_kinds unused) reads u_lights as positions
-            if any(light.kind != "point" for light in self.scene.lights) and "u_light_kinds" not in program:
-                raise SceneError(f"lights: {self.scene.program} treats every light as a point light (it reads "
-                                 "u_lights without scene_light from lib/lights); use point lights only")
-            out.update(light_uniforms(self.scene.lights))
-        if self.scene.lit:
-            sh = self.environment_sh()
-            out["u_sh"] = sh.tobytes()
-        if self.spec.frame is not None:   # per-frame CPU work of the technique (e.g. a light matrix)
-            out.update(self.spec.frame(FrameInputs(self.scene, self.values, sh if self.scene.lit else None)))
-        return {k: v for k, v in out.items() if k in program}
+        """What ``program`` is set for ``camera`` at this size (runtime/scene_inputs.py scene_uniforms)."""
+        return scene_uniforms(self.scene, self.spec, self.values, program, camera, width, height, self.environment_sh)
 
     def environment_sh(self) -> np.ndarray:
         """SDF scenes: the radiance SH [K, 3] float32 of the environment (scene + settings)."""
-        env = dict(self.scene.environment)
-        for name, s in self.scene.settings.items():
-            if s.binding == "environment":
-                env[s.target] = self.values[name]
-        if env["sky"] == "map":   # environment.map, projected at load time (scene/description.py)
-            sh = _rotated_map_sh(self.scene.environment_map, float(env["rotation"]))
-        else:
-            sh = environment_sh(env["sky"], float(env["rotation"]), int(env["degree"]))
-        gain = float(env.get("intensity", 1.0))
-        return sh if gain == 1.0 else (sh * np.float32(gain)).astype(np.float32)
+        return environment_sh(self.scene, self.values)
 
     def render_network(self, camera, width: int, height: int, *, force: bool = False) -> moderngl.Framebuffer:
         """The scene pass alone (linear float, alpha = coverage); redrawn only when its inputs change,
         or every call with ``force`` (timing repeated draws of the same view)."""
         make_current(self.ctx)
-        fbo = self._target("network", width, height, self.spec.attachments)
+        fbo = self._targets.target("network", width, height, self.spec.attachments)
         uniforms = self._uniforms(self.program, camera, width, height)
         shadows = self._sync_shadows()
         key = (id(self.program), width, height, self.weights_version, repr(sorted(uniforms.items())), shadows)
@@ -416,14 +297,14 @@ class SceneRenderer:
                 return fbo
             if "u_sample_index" in self.program:
                 uniforms["u_sample_index"] = self.samples
-            draw_into = self._target("sample", width, height, self.spec.attachments)
+            draw_into = self._targets.target("sample", width, height, self.spec.attachments)
         if force or key != self._net_key or self.spec.accumulate:
             self.ctx.scissor = None
             gbuffer = self.gbuffer.draw_camera(camera, width, height) if self.gbuffer is not None else None
             self.ctx.viewport = (0, 0, width, height)
             self._bind_scene_resources(gbuffer)
             if self.blend_layers:
-                opaque = self._target("opaque", width, height, self.spec.attachments)
+                opaque = self._targets.target("opaque", width, height, self.spec.attachments)
                 self._draw_timed(opaque, uniforms, width * height, key)
                 self._peel(camera, width, height, uniforms, opaque, draw_into)
             else:
@@ -435,26 +316,14 @@ class SceneRenderer:
         return fbo
 
     def _bind_scene_resources(self, gbuffer) -> None:
-        """Bind what the scene program samples: its networks' resources, the scene's textures, the
-        environment, the shadow maps and the G-buffer's textures (``gbuffer``, or none)."""
-        unit = 0
-        for block, res in enumerate(self.resources):
-            unit = res.bind(self.program, first_unit=unit, first_block=block * 16)
-        for name, tex in self.scene_textures.items():   # scene.json "textures"
-            if name in self.program:
-                tex.use(location=unit)
-                self.program[name].value = unit
-                unit += 1
-        if "u_env_radiance" in self.program:   # lib/environment: the importance-sampled environment
-            unit = self._sync_environment().bind(self.program, unit)
-        if "u_shadow_map" in self.program or "u_shadow_layers" in self.program:   # lib/shadow_map
-            unit = self.shadow_maps.bind(self.program, unit)
-        if gbuffer is not None:   # deferred mesh pass: texelFetch'ed by the scene program
-            for name, tex in zip([f"u_gbuffer_{n}" for n in self.gbuffer.names], gbuffer):
-                if name in self.program:
-                    tex.use(location=unit)
-                    self.program[name].value = unit
-                    unit += 1
+        """Bind what the scene program samples (runtime/scene_inputs.py); ``gbuffer``: the G-buffer's
+        textures, or none."""
+        bind_scene_resources(self.program, self.resources, self.scene_textures, self._sync_environment,
+                             self.shadow_maps, self.gbuffer.names if self.gbuffer is not None else (), gbuffer)
+
+    def _sync_shadows(self) -> int:
+        """Redraws the shadow maps if the program's request changed; their version (a redraw key)."""
+        return sync_shadows(self.spec, self.scene, self.bundles, self.values, self.shadow_maps)
 
     @property
     def blend_layers(self) -> int:
@@ -466,125 +335,39 @@ class SceneRenderer:
         return BLEND_LAYERS if blended and not self.spec.accumulate and self.spec.attachments == 1 else 0
 
     def _peel(self, camera, width: int, height: int, uniforms: dict, opaque, out) -> None:
-        """The BLEND layers (MeshGBuffer.draw_layer) through the scene program, composited into ``out``."""
-        if self._blend_passes is None:
-            self._blend_passes = tuple(FullscreenPass(self.ctx, self.cache.get(
-                VERTEX, f"passes/{name}.frag", defines=self._gbuffer_defines() or None))
-                for name in ("gltf_blend_layer", "gltf_blend_resolve"))
-        layer_pass, resolve_pass = self._blend_passes
-        accum = [self._target("blend_accum_a", width, height), self._target("blend_accum_b", width, height)]
-        accum[0].clear(0.0, 0.0, 0.0, 1.0)
-        shaded = self._target("blend_layer", width, height)
-        view, proj = camera.view_matrix(), camera.projection(width, height)
-        read = [n for n in self.gbuffer.names if n in BLEND_LAYER_READS]   # u_layer_<name>
-        for k in range(1, self.blend_layers + 1):
-            layer = self.gbuffer.draw_layer(k, view, proj, None, width, height)
+        """The BLEND layers (runtime/scene_passes.py BlendPeel) through the scene program, composited into ``out``."""
+        if self._blend_peel is None:
+            self._blend_peel = BlendPeel(self.ctx, self.cache, gbuffer_defines(self.scene, self.spec))
+
+        def shade(layer, into):
             self.ctx.viewport = (0, 0, width, height)
             self._bind_scene_resources(layer)
-            self._net_pass.render(shaded, uniforms=uniforms)
-            src, dst = accum[(k - 1) % 2], accum[k % 2]
-            layer_pass.render(dst, textures={**self.materials.textures, "u_accum": src.color_attachments[0],
-                                             "u_layer_colour": shaded.color_attachments[0],
-                                             **{f"u_layer_{n}": layer[self.gbuffer.names.index(n)] for n in read}})
-        resolve_pass.render(out, textures={"u_accum": accum[self.blend_layers % 2].color_attachments[0],
-                                           "u_opaque": opaque.color_attachments[0]})
+            self._net_pass.render(into, uniforms=uniforms)
+
+        self._blend_peel.draw(self._targets, camera, width, height, gbuffer=self.gbuffer, layers=self.blend_layers,
+                              material_textures=self.materials.textures, shade=shade, opaque=opaque, out=out)
 
     def _draw_timed(self, target, uniforms, pixels: int, view_key) -> None:
-        """The scene pass, with what to expect said first: on a software renderer the first draw of
-        a program JIT-compiles it (the message says what happened last time on this machine, and a
-        watcher process shows the seconds going by); a view whose last draw took minutes is warned
-        about before it starts. Times are kept in runtime/draw_history.py."""
-        from inshade.progress import waiting
-
-        from . import draw_history
-
-        renderer, program_key = self.gl.get("renderer", ""), self.program_key
-        view = f"{program_key}:{hash_values(self.values)}"   # a frame's time depends on the settings too
-        frame = draw_history.lookup(renderer, view) if program_key else {}
-        estimate = frame["frame_s"] * pixels / frame["pixels"] if frame.get("frame_s") and frame.get("pixels") else 0.0
-        announce, cached = self._first_draw_note()
-        if announce:
-            log.info("%s", announce)
-        if estimate >= SLOW_FRAME_S and view_key != self._net_key:
-            log.warning("this view took about %s to draw last time at these settings (scaled to this size)",
-                        format_seconds(estimate))
-        what = "compiling" if announce and announce.startswith("compiling") else "drawing"
-        marked = self.first_draw_pending and program_key and self.gl.get("software")
-        if marked:   # a software driver compiles at the first draw: a crash here is a compile's
-            warning = draw_history.compile_started(renderer, program_key, f"{self.scene.name} ({self.scene.program})")
-            if warning:
-                log.warning("%s", warning)
-        try:
-            with waiting(f"{what} {self.scene.name}", enabled=bool(announce) or estimate >= SLOW_FRAME_S) as w:
-                self._net_pass.render(target, uniforms=uniforms)
-                if self.first_draw_pending or w.enabled:
-                    self.ctx.finish()
-        finally:   # an exception is not a crash: the mark goes either way
-            if marked:
-                draw_history.compile_finished(renderer, program_key)
+        """The scene pass, with what to expect said first (runtime/first_draw.py draw_timed)."""
+        seconds = draw_timed(lambda: self._net_pass.render(target, uniforms=uniforms), self.ctx,
+                             scene=self.scene, gl=self.gl, program_key=self.program_key, values=self.values,
+                             generated=self.generated, first=self.first_draw_pending,
+                             new_view=view_key != self._net_key, pixels=pixels)
         if self.first_draw_pending:
-            self.first_draw_seconds = w.seconds
+            self.first_draw_seconds = seconds
             self.first_draw_pending = False
-            _DRAWN.add(program_key)
-            if announce and w.seconds >= 2.0:
-                # a first draw far past this view's known frame time was a compile the cache missed
-                missed = cached and w.seconds > 3.0 * estimate
-                log.info("compiled and drawn in %s%s", format_seconds(w.seconds),
-                         " (Mesa's shader cache did not have it)" if missed else "")
-            if program_key and self.gl.get("software"):
-                draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3),
-                                     shader_cache=draw_history.shader_cache_on())
-        elif w.enabled or w.seconds >= 1.0:   # a slow frame is remembered, to warn next time
-            if program_key:
-                draw_history.record(renderer, view, frame_s=round(w.seconds, 3), pixels=pixels)
-
-    def _first_draw_note(self) -> tuple[str | None, bool]:
-        """(what the pending first draw will do on a software renderer, or None; whether Mesa's
-        shader cache had this program last time)."""
-        from . import draw_history
-
-        if not (self.first_draw_pending and self.gl.get("software")):
-            return None, False
-        renderer, program_key = self.gl.get("renderer", ""), self.program_key
-        if program_key in _DRAWN:   # this process drew it already: the driver has it, nothing to say
-            return None, False
-        past = draw_history.lookup(renderer, program_key) if program_key else {}
-        cached = draw_history.shader_cache_on() and past.get("shader_cache") is True
-        return first_draw_message(self.generated, renderer, past.get("first_draw_s"), cached), cached
 
     @property
     def first_draw_note(self) -> str | None:
         """What the next draw is about to do (a JIT compile, and what it took last time), or None."""
-        return self._first_draw_note()[0]
-
-    def _sync_shadows(self) -> int:
-        """Redraws the shadow maps if the program's request changed; their version (a redraw key)."""
-        if self.spec.shadows is not None:
-            request = self.spec.shadows(self.scene, self.bundles, self.values)
-            if request is None:
-                self.shadow_maps.clear()
-            else:
-                self.shadow_maps.update(request)
-        return self.shadow_maps.version
+        return first_draw_note(self.gl, self.program_key, self.generated, self.first_draw_pending)[0]
 
     def _fold_sample(self, sample: moderngl.Framebuffer, width: int, height: int) -> moderngl.Framebuffer:
-        """Running mean of every attachment: "network" (mean of n - 1 samples) + ``sample`` -> the
-        spare target, which then becomes "network" (ping-pong: a pass cannot read its own target)."""
-        n = self.spec.attachments
-        if self._accumulate_pass is None:
-            program = self.cache.get(VERTEX, "passes/accumulate.frag", version=self.target,
-                                     defines={"ACCUMULATE_ATTACHMENTS": n})
-            self._accumulate_pass = FullscreenPass(self.ctx, program)
-        mean = self._target("network", width, height, n)
-        spare = self._target("network_spare", width, height, n)
+        """One more sample into the running mean in "network" (runtime/scene_passes.py Accumulation)."""
+        if self._accumulation is None:
+            self._accumulation = Accumulation(self.ctx, self.cache, self.target, self.spec.attachments)
         self.samples += 1
-        textures = {}
-        for k in range(n):
-            textures[f"u_mean{k}"] = mean.color_attachments[k]
-            textures[f"u_sample{k}"] = sample.color_attachments[k]
-        self._accumulate_pass.render(spare, uniforms={"u_count": self.samples}, textures=textures)
-        self._targets["network"], self._targets["network_spare"] = spare, mean
-        return spare
+        return self._accumulation.fold(self._targets, sample, width, height, self.samples)
 
     def accumulate(self, camera, width: int, height: int, spp: int, *, progress: bool | None = None
                    ) -> moderngl.Framebuffer:
@@ -615,7 +398,7 @@ class SceneRenderer:
         mode = self.scene.display_mode if mode is None else parse_mode(mode)
         split = self.scene.split if split is None else float(split)
         net = self.render_network(camera, width, height)
-        out = self._target(target, width, height)
+        out = self._targets.target(target, width, height)
         ref_view = (0.0, 0.0, 1.0, 1.0)
         if self.scene.reference is not None and self.scene.reference.space == "field":
             ref_view = camera.uniforms(width, height).get("u_view", ref_view)
@@ -654,72 +437,14 @@ class SceneRenderer:
     def info(self, camera, width: int, height: int, *, mode=None, split=None) -> dict:
         """What a sidecar records: enough to re-render the same pixels (``inshade render --from``)."""
         mode = self.scene.display_mode if mode is None else parse_mode(mode)
-        common = {
-            "gl": {k: self.gl[k] for k in ("vendor", "renderer", "version", "glsl_version", "software")},
-            "spp": self.samples,   # samples averaged (accumulating programs; else 1)
-            "render": {"program": self.scene.program, "width": width, "height": height,
-                       "colour": "linear rgb, float32", "uv": "(0,0) bottom-left, pixel centres"},
-            "scene": {"name": self.scene.name,
-                      "path": str(Path(self.scene.source).resolve()) if self.scene.source else None},
-            "view": {"camera": camera.to_dict(), "mode": mode.name.lower(),
-                     "split": self.scene.split if split is None else float(split),
-                     "settings": json.loads(json.dumps(self.values))},
-        }
-        if not self.bundles:
-            return {**common, "bundle": None, "bundles": [], **self._geometry_info()}
-        primary = self.bundles[0]
-        storages = {}
-        for g in self.generated:
-            for row in g.plan.rows:
-                if row.storage and row.storage != "-":
-                    storages[row.storage] = storages.get(row.storage, 0) + 1
-        totals = {}
-        for g in self.generated:
-            for k, v in g.plan.totals().items():
-                totals[k] = totals.get(k, 0) + v
-        ref = self.scene.networks[0]
-        return {
-            "bundle": {"name": primary.name, "kind": primary.kind,
-                       "path": str(primary.path) if primary.path else None, "digest": primary.digest()},
-            "bundles": [{"name": b.name, "digest": b.digest(), "prefix": n.prefix}
-                        for b, n in zip(self.bundles, self.scene.networks)],
-            **common,
-            "render": {**common["render"], "input": primary.inputs[0].name,
-                       "output": ref.output or primary.outputs[0].name,
-                       "storage": self.values.get("storage", "auto"),
-                       "lut_filter": self.values.get("lut_filter", "exact")},
-            "plan": {"storage": storages, "totals": totals},
-            **(self._geometry_info() if self.scene.lit else {}),
-        }
-
-    def _geometry_info(self) -> dict:
-        """Sidecar record of the lit geometry (SDF or mesh) and its environment."""
-        sdf = self.scene.sdf
-        env = dict(self.scene.environment)
-        for name, s in self.scene.settings.items():
-            if s.binding == "environment":
-                env[s.target] = self.values[name]
-        if sdf is None:
-            mesh = self.scene.mesh
-            # a built-in shape is recorded by name and parameters (geometry/shapes.py rebuilds it)
-            source = {"path": str(mesh.path)} if mesh.path is not None else \
-                {"path": None, "shape": mesh.shape, **mesh.params}
-            return {"mesh": {**source, "name": mesh.name, "vertices": int(len(mesh.data.vertices)),
-                             "faces": int(len(mesh.data.faces))}, "environment": env}
-        if isinstance(sdf, NetworkSdfRef):
-            record = {"path": str(sdf.path), "name": self.sdf_bundle.name, "network": True,
-                      "digest": self.sdf_bundle.digest()}
-        else:
-            record = {"path": str(sdf.path) if sdf.path else None, "name": sdf.name, **sdf.to_dict(),
-                      "chunk_sha256": hashlib.sha256(sdf_chunks(sdf)[SDF_CHUNK].encode()).hexdigest()}
-        return {"sdf": record, "environment": env}
+        return render_info(self.scene, self.values, self.gl, samples=self.samples, bundles=self.bundles,
+                           generated=self.generated, sdf_bundle=self.sdf_bundle, camera=camera,
+                           width=width, height=height, mode=mode, split=split)
 
     def release(self, keep=()) -> None:
         """Release every GL object this renderer created (programs stay with the cache unless owned;
         ``keep``: programs another renderer on the same cache still uses)."""
-        for fbo in self._targets.values():
-            release_target(fbo)
-        self._targets.clear()
+        self._targets.release()
         for res in self.resources:
             res.release()
         self.resources = []
@@ -728,108 +453,23 @@ class SceneRenderer:
             programs.append(self.gbuffer.program)
             self.gbuffer.release()
             self.gbuffer = None
-        if self._accumulate_pass is not None:
-            programs.append(self._accumulate_pass.program)
-        for p in (self._net_pass, self._display_pass, self._accumulate_pass, *(self._blend_passes or ())):
+        if self._accumulation is not None:
+            programs.append(self._accumulation.program)
+        for p in (self._net_pass, self._display_pass):
             if p is not None:
                 p.vao.release()
-        self._net_pass = self._display_pass = self._accumulate_pass = self._blend_passes = None
+        for part in (self._accumulation, self._blend_peel):
+            if part is not None:
+                part.release()
+        self._net_pass = self._display_pass = self._accumulation = self._blend_peel = None
         self._reference_tex.release()
         for tex in self.scene_textures.values():
             tex.release()
         self.scene_textures = {}
-        if self.environment is not None:
-            self.environment.release()
-            self.environment = None
+        self._environment.release()
         self.shadow_maps.release()
         if self.owns_programs:
             for p in programs:
                 if p is not None and not any(p is k for k in keep):
                     self.cache.discard(p)
         self.program = None
-
-
-_DRAWN: set[str] = set()   # program keys this process has drawn (their first draw is said once)
-SRGB_SEMANTIC = "srgb"   # an output port whose values are sRGB-encoded (e.g. fitted to sRGB pixels)
-SLOW_FRAME_S = 30.0   # a view whose last draw took this long is warned about before it starts
-BLEND_LAYERS = 4      # BLEND surfaces peeled per pixel: a fifth one behind four others is not drawn
-BLEND_LAYER_READS = ("uv", "uv_grad", "uv1", "uv1_dy")   # a layer's G-buffer targets passes/gltf_blend_layer reads
-
-
-def hash_values(values) -> str:
-    return hashlib.sha256(repr(sorted((k, repr(v)) for k, v in dict(values).items())).encode()).hexdigest()[:16]
-
-
-def check_program_limits(generated, gl: dict, scene) -> None:
-    """What the scene's networks need together, checked before compiling: codegen plans each
-    network against the limits alone, but one program holds them all (e.g. six networks of three
-    uniform blocks each: 18 blocks where llvmpipe allows 15)."""
-    from inshade.codegen.glsl import TextureResource, UniformBlockResource
-    from inshade.codegen.limits import limit
-
-    blocks = sum(isinstance(r, UniformBlockResource) for g in generated for r in g.resources)
-    cap = limit(gl, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS")
-    if blocks > cap:
-        raise SceneError(f"scene '{scene.name}': its {len(generated)} networks need {blocks} uniform blocks "
-                         f"together; GL_MAX_FRAGMENT_UNIFORM_BLOCKS is {cap} (choose storage 'auto', "
-                         f"'inline' or 'texture')")
-    samplers = sum(isinstance(r, TextureResource) for g in generated for r in g.resources) + len(scene.textures)
-    samplers += scene.spec.shadows is not None   # lib/shadow_map: u_shadow_map
-    samplers += 2 * ("materials" in scene.spec.mesh_attributes)   # lib/gltf_material's two textures
-    cap = limit(gl, "GL_MAX_TEXTURE_IMAGE_UNITS")
-    if samplers > cap:
-        raise SceneError(f"scene '{scene.name}': its networks and textures need {samplers} texture units "
-                         f"together; GL_MAX_TEXTURE_IMAGE_UNITS is {cap}")
-
-
-def first_draw_message(generated, renderer: str = "", previous: float | None = None,
-                       shader_cache: bool = False) -> str | None:
-    """What a software renderer's first draw of these networks is about to do, from their plans
-    and what this machine recorded (``previous``: the seconds of the last first draw of this
-    program, None if never; ``shader_cache``: it was compiled with Mesa's shader cache on, and the
-    cache is on now): "compiling a network of 4 dense layers up to 64 wide (inline) (llvmpipe JIT at
-    the first draw: seconds to minutes; ...)". None when no network has a dense layer."""
-    nets = []
-    for g in generated:
-        plan = getattr(g, "plan", None)
-        dense = [r for r in (plan.rows if plan is not None else []) if r.type == "dense"]
-        if not dense:
-            continue
-        dims = [int(d) for r in dense for d in str(r.shape).split("->")[-1:]]
-        storage = "+".join(sorted({r.storage for r in dense}))
-        nets.append(f"{len(dense)} dense layers up to {max(dims)} wide ({storage})")
-    if not nets:
-        return None
-    what = f"a network of {nets[0]}" if len(nets) == 1 else f"{len(nets)} networks: {'; '.join(nets)}"
-    name = str(renderer).split(" ")[0] or "software renderer"
-    if previous is not None and shader_cache:
-        return f"drawing {what} (compiled before on this machine; Mesa's shader cache should make it quick)"
-    if previous is not None:
-        return f"compiling {what} ({name} JIT at the first draw; {format_seconds(previous)} last time)"
-    return (f"compiling {what} ({name} JIT at the first draw: seconds to minutes; Mesa's shader cache keeps "
-            "it for later runs)")
-
-
-def _rotated_map_sh(coeffs: np.ndarray, rotation_deg: float) -> np.ndarray:
-    """An environment map's SH rotated about +y, float32, as codegen.sdf.environment_sh does for
-    the sky presets."""
-    from inshade.sh import rotate_sh, rotation_matrix
-
-    if rotation_deg:
-        coeffs = rotate_sh(coeffs, rotation_matrix([0.0, 1.0, 0.0], math.radians(rotation_deg)))
-    return np.asarray(coeffs, np.float32)
-
-
-def _scene_texture(ctx: moderngl.Context, t) -> moderngl.Texture:
-    """A scene.json texture: RGBA8 bytes as stored (no sRGB decode), uv (0,0) = bottom-left."""
-    data = np.asarray(Image.open(t.image).convert("RGBA"), np.uint8)[::-1]
-    tex = ctx.texture(data.shape[1::-1], 4, np.ascontiguousarray(data).tobytes(), alignment=1)
-    if t.mipmaps:
-        tex.build_mipmaps()
-        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        tex.anisotropy = min(t.anisotropy, ctx.max_anisotropy)
-    else:
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-    tex.repeat_x = tex.repeat_y = t.repeat
-    return tex
-
