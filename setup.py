@@ -6,8 +6,9 @@ from pathlib import Path
 from setuptools import setup
 
 HERE = Path(__file__).resolve().parent
-FIXED = ["inshade", "inshade.bench", "inshade.convert", "inshade.codegen", "inshade.models", "inshade.runtime", "inshade.scene", "inshade.geometry",
-         "inshade.viewer", "inshade.shaders", "inshade.techniques", "inshade.web"]
+FIXED = ["inshade", "inshade.commands", "inshade.bench", "inshade.convert", "inshade.codegen", "inshade.models",
+         "inshade.runtime", "inshade.scene", "inshade.geometry", "inshade.viewer", "inshade.shaders", "inshade.techniques",
+         "inshade.web"]
 TECHNIQUES = sorted(f"inshade.techniques.{d.name}" for d in (HERE / "techniques").iterdir()
                     if (d / "__init__.py").is_file())
 # The GLSL folders and the web page's folder are data packages (their files ship through

@@ -81,7 +81,8 @@ def test_runtime_names_no_technique():
     pattern = re.compile(r"\b(" + "|".join(map(re.escape, names)) + r")\b")
     found = []
     for folder in RUNTIME_DIRS:
-        for path in [*sorted((ROOT / folder).rglob("*.py")), *([ROOT / "inshade/cli.py"] * (folder == "runtime"))]:
+        cli = [ROOT / "inshade/cli.py", *sorted((ROOT / "inshade/commands").glob("*.py"))]   # the command line
+        for path in [*sorted((ROOT / folder).rglob("*.py")), *(cli * (folder == "runtime"))]:
             text = path.read_text()
             found += [f"{path.relative_to(ROOT)}: {m}" for m in pattern.findall(text)]
             if "inshade.techniques" in text:

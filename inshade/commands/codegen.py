@@ -1,0 +1,210 @@
+"""`inshade codegen`: a bundle's (or an asset's network's) GLSL function, its plan report, and with
+-o the GLSL, its manifest and the resources it binds; --program: an asset's whole pass."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from .common import STDOUT, UserError, asset_networks, check_output, count, resolve, write_error
+
+
+def add_parser(sub) -> None:
+    from inshade.codegen import FILTERS, STORAGE_MODES, TARGETS
+
+    p = sub.add_parser("codegen", help="bundle -> GLSL (prints the plan report)",
+                       description="Generate the GLSL function of a bundle; prints the plan report. With -o, "
+                                   "writes the flattened GLSL, a .json manifest and the resources "
+                                   "(.resources.safetensors) the code binds. Given an asset, generates the "
+                                   "network its scene.json names; an asset with several networks (e.g. a PRT "
+                                   "transfer network over a network SDF) needs --network PREFIX to pick one.")
+    p.add_argument("bundle",
+                   help="bundle folder (bundle.json + weights.safetensors), or an asset folder / shipped asset name")
+    p.add_argument("--network", metavar="PREFIX",
+                   help="the asset's network to generate, by its prefix (needed when it has several); 'all' "
+                        "generates each (-o net.glsl writes net.PREFIX.glsl per network)")
+    p.add_argument("--program", action="store_true",
+                   help="write the asset's whole pass instead: its fragment stage with every include resolved "
+                        "(-o PASS.frag), the vertex stage beside it, and a .json of the uniforms and resources to bind")
+    p.add_argument("-o", "--output", help="GLSL file to write (- : the GLSL alone on standard output, the plan on "
+                                          "stderr; only for code that binds no resources)")
+    p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
+    p.add_argument("--target", choices=TARGETS, default="330", help="GLSL target")
+    p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
+    p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")
+    p.add_argument("--calls", type=count, default=1, metavar="N",
+                   help="how many times your shader evaluates the function per pixel (e.g. a march's steps): on "
+                        "a driver that caps a pixel's loop iterations (llvmpipe) the dense loops unroll to fit")
+    p.add_argument("--prefix", help="name prefix of the generated symbols (default: the network's prefix in "
+                                    "the asset's scene.json, else net)")
+    p.add_argument("--no-gl", action="store_true", help="plan against GL 3.3's minimum limits instead of this "
+                                                          "machine's (no GL context is made)")
+    p.set_defaults(func=cmd_codegen)
+
+
+def cmd_codegen(args) -> int:
+    from inshade import bundle as bundle_mod
+
+    if args.output not in (None, STDOUT):
+        check_output(args.output)
+    if Path(args.bundle).suffix.lower() == ".onnx":   # converted in memory (inshade convert writes it)
+        from inshade.convert.onnx_model import to_bundle
+
+        scene, b = None, to_bundle(args.bundle)[0]
+        if args.network is not None:
+            raise UserError(f"{args.bundle}: --network picks a network of an asset; this is an ONNX file")
+        return _codegen(args, b, args.prefix, args.output)
+    src = resolve(args.bundle)
+    scene, nets = asset_networks(src)
+    prefix = args.prefix
+    if args.program:
+        return _codegen_program(args, src)
+    if args.network == "all":
+        if scene is None or not nets:
+            raise UserError(f"{src}: --network all: needs an asset with networks (a folder with scene.json)")
+        if args.output == STDOUT and len(nets) > 1:
+            raise UserError(f"-o -: {len(nets)} networks would share standard output; write to a file (-o net.glsl "
+                            "becomes net.PREFIX.glsl per network)")
+        for role, net_prefix, bpath in nets:
+            print(f"== network {net_prefix} ({role}, {Path(bpath).name})")
+            out = args.output if args.output in (None, STDOUT) else str(
+                Path(args.output).with_name(f"{Path(args.output).stem}.{net_prefix}{Path(args.output).suffix}"))
+            _codegen(args, bundle_mod.load(bpath), net_prefix, out)
+        return 0
+    if scene is None:
+        if args.network is not None:
+            raise UserError(f"{src}: --network picks a network of an asset (a folder with scene.json); "
+                            "this is a bundle")
+        bpath = src
+    else:
+        chosen = _pick_network(args.bundle, scene, nets, args.network)
+        bpath = chosen[2]
+        prefix = prefix or chosen[1]
+    return _codegen(args, bundle_mod.load(bpath), prefix, args.output)
+
+
+def _pick_network(src, scene, nets, prefix):
+    prefixes = ", ".join(p for _, p, _ in nets)
+    if not nets:
+        raise UserError(f"{src}: scene '{scene.name}' uses no networks (e.g. an analytic SDF); nothing to generate")
+    if prefix is not None:
+        for net in nets:
+            if net[1] == prefix:
+                return net
+        raise UserError(f"{src}: --network {prefix}: no such network (this asset has: {prefixes})")
+    if len(nets) > 1:
+        raise UserError(f"{src}: uses {len(nets)} networks; pick one with --network PREFIX ({prefixes})")
+    return nets[0]
+
+
+def _resource_manifest(resources) -> tuple[list, dict]:
+    """(manifest entries, {name: array}) of generated GL resources, for a .resources.safetensors."""
+    import numpy as np
+
+    from inshade.codegen.glsl import TextureResource
+
+    entries, tensors = [], {}
+    for res in resources:
+        if isinstance(res, TextureResource):
+            kind = "texture2d_array" if res.array else f"texture{res.dims}d"
+            entries.append({"name": res.name, "kind": kind, "dtype": res.dtype, "filter": res.filter,
+                            "shape": list(res.data.shape), "mips": [f"{res.name}.mip{k}" for k in range(1, res.levels)]})
+            tensors[res.name] = res.data
+            tensors.update({f"{res.name}.mip{k}": m for k, m in enumerate(res.mips, 1)})
+        else:
+            entries.append({"name": res.name, "kind": "uniform_block_std140", "bytes": res.nbytes})
+            tensors[res.name] = np.frombuffer(res.data, "uint8")
+    return entries, tensors
+
+
+def _write_group(out: Path, text: str, manifest: dict, tensors: dict, extra: dict | None = None) -> list[Path]:
+    """out (text), out.json (manifest), out's .resources.safetensors (when there are tensors) and any
+    ``extra`` {path: text}: all together or none."""
+    from safetensors.numpy import save_file
+
+    from inshade.files import atomic_files
+
+    rpath = out.with_suffix(".resources.safetensors")
+    if tensors:
+        manifest["resources_file"] = rpath.name
+    extra = extra or {}
+    paths = [out, out.with_suffix(out.suffix + ".json"), *extra] + ([rpath] if tensors else [])
+    try:
+        with atomic_files(*paths) as temps:
+            temps[0].write_text(text)
+            temps[1].write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+            for tmp, body in zip(temps[2:], extra.values()):
+                tmp.write_text(body)
+            if tensors:
+                save_file(tensors, str(temps[-1]))
+    except OSError as e:
+        raise write_error(out, e) from None
+    return paths
+
+
+def _codegen_program(args, src: Path) -> int:
+    """--program: the scene's whole pass, includes resolved, and what to bind to it."""
+    import numpy as np
+
+    from inshade.runtime.context import shared_context
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.scene.description import load_scene
+
+    if args.output in (None, STDOUT):
+        raise UserError("--program: give -o PASS.frag (the vertex stage, manifest and resources go beside it)")
+    check_output(args.output)
+    scene = load_scene(src)
+    renderer = SceneRenderer(scene, shared_context(), settings={"storage": args.storage})
+    try:
+        sources = renderer.assembled()
+        width, height = scene.size
+        values = renderer.uniform_values(scene.make_camera(), width, height)
+        entries, tensors = _resource_manifest([r for g in renderer.generated for r in g.resources])
+    finally:
+        renderer.release()
+    uniforms = {name: (np.frombuffer(value, np.float32).tolist() if isinstance(value, (bytes, bytearray))
+                       else list(value) if isinstance(value, tuple) else value) for name, value in values.items()}
+    out = Path(args.output)
+    vert = out.with_suffix(".vert") if out.suffix == ".frag" else out.with_name(out.stem + ".vert" + out.suffix)
+    manifest = {"scene": str(src), "program": scene.program, "vertex_shader": vert.name,
+                "size": [width, height], "uniforms": uniforms, "resources": entries,
+                "note": "a fullscreen triangle (the vertex stage) drawing the fragment stage; bind the resources "
+                        "under their names and set the uniforms (values of the scene's default view and settings)"}
+    paths = _write_group(out, sources["fragment"], manifest, tensors, {vert: sources["vertex"]})
+    for p in paths:
+        print(f"wrote {p}", file=sys.stderr)
+    return 0
+
+
+def _codegen(args, b, prefix, output) -> int:
+    from inshade.codegen import generate
+    from inshade.shaders import flatten
+
+    if args.no_gl:
+        limits = {}
+    else:   # plan against this machine's limits when it can make a context
+        from inshade.runtime.context import machine_limits
+
+        limits = machine_limits()
+    gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
+                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits, calls=args.calls)
+    if output == STDOUT:   # the GLSL alone on stdout; the plan goes to stderr
+        if gen.resources:
+            raise UserError(f"-o -: this GLSL binds {len(gen.resources)} resources "
+                            f"({', '.join(r.name for r in gen.resources)}) that standard output cannot carry; "
+                            "write to a file (-o net.glsl) or use --storage inline")
+        print(gen.plan.report(), file=sys.stderr)
+        sys.stdout.write(flatten("network", chunks={"network": gen.chunk}))
+        return 0
+    print(gen.plan.report())
+    if output is None:
+        return 0
+    out = Path(output)
+    entries, tensors = _resource_manifest(gen.resources)
+    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(),
+                "function": gen.function, "in_dim": gen.in_dim, "out_dim": gen.out_dim, "target": args.target,
+                "plan": gen.plan.to_dict(), "resources": entries}
+    # the GLSL, its manifest and its resources appear together or not at all
+    _write_group(out, flatten("network", chunks={"network": gen.chunk}), manifest, tensors)
+    print(f"wrote {out} ({len(gen.resources)} resources)", file=sys.stderr)
+    return 0
