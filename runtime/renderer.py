@@ -27,7 +27,6 @@ from inshade.scene.display import DisplayMode, glsl_chunk, parse_mode
 from .context import GLContextError, gl_info, make_current, shared_context
 from .environment import EnvironmentTextures
 from .first_draw import draw_timed, first_draw_note
-from .first_draw import first_draw_message  # noqa: F401 (imported from here)
 from .geometry import MeshGBuffer
 from .materials import MaterialTextures
 from .network import NetworkResources
@@ -35,14 +34,11 @@ from .programs import ProgramCache
 from .render import FullscreenPass, check_gl_error, clear_gl_error, read_rgba, read_rgba_raw
 from .scene_inputs import (SceneEnvironment, bind_scene_resources, environment_sh, reference_texture, scene_texture,
                            scene_uniforms, sync_shadows)
-from .scene_inputs import rotated_map_sh as _rotated_map_sh  # noqa: F401 (imported from here)
 from .scene_passes import BLEND_LAYERS, Accumulation, BlendPeel, RenderTargets
-from .scene_passes import BLEND_LAYER_READS  # noqa: F401 (imported from here)
 from .scene_program import VERTEX, build_scene_program, codegen_options, gbuffer_defines
 from .shadow import ShadowMaps
 from .sidecar import render_info
 
-_scene_texture = scene_texture   # the name callers import it by
 log = logging.getLogger("inshade")
 
 

@@ -22,7 +22,8 @@ from inshade.runtime.environment import (EnvironmentSampler, EnvironmentTextures
 from inshade.scene.image_io import load_environment, write_exr
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
-from inshade.runtime.renderer import SceneRenderer, _rotated_map_sh
+from inshade.runtime.renderer import SceneRenderer
+from inshade.runtime.scene_inputs import rotated_map_sh as _rotated_map_sh
 from inshade.scene.description import SceneError, load_scene
 
 from parity import assert_parity, parity_settings

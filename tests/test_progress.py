@@ -104,7 +104,7 @@ def test_first_draw_message_from_the_plan():
     """runtime.renderer: what a software renderer's first draw is about to JIT, derived from the plan."""
     from types import SimpleNamespace as NS
 
-    from inshade.runtime.renderer import first_draw_message
+    from inshade.runtime.first_draw import first_draw_message
 
     def gen(*rows):
         return NS(plan=NS(rows=[NS(type=t, shape=s, storage=st) for t, s, st in rows]))

@@ -2,7 +2,7 @@
 object_textures.py): deterministic meshes and textures, sane ranges, the low/high stump pair
 sharing one texture set and uv layout, uv seams that weld into closed outward-wound surfaces, the
 OBJ + PNG round trip through ``inshade.geometry.mesh.load_mesh``, and ``sample_textures`` against GL's own
-lookup of the written PNGs as the renderer uploads them (``runtime/renderer.py _scene_texture``)."""
+lookup of the written PNGs as the renderer uploads them (``runtime/scene_inputs.py scene_texture``)."""
 from __future__ import annotations
 
 import numpy as np
@@ -222,7 +222,7 @@ def _gl_lookup(gl, png, uvs: np.ndarray) -> np.ndarray:
     ``uvs`` [N, 2]: RGB as stored (k / 255, no colour decode)."""
     from inshade.runtime.programs import ProgramCache
     from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
-    from inshade.runtime.renderer import _scene_texture
+    from inshade.runtime.scene_inputs import scene_texture as _scene_texture
     from inshade.scene.description import SceneTexture
 
     tex = _scene_texture(gl, SceneTexture("u_tex", png, mipmaps=False, repeat=False))

@@ -40,7 +40,8 @@ from inshade.runtime.environment import ENV_UNIFORMS
 from inshade.runtime.geometry import FRAGMENT as GBUFFER_FRAGMENT, VERTEX as MESH_VERTEX, cutout_chunks, \
     gbuffer_attributes, gbuffer_layout
 from inshade.runtime.network import texture_levels
-from inshade.runtime.renderer import BLEND_LAYER_READS, VERTEX, SceneRenderer
+from inshade.runtime.renderer import VERTEX, SceneRenderer
+from inshade.runtime.scene_passes import BLEND_LAYER_READS
 from inshade.scene.description import load_scene
 from inshade.scene.display import UI_MODES, glsl_chunk, parse_mode
 from inshade.scene.tonemap import TONEMAPPED_MODES

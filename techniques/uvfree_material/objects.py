@@ -14,7 +14,7 @@ from seeded noise with no downloads; the same (name, resolution, seed) gives ide
 Conventions (shared by ``make_object``, the PNGs and ``sample_textures``):
 
 - Texture arrays are [H, W, 3] float32, image order: row 0 is the TOP of the picture (v = 1), the
-  same order as the PNG files, and the order ``runtime/renderer.py _scene_texture`` uploads
+  same order as the PNG files, and the order ``runtime/scene_inputs.py scene_texture`` uploads
   (it flips rows so GL's uv (0, 0) is the bottom-left texel). Texel (row i, column j) has its
   centre at uv ((j + 0.5) / W, 1 - (i + 0.5) / H).
 - ``albedo``: linear RGB; ``normal``: tangent-space normal stored as n * 0.5 + 0.5 (x along the
