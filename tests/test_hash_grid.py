@@ -20,7 +20,7 @@ from inshade.bundle import BundleError, load
 from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.components import ComponentError, check_node, resolve_params
-from inshade.grid_layout import grid_levels, table_rows
+from inshade.grid_layout import GridLayoutError, grid_levels, table_rows
 from inshade.models import GraphModule
 from inshade.models.hash_grid import DenseGrid, HashGrid
 from inshade.models.activations import Tanh
@@ -168,7 +168,7 @@ def test_layout_matches_tiny_cuda_nn(dims, levels, base, pls, log2, grid):
         levels = min(levels, 4)
     want = tcnn_layout(dims, levels, base, pls, log2, grid)
     if want[-1][0] >= 2 ** 24:       # float32 p keeps no fraction: refused
-        with pytest.raises(ComponentError, match=rf"^levels: level {next(i for i, w in enumerate(want) if w[0] >= 2 ** 24)} "):
+        with pytest.raises(GridLayoutError, match=rf"^levels: level {next(i for i, w in enumerate(want) if w[0] >= 2 ** 24)} "):
             grid_levels(dims, levels, base, pls, log2, grid)
         return
     got = grid_levels(dims, levels, base, pls, log2, grid)

@@ -19,7 +19,8 @@ TECHNIQUES = "inshade.techniques"
 # Layer -> the layers it must not import. The CLI (inshade.cli), the conversion front end
 # (inshade.convert), the benches (inshade.bench) and the techniques sit on top and may import
 # any shared layer.
-ABOVE_SHARED = ("inshade.techniques", "inshade.viewer", "inshade.bench", "inshade.convert", "inshade.cli")
+ABOVE_SHARED = ("inshade.techniques", "inshade.viewer", "inshade.bench", "inshade.convert", "inshade.cli",
+                "inshade.commands")
 LAYER_RULES = {
     "inshade.shaders": ("inshade.codegen", "inshade.models", "inshade.runtime", "inshade.scene", "inshade.geometry",
                         "inshade.technique", *ABOVE_SHARED),
@@ -28,17 +29,20 @@ LAYER_RULES = {
     "inshade.scene": ("inshade.models", "inshade.runtime", *ABOVE_SHARED),      # the GL-free scene model
     "inshade.models": ("inshade.runtime", "inshade.scene", *ABOVE_SHARED),
     "inshade.runtime": ("inshade.models", *ABOVE_SHARED),
-    "inshade.viewer": ("inshade.models", "inshade.techniques", "inshade.bench", "inshade.convert", "inshade.cli"),
+    "inshade.viewer": ("inshade.models", "inshade.techniques", "inshade.bench", "inshade.convert", "inshade.cli",
+                       "inshade.commands"),
 }
 # The core (inshade/*.py: the bundle, the component specs, SH math, files, the trainer's command shell)
 # sits below every folder; the registry of techniques sits on the shader library; the apps on top.
 SHARED = ("inshade.shaders", "inshade.geometry", "inshade.codegen", "inshade.scene", "inshade.models",
           "inshade.runtime", "inshade.web")
 REGISTRY = ("inshade.technique", "inshade.papers", "inshade.trainer")
-APPS = ("inshade.cli", "inshade.notebook")
+APPS = ("inshade.cli", "inshade.commands", "inshade.notebook")
 CORE = ("inshade.asset_folder", "inshade.bundle", "inshade.command", "inshade.components", "inshade.devices",
-        "inshade.envelope", "inshade.extras", "inshade.files", "inshade.grid_layout", "inshade.lit_settings",
-        "inshade.metrics", "inshade.pixels", "inshade.port_layout", "inshade.progress", "inshade.random", "inshade.sh")
+        "inshade.envelope", "inshade.envelope_base", "inshade.envelope_encodings", "inshade.envelope_ops",
+        "inshade.extras", "inshade.files", "inshade.grid_layout", "inshade.lit_settings",
+        "inshade.metrics", "inshade.pixels", "inshade.port_layout", "inshade.progress", "inshade.provenance",
+        "inshade.random", "inshade.sh")
 LAYER_RULES.update({m: (*SHARED, *REGISTRY, *APPS, *ABOVE_SHARED) for m in CORE})
 LAYER_RULES.update({m: (*[s for s in SHARED if s != "inshade.shaders"], *APPS, *ABOVE_SHARED) for m in REGISTRY})
 # (importing file, imported module) -> why this edge is allowed.
