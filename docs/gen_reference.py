@@ -238,7 +238,7 @@ def assets_reference(copy) -> str:
         out += [f"## `{folder.name}`", "", _cell(scene.title or folder.name), ""]
         if tech:
             out += [f"Technique: [`{tech}`](../techniques/{tech}.md)", ""]
-        for png in sorted(folder.glob("preview*.png")):
+        for png in sorted((DOCS / "pictures" / "assets" / folder.name).glob("preview*.png")):   # made by docs/make_pictures.py
             dest = f"reference/previews/{folder.name}{png.stem[len('preview'):]}.png"
             copy(png, dest)
             out.append(f"![{folder.name} {png.stem}](previews/{Path(dest).name}){{ loading=lazy width=256 }}")
