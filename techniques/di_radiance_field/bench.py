@@ -178,6 +178,10 @@ def quality(test: np.ndarray, ref: np.ndarray, use_flip: bool) -> tuple[float, f
 # ---------------------------------------------------------------------------------------------
 # run
 
+def _log(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
 def run(args) -> int:
     from inshade.metrics import flip_unavailable
     from inshade.runtime.context import gl_info, shared_context
@@ -186,16 +190,64 @@ def run(args) -> int:
     from . import field, model
     from .train import march_render
 
-    def log(msg):
-        print(msg, file=sys.stderr, flush=True)
+    if args.quick:
+        _quick_sizes(args)
+    density_ratios, colour_ratios, time_pair = _checked_ratios(args)
+    ctx = shared_context()
+    gl = gl_info(ctx)
+    _log(f"GL_RENDERER: {gl['renderer']}")
+    use_flip = flip_unavailable() is None
+    t0 = time.perf_counter()
+    grids = field.bake(args.grid)
+    bake_s = time.perf_counter() - t0
+    heads = {}
+    t0 = time.perf_counter()
+    for r in density_ratios:
+        heads[("density", r)] = cached_head(args, "density", r, grids, _log)
+    for r in colour_ratios:
+        heads[("colour", r)] = cached_head(args, "colour", r, grids, _log)
+    heads_s = time.perf_counter() - t0
+    render = march_render(args.grid, 1.0)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cache = ProgramCache(ctx)
+    field_mb = {h: model.uncompressed_bytes(args.grid, h) / 1e6 for h in model.HEADS}
+    rows, images, timing = _bench_pairs(ctx, cache, args, grids, heads, density_ratios, colour_ratios, time_pair,
+                                        render, field_mb, use_flip, out)
+    cache.release()
+    nominal10 = [r for r in rows if r["density_ratio"] == 10 and r["colour_ratio"] == 10]
+    result = {
+        "benchmark": STEM, "quick": bool(args.quick), "machine": machine(gl),
+        "field": {"grid": args.grid, "scene": "trinket", "density_mb": field_mb["density"], "colour_mb": field_mb["colour"],
+                  "bake_seconds": round(bake_s, 2), "precision": "float32 (the reference)"},
+        "render": {"views": args.views, "size": args.size, **render, "lut_filter": "exact"},
+        "training": {"steps": args.steps, "batch": args.batch, "seconds_this_run": round(heads_s, 1),
+                     "note": "per-head train_seconds are from the run that trained them (cached heads are reused)"},
+        "rows": rows, "timing": timing,
+        "target": {"psnr_at_10x_overall": 35.0,
+                   "met": bool(nominal10) and nominal10[0]["psnr_mean"] >= 35.0},
+    }
+    write_report(out, STEM, result, markdown, lambda r, p: plot(r, p, images))
+    (out / f"{STEM}.partial.json").unlink(missing_ok=True)
+    _log(f"wrote {out / (STEM + '.json')}, .md, .png")
+    return 0
 
-    if args.quick:   # the smoke run's sizes, for every option still at its default
-        defaults = vars(add_arguments(argparse.ArgumentParser()).parse_args([]))
-        quick = dict(grid=32, colour_ratios="10,25", density_ratios="10", views=4, size=64, steps=50, time_size=128,
-                     rounds=1, time_pair="10,10")
-        for k, v in quick.items():
-            if getattr(args, k) == defaults[k]:
-                setattr(args, k, v)
+
+def _quick_sizes(args) -> None:
+    """The smoke run's sizes, for every option still at its default."""
+    defaults = vars(add_arguments(argparse.ArgumentParser()).parse_args([]))
+    quick = dict(grid=32, colour_ratios="10,25", density_ratios="10", views=4, size=64, steps=50, time_size=128,
+                 rounds=1, time_pair="10,10")
+    for k, v in quick.items():
+        if getattr(args, k) == defaults[k]:
+            setattr(args, k, v)
+
+
+def _checked_ratios(args) -> tuple[list[float], list[float], list[float]]:
+    """(density ratios, colour ratios, the timed pair) once every option is checked, each head's sizing
+    included: a BenchError names the option at fault."""
+    from . import field, model
+
     colour_ratios, density_ratios = _ratios(args.colour_ratios, "--colour-ratios"), _ratios(args.density_ratios, "--density-ratios")
     time_pair = _ratios(args.time_pair, "--time-pair")
     if len(time_pair) != 2 or time_pair[0] not in density_ratios or time_pair[1] not in colour_ratios:
@@ -210,26 +262,17 @@ def run(args) -> int:
             model.plan(args.grid, "colour", r)
     except ValueError as e:
         raise BenchError(str(e)) from None
-    ctx = shared_context()
-    gl = gl_info(ctx)
-    log(f"GL_RENDERER: {gl['renderer']}")
-    use_flip = flip_unavailable() is None
-    t0 = time.perf_counter()
-    grids = field.bake(args.grid)
-    bake_s = time.perf_counter() - t0
-    heads = {}
-    t0 = time.perf_counter()
-    for r in density_ratios:
-        heads[("density", r)] = cached_head(args, "density", r, grids, log)
-    for r in colour_ratios:
-        heads[("colour", r)] = cached_head(args, "colour", r, grids, log)
-    heads_s = time.perf_counter() - t0
-    render = march_render(args.grid, 1.0)
+    return density_ratios, colour_ratios, time_pair
+
+
+def _bench_pairs(ctx, cache, args, grids, heads: dict, density_ratios, colour_ratios, time_pair, render: dict,
+                 field_mb: dict, use_flip: bool, out: Path) -> tuple[list, dict, dict]:
+    """Every (density, colour) pair as one DI bundle, rendered beside the float32 grids over the orbit
+    views: (rows, first-view images by pair and "uncompressed", the timed pair's frame times). The rows
+    so far are kept in ``STEM.partial.json`` as the pairs finish."""
+    from . import model
+
     views = orbit_views(args.views)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    cache = ProgramCache(ctx)
-    field_mb = {h: model.uncompressed_bytes(args.grid, h) / 1e6 for h in model.HEADS}
     rows, images, timing = [], {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
@@ -249,44 +292,33 @@ def run(args) -> int:
                     q = [quality(sc.draw(v, args.size, "di"), ref, use_flip) for v, ref in zip(views, refs)]
                     images[(dr, cr)] = sc.draw(views[0], args.size, "di")
                     if [dr, cr] == time_pair:
-                        timing = time_frames(ctx, sc, root, grid_folder, bundle, cache, views[0], args, log)
+                        timing = time_frames(ctx, sc, root, grid_folder, bundle, cache, views[0], args, _log)
                 finally:
                     sc.release()
-                dm, cm = heads[("density", dr)][2], heads[("colour", cr)][2]
-                di_b = dm["bytes"] + cm["bytes"]
-                row = {"density_ratio": dr, "colour_ratio": cr,
-                       "density": {"n_primary": dm["n_primary"], "n_cascaded": dm["n_cascaded"], "rho": dm["rho"],
-                                   "mb": dm["bytes"] / 1e6, "achieved_ratio": round(field_mb["density"] * 1e6 / dm["bytes"], 3),
-                                   "train_seconds": dm["train_seconds"]},
-                       "colour": {"n_primary": cm["n_primary"], "n_cascaded": cm["n_cascaded"], "rho": cm["rho"],
-                                  "mb": cm["bytes"] / 1e6, "achieved_ratio": round(field_mb["colour"] * 1e6 / cm["bytes"], 3),
-                                  "train_seconds": cm["train_seconds"]},
-                       "di_mb": di_b / 1e6, "overall_ratio": round(sum(field_mb.values()) * 1e6 / di_b, 3),
-                       "psnr_mean": round(float(np.mean([p for p, _ in q])), 3),
-                       "psnr_min": round(float(np.min([p for p, _ in q])), 3),
-                       "flip_mean": None if not use_flip else round(float(np.mean([f for _, f in q])), 5),
-                       "seconds": round(time.perf_counter() - t1, 1)}
+                row = _pair_row(dr, cr, heads, field_mb, q, use_flip, time.perf_counter() - t1)
                 rows.append(row)
-                log(f"density {dr:g}x colour {cr:g}x ({row['overall_ratio']:.1f}x overall): PSNR {row['psnr_mean']:.2f} dB "
-                    f"(min {row['psnr_min']:.2f}), FLIP {row['flip_mean']}, {row['seconds']} s")
+                _log(f"density {dr:g}x colour {cr:g}x ({row['overall_ratio']:.1f}x overall): PSNR {row['psnr_mean']:.2f} dB "
+                     f"(min {row['psnr_min']:.2f}), FLIP {row['flip_mean']}, {row['seconds']} s")
                 atomic_write(out / f"{STEM}.partial.json", json.dumps(rows, indent=1))
-    cache.release()
-    nominal10 = [r for r in rows if r["density_ratio"] == 10 and r["colour_ratio"] == 10]
-    result = {
-        "benchmark": STEM, "quick": bool(args.quick), "machine": machine(gl),
-        "field": {"grid": args.grid, "scene": "trinket", "density_mb": field_mb["density"], "colour_mb": field_mb["colour"],
-                  "bake_seconds": round(bake_s, 2), "precision": "float32 (the reference)"},
-        "render": {"views": args.views, "size": args.size, **render, "lut_filter": "exact"},
-        "training": {"steps": args.steps, "batch": args.batch, "seconds_this_run": round(heads_s, 1),
-                     "note": "per-head train_seconds are from the run that trained them (cached heads are reused)"},
-        "rows": rows, "timing": timing,
-        "target": {"psnr_at_10x_overall": 35.0,
-                   "met": bool(nominal10) and nominal10[0]["psnr_mean"] >= 35.0},
-    }
-    write_report(out, STEM, result, markdown, lambda r, p: plot(r, p, images))
-    (out / f"{STEM}.partial.json").unlink(missing_ok=True)
-    log(f"wrote {out / (STEM + '.json')}, .md, .png")
-    return 0
+    return rows, images, timing
+
+
+def _pair_row(dr: float, cr: float, heads: dict, field_mb: dict, q: list, use_flip: bool, seconds: float) -> dict:
+    """One pair's report row: each head's sizing and memory, the overall ratio, PSNR / FLIP over the views."""
+    dm, cm = heads[("density", dr)][2], heads[("colour", cr)][2]
+    di_b = dm["bytes"] + cm["bytes"]
+    return {"density_ratio": dr, "colour_ratio": cr,
+            "density": {"n_primary": dm["n_primary"], "n_cascaded": dm["n_cascaded"], "rho": dm["rho"],
+                        "mb": dm["bytes"] / 1e6, "achieved_ratio": round(field_mb["density"] * 1e6 / dm["bytes"], 3),
+                        "train_seconds": dm["train_seconds"]},
+            "colour": {"n_primary": cm["n_primary"], "n_cascaded": cm["n_cascaded"], "rho": cm["rho"],
+                       "mb": cm["bytes"] / 1e6, "achieved_ratio": round(field_mb["colour"] * 1e6 / cm["bytes"], 3),
+                       "train_seconds": cm["train_seconds"]},
+            "di_mb": di_b / 1e6, "overall_ratio": round(sum(field_mb.values()) * 1e6 / di_b, 3),
+            "psnr_mean": round(float(np.mean([p for p, _ in q])), 3),
+            "psnr_min": round(float(np.min([p for p, _ in q])), 3),
+            "flip_mean": None if not use_flip else round(float(np.mean([f for _, f in q])), 5),
+            "seconds": round(seconds, 1)}
 
 
 def time_frames(ctx, sc: Scene, root: Path, grid_folder: Path, bundle, cache, camera: dict, args, log) -> dict:

@@ -221,12 +221,7 @@ def run(args) -> int:
     lambdas = [float(s["lambda"]) for s in trained["sweep"]]
     clock = clock_for(ctx)
 
-    renders = {}
-    r = ShadingRenderer(ctx, folder, lambda_folder(0.0), "reference")
-    try:
-        gl_ref, inputs, derivs, positions = r.render(camera, w, h)
-    finally:
-        r.release()
+    gl_ref, inputs, derivs, positions = _render(ctx, folder, lambda_folder(0.0), "reference", camera, w, h)
     rows_ok = plane_rows(inputs)
     if rows_ok.sum() < 2:
         raise BenchError("the view shows fewer than 2 rows of plane: change the camera")
@@ -234,9 +229,36 @@ def run(args) -> int:
     t0 = time.perf_counter()
     ref, one_di, one_analytic = emulated_views(folder, inputs, derivs, positions, eye)
     ref_seconds = time.perf_counter() - t0
+    flip_why = flip_unavailable()
+    scores = _scorer(ref, gl_ref, rows_ok, flip_why)
+    rows, renders, parity, parity_db = _lambda_sweep(ctx, folder, camera, w, h, trained, lambdas, inputs, eye,
+                                                     scores)
+    context = _context_views(ctx, folder, camera, w, h, scores, gl_ref, one_di, one_analytic)
+    timings = frame_times(ctx, folder, camera, ts, args.repeats, clock, lambda_folder(trained["lambda_best"]))
+    best = _psnr_gains(rows)
+    view = {"width": w, "height": h, "camera": camera.to_dict(), "rows_scored": int(rows_ok.sum()),
+            "pixels_scored": int(rows_ok.sum()) * w, "reference_seconds": round(ref_seconds, 2)}
+    result = _result(folder, gl, clock, view, trained, best, flip_why, parity, parity_db, rows, context, timings, ts)
+    write_report(out, "di_shading", result, markdown, plot)
+    _views(renders, ref, rows_ok, out / "di_shading_views.png")
+    print(f"wrote {out / 'di_shading.json'}, di_shading.md, di_shading.png, di_shading_views.png", file=sys.stderr)
+    return 0
+
+
+def _render(ctx, folder: Path, sampler: str, view: str, camera, width: int, height: int):
+    """One render of the asset's scene with `sampler` bound as e2e, through `view` (see ShadingRenderer)."""
+    r = ShadingRenderer(ctx, folder, sampler, view)
+    try:
+        return r.render(camera, width, height)
+    finally:
+        r.release()
+
+
+def _scorer(ref, gl_ref, rows_ok: np.ndarray, flip_why):
+    """scores(linear image) -> its PSNR and FLIP against the reference, and its PSNR against the GLSL
+    reference view, over the plane rows (8-bit sRGB)."""
     crop = lambda img: display(img)[rows_ok]  # noqa: E731
     ref_d, gl_ref_d = crop(ref), crop(gl_ref)
-    flip_why = flip_unavailable()
 
     def scores(img):
         d = crop(img)
@@ -244,15 +266,20 @@ def run(args) -> int:
                 "flip": None if flip_why else round(flip(ref_d, d), 5),
                 "psnr_vs_gl_reference": round(psnr(np.rint(d * 255), np.rint(gl_ref_d * 255), peak=255.0), 4)}
 
-    rows = []
+    return scores
+
+
+def _lambda_sweep(ctx, folder: Path, camera, w: int, h: int, trained: dict, lambdas: list, inputs, eye, scores):
+    """One row per lambda of the sweep (its end-to-end view scored, beside the trainer's held-out PSNR),
+    the renders by lambda, and the GLSL-vs-torch parity of the trainer's best lambda (max scaled error,
+    display-domain PSNR; None when it is not in the sweep)."""
+    from inshade.techniques.di_shading.train import lambda_folder
+
+    rows, renders = [], {}
     parity = parity_db = None
     for lam in lambdas:
         name = lambda_folder(lam)
-        r = ShadingRenderer(ctx, folder, name, "end_to_end")
-        try:
-            img, ins, _, pos = r.render(camera, w, h)
-        finally:
-            r.release()
+        img, ins, _, pos = _render(ctx, folder, name, "end_to_end", camera, w, h)
         if not np.array_equal(ins, inputs):
             raise BenchError("the views disagree on the G-buffer (same camera and plane expected)")
         renders[lam] = img
@@ -266,6 +293,14 @@ def run(args) -> int:
             twin = torch_twin(folder, name, ins, pos, eye)
             parity = float(np.max(np.abs(img[..., :3][hit] - twin[hit]) / np.maximum(1.0, np.abs(twin[hit]))))
             parity_db = psnr(display(img)[hit], display(twin)[hit], peak=1.0)
+    return rows, renders, parity, parity_db
+
+
+def _context_views(ctx, folder: Path, camera, w: int, h: int, scores, gl_ref, one_di, one_analytic) -> list[dict]:
+    """The context rows (not part of the sweep): the GLSL reference view, the emulated 1-sample views
+    and the GLSL 1-sample views of the uncompressed set, each scored."""
+    from inshade.techniques.di_shading.train import lambda_folder
+
     context = [{"view": "gl_reference", "label": "the reference view in GLSL (16 samples, GL-built mips)",
                 **scores(gl_ref), "psnr_vs_gl_reference": None},
                {"view": "trilinear_emulated", "label": "1 trilinear sample (box mips), DI Disney decoder (torch)",
@@ -275,24 +310,28 @@ def run(args) -> int:
     labels = {"trilinear": "1 trilinear sample (GL-built mips), DI Disney decoder (GLSL)",
               "analytic": "1 trilinear sample (GL-built mips), analytic Disney (GLSL)"}
     for view, label in labels.items():
-        r = ShadingRenderer(ctx, folder, lambda_folder(0.0), view)
-        try:
-            img = r.render(camera, w, h)[0]
-        finally:
-            r.release()
+        img = _render(ctx, folder, lambda_folder(0.0), view, camera, w, h)[0]
         context.append({"view": view, "label": label, **scores(img)})
-    timings = frame_times(ctx, folder, camera, ts, args.repeats, clock, lambda_folder(trained["lambda_best"]))
+    return context
+
+
+def _psnr_gains(rows: list[dict]) -> dict:
+    """Adds each row's PSNR gain over lambda 0 (dB, %); returns the best row with lambda > 0 (else lambda 0's)."""
     base = next(x for x in rows if x["lambda"] == 0.0)
     for x in rows:
         x["psnr_gain_db"] = round(x["psnr"] - base["psnr"], 4)
         x["psnr_gain_percent"] = round(100.0 * (x["psnr"] / base["psnr"] - 1.0), 3)
-    best = max((x for x in rows if x["lambda"] > 0), key=lambda x: x["psnr"], default=base)
+    return max((x for x in rows if x["lambda"] > 0), key=lambda x: x["psnr"], default=base)
+
+
+def _result(folder: Path, gl: dict, clock, view: dict, trained: dict, best: dict, flip_why, parity, parity_db,
+            rows: list, context: list, timings: dict, ts: int) -> dict:
+    """The report dict (di_shading.json)."""
     px = ts * ts
-    result = {
+    return {
         "benchmark": "di_shading", "asset": portable_path(folder),
         "machine": machine(gl), "clock": clock_record(clock),
-        "view": {"width": w, "height": h, "camera": camera.to_dict(), "rows_scored": int(rows_ok.sum()),
-                 "pixels_scored": int(rows_ok.sum()) * w, "reference_seconds": round(ref_seconds, 2)},
+        "view": view,
         "reference": "torch: train.py reference() on the pass's own G-buffer (uv, duv/dx, duv/dy, hit point): "
                      "16 samples over the pixel footprint, emulated trilinear (box mips rounded to 8 bits), "
                      "analytic Disney, averaged; psnr_vs_gl_reference: against the GLSL reference view, whose "
@@ -312,10 +351,6 @@ def run(args) -> int:
         "paper": PAPER,
         "bytes": {"sampler": trained.get("bytes"), "ratio_vs_base": trained.get("ratio_vs_base")},
     }
-    write_report(out, "di_shading", result, markdown, plot)
-    _views(renders, ref, rows_ok, out / "di_shading_views.png")
-    print(f"wrote {out / 'di_shading.json'}, di_shading.md, di_shading.png, di_shading_views.png", file=sys.stderr)
-    return 0
 
 
 def markdown(res: dict) -> str:

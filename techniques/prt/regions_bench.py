@@ -77,10 +77,8 @@ def run_report(asset, settings: dict, report_dir=None, baselines=("k64",), ctx=N
     import torch
 
     from inshade.bundle import load
-    from inshade.scene.camera import camera_from_dict
     from inshade.runtime.context import gl_info, shared_context
     from inshade.runtime.programs import ProgramCache
-    from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
     from inshade.scene.description import load_scene
     from inshade.techniques.prt import regions, twin
@@ -93,10 +91,50 @@ def run_report(asset, settings: dict, report_dir=None, baselines=("k64",), ctx=N
     cache = ProgramCache(ctx)
     region_bundles = [load(n.bundle) for n in scene.networks]
     rs = regions.read_region_set(region_bundles)
+    geometry = twin.scene_geometry(scene)
+    variants, params, tmp = _variants(asset, scene, region_bundles, rs, baselines)
+    band_world = float(settings.get("band", 0.4))
+    cams = twin.orbit_cameras(scene, int(settings["quality_views"]))
+    size, n_dirs = int(settings["quality_size"]), int(settings["quality_dirs"])
+    renderers = {}
+    try:
+        for name, (sc, bundles) in variants.items():
+            renderers[name] = SceneRenderer(sc, ctx, cache=cache, bundles=bundles)
+        results, first_draw = _measure_quality(ctx, renderers, geometry, rs, cams, size, n_dirs, band_world)
+        frames = _measure_frames(ctx, renderers, scene.make_camera(), settings, clock, first_draw)
+    finally:
+        for r in renderers.values():
+            r.release()
+        cache.release()
+        shutil.rmtree(tmp, ignore_errors=True)     # the baselines' scene files
+    quality = _mean_quality(results)
+    summary = _summary(quality, frames, params)
+    for name in quality:
+        quality[name].update({"n_views": len(cams), "size": size, "n_dirs": n_dirs, "gl_renderer": info["renderer"]})
+    result = {"benchmark": "prt_regions", "machine": machine(info), **clock_record(clock), "paper": PAPER,
+              "asset": portable_path(asset),
+              "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.items()},
+              "regions": {"grid": rs.grid.to_dict(), "table": list(rs.table), "networks": rs.count,
+                          "band_cells": list(rs.band), "seam_band_world": band_world},
+              "method": f"quality: {len(cams)} orbit views {size}² vs {n_dirs}-ray ground truth "
+                        f"(shared by all variants); "
+                        f"frames: median of {settings['fps_repeats']} redraws ({clock.note})",
+              "quality": quality, "frames": frames, "summary": summary, "torch": torch.__version__}
+    if report_dir is not None:
+        write_report(Path(report_dir), "prt_regions", result, markdown, plot)
+    return result
+
+
+def _variants(asset: Path, scene, region_bundles: list, rs, baselines) -> tuple[dict, dict, Path]:
+    """name -> (scene, bundles or None: the scene's own) of every variant, name -> its parameter count,
+    and the temporary folder holding the one-network baselines' scene files (the caller removes it)."""
+    from inshade.bundle import load
+    from inshade.scene.description import load_scene
+    from inshade.techniques.prt import regions
+
     hard = copy.deepcopy(region_bundles)
     for b in hard:
         b.meta["render"]["region"]["band"] = [0.0, 0.0]
-    geometry = twin.scene_geometry(scene)
     scene_json = json.loads((asset / "scene.json").read_text())
     tmp = Path(tempfile.mkdtemp(prefix="prt_regions_"))
     variants = {"regions": (scene, None), "regions_hard": (scene, hard)}
@@ -113,89 +151,92 @@ def run_report(asset, settings: dict, report_dir=None, baselines=("k64",), ctx=N
             folder = _scene_with(scene_json, tmp / name, asset / "baselines" / name, asset / "sdf.json")
             variants[name] = (load_scene(folder), None)
             params[name] = load(asset / "baselines" / name).meta.get("metrics", {}).get("params")
-    band_world = float(settings.get("band", 0.4))
-    cams = twin.orbit_cameras(scene, int(settings["quality_views"]))
-    size, n_dirs = int(settings["quality_size"]), int(settings["quality_dirs"])
-    results = {name: {"diffuse": [], "glossy": [], "seam_diffuse": [], "seam_glossy": []} for name in variants}
-    renderers, first_draw = {}, {}
-    try:
-        for name, (sc, bundles) in variants.items():
-            renderers[name] = SceneRenderer(sc, ctx, cache=cache, bundles=bundles)
-        sh = renderers["regions"].environment_sh()
-        m = twin.light_matrix_t(sh)
-        shading_setting = "shading"
-        for i, cam_dict in enumerate(cams):
-            cam = camera_from_dict(cam_dict)
-            u = cam.uniforms(size, size)
-            view = twin.trace_view(geometry, u, size, size)
-            gt_t = twin.ground_truth_transfer(geometry, view, n_dirs, seed=i)
-            seam = np.zeros(size * size, bool)
-            seam[view.idx.numpy()] = seam_mask(rs.grid, rs.table, band_world, view.p.numpy())
-            seam = seam.reshape(size, size)
-            for mode in ("diffuse", "glossy"):
-                for name, r in renderers.items():
-                    r.set_setting(shading_setting, mode)
-                    if name not in first_draw:      # llvmpipe JIT-compiles the program here
-                        first_draw[name] = WallClock(ctx.finish).time(lambda: r.render_network(cam, size, size))
-                    image = read_rgba(r.render_network(cam, size, size))
-                    shading = twin.PrtShading.from_settings(r.values, r.scene)
-                    gt = twin.compose(view, gt_t, sh, shading, m)
-                    results[name][mode].append(twin.image_metrics(image, gt["rgba"], gt["hit"]))
-                    if (seam & gt["hit"]).any():
-                        results[name][f"seam_{mode}"].append(twin.image_metrics(image, gt["rgba"], seam & gt["hit"]))
-            print(f"view {i + 1}/{len(cams)}: {int(view.idx.numel())} hits, {int(seam.sum())} seam pixels",
+    return variants, params, tmp
+
+
+_SHADING_SETTING = "shading"     # the PRT pass's diffuse / glossy switch
+
+
+def _measure_quality(ctx, renderers: dict, geometry, rs, cams: list, size: int, n_dirs: int,
+                     band_world: float) -> tuple[dict, dict]:
+    """Each variant's image metrics per view and mode against the ray-cast truth (cast once per view),
+    over all surface pixels and over the seam band; and each variant's first draw of all (seconds)."""
+    from inshade.scene.camera import camera_from_dict
+    from inshade.runtime.render import read_rgba
+    from inshade.techniques.prt import twin
+
+    results = {name: {"diffuse": [], "glossy": [], "seam_diffuse": [], "seam_glossy": []} for name in renderers}
+    first_draw = {}
+    sh = renderers["regions"].environment_sh()
+    m = twin.light_matrix_t(sh)
+    for i, cam_dict in enumerate(cams):
+        cam = camera_from_dict(cam_dict)
+        u = cam.uniforms(size, size)
+        view = twin.trace_view(geometry, u, size, size)
+        gt_t = twin.ground_truth_transfer(geometry, view, n_dirs, seed=i)
+        seam = np.zeros(size * size, bool)
+        seam[view.idx.numpy()] = seam_mask(rs.grid, rs.table, band_world, view.p.numpy())
+        seam = seam.reshape(size, size)
+        for mode in ("diffuse", "glossy"):
+            for name, r in renderers.items():
+                r.set_setting(_SHADING_SETTING, mode)
+                if name not in first_draw:      # llvmpipe JIT-compiles the program here
+                    first_draw[name] = WallClock(ctx.finish).time(lambda: r.render_network(cam, size, size))
+                image = read_rgba(r.render_network(cam, size, size))
+                shading = twin.PrtShading.from_settings(r.values, r.scene)
+                gt = twin.compose(view, gt_t, sh, shading, m)
+                results[name][mode].append(twin.image_metrics(image, gt["rgba"], gt["hit"]))
+                if (seam & gt["hit"]).any():
+                    results[name][f"seam_{mode}"].append(twin.image_metrics(image, gt["rgba"], seam & gt["hit"]))
+        print(f"view {i + 1}/{len(cams)}: {int(view.idx.numel())} hits, {int(seam.sum())} seam pixels",
+              file=sys.stderr, flush=True)
+    return results, first_draw
+
+
+def _measure_frames(ctx, renderers: dict, camera, settings: dict, clock, first_draw: dict) -> dict:
+    """Each variant's frame time per mode (median of forced redraws at ``fps_size``²), its programs'
+    compile + link seconds and its first draw of all."""
+    frames = {}
+    fsize = int(settings["fps_size"])
+    for name, r in renderers.items():
+        frames[name] = {}
+        for mode in ("diffuse", "glossy"):
+            r.set_setting(_SHADING_SETTING, mode)
+
+            def redraw(r=r):
+                r.weights_version += 1
+                r.render_network(camera, fsize, fsize)
+
+            first = WallClock(ctx.finish).time(redraw)
+            t = measure(redraw, repeats=int(settings["fps_repeats"]), warmup=0, clock=clock)
+            frames[name][mode] = {"first_draw_s": first, "seconds": t.median, "min_s": t.min, "max_s": t.max,
+                                  "fps": 1.0 / t.median, "size": fsize}
+            print(f"{name} {mode} {fsize}²: {t.median * 1e3:.1f} ms (first draw {first:.1f} s)",
                   file=sys.stderr, flush=True)
-        frames = {}
-        fsize = int(settings["fps_size"])
-        camera = scene.make_camera()
-        for name, r in renderers.items():
-            frames[name] = {}
-            for mode in ("diffuse", "glossy"):
-                r.set_setting(shading_setting, mode)
+        frames[name]["compile_link_s"] = r.compile_seconds
+        frames[name]["first_draw_s"] = first_draw.get(name)
+    return frames
 
-                def redraw(r=r):
-                    r.weights_version += 1
-                    r.render_network(camera, fsize, fsize)
 
-                first = WallClock(ctx.finish).time(redraw)
-                t = measure(redraw, repeats=int(settings["fps_repeats"]), warmup=0, clock=clock)
-                frames[name][mode] = {"first_draw_s": first, "seconds": t.median, "min_s": t.min, "max_s": t.max,
-                                      "fps": 1.0 / t.median, "size": fsize}
-                print(f"{name} {mode} {fsize}²: {t.median * 1e3:.1f} ms (first draw {first:.1f} s)",
-                      file=sys.stderr, flush=True)
-            frames[name]["compile_link_s"] = r.compile_seconds
-            frames[name]["first_draw_s"] = first_draw.get(name)
-    finally:
-        for r in renderers.values():
-            r.release()
-        cache.release()
-        shutil.rmtree(tmp, ignore_errors=True)     # the baselines' scene files
+def _mean_quality(results: dict) -> dict:
+    """name -> metric rows -> the mean PSNR / SSIM / MAE over the views (rows with no pixels left out)."""
     quality = {}
     for name, rows in results.items():
         quality[name] = {}
         for key, vals in rows.items():
             if vals:
                 quality[name][key] = {k: float(np.mean([v[k] for v in vals])) for k in ("psnr", "ssim", "mae")}
-    summary = {name: {"params": params[name], "diffuse_psnr": quality[name]["diffuse"]["psnr"],
-                      "glossy_psnr": quality[name]["glossy"]["psnr"],
-                      "seam_diffuse_psnr": quality[name].get("seam_diffuse", {}).get("psnr"),
-                      "seam_glossy_psnr": quality[name].get("seam_glossy", {}).get("psnr"),
-                      "diffuse_fps": frames[name]["diffuse"]["fps"], "glossy_fps": frames[name]["glossy"]["fps"],
-                      "first_draw_s": frames[name]["first_draw_s"]} for name in variants}
-    for name in quality:
-        quality[name].update({"n_views": len(cams), "size": size, "n_dirs": n_dirs, "gl_renderer": info["renderer"]})
-    result = {"benchmark": "prt_regions", "machine": machine(info), **clock_record(clock), "paper": PAPER,
-              "asset": portable_path(asset),
-              "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.items()},
-              "regions": {"grid": rs.grid.to_dict(), "table": list(rs.table), "networks": rs.count,
-                          "band_cells": list(rs.band), "seam_band_world": band_world},
-              "method": f"quality: {len(cams)} orbit views {size}² vs {n_dirs}-ray ground truth "
-                        f"(shared by all variants); "
-                        f"frames: median of {settings['fps_repeats']} redraws ({clock.note})",
-              "quality": quality, "frames": frames, "summary": summary, "torch": torch.__version__}
-    if report_dir is not None:
-        write_report(Path(report_dir), "prt_regions", result, markdown, plot)
-    return result
+    return quality
+
+
+def _summary(quality: dict, frames: dict, params: dict) -> dict:
+    """One row per variant: parameters, PSNR (all and seam), FPS and first draw."""
+    return {name: {"params": params[name], "diffuse_psnr": quality[name]["diffuse"]["psnr"],
+                   "glossy_psnr": quality[name]["glossy"]["psnr"],
+                   "seam_diffuse_psnr": quality[name].get("seam_diffuse", {}).get("psnr"),
+                   "seam_glossy_psnr": quality[name].get("seam_glossy", {}).get("psnr"),
+                   "diffuse_fps": frames[name]["diffuse"]["fps"], "glossy_fps": frames[name]["glossy"]["fps"],
+                   "first_draw_s": frames[name]["first_draw_s"]} for name in params}
 
 
 LABELS = {"regions": "sub-scene set (blended)", "regions_hard": "sub-scene set (hard switch)"}

@@ -207,6 +207,30 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     n_dirs = check_count(n_dirs, "n_dirs")
     holdout = min(2000, max(1, n_points // 20)) if holdout is None else check_count(holdout, "holdout")
     holdout_dirs = check_count(holdout_dirs, "holdout_dirs")
+    settings, near_points, device = _cache_settings(mesh, n_points, n_dirs, seed, holdout, holdout_dirs, shadow,
+                                                    near_points, device)
+    key = hashlib.sha256((geometry_digest(geometry) + json.dumps(settings, sort_keys=True)).encode()).hexdigest()[:24]
+    path = Path(cache_dir) / f"transfer-{key}.safetensors" if cache_dir is not None else None
+    if path is not None and path.is_file():
+        data = load_dataset(path)
+        if data.get("key") == key:
+            data["cached"] = True
+            return data
+    shard_dir = Path(cache_dir) / f"transfer-{key}.shards" if cache_dir is not None else None
+    data = _bake_dataset(geometry, mesh, key, n_points=n_points, n_dirs=n_dirs, holdout=holdout,
+                         holdout_dirs=holdout_dirs, near_points=near_points, seed=seed, device=device,
+                         executor=executor, chunk_rays=chunk_rays, shadow=shadow, shard_dir=shard_dir,
+                         progress=progress)
+    if path is not None:
+        save_dataset(data, path)
+        shutil.rmtree(shard_dir, ignore_errors=True)    # the dataset file holds them all now
+    return data
+
+
+def _cache_settings(mesh: bool, n_points: int, n_dirs: int, seed, holdout: int, holdout_dirs: int, shadow: str,
+                    near_points, device) -> tuple[dict, int, torch.device]:
+    """The settings that ``build_dataset``'s cache key hashes with the geometry, once ``shadow`` and
+    ``near_points`` are checked; with near_points (0 for None) and device (a torch.device)."""
     settings = {"version": VERSION, "n_points": n_points, "n_dirs": n_dirs, "seed": int(seed),
                 "holdout": holdout, "holdout_dirs": holdout_dirs,
                 "offset": MESH_OFFSET if mesh else OFFSET_EPS, "shadow_steps": SHADOW_STEPS}
@@ -225,14 +249,15 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
     device = torch.device(device)
     if device.type != "cpu" and not mesh:
         settings["device"] = device.type
-    key = hashlib.sha256((geometry_digest(geometry) + json.dumps(settings, sort_keys=True)).encode()).hexdigest()[:24]
-    path = Path(cache_dir) / f"transfer-{key}.safetensors" if cache_dir is not None else None
-    if path is not None and path.is_file():
-        data = load_dataset(path)
-        if data.get("key") == key:
-            data["cached"] = True
-            return data
-    from inshade.models.bake import IN_PROCESS, run_shards
+    return settings, near_points, device
+
+
+def _bake_dataset(geometry, mesh: bool, key: str, *, n_points: int, n_dirs: int, holdout: int, holdout_dirs: int,
+                  near_points: int, seed, device: torch.device, executor, chunk_rays: int, shadow: str,
+                  shard_dir: Path | None, progress) -> dict:
+    """``build_dataset``'s dict, computed: the surface samples (training, held-out, then the near-occluder
+    ones), their rays cast as a sharded bake, and the throughput."""
+    from inshade.models.bake import IN_PROCESS
 
     executor = executor or IN_PROCESS
     center, radius = geometry_bound(geometry)
@@ -253,26 +278,14 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
                                                delta=NEAR_DELTA * radius, device=device)
         sets.append(("near", p_near, n_near, n_dirs, seed + 2))
     ray_start = time.perf_counter()
-    # a GPU worker of Ray sees only the GPU it was given, as cuda:0
-    worker_device = "cuda" if executor.kind == "ray" and device.type == "cuda" else str(device)
-    common = {"geometry": source if executor.remote else geometry, "mesh": mesh,
-              "device": worker_device if executor.remote else device, "threads": torch.get_num_threads(),
-              "chunk_rays": int(chunk_rays), "shadow": shadow}
-    shards = transfer_shards(sets, chunk_rays, num_gpus=0.0 if mesh or device.type == "cpu" else 1.0)
-    shard_dir = Path(cache_dir) / f"transfer-{key}.shards" if cache_dir is not None else None
-    with _bar((n_points + near_points) * n_dirs + holdout * holdout_dirs, "transfer rays", progress) as bar:
-        results = run_shards(transfer_shard, shards, common, shard_dir, executor,
-                             on_done=lambda s: bar.update(s.args["points"].shape[0] * s.args["n_dirs"]))
-    # copies: Ray hands back read-only arrays
-    parts = {name: [torch.tensor(r["transfer"]) for s, r in zip(shards, results) if s.args["set"] == name]
-             for name, *_ in sets}
-    transfer, held = torch.cat(parts["train"] + parts.get("near", [])), torch.cat(parts["heldout"])
-    end = time.perf_counter()
     rays = (n_points + near_points) * n_dirs + holdout * holdout_dirs
+    transfer, held = _cast_rays(sets, source, geometry, mesh, device, executor, chunk_rays, shadow, shard_dir, rays,
+                                progress)
+    end = time.perf_counter()
     train_p, train_n = p[:n_points], nrm[:n_points]
     if near_points:
         train_p, train_n = torch.cat([train_p, p_near]), torch.cat([train_n, n_near])
-    data = {"position": train_p.contiguous(), "normal": train_n.contiguous(), "transfer": transfer,
+    return {"position": train_p.contiguous(), "normal": train_n.contiguous(), "transfer": transfer,
             "heldout_position": p[n_points:].contiguous(), "heldout_normal": nrm[n_points:].contiguous(),
             "heldout_transfer": held, "center": list(center), "radius": radius,
             "n_points": n_points, "n_near": near_points, "n_dirs": n_dirs, "n_heldout": holdout,
@@ -283,10 +296,27 @@ def build_dataset(geometry, n_points: int, n_dirs: int = 256, cache_dir=None, se
             "embree": bool(mesh and _has_embree()), "torch_threads": torch.get_num_threads(),
             "device": "cpu" if mesh else str(device),
             "cached": False}
-    if path is not None:
-        save_dataset(data, path)
-        shutil.rmtree(shard_dir, ignore_errors=True)    # the dataset file holds them all now
-    return data
+
+
+def _cast_rays(sets: list, source, geometry, mesh: bool, device: torch.device, executor, chunk_rays: int,
+               shadow: str, shard_dir: Path | None, rays: int, progress) -> tuple[torch.Tensor, torch.Tensor]:
+    """The transfer of every (name, points, normals, n_dirs, seed) set, one ``transfer_shard`` per chunk run by
+    ``executor``: (training then near-occluder transfer, held-out transfer)."""
+    from inshade.models.bake import run_shards
+
+    # a GPU worker of Ray sees only the GPU it was given, as cuda:0
+    worker_device = "cuda" if executor.kind == "ray" and device.type == "cuda" else str(device)
+    common = {"geometry": source if executor.remote else geometry, "mesh": mesh,
+              "device": worker_device if executor.remote else device, "threads": torch.get_num_threads(),
+              "chunk_rays": int(chunk_rays), "shadow": shadow}
+    shards = transfer_shards(sets, chunk_rays, num_gpus=0.0 if mesh or device.type == "cpu" else 1.0)
+    with _bar(rays, "transfer rays", progress) as bar:
+        results = run_shards(transfer_shard, shards, common, shard_dir, executor,
+                             on_done=lambda s: bar.update(s.args["points"].shape[0] * s.args["n_dirs"]))
+    # copies: Ray hands back read-only arrays
+    parts = {name: [torch.tensor(r["transfer"]) for s, r in zip(shards, results) if s.args["set"] == name]
+             for name, *_ in sets}
+    return torch.cat(parts["train"] + parts.get("near", [])), torch.cat(parts["heldout"])
 
 
 def transfer_shards(sets, chunk_rays: int = CHUNK_RAYS, num_gpus: float = 0.0) -> list:
