@@ -1,8 +1,9 @@
 """`inshade view`: the interactive window, a thin shell over ``renderer.SceneRenderer``.
 
-It adds a glfw window (OpenGL 3.3 core), input -> camera (``navigation``), panels (``ui``), the
-present blit (linear float -> sRGB window pixels), timing, screenshots and hot reload. Rendering
-itself is ``SceneRenderer.render``, the function ``inshade render`` calls headless.
+It adds a glfw window (OpenGL 3.3 core, ``window``), input -> camera (``controls``, ``navigation``),
+panels (``ui``), the present blit (linear float -> sRGB window pixels), timing, screenshots
+(``capture``) and hot reload. Rendering itself is ``SceneRenderer.render``, the function
+``inshade render`` calls headless.
 
 Scripting / test hook: everything the UI does is a method (``open``, ``set_mode``, ``set_setting``,
 ``drag``, ``scroll``, ``go_to_bookmark``, ``screenshot``, ``check_reload``) and ``step(n)`` runs n
@@ -18,28 +19,25 @@ W A S D Q E move (fly) / pan, Esc quit. Mouse: see ``navigation``.
 from __future__ import annotations
 
 import collections
-import datetime
 import logging
 import math
-import os
 import time
-import warnings
 from pathlib import Path
 
 import glfw
 import moderngl
 import numpy as np
 
-from inshade.files import atomic_files
 from inshade.shaders import search_path
 
 from . import navigation
-from inshade.runtime.context import pyopengl_bound_to_osmesa, release_shared
-from inshade.scene.display import UI_MODES, DisplayMode, parse_mode
+from .capture import count_gl_objects, read_back_buffer, save_screenshot
+from .controls import Controls
+from .window import NoDisplayError, open_window   # noqa: F401 - NoDisplayError: callers catch it from here
+from inshade.scene.display import DisplayMode, parse_mode
 from inshade.scene.labels import active as active_labels
 from inshade.scene.tonemap import TONEMAPS, presented_tonemap
 from inshade.scene.tonemap import glsl_chunk as tonemap_chunk
-from inshade.runtime.headless import save_render
 from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass
 from inshade.runtime.renderer import SceneRenderer
@@ -58,10 +56,6 @@ MAX_SPP = 256             # stochastic programs: samples a still view accumulate
 SOFTWARE_FRAME_FLOPS = 1e12   # a software renderer draws a frame costing more (the plans' bound) smaller
 
 
-class NoDisplayError(RuntimeError):
-    """No window can be opened here (no display server / no GL 3.3 window context)."""
-
-
 def default_trained_root() -> Path:
     here = Path(__file__).resolve().parents[1] / "trained"
     return here if here.is_dir() else Path.cwd() / "trained"
@@ -71,30 +65,7 @@ class ViewerApp:
     def __init__(self, source=None, *, size=(1280, 800), visible: bool = True, trained_root=None,
                  settings: dict | None = None, vsync: bool = True, screenshot_dir=None,
                  title: str = "inshade view", max_spp: int = MAX_SPP):
-        if pyopengl_bound_to_osmesa():
-            raise NoDisplayError("the window draws through its own GL context, but this process already used the "
-                                 "osmesa backend and PyOpenGL stays on OSMesa for the process's life; open the "
-                                 "window from a process that has not (without INSHADE_GL_BACKEND=osmesa)")
-        with warnings.catch_warnings():  # glfw warns, then returns False; the error below says it all
-            warnings.simplefilter("ignore")
-            ok = glfw.init()
-        if not ok:
-            raise NoDisplayError(_no_display_text())
-        glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
-        glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
-        glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
-        glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
-        glfw.window_hint(glfw.VISIBLE, bool(visible))
-        glfw.window_hint(glfw.SCALE_TO_MONITOR, True)
-        release_shared()  # an EGL context current on this thread makes GLX window creation fail
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            self.window = glfw.create_window(int(size[0]), int(size[1]), title, None, None)
-        if not self.window:
-            glfw.terminate()
-            raise NoDisplayError(_no_display_text())
-        glfw.make_context_current(self.window)
-        glfw.swap_interval(1 if vsync else 0)
+        self.window = open_window(size, title, visible=visible, vsync=vsync)
         self.ctx = moderngl.create_context(require=330)
         log.info("window OpenGL: GL_RENDERER=%s GL_VERSION=%s", self.ctx.info["GL_RENDERER"],
                  self.ctx.info["GL_VERSION"])
@@ -107,12 +78,8 @@ class ViewerApp:
         self.implot_context = implot.create_context()
         imgui.get_io().set_ini_filename("")
         self.impl = GlfwRenderer(self.window, attach_callbacks=False)
-        glfw.set_key_callback(self.window, self._on_key)
-        glfw.set_char_callback(self.window, self.impl.char_callback)
-        glfw.set_cursor_pos_callback(self.window, self._on_cursor)
-        glfw.set_mouse_button_callback(self.window, self._on_button)
-        glfw.set_scroll_callback(self.window, self._on_scroll)
-        glfw.set_window_size_callback(self.window, self.impl.resize_callback)
+        self.controls = Controls(self, self.impl, imgui)
+        self.controls.attach(self.window)
 
         self.cache = ProgramCache(self.ctx)
         self.present_program = self.cache.get("common/fullscreen.vert", "passes/present.frag",
@@ -138,9 +105,6 @@ class ViewerApp:
         self._psnr_key = None
         self._psnr_time = 0.0
         self._last_frame = time.perf_counter()
-        self._cursor = None
-        self._buttons = set()
-        self._held = set()
         self._closed = False
         self.last_window = None
         if source is not None:
@@ -150,7 +114,7 @@ class ViewerApp:
                                  "renderer: the driver compiles it)")
 
     # scenes -------------------------------------------------------------------------------------
-    def _current(self) -> None:
+    def make_current(self) -> None:
         """Make the window's context current and clear stale GL errors. Other code in this process
         (e.g. a headless render on the shared EGL context) may have switched contexts, and PyOpenGL
         (used by the imgui backend) would blame a later call for an error left pending."""
@@ -164,7 +128,7 @@ class ViewerApp:
 
     def open(self, source) -> bool:
         """Load a scene (folder, scene.json, bundle); on failure keep the window and show why."""
-        self._current()
+        self.make_current()
         try:
             scene = load_scene(source)
             settings = {k: v for k, v in self.overrides.items() if k in scene.settings}
@@ -244,7 +208,7 @@ class ViewerApp:
         return active_labels(self.scene.labels, self.renderer.values, self.mode)
 
     def set_setting(self, name: str, value) -> str:
-        self._current()
+        self.make_current()
         try:
             outcome = self.renderer.set_setting(name, value)
         except Exception as exc:
@@ -334,16 +298,12 @@ class ViewerApp:
         dt, self._last_frame = now - self._last_frame, now
         self.frame_ms.append(dt * 1000.0)
         self.frame_t.append(now)
-        self._current()
+        self.make_current()
         glfw.poll_events()
         self.impl.process_inputs()
         self.check_reload()
         x, y, w, h = self.scene_rect()
-        if self.camera is not None:
-            fwd = (glfw.KEY_W in self._held) - (glfw.KEY_S in self._held)
-            right = (glfw.KEY_D in self._held) - (glfw.KEY_A in self._held)
-            up = (glfw.KEY_E in self._held) - (glfw.KEY_Q in self._held)
-            navigation.keys(self.camera, fwd, right, up, dt, *self.scene_rect_window()[2:])
+        self.controls.move(dt)
 
         # scene: GL state reset (imgui leaves blend/scissor/programs around), then one render call
         self.ctx.scissor = None
@@ -377,13 +337,13 @@ class ViewerApp:
             self.ctx.viewport = (0, 0, *self.framebuffer_size)
 
         from . import ui
-        self._current()   # clear errors before PyOpenGL's checked calls in the imgui backend
+        self.make_current()   # clear errors before PyOpenGL's checked calls in the imgui backend
         imgui.new_frame()
         ui.draw(self)
         imgui.render()
         self.impl.render(imgui.get_draw_data())
         if capture:
-            self.last_window = self._read_back_buffer()
+            self.last_window = read_back_buffer(*self.framebuffer_size)
         glfw.swap_buffers(self.window)
         self.frames += 1
 
@@ -400,7 +360,7 @@ class ViewerApp:
         recompile, keeping the last good program on failure. Returns what happened, or None."""
         if self.watcher is None or self.renderer is None:
             return None
-        self._current()
+        self.make_current()
         changed = self.watcher.poll(force=force)
         if not changed:
             return None
@@ -422,101 +382,27 @@ class ViewerApp:
         self.frame(capture=True)
         return self.last_window
 
-    def _read_back_buffer(self) -> np.ndarray:
-        from OpenGL import GL
-        w, h = self.framebuffer_size
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)
-        GL.glReadBuffer(GL.GL_BACK)
-        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        data = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
-        return np.frombuffer(data, np.uint8).reshape(h, w, 3)[::-1].copy()
-
     def screenshot(self, path=None) -> dict:
         """Write the scene view (PNG + EXR + JSON sidecar, reproducible with ``inshade render --from``)
         and the whole window with panels (``.window.png``). Returns the paths."""
-        if path is None:
-            stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S-%f")
-            path = self.screenshot_dir / f"{self.scene.name if self.scene else 'empty'}-{stamp}.png"
-        path = Path(path).with_suffix(".png")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self._current()
-        out = {}
-        window = self.read_window()
-        out["window"] = path.with_name(path.stem + ".window.png")
-        from PIL import Image
-        with atomic_files(out["window"]) as tmp:
-            Image.fromarray(window).save(tmp, format="PNG")
-        if self.renderer is not None:   # the scene view as drawn (draw_size), not the window's scaled copy
-            w, h = self.draw_size(*self.scene_rect()[2:])
-            self.renderer.render(self.camera, w, h, mode=self.mode, split=self.split)
-            image = self.renderer.read()
-            info = self.renderer.info(self.camera, w, h, mode=self.mode, split=self.split)
-            info["viewer"] = {"window": list(self.window_size), "framebuffer": list(self.framebuffer_size),
-                              "scene_rect": list(self.scene_rect()), "psnr_db": self.psnr,
-                              "window_png": out["window"].name}
-            out["png"], out["sidecar"] = save_render(image, info, path)
-            out["exr"], out["exr_sidecar"] = save_render(image, info, path.with_suffix(".exr"))
-        self.messages.append(f"screenshot: {path}")
-        return out
+        return save_screenshot(self, path)
 
     def gl_object_counts(self, upto: int = 4096) -> dict:
         """Live GL names per object type (glIs* over 1..upto), for leak checks."""
         glfw.make_context_current(self.window)
         return count_gl_objects(upto)
 
-    # input callbacks ----------------------------------------------------------------------------
+    # input --------------------------------------------------------------------------------------
     def _on_key(self, window, key, scancode, action, mods) -> None:
-        self.impl.keyboard_callback(window, key, scancode, action, mods)
-        if action == glfw.RELEASE:
-            self._held.discard(key)
-            return
-        if self._imgui.get_io().want_capture_keyboard or action != glfw.PRESS:
-            return
-        self._held.add(key)
-        if glfw.KEY_1 <= key <= glfw.KEY_9 and self.scene is not None:
-            if key - glfw.KEY_1 < len(UI_MODES):   # 1 final, 2 network, 3 reference, 4 error, 5 split
-                self.set_mode(UI_MODES[key - glfw.KEY_1])
-        elif key == glfw.KEY_T:
-            self.toggle_reference()
-        elif key == glfw.KEY_F and self.camera is not None:
-            navigation.frame(self.camera)
-        elif key == glfw.KEY_HOME and self.scene is not None:
-            self.reset_camera()
-        elif key in (glfw.KEY_F12, glfw.KEY_P) and self.renderer is not None:
-            self.screenshot()
-        elif key == glfw.KEY_ESCAPE:
-            glfw.set_window_should_close(window, True)
-
-    def _on_cursor(self, window, x, y) -> None:
-        self.impl.mouse_callback(window, x, y)
-        if self._cursor is not None and self._buttons and self.camera is not None:
-            self.drag(x - self._cursor[0], y - self._cursor[1], button=min(self._buttons))
-        self._cursor = (x, y)
-
-    def _on_button(self, window, button, action, mods) -> None:
-        self.impl.mouse_button_callback(window, button, action, mods)
-        if action == glfw.PRESS:
-            x, _ = glfw.get_cursor_pos(window)
-            if not self._imgui.get_io().want_capture_mouse and x >= self.panel_width:
-                self._buttons.add(button)
-                self._cursor = glfw.get_cursor_pos(window)
-        else:
-            self._buttons.discard(button)
-
-    def _on_scroll(self, window, dx, dy) -> None:
-        self.impl.scroll_callback(window, dx, dy)
-        if self._imgui.get_io().want_capture_mouse or self.camera is None:
-            return
-        x, y = glfw.get_cursor_pos(window)
-        if x >= self.panel_width:
-            self.scroll(dy, x, y)
+        """A key event as glfw delivers it (``controls``): scripts press keys the user's way."""
+        self.controls.on_key(window, key, scancode, action, mods)
 
     # teardown -----------------------------------------------------------------------------------
     def close(self) -> None:
         if self._closed:
             return
         self._closed = True
-        self._current()
+        self.make_current()
         self._release_scene()
         self.present.vao.release()
         self.timer.release() if hasattr(self.timer, "release") else None
@@ -533,29 +419,3 @@ class ViewerApp:
     def __exit__(self, *exc):
         self.close()
 
-
-GL_IS = ("glIsTexture", "glIsBuffer", "glIsFramebuffer", "glIsRenderbuffer", "glIsVertexArray",
-         "glIsProgram", "glIsShader", "glIsQuery", "glIsSampler")
-
-
-def count_gl_objects(upto: int = 4096) -> dict:
-    """Count live GL object names of each type in 1..upto in the current context (libGL glIs*)."""
-    from OpenGL import GL
-    pending = []
-    while (err := GL.glGetError()) != GL.GL_NO_ERROR and len(pending) < 16:  # PyOpenGL would blame glIs*
-        pending.append(int(err))
-    if pending:
-        log.debug("GL errors pending before counting objects: %s", pending)
-    counts = {}
-    for name in GL_IS:
-        fn = getattr(GL, name)
-        counts[name[4:].lower()] = sum(1 for i in range(1, upto + 1) if fn(i))
-    return counts
-
-
-def _no_display_text() -> str:
-    display = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-    why = f"cannot open a window on display {display!r}" if display else "no display (DISPLAY is not set)"
-    return (f"{why}; inshade view needs a desktop with OpenGL 3.3. On a headless machine run it under "
-            "a virtual display: xvfb-run -s '-screen 0 1280x800x24' inshade view ... "
-            "(or render without a window: inshade render ASSET -o shot.png)")
