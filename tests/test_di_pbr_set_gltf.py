@@ -270,8 +270,8 @@ def test_bad_input_is_one_line(case, tmp_path, torus_file, capsys):
             "material_index": lambda: ["--gltf", str(torus_file), "--material", "3"],
             "material_alone": lambda: ["--material", "0"]}[case]()
     expected = {"no_uv_file": ": meshes: materials have textures, but no primitive has TEXCOORD_0",
-                "no_uv_material": ": meshes[0].primitives[0]: material 0 (tiles) has textures, but the primitive has "
-                                  "no TEXCOORD_0",
+                "no_uv_material": ": meshes[0].primitives[0]: material 0 (tiles).base_color reads TEXCOORD_0, but the "
+                                  "primitive has none",
                 "unreadable": "junk.glb: ",
                 "missing": "absent.glb: no such file",
                 "untextured": ": materials: no material has a base colour",

@@ -10,7 +10,7 @@ from test_architecture import ROOT
 # literal form -> the one module that may spell it, and why it lives there
 SHARED = {
     r"datetime\.(datetime\.)?(now|utcnow)\(|time\.strftime\(": (
-        {"inshade/provenance.py", "viewer/app.py"},
+        {"inshade/provenance.py", "viewer/capture.py"},
         "a record's time is inshade.provenance.utc_now() (the viewer's screenshot names use the local clock)"),
 }
 
