@@ -16,7 +16,7 @@ the text is anchored (``align``: ``left``, ``center`` or ``right``, vertically c
 inside the image. ``when`` maps setting names to a value or a list of values: the label shows when
 every named setting has one of them. ``modes`` lists the display modes it shows in (default
 ``final`` and ``network``: the views of the scene pass itself). The built-in bool setting
-``labels`` (scene/description.py BUILTIN_SETTINGS) turns every label off: ``--set labels=false``.
+``labels`` (scene/settings.py BUILTIN_SETTINGS) turns every label off: ``--set labels=false``.
 """
 from __future__ import annotations
 

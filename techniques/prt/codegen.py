@@ -68,7 +68,7 @@ def transfer_frame(bundle) -> dict:
 
 
 def network_chunk_name(prefix: str) -> str:
-    """The chunk name the renderer gives a network with this prefix (scene/description.py NetworkRef)."""
+    """The chunk name the renderer gives a network with this prefix (scene/networks.py NetworkRef)."""
     return "network" if prefix == "net" else f"network_{prefix}"
 
 
