@@ -30,7 +30,7 @@ import numpy as np
 from inshade.shaders.library import add_search_provider
 
 PLUGINS_ENV = "INSHADE_TECHNIQUES"
-# What a program draws over; the runtime sets up the matching pass (scene/description.py GEOMETRIES).
+# What a program draws over; the runtime sets up the matching pass (scene/geometry_ref.py check_geometry).
 GEOMETRIES = ("fullscreen", "sdf", "mesh")
 MESH_ATTRIBUTES = ("uv", "tangent", "materials")   # materials: a glTF mesh's (lib/gltf_material)
 
