@@ -73,11 +73,12 @@ def test_the_cli_reference_does_not_depend_on_the_terminal(gen, cli_page, monkey
 
 
 def test_every_technique_has_a_page_in_the_nav():
-    from inshade import technique
+    from inshade import techniques
 
     nav = (ROOT / "mkdocs.yml").read_text()
-    missing = [t.name for t in technique.techniques()
-               if not (DOCS / "techniques" / f"{t.name}.md").is_file() or f"techniques/{t.name}.md" not in nav]
+    # the built-in ones (another test file may have registered a plug-in in this process)
+    missing = [name for name in techniques.BUILTIN
+               if not (DOCS / "techniques" / f"{name}.md").is_file() or f"techniques/{name}.md" not in nav]
     assert not missing, f"techniques without a page in docs/techniques/ and mkdocs.yml's nav: {missing}"
 
 
