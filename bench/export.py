@@ -28,27 +28,23 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import (BenchError, cold_shader_cache, machine, machine_markdown, matplotlib_pyplot,
+from inshade.bench.contract import Bench, option, sized
+from inshade.bench.entry import Claim, claim_row
+from inshade.bench.harness import (BenchError, machine, machine_markdown, matplotlib_pyplot,
                                    write_report)
 
 DEFAULT_OUT = "bench-out/export"
 TARGETS = {"export_check_s": 5.0, "onnx_import_s": 2.0, "memory_over_params": 2.0, "big_sdf_render_s": 60.0}
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("--out", default=DEFAULT_OUT, help="output folder")
-    parser.add_argument("--repeats", type=int, default=3, help="timed exports after the first (median)")
-    parser.add_argument("--quick", action="store_true", help="small models, one repeat (a smoke run)")
-    return parser
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench export", __doc__, add_arguments, run, argv, errors=(BenchError,),
-                        formatter=argparse.ArgumentDefaultsHelpFormatter)
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, "output folder")
+    repeats: int = option(3, "timed exports after the first (median)")
+    quick: bool = option(False, "small models, one repeat (a smoke run)")
 
 
 def _mlp(widths, seed=0):
@@ -230,11 +226,6 @@ def measure_memory(widths) -> dict:
 
 
 def run(args) -> int:
-    with cold_shader_cache():    # effective for the GL contexts this run makes first
-        return _run(args)
-
-
-def _run(args) -> int:
     import torch
 
     from inshade.runtime.context import gl_info, shared_context
@@ -319,8 +310,8 @@ def headlines(r: dict) -> list[dict]:
                       f"{m['over_params']:.2f}x the parameters", e["median_s"], "64x4 MLP")]
 
 
-SUITE = SuiteEntry(sizes={
-    # the ONNX check compiles a 512-wide network cold on llvmpipe: about a minute of it
-    "cpu": Sizing(("--repeats", "2"), 180),
-    "device": Sizing(("--repeats", "3"), 20),
-}, claims=CLAIMS, headlines=headlines)
+BENCH = Bench("export", __doc__, Settings, run, cold_cache=True, formatter=argparse.ArgumentDefaultsHelpFormatter,
+              # the ONNX check compiles a 512-wide network cold on llvmpipe: about a minute of it
+              sizes={"cpu": sized(180, repeats=2), "device": sized(20, repeats=3)},
+              claims=CLAIMS, headlines=headlines)
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

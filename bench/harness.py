@@ -181,12 +181,6 @@ def clock_for(ctx=None, prefer: str = "auto", software: bool | None = None):
         return WallClock(finish, note=f"draw + glFinish wall time (timer query unsupported: {exc})")
 
 
-def add_clock_argument(parser, default: str = "auto") -> None:
-    parser.add_argument("--clock", choices=("auto", "gpu", "wall"), default=default,
-                        help="GL timing: timer query (gpu), draw + glFinish wall time (wall), or auto = gpu "
-                             "on a hardware renderer, wall on a software one (default %(default)s)")
-
-
 def clock_record(clock) -> dict:
     return {"clock": clock.name, "clock_note": getattr(clock, "note", "")}
 
@@ -361,6 +355,14 @@ def matplotlib_pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def save_figure(fig, path: Path, title: str, result: Mapping, dpi: int = 110) -> None:
+    """A report's figure finished the one way: titled with the GL_RENDERER, laid out, written, closed."""
+    fig.suptitle(f"{title} — {result['machine']['gl_renderer']}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    matplotlib_pyplot().close(fig)
 
 
 def write_report(out: Path | str, stem: str, result: dict, markdown: str | Callable[[dict], str],

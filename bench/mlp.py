@@ -20,14 +20,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
 from inshade.provenance import utc_now
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import (BenchError, add_clock_argument, cold_shader_cache, clock_for, clock_record, machine,
+from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.entry import Claim, claim_row
+from inshade.bench.harness import (BenchError, clock_for, clock_record, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
 
 DEFAULT_OUT = "bench-out/mlp"
@@ -59,36 +60,29 @@ def _mode_list(text: str) -> list[str]:
     return modes
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("--out", default=DEFAULT_OUT, help="output folder")
-    parser.add_argument("--size", type=int, default=512, help="batch is size x size pixels")
-    parser.add_argument("--repeats", type=int, default=5, help="timed repeats per measurement (median)")
-    parser.add_argument("--widths", type=_int_list, default=[16, 32, 64], help="hidden widths, e.g. 16,32,64")
-    parser.add_argument("--depths", type=_int_list, default=[3, 4], help="hidden layer counts, e.g. 3,4")
-    parser.add_argument("--storage", type=_mode_list, default=list(MODES),
-                        help="weight storage modes to time (inline,ubo,texture,auto)")
-    parser.add_argument("--encoding", choices=("frequency", "raw"), default="frequency",
-                        help="uv input encoding (frequency: NeRF encoding with --freqs octaves)")
-    parser.add_argument("--freqs", type=int, default=4, help="octaves of the frequency encoding")
-    parser.add_argument("--sgemm-size", type=int, default=2048, help="n of the n x n numpy sgemm peak")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--quick", action="store_true",
-                        help="tiny run for tests: 64x64 batch, one small network, 2 repeats")
-    parser.add_argument("--strict", action="store_true", help="exit 2 when a target is missed")
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, "output folder")
+    size: int = option(512, "batch is size x size pixels")
+    repeats: int = option(5, "timed repeats per measurement (median)")
+    widths: list[int] = option((16, 32, 64), "hidden widths, e.g. 16,32,64", parse=_int_list)
+    depths: list[int] = option((3, 4), "hidden layer counts, e.g. 3,4", parse=_int_list)
+    storage: list[str] = option(MODES, "weight storage modes to time (inline,ubo,texture,auto)", parse=_mode_list)
+    encoding: str = option("frequency", "uv input encoding (frequency: NeRF encoding with --freqs octaves)",
+                           choices=("frequency", "raw"))
+    freqs: int = option(4, "octaves of the frequency encoding")
+    sgemm_size: int = option(2048, "n of the n x n numpy sgemm peak")
+    seed: int = option(0)
+    quick: bool = option(False, "tiny run for tests: 64x64 batch, one small network, 2 repeats")
+    strict: bool = option(False, "exit 2 when a target is missed")
     # wall by default: the GLSL times are compared with torch's CPU wall time
-    add_clock_argument(parser, default="wall")
-    return parser
+    clock: str = clock_option("wall")
 
 
 def build_parser() -> argparse.ArgumentParser:
     return add_arguments(argparse.ArgumentParser(
         prog="inshade bench mlp", description=__doc__.split("\n\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter))
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench mlp", __doc__, add_arguments, run, argv, errors=(BenchError,),
-                        formatter=argparse.ArgumentDefaultsHelpFormatter)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -112,7 +106,7 @@ def uv_grid(size: int) -> np.ndarray:
 def _network(width: int, depth: int, encoding: str, freqs: int, seed: int):
     import torch
 
-    from inshade.models.encodings import Frequency
+    from inshade.components.encodings.torch_twin import Frequency
     from inshade.models.graph import mlp_graph
 
     torch.manual_seed(seed * 1000 + width * 10 + depth)
@@ -164,20 +158,12 @@ def _bench_glsl(ctx, bundle, mode: str, x: np.ndarray, ref: np.ndarray, size: in
 
 
 def run(args) -> int:
-    # Cold compile times: Mesa's on-disk shader cache would otherwise hide the JIT on re-runs
-    # (effective for the GL contexts this run makes first).
-    with cold_shader_cache():
-        return _run(args)
-
-
-def _run(args) -> int:
     import torch
     from tqdm import tqdm
 
     from inshade.runtime.context import gl_info, shared_context
 
     if args.quick:
-        args.size, args.repeats, args.widths, args.depths = 64, 2, [8], [1]
         args.sgemm_size = min(args.sgemm_size, 512)
     if args.size < 1 or args.repeats < 1 or not args.widths or not args.depths:
         raise BenchError("--size and --repeats must be >= 1, --widths and --depths not empty")
@@ -379,8 +365,9 @@ def headlines(r: dict) -> list[dict]:
                       "slowest network")]
 
 
-SUITE = SuiteEntry(sizes={
-    "cpu": Sizing(("--size", "256", "--repeats", "5", "--depths", "3", "--storage", "inline,texture",
-                   "--sgemm-size", "1024"), 60),
-    "device": Sizing(("--size", "1024", "--repeats", "5", "--clock", "auto"), 25),
-}, claims=CLAIMS, headlines=headlines)
+BENCH = Bench("mlp", __doc__, Settings, run, cold_cache=True, formatter=argparse.ArgumentDefaultsHelpFormatter,
+              quick={"size": 64, "repeats": 2, "widths": [8], "depths": [1]},
+              sizes={"cpu": sized(60, size=256, repeats=5, depths=[3], storage=["inline", "texture"], sgemm_size=1024),
+                     "device": sized(25, size=1024, repeats=5, clock="auto")},
+              claims=CLAIMS, headlines=headlines)
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

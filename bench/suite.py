@@ -20,7 +20,6 @@ still finishes. Exit status 1 when any bench was not ok, 2 for a bad option.
 """
 from __future__ import annotations
 
-import argparse
 import contextlib
 import gc
 import importlib
@@ -33,9 +32,11 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
-from inshade import command, technique
+from inshade import technique
+from inshade.bench.contract import Bench, option
 from inshade.provenance import utc_now
 from inshade.bench.entry import PRESETS, Sizing, SuiteEntry
 from inshade.bench.harness import (BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot,
@@ -260,17 +261,13 @@ def plot(r: Mapping, path: Path) -> None:
 # ---------------------------------------------------------------------------------------------
 # command line
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--preset", choices=PRESETS, required=True,
-                   help="cpu: minutes on a 2-core machine; device: one GPU, <= 8 minutes in all")
-    p.add_argument("--out", help="output folder (default docs/bench/<renderer-slug>, e.g. docs/bench/nvidia-h200)")
-    p.add_argument("--only", metavar="NAME,...", help="run only these benches (comma-separated)")
-    p.add_argument("--dry-run", action="store_true", help="print each bench's command line and budget, run nothing")
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench suite", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    preset: str = option(None, "cpu: minutes on a 2-core machine; device: one GPU, <= 8 minutes in all",
+                         choices=PRESETS, required=True)
+    out: str | None = option(None, "output folder (default docs/bench/<renderer-slug>, e.g. docs/bench/nvidia-h200)")
+    only: str | None = option(None, "run only these benches (comma-separated)", metavar="NAME,...")
+    dry_run: bool = option(False, "print each bench's command line and budget, run nothing")
 
 
 def plan_for(preset: str, names: list[str]) -> dict[str, Sizing | None]:
@@ -316,3 +313,7 @@ def run(args) -> int:
     print(f"wrote {out / 'summary.md'} ({len(bad)} of {len(result['benches'])} benches not ok"
           + (f": {', '.join(bad)})" if bad else ")"), file=sys.stderr)
     return 1 if bad else 0
+
+
+BENCH = Bench(NAME, __doc__, Settings, run)
+add_arguments, main = BENCH.add_arguments, BENCH.main

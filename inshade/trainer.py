@@ -78,7 +78,7 @@ def recorded(settings) -> dict:
     return {f.name: values[f.name] for f in dataclasses.fields(settings) if _applies(f, values)}
 
 
-def _scalar(annotation) -> tuple[type, bool, bool]:
+def scalar_type(annotation) -> tuple[type, bool, bool]:
     """(element type, optional, a sequence) of a field annotation such as ``int | None`` or
     ``tuple[float, ...]``."""
     args = typing.get_args(annotation)
@@ -193,7 +193,7 @@ class Trainer:
             shown = {f"{p} {c}": self.defaults(p, c) for p, table in self.presets.items() for c in table}
         for f in dataclasses.fields(self.settings):
             meta = f.metadata
-            kind, optional, sequence = _scalar(hints[f.name])
+            kind, optional, sequence = scalar_type(hints[f.name])
             per_preset = {p: v[f.name] for p, v in shown.items() if _applies(f, v)}
             if len(set(map(repr, per_preset.values()))) > 1:
                 told = "; ".join(f"{p}: {_shown(v)}" for p, v in per_preset.items())

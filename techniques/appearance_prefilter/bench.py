@@ -30,17 +30,17 @@ adds the masks-vs-mean-alpha measurement of hidden_occlusion.py. Writes ``appear
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
+from inshade.bench.contract import Bench, option, sized
+from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import (BenchError, machine, machine_markdown, markdown_table, matplotlib_pyplot,
                                    portable_path, write_report)
 from inshade.files import atomic_write
@@ -53,19 +53,14 @@ EQ_SPP = (1, 2, 4, 8, 16, 32)
 METHODS = ("prefiltered", "decimated", "1spp")
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--assets", default=None,
-                   help=f"comma-separated asset folders (default: every trained/{KIND}_* folder)")
-    p.add_argument("--scales", type=int, nargs="*", default=None, help="scales to measure (default: the asset's)")
-    p.add_argument("--spp", type=int, default=64, help="reference samples per pixel (default %(default)s)")
-    p.add_argument("--min-size", type=int, default=8, help="smallest image side (default %(default)s)")
-    p.add_argument("--rounds", type=int, default=3, help="timed rounds per frame (default %(default)s)")
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main(f"inshade bench {KIND}", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    assets: str | None = option(None, f"comma-separated asset folders (default: every trained/{KIND}_* folder)")
+    scales: tuple[int, ...] | None = option(None, "scales to measure (default: the asset's)", nargs="*")
+    spp: int = option(64, "reference samples per pixel (default %(default)s)")
+    min_size: int = option(8, "smallest image side (default %(default)s)")
+    rounds: int = option(3, "timed rounds per frame (default %(default)s)")
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
 
 
 def asset_folders(text: str | None) -> list[Path]:
@@ -288,7 +283,7 @@ def bench_asset(folder: Path, args, cache, log) -> dict:
             "lower_than_decimated_at_every_scale": all(r["prefiltered"]["mse"] < r["decimated"]["mse"] for r in rows)}
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: Settings) -> int:
     def log(msg):
         print(msg, file=sys.stderr, flush=True)
 
@@ -428,8 +423,7 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={
-    "cpu": Sizing(("--assets", "trained/appearance_prefilter_grove", "--scales", "3", "4", "--spp", "16",
-                   "--rounds", "2"), 60),
-    "device": Sizing(("--scales", "3", "4", "5", "--rounds", "5"), 10),
-}, claims=CLAIMS, headlines=headlines)
+BENCH = Bench(KIND, __doc__, Settings, run, claims=CLAIMS, headlines=headlines, sizes={
+    "cpu": sized(60, assets="trained/appearance_prefilter_grove", scales=(3, 4), spp=16, rounds=2),
+    "device": sized(10, scales=(3, 4, 5), rounds=5)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

@@ -20,14 +20,14 @@ Writes ``di_brdf.json``, ``di_brdf.md`` and ``di_brdf.png`` into ``--out``.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row, ratio_verdict
-from inshade.bench.harness import (BenchError, Ratio, add_clock_argument, clock_for, clock_record, interleave,
+from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.entry import Claim, claim_row, ratio_verdict
+from inshade.bench.harness import (BenchError, Ratio, clock_for, clock_record, interleave,
                                    machine, machine_markdown, markdown_table, matplotlib_pyplot,
                                    paired_difference, paired_ratio, write_report)
 from inshade.techniques.di_brdf import VIEWS as PASS_VIEWS
@@ -37,20 +37,16 @@ VIEWS = {v: PASS_VIEWS[v] for v in ("analytic", "learned", "diffuse")}   # the t
 LIGHTS = (1, 2, 3, 4)
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--assets", default="trained", help="folder holding di_brdf_disney/ and di_brdf_ggx/ (default %(default)s)")
-    p.add_argument("--size", type=int, default=512, help="square target size in pixels (default %(default)s)")
-    p.add_argument("--rounds", type=int, default=7, help="timed rounds per variant (default %(default)s)")
-    p.add_argument("--warmup", type=int, default=2, help="untimed draws per variant first (default %(default)s)")
-    p.add_argument("--filters", default="fast,exact", help="LUT paths to time (default %(default)s)")
-    p.add_argument("--models", default="disney,ggx", help="assets to time (default %(default)s)")
-    add_clock_argument(p)
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench di_brdf", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    assets: str = option("trained", "folder holding di_brdf_disney/ and di_brdf_ggx/ (default %(default)s)")
+    size: int = option(512, "square target size in pixels (default %(default)s)")
+    rounds: int = option(7, "timed rounds per variant (default %(default)s)")
+    warmup: int = option(2, "untimed draws per variant first (default %(default)s)")
+    filters: str = option("fast,exact", "LUT paths to time (default %(default)s)")
+    models: str = option("disney,ggx", "assets to time (default %(default)s)")
+    clock: str = clock_option()
 
 
 def _time_model(folder: Path, size: int, filters, rounds: int, warmup: int, clock_name: str, log) -> dict:
@@ -213,7 +209,7 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={
-    "cpu": Sizing((), 30),
-    "device": Sizing(("--size", "2880", "--rounds", "15"), 25),   # 2880^2 ~ the paper's 4K pixel count (Table 1)
-}, claims=CLAIMS, headlines=headlines)
+BENCH = Bench("di_brdf", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
+              sizes={"cpu": sized(30),
+                     "device": sized(25, size=2880, rounds=15)})   # 2880^2 ~ the paper's 4K pixel count (Table 1)
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

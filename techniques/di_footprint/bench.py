@@ -25,18 +25,18 @@ Writes ``di_footprint.json``, ``.md``, ``.png`` (PSNR per mode, PSNR per LOD) an
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
+from inshade.bench.contract import Bench, option, sized
+from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import (BenchError, atomic_path, machine, machine_markdown, matplotlib_pyplot,
-                                   portable_command, portable_path, write_report)
+                                   portable_command, portable_path, save_figure, write_report)
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
 from inshade.techniques.di_footprint import MODES
 
@@ -46,25 +46,24 @@ GL_MODES = tuple(m for m in MODES if m != "di")   # the GL samplers the DI one i
 MAX_ANISOTROPY = 16.0
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--asset", default=DEFAULT_ASSET,
-                   help="a di_footprint asset folder to evaluate (default %(default)s; trained here if missing)")
-    p.add_argument("--width", type=int, default=512)
-    p.add_argument("--height", type=int, default=256)
-    p.add_argument("--ss", type=int, default=16, help="ground-truth sub-samples per pixel axis (default 16)")
-    p.add_argument("--tile", type=float, default=None, help="world units per tile (default: the scene's)")
-    p.add_argument("--extent", type=float, default=None, help="plane half-size, world units (default: the scene's)")
-    p.add_argument("--steps", type=int, default=None, help="training steps when the asset is trained here")
-    p.add_argument("--quick", action="store_true", help="tiny run: 32x32 texture, 60 steps, 96x48 view")
-    return p
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    asset: str = option(DEFAULT_ASSET, "a di_footprint asset folder to evaluate (default %(default)s; trained here "
+                                       "if missing)")
+    width: int = option(512)
+    height: int = option(256)
+    ss: int = option(16, "ground-truth sub-samples per pixel axis (default 16)")
+    tile: float | None = option(None, "world units per tile (default: the scene's)")
+    extent: float | None = option(None, "plane half-size, world units (default: the scene's)")
+    steps: int | None = option(None, "training steps when the asset is trained here")
+    quick: bool = option(False, "tiny run: 32x32 texture, 60 steps, 96x48 view")
 
 
-def main(argv=None) -> int:
+def _errors() -> tuple:
     from inshade.models.footprint_sampler import FootprintError
 
-    return command.main("inshade bench di_footprint", __doc__, add_arguments, run, argv,
-                        errors=(BenchError, FootprintError))
+    return BenchError, FootprintError
 
 
 # ---------------------------------------------------------------------------------------------
@@ -254,8 +253,6 @@ def run(args) -> int:
     from inshade.models import footprint_sampler as sampler
     from inshade.runtime.context import gl_info, shared_context
 
-    if args.quick:
-        args.width, args.height, args.ss = 96, 48, 4
     if args.width < 1 or args.height < 1 or args.ss < 1:
         raise BenchError("--width, --height and --ss must be >= 1")
     ctx = shared_context()
@@ -407,10 +404,7 @@ def plot(result: dict, path: Path) -> None:
     c.set_xlabel("training seconds")
     c.set_ylabel("held-out PSNR vs emulated trilinear (float), dB")
     c.grid(True, alpha=0.3)
-    fig.suptitle(f"DI footprint sampler — {result['machine']['gl_renderer']}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, "DI footprint sampler", result)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -430,5 +424,6 @@ def headlines(r: dict) -> list[dict]:
                       f"{di['bytes']} B, trilinear {gl['psnr_vs_truth']:.2f} dB in {gl['bytes']} B", gap)]
 
 
-SUITE = SuiteEntry(sizes={"cpu": Sizing(("--ss", "8"), 30), "device": Sizing((), 45)},
-                   claims=CLAIMS, headlines=headlines)
+BENCH = Bench("di_footprint", __doc__, Settings, run, errors=_errors, quick={"width": 96, "height": 48, "ss": 4},
+              sizes={"cpu": sized(30, ss=8), "device": sized(45)}, claims=CLAIMS, headlines=headlines)
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

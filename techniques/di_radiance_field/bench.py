@@ -20,45 +20,46 @@ Writes ``di_radiance_field.{json,md,png}`` into ``--out``.
 """
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import math
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
+from inshade.bench.contract import Bench, option, sized
+from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import (BenchError, WallClock, atomic_write, interleave, machine, machine_markdown,
-                                   markdown_table, matplotlib_pyplot, write_report)
+                                   markdown_table, matplotlib_pyplot, save_figure, write_report)
 
 STEM = "di_radiance_field"
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default="docs/bench", help="report folder (default %(default)s)")
-    p.add_argument("--cache", default="build/di_radiance_field", help="trained heads cache (default %(default)s)")
-    p.add_argument("--grid", type=int, default=128, help="field grid side (default %(default)s)")
-    p.add_argument("--colour-ratios", default="5,10,25,50,100", help="colour compression ratios (default %(default)s)")
-    p.add_argument("--density-ratios", default="5,10", help="density compression ratios (default %(default)s)")
-    p.add_argument("--steps", type=int, default=800, help="training steps per head (default %(default)s)")
-    p.add_argument("--batch", type=int, default=8192, help="samples per step (default %(default)s)")
-    p.add_argument("--views", type=int, default=30, help="orbit views for quality (default %(default)s)")
-    p.add_argument("--size", type=int, default=128, help="quality image side (default %(default)s)")
-    p.add_argument("--time-size", type=int, default=512, help="timed frame side (default %(default)s)")
-    p.add_argument("--time-pair", default="10,10", help="density,colour ratios of the timed DI (default %(default)s)")
-    p.add_argument("--rounds", type=int, default=3, help="interleaved timing rounds (default %(default)s)")
-    p.add_argument("--quick", action="store_true", help="a smoke run: 32^3, 2 ratios, 4 views, 64^2, 50 steps, "
-                   "timed at 128^2 (options given explicitly override it)")
-    return p
+@dataclass
+class Settings:
+    out: str = option("docs/bench", "report folder (default %(default)s)")
+    cache: str = option("build/di_radiance_field", "trained heads cache (default %(default)s)")
+    grid: int = option(128, "field grid side (default %(default)s)")
+    colour_ratios: str = option("5,10,25,50,100", "colour compression ratios (default %(default)s)")
+    density_ratios: str = option("5,10", "density compression ratios (default %(default)s)")
+    steps: int = option(800, "training steps per head (default %(default)s)")
+    batch: int = option(8192, "samples per step (default %(default)s)")
+    views: int = option(30, "orbit views for quality (default %(default)s)")
+    size: int = option(128, "quality image side (default %(default)s)")
+    time_size: int = option(512, "timed frame side (default %(default)s)")
+    time_pair: str = option("10,10", "density,colour ratios of the timed DI (default %(default)s)")
+    rounds: int = option(3, "interleaved timing rounds (default %(default)s)")
+    quick: bool = option(False, "a smoke run: 32^3, 2 ratios, 4 views, 64^2, 50 steps, timed at 128^2 (options "
+                                "given explicitly override it)")
 
 
-def main(argv=None) -> int:
-    return command.main(f"inshade bench {STEM}", __doc__, add_arguments, run, argv, errors=(BenchError,))
+# the smoke run's sizes, for every option still at its default
+QUICK = dict(grid=32, colour_ratios="10,25", density_ratios="10", views=4, size=64, steps=50, time_size=128, rounds=1,
+             time_pair="10,10")
 
 
 def _ratios(text: str, what: str) -> list[float]:
@@ -190,8 +191,6 @@ def run(args) -> int:
     from . import field, model
     from .train import march_render
 
-    if args.quick:
-        _quick_sizes(args)
     density_ratios, colour_ratios, time_pair = _checked_ratios(args)
     ctx = shared_context()
     gl = gl_info(ctx)
@@ -231,16 +230,6 @@ def run(args) -> int:
     (out / f"{STEM}.partial.json").unlink(missing_ok=True)
     _log(f"wrote {out / (STEM + '.json')}, .md, .png")
     return 0
-
-
-def _quick_sizes(args) -> None:
-    """The smoke run's sizes, for every option still at its default."""
-    defaults = vars(add_arguments(argparse.ArgumentParser()).parse_args([]))
-    quick = dict(grid=32, colour_ratios="10,25", density_ratios="10", views=4, size=64, steps=50, time_size=128,
-                 rounds=1, time_pair="10,10")
-    for k, v in quick.items():
-        if getattr(args, k) == defaults[k]:
-            setattr(args, k, v)
 
 
 def _checked_ratios(args) -> tuple[list[float], list[float], list[float]]:
@@ -417,10 +406,7 @@ def plot(r: dict, path: Path, images: dict) -> None:
         a.imshow(_display(img), interpolation="nearest")
         a.set_title(title, fontsize=7)
         a.axis("off")
-    fig.suptitle(f"DI radiance field, {r['field']['grid']}³ — {r['machine']['gl_renderer']}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, f"DI radiance field, {r['field']['grid']}³", r, dpi=100)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -442,6 +428,6 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={"cpu": Sizing(("--quick",), 60),
-                          "device": Sizing(("--quick", "--time-size", "2048", "--rounds", "7"), 15)},
-                   claims=CLAIMS, headlines=headlines)
+BENCH = Bench(STEM, __doc__, Settings, run, quick=QUICK, quick_keeps_given=True, claims=CLAIMS, headlines=headlines,
+              sizes={"cpu": sized(60, quick=True), "device": sized(15, quick=True, time_size=2048, rounds=7)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

@@ -27,16 +27,18 @@ into ``--out``; GL_RENDERER is logged in all of them. ``--quick``: one tiny budg
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
-from inshade.bench.harness import (BenchError, WallClock, add_clock_argument, clock_for, clock_record, machine,
-                                   machine_markdown, matplotlib_pyplot, measure, portable_path, write_report)
+from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.entry import Claim, claim_row
+from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, machine,
+                                   machine_markdown, matplotlib_pyplot, measure, portable_path, save_figure,
+                                   write_report)
 from inshade.metrics import psnr
 
 DEFAULT_OUT = "bench-out/di_sdf"
@@ -45,32 +47,27 @@ SKY = "noon"
 PROGRAM = "passes/sdf_diffuse.frag"
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--mesh", default=DEFAULT_MESH,
-                   help="closed mesh (default: the procedural rabbit of inshade.geometry.mesh, generated if missing)")
-    p.add_argument("--budgets-kb", default="13", help="DI-SDFs to fit here, byte budgets in KiB, comma-separated ( = none; default %(default)s)")
-    p.add_argument("--di-steps", type=int, default=1500, help="DI training steps (default %(default)s)")
-    p.add_argument("--di-bundles", default="",
-                   help="also compare these trained DI-SDF bundle folders (comma-separated; their bytes set "
-                        "the MLP's), e.g. trained/di_sdf")
-    p.add_argument("--mlp-steps", type=int, default=3000, help="MLP training steps (default %(default)s)")
-    p.add_argument("--mlp-layers", type=int, default=3, help="MLP hidden layers (default %(default)s)")
-    p.add_argument("--mlp-samples", type=int, default=300_000, help="MLP training samples (default %(default)s)")
-    p.add_argument("--mlp-max-width", type=int, default=48,
-                   help="skip (and say so) MLPs wider than this: sdf_diffuse inlines scene_sdf 7 times and "
-                        "llvmpipe's first-draw JIT of a 38-wide MLP took 147 s here (default %(default)s)")
-    p.add_argument("--mlp-storage", default="auto", choices=("auto", "inline", "ubo", "texture"),
-                   help="MLP weight placement in the shader (default %(default)s: as the renderer picks)")
-    p.add_argument("--size", type=int, default=256, help="render size (default %(default)s)")
-    p.add_argument("--frames", type=int, default=5, help="timed frames per method (default %(default)s)")
-    p.add_argument("--quick", action="store_true", help="tiny run: 13 KiB, 40/100 steps, 64x64, 1 frame")
-    add_clock_argument(p)
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench di_sdf", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    mesh: str = option(DEFAULT_MESH, "closed mesh (default: the procedural rabbit of inshade.geometry.mesh, generated "
+                                     "if missing)")
+    budgets_kb: str = option("13", "DI-SDFs to fit here, byte budgets in KiB, comma-separated ( = none; default "
+                                   "%(default)s)")
+    di_steps: int = option(1500, "DI training steps (default %(default)s)")
+    di_bundles: str = option("", "also compare these trained DI-SDF bundle folders (comma-separated; their bytes set "
+                                 "the MLP's), e.g. trained/di_sdf")
+    mlp_steps: int = option(3000, "MLP training steps (default %(default)s)")
+    mlp_layers: int = option(3, "MLP hidden layers (default %(default)s)")
+    mlp_samples: int = option(300_000, "MLP training samples (default %(default)s)")
+    mlp_max_width: int = option(48, "skip (and say so) MLPs wider than this: sdf_diffuse inlines scene_sdf 7 times and "
+                                    "llvmpipe's first-draw JIT of a 38-wide MLP took 147 s here (default %(default)s)")
+    mlp_storage: str = option("auto", "MLP weight placement in the shader (default %(default)s: as the renderer picks)",
+                              choices=("auto", "inline", "ubo", "texture"))
+    size: int = option(256, "render size (default %(default)s)")
+    frames: int = option(5, "timed frames per method (default %(default)s)")
+    quick: bool = option(False, "tiny run: 13 KiB, 40/100 steps, 64x64, 1 frame")
+    clock: str = clock_option()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -246,7 +243,6 @@ def run(args) -> int:
     from inshade.scene.image_io import write_png
 
     if args.quick:
-        args.budgets_kb, args.di_steps, args.mlp_steps, args.size, args.frames = "13", 40, 100, 64, 1
         args.mlp_samples = min(args.mlp_samples, 20000)
     try:
         args.budget_list = [float(v) for v in args.budgets_kb.split(",") if v.strip()]
@@ -375,16 +371,12 @@ def plot(result: dict, path: Path) -> None:
     ax.set_xlabel("ms / frame")
     ax.set_ylabel("PSNR dB")
     ax.grid(True, alpha=0.3)
-    fig.suptitle(f"DI-SDF vs MLP SDF, equal bytes — {result['machine']['gl_renderer']}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, "DI-SDF vs MLP SDF, equal bytes", result)
 
 
 # ---------------------------------------------------------------------------------------------
 # `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
 
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row   # imported here: the entry is one block
 
 CLAIMS = {"mlp": Claim("Differentiable Indirection (Datta et al. 2023), Fig. 8 / 14c",
                        "surface error of the MLP SDF / the DI-SDF's at equal bytes (> 1: DI better)",
@@ -409,9 +401,9 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={
-    "cpu": Sizing(("--di-steps", "500", "--mlp-steps", "600", "--mlp-samples", "50000", "--size", "128",
-                   "--frames", "3"), 150),
-    # 2000 MLP steps: seconds on a GPU
-    "device": Sizing(("--mlp-steps", "2000", "--size", "512", "--frames", "10"), 60),
-}, claims=CLAIMS, headlines=headlines)
+BENCH = Bench("di_sdf", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
+              quick={"budgets_kb": "13", "di_steps": 40, "mlp_steps": 100, "size": 64, "frames": 1},
+              sizes={"cpu": sized(150, di_steps=500, mlp_steps=600, mlp_samples=50000, size=128, frames=3),
+                     # 2000 MLP steps: seconds on a GPU
+                     "device": sized(60, mlp_steps=2000, size=512, frames=10)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

@@ -32,15 +32,16 @@ steps per lambda), a 96x48 view (tests / smoke runs).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
+from inshade.bench.contract import Bench, option, sized
+from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import (BenchError, clock_for, clock_record, interleave, machine, machine_markdown,
                                    markdown_table, matplotlib_pyplot, portable_path, write_report)
 from inshade.metrics import flip, flip_unavailable, psnr, srgb_oetf
@@ -51,22 +52,21 @@ PAPER = {"claim": "< 1.5 ms at 4K (3840x2160) for learned texture sampling + sha
                   "+5% to +8% PSNR over independent training (Fig. 13 / Fig. 1)", "source": "paper §6.0.7, Fig. 1"}
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--asset", default=DEFAULT_ASSET, help="a di_shading asset folder (default %(default)s)")
-    p.add_argument("--width", type=int, default=512)
-    p.add_argument("--height", type=int, default=256)
-    p.add_argument("--repeats", type=int, default=5, help="timed frames per variant (default 5)")
-    p.add_argument("--time-size", type=int, default=512, help="frame time measured at SIZE x SIZE (default 512)")
-    p.add_argument("--quick", action="store_true", help="tiny run: a 32^2 set trained here, a 96x48 view")
-    return p
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    asset: str = option(DEFAULT_ASSET, "a di_shading asset folder (default %(default)s)")
+    width: int = option(512)
+    height: int = option(256)
+    repeats: int = option(5, "timed frames per variant (default 5)")
+    time_size: int = option(512, "frame time measured at SIZE x SIZE (default 512)")
+    quick: bool = option(False, "tiny run: a 32^2 set trained here, a 96x48 view")
 
 
-def main(argv=None) -> int:
+def _errors() -> tuple:
     from inshade.techniques.di_shading.model import ShadingError
 
-    return command.main("inshade bench di_shading", __doc__, add_arguments, run, argv,
-                        errors=(BenchError, ShadingError))
+    return BenchError, ShadingError
 
 
 # ---------------------------------------------------------------------------------------------
@@ -199,8 +199,6 @@ def _quick_asset(out: Path) -> Path:
 def run(args) -> int:
     from inshade.runtime.context import gl_info, shared_context
 
-    if args.quick:
-        args.width, args.height, args.repeats, args.time_size = 96, 48, 2, 64
     if args.width < 8 or args.height < 8 or args.repeats < 1 or args.time_size < 8:
         raise BenchError("--width, --height and --time-size must be >= 8 and --repeats >= 1")
     ctx = shared_context()
@@ -432,8 +430,6 @@ def _views(renders: dict, ref: np.ndarray, rows_ok: np.ndarray, path: Path):
 # ---------------------------------------------------------------------------------------------
 # `inshade bench suite`: this bench's command line per preset, and its headline rows against the paper
 
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row   # imported here: the entry is one block
-
 CLAIMS = {"gain": Claim("Differentiable Indirection (Datta et al. 2023), Fig. 1 / 13",
                         "end-to-end (best lambda) PSNR gain over independent training vs the 16-sample reference (%)",
                         "+5% (Fig. 13) to +8% (Fig. 1)", 8.0)}
@@ -446,6 +442,7 @@ def headlines(r: dict) -> list[dict]:
                       f"{best['psnr']:.2f} dB vs independent {base['psnr']:.2f} dB", best["psnr_gain_percent"])]
 
 
-SUITE = SuiteEntry(sizes={"cpu": Sizing(("--time-size", "256", "--repeats", "3"), 30),
-                          "device": Sizing(("--time-size", "2048", "--repeats", "10"), 15)},
-                   claims=CLAIMS, headlines=headlines)
+BENCH = Bench("di_shading", __doc__, Settings, run, errors=_errors, claims=CLAIMS, headlines=headlines,
+              quick={"width": 96, "height": 48, "repeats": 2, "time_size": 64},
+              sizes={"cpu": sized(30, time_size=256, repeats=3), "device": sized(15, time_size=2048, repeats=10)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

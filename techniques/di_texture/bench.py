@@ -25,20 +25,19 @@ against bits per pixel, one line per codec and image) into ``--out``.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
-
+from inshade.bench.contract import Bench, option, sized
 from inshade.bench import codecs
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
+from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import (BenchError, machine, machine_markdown, matplotlib_pyplot, portable_command,
-                                   portable_path, write_report)
+                                   portable_path, save_figure, write_report)
 from inshade.bench.codecs import ASTC_BLOCKS, ASTC_QUALITY, RGB8_BPP
 from inshade.metrics import flip as flip_mean
 from inshade.metrics import flip_unavailable, psnr, srgb_oetf
@@ -48,23 +47,17 @@ DEFAULT_OUT = "bench-out/di"
 RD_ASTC_BLOCKS = (4, 5, 6, 8, 10, 12)    # astcenc's square footprints: 8 down to 0.89 bpp
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--images", default="astronaut,chelsea,coffee", help="skimage.data names (default %(default)s)")
-    p.add_argument("--size", type=int, default=256, help="square size the images are cropped/resized to")
-    p.add_argument("--assets", default="trained", help="folder with di_<image> assets to reuse ('' = none)")
-    p.add_argument("--ratios", default="", help="extra DI ratios to train here, comma-separated (e.g. 12)")
-    p.add_argument("--steps", type=int, default=1500, help="training steps for DI trained here")
-    p.add_argument("--init", choices=INITS, default=DEFAULTS["init"],
-                   help="starting point of DI trained here (default %(default)s)")
-    p.add_argument("--astc", default=",".join(map(str, RD_ASTC_BLOCKS)),
-                   help="ASTC block sizes, comma-separated (default %(default)s)")
-    p.add_argument("--quick", action="store_true", help="tiny run: 32x32 astronaut, DI 150 steps at 3x")
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench di_texture", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    images: str = option("astronaut,chelsea,coffee", "skimage.data names (default %(default)s)")
+    size: int = option(256, "square size the images are cropped/resized to")
+    assets: str = option("trained", "folder with di_<image> assets to reuse ('' = none)")
+    ratios: str = option("", "extra DI ratios to train here, comma-separated (e.g. 12)")
+    steps: int = option(1500, "training steps for DI trained here")
+    init: str = option(DEFAULTS["init"], "starting point of DI trained here (default %(default)s)", choices=INITS)
+    astc: str = option(",".join(map(str, RD_ASTC_BLOCKS)), "ASTC block sizes, comma-separated (default %(default)s)")
+    quick: bool = option(False, "tiny run: 32x32 astronaut, DI 150 steps at 3x")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -211,8 +204,6 @@ def run(args) -> int:
     from inshade.models import texture_cascade as tc
     from inshade.runtime.context import gl_info, shared_context
 
-    if args.quick:
-        args.images, args.size, args.assets, args.ratios, args.steps, args.astc = "astronaut", 32, "", "3", 60, "4,8"
     try:
         args.ratio_list = [float(v) for v in args.ratios.split(",") if v.strip()]
     except ValueError:
@@ -315,10 +306,7 @@ def plot(result: dict, path: Path) -> None:
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
     axes[0][0].legend(fontsize=6)
-    fig.suptitle(f"DI vs ASTC/BC — {result['machine']['gl_renderer']}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, "DI vs ASTC/BC", result)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -356,8 +344,9 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={
-    # trains the DI textures here (the shipped ones are found only at their own size)
-    "cpu": Sizing(("--images", "astronaut", "--ratios", "6"), 60),
-    "device": Sizing(("--images", "astronaut,chelsea", "--size", "256", "--ratios", "6", "--steps", "2000"), 60),
-}, claims=CLAIMS, headlines=headlines)
+BENCH = Bench("di_texture", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
+              quick={"images": "astronaut", "size": 32, "assets": "", "ratios": "3", "steps": 60, "astc": "4,8"},
+              # trains the DI textures here (the shipped ones are found only at their own size)
+              sizes={"cpu": sized(60, images="astronaut", ratios="6"),
+                     "device": sized(60, images="astronaut,chelsea", size=256, ratios="6", steps=2000)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

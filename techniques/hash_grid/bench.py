@@ -25,16 +25,14 @@ side, one frame, a few DI steps (tests and smoke runs; options given explicitly 
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 
-from inshade import command
-from inshade.bench.entry import Sizing, SuiteEntry
-from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, cold_shader_cache,
-                                   machine, write_report)
+from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.harness import BenchError, clock_for, clock_record, machine, write_report
 
 from .bench_claims import CLAIMS, STEM, headlines
 from .bench_report import markdown, plot
@@ -43,40 +41,25 @@ APPS = ("image", "sdf", "radiance_field")
 QUICK = dict(sizes="64", frames=1, probe=16, di_steps=20, di_batch=2048, count_size=16, eval_side=8, heldout_views=1)
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default="bench-out/hash_grid", help="report folder (default %(default)s)")
-    p.add_argument("--apps", default=",".join(APPS), help="applications to measure (default %(default)s)")
-    p.add_argument("--image", default="trained/hash_grid_image", help="image asset folder (default %(default)s)")
-    p.add_argument("--sdf", default="trained/hash_grid_sdf", help="SDF asset folder (default %(default)s)")
-    p.add_argument("--radiance-field", default="trained/hash_grid_radiance_field",
-                   help="radiance-field asset folder (default %(default)s)")
-    p.add_argument("--sizes", default="512,1024", help="timed frame sides, comma-separated (default %(default)s)")
-    p.add_argument("--frames", type=int, default=5, help="timed draws per side (default %(default)s)")
-    p.add_argument("--probe", type=int, default=64, help="side of each program's first draw (default %(default)s)")
-    p.add_argument("--max-frame-s", type=float, default=120.0,
-                   help="skip a side whose frame the probe predicts longer than this (default %(default)s)")
-    p.add_argument("--di-steps", type=int, default=1500, help="steps of the image's DI cascade (default %(default)s)")
-    p.add_argument("--di-batch", type=int, default=16384, help="samples per DI step (default %(default)s)")
-    p.add_argument("--count-size", type=int, default=128,
-                   help="side at which the marches' evaluations per pixel are counted (default %(default)s)")
-    p.add_argument("--eval-side", type=int, default=48,
-                   help="lattice side of the per-evaluation timing (side^3 points; default %(default)s)")
-    p.add_argument("--heldout-views", type=int, default=8,
-                   help="radiance field: held-out views drawn by the shader (default %(default)s)")
-    p.add_argument("--quick", action="store_true", help="tiny run: " + ", ".join(f"{k} {v}" for k, v in QUICK.items()))
-    add_clock_argument(p)
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main(f"inshade bench {STEM}", __doc__, add_arguments, run, argv, errors=(BenchError,))
-
-
-def _apply_quick(args) -> None:
-    defaults = vars(add_arguments(argparse.ArgumentParser()).parse_args([]))
-    for k, v in QUICK.items():
-        if getattr(args, k) == defaults[k]:
-            setattr(args, k, v)
+@dataclass
+class Settings:
+    out: str = option("bench-out/hash_grid", "report folder (default %(default)s)")
+    apps: str = option(",".join(APPS), "applications to measure (default %(default)s)")
+    image: str = option("trained/hash_grid_image", "image asset folder (default %(default)s)")
+    sdf: str = option("trained/hash_grid_sdf", "SDF asset folder (default %(default)s)")
+    radiance_field: str = option("trained/hash_grid_radiance_field", "radiance-field asset folder (default %(default)s)")
+    sizes: str = option("512,1024", "timed frame sides, comma-separated (default %(default)s)")
+    frames: int = option(5, "timed draws per side (default %(default)s)")
+    probe: int = option(64, "side of each program's first draw (default %(default)s)")
+    max_frame_s: float = option(120.0, "skip a side whose frame the probe predicts longer than this (default "
+                                       "%(default)s)")
+    di_steps: int = option(1500, "steps of the image's DI cascade (default %(default)s)")
+    di_batch: int = option(16384, "samples per DI step (default %(default)s)")
+    count_size: int = option(128, "side at which the marches' evaluations per pixel are counted (default %(default)s)")
+    eval_side: int = option(48, "lattice side of the per-evaluation timing (side^3 points; default %(default)s)")
+    heldout_views: int = option(8, "radiance field: held-out views drawn by the shader (default %(default)s)")
+    quick: bool = option(False, "tiny run: " + ", ".join(f"{k} {v}" for k, v in QUICK.items()))
+    clock: str = clock_option()
 
 
 def _sizes(text: str) -> tuple[int, ...]:
@@ -90,8 +73,7 @@ def _sizes(text: str) -> tuple[int, ...]:
 
 
 def _checked(args) -> tuple[tuple[str, ...], tuple[int, ...]]:
-    if args.quick:
-        _apply_quick(args)
+    BENCH.apply_quick(args)   # (a no-op once applied: options given explicitly win)
     apps = tuple(a.strip() for a in args.apps.split(",") if a.strip())
     unknown = [a for a in apps if a not in APPS]
     if not apps or unknown:
@@ -105,11 +87,6 @@ def _checked(args) -> tuple[tuple[str, ...], tuple[int, ...]]:
 
 
 def run(args) -> int:
-    with cold_shader_cache():
-        return _run(args)
-
-
-def _run(args) -> int:
     import torch
 
     from inshade.metrics import flip_unavailable
@@ -158,10 +135,11 @@ def _run(args) -> int:
 # ---------------------------------------------------------------------------------------------
 # `inshade bench suite`: this bench's command line per preset, and its headline rows
 
-SUITE = SuiteEntry(sizes={
+BENCH = Bench(STEM, __doc__, Settings, run, cold_cache=True, quick=QUICK, quick_keeps_given=True, claims=CLAIMS,
+              headlines=headlines, sizes={
     # llvmpipe: 256² and 512² (a 512² radiance-field frame took 29 s, the SDF's first draw 150 s of JIT)
-    "cpu": Sizing(("--sizes", "256,512", "--frames", "2", "--max-frame-s", "40", "--di-steps", "1000",
-                   "--heldout-views", "4", "--count-size", "96", "--eval-side", "32"), 600),
+    "cpu": sized(600, sizes="256,512", frames=2, max_frame_s=40, di_steps=1000, heldout_views=4, count_size=96,
+                 eval_side=32),
     # the DI cascade trains on the machine's CPUs (~75 s of the budget)
-    "device": Sizing(("--sizes", "512,1024", "--frames", "8", "--di-steps", "1000"), 110),
-}, claims=CLAIMS, headlines=headlines)
+    "device": sized(110, sizes="512,1024", frames=8, di_steps=1000)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

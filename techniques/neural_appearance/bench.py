@@ -24,16 +24,16 @@ Writes ``neural_appearance.json``, ``.md`` and ``.png`` into ``--out``; logs GL_
 """
 from __future__ import annotations
 
-import argparse
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
+from inshade.bench.contract import Bench, clock_option, option, sized
 from inshade.files import atomic_write
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row, ratio_verdict
-from inshade.bench.harness import (BenchError, add_clock_argument, clock_for, clock_record, interleave, machine,
+from inshade.bench.entry import Claim, claim_row, ratio_verdict
+from inshade.bench.harness import (BenchError, clock_for, clock_record, interleave, machine,
                                    machine_markdown, markdown_table, matplotlib_pyplot, paired_ratio, write_report)
 
 DEFAULT_OUT = "bench-out/neural_appearance"
@@ -42,22 +42,18 @@ DECODER_NAMES = {16: "2x16", 32: "2x32", 64: "3x64"}
 SAMPLERS = ("learned", "isotropic", "cosine")
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--assets", default="trained/neural_appearance_ceramic,trained/neural_appearance_brushed_metal",
-                   help="comma-separated asset folders (default %(default)s)")
-    p.add_argument("--size", type=int, default=1024, help="speed: full-screen pass side in pixels (default %(default)s)")
-    p.add_argument("--quality-size", type=int, default=256, help="quality/sampler renders' height (default %(default)s)")
-    p.add_argument("--quality-spp", type=int, default=8, help="samples per quality render (default %(default)s)")
-    p.add_argument("--sampler-frames", type=int, default=32, help="1-spp frames per sampler estimate (default %(default)s)")
-    p.add_argument("--rounds", type=int, default=7, help="timed rounds (default %(default)s)")
-    p.add_argument("--warmup", type=int, default=2, help="untimed draws per variant (default %(default)s)")
-    add_clock_argument(p)
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench neural_appearance", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    assets: str = option("trained/neural_appearance_ceramic,trained/neural_appearance_brushed_metal",
+                         "comma-separated asset folders (default %(default)s)")
+    size: int = option(1024, "speed: full-screen pass side in pixels (default %(default)s)")
+    quality_size: int = option(256, "quality/sampler renders' height (default %(default)s)")
+    quality_spp: int = option(8, "samples per quality render (default %(default)s)")
+    sampler_frames: int = option(32, "1-spp frames per sampler estimate (default %(default)s)")
+    rounds: int = option(7, "timed rounds (default %(default)s)")
+    warmup: int = option(2, "untimed draws per variant (default %(default)s)")
+    clock: str = clock_option()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -239,7 +235,7 @@ def _png_bytes(path: Path) -> int:
 
 # ---------------------------------------------------------------------------------------------
 
-def run(args: argparse.Namespace) -> int:
+def run(args: Settings) -> int:
     import sys
 
     from inshade.scene.description import load_scene
@@ -358,9 +354,9 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={
+BENCH = Bench("neural_appearance", __doc__, Settings, run, claims=CLAIMS, headlines=headlines, sizes={
     # ~35 s with Mesa's shader cache warm; a cold cache adds minutes of llvmpipe JIT
-    "cpu": Sizing(("--assets", "trained/neural_appearance_ceramic", "--size", "256", "--quality-size", "64",
-                   "--quality-spp", "2", "--sampler-frames", "4", "--rounds", "3", "--warmup", "1"), 90),
-    "device": Sizing(("--size", "2048", "--rounds", "15"), 50),
-}, claims=CLAIMS, headlines=headlines)
+    "cpu": sized(90, assets="trained/neural_appearance_ceramic", size=256, quality_size=64, quality_spp=2,
+                 sampler_frames=4, rounds=3, warmup=1),
+    "device": sized(50, size=2048, rounds=15)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

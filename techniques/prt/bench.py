@@ -25,15 +25,15 @@ Writes ``prt.json``, ``prt.md`` and ``prt.png`` into ``--out``. ``--quick``: one
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import (BenchError, WallClock, add_clock_argument, clock_for, clock_record, machine,
+from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.entry import Claim, claim_row
+from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
 from inshade.techniques.prt.codegen import KINDS
 
@@ -54,26 +54,21 @@ def _size_plan(text: str) -> dict[int, list[int]]:
         raise BenchError(f"--sizes: expected 'k:size,size;k:size', got {text!r}") from None
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--assets", default=DEFAULT_ASSETS, help="PRT scene folders, comma-separated")
-    p.add_argument("--sizes", default="64:512,1024;128:512,1024;256:256;512:256",
-                   help="square frame sizes per transfer width k, 'k:s,s;k:s' (default %(default)s: the wide "
-                        "nets need seconds to minutes per frame on llvmpipe)")
-    p.add_argument("--shading", default="diffuse,glossy", help="shading modes (default %(default)s)")
-    p.add_argument("--storage", default="auto", choices=("auto", "inline", "ubo", "texture"),
-                   help="weight storage of the networks (default %(default)s: codegen's choice for this renderer)")
-    p.add_argument("--repeats", type=int, default=3, help="timed redraws per configuration (median)")
-    p.add_argument("--torch-size", type=int, default=128, help="frame size of the ours-vs-torch comparison")
-    p.add_argument("--rays", type=int, default=2000, help="surface points for the rays/s measurement")
-    p.add_argument("--mesh", default="trained/prt_mesh/mesh.ply", help="mesh for the embree rays/s measurement")
-    p.add_argument("--quick", action="store_true", help="tiny run for tests")
-    add_clock_argument(p)
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench prt", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    assets: str = option(DEFAULT_ASSETS, "PRT scene folders, comma-separated")
+    sizes: str = option("64:512,1024;128:512,1024;256:256;512:256", "square frame sizes per transfer width k, "
+                        "'k:s,s;k:s' (default %(default)s: the wide nets need seconds to minutes per frame on llvmpipe)")
+    shading: str = option("diffuse,glossy", "shading modes (default %(default)s)")
+    storage: str = option("auto", "weight storage of the networks (default %(default)s: codegen's choice for this "
+                                  "renderer)", choices=("auto", "inline", "ubo", "texture"))
+    repeats: int = option(3, "timed redraws per configuration (median)")
+    torch_size: int = option(128, "frame size of the ours-vs-torch comparison")
+    rays: int = option(2000, "surface points for the rays/s measurement")
+    mesh: str = option("trained/prt_mesh/mesh.ply", "mesh for the embree rays/s measurement")
+    quick: bool = option(False, "tiny run for tests")
+    clock: str = clock_option()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -219,6 +214,15 @@ def torch_comparison(path: str, args, ctx, cache) -> dict:
             "gl_seconds": gl["seconds"], "torch_seconds": torch_s, "speedup": torch_s / gl["seconds"]}
 
 
+def _timed_rays(geometry: str, backend: str, p, n, transfer_fn, dirs: int = 256) -> dict:
+    """One rays/s record: ``transfer_fn(dirs)`` over the surface points ``p`` timed once."""
+    start = time.perf_counter()
+    transfer_fn(dirs)
+    secs = time.perf_counter() - start
+    return {"geometry": geometry, "backend": backend, "points": int(p.shape[0]), "dirs": dirs, "seconds": secs,
+            "rays_per_second": p.shape[0] * dirs / secs}
+
+
 def rays_per_second(args) -> list[dict]:
     """Ground-truth transfer throughput: visibility rays per second on this CPU, with one torch
     thread (what ``inshade train prt`` uses: on 2 shared cores two threads ran ~10x slower)."""
@@ -234,12 +238,8 @@ def rays_per_second(args) -> list[dict]:
         scene = load_scene(path)
         sdf = _sdf_module(scene)
         p, n = transfer_surface.sample_sdf_surface(sdf, args.rays, seed=0)
-        dirs = 256
-        start = time.perf_counter()
-        transfer.sdf_transfer(sdf, p, n, n_dirs=dirs, seed=0)
-        secs = time.perf_counter() - start
-        out.append({"geometry": scene.name, "backend": "torch sphere tracing", "points": int(p.shape[0]),
-                    "dirs": dirs, "seconds": secs, "rays_per_second": p.shape[0] * dirs / secs})
+        out.append(_timed_rays(scene.name, "torch sphere tracing", p, n,
+                               lambda dirs: transfer.sdf_transfer(sdf, p, n, n_dirs=dirs, seed=0)))
     mesh_path = Path(args.mesh)
     if mesh_path.is_file():
         import trimesh
@@ -247,13 +247,9 @@ def rays_per_second(args) -> list[dict]:
         from inshade.geometry.mesh import load_mesh
         mesh = load_mesh(mesh_path)
         p, n = transfer_surface.sample_mesh_surface(mesh, args.rays, seed=0)
-        dirs = 256
-        start = time.perf_counter()
-        transfer.mesh_transfer(mesh, p, n, n_dirs=dirs, seed=0)
-        secs = time.perf_counter() - start
         backend = "trimesh + embree" if trimesh.ray.has_embree else "trimesh (no embree)"
-        out.append({"geometry": mesh_path.parent.name, "backend": backend, "points": int(p.shape[0]),
-                    "dirs": dirs, "seconds": secs, "rays_per_second": p.shape[0] * dirs / secs})
+        out.append(_timed_rays(mesh_path.parent.name, backend, p, n,
+                               lambda dirs: transfer.mesh_transfer(mesh, p, n, n_dirs=dirs, seed=0)))
     return out
 
 
@@ -263,8 +259,6 @@ def run(args) -> int:
 
     if args.quick:
         args.assets = args.assets.split(",")[0]
-        args.sizes, args.shading, args.repeats = "16:64;64:64", "diffuse", 1
-        args.torch_size, args.rays = 32, 64
     args.asset_list = [a.strip() for a in args.assets.split(",") if a.strip()]
     args.size_plan = _size_plan(args.sizes)
     args.shading_list = [s.strip() for s in args.shading.split(",") if s.strip()]
@@ -370,8 +364,8 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={
-    "cpu": Sizing(("--assets", "trained/prt_creature,trained/prt_mesh", "--sizes", "64:512",
-                   "--repeats", "3", "--rays", "500"), 60),
-    "device": Sizing(("--sizes", "64:512,1024;128:1024;256:512", "--repeats", "10", "--torch-size", "256"), 75),
-}, claims=CLAIMS, headlines=headlines)
+BENCH = Bench("prt", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
+              quick={"sizes": "16:64;64:64", "shading": "diffuse", "repeats": 1, "torch_size": 32, "rays": 64},
+              sizes={"cpu": sized(60, assets="trained/prt_creature,trained/prt_mesh", sizes="64:512", repeats=3, rays=500),
+                     "device": sized(75, sizes="64:512,1024;128:1024;256:512", repeats=10, torch_size=256)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

@@ -22,17 +22,17 @@ Writes ``prt_regions.json``, ``prt_regions.md`` and ``prt_regions.png``.
 """
 from __future__ import annotations
 
-import argparse
 import copy
 import json
 import shutil
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
+from inshade.bench.contract import Bench, option
 from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, machine, machine_markdown,
                                    matplotlib_pyplot, measure, portable_path, write_report)
 
@@ -292,10 +292,10 @@ def plot(result: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--asset", default="trained/prt_atrium", help="the region-set asset (default %(default)s)")
-    p.add_argument("--out", default="docs/bench", help="report folder (default %(default)s)")
-    return p
+@dataclass
+class Settings:
+    asset: str = option("trained/prt_atrium", "the region-set asset (default %(default)s)")
+    out: str = option("docs/bench", "report folder (default %(default)s)")
 
 
 def run(args) -> int:
@@ -308,10 +308,8 @@ def run(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    return command.main("python -m inshade.techniques.prt.regions_bench", __doc__, add_arguments, run, argv,
-                        errors=(BenchError,))
-
+BENCH = Bench("prt_regions", __doc__, Settings, run, prog="python -m inshade.techniques.prt.regions_bench")
+add_arguments, main = BENCH.add_arguments, BENCH.main
 
 if __name__ == "__main__":
     sys.exit(main())

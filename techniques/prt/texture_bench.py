@@ -22,16 +22,16 @@ two views, 32^2, one 128^2 texture (tests / smoke runs).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
-from inshade.bench.harness import (BenchError, WallClock, add_clock_argument, clock_for, clock_record, machine,
+from inshade.bench.contract import Bench, clock_option, option
+from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, machine,
                                    machine_markdown, markdown_table, matplotlib_pyplot, measure, portable_path,
                                    write_report)
 
@@ -39,22 +39,22 @@ PAPER_VERTEX_MB_PER_MILLION = 70.0       # §5.4 of the paper
 PAPER_NETWORK_BYTES = (64 << 10, 5 << 20)
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--out", default="bench-out/prt_texture", help="output folder")
-    p.add_argument("--learnt", default="trained/prt_mesh", help="the learnt-transfer mesh asset (its mesh is used)")
-    p.add_argument("--resolutions", default="256,512,1024", help="texture sides, comma-separated")
-    p.add_argument("--bits", default="8,16", help="bits per lane of each texture, comma-separated (8, 16, 32)")
-    p.add_argument("--bake-dirs", type=int, default=256, help="rays per texel of the bake")
-    p.add_argument("--views", type=int, default=30)
-    p.add_argument("--size", type=int, default=96, help="square size of the quality renders")
-    p.add_argument("--truth-dirs", type=int, default=512, help="rays per pixel of the ground truth")
-    p.add_argument("--frame-size", type=int, default=512, help="square size of the timed frames")
-    p.add_argument("--repeats", type=int, default=5)
-    p.add_argument("--work", default=None, help="folder for the variants' assets (default: a temporary one)")
-    p.add_argument("--cache", default=None, help="bake cache (default ~/.cache/inshade/prt_texture)")
-    p.add_argument("--quick", action="store_true", help="2 views, 32^2, one 128^2 16-bit texture, 16 rays")
-    add_clock_argument(p)
-    return p
+@dataclass
+class Settings:
+    out: str = option("bench-out/prt_texture", "output folder")
+    learnt: str = option("trained/prt_mesh", "the learnt-transfer mesh asset (its mesh is used)")
+    resolutions: str = option("256,512,1024", "texture sides, comma-separated")
+    bits: str = option("8,16", "bits per lane of each texture, comma-separated (8, 16, 32)")
+    bake_dirs: int = option(256, "rays per texel of the bake")
+    views: int = option(30)
+    size: int = option(96, "square size of the quality renders")
+    truth_dirs: int = option(512, "rays per pixel of the ground truth")
+    frame_size: int = option(512, "square size of the timed frames")
+    repeats: int = option(5)
+    work: str | None = option(None, "folder for the variants' assets (default: a temporary one)")
+    cache: str | None = option(None, "bake cache (default ~/.cache/inshade/prt_texture)")
+    quick: bool = option(False, "2 views, 32^2, one 128^2 16-bit texture, 16 rays")
+    clock: str = clock_option()
 
 
 def build_variant(mesh, learnt_scene: Path, resolution: int, bits_list, bake_dirs: int, work: Path, cache: Path):
@@ -89,7 +89,7 @@ def build_variant(mesh, learnt_scene: Path, resolution: int, bits_list, bake_dir
     return out
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: Settings) -> int:
     import torch
 
     from inshade.bundle import load
@@ -105,9 +105,6 @@ def run(args: argparse.Namespace) -> int:
                                              light_matrix_t, orbit_cameras)
 
     torch.set_num_threads(int(torch.get_num_threads()))
-    if args.quick:
-        args.resolutions, args.bits, args.bake_dirs = "128", "16", 16
-        args.views, args.size, args.truth_dirs, args.frame_size, args.repeats = 2, 32, 32, 64, 1
     try:
         resolutions = [int(v) for v in args.resolutions.split(",") if v.strip()]
         bits_list = [int(v) for v in args.bits.split(",") if v.strip()]
@@ -232,12 +229,16 @@ def _plot(r: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> int:
+def _errors() -> tuple:
     from inshade.techniques.prt.texture_prt import TextureBakeError
 
-    return command.main("python -m inshade.techniques.prt.texture_bench", __doc__, add_arguments, run, argv,
-                        errors=(BenchError, TextureBakeError))
+    return BenchError, TextureBakeError
 
+
+BENCH = Bench("prt_texture", __doc__, Settings, run, errors=_errors, prog="python -m inshade.techniques.prt.texture_bench",
+              quick={"resolutions": "128", "bits": "16", "bake_dirs": 16, "views": 2, "size": 32, "truth_dirs": 32,
+                     "frame_size": 64, "repeats": 1})
+add_arguments, main = BENCH.add_arguments, BENCH.main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -39,14 +39,14 @@ object) into ``--out`` (a ``.partial.json`` after each asset until the end); log
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
-from inshade.bench.harness import BenchError, add_clock_argument, machine, portable_path, write_report
+from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.entry import Claim, claim_row
+from inshade.bench.harness import BenchError, machine, portable_path, write_report
 from inshade.files import atomic_write
 
 from . import KIND
@@ -61,23 +61,17 @@ ASTC_SIZES = (4, 5, 6, 8, 10, 12)
 CODECS = ("BC1", "BC7", *(f"ASTC {b}x{b}" for b in ASTC_SIZES))
 
 
-def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p.add_argument("--assets", default=None,
-                   help=f"comma-separated asset folders (default: every trained/{ASSET_GLOB} folder)")
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--quality-size", type=int, default=256, help="quality renders' height (default %(default)s)")
-    p.add_argument("--width", type=int, default=1024, help="frame-time width (default %(default)s)")
-    p.add_argument("--height", type=int, default=768, help="frame-time height (default %(default)s)")
-    p.add_argument("--rounds", type=int, default=7, help="timed rounds (default %(default)s)")
-    p.add_argument("--warmup", type=int, default=2, help="untimed draws per variant (default %(default)s)")
-    p.add_argument("--codecs", default=",".join(CODECS),
-                   help="comma-separated baselines (default all: %(default)s)")
-    add_clock_argument(p)
-    return p
-
-
-def main(argv=None) -> int:
-    return command.main(f"inshade bench {KIND}", __doc__, add_arguments, run, argv, errors=(BenchError,))
+@dataclass
+class Settings:
+    assets: str | None = option(None, f"comma-separated asset folders (default: every trained/{ASSET_GLOB} folder)")
+    out: str = option(DEFAULT_OUT, f"output folder (default {DEFAULT_OUT})")
+    quality_size: int = option(256, "quality renders' height (default %(default)s)")
+    width: int = option(1024, "frame-time width (default %(default)s)")
+    height: int = option(768, "frame-time height (default %(default)s)")
+    rounds: int = option(7, "timed rounds (default %(default)s)")
+    warmup: int = option(2, "untimed draws per variant (default %(default)s)")
+    codecs: str = option(",".join(CODECS), "comma-separated baselines (default all: %(default)s)")
+    clock: str = clock_option()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -148,7 +142,7 @@ def bench_asset(folder: Path, args, codecs_: list[str], renders: Renders, memo: 
                                   args.clock, log)}
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: Settings) -> int:
     def log(msg):
         print(msg, file=sys.stderr, flush=True)
 
@@ -213,10 +207,9 @@ def headlines(r: dict) -> list[dict]:
     return rows
 
 
-SUITE = SuiteEntry(sizes={
-    "cpu": Sizing(("--assets", "trained/uvfree_material_fruit_balanced", "--quality-size", "128",
-                   "--width", "512", "--height", "384", "--rounds", "5", "--warmup", "1",
-                   "--codecs", "BC1,BC7,ASTC 6x6,ASTC 8x8"), 90),
+BENCH = Bench(KIND, __doc__, Settings, run, claims=CLAIMS, headlines=headlines, sizes={
+    "cpu": sized(90, assets="trained/uvfree_material_fruit_balanced", quality_size=128, width=512, height=384, rounds=5,
+                 warmup=1, codecs="BC1,BC7,ASTC 6x6,ASTC 8x8"),
     # the thesis times a 1280x720 query
-    "device": Sizing(("--width", "1280", "--height", "720", "--rounds", "15"), 80),
-}, claims=CLAIMS, headlines=headlines)
+    "device": sized(80, width=1280, height=720, rounds=15)})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite
