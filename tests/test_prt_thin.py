@@ -11,6 +11,9 @@ study / sampling helpers of techniques/prt/thin.py.
 """
 from __future__ import annotations
 
+import argparse
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -22,6 +25,8 @@ from inshade.techniques.prt.transfer_directions import hemisphere_directions
 from inshade.techniques.prt.transfer_inputs import TransferError
 from inshade.techniques.prt.transfer_surface import sample_sdf_surface
 from inshade.techniques.prt.twin import sdf_module
+
+ROOT = Path(__file__).resolve().parents[1]
 
 HIT = 1e-3
 GAP = 2.5 * HIT
@@ -156,23 +161,25 @@ def test_build_dataset_adds_near_occluder_samples(tmp_path):
 
 
 def test_near_points_is_recorded_only_where_a_recipe_uses_it():
-    """train.py: ``near_points`` is an optional setting: prt_mechanical's recipe names it, the other
-    recipes (and their metrics.json) do not, an explicit --near-points wins, 0 means none."""
-    import argparse
-
+    """recipes.py: ``near_points`` is an optional setting: prt_mechanical's recipe names it, the other
+    recipes (and their metrics.json) do not, an explicit --near-points wins (0: none drawn)."""
     from inshade.techniques.prt import train as prt_train
+    from inshade.techniques.prt.recipes import RECIPES
+    from inshade.trainer import recorded
 
-    def resolve(name, **given):
-        ns = argparse.Namespace(preset="ship", out=f"/x/{name}", **{k: None for k in prt_train.SETTINGS})
-        for k, v in given.items():
-            setattr(ns, k, v)
-        return prt_train.resolve_settings(ns), ns
+    def resolve(name, *given):
+        sdf = str(ROOT / "trained/prt_creature/sdf.json")
+        args = prt_train.add_arguments(argparse.ArgumentParser()).parse_args(["--sdf", sdf, "--out", f"/x/{name}",
+                                                                              *given])
+        return recorded(prt_train.TRAINER.resolve(args))
 
-    s, ns = resolve("prt_mechanical")
-    assert s["near_points"] == ns.near_points == prt_train.SHIP_ASSETS["prt_mechanical"]["near_points"] > 0
-    s, ns = resolve("prt_creature")
-    assert "near_points" not in s and ns.near_points is None
-    s, ns = resolve("prt_creature", near_points=500)
-    assert s["near_points"] == ns.near_points == 500
-    s, ns = resolve("prt_mechanical", near_points=0)
-    assert "near_points" not in s and ns.near_points is None
+    s = resolve("prt_mechanical")
+    assert s["recipe"] == "prt_mechanical" and s["near_points"] == RECIPES["prt_mechanical"]["near_points"] > 0
+    s = resolve("prt_creature")
+    assert s["recipe"] == "prt_creature" and "near_points" not in s
+    assert resolve("prt_creature", "--near-points", "500")["near_points"] == 500
+    assert resolve("prt_mechanical", "--near-points", "0")["near_points"] == 0
+    # --recipe names the recipe whatever the folder is called
+    s = resolve("my_asset", "--recipe", "prt_mechanical")
+    assert s["near_points"] == 160000 and s["quality_dirs"] == 256
+    assert resolve("my_asset")["recipe"] == "base"

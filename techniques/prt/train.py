@@ -35,16 +35,18 @@ training; the resolved device is recorded in the transfer bundle's provenance an
 ``--workers N`` / ``--ray auto|ADDRESS``: where the ground-truth rays of step 2 are baked, shard by
 shard (models/bake.py, docs/cluster.md); the data is bit-identical to an in-process bake.
 
-``--preset quick|ship`` (default ship): the settings below, options given explicitly override them.
-``ship`` is exactly what built the shipped assets: an OUT named like one of them (``prt_creature``,
-``prt_mechanical``, ``prt_mesh``, ``prt_neural_bunny``, ``prt_plants``) takes that asset's recipe, any other OUT the
-base recipe. ``metrics.json`` records the preset and the resolved settings.
+``--preset quick|ship`` (default ship): the settings of techniques/prt/recipes.py, options given
+explicitly override them. ``ship`` is exactly what built the shipped assets: ``--recipe NAME`` takes
+that asset's recipe, by default the one OUT is named after (``prt_creature``, ``prt_mechanical``,
+``prt_mesh``, ``prt_neural_bunny``, ``prt_plants``), any other OUT the base recipe. ``metrics.json``
+records the preset, the recipe and the resolved settings.
 
     inshade train prt --preset ship --sdf trained/prt_creature/sdf.json --out /tmp/prt_creature
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shlex
 import shutil
@@ -52,12 +54,14 @@ import time
 from pathlib import Path
 
 from inshade.files import atomic_write
-from inshade import asset_folder, command
+from inshade.geometry.gltf import GltfError
 from inshade.models.bake import BakeError, executor_from_args
-from inshade.devices import DeviceError, resolve_device
 from inshade.lit_settings import lit_settings
+from inshade.trainer import Run, Trainer, recorded
 
 from inshade.techniques.prt import transfer_net
+from inshade.techniques.prt.recipes import PRESETS, SHIP_ASSETS, Settings, recipe_for
+from inshade.techniques.prt.recipes import QUICK, SHIP_BASE  # noqa: F401  (the recipes' values, read from here too)
 
 # The PRT scene's user-facing settings (uniforms of lib/prt.glsl, the environment of lib/sdf).
 PRT_SETTINGS = {
@@ -73,100 +77,25 @@ PRT_SETTINGS = {
     "storage": {"type": "choice", "default": "auto", "choices": ["auto", "inline", "ubo", "texture"],
                 "codegen": "storage", "label": "weight storage"},
 }
-# The recipes (--preset). SHIP_BASE (the trainer's defaults) built prt_mesh;
-# SHIP_ASSETS are what each shipped asset's metrics.json "command" records, verbatim.
-SHIP_BASE = dict(width=64, layers=4, points=40000, dirs=128, steps=16000, batch=512, lr=1e-2, pos_freqs=6,
-                 normal_freqs=4, output="tanh", drop_enclosed=False, seed=0, quality_views=30, quality_size=96,
-                 quality_dirs=512, camera_from=None, title="")
-SHIP_ASSETS = {
-    "prt_creature": {**SHIP_BASE, "points": 60000, "dirs": 256, "steps": 6000, "batch": 4096, "lr": 2e-3,
-                     "camera_from": "trained/sdf_creature/scene.json",
-                     "title": "PRT: the creature SDF with a learnt transfer MLP (k=64)"},
-    # prt_mechanical's error sits in its contact shadows: samples drawn there (--near-points) lift
-    # k = 64 from 40.52 / 36.40 dB to 42.07 / 38.41 (20000..320000 tried, 160000 best), inside the
-    # parity envelope; k = 128 with them reached more but breaks the 1e-5 rule (accumulation
-    # magnitude 1.8e6 in the last layer, 6.4e-5 measured)
-    "prt_mechanical": {**SHIP_BASE, "near_points": 160000, "quality_dirs": 256,
-                       "camera_from": "trained/sdf_mechanical/scene.json",
-                       "title": "PRT: the mechanical SDF with a learnt transfer MLP (k=64)"},
-    "prt_mesh": {**SHIP_BASE,
-                 "title": "PRT: a rasterised mesh (procedural bunny) with a learnt transfer MLP (k=64)"},
-    "prt_neural_bunny": {**SHIP_BASE, "points": 20000, "drop_enclosed": True, "quality_dirs": 256, "quality_size": 64,
-                         "title": "PRT: a neural SDF (MLP fitted to the bunny mesh) with a learnt transfer MLP (k=64)"},
-    # thin leaves (techniques/prt/plants.py): the creature's recipe with 8 position octaves, the most
-    # the parity envelope allows
-    "prt_plants": {**SHIP_BASE, "points": 60000, "dirs": 256, "steps": 6000, "batch": 4096, "lr": 2e-3,
-                   "pos_freqs": 8, "quality_dirs": 256,
-                   "title": "PRT: a potted plant of thin leaves (analytic SDF) with a learnt transfer MLP (k=64)"},
-}
-# a few seconds of data and training, a coarse quality check: tests and trying options out
-QUICK = {**SHIP_BASE, "points": 2000, "dirs": 32, "steps": 300, "quality_views": 2, "quality_size": 32,
-         "quality_dirs": 64}
-PRESETS = ("quick", "ship")
-# settings a recipe names only where it uses them (recorded in metrics.json only then, so the assets
-# built before they existed still record their recipe verbatim), with the value meaning "not used"
-OPTIONAL = {"near_points": 0}
-SETTINGS = tuple(SHIP_BASE) + tuple(OPTIONAL)
-
-
-def preset_settings(preset: str, name: str) -> dict:
-    """The settings ``--preset`` gives an asset folder called ``name`` (before explicit options)."""
-    if preset == "quick":
-        return dict(QUICK)
-    if preset == "ship":
-        return dict(SHIP_ASSETS.get(name, SHIP_BASE))
-    raise ValueError(f"--preset: expected one of {', '.join(PRESETS)}, got {preset!r}")
-
-
-def resolve_settings(args: argparse.Namespace) -> dict:
-    """Preset values for the options not given; written back into ``args``, returned."""
-    settings = preset_settings(args.preset, Path(args.out).name)
-    for k in SETTINGS:
-        given = getattr(args, k, None)
-        if given is not None:
-            settings[k] = given
-        if k in OPTIONAL and settings.get(k, OPTIONAL[k]) == OPTIONAL[k]:
-            settings.pop(k, None)       # unused: not recorded, not passed on (None: the option's default)
-        setattr(args, k, settings.get(k))
-    return settings
-
-
 PROGRAMS = {"sdf": "passes/sdf_prt.frag", "neural_sdf": "passes/sdf_prt.frag", "mesh": "passes/mesh_prt.frag",
             "gltf": "passes/mesh_prt_gltf.frag"}
 GEOMETRY_OPTIONS = ("sdf", "neural_sdf", "mesh", "gltf")
 PREVIEW_SIZE = 256
+CACHE = Path.home() / ".cache" / "inshade" / "transfer"     # the transfer data's default cache
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
-    transfer_net.add_arguments(parser, out=False)
-    asset_folder.add_arguments(parser, "prt_<geometry>")
-    parser.add_argument("--preset", choices=PRESETS, default="ship",
-                        help="settings: ship = what built the shipped asset OUT is named after (else the base "
-                             "recipe), quick = seconds; options given explicitly override the preset")
-    parser.add_argument("--title", help="scene title (default: the preset's)")
-    parser.add_argument("--camera-from", default=None, help="take camera and bookmarks from this scene.json "
-                                                            "(default: the preset's)")
-    parser.add_argument("--quality-views", type=int, help="orbit views of the quality measurement (default: the preset's)")
-    parser.add_argument("--quality-size", type=int, help="square size of the quality renders (default: the preset's)")
-    parser.add_argument("--quality-dirs", type=int, help="rays per pixel of the ground truth (default: the preset's)")
-    parser.add_argument("--skip-train", action="store_true",
-                        help="keep OUT/transfer, redo scene/previews/quality (an existing OUT: with --force)")
-    # the preset fills what is not given explicitly (resolve_settings); the help says so
-    parser.set_defaults(**{k: None for k in SETTINGS})
-    for action in parser._actions:
-        if action.dest in SETTINGS:
-            text = (action.help or "").replace(" (default: %(default)s)", "").replace(" (default: the preset's)", "")
-            action.help = text + " (default: the preset's)%(default).0s"
-    return parser
-
-
-def _geometry(args) -> tuple[str, Path]:
+def _given(args) -> tuple[str, Path]:
+    """(kind, path) of the one geometry option given."""
     given = [(k, getattr(args, k)) for k in GEOMETRY_OPTIONS if getattr(args, k)]
     if len(given) != 1:
         raise SystemExit("inshade train prt: give exactly one of --sdf, --neural-sdf, --mesh, --gltf")
     kind, path = given[0]
-    path = Path(path)
+    return kind, Path(path)
+
+
+def _geometry(args) -> tuple[str, Path]:
+    """(kind, path) of the geometry, checked: a file that cannot be used fails before any work."""
+    kind, path = _given(args)
     if kind == "gltf":   # read once up front: a bad file is one GltfError line before any work
         from inshade.techniques.prt.gltf_geometry import gltf_mesh
 
@@ -254,60 +183,90 @@ def scene_dict(kind: str, geometry_name: str, name: str, title: str, camera: dic
             "settings": PRT_SETTINGS, "requires": {"gl": 330}}
 
 
-def run(args: argparse.Namespace) -> int:
+# Options the recorded command leaves out: the device is recorded resolved in the transfer bundle's
+# provenance, not in the recipe; where the bake ran (--workers, --ray) and where it is cached
+# (--cache, --checkpoint) change nothing.
+UNRECORDED = frozenset({"func", "command", "device", "workers", "ray", "force", "cache", "checkpoint"})
+
+
+def train(run: Run) -> int:
+    """The asset: geometry, transfer network (transfer_net.run), scene, previews, quality, metrics.json."""
     from inshade.bundle import load
     from inshade.techniques.prt.transfer_dataset import geometry_bound
 
-    resolve_device(args.device)   # first: a CUDA the machine lacks fails before any work (transfer_net uses it)
-    executor_from_args(args)      # a bad --workers / --ray fails before any work too
-    kind, src = _geometry(args)
-    args.out = str(asset_folder.claim(args.out, default_name(src), force=args.force))
-    settings = resolve_settings(args)
-    # the device is recorded resolved in the transfer bundle's provenance, not in the recipe; where
-    # the bake ran (--workers, --ray) and where it is cached (--cache, --checkpoint) change nothing
+    args, s, out = run.args, run.settings, run.out
+    kind, src = _given(args)
+    settings = {k: v for k, v in recorded(s).items() if k != "recipe"}   # the recipe's values, not its name
+    # every option written out, the settings resolved: the command alone rebuilds the asset
     command = shlex.join(["inshade", "train", "prt"] + transfer_net.command_options(
-        args, set(vars(args)) - {"func", "command", "device", "workers", "ray", "force", "cache", "checkpoint"}))
-    out = Path(args.out)
+        argparse.Namespace(**{**vars(args), **settings, "out": str(out)}), set(vars(args)) - UNRECORDED))
     out.mkdir(parents=True, exist_ok=True)
     times = {}
     geometry_name = _copy_geometry(kind, src, out)
-    setattr(args, kind, str(out / geometry_name))
-    if args.cache is None:
-        args.cache = str(Path.home() / ".cache" / "inshade" / "transfer")
-    final_out = args.out
-    args.out = str(out / "transfer")
+    transfer_args = argparse.Namespace(**{
+        **vars(args), **dataclasses.asdict(s), kind: str(out / geometry_name), "out": str(out / "transfer"),
+        "cache": args.cache or str(CACHE)})
     if not args.skip_train:
         start = time.perf_counter()
-        status = transfer_net.run(args)
+        status = transfer_net.run(transfer_args)
         times["transfer_seconds"] = time.perf_counter() - start
         if status:
             return status
-    args.out = final_out
-    geometry, _ = transfer_net.load_geometry(args)
-    camera, bookmarks = scene_camera(*geometry_bound(geometry), args.camera_from)
-    scene = scene_dict(kind, geometry_name, out.name, args.title or f"PRT: {out.name}", camera, bookmarks)
+    geometry, _ = transfer_net.load_geometry(transfer_args)
+    camera, bookmarks = scene_camera(*geometry_bound(geometry), s.camera_from)
+    scene = scene_dict(kind, geometry_name, out.name, s.title or f"PRT: {out.name}", camera, bookmarks)
     atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
     extra = {}
     if kind == "gltf":
         from inshade.techniques.prt.gltf_asset import gltf_previews_and_quality
 
-        quality, extra, shown = gltf_previews_and_quality(out, args.quality_views, args.quality_size,
-                                                          args.quality_dirs, PREVIEW_SIZE)
+        quality, extra, shown = gltf_previews_and_quality(out, s.quality_views, s.quality_size, s.quality_dirs,
+                                                          PREVIEW_SIZE)
     else:
-        quality, shown = previews_and_quality(out, args.quality_views, args.quality_size, args.quality_dirs)
+        quality, shown = previews_and_quality(out, s.quality_views, s.quality_size, s.quality_dirs)
     times.update(shown)
     bundle = load(out / "transfer")
-    metrics = {"asset": out.name, "geometry": kind, "command": command, "preset": args.preset, "settings": settings,
-               "transfer": bundle.meta.get("metrics", {}),
+    metrics = {"asset": out.name, "geometry": kind, "command": command, "preset": run.preset, "recipe": s.recipe,
+               "settings": settings, "transfer": bundle.meta.get("metrics", {}),
                "provenance": bundle.meta.get("provenance", {}), "quality": quality, **extra, **times}
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=1, sort_keys=True) + "\n")
     print(json.dumps({"quality": {m: quality[m] for m in ("diffuse", "glossy")}, **extra, **times}, indent=1))
     return 0
 
 
-def main(argv=None) -> int:
-    from inshade.geometry.gltf import GltfError
+def extra_arguments(parser: argparse.ArgumentParser) -> None:
+    """The geometry and where its data is baked and cached (transfer_net.py), and --skip-train."""
+    transfer_net.add_inputs(parser, cache=str(CACHE).replace(str(Path.home()), "~"))
+    parser.add_argument("--skip-train", action="store_true",
+                        help="keep OUT/transfer, redo scene/previews/quality (an existing OUT: with --force)")
 
-    return command.main("inshade train prt", __doc__, add_arguments, run, argv,
-                        errors=(DeviceError, BakeError, GltfError))
 
+def folder(settings: Settings, args: argparse.Namespace) -> str:
+    return default_name(_given(args)[1])
+
+
+class RecipeTrainer(Trainer):
+    """The trainer contract, with what holds before the asset folder is claimed: the geometry and the
+    bake's options are checked, and the recipe not given is the one the asset folder is named after."""
+
+    def resolve(self, args: argparse.Namespace) -> Settings:
+        executor_from_args(args)          # a bad --workers / --ray fails before any work
+        _, src = _geometry(args)
+        if args.recipe is None:
+            name = Path(args.out).name if args.out else default_name(src)
+            args = argparse.Namespace(**{**vars(args), "recipe": recipe_for(name)})
+        return super().resolve(args)
+
+
+TRAINER = RecipeTrainer("prt", __doc__, Settings, PRESETS, train, folder=folder, default_preset="ship",
+                        ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, errors=(BakeError, GltfError),
+                        preset_by="recipe", folder_hint="prt_<geometry>")
+add_arguments, main = TRAINER.add_arguments, TRAINER.main
+
+
+def preset_settings(preset: str, asset: str | None = None) -> dict:
+    """What ``--preset`` resolves to for an asset folder called ``asset`` (a shipped asset's name
+    takes its recipe, any other the base recipe), as metrics.json records it: the recipe's values."""
+    values = TRAINER.preset_settings(preset, asset if asset in SHIP_ASSETS else None)
+    del values["recipe"]
+    return values

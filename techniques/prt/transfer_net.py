@@ -70,19 +70,32 @@ def load_geometry(args: argparse.Namespace):
     return NetworkSdfModule.from_bundle(load(args.neural_sdf)), {"neural_sdf": str(args.neural_sdf)}
 
 
-def add_arguments(parser: argparse.ArgumentParser, out: bool = True) -> argparse.ArgumentParser:
-    """This module's options (``out``: with its own required ``--out``; a wrapper that writes the
-    bundle inside an asset folder brings its own)."""
-    d = DEFAULTS
+def add_inputs(parser: argparse.ArgumentParser, cache: str = "OUT/../.transfer_cache") -> argparse.ArgumentParser:
+    """The options that are not the network's settings: the geometry, where data and checkpoints are
+    cached (``cache``: the default cache folder, as --help says it), where the rays are baked and on how
+    many CPU threads (``inshade train prt`` has them too)."""
     geo = parser.add_mutually_exclusive_group(required=True)
     geo.add_argument("--sdf", help="analytic SDF description (e.g. trained/sdf_creature/sdf.json)")
     geo.add_argument("--mesh", help="triangle mesh (OBJ/PLY/GLB), transfer by embree ray casting")
     geo.add_argument("--neural-sdf", help="network-SDF bundle folder")
     geo.add_argument("--gltf", help="glTF 2.0 file (.glb/.gltf): transfer for its world-space mesh, read with its "
                                     "own normals; `inshade train prt` shades it with the file's base colour")
-    if out:
-        parser.add_argument("--out", required=True, help="bundle folder to write")
-    parser.add_argument("--cache", default=None, help="dataset cache folder (default: OUT/../.transfer_cache)%(default).0s")
+    parser.add_argument("--cache", default=None, help=f"dataset cache folder (default: {cache})%(default).0s")
+    parser.add_argument("--checkpoint", default=None,
+                        help="resumable checkpoint (default: CACHE/checkpoint-HASH.safetensors, HASH of the "
+                             "dataset and the training settings, so a rerun resumes or finds it done)%(default).0s")
+    bake.add_arguments(parser)
+    parser.add_argument("--threads", type=int, default=DEFAULTS["threads"],
+                        help="torch CPU threads; 0 = torch's default (default: %(default)s: on a shared 2-core "
+                             "machine two spinning OpenMP threads ran rays and training ~10x slower than one)")
+    return parser
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """This module's options: its inputs, the bundle folder, the network's settings and the device."""
+    d = DEFAULTS
+    add_inputs(parser)
+    parser.add_argument("--out", required=True, help="bundle folder to write")
     parser.add_argument("--width", type=int, default=d["width"], help="hidden width k (default: %(default)s)")
     parser.add_argument("--layers", type=int, default=d["layers"], help="hidden layers (default: %(default)s)")
     parser.add_argument("--points", type=int, default=d["points"], help="surface samples (default: %(default)s)")
@@ -100,15 +113,8 @@ def add_arguments(parser: argparse.ArgumentParser, out: bool = True) -> argparse
                              "held-out samples stay uniform (default: %(default)s)")
     parser.add_argument("--drop-enclosed", action="store_true",
                         help="train without samples whose every visibility ray is blocked (enclosed shells)")
-    parser.add_argument("--checkpoint", default=None,
-                        help="resumable checkpoint (default: CACHE/checkpoint-HASH.safetensors, HASH of the "
-                             "dataset and the training settings, so a rerun resumes or finds it done)%(default).0s")
     parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
     add_device_argument(parser)
-    bake.add_arguments(parser)
-    parser.add_argument("--threads", type=int, default=d["threads"],
-                        help="torch CPU threads; 0 = torch's default (default: %(default)s: on a shared 2-core "
-                             "machine two spinning OpenMP threads ran rays and training ~10x slower than one)")
     return parser
 
 
