@@ -25,6 +25,7 @@ learned BRDF's ggx and disney recipes), and a setting may belong to some values 
 from __future__ import annotations
 
 import argparse
+import collections
 import dataclasses
 import inspect
 import json
@@ -76,6 +77,23 @@ def recorded(settings) -> dict:
     """The settings a run records: every field that belongs to it."""
     values = dataclasses.asdict(settings)
     return {f.name: values[f.name] for f in dataclasses.fields(settings) if _applies(f, values)}
+
+
+def _told_per_preset(values: Mapping[tuple, object]) -> str:
+    """A setting's value under each (preset, preset_by value): per preset its most common value, then
+    the values of the preset_by choices that differ ("ship: 40000, prt_plants 60000")."""
+    out = []
+    for preset in dict.fromkeys(p for p, _ in values):
+        mine = {c: v for (p, c), v in values.items() if p == preset}
+        if len(mine) == 1:     # a setting of one choice only: name it
+            (c, v), = mine.items()
+            out.append(f"{preset} {c}: {_shown(v)}" if c is not None else f"{preset}: {_shown(v)}")
+            continue
+        common = collections.Counter(map(repr, mine.values())).most_common(1)[0][0]
+        usual = next(v for v in mine.values() if repr(v) == common)
+        odd = ", ".join(f"{c} {_shown(v)}" for c, v in mine.items() if repr(v) != common)
+        out.append(f"{preset}: {_shown(usual)}" + (f", {odd}" if odd else ""))
+    return "; ".join(out)
 
 
 def scalar_type(annotation) -> tuple[type, bool, bool]:
@@ -187,20 +205,20 @@ class Trainer:
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
         hints = typing.get_type_hints(self.settings)
-        if self.preset_by is None:
-            shown = {p: self.defaults(p) for p in self.presets}
-        else:
-            shown = {f"{p} {c}": self.defaults(p, c) for p, table in self.presets.items() for c in table}
+        choices = {p: list(table) if self.preset_by else [None] for p, table in self.presets.items()}
+        shown = {(p, c): self.defaults(p, c) for p, cs in choices.items() for c in cs}
         for f in dataclasses.fields(self.settings):
             meta = f.metadata
             kind, optional, sequence = scalar_type(hints[f.name])
-            per_preset = {p: v[f.name] for p, v in shown.items() if _applies(f, v)}
-            if len(set(map(repr, per_preset.values()))) > 1:
-                told = "; ".join(f"{p}: {_shown(v)}" for p, v in per_preset.items())
+            per_preset = {k: v[f.name] for k, v in shown.items() if _applies(f, v)}
+            if f.name == self.preset_by:    # its help says what it defaults to
+                told = None if f.default is None else f"default {_shown(f.default)}"
+            elif len(set(map(repr, per_preset.values()))) > 1:
+                told = _told_per_preset(per_preset)
             else:
                 told = f"default {_shown(next(iter(per_preset.values()), f.default))}"
             required = meta["positional"] and f.default is None
-            kw = dict(help=meta["help"] if required else f"{meta['help']} ({told})", default=None,
+            kw = dict(help=meta["help"] if required or told is None else f"{meta['help']} ({told})", default=None,
                       choices=meta["choices"])
             if meta["metavar"]:
                 kw["metavar"] = meta["metavar"]

@@ -132,7 +132,7 @@ def test_per_value_help_and_a_folder_named_from_an_input_option(tmp_path, monkey
     runs: list[Run] = []
     t = _per_shape(runs)
     text = " ".join(t.add_arguments(argparse.ArgumentParser()).format_help().split())
-    assert "ship ring: 900; ship disc: 300; quick ring: 9; quick disc: 3" in text
+    assert "(ship: 900, disc 300; quick: 9, disc 3)" in text
     assert "ship disc: 2; quick disc: 1" in text and "ship = ring: steps 900 / disc: steps 300, holes 2" in text
     monkeypatch.chdir(tmp_path)
     assert t.main(["ring", "--tag", "b", "--device", "cpu"]) == 0
