@@ -1,14 +1,17 @@
-"""The package list: the fixed packages, then every technique folder (a folder with an
-__init__.py under techniques/), so a new technique needs no edit here. Everything else is in
+"""The package list: the fixed packages, then every component folder and every technique folder (a
+folder with an __init__.py under components/ or techniques/), so a new one needs no edit here. Everything else is in
 pyproject.toml."""
 from pathlib import Path
 
 from setuptools import setup
 
 HERE = Path(__file__).resolve().parent
-FIXED = ["inshade", "inshade.commands", "inshade.bench", "inshade.convert", "inshade.codegen", "inshade.models",
+FIXED = ["inshade", "inshade.commands", "inshade.bench", "inshade.convert", "inshade.codegen", "inshade.components",
+         "inshade.models",
          "inshade.runtime", "inshade.scene", "inshade.geometry", "inshade.viewer", "inshade.shaders", "inshade.techniques",
          "inshade.web"]
+COMPONENTS = sorted(f"inshade.components.{d.name}" for d in (HERE / "components").iterdir()
+                    if (d / "__init__.py").is_file())
 TECHNIQUES = sorted(f"inshade.techniques.{d.name}" for d in (HERE / "techniques").iterdir()
                     if (d / "__init__.py").is_file())
 # The GLSL folders and the web page's folder are data packages (their files ship through
@@ -20,4 +23,4 @@ SHADER_FOLDERS = sorted({
     for name, root in SHADER_ROOTS if root.is_dir()
     for d in [root, *root.rglob("*")] if d.is_dir() and any(d.glob("*.glsl")) and d != HERE / "shaders"})
 
-setup(packages=FIXED + TECHNIQUES + SHADER_FOLDERS + ["inshade.web.page"])
+setup(packages=FIXED + COMPONENTS + TECHNIQUES + SHADER_FOLDERS + ["inshade.web.page"])

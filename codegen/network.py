@@ -20,17 +20,20 @@ import re
 from dataclasses import dataclass
 
 from inshade.bundle import Bundle
+from inshade.components import registry as component_registry
+from inshade.components.lookup_array.spec import FILTERS
 from inshade.envelope import analyse
 
-from . import activations, binary, encodings, feature_ops, hash_grid, int_gather, latent_pyramid, lookup_array, mesh_features, mlp, proxy, shading_frames, sparse_voxels  # noqa: F401,E501  (register emitters)
+from . import activations, mlp  # noqa: F401  (register emitters)
 from .glsl import EmitContext, PlanRow, TextureResource, UniformBlockResource, blocks
 from .layer_loop import emit_run, fold_runs
 from .limits import LimitError, limit, source
-from .lookup_array import FILTERS
 from .mlp import STORAGE_MODES, TEXTURE_FORMATS, WeightTexture, choose_storage, loop_chunks
 from .plan import Plan
 from .registry import EMITTERS, OPTIONS, SEPARATE_INPUTS, resolve_options
 from .values import Value, gather
+
+component_registry.load("glsl")
 
 TARGETS = ("330", "450", "es300")
 # Short names of the most used options (CLI flags, scene settings): name -> (component type, option).

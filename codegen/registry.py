@@ -8,7 +8,11 @@ A new component type brings its own options without touching ``generate``'s sign
 """
 from __future__ import annotations
 
-EMITTERS: dict = {}
+from inshade.components import registry
+from inshade.shaders import add_search_provider
+
+# type -> emitter (codegen/network.py loads the component folders' emitters into it)
+EMITTERS: dict = registry.entries("glsl")
 SEPARATE_INPUTS: set[str] = set()   # types whose emitter takes a list of input Values (may be uint), not one gathered
 OPTIONS: dict[str, dict[str, tuple[tuple, object]]] = {}   # type -> option -> (choices, default)
 
@@ -18,13 +22,17 @@ def emitter(*types: str, options: dict | None = None, separate_inputs: bool = Fa
     of the node's input Values as they are (a uint input stays uint), else their float concatenation."""
     def deco(fn):
         for t in types:
-            EMITTERS[t] = fn
+            registry.add("glsl", t, fn)
             if separate_inputs:
                 SEPARATE_INPUTS.add(t)
             if options:
                 OPTIONS.setdefault(t, {}).update(options)
         return fn
     return deco
+
+
+# a component folder's chunks are included as "<folder>/<chunk>"
+add_search_provider(registry.chunk_roots)
 
 
 def resolve_options(options: dict | None) -> dict[str, dict]:

@@ -2,7 +2,7 @@
 cannot fall behind it.
 
 mkdocs runs this file through the gen-files plugin (mkdocs.yml): the component reference from the
-component specs (`inshade/components.py`) and the emitters' codegen options, the command-line
+component folders (`components/`) and the emitters' codegen options, the command-line
 reference from the argparse parsers (`inshade/cli.py` and every trainer's and bench's own), the
 operations each source lowers (`inshade convert --ops`), the shipped assets (their `scene.json`
 settings, `metrics.json` recipes and previews) and the list of benchmark records under
@@ -79,7 +79,7 @@ def torch_twins() -> dict:
 
 def component_reference() -> str:
     from inshade.codegen.registry import EMITTERS, OPTIONS
-    from inshade.components import COMPONENTS
+    from inshade.components import COMPONENTS, registry
 
     twins = torch_twins()
     out = ["", "## Every component type", "",
@@ -102,9 +102,11 @@ def component_reference() -> str:
             for name, (choices, default) in OPTIONS.get(t, {}).items():
                 listed = " \\| ".join(f"`{c}`" for c in choices)
                 out.append(f"- codegen option `{t}.{name}`: {listed} (default `{default}`)")
-            files = [f"GLSL: `{_where(EMITTERS[t])}`"] if t in EMITTERS else ["GLSL: none"]
+            spec_module = sys.modules[registry.defined_where("spec", t)]
+            files = [f"spec: `{_where(spec_module)}`"]
+            files.append(f"GLSL: `{_where(EMITTERS[t])}`" if t in EMITTERS else "GLSL: none")
             if t in twins:
-                files.insert(0, f"torch: `{_where(twins[t])}`")
+                files.insert(1, f"torch: `{_where(twins[t])}`")
             out += [f"- {', '.join(files)}", ""]
     unknown = sorted({s.category for s in COMPONENTS.values()} - {c for c, _ in CATEGORIES})
     if unknown:   # a new category must get a heading here, not vanish from the page

@@ -94,6 +94,9 @@ from .bundle import Bundle
 from .envelope_base import (DENSE_MAGNITUDE, DENSE_MAGNITUDE_WARN, EXP_ARG, GRID_GAIN, LOOKUP_GAIN,  # noqa: F401
                             LOOKUP_GAIN_CHAINED, NOTE, PERIODIC_ARG_COMPUTED, PERIODIC_ARG_INPUT, POW_ARG,
                             POW_EXPONENT, POW_SQUARING, RULES, TOL, WARNING, Finding, Site, Walk, rule)
+from .components import registry as component_registry
+
+component_registry.load("envelope")
 
 
 @dataclass

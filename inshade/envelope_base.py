@@ -14,6 +14,7 @@ from typing import Callable
 import numpy as np
 
 from .bundle import Bundle, Node
+from .components import registry
 
 TOL = 1e-5
 PERIODIC_ARG_INPUT = 2.0 ** 7 * math.pi    # ~402: sin/cos of a bundle input
@@ -116,16 +117,15 @@ class Rule:
     keeps_exact: bool
 
 
-RULES: dict[str, Rule] = {}
+# component type -> its rule (inshade/envelope.py loads the component folders' rules into it)
+RULES: dict[str, Rule] = registry.entries("envelope")
 
 
 def rule(*types: str, keeps_exact: bool = False) -> Callable[[Bounds], Bounds]:
     """Registers a function as the envelope rule of these component types; a type has one rule."""
     def register(fn: Bounds) -> Bounds:
         for t in types:
-            if t in RULES:
-                raise ValueError(f"envelope rule for component {t!r} registered twice")
-            RULES[t] = Rule(fn, keeps_exact)
+            registry.add("envelope", t, Rule(fn, keeps_exact), where=f"{fn.__module__}.{fn.__qualname__}")
         return fn
     return register
 

@@ -14,8 +14,8 @@ The rules are tiny-cuda-nn's (docs/tcnn.md cites the file and function of each):
   f = p - floor(p); the 2^dims vertices c + b (b in {0, 1}^dims, bit d of the corner number is
   axis d) are weighted by prod_d (b_d ? f_d : 1 - f_d) and summed in corner order.
 
-The torch twin (models/hash_grid.py) and the GLSL emitter (codegen/hash_grid.py,
-shaders/lib/hash_grid.glsl) both read the levels from here.
+The torch twin (components/grids/torch_twin.py) and the GLSL emitter (components/grids/emit.py,
+components/grids/hash_grid.glsl) both read the levels from here.
 """
 from __future__ import annotations
 

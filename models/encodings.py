@@ -1,114 +1,11 @@
-"""Input encodings; their GLSL twins are in codegen/encodings.py."""
+"""The triangle wave that the triangle_wave encoding (components/encodings/torch_twin.py) and lookup
+arrays' triangle coordinates (models/lookup_array.py) share; GLSL's twin is inshade_triangle in
+shaders/lib/activations.glsl."""
 from __future__ import annotations
-
-import math
 
 import torch
 
-from inshade.sh import sh_basis
 
-from .registry import Component, register
-
-
-def triangle(t):
+def triangle(t: torch.Tensor) -> torch.Tensor:
     """Non-negative triangle wave, period 2, tri(0)=0, tri(1)=1: identity on [0, 1]."""
     return 1.0 - torch.abs(torch.remainder(t, 2.0) - 1.0)
-
-
-@register
-class Frequency(Component):
-    """NeRF positional encoding: [x] + [sin(2^k pi x) for k] + [cos(2^k pi x) for k]."""
-
-    type = "frequency"
-
-    def __init__(self, n_freqs: int, include_input: bool = True):
-        super().__init__()
-        self.n_freqs, self.include_input = int(n_freqs), bool(include_input)
-
-    def params(self):
-        return {"n_freqs": self.n_freqs, "include_input": self.include_input}
-
-    def forward(self, x):
-        # 2^k * pi rounded to float32 once, as the shader's literal is.
-        scales = [torch.tensor((2.0 ** k) * math.pi, dtype=torch.float32) for k in range(self.n_freqs)]
-        parts = [x] if self.include_input else []
-        parts += [torch.sin(x * s) for s in scales]
-        parts += [torch.cos(x * s) for s in scales]
-        return torch.cat(parts, -1)
-
-
-@register
-class TriangleWave(Component):
-    """[tri(2^k x) for k < n_freqs], each block as wide as the input."""
-
-    type = "triangle_wave"
-
-    def __init__(self, n_freqs: int):
-        super().__init__()
-        self.n_freqs = int(n_freqs)
-
-    def params(self):
-        return {"n_freqs": self.n_freqs}
-
-    def forward(self, x):
-        return torch.cat([triangle(x * (2.0 ** k)) for k in range(self.n_freqs)], -1)
-
-
-def quartic_cdf(t: torch.Tensor, n_bins: int) -> torch.Tensor:
-    """tiny-cuda-nn's quartic_cdf(t, inv_radius = n_bins) (common_device.h): the integral of the kernel
-    15/16 (1 - u^2)^2 up to u = t * n_bins, clamped to [0, 1]. tiny-cuda-nn writes the polynomial
-    15/16 u (1 - 2/3 u^2 + 1/5 u^4) + 1/2; expanded it is u (15/16 + u^2 (-10/16 + u^2 3/16)) + 1/2,
-    with exact coefficients: this Horner form is what compilers leave alone (llvmpipe expands the
-    product form itself), and it is within a few ulp of 1/2 of tiny-cuda-nn's. u is clamped to
-    [-2, 2] first: the kernel is flat beyond |u| = 1, so no value changes, and u^5 stays finite."""
-    u = (t * float(n_bins)).clamp(-2.0, 2.0)
-    u2 = u * u
-    return (u * (0.9375 + u2 * (-0.625 + u2 * 0.1875)) + 0.5).clamp(0.0, 1.0)
-
-
-@register
-class OneBlob(Component):
-    """tiny-cuda-nn's OneBlob encoding (encodings/oneblob.h: kernel_one_blob_soa and the fused device
-    function, which compute the same sums). Per input x and bin k < B = n_bins:
-
-        cdf(b) = (K(b - x) + K((b - 1) - x)) + K((b + 1) - x),   K = quartic_cdf(., B)
-        out[i * B + k] = cdf((k + 1) / B) - cdf(k / B)
-
-    i.e. the mass in bin k of a quartic blob of radius 1/B at x, wrapped once each way with period
-    1 (the three terms). Lanes are input-major. b and b -/+ 1 are exact (B a power of two), so each
-    argument is one rounding; tiny-cuda-nn writes (b - x) -/+ 1 (two roundings, up to one ulp of
-    the argument apart, i.e. up to ~1.1e-7 * B in an output), which GLSL compilers may legally
-    refold into this form, so this form is the one both executors can hold bit-identical."""
-
-    type = "one_blob"
-
-    def __init__(self, n_bins: int = 16):
-        super().__init__()
-        self.n_bins = int(n_bins)
-
-    def params(self):
-        return {"n_bins": self.n_bins}
-
-    def forward(self, x):
-        b = torch.arange(self.n_bins + 1, dtype=torch.float32) / self.n_bins
-        x = x[..., None]                                          # cdf at [..., d, B + 1] boundaries
-        n = self.n_bins
-        cdf = (quartic_cdf(b - x, n) + quartic_cdf((b - 1.0) - x, n)) + quartic_cdf((b + 1.0) - x, n)
-        return (cdf[..., 1:] - cdf[..., :-1]).flatten(-2)
-
-
-@register
-class SphericalHarmonics(Component):
-    """Real SH basis (inshade/sh.py table) of a unit direction, bands l < degree."""
-
-    type = "spherical_harmonics"
-
-    def __init__(self, degree: int):
-        super().__init__()
-        self.degree = int(degree)
-
-    def params(self):
-        return {"degree": self.degree}
-
-    def forward(self, x):
-        return sh_basis(x, self.degree, xp=torch)

@@ -4,9 +4,12 @@ from __future__ import annotations
 import torch
 
 from inshade.bundle import FORMAT, VERSION, Bundle
+from inshade.components import registry as component_registry
 
-from . import activations, binary, encodings, feature_ops, hash_grid, int_gather, latent_pyramid, lookup_array, mesh_features, mlp, proxy_lobe, shading_frames, sparse_voxels  # noqa: F401,E501  (register components)
+from . import activations, mlp  # noqa: F401  (register components)
 from .registry import TORCH_COMPONENTS, Component
+
+component_registry.load("torch")
 
 
 class GraphModule(torch.nn.Module):

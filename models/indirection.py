@@ -4,7 +4,7 @@ A cascade is a `GraphModule` of `LookupArray` nodes: one (or more) *primary* arr
 with the input coordinate, whose outputs (wrapped into [0, 1] by a periodic F) are the
 coordinate of a *cascaded* array that returns the output. This module adds what training one
 needs; the primitive itself, its export (F baked into the cells, 8/16/32-bit quantisation) and
-its GLSL live in `models/lookup_array.py` and `codegen/`. The training loop, its schedules, losses
+its GLSL live in `components/lookup_array/`. The training loop, its schedules, losses
 and stability tools live in `models/indirection_training.py` and are importable from here.
 
     sizing = size_cascade(budget, rho=64, primary_dims=2, primary_channels=4,
@@ -39,11 +39,13 @@ from typing import Callable
 import numpy as np
 import torch
 
+from inshade.components.lookup_array.torch_twin import LookupArray
+
 from .graph import GraphModule
 from .indirection_training import (  # noqa: F401  (re-exported: this module is the cascades' one import)
     CLIPPERS, LOSSES, SCHEDULES, History, auto_clip_bound, cell_diagonal, clip_primary_gradients, finish_lbfgs,
     lookup_nodes, monotonicity_penalty, primary_nodes, psnr, train_cascade)
-from .lookup_array import LookupArray, multilinear
+from .lookup_array import multilinear
 
 # ---------------------------------------------------------------------------------------------
 # initialisation (paper §1.3)

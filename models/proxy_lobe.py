@@ -1,6 +1,7 @@
 """The importance-sampling proxy of Real-Time Neural Appearance Models (§5, Eqs. 8-11, App. A):
 the `proxy_params` output activation and the proxy lobe's sampling routine and density, batched.
-GLSL twins: codegen/proxy.py and shaders/lib/proxy_lobe.glsl (same formulas, same order).
+The component's twin is components/proxy_params/torch_twin.py; GLSL twins: components/proxy_params/emit.py
+and shaders/lib/proxy_lobe.glsl (same formulas, same order).
 
 Parameters, 9 lanes: [w_d, w_s, mu_d.x, mu_d.y, alpha_x, alpha_y, rho, mu_s.x, mu_s.y].
 
@@ -36,8 +37,6 @@ import math
 
 import torch
 
-from .registry import Component, register
-
 EPS = 1e-12
 
 
@@ -65,21 +64,6 @@ def proxy_activation(raw: torch.Tensor, isotropic: bool = False, alpha_min: floa
     rho = 0.99 * tanh_q(raw[..., 6:7])
     mu_s = sinh_q(raw[..., 7:9])
     return torch.cat([w_d[..., None], w_s[..., None], mu_d, alpha, rho, mu_s], -1)
-
-
-@register
-class ProxyParams(Component):
-    type = "proxy_params"
-
-    def __init__(self, isotropic: bool = False, alpha_min: float = 0.01):
-        super().__init__()
-        self.isotropic, self.alpha_min = bool(isotropic), float(alpha_min)
-
-    def params(self):
-        return {"isotropic": self.isotropic, "alpha_min": self.alpha_min}
-
-    def forward(self, x):
-        return proxy_activation(x, self.isotropic, self.alpha_min)
 
 
 def _normalize(x: torch.Tensor) -> torch.Tensor:

@@ -4,11 +4,15 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-TORCH_COMPONENTS: dict[str, type] = {}
+from inshade.components import registry
+
+# type name -> torch twin class (models/__init__.py loads the component folders' twins into it)
+TORCH_COMPONENTS: dict[str, type] = registry.entries("torch")
 
 
 def register(cls):
-    TORCH_COMPONENTS[cls.type] = cls
+    """File a torch twin under its ``type`` (a name registered twice is refused)."""
+    registry.add("torch", cls.type, cls)
     return cls
 
 

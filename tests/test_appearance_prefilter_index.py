@@ -25,8 +25,8 @@ from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.codegen.voxel_index import (BRICK_SIDES, best_brick, brick_bytes, brick_index, brick_slot,
                                          dense_bytes, index_grid)
+from inshade.components.sparse_voxels.torch_twin import SparseVoxels
 from inshade.models import GraphModule
-from inshade.models.sparse_voxels import SparseVoxels
 
 from parity import parity_settings, run_sample_pass
 from test_sparse_voxels import random_voxels

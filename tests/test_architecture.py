@@ -327,3 +327,31 @@ def test_no_import_cycles_through_function_bodies():
     cycles = find_cycles(graph)
     assert not cycles, "import cycles between the project's modules (function bodies included):\n  " + \
         "\n  ".join(_describe(c, graph) for c in cycles)
+
+
+# --- sizes ---------------------------------------------------------------------------------
+
+MAX_FILE_LINES, MAX_FUNCTION_LINES = 500, 100
+# generated tables that may be longer, each with what generates it (none today)
+GENERATED: dict[str, str] = {}
+
+
+def test_files_and_functions_fit_on_a_few_screens():
+    """No project module over 500 lines, no function over 100: a file has one concern, a function
+    one step, each readable whole."""
+    long_files, long_functions = [], []
+    paths = [*_module_files().values(), *sorted((ROOT / "docs").glob("*.py")), ROOT / "setup.py"]
+    assert len(paths) > 200
+    for path in paths:
+        rel = str(path.relative_to(ROOT))
+        if rel in GENERATED:
+            continue
+        source = path.read_text()
+        if len(source.splitlines()) > MAX_FILE_LINES:
+            long_files.append(f"{rel}: {len(source.splitlines())} lines")
+        for node in ast.walk(ast.parse(source, rel)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                length = node.end_lineno - node.lineno + 1
+                if length > MAX_FUNCTION_LINES:
+                    long_functions.append(f"{rel}:{node.lineno}: {node.name} {length} lines")
+    assert not long_files and not long_functions, "\n".join(long_files + long_functions)

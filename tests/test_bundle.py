@@ -12,9 +12,9 @@ import torch
 from safetensors.numpy import load_file, save_file
 
 from inshade.bundle import JSON_NAME, WEIGHTS_NAME, Bundle, BundleError, canonical_json, load
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import GraphModule
 from inshade.models.activations import ReLU
-from inshade.models.lookup_array import LookupArray
 from inshade.models.mlp import Dense
 
 REPO = Path(__file__).resolve().parents[1]

@@ -11,9 +11,9 @@ import torch
 
 from inshade.codegen import TARGETS, generate
 from inshade.codegen.glsl import TextureResource, UniformBlockResource
+from inshade.components.encodings.torch_twin import Frequency
 from inshade.models import GraphModule, mlp_graph
 from inshade.models.activations import Sin
-from inshade.models.encodings import Frequency
 from inshade.shaders import assemble
 
 from parity import assert_parity, glsl_eval, torch_reference, uniform_inputs

@@ -1,6 +1,6 @@
-"""Elementwise ops with special values (inshade/components.py: log, log2, floor, ceil, trunc, round, frac,
-fmod, remainder, power; the two-branch atan2): torch twin (models/activations.py, models/binary.py)
-against the GLSL (codegen/activations.py, codegen/binary.py, shaders/lib/activations.glsl) through the
+"""Elementwise ops with special values (components/elementwise/spec.py: log, log2, floor, ceil, trunc, round, frac,
+fmod, remainder, power; the two-branch atan2): torch twin (models/activations.py, components/feature_axis/torch_twin.py)
+against the GLSL (codegen/activations.py, components/feature_axis/emit.py, shaders/lib/activations.glsl) through the
 driver, at the points where each is discontinuous or special (probed explicitly, many per program) and
 at random ones, and inside random graphs; their envelope rules (inshade/envelope.py).
 
@@ -21,11 +21,10 @@ from hypothesis import strategies as st
 
 from inshade.codegen import TARGETS, generate
 from inshade.components import ComponentError, check_node, resolve_params
+from inshade.components.feature_axis.torch_twin import Affine, Atan2
 from inshade.envelope import POW_ARG, POW_EXPONENT, analyse
 from inshade.models import GraphModule
 from inshade.models.activations import Ceil, Floor, Fmod, Frac, Log, Log2, Power, Remainder, Round, Tanh, Trunc
-from inshade.models.binary import Atan2
-from inshade.models.feature_ops import Affine
 from inshade.models.mlp import Dense
 
 from parity import TOL, check_parity, glsl_eval, parity_settings, scaled_error, torch_reference, uniform_inputs

@@ -10,10 +10,11 @@ import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
+from inshade.components import ComponentError, check_node, resolve_params
+from inshade.components.encodings.torch_twin import Frequency, SphericalHarmonics, TriangleWave
+from inshade.components.one_blob.torch_twin import OneBlob
 from inshade.models import GraphModule
 from inshade.models.activations import Tanh
-from inshade.components import ComponentError, check_node, resolve_params
-from inshade.models.encodings import Frequency, OneBlob, SphericalHarmonics, TriangleWave
 from inshade.models.mlp import Dense
 from inshade.sh import SH_TERMS, sh_basis
 

@@ -1,6 +1,6 @@
-"""The feature-axis components an imported network needs (inshade/components.py: affine, select,
-sub / mul / div, reduce, layer_norm, where; sqrt, reciprocal): torch twin (models/feature_ops.py,
-models/binary.py, models/activations.py) against the GLSL (codegen/feature_ops.py, codegen/binary.py)
+"""The feature-axis components an imported network needs (components/feature_axis/spec.py: affine, select,
+sub / mul / div, reduce, layer_norm, where; sqrt, reciprocal): torch twin (components/feature_axis/torch_twin.py,
+models/activations.py) against the GLSL (components/feature_axis/emit.py)
 through the driver, under the parity rule (tests/parity.py), on random graphs that mix them with
 dense layers; their envelope rules (inshade/envelope.py) bound what the twin computes."""
 from __future__ import annotations
@@ -12,11 +12,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.components import REDUCE_OPS, ComponentError, check_node, resolve_params
+from inshade.components.feature_axis.torch_twin import Affine, Div, LayerNorm, Mul, Reduce, Select, Sub, Where
 from inshade.envelope import analyse
 from inshade.models import GraphModule
 from inshade.models.activations import Reciprocal, Sqrt
-from inshade.models.binary import Div, Mul, Sub
-from inshade.models.feature_ops import Affine, LayerNorm, Reduce, Select, Where
 from inshade.models.mlp import Dense
 
 from parity import check_parity, parity_settings, torch_reference, uniform_inputs

@@ -1,5 +1,5 @@
 """The multiresolution grid encodings "hash_grid" and "dense_grid" (inshade/grid_layout.py,
-models/hash_grid.py, codegen/hash_grid.py, shaders/lib/hash_grid.glsl) against tiny-cuda-nn's rules
+components/grids/torch_twin.py, components/grids/emit.py, components/grids/hash_grid.glsl) against tiny-cuda-nn's rules
 transcribed here from its source (include/tiny-cuda-nn/common_device.h: lcg_hash and its primes,
 grid_index, grid_scale, grid_resolution, pos_fract; encodings/grid.h: params_in_level and the
 n-linear interpolation): the layout by hand, the rows read (bit-identical, coordinates up to 2^16 per
@@ -20,9 +20,9 @@ from inshade.bundle import BundleError, load
 from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.components import ComponentError, check_node, resolve_params
+from inshade.components.grids.torch_twin import DenseGrid, HashGrid
 from inshade.grid_layout import GridLayoutError, grid_levels, table_rows
 from inshade.models import GraphModule
-from inshade.models.hash_grid import DenseGrid, HashGrid
 from inshade.models.activations import Tanh
 
 from parity import assert_parity, glsl_eval, parity_settings, torch_reference

@@ -1,4 +1,4 @@
-"""Latent texture pyramid (models/latent_pyramid.py, codegen/latent_pyramid.py): GLSL parity on
+"""Latent texture pyramid (models/latent_pyramid.py, components/latent_pyramid/emit.py): GLSL parity on
 both paths, an independent numpy reference for the twin, training (gradients to the texels,
 mixed levels in one batch), fp16 precision, the plan, and bad bundles refused at load and by
 the CLI.
@@ -34,8 +34,8 @@ from hypothesis import strategies as st
 from inshade.bundle import BundleError, load
 from inshade.codegen import generate
 from inshade.components import COMPONENTS, ComponentError, check_node, resolve_params
+from inshade.components.latent_pyramid.torch_twin import LatentPyramid
 from inshade.models import GraphModule
-from inshade.models.latent_pyramid import LatentPyramid
 
 from parity import assert_parity, check_parity, glsl_eval, parity_settings, torch_reference
 

@@ -1,4 +1,4 @@
-"""The mesh_features component (models/mesh_features.py, codegen/mesh_features.py,
+"""The mesh_features component (models/mesh_features.py, components/mesh_features/emit.py,
 shaders/lib/mesh_features.glsl): canonical names and hashes bit-exact between torch and GLSL for
 every sub-vertex of small meshes, canonical names independent of the naming face, continuity
 across edges and vertices, decode parity through generate() (tests/parity.py rule, exact
@@ -17,9 +17,10 @@ from inshade.bundle import Bundle, BundleError, load
 from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.components import ComponentError, check_node, resolve_params
+from inshade.components.mesh_features.torch_twin import MeshFeatures
 from inshade.geometry.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.models import GraphModule
-from inshade.models.mesh_features import MeshFeatures, canonical, hash_index, hash_value, subvertices
+from inshade.models.mesh_features import canonical, hash_index, hash_value, subvertices
 
 from parity import assert_parity, glsl_eval, parity_settings, run_sample_pass, torch_reference
 
@@ -363,7 +364,7 @@ def test_topology_layouts(gl, monkeypatch, layout):
     fits, the owner faces two to a channel + slot bits (16 bytes) up to 2^16 faces, else 2 texels
     (24 bytes); the others forced by lowering the limits. Decode parity for each, with ids using
     the top bits of every lane, in wide rows and wrapped."""
-    from inshade.codegen import mesh_features as codegen
+    from inshade.components.mesh_features import emit as codegen
 
     per_face, limits, tables = LAYOUT_CASES[layout]
     for name, value in limits.items():

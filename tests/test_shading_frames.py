@@ -1,4 +1,4 @@
-"""Learned shading frames (models/shading_frames.py, codegen/shading_frames.py): GLSL parity, an
+"""Learned shading frames (components/shading_frames/torch_twin.py, components/shading_frames/emit.py): GLSL parity, an
 independent numpy reference, the guard at zero vectors, and a whole neural-appearance graph
 (latent pyramid -> frames -> decoder -> expm1, and the sampler -> proxy_params) through codegen.
 
@@ -15,11 +15,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.components import check_node, resolve_params
+from inshade.components.latent_pyramid.torch_twin import LatentPyramid
+from inshade.components.proxy_params.torch_twin import ProxyParams
+from inshade.components.shading_frames.torch_twin import ShadingFrames
 from inshade.models import GraphModule
 from inshade.models.activations import Expm1, ReLU
-from inshade.models.latent_pyramid import LatentPyramid
-from inshade.models.proxy_lobe import ProxyParams
-from inshade.models.shading_frames import ShadingFrames
 
 from parity import assert_parity, check_parity, parity_settings, torch_reference, unit_directions
 

@@ -1,5 +1,5 @@
-"""The `add` (residual connection) and `sparse_voxels` components (models/binary.py, models/sparse_voxels.py,
-codegen/binary.py, codegen/sparse_voxels.py): GLSL against torch through the real driver (tests/parity.py
+"""The `add` (residual connection) and `sparse_voxels` components (components/feature_axis/,
+components/sparse_voxels/): GLSL against torch through the real driver (tests/parity.py
 rule for add; exact for the voxel lookups: texelFetch of the very values torch indexes), the fixed
 grid functions P_voxel_slot / P_voxel_sphere over every cell of every scale (and outside them)
 against numpy, the component specs and every bad-table error.
@@ -15,12 +15,12 @@ from hypothesis import strategies as st
 from inshade.bundle import Bundle, BundleError, load
 from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
-from inshade.codegen.sparse_voxels import index_grid
+from inshade.codegen.voxel_index import index_grid
 from inshade.components import ComponentError, check_node, check_voxel_tables, resolve_params
+from inshade.components.feature_axis.torch_twin import Add
+from inshade.components.sparse_voxels.torch_twin import SparseVoxels
 from inshade.models import GraphModule
-from inshade.models.binary import Add
 from inshade.models.mlp import Dense
-from inshade.models.sparse_voxels import SparseVoxels
 
 from parity import assert_parity, glsl_eval, parity_settings, run_sample_pass, torch_reference, uniform_inputs
 

@@ -1,4 +1,4 @@
-// tiny-cuda-nn's OneBlob encoding (encodings/oneblob.h); torch twin: models/encodings.py (OneBlob),
+// tiny-cuda-nn's OneBlob encoding (encodings/oneblob.h); torch twin: torch_twin.py (OneBlob),
 // every step one float32 rounding in the same order.
 
 // quartic_cdf(t, inv_radius = bins) of tiny-cuda-nn's common_device.h: the integral of the kernel

@@ -1,0 +1,15 @@
+"""The dense layer: the bundle-level spec."""
+from __future__ import annotations
+
+from inshade.components.spec import MAX_WIDTH, ComponentSpec, Param, TensorSpec, pos_int, register
+
+
+register(ComponentSpec(
+    "dense", "y = W x + b, W stored [out, in] like torch.nn.Linear",
+    {"out": Param(int, check=pos_int(MAX_WIDTH)), "bias": Param(bool, True)},
+    out_dim=lambda p, d: p["out"],
+    tensors=lambda p, d: {"weight": TensorSpec((p["out"], d), "float32"),
+                          **({"bias": TensorSpec((p["out"],), "float32")} if p["bias"] else {})},
+    in_dim=lambda p, d: 1 <= d <= MAX_WIDTH,
+    category="layer",
+))

@@ -1,0 +1,1 @@
+"""Elementwise functions, one lane in, one lane out"""

@@ -1,0 +1,1 @@
+"""Input encodings: NeRF's frequencies, triangle waves, spherical harmonics"""

@@ -1,0 +1,1 @@
+"""Ops along the feature axis: constants, lane selection, branches, integer gathers, reductions, normalisation, the residual add"""

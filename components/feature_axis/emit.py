@@ -1,0 +1,252 @@
+"""The feature axis of an imported network: the GLSL emitters (torch twins in torch_twin.py).
+
+Per-lane maps (affine, select, reduce, layer_norm, where): constants are literals, since they are
+per-lane vectors, not weight matrices.
+
+Two branches combined lane by lane (add, sub, mul, div, atan2; atan2 is lib/activations'
+inshade_atan2: torch's values at zeros and infinities). Input: the node's inputs as they are
+(separate_inputs), lanes concatenated = [a (n) | b (n)]. When a and b are two sources that start a
+vec4 block each, every whole block is one vec4 op and the n % 4 tail is done lane by lane (a
+source's last block may hold another value's lanes, e.g. bundle inputs packed side by side, so it is
+never used whole); otherwise lane by lane.
+
+int_gather: the node's program is straight-line uint32 code (GLSL's uint arithmetic wraps modulo
+2^32, as the twin reduces its int64 results), one `uint` per entry; each index then reads its row
+from the table, stored as 2D textures in rows of 2^n texels (codegen/texture_rows.py), one per 4
+features, float32 (texelFetch returns the stored floats exactly); int_gather.glsl reads a row.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from inshade.codegen.glsl import PlanRow, blocks, flt, vec4
+from inshade.codegen.registry import emitter
+from inshade.codegen.texture_rows import feature_textures, row_layout, texture_formats
+from inshade.codegen.values import Value, declare
+
+
+def _block(a: np.ndarray, k: int) -> np.ndarray:
+    """Lanes 4k..4k+3 of ``a``, zero past its end."""
+    part = np.asarray(a[4 * k:4 * k + 4], np.float32)
+    return np.pad(part, (0, 4 - len(part)))
+
+
+def _padded(a: np.ndarray, n: int, fill: float) -> np.ndarray:
+    out = np.full(blocks(n) * 4, fill, np.float32)
+    out[:n] = a
+    return out
+
+
+def _as_float(value, i: int) -> str:
+    """Lane i of a value as a float (a uint lane converted)."""
+    return value.lane(i) if value.kind == "float" else f"float({value.lane(i)})"
+
+
+@emitter("affine")
+def emit_affine(ctx, node, src, bundle):
+    n = node.out_dim
+    scale = _padded(bundle.tensor(node, "scale"), n, 0.0)
+    offset = _padded(bundle.tensor(node, "offset"), n, 0.0)
+    ctx.plan.append(PlanRow(node.id, "affine", f"{n}", flops=2 * n))
+    out = declare(ctx, f"v_{node.id}", n)
+    for b in range(blocks(n)):   # src is lane-0 aligned (gathered); padding lanes become 0 * x + 0
+        ctx.body.append(f"{out.array}[{b}] = {src.array}[{b}] * {vec4(scale[4 * b:4 * b + 4])} + "
+                        f"{vec4(offset[4 * b:4 * b + 4])};")
+    return out
+
+
+@emitter("select", separate_inputs=True)
+def emit_select(ctx, node, srcs, bundle):
+    lanes = node.params["lanes"]
+    ctx.plan.append(PlanRow(node.id, "select", f"{node.in_dim}->{len(lanes)}"))
+    flat = [(v, i) for v in srcs for i in range(v.dim)]
+    first = lanes[0]
+    run = lanes == list(range(first, first + len(lanes)))
+    owner, start = flat[first]
+    if run and all(flat[k][0] is owner for k in lanes) and owner.kind == "float":
+        return Value(owner.array, owner.offset + start, len(lanes))    # a contiguous slice: no copy
+    out = declare(ctx, f"v_{node.id}", len(lanes))
+    for k, i in enumerate(lanes):
+        v, j = flat[i]
+        ctx.body.append(f"{out.lane(k)} = {v.lane(j) if v.kind == 'float' else f'float({v.lane(j)})'};")
+    return out
+
+
+def _fold(terms: list[str], op: str) -> str:
+    if op in ("max", "min"):
+        expr = terms[0]
+        for t in terms[1:]:
+            expr = f"{op}({expr}, {t})"
+        return expr
+    return " + ".join(terms)
+
+
+def _runs(src, groups: int, size: int):
+    """Per group, its terms as whole vec4 blocks [(block expr, lanes used)] when every group starts
+    on a block (size % 4 == 0, or one group: its last block partly used), else None (lane by lane)."""
+    if not (src.aligned and (size % 4 == 0 or groups == 1)):
+        return None
+    out = []
+    for g in range(groups):
+        first = g * size // 4
+        out.append([(f"{src.array}[{first + k}]", min(4, size - 4 * k)) for k in range(blocks(size))])
+    return out
+
+
+def _mask(used: int) -> str:
+    return "vec4(1.0)" if used == 4 else vec4([1.0] * used + [0.0] * (4 - used))
+
+
+@emitter("reduce")
+def emit_reduce(ctx, node, src, bundle):
+    op, groups = node.params["op"], node.params["groups"]
+    size = node.in_dim // groups
+    ctx.plan.append(PlanRow(node.id, f"reduce {op}", f"{node.in_dim}->{groups}", flops=2 * node.in_dim))
+    out = declare(ctx, f"v_{node.id}", groups)
+    runs = _runs(src, groups, size) if op in ("sum", "mean", "norm") else None
+    for g in range(groups):
+        if runs is not None:   # dot products of whole blocks (padding lanes masked out)
+            terms = [f"dot({b}, {_mask(u)})" if op != "norm" else f"dot({b} * {_mask(u)}, {b})" for b, u in runs[g]]
+        else:
+            lanes = [src.lane(g * size + i) for i in range(size)]
+            terms = [f"{x} * {x}" for x in lanes] if op == "norm" else lanes
+        expr = _fold(terms, "sum" if op in ("norm", "mean") else op)
+        expr = f"sqrt({expr})" if op == "norm" else f"({expr}) / {flt(size)}" if op == "mean" else expr
+        ctx.body.append(f"{out.lane(g)} = {expr};")
+    return out
+
+
+@emitter("layer_norm")
+def emit_layer_norm(ctx, node, src, bundle):
+    p = node.params
+    groups, n = p["groups"], node.out_dim
+    size = n // groups
+    ctx.plan.append(PlanRow(node.id, "layer_norm", f"{n}", flops=6 * n))
+    out = declare(ctx, f"v_{node.id}", n)
+    w = bundle.tensor(node, "weight") if p["affine"] else None
+    b = bundle.tensor(node, "bias") if p["affine"] else None
+    m, r, d = f"m_{node.id}", f"r_{node.id}", f"d_{node.id}"
+    runs = _runs(src, groups, size)
+    for g in range(groups):
+        if runs is not None:   # whole blocks: the deviations d = (x - mean) * mask, one vec4 each
+            parts = runs[g]
+            ctx.body.append(f"float {m}_{g} = ({' + '.join(f'dot({x}, {_mask(u)})' for x, u in parts)}) / {flt(size)};")
+            ctx.body += [f"vec4 {d}_{g}_{k} = ({x} - {m}_{g}) * {_mask(u)};" for k, (x, u) in enumerate(parts)]
+            squares = " + ".join(f"dot({d}_{g}_{k}, {d}_{g}_{k})" for k in range(len(parts)))
+            ctx.body.append(f"float {r}_{g} = 1.0 / sqrt(({squares}) / {flt(size)} + {flt(p['eps'])});")
+            for k in range(len(parts)):
+                expr = f"{d}_{g}_{k} * {r}_{g}"
+                if w is not None:
+                    expr += f" * {vec4(_block(w, k))} + {vec4(_block(b, k))}"
+                ctx.body.append(f"{out.array}[{g * size // 4 + k}] = {expr};")
+            continue
+        lanes = [src.lane(g * size + i) for i in range(size)]
+        ctx.body.append(f"float {m}_{g} = ({' + '.join(lanes)}) / {flt(size)};")
+        squares = " + ".join(f"({x} - {m}_{g}) * ({x} - {m}_{g})" for x in lanes)
+        # 1 / sqrt: inversesqrt may be an approximation (the GLSL spec allows 2 ulp)
+        ctx.body.append(f"float {r}_{g} = 1.0 / sqrt(({squares}) / {flt(size)} + {flt(p['eps'])});")
+        for i, x in enumerate(lanes):
+            expr = f"({x} - {m}_{g}) * {r}_{g}"
+            if w is not None:
+                expr = f"{expr} * {flt(w[i])} + {flt(b[i])}"
+            ctx.body.append(f"{out.lane(g * size + i)} = {expr};")
+    return out
+
+
+_COMPARE = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+
+
+@emitter("where", separate_inputs=True)
+def emit_where(ctx, node, srcs, bundle):
+    n, op = node.out_dim, _COMPARE[node.params["op"]]
+    ctx.plan.append(PlanRow(node.id, "where", f"{4 * n}->{n}", flops=2 * n))
+    flat = [(v, i) for v in srcs for i in range(v.dim)]
+    lane = lambda k: _as_float(*flat[k])  # noqa: E731
+    out = declare(ctx, f"v_{node.id}", n)
+    for i in range(n):
+        ctx.body.append(f"{out.lane(i)} = {lane(i)} {op} {lane(n + i)} ? {lane(2 * n + i)} : {lane(3 * n + i)};")
+    return out
+
+
+# --- two branches ---------------------------------------------------------------------------
+
+BINARY_EXPRESSIONS = {  # for floats and vec4s alike
+    "add": lambda a, b: f"{a} + {b}",
+    "sub": lambda a, b: f"{a} - {b}",
+    "mul": lambda a, b: f"{a} * {b}",
+    "div": lambda a, b: f"{a} / {b}",
+    "atan2": lambda a, b: f"inshade_atan2({a}, {b})",
+}
+BINARY_FLOPS = {"add": 1, "sub": 1, "mul": 1, "div": 1, "atan2": 20}
+
+
+@emitter(*BINARY_EXPRESSIONS, separate_inputs=True)
+def emit_binary(ctx, node, srcs, bundle):
+    n, op = node.out_dim, BINARY_EXPRESSIONS[node.type]
+    ctx.plan.append(PlanRow(node.id, node.type, f"{2 * n}->{n}", flops=BINARY_FLOPS[node.type] * n))
+    if node.type == "atan2":
+        ctx.include("lib/activations")
+    out = declare(ctx, f"v_{node.id}", n)
+    if len(srcs) == 2 and all(s.dim == n and s.offset % 4 == 0 and s.kind == "float" for s in srcs):
+        a, b = srcs
+        ka, kb = a.offset // 4, b.offset // 4
+        ctx.body += [f"{out.array}[{k}] = {op(f'{a.array}[{ka + k}]', f'{b.array}[{kb + k}]')};" for k in range(n // 4)]
+        first = 4 * (n // 4)
+    else:
+        first = 0
+    lanes = [(v, i) for v in srcs for i in range(v.dim)]
+    for i in range(first, n):
+        ctx.body.append(f"{out.lane(i)} = {op(_as_float(*lanes[i]), _as_float(*lanes[n + i]))};")
+    return out
+
+
+# --- int_gather -----------------------------------------------------------------------------
+
+INT_EXPRESSIONS = {
+    "lane": lambda src, a: f"uint(int({src.lane(a)}))",   # toward 0, two's complement bits
+    "const": lambda src, c: f"{c}u",
+    "shl": lambda src, a, s: f"{a} << {s}u",
+    "add": lambda src, a, b: f"{a} + {b}",
+    "sub": lambda src, a, b: f"{a} - {b}",
+    "mul": lambda src, a, b: f"{a} * {b}",
+    "xor": lambda src, a, b: f"{a} ^ {b}",
+    "and": lambda src, a, b: f"{a} & {b}",
+    "or": lambda src, a, b: f"{a} | {b}",
+}
+ENTRY_ARGS = {"shl": (True, False), "lane": (False,), "const": (False,)}   # which arguments name entries
+
+
+@emitter("int_gather")
+def emit_int_gather(ctx, node, src, bundle):
+    ctx.include("feature_axis/int_gather")
+    p = node.params
+    table = bundle.tensor(node, "table")
+    entry = lambda k: ctx.name(node.id, f"n{k}")   # noqa: E731
+    for k, (op, *args) in enumerate(p["program"]):
+        named = ENTRY_ARGS.get(op, (True, True))
+        args = [entry(a) if is_entry else a for a, is_entry in zip(args, named)]
+        ctx.body.append(f"uint {entry(k)} = {INT_EXPRESSIONS[op](src, *args)};")
+    log2w, n_rows = row_layout(node.id, "gathered table", table.shape[0], ctx.limits)
+    feats = p["features"]
+    if feats % 4 == 3:   # textures hold 1, 2 or 4 channels
+        table = np.pad(table, ((0, 0), (0, 1)))
+    groups = feature_textures(ctx, node.id, table, "f32", log2w, n_rows, f"{table.shape[0]} rows")
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    row = ctx.name(node.id, "row")
+    ctx.body.append(f"vec4 {row};")
+    for j, k in enumerate(p["indices"]):
+        for g, (name, width) in enumerate(groups):
+            fetch = f"int_gather_row({name}, {log2w}, {entry(k)}, {p['rows']}u)"
+            first = j * feats + 4 * g
+            width = min(width, feats - 4 * g)
+            if width == 4 and first % 4 == 0:
+                ctx.body.append(f"{out.array}[{first // 4}] = {fetch};")
+                continue
+            ctx.body.append(f"{row} = {fetch};")
+            ctx.body += [f"{out.lane(first + ch)} = {row}.{'xyzw'[ch]};" for ch in range(width)]
+    ctx.plan.append(PlanRow(node.id, node.type, f"{len(p['program'])} uint ops, {len(p['indices'])} rows of {feats}",
+                            "texture/exact", f"{texture_formats(groups, 'f32')} table of {table.shape[0]} rows, "
+                            f"rows of {1 << log2w} texels", params=int(table.size), flops=len(p["program"]),
+                            fetches=len(p["indices"]) * len(groups),
+                            texture_bytes=sum(r.nbytes for r in ctx.resources[-len(groups):])))
+    return out

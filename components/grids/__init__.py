@@ -1,0 +1,1 @@
+"""Multiresolution grid encodings (instant-NGP; inshade/grid_layout.py has the rules)"""

@@ -1,0 +1,57 @@
+"""Multiresolution grid encodings as texture fetches: the GLSL emitter; torch twin in torch_twin.py (the
+rules in inshade/grid_layout.py), the level lookup in hash_grid.glsl.
+
+Resources: the [rows, F] table (all levels, level l from row offset_l) as 2D textures in rows of 2^n
+texels (codegen/texture_rows.py: a table longer than GL_MAX_TEXTURE_SIZE wraps into rows), one
+texture per 4 features (F = 8: two RGBA; 4: RGBA; 2: RG; 1: R), RGBA16F-family for precision f16
+(the bundle's values are fp16-representable: checked at load), 32F for f32; texelFetch only.
+Levels are unrolled with their constants (scale, resolution, rows, offset, dense or hashed) as
+literals; each level reads 2^dims texels per texture.
+"""
+from __future__ import annotations
+
+from inshade.codegen.glsl import PlanRow, flt
+from inshade.codegen.registry import emitter
+from inshade.codegen.texture_rows import feature_textures, row_layout, texture_formats
+from inshade.codegen.values import declare
+from inshade.components import grid_node_levels
+from inshade.grid_layout import HASH_PRIMES
+
+@emitter("hash_grid", "dense_grid")
+def emit_grid(ctx, node, src, bundle):
+    ctx.include("grids/hash_grid")
+    p, dims = node.params, node.in_dim
+    levels = grid_node_levels(node.type, p, dims)
+    feats = p["features"]
+    table = bundle.tensor(node, "table")
+    log2w, n_rows = row_layout(node.id, "grid table", table.shape[0], ctx.limits)
+    groups = feature_textures(ctx, node.id, table, p["precision"], log2w, n_rows,
+                              f"{len(levels)} levels, {table.shape[0]} rows")
+
+    primes = HASH_PRIMES[p.get("hash", "coherent_prime")]
+    x, s = ctx.name(node.id, "x"), ctx.name(node.id, "s")
+    lanes = ", ".join(src.lane(i) for i in range(dims)) + (", 0.0" if dims == 2 else "")
+    ctx.body += [f"vec3 {x} = vec3({lanes});", f"vec4 {s};"]
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    for li, lv in enumerate(levels):
+        for g, (name, width) in enumerate(groups):
+            call = (f"hg_level({name}, {log2w}, {x}, {dims}, {flt(lv.scale)}, {lv.resolution}u, {lv.rows}u, "
+                    f"{lv.offset}u, {'true' if lv.dense else 'false'}, uvec3({primes[0]}u, {primes[1]}u, {primes[2]}u))")
+            first = li * feats + 4 * g
+            if width == 4:
+                ctx.body.append(f"{out.array}[{first // 4}] = {call};")
+                continue
+            ctx.body.append(f"{s} = {call};")
+            ctx.body += [f"{out.lane(first + ch)} = {s}.{'xyzw'[ch]};" for ch in range(width)]
+
+    tex_bytes = sum(r.nbytes for r in ctx.resources[-len(groups):])
+    fmt = texture_formats(groups, p["precision"])
+    hashed = sum(not lv.dense for lv in levels)
+    corners = 1 << dims
+    ctx.plan.append(PlanRow(node.id, node.type,
+                            f"{dims}D, {len(levels)} levels x {feats} ({p['precision']}), {hashed} hashed, "
+                            f"{table.shape[0]} rows", "texture/exact",
+                            f"{fmt} table, rows of {1 << log2w} texels", params=int(table.size),
+                            flops=len(levels) * corners * (2 * feats + dims + 6),
+                            fetches=len(levels) * corners * len(groups), texture_bytes=tex_bytes))
+    return out

@@ -1,0 +1,1 @@
+"""Latent texture pyramids (Real-Time Neural Appearance Models)"""

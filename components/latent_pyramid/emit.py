@@ -1,0 +1,52 @@
+"""Latent texture pyramids as mipmapped textures: the GLSL emitter; torch twin in torch_twin.py.
+
+Each group of 4 channels is one RGBA texture holding the whole pyramid as its mip chain
+(level k = the bundle's `level{k}`, uploaded as given, never GL-built), RGBA16F for precision
+f16 (the bundle's values are fp16-representable: checked at load) and RGBA32F for f32; the
+sampler wraps with repeat.
+
+Option ``latent_pyramid.filter``: "exact" = 4 texelFetch at the chosen level with integer
+repeat wrap + fp32 mix (matches torch to fp32 rounding); "fast" = textureLod at the integer
+level (hardware bilinear within it; see tests/test_latent_pyramid.py for the measured bound).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from inshade.codegen.glsl import PlanRow, TextureResource
+from inshade.codegen.registry import emitter
+from inshade.codegen.values import declare
+
+FILTERS = ("exact", "fast")
+_DTYPE = {"f16": ("f2", np.float16, 2), "f32": ("f4", np.float32, 4)}
+
+
+@emitter("latent_pyramid", options={"filter": (FILTERS, "exact")})
+def emit_latent_pyramid(ctx, node, src, bundle):
+    ctx.include("latent_pyramid/latent_pyramid")
+    mode = ctx.option("latent_pyramid", "filter")
+    p = node.params
+    res, levels, channels = p["resolution"], p["levels"], p["channels"]
+    dtype, np_dtype, size = _DTYPE[p["precision"]]
+    arrays = [bundle.tensor(node, f"level{k}") for k in range(levels)]
+    out = declare(ctx, f"v_{node.id}", node.out_dim)
+    lvl = ctx.name(node.id, "level")
+    uv = f"vec2({src.lane(0)}, {src.lane(1)})"
+    ctx.body.append(f"int {lvl} = inshade_latent_level({src.lane(2)}, {levels});")
+    tex_bytes = 0
+    for g in range(channels // 4):
+        tname = ctx.name(node.id, f"t{g}")
+        chain = [np.ascontiguousarray(a[..., 4 * g:4 * g + 4], dtype=np_dtype) for a in arrays]
+        ctx.globals.append(f"uniform sampler2D {tname};  // {node.id}: {res}x{res} latents, {levels} levels, "
+                           f"channels {4 * g}..{4 * g + 3}, {p['precision']}")
+        ctx.resources.append(TextureResource(tname, chain[0], dtype, "linear" if mode == "fast" else "nearest",
+                                             mips=tuple(chain[1:]), wrap="repeat"))
+        tex_bytes += sum(c.size for c in chain) * size
+        expr = (f"inshade_latent_exact({tname}, {res}, {uv}, {lvl})" if mode == "exact"
+                else f"inshade_latent_fast({tname}, {uv}, {lvl})")
+        ctx.body.append(f"{out.array}[{g}] = {expr};")
+    ctx.plan.append(PlanRow(node.id, "latent_pyramid", f"{res}x{res}x{channels}, {levels} levels ({p['precision']})",
+                            f"texture/{mode}", f"{channels // 4} RGBA{'16F' if dtype == 'f2' else '32F'} mip chains",
+                            params=int(sum(a.size for a in arrays)), flops=3 * 2 * channels,
+                            fetches=(4 if mode == "exact" else 1) * (channels // 4), texture_bytes=tex_bytes))
+    return out

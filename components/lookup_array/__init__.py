@@ -1,0 +1,1 @@
+"""Differentiable Indirection's lookup arrays"""

@@ -1,0 +1,1 @@
+"""tiny-cuda-nn's OneBlob encoding"""

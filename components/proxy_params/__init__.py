@@ -1,0 +1,1 @@
+"""The importance-sampling proxy's output activation (Real-Time Neural Appearance Models)"""

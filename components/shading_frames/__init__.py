@@ -1,0 +1,1 @@
+"""Learned shading frames (Real-Time Neural Appearance Models, Eq. 7)"""

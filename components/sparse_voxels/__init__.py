@@ -1,0 +1,1 @@
+"""Sparse multi-scale voxel latents (Deep Appearance Prefiltering, Bako et al. 2022)"""

@@ -1,0 +1,99 @@
+"""Sparse multi-scale voxel latents as texture fetches: the GLSL emitter; torch twin in torch_twin.py.
+
+Resources (P = the network prefix, e.g. "dap"; node id v):
+- ``P_v_latents``: the latent table, Z/4 RGBA texels per voxel (texel t = slot * Z/4 + g holds
+  channels 4g..4g+3), RGBA16F for precision f16 (the bundle's values are fp16-representable:
+  checked at load), RGBA32F for f32; a 2D texture whose rows are 2^n texels wide (texel t at
+  (t & (W-1), t >> n): codegen/texture_rows.py row_layout, within GL_MAX_TEXTURE_SIZE);
+- ``P_v_spheres``: spheres (centre, radius), one RGBA32F texel per slot, same row layout;
+- the cell -> slot index, as param ``index`` says (codegen/voxel_index.py has the layouts):
+  ``dense`` (``P_v_grid``: ONE R32UI 3D texture, mip level L = scale scale_max - L, texel =
+  slot + 1, 0 = empty) or ``bricks`` (``P_v_top`` + ``P_v_bricks``: a table of B^3 bricks per
+  scale and R32UI bricks where voxels exist). It is built here from `cells`, so every non-zero
+  entry is slot + 1 with slot < N: it cannot point past the latent table.
+
+Globals with fixed names (the march pass calls them; defines upper-case):
+
+    #define P_SCALE_MIN / P_SCALE_MAX / P_VOXELS
+    uint P_voxel_slot(int scale, ivec3 cell)   // 0 = empty, outside the grid or the scale range, else slot + 1
+    vec4 P_voxel_sphere(uint slot)             // (centre, radius) of row `slot` (= P_voxel_slot(..) - 1u)
+
+A network holds at most one sparse_voxels node (the names are fixed). The node's own input is the
+slot (a uint lane, or a float holding an exact integer); out-of-range slots are clamped to
+0..N-1 in GLSL (a shader cannot raise; torch raises ValueError). P_voxel_sphere clamps alike.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from inshade.codegen.glsl import PlanRow, TextureResource, flt
+from inshade.codegen.registry import emitter
+from inshade.codegen.texture_rows import row_layout, rows_data
+from inshade.codegen.values import declare
+from inshade.codegen.voxel_index import EMIT as INDEX_EMIT
+from inshade.components import check_voxel_tables
+
+_FLOAT = {"f16": ("f2", np.float16, "RGBA16F"), "f32": ("f4", np.float32, "RGBA32F")}
+
+
+def _fetch(sampler: str, index: str, log2w: int) -> str:
+    return f"texelFetch({sampler}, ivec2(int({index} & {(1 << log2w) - 1}u), int({index} >> {log2w}u)), 0)"
+
+
+@emitter("sparse_voxels", separate_inputs=True)
+def emit_sparse_voxels(ctx, node, srcs, bundle):
+    p = node.params
+    n, z, smin, smax = p["voxels"], p["channels"], p["scale_min"], p["scale_max"]
+    up, slot_fn, sphere_fn = ctx.prefix.upper(), f"{ctx.prefix}_voxel_slot", f"{ctx.prefix}_voxel_sphere"
+    if any(f" {slot_fn}(" in line for line in ctx.globals):
+        raise ValueError(f"node {node.id}: a network holds at most one sparse_voxels node "
+                         f"({slot_fn} and {sphere_fn} have fixed names)")
+    cells, spheres = bundle.tensor(node, "cells"), bundle.tensor(node, "spheres")
+    latents = bundle.tensor(node, "latents")
+    check_voxel_tables(cells, spheres, smin, smax, latents)
+    fdtype, np_dtype, fmt = _FLOAT[p["precision"]]
+    texels = z // 4
+
+    lat_log2w, lat_rows = row_layout(node.id, f"latent table ({texels} texels per voxel)", n * texels, ctx.limits)
+    sph_log2w, sph_rows = row_layout(node.id, "sphere table", n, ctx.limits)
+    lat, sph = (ctx.name(node.id, s) for s in ("latents", "spheres"))
+    index_resources, index_decls, index_fns, index_plan = INDEX_EMIT[p["index"]](ctx, node, cells, up, slot_fn)
+    resources = [
+        TextureResource(lat, rows_data(np.ascontiguousarray(latents.reshape(n * texels, 4), dtype=np_dtype),
+                                   lat_log2w, lat_rows), fdtype),
+        TextureResource(sph, rows_data(np.ascontiguousarray(spheres, np.float32), sph_log2w, sph_rows), "f4"),
+        *index_resources,
+    ]
+    ctx.resources += resources
+    latent_fn = ctx.name(node.id, "latent")
+    ctx.globals += [
+        f"uniform sampler2D {lat};  // {node.id}: {n} voxels x {z} latents, {texels} texels each, {p['precision']}",
+        f"uniform sampler2D {sph};  // {node.id}: bounding sphere (centre, radius) per voxel",
+        *index_decls,
+        f"#define {up}_SCALE_MIN {smin}",
+        f"#define {up}_SCALE_MAX {smax}",
+        f"#define {up}_VOXELS {n}",
+        *index_fns,
+        f"vec4 {sphere_fn}(uint slot) {{",
+        f"    uint s = min(slot, {n - 1}u);",
+        f"    return {_fetch(sph, 's', sph_log2w)};",
+        "}",
+        f"vec4 {latent_fn}(uint slot, uint g) {{   // channels 4g..4g+3 of row slot (already clamped)",
+        f"    uint t = slot * {texels}u + g;",
+        f"    return {_fetch(lat, 't', lat_log2w)};",
+        "}",
+    ]
+    (v, i), = [(v, i) for v in srcs for i in range(v.dim)]
+    slot = (f"min({v.lane(i)}, {n - 1}u)" if v.kind == "uint"
+            else f"uint(clamp({v.lane(i)}, 0.0, {flt(n - 1)}))")
+    s = ctx.name(node.id, "slot")
+    out = declare(ctx, f"v_{node.id}", z)
+    ctx.body.append(f"uint {s} = {slot};")
+    ctx.body += [f"{out.array}[{g}] = {latent_fn}({s}, {g}u);" for g in range(texels)]
+    ctx.plan.append(PlanRow(node.id, "sparse_voxels",
+                            f"{n} voxels x {z} ({p['precision']}), scales {smin}..{smax}", "texture/exact",
+                            f"{fmt} latents ({texels} texels/voxel, rows of {1 << lat_log2w}) + RGBA32F spheres + "
+                            + index_plan,
+                            params=int(latents.size), flops=2 * texels, fetches=texels,
+                            texture_bytes=sum(r.nbytes for r in resources)))
+    return out

@@ -1,0 +1,32 @@
+"""toy_softsign: the torch twin, computed by a custom torch op so that ``inshade.export`` sees the
+op (and lowers it through lowering.py) instead of the arithmetic inside it."""
+from __future__ import annotations
+
+import torch
+
+from inshade.models.registry import Component, register
+
+
+@torch.library.custom_op("inshade_toy::toy_softsign", mutates_args=())
+def softsign(x: torch.Tensor, scale: float) -> torch.Tensor:
+    return x / (scale + x.abs())
+
+
+@softsign.register_fake
+def _(x, scale):
+    return torch.empty_like(x)
+
+
+@register
+class ToySoftsign(Component):
+    type = "toy_softsign"
+
+    def __init__(self, scale: float = 1.0):
+        super().__init__()
+        self.scale = float(scale)
+
+    def params(self):
+        return {"scale": self.scale}
+
+    def forward(self, x):
+        return softsign(x, self.scale)
