@@ -16,8 +16,8 @@ import torch
 
 from inshade import bundle as bundle_mod
 from inshade.cli import main
+from inshade.components.encodings.torch_twin import Frequency
 from inshade.models import mlp_graph
-from inshade.models.encodings import Frequency
 
 REPO = Path(__file__).resolve().parents[1]
 COMMANDS = [[], ["codegen"], ["info"], ["render"], ["doctor"], ["bench"], ["train"],

@@ -16,13 +16,13 @@ from onnx import TensorProto, helper, numpy_helper
 
 import inshade
 from inshade.bundle import load
+from inshade.components.feature_axis.torch_twin import IntGather
+from inshade.components.grids.torch_twin import HashGrid
 from inshade.convert.check import evaluate
-from inshade.convert.lowering import ConvertError
 from inshade.convert.export import convert_onnx as convert
+from inshade.convert.lowering import ConvertError
 from inshade.grid_layout import HASH_PRIMES, grid_levels
 from inshade.models.graph import GraphModule
-from inshade.models.hash_grid import HashGrid
-from inshade.models.int_gather import IntGather
 
 from parity import assert_parity, glsl_eval, parity_settings
 

@@ -161,7 +161,7 @@ def source_outputs(source, parts: list[np.ndarray], bundle, float64: bool = Fals
     """The source's outputs on ``parts``, flattened per row and concatenated in output order;
     ``float64``: the source evaluated in double precision (its weights widened exactly)."""
     if _is_onnx(source):
-        from .onnx_model import run_onnxruntime
+        from .onnx_reference import run_onnxruntime
 
         outs = run_onnxruntime(source, parts, bundle, float64=float64)
     else:

@@ -34,8 +34,11 @@ import numpy as np
 from inshade.provenance import utc_now
 
 from .lowering import ConvertError
-from .tcnn_config import (Composite, Empty, Frequency, Grid, Identity, Model, OneBlob, SphericalHarmonics,
-                          TriangleWave, parse_model)
+from .tcnn_config import Model, parse_model
+from .tcnn_encodings import lanes_of, lower_encoding
+
+__all__ = ["ACTIVATIONS", "Builder", "Cursor", "convert", "leaky_slope", "lower", "lower_encoding", "lower_network",
+           "to_bundle"]
 
 KIND = "imported"
 K_ACT = 10.0                 # common_device.h: Softplus and Squareplus "zoom" factor
@@ -85,98 +88,6 @@ class Cursor:
         out = self.values[self.at:self.at + count].reshape(shape)
         self.at += count
         return out
-
-
-# --- encodings: each returns its padded output lanes, (value, lane) or a constant -------------
-
-def _lanes(value: str, count: int) -> list:
-    return [(value, i) for i in range(count)]
-
-
-def _padded(enc, lanes: list) -> list:
-    pads = [enc.pad_value] * enc.pad
-    return pads + lanes if enc.pad_first else lanes + pads
-
-
-def _identity(b: Builder, enc: Identity, src: str, params: Cursor, dtype: str) -> list:
-    if enc.scale == 1.0 and enc.offset == 0.0:
-        return _padded(enc, _lanes(src, enc.n_dims))
-    n = enc.n_dims
-    node = b.node("affine", {}, [src], {"scale": np.full(n, enc.scale), "offset": np.full(n, enc.offset)}, enc.where)
-    return _padded(enc, _lanes(node, n))
-
-
-def _frequency(b: Builder, enc: Frequency, src: str, params: Cursor, dtype: str) -> list:
-    """inshade's frequency lanes: sin blocks, then cos blocks, each [frequency][input]; tiny-cuda-nn's:
-    [input][frequency][sin, cos] (its cos is sin(t + pi/2))."""
-    d, f = enc.n_dims, enc.n_frequencies
-    if f == 0:
-        return _padded(enc, [])
-    node = b.node("frequency", {"n_freqs": f, "include_input": False}, [src], where=f"{enc.where}.n_frequencies")
-    return _padded(enc, [(node, s * f * d + k * d + i) for i in range(d) for k in range(f) for s in (0, 1)])
-
-
-def _spherical_harmonics(b: Builder, enc: SphericalHarmonics, src: str, params: Cursor, dtype: str) -> list:
-    direction = b.node("affine", {}, [src], {"scale": np.full(3, 2.0), "offset": np.full(3, -1.0)}, enc.where)
-    node = b.node("spherical_harmonics", {"degree": enc.degree}, [direction], where=f"{enc.where}.degree")
-    return _padded(enc, _lanes(node, enc.out))
-
-
-def _one_blob(b: Builder, enc: OneBlob, src: str, params: Cursor, dtype: str) -> list:
-    node = b.node("one_blob", {"n_bins": enc.n_bins}, [src], where=enc.where)
-    return _padded(enc, _lanes(node, enc.out))
-
-
-def _triangle_wave(b: Builder, enc: TriangleWave, src: str, params: Cursor, dtype: str) -> list:
-    """|frac(x 2^(f-1) + f/4) - 1/2| * 4 - 1 = 1 - 2 tri(x 2^f + f/2), tri(t) = 1 - |mod(t, 2) - 1|."""
-    d, f = enc.n_dims, enc.n_frequencies
-    if f == 0:
-        return _padded(enc, [])
-    spread = b.node("select", {"lanes": [i for i in range(d) for _ in range(f)]}, [src], where=enc.where)
-    k = np.tile(np.arange(f, dtype=np.float64), d)
-    phase = b.node("affine", {}, [spread], {"scale": 2.0 ** k, "offset": k / 2}, enc.where)
-    tri = b.node("triangle_wave", {"n_freqs": 1}, [phase], where=enc.where)
-    node = b.node("affine", {}, [tri], {"scale": np.full(d * f, -2.0), "offset": np.ones(d * f)}, enc.where)
-    return _padded(enc, _lanes(node, enc.out))
-
-
-def _empty(b: Builder, enc: Empty, src: str, params: Cursor, dtype: str) -> list:
-    return _padded(enc, [])
-
-
-def _grid(b: Builder, enc: Grid, src: str, params: Cursor, dtype: str) -> list:
-    table = params.take(enc.n_params(), (enc.rows, enc.features))
-    common = {"levels": enc.levels, "features": enc.features, "base_resolution": enc.base_resolution,
-              "per_level_scale": enc.per_level_scale, "precision": "f16" if dtype == "float16" else "f32"}
-    if enc.type == "hash":
-        kind = "hash_grid"
-        common.update(log2_table_size=enc.log2_hashmap_size,
-                      hash={"coherentprime": "coherent_prime", "prime": "prime", "reversedprime": "reversed_prime"}[
-                          enc.hash])
-    else:
-        kind = "dense_grid"
-    node = b.node(kind, common, [src], {"table": table}, enc.where)
-    return _padded(enc, _lanes(node, enc.out))
-
-
-def _composite(b: Builder, enc: Composite, src: str, params: Cursor, dtype: str) -> list:
-    lanes = []
-    for nested, begin in zip(enc.nested, enc.begins):
-        part = src
-        if (begin, nested.n_dims) != (0, b.width(src)):
-            part = b.node("select", {"lanes": list(range(begin, begin + nested.n_dims))}, [src], where=nested.where)
-        lanes += lower_encoding(b, nested, part, params, dtype)
-    return lanes   # the composite's own padding is its last nested encoding's
-
-
-LOWER = {Identity: _identity, Frequency: _frequency, SphericalHarmonics: _spherical_harmonics, OneBlob: _one_blob,
-         TriangleWave: _triangle_wave, Empty: _empty, Grid: _grid, Composite: _composite}
-
-
-def lower_encoding(b: Builder, enc, src: str, params: Cursor, dtype: str) -> list:
-    lanes = LOWER[type(enc)](b, enc, src, params, dtype)
-    assert len(lanes) == enc.padded, (enc.where, len(lanes), enc.padded)
-    return lanes
 
 
 # --- activations (common_device.h warp_activation), each as the components computing it ------
@@ -264,7 +175,7 @@ def _output(b: Builder, lanes: list) -> str:
     values = list(dict.fromkeys(ref[0] for ref in lanes if isinstance(ref, tuple)))
     if not values:
         raise b.model.ctx.error("encoding", "computes nothing from the input (every lane is padding)")
-    if len(values) == 1 and lanes == _lanes(values[0], b.width(values[0])):
+    if len(values) == 1 and lanes == lanes_of(values[0], b.width(values[0])):
         return values[0]
     constants = [c for c in lanes if not isinstance(c, tuple)]
     sources = list(values)
