@@ -4,7 +4,6 @@ gradient clipping, the soft-monotonicity regulariser), the schedules and losses,
 """
 from __future__ import annotations
 
-import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -14,9 +13,10 @@ import numpy as np
 import torch
 
 from inshade import metrics
+from inshade.components.lookup_array.torch_twin import LookupArray
 
+from . import fit_loop
 from .graph import GraphModule
-from .lookup_array import LookupArray
 
 # ---------------------------------------------------------------------------------------------
 # stability tools (notes §4)
@@ -106,11 +106,11 @@ def monotonicity_penalty(array: LookupArray, kappa: float = 1.0, eps: float | No
 # ---------------------------------------------------------------------------------------------
 # training
 
+# A schedule: (opt, steps, patience) -> (the fit loop's per-step lr factor or None, what each evaluation's
+# mean training loss is handed to).
 def _cosine(opt, steps, patience):
     """Cosine decay from lr to 5% of it over `steps` (stepped every iteration)."""
-    s = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda i: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(i / max(steps, 1), 1.0))))
-    return (lambda: s.step()), (lambda loss: None)
+    return fit_loop.cosine(steps), (lambda loss: None)
 
 
 def _plateau(opt, steps, patience):
@@ -119,11 +119,11 @@ def _plateau(opt, steps, patience):
     floor = [g["lr"] * 1e-2 for g in opt.param_groups]
     s = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=patience, threshold=1e-3,
                                                    min_lr=floor)
-    return (lambda: None), (lambda loss: s.step(loss))
+    return None, (lambda loss: s.step(loss))
 
 
 def _constant_lr(opt, steps, patience):
-    return (lambda: None), (lambda loss: None)
+    return None, (lambda loss: None)
 
 
 SCHEDULES = {"cosine": _cosine, "plateau": _plateau, "constant": _constant_lr}
@@ -200,17 +200,18 @@ def train_cascade(cascade: GraphModule, sampler: Iterable, steps: int, *, lr: fl
     history = History()
     batches = iter(sampler)
 
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(seed)
-        opt = torch.optim.Adam(cascade.parameters(), lr=lr)
-        on_step, on_eval = SCHEDULES[schedule](opt, steps, 3)
-        fit_step = functools.partial(_fit_step, cascade, opt, objective=objective, primaries=prim,
-                                     monotonicity=monotonicity, monotonicity_args=monotonicity_args,
-                                     clip_primary=clip_primary, clip_mode=clip_mode, lr=lr, bounds=bounds)
-        evaluate = functools.partial(_evaluate, cascade, opt, history, metric=metric, eval_set=eval_set, peak=peak)
-        _fit_loop(batches, steps, eval_every or max(1, steps // 20), LOSSES[loss], finish, fit_step, evaluate,
-                  on_step, on_eval, held_out=eval_set is not None or metric is not None, desc=desc,
-                  progress=progress)
+    with fit_loop.seeded(seed):
+        opt = fit_loop.adam(cascade.parameters(), lr=lr)
+        lr_factor, on_eval = SCHEDULES[schedule](opt, steps, 3)
+        run = _CascadeRun(cascade, opt, history, batches, LOSSES[loss], finish, objective=objective, primaries=prim,
+                          monotonicity=monotonicity, monotonicity_args=monotonicity_args, bounds=bounds,
+                          metric=metric, eval_set=eval_set, peak=peak)
+        run.first_record(held_out=eval_set is not None or metric is not None)
+        clip = None if clip_primary is None else (
+            lambda: clip_primary_gradients(cascade, clip_primary, lr, clip_mode, prim))
+        fit_loop.fit(opt, run.loss, steps, lr_factor=lr_factor, before_step=clip,
+                     after_step=run.after_step(steps, eval_every or max(1, steps // 20), on_eval),
+                     desc=desc, progress=progress)
     return history
 
 
@@ -227,70 +228,74 @@ def _check_options(schedule: str, clip_mode: str, objective, finish, loss: str) 
             raise ValueError(f"unknown loss {name!r}; known: {', '.join(LOSSES)}")
 
 
-def _fit_loop(batches, steps: int, eval_every: int, loss_fn, finish, fit_step, evaluate, on_step, on_eval, *,
-              held_out: bool, desc: str, progress: bool | None) -> None:
-    """`train_cascade`'s steps: a record at step 0, then one every `eval_every` steps and at the end (its
-    loss the interval's mean training loss, which the schedule sees); from `finish`'s step on, its
-    sampler and loss."""
-    from inshade.progress import progress as progress_bar
+class _CascadeRun:
+    """`train_cascade`'s batches, losses and records: each step's batch and loss (from `finish`'s step
+    on, its sampler and loss), the `bounds` projection after each update, and a History record at
+    step 0, every `eval_every` steps and at the end (its loss the interval's mean training loss,
+    which the schedule sees)."""
 
-    start = time.perf_counter()
-    first = None if held_out else next(batches)
-    evaluate(0, None, first, start, loss_fn)
-    pending = first
-    acc, count = 0.0, 0
-    bar = progress_bar(range(1, steps + 1), desc=desc, enabled=progress)
-    for step in bar:
-        if finish is not None and step == finish[0] + 1:
-            batches, loss_fn, pending = iter(finish[1]), LOSSES[finish[2]], None
-        batch = pending if pending is not None else next(batches)
-        pending = None
-        value = fit_step(batch, loss_fn)
-        on_step()
-        acc, count = acc + float(value.detach()), count + 1
-        if step % eval_every == 0 or step == steps:
-            rec = evaluate(step, acc / count, batch, start, loss_fn)
-            on_eval(rec["loss"])
-            bar.set_postfix(loss=f"{rec['loss']:.4f}", psnr=f"{rec['psnr']:.2f}")
-            acc, count = 0.0, 0
+    def __init__(self, cascade: GraphModule, opt, history: History, batches, loss_fn, finish, *, objective,
+                 primaries: list[str], monotonicity: float, monotonicity_args: dict | None, bounds, metric,
+                 eval_set, peak: float):
+        self.cascade, self.opt, self.history, self.batches, self.loss_fn = cascade, opt, history, batches, loss_fn
+        self.finish, self.objective, self.primaries, self.bounds = finish, objective, primaries, bounds
+        self.monotonicity, self.monotonicity_args = monotonicity, monotonicity_args
+        self.metric, self.eval_set, self.peak = metric, eval_set, peak
+        self.pending, self.acc, self.count, self.start = None, 0.0, 0, time.perf_counter()
 
+    def first_record(self, held_out: bool) -> None:
+        """The step-0 record: on the eval set (`held_out`), else on the first batch (step 1's too)."""
+        self.start = time.perf_counter()
+        self.pending = None if held_out else next(self.batches)
+        self._evaluate(0, None, self.pending)
 
-def _fit_step(cascade: GraphModule, opt, batch, loss_fn, *, objective, primaries: list[str], monotonicity: float,
-              monotonicity_args: dict | None, clip_primary, clip_mode: str, lr: float, bounds) -> torch.Tensor:
-    """One Adam step on `batch`: the loss plus the primaries' monotonicity penalty, their gradients
-    clipped, then the `bounds` projection. Returns the batch's loss (without the penalty)."""
-    value = objective(cascade, batch) if objective is not None else loss_fn(cascade(batch[0]) - batch[1])
-    total = value
-    if monotonicity:
-        for name in primaries:
-            total = total + monotonicity_penalty(cascade.nodes[name], monotonicity, **(monotonicity_args or {}))
-    opt.zero_grad(set_to_none=True)
-    total.backward()
-    if clip_primary is not None:
-        clip_primary_gradients(cascade, clip_primary, lr, clip_mode, primaries)
-    opt.step()
-    if bounds:
+    def loss(self, index: int):
+        """(loss plus the primaries' monotonicity penalty, the batch's loss, the batch) of step index + 1."""
+        if self.finish is not None and index == self.finish[0]:
+            self.batches, self.loss_fn, self.pending = iter(self.finish[1]), LOSSES[self.finish[2]], None
+        batch = self.pending if self.pending is not None else next(self.batches)
+        self.pending = None
+        value = (self.objective(self.cascade, batch) if self.objective is not None
+                 else self.loss_fn(self.cascade(batch[0]) - batch[1]))
+        total = value
+        if self.monotonicity:
+            for name in self.primaries:
+                total = total + monotonicity_penalty(self.cascade.nodes[name], self.monotonicity,
+                                                     **(self.monotonicity_args or {}))
+        return total, value, batch
+
+    def after_step(self, steps: int, eval_every: int, on_eval):
+        """The fit loop's hook after each update: projection, the interval's loss, the records."""
+        def after(index, returned, bar):
+            _, value, batch = returned
+            step = index + 1
+            if self.bounds:
+                with torch.no_grad():
+                    for name, (lo, hi) in self.bounds.items():
+                        self.cascade.nodes[name].cells.clamp_(lo, hi)
+            self.acc, self.count = self.acc + float(value.detach()), self.count + 1
+            if step % eval_every == 0 or step == steps:
+                rec = self._evaluate(step, self.acc / self.count, batch)
+                on_eval(rec["loss"])
+                bar.set_postfix(loss=f"{rec['loss']:.4f}", psnr=f"{rec['psnr']:.2f}")
+                self.acc, self.count = 0.0, 0
+        return after
+
+    def _evaluate(self, step: int, interval_loss, last_batch) -> dict:
+        """Append one History record and return it: loss and PSNR from `metric`, else on the eval set (or the
+        last batch); the loss is `interval_loss` when there is one."""
         with torch.no_grad():
-            for name, (lo, hi) in bounds.items():
-                cascade.nodes[name].cells.clamp_(lo, hi)
-    return value
-
-
-def _evaluate(cascade: GraphModule, opt, history: History, step: int, interval_loss, last_batch, start: float,
-              loss_fn, *, metric, eval_set, peak: float) -> dict:
-    """Append one History record and return it: loss and PSNR from `metric`, else on the eval set (or the
-    last batch); the loss is `interval_loss` when there is one."""
-    with torch.no_grad():
-        if metric is not None:
-            eval_loss, eval_psnr = metric(cascade)
-        else:
-            x, y = eval_set if eval_set is not None else last_batch
-            pred = cascade(x)
-            eval_loss, eval_psnr = float(loss_fn(pred - y)), psnr(pred, y, peak)
-        rec = {"step": step, "loss": eval_loss if interval_loss is None else interval_loss,
-               "psnr": eval_psnr, "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - start}
-    history.records.append(rec)
-    return rec
+            if self.metric is not None:
+                eval_loss, eval_psnr = self.metric(self.cascade)
+            else:
+                x, y = self.eval_set if self.eval_set is not None else last_batch
+                pred = self.cascade(x)
+                eval_loss, eval_psnr = float(self.loss_fn(pred - y)), psnr(pred, y, self.peak)
+            rec = {"step": step, "loss": eval_loss if interval_loss is None else interval_loss,
+                   "psnr": eval_psnr, "lr": self.opt.param_groups[0]["lr"],
+                   "seconds": time.perf_counter() - self.start}
+        self.history.records.append(rec)
+        return rec
 
 
 def finish_lbfgs(cascade: GraphModule, data, evaluations: int, *, history: History | None = None,
@@ -309,31 +314,24 @@ def finish_lbfgs(cascade: GraphModule, data, evaluations: int, *, history: Histo
     history = history if history is not None else History()
     eval_every = eval_every or max(1, evaluations // 10)
     params = [p for p in cascade.parameters() if p.requires_grad]
-    # tolerances ~0: at ~33 dB the loss changes by < 1e-9 per iteration while still improving
-    opt = torch.optim.LBFGS(params, lr=1.0, max_iter=evaluations, max_eval=evaluations,
-                            history_size=history_size, tolerance_grad=1e-12, tolerance_change=1e-15,
-                            line_search_fn="strong_wolfe")
-    start, count = time.perf_counter(), [0]
+    start = time.perf_counter()
     offset = history.records[-1]["seconds"] if history.records else 0.0   # continue a train_cascade clock
 
-    def record(loss):
-        history.records.append({"step": first_step + count[0], "loss": loss,
+    def record(count, loss):
+        history.records.append({"step": first_step + count, "loss": loss,
                                 "psnr": metrics.psnr_from_mse(max(loss, 1e-30), peak),
                                 "lr": 1.0, "seconds": offset + time.perf_counter() - start})
 
-    def closure():
-        opt.zero_grad(set_to_none=True)
-        loss = LOSSES["mse"](cascade(x) - y)
-        loss.backward()
-        count[0] += 1
-        if count[0] % eval_every == 0:
-            record(float(loss.detach()))
-        return loss
+    def on_evaluation(count, loss):
+        if count % eval_every == 0:
+            record(count, float(loss.detach()))
 
-    if evaluations > 0:
-        opt.step(closure)
-    if count[0] and history.records and history.records[-1]["step"] == first_step + count[0]:
+    # tolerances ~0: at ~33 dB the loss changes by < 1e-9 per iteration while still improving
+    count = fit_loop.lbfgs(params, lambda: LOSSES["mse"](cascade(x) - y), evaluations, on_evaluation=on_evaluation,
+                           lr=1.0, history_size=history_size, tolerance_grad=1e-12, tolerance_change=1e-15,
+                           line_search_fn="strong_wolfe")
+    if count and history.records and history.records[-1]["step"] == first_step + count:
         history.records.pop()       # the last evaluation was recorded before the final step
     with torch.no_grad():
-        record(float(LOSSES["mse"](cascade(x) - y)))
+        record(count, float(LOSSES["mse"](cascade(x) - y)))
     return history

@@ -22,10 +22,10 @@ import math
 
 import torch
 
+from inshade.components.encodings import torch_twin as _enc
 from inshade.geometry.sdf import f32
 
 from . import activations as _act
-from . import encodings as _enc
 from .graph import GraphModule
 
 ACTIVATIONS = ("softplus", "relu", "leaky_relu", "tanh")

@@ -93,7 +93,7 @@ def fit(graph: GraphModule, data: dict, center, radius: float, *, steps: int, ba
     """Adam on the L1 error of the normalised distance (surface, near and uniform samples
     mixed), cosine-decayed lr, plus the Lipschitz penalty. Runs on the graph's device (batch
     indices drawn on a CPU generator, then moved). Deterministic for a seed and device."""
-    from inshade.progress import progress as progress_bar
+    from .fit_loop import adam, cosine, fit as fit_steps
 
     device = next(graph.parameters()).device
     c = np.asarray(center, np.float64)
@@ -101,27 +101,27 @@ def fit(graph: GraphModule, data: dict, center, radius: float, *, steps: int, ba
     parts = ("surface", "near", "uniform")
     x = torch.from_numpy(np.concatenate([(data[k] - c) * inv_r for k in parts]).astype(np.float32)).to(device)
     y = torch.from_numpy(np.concatenate([data[k + "_sdf"] * inv_r for k in parts]).astype(np.float32)).to(device)
-    opt = torch.optim.Adam(graph.parameters(), lr=lr)
-    sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda s: 0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0))))
+    opt = adam(graph.parameters(), lr=lr)
     gen = torch.Generator().manual_seed(seed)
     log_target = math.log(lipschitz_target)
     losses, start = [], time.perf_counter()
-    bar = progress_bar(range(steps), desc=desc, enabled=progress)
-    for step in bar:
+
+    def step_loss(step):
         idx = torch.randint(0, x.shape[0], (batch,), generator=gen).to(device)
         err = (graph(x[idx])[:, 0] - y[idx]).abs().mean()
         loss = err
         if lipschitz_weight > 0:
             lip = lipschitz_bound(graph, differentiable=True)
             loss = loss + lipschitz_weight * torch.relu(torch.log(lip) - log_target)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        sched.step()
+        return loss, err
+
+    def after(step, returned, bar):
         if step % 100 == 0 or step == steps - 1:
-            losses.append((step, float(err.detach())))
-            bar.set_postfix(l1=f"{float(err.detach()):.2e}", L=f"{lipschitz_bound(graph):.2f}")
+            err = float(returned[1].detach())
+            losses.append((step, err))
+            bar.set_postfix(l1=f"{err:.2e}", L=f"{lipschitz_bound(graph):.2f}")
+
+    fit_steps(opt, step_loss, steps, lr_factor=cosine(steps, 0.02), after_step=after, desc=desc, progress=progress)
     return {"seconds": time.perf_counter() - start, "losses": losses}
 
 

@@ -23,13 +23,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.metrics import srgb_eotf, srgb_oetf
-from inshade.pixels import pixel_uvs
-from inshade.progress import default_interval
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
-from inshade.models.lookup_array import LookupArray
 from inshade.models.mlp import Dense
+from inshade.pixels import pixel_uvs
+from inshade.progress import default_interval
 from inshade.provenance import utc_now
 
 KIND = "di_texture"          # the bundle kind of a DI texture

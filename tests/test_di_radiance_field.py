@@ -243,7 +243,7 @@ def test_grid_bundle_with_wrong_outputs_is_one_error(asset, tmp_path):
     folder = _copy(asset, tmp_path)
     d, c = field.bake(16)
     g = GraphModule([("x", 3, "position")])
-    from inshade.models.lookup_array import LookupArray
+    from inshade.components.lookup_array.torch_twin import LookupArray
 
     g.add("density", LookupArray([16] * 3, 1, 32, init=torch.from_numpy(d[..., None])), "x")
     g.output("density", "density", "density")

@@ -30,7 +30,7 @@ from torch.overrides import TorchFunctionMode
 from torch.utils.weak import WeakTensorKeyDictionary
 
 from inshade import devices
-from inshade.models.lookup_array import LookupArray
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import footprint_sampler as fp
 from inshade.techniques.di_shading import bench
 from inshade.techniques.di_shading import data as plane

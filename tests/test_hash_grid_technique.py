@@ -103,8 +103,8 @@ def test_app_settings_are_refused_for_the_other_app(capsys):
 def test_sound_bound_is_above_every_measured_slope(dims, levels, log2_table_size, seed):
     """Random tables (dense and hashed levels) and a random MLP: no finite difference anywhere, and no
     autograd-free directional slope, exceeds the bound; the bound is not absurdly loose either."""
+    from inshade.components.grids.torch_twin import HashGrid
     from inshade.models import activations
-    from inshade.models.hash_grid import HashGrid
     from inshade.techniques.hash_grid.lipschitz import measured_slope, sound_bound
 
     torch.manual_seed(seed)

@@ -14,7 +14,7 @@ from inshade.models.indirection import (
     INITS, array_bytes, auto_clip_bound, bilinear, cascade, clip_primary_gradients, evaluate_quantised,
     grid_points, image_eval_set, image_sampler, make_array, monotonicity_penalty, primary_nodes,
     size_cascade, train_cascade)
-from inshade.models.lookup_array import LookupArray
+from inshade.components.lookup_array.torch_twin import LookupArray
 
 from parity import check_parity, uniform_inputs
 

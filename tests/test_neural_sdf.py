@@ -224,8 +224,8 @@ def test_bad_render_metadata_one_clear_error(torus, tmp_path):
        seed=st.integers(0, 2**16))
 def test_lipschitz_bound_holds(widths, act, freqs, seed):
     """The bound from the weights is >= every observed |grad| (autograd at random points)."""
+    from inshade.components.encodings import torch_twin as E
     from inshade.models import activations as A
-    from inshade.models import encodings as E
     from inshade.models.mlp_sdf import lipschitz_bound
 
     torch.manual_seed(seed)
@@ -240,7 +240,7 @@ def test_lipschitz_bound_holds(widths, act, freqs, seed):
 
 
 def test_frequency_encoding_constant_is_tight():
-    from inshade.models.encodings import Frequency
+    from inshade.components.encodings.torch_twin import Frequency
     from inshade.models.mlp_sdf import _activation_lipschitz
 
     enc = Frequency(3)

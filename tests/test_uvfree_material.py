@@ -44,7 +44,7 @@ def graph(asset):
 
 def test_asset_folder_holds_the_bundle_mesh_and_reference(asset):
     from inshade.bundle import load
-    from inshade.codegen.mesh_features import TOPOLOGY_LAYOUTS, topology_layout
+    from inshade.components.mesh_features.emit import TOPOLOGY_LAYOUTS, topology_layout
     from inshade.geometry.mesh import load_mesh
     from inshade.techniques.uvfree_material.model import CHANNELS, KIND
 

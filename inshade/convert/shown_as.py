@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from inshade.bundle import Bundle
+from inshade.scene.builder import display_modes, requires, scene_json
 
 from .lowering import ConvertError
 
@@ -99,9 +100,8 @@ def _orbit(center, radius) -> dict:
 
 
 def _scene(bundle: Bundle, program: str, camera: dict, **fields) -> dict:
-    return {"format": "inshade.scene", "version": 1, "name": bundle.name, "title": f"{bundle.name} (exported)",
-            "program": program, "size": [SIZE, SIZE], "camera": camera, "bookmarks": {}, "lights": [],
-            "display": {"mode": "final", "modes": ["final"], "split": 0.5}, "requires": {"gl": 330}, **fields}
+    return scene_json(bundle.name, f"{bundle.name} (exported)", program, (SIZE, SIZE), camera=camera, bookmarks={},
+                      lights=[], display=display_modes(), requires=requires(), **fields)
 
 
 def _sdf(bundle: Bundle, example) -> tuple[Bundle, dict]:

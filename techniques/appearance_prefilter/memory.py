@@ -1,5 +1,5 @@
 """What an appearance-prefilter bundle costs in GPU memory (torch-free: the trainer's metrics and the
-bench share it), as the generated code's resources hold it (codegen/sparse_voxels.py):
+bench share it), as the generated code's resources hold it (components/sparse_voxels/emit.py):
 
 - per voxel: its latent row at the bundle's precision (Z * 2 bytes for f16, Z * 4 for f32), its
   sphere (RGBA32F, 16 bytes) and its share of the cell -> slot index (the node's ``index``:

@@ -46,12 +46,12 @@ import numpy as np
 import torch
 
 from inshade.codegen.voxel_index import best_brick
+from inshade.components.encodings.torch_twin import Frequency
+from inshade.components.feature_axis.torch_twin import Add
+from inshade.components.sparse_voxels.torch_twin import SparseVoxels
 from inshade.models import GraphModule
 from inshade.models.activations import ReLU, Sigmoid
-from inshade.models.binary import Add
-from inshade.models.encodings import Frequency
 from inshade.models.mlp import Dense
-from inshade.models.sparse_voxels import SparseVoxels
 
 KIND = "appearance_prefilter"
 MU = 2.0                 # range compression of the raw phase input (Eq. 18)

@@ -53,6 +53,7 @@ from inshade.components import ComponentError
 from inshade.files import atomic_write
 from inshade.geometry.gltf import GltfError
 from inshade.geometry.mesh import MeshError
+from inshade.scene.builder import directional_light, network, orbit, reference, requires, scene_json, sky
 from inshade.trainer import GIVEN, Run, Trainer, setting
 from inshade.provenance import utc_now
 
@@ -224,7 +225,7 @@ def evaluate(graph, samples: Samples, mask: int, limit: int = 1 << 18, chunk: in
 
 def fit(data: dict, settings: dict, *, device, progress=None, log_every: int = 25):
     """(graph on the CPU, history) after ``settings["steps"]`` Adam steps."""
-    from inshade.progress import progress as progress_bar
+    from inshade.models.fit_loop import adam, fit as fit_steps
 
     mask, bins = settings["mask"], settings["bins"][0] * settings["bins"][1]
     torch.manual_seed(settings["seed"])
@@ -236,24 +237,28 @@ def fit(data: dict, settings: dict, *, device, progress=None, log_every: int = 2
     samples = Samples(data, device)
     latents = graph.nodes["vox"].latents
     rest = [p for name, p in graph.named_parameters() if not name.startswith("nodes.vox.")]
-    opt = torch.optim.Adam([{"params": [latents], "lr": settings["latent_lr"]},
-                            {"params": rest, "lr": settings["lr"], "weight_decay": settings.get("weight_decay") or 0.0}],
-                           decoupled_weight_decay=True)
-    base = [g["lr"] for g in opt.param_groups]
+    opt = adam([{"params": [latents], "lr": settings["latent_lr"]},
+                {"params": rest, "lr": settings["lr"], "weight_decay": settings.get("weight_decay") or 0.0}],
+               decoupled_weight_decay=True)
     gen = torch.Generator().manual_seed(settings["seed"])
     steps, history = settings["steps"], []
-    bar = progress_bar(range(steps), desc=f"{KIND} {settings['scene']}", enabled=progress)
-    for step in bar:
-        for g, lr0 in zip(opt.param_groups, base):
-            g["lr"] = lr0 * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * step / max(steps, 1))))
+
+    def step_loss(step):
         x, (cov, alb, ph, ph_bins) = samples.draw(settings["batch"], gen)
         terms = losses(split_outputs(graph(x), mask, bins), cov, alb, ph, ph_bins)
-        opt.zero_grad(set_to_none=True)
-        terms["total"].backward()
-        opt.step()
+        return terms["total"], terms
+
+    def after(step, returned, bar):
+        terms = returned[1]
         if step % log_every == 0 or step == steps - 1:
             history.append({"step": step, **{k: round(v.item(), 6) for k, v in terms.items()}})
             bar.set_postfix(loss=f"{terms['total'].item():.4f}")
+
+    def cosine(step):   # to 5 %, its angle rounded as (pi * step) / steps: what the shipped assets trained with
+        return 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * step / max(steps, 1)))
+
+    fit_steps(opt, step_loss, steps, lr_factor=cosine, after_step=after, desc=f"{KIND} {settings['scene']}",
+              progress=progress)
     return graph.to("cpu"), history
 
 
@@ -320,9 +325,9 @@ def train(run: Run) -> int:
 # seen from afar, aimed at the objects (they span about half the picture: the regime prefiltering is
 # for, a frame llvmpipe draws in about half a minute at 320^2); the "distance" setting dollies in
 # (0.5 is the close-up) and out
-CAMERA = {"type": "orbit", "fov_y": 35.0, "target": [0.5, 0.32, 0.5], "distance": 4.4, "yaw": 30.0, "pitch": -20.0}
-SUN = {"type": "directional", "direction": [0.4, 0.8, 0.45], "intensity": 3.0}
-SKY = {"sky": "overcast", "rotation": 0.0, "degree": 3}
+CAMERA = orbit((0.5, 0.32, 0.5), 4.4, 30.0, -20.0, fov_y=35.0)
+SUN = directional_light((0.4, 0.8, 0.45), 3.0)
+SKY = sky("overcast", degree=3)
 SIZE = (320, 320)
 REFERENCE = "reference.exr"
 REFERENCE_SPP = {"quick": 4, "ship": 64}   # the quick preset's reference only has to exist (tests)
@@ -347,22 +352,21 @@ def write_reference(out: Path, settings: dict, preset: str) -> Path:
 def scene_description(name: str, settings: dict) -> dict:
     from . import SETTINGS
 
-    return {
-        "format": "inshade.scene", "version": 1, "name": name,
-        "title": f"Deep appearance prefiltering: {settings['scene']}, scales {settings['scales'][0]}.."
-                 f"{settings['scales'][1]} (voxel latents + coverage/albedo/phase decoders)",
-        "program": PROGRAM, "size": list(SIZE),
-        "networks": [{"bundle": ".", "prefix": PREFIX}],
-        "reference": {"image": REFERENCE, "colour": "linear", "space": "screen"},
-        "camera": CAMERA,
-        "lights": [SUN],
-        "environment": SKY,
-        "settings": {**SETTINGS, "force_scale": {**SETTINGS["force_scale"], "max": settings["scales"][1]}},
-        "requires": {"gl": 330},
-        "notes": "the voxels are marched at the scale the pixel footprint asks for (next finer, blended with "
-                 "the coarser); 'distance' moves the camera away from the box centre; the reference is the "
-                 "full geometry ray traced at this camera and distance 1 (display modes split / error)",
-    }
+    return scene_json(
+        name, f"Deep appearance prefiltering: {settings['scene']}, scales {settings['scales'][0]}.."
+              f"{settings['scales'][1]} (voxel latents + coverage/albedo/phase decoders)",
+        PROGRAM, SIZE,
+        networks=[network(".", PREFIX)],
+        reference=reference(REFERENCE, "linear", "screen"),
+        camera=CAMERA,
+        lights=[SUN],
+        environment=SKY,
+        settings={**SETTINGS, "force_scale": {**SETTINGS["force_scale"], "max": settings["scales"][1]}},
+        requires=requires(),
+        notes="the voxels are marched at the scale the pixel footprint asks for (next finer, blended with "
+              "the coarser); 'distance' moves the camera away from the box centre; the reference is the "
+              "full geometry ray traced at this camera and distance 1 (display modes split / error)",
+    )
 
 
 # ---------------------------------------------------------------------------------------------

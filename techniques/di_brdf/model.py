@@ -12,12 +12,12 @@ import math
 
 import torch
 
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import brdf
 from inshade.models import indirection as di
 from inshade.models.disney_glue import disney_glue
 from inshade.models.graph import GraphModule
 from inshade.models.indirection import make_array
-from inshade.models.lookup_array import LookupArray
 from inshade.models.mlp import Dense
 
 # Cascaded init: D at the cells, clamped where the balls saturate (key light: radiance ~ 2 n.l x

@@ -56,7 +56,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,6 +68,8 @@ from inshade.models import brdf
 from inshade.models import indirection as di
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
+from inshade.scene.builder import (display_modes, exposure_setting, int_setting, lut_filter_setting, network,
+                                    plane2d, point_light, requires, scene_json, view_labels)
 from inshade.trainer import Run, Trainer, setting
 from inshade.provenance import utc_now
 
@@ -165,34 +166,31 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
                  progress=None, device=None):
     """End-to-end L1 on tone-mapped radiance (exposure ~ the scene's E / r^2); returns (model, history, seconds).
     Trains on `device` (default the CPU); the model comes back on the CPU."""
-    from inshade.progress import progress as progress_bar
+    from inshade.models.fit_loop import adam, cosine, fit
 
     torch.manual_seed(seed)
     model = DisneyDI().to(device)
     data = disney_samples(samples, seed, device)
     history = []
     t0 = time.perf_counter()
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(seed)
-        opt = torch.optim.Adam(model.parameters(), lr=lr)
-        sched = torch.optim.lr_scheduler.LambdaLR(
-            opt, lambda i: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(i / max(steps, 1), 1.0))))
-        gen = torch.Generator().manual_seed(seed + 1)
-        bar = progress_bar(range(1, steps + 1), desc="di_brdf_disney", enabled=progress)
-        for step in bar:
-            idx = torch.randint(0, samples, (batch,), generator=gen).to(device)
-            l, v, base, params, target = (t[idx] for t in data)
-            pred = model(l, v, base, params)
-            loss = torch.mean(torch.abs(_tonemap(exposure * pred) - _tonemap(exposure * target)))
-            if not torch.isfinite(loss):
-                continue  # a degenerate sample (denominator ~ 0); skip the step
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            sched.step()
-            if step % max(1, steps // 10) == 0 or step == steps:
-                history.append({"step": step, "loss": float(loss.detach()), "seconds": round(time.perf_counter() - t0, 2)})
-                bar.set_postfix(loss=f"{history[-1]['loss']:.4f}")
+    opt = adam(model.parameters(), lr=lr)
+    gen = torch.Generator().manual_seed(seed + 1)
+
+    def step_loss(index):
+        idx = torch.randint(0, samples, (batch,), generator=gen).to(device)
+        l, v, base, params, target = (t[idx] for t in data)
+        pred = model(l, v, base, params)
+        loss = torch.mean(torch.abs(_tonemap(exposure * pred) - _tonemap(exposure * target)))
+        return loss if torch.isfinite(loss) else None   # a degenerate sample (denominator ~ 0): no step
+
+    def after(index, loss, bar):
+        step = index + 1
+        if step % max(1, steps // 10) == 0 or step == steps:
+            history.append({"step": step, "loss": float(loss.detach()), "seconds": round(time.perf_counter() - t0, 2)})
+            bar.set_postfix(loss=f"{history[-1]['loss']:.4f}")
+
+    fit(opt, step_loss, steps, lr_factor=cosine(steps), after_step=after, seed=seed, desc="di_brdf_disney",
+        progress=progress)
     for p in model.parameters():
         p.requires_grad_(False)
     return model.to("cpu"), history, time.perf_counter() - t0
@@ -200,41 +198,29 @@ def train_disney(steps=DISNEY_DEFAULTS["steps"], batch=DISNEY_DEFAULTS["batch"],
 
 # assets
 def scene_dict(name: str, title: str, model: str, size, cols: int, rows: int, ball_px: int) -> dict:
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title,
-        "program": PROGRAM, "size": list(size),
-        "networks": [{"bundle": ".", "prefix": "net"}],
-        "camera": {"type": "plane2d", "center": [0.5, 0.5], "zoom": 1.0, "aspect": size[0] / size[1]},
-        "lights": [{"type": "point", "position": list(L[:3]), "intensity": L[3]} for L in mb.LIGHTS],
-        "environment": None,
-        "display": {"mode": "network", "modes": ["network"], "split": 0.5},
-        "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
-            "lights": {"type": "int", "default": 2, "min": 1, "max": mb.MAX_LIGHTS, "uniform": "u_light_count",
-                       "label": "point lights"},
-            "view": {"type": "int", "default": VIEWS["split"], "min": 0, "max": 3, "define": "BRDF_VIEW",
-                     "label": "0 analytic, 1 learned, 2 side by side, 3 diffuse baseline"},
-            "model": {"type": "int", "default": MODELS[model], "min": MODELS[model], "max": MODELS[model],
-                      "define": "BRDF_MODEL", "label": "1 GGX, 2 Disney"},
-            "cols": {"type": "int", "default": cols, "min": cols, "max": cols, "define": "BALL_COLS",
-                     "label": "grid columns"},
-            "rows": {"type": "int", "default": rows, "min": rows, "max": rows, "define": "BALL_ROWS",
-                     "label": "grid rows"},
-            "lut_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                           "codegen": "lut_filter", "label": "LUT filtering"},
+    return scene_json(
+        name, title, PROGRAM, size,
+        networks=[network(".", "net")],
+        camera=plane2d(aspect=size[0] / size[1]),
+        lights=[point_light(light[:3], light[3]) for light in mb.LIGHTS],
+        environment=None,
+        display=display_modes("network"),
+        settings={
+            "exposure": exposure_setting(),
+            "lights": int_setting(2, 1, mb.MAX_LIGHTS, "point lights", uniform="u_light_count"),
+            "view": int_setting(VIEWS["split"], 0, 3, "0 analytic, 1 learned, 2 side by side, 3 diffuse baseline",
+                                define="BRDF_VIEW"),
+            "model": int_setting(MODELS[model], MODELS[model], MODELS[model], "1 GGX, 2 Disney", define="BRDF_MODEL"),
+            "cols": int_setting(cols, cols, cols, "grid columns", define="BALL_COLS"),
+            "rows": int_setting(rows, rows, rows, "grid rows", define="BALL_ROWS"),
+            "lut_filter": lut_filter_setting(),
         },
-        "requires": {"gl": 330},
-        "notes": f"material balls, {ball_px} px each; left half analytic, right half learned (view 2)",
-        "labels": [
-            {"text": "analytic", "at": [0.25, 0.95], "when": {"view": VIEWS["split"]}},
-            {"text": "learned", "at": [0.75, 0.95], "when": {"view": VIEWS["split"]}},
-            {"line": [[0.5, 0.0], [0.5, 1.0]], "when": {"view": VIEWS["split"]}},
-            {"text": "analytic", "at": [0.5, 0.95], "when": {"view": VIEWS["analytic"]}},
-            {"text": "learned", "at": [0.5, 0.95], "when": {"view": VIEWS["learned"]}},
-            {"text": "diffuse baseline", "at": [0.5, 0.95], "when": {"view": VIEWS["diffuse"]}},
-        ],
-    }
+        requires=requires(),
+        notes=f"material balls, {ball_px} px each; left half analytic, right half learned (view 2)",
+        labels=view_labels("analytic", "learned", {"view": VIEWS["split"]},
+                           [("analytic", {"view": VIEWS["analytic"]}), ("learned", {"view": VIEWS["learned"]}),
+                            ("diffuse baseline", {"view": VIEWS["diffuse"]})]),
+    )
 
 
 def _provenance(command, extra):

@@ -63,6 +63,8 @@ from inshade.models.footprint_sampler import (CAMERA, EXTENT, N_CASCADED, PRIMAR
                                               Sizing, footprint_sampler, held_out_set, lod_sets, mip_chain,
                                               plan, sampler_graph, texture_bytes, texture_tensor)
 from inshade.models.graph import GraphModule
+from inshade.scene.builder import (choice_setting, display_modes, exposure_setting, float_setting,
+                                    lut_filter_setting, network, requires, scene_json, text_label, texture)
 from inshade.techniques.di_footprint import MODES
 from inshade.provenance import utc_now
 
@@ -241,46 +243,43 @@ def scene_dict(name: str, title: str, output: str, size=(512, 256), gl_modes: bo
     uncompressed texture bound as u_texture / u_texture_aniso): it needs scene.json "textures"
     support in scene/description.py + runtime/renderer.py, which the shipped renderer lacks (the report
     of this module's author carries the diff); without it the scene shows the DI sampler only."""
-    scene = {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title,
-        "program": RENDER_PROGRAM, "size": list(size),
-        "networks": [{"bundle": ".", "prefix": "net", "output": output}],
-        "camera": CAMERA,
-        "bookmarks": {
+    settings = {
+        "exposure": exposure_setting(),
+        "extent": float_setting(EXTENT, 0.5, 1000.0, "plane half-size (world units)", uniform="u_extent"),
+        "tile": float_setting(TILE, 0.05, 20.0, "tile size (world units)", uniform="u_tile"),
+        "lut_filter": lut_filter_setting(),
+    }
+    notes = ("DI footprint sampler only: the GL trilinear / anisotropic / no-mip comparison modes of "
+             "the same pass need the uncompressed texture bound (inshade bench di_footprint renders them)")
+    gl = {}
+    if gl_modes:
+        modes = ", ".join(f"{v} {k}" for k, v in MODES.items())
+        settings["mode"] = choice_setting(MODES["di"], sorted(MODES.values()), "sampler: " + modes,
+                                          define="FOOTPRINT_MODE")
+        notes = "--set mode=N: " + modes
+        names = {"di": "DI footprint sampler", "trilinear": "GL trilinear (mip chain)",
+                 "anisotropic": "GL anisotropic 16x", "bilinear": "GL bilinear (no mips)",
+                 "explicit_lod": "GL explicit LOD"}
+        gl = {"textures": [texture("u_texture", "texture.png", mipmaps=True),
+                           texture("u_texture_aniso", "texture.png", mipmaps=True, anisotropy=16.0)],
+              "labels": [text_label(names.get(k, k), (0.02, 0.95), {"mode": v}, align="left")
+                         for k, v in MODES.items()]}
+    return scene_json(
+        name, title, RENDER_PROGRAM, size,
+        networks=[network(".", "net", output=output)],
+        camera=CAMERA,
+        bookmarks={
             "grazing": CAMERA,
             "steeper": {**CAMERA, "position": [0.0, 0.6, 0.0], "pitch": -25.0},
             "horizon": {**CAMERA, "position": [0.0, 0.15, 0.0], "pitch": -3.0},
         },
-        "lights": [], "environment": None,
-        "display": {"mode": "final", "modes": ["final", "network"], "split": 0.5},
-        "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
-            "extent": {"type": "float", "default": EXTENT, "min": 0.5, "max": 1000.0, "uniform": "u_extent",
-                       "label": "plane half-size (world units)"},
-            "tile": {"type": "float", "default": TILE, "min": 0.05, "max": 20.0, "uniform": "u_tile",
-                     "label": "tile size (world units)"},
-            "lut_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                           "codegen": "lut_filter", "label": "LUT filtering"},
-        },
-        "requires": {"gl": 330},
-        "notes": "DI footprint sampler only: the GL trilinear / anisotropic / no-mip comparison modes of "
-                 "the same pass need the uncompressed texture bound (inshade bench di_footprint renders them)",
-    }
-    if gl_modes:
-        scene["textures"] = [{"uniform": "u_texture", "image": "texture.png", "mipmaps": True},
-                             {"uniform": "u_texture_aniso", "image": "texture.png", "mipmaps": True,
-                              "anisotropy": 16.0}]
-        scene["settings"]["mode"] = {"type": "choice", "default": MODES["di"], "choices": sorted(MODES.values()),
-                                     "define": "FOOTPRINT_MODE", "label": "sampler: " + ", ".join(
-                                         f"{v} {k}" for k, v in MODES.items())}
-        scene["notes"] = "--set mode=N: " + ", ".join(f"{v} {k}" for k, v in MODES.items())
-        names = {"di": "DI footprint sampler", "trilinear": "GL trilinear (mip chain)",
-                 "anisotropic": "GL anisotropic 16x", "bilinear": "GL bilinear (no mips)",
-                 "explicit_lod": "GL explicit LOD"}
-        scene["labels"] = [{"text": names.get(k, k), "at": [0.02, 0.95], "align": "left", "when": {"mode": v}}
-                           for k, v in MODES.items()]
-    return scene
+        lights=[], environment=None,
+        display=display_modes("final", "network"),
+        settings=settings,
+        requires=requires(),
+        notes=notes,
+        **gl,
+    )
 
 
 def write_asset(result: Result, out, title: str | None = None, preview_size=(512, 256),

@@ -30,6 +30,8 @@ from inshade.geometry.gltf import GltfError, copy_gltf
 from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import split_rgba8
 from inshade.models.texture_cascade import compress, torch_decode
+from inshade.scene.builder import (choice_setting, display_modes, float_setting, int_setting, lut_filter_setting,
+                                    network, requires, scene_json, sky, view_labels)
 from inshade.techniques.di_pbr_set import ERROR_SCALE, GLTF_PROGRAM, GLTF_VIEWS
 from inshade.techniques.di_pbr_set import gltf_lanes as L
 from inshade.techniques.di_pbr_set.render import render_views
@@ -50,37 +52,29 @@ def framing(path: Path) -> tuple[dict, list]:
 
 def scene_dict(name: str, title: str, mesh_file: str, camera: dict, lights: list, size: int, light_count: int,
                notes: list) -> dict:
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title,
-        "program": GLTF_PROGRAM, "size": [size, size],
-        "networks": [{"bundle": ".", "prefix": "net"}],
-        "mesh": mesh_file,
-        "camera": camera,
-        "lights": lights,
-        "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
-        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "settings": {
+    return scene_json(
+        name, title, GLTF_PROGRAM, (size, size),
+        networks=[network(".", "net")],
+        mesh=mesh_file,
+        camera=camera,
+        lights=lights,
+        environment=sky("studio", degree=3),
+        display=display_modes(),
+        settings={
             **lit_settings("studio"),
-            "view": {"type": "choice", "default": "split", "choices": list(GLTF_VIEWS), "uniform": "u_pbr_view",
-                     "label": "material (split: left the file's, right DI)"},
-            "lights": {"type": "int", "default": light_count, "min": 0, "max": len(lights),
-                       "uniform": "u_light_count", "label": "point lights"},
-            "error_scale": {"type": "float", "default": ERROR_SCALE, "min": 1.0, "max": 64.0,
-                            "uniform": "u_pbr_error_scale", "label": "error view: |DI - reference| x"},
-            "lut_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                           "codegen": "lut_filter", "label": "LUT filtering"},
+            "view": choice_setting("split", GLTF_VIEWS, "material (split: left the file's, right DI)",
+                                   uniform="u_pbr_view"),
+            "lights": int_setting(light_count, 0, len(lights), "point lights", uniform="u_light_count"),
+            "error_scale": float_setting(ERROR_SCALE, 1.0, 64.0, "error view: |DI - reference| x",
+                                         uniform="u_pbr_error_scale"),
+            "lut_filter": lut_filter_setting(),
         },
-        "requires": {"gl": 330},
-        "notes": "; ".join(notes),
-        "labels": [
-            {"text": "reference", "at": [0.25, 0.95], "when": {"view": "split"}},
-            {"text": "DI", "at": [0.75, 0.95], "when": {"view": "split"}},
-            {"line": [[0.5, 0.0], [0.5, 1.0]], "when": {"view": "split"}},
-            {"text": "reference", "at": [0.5, 0.95], "when": {"view": "reference"}},
-            {"text": "DI", "at": [0.5, 0.95], "when": {"view": "di"}},
-            {"text": "|DI - reference|", "at": [0.5, 0.95], "when": {"view": "error"}},
-        ],
-    }
+        requires=requires(),
+        notes="; ".join(notes),
+        labels=view_labels("reference", "DI", {"view": "split"},
+                           [("reference", {"view": "reference"}), ("DI", {"view": "di"}),
+                            ("|DI - reference|", {"view": "error"})]),
+    )
 
 
 def domain_note(domain: L.UvDomain) -> str:

@@ -41,6 +41,8 @@ from inshade.geometry.gltf import GltfError
 from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import LANES, Bricks, PbrSetError, bricks, split_rgba8
 from inshade.models.texture_cascade import FINISH_OPTIMIZERS, compress, torch_decode
+from inshade.scene.builder import (choice_setting, display_modes, int_setting, lut_filter_setting, network, orbit,
+                                    point_light, requires, scene_json, sky, texture, view_labels)
 from inshade.techniques.di_pbr_set import VIEWS
 from inshade.techniques.di_pbr_set.render import DEFAULT_LIGHTS, LIGHTS, render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, lane_metrics, markdown, render_psnr
@@ -83,39 +85,29 @@ PRESETS = {"quick": {}, "ship": dict(steps=12000)}
 # the asset
 
 def scene_dict(name: str, title: str, size: int, lights: int) -> dict:
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title,
-        "program": PROGRAM, "size": [size, size],
-        "networks": [{"bundle": ".", "prefix": "net"}],
-        "mesh": "mesh.obj",
-        "textures": [{"uniform": "u_pbr_set0", "image": "set0.png", "mipmaps": False, "repeat": True},
-                     {"uniform": "u_pbr_set1", "image": "set1.png", "mipmaps": False, "repeat": True}],
-        "camera": {"type": "orbit", "fov_y": 40.0, "target": [0.0, 0.0, 0.0], "distance": 3.9, "yaw": 25.0,
-                   "pitch": -38.0},
-        "bookmarks": {"close-up": {"type": "orbit", "fov_y": 40.0, "target": [0.9, 0.3, 0.3], "distance": 1.4,
-                                   "yaw": 35.0, "pitch": -25.0}},
-        "lights": [{"type": "point", "position": list(l[:3]), "intensity": l[3]} for l in LIGHTS],
-        "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
-        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "settings": {
+    return scene_json(
+        name, title, PROGRAM, (size, size),
+        networks=[network(".", "net")],
+        mesh="mesh.obj",
+        textures=[texture("u_pbr_set0", "set0.png", mipmaps=False, repeat=True),
+                  texture("u_pbr_set1", "set1.png", mipmaps=False, repeat=True)],
+        camera=orbit((0.0, 0.0, 0.0), 3.9, 25.0, -38.0),
+        bookmarks={"close-up": orbit((0.9, 0.3, 0.3), 1.4, 35.0, -25.0)},
+        lights=[point_light(l[:3], l[3]) for l in LIGHTS],
+        environment=sky("studio", degree=3),
+        display=display_modes(),
+        settings={
             **lit_settings("studio"),
-            "view": {"type": "choice", "default": "split", "choices": list(VIEWS), "uniform": "u_pbr_view",
-                     "label": "texture set (split: left uncompressed, right DI)"},
-            "lights": {"type": "int", "default": lights, "min": 0, "max": len(LIGHTS), "uniform": "u_light_count",
-                       "label": "point lights"},
-            "lut_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                           "codegen": "lut_filter", "label": "LUT filtering"},
+            "view": choice_setting("split", VIEWS, "texture set (split: left uncompressed, right DI)",
+                                   uniform="u_pbr_view"),
+            "lights": int_setting(lights, 0, len(LIGHTS), "point lights", uniform="u_light_count"),
+            "lut_filter": lut_filter_setting(),
         },
-        "requires": {"gl": 330},
-        "notes": "a DI-compressed PBR set (albedo, normal, roughness, AO: 8 lanes) on a uv-mapped torus",
-        "labels": [
-            {"text": "uncompressed", "at": [0.25, 0.95], "when": {"view": "split"}},
-            {"text": "DI", "at": [0.75, 0.95], "when": {"view": "split"}},
-            {"line": [[0.5, 0.0], [0.5, 1.0]], "when": {"view": "split"}},
-            {"text": "uncompressed", "at": [0.5, 0.95], "when": {"view": "uncompressed"}},
-            {"text": "DI", "at": [0.5, 0.95], "when": {"view": "di"}},
-        ],
-    }
+        requires=requires(),
+        notes="a DI-compressed PBR set (albedo, normal, roughness, AO: 8 lanes) on a uv-mapped torus",
+        labels=view_labels("uncompressed", "DI", {"view": "split"},
+                           [("uncompressed", {"view": "uncompressed"}), ("DI", {"view": "di"})]),
+    )
 
 
 def build(out, *, size: int = Settings.size, ratio: float = Settings.ratio, steps: int = Settings.steps,

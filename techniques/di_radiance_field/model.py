@@ -33,9 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
-from inshade.models.lookup_array import LookupArray, multilinear
+from inshade.models.lookup_array import multilinear
 
 from . import field
 

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.scene.builder import network, orbit, requires, scene_json
 from inshade.scene.labels import split_labels
 from inshade.files import atomic_write
 from inshade.trainer import Run, Trainer, setting
@@ -81,8 +82,7 @@ def march_render(grid: int, step_voxels: float) -> dict:
 
 
 def orbit_camera(yaw: float = 35.0, pitch: float = -25.0, distance: float = 1.7) -> dict:
-    return {"type": "orbit", "fov_y": 40.0, "target": [0.5, 0.45, 0.5], "distance": distance, "yaw": yaw,
-            "pitch": pitch}
+    return orbit((0.5, 0.45, 0.5), distance, yaw, pitch)
 
 
 def scene_dict(name: str, title: str, grid_folder: str = "grid", lut_filter: str = "exact", size: int = 256,
@@ -90,18 +90,17 @@ def scene_dict(name: str, title: str, grid_folder: str = "grid", lut_filter: str
     settings = json.loads(json.dumps(SCENE_SETTINGS))
     settings["view"]["default"] = view
     settings["lut_filter"]["default"] = lut_filter
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title, "program": PROGRAM,
-        "size": [size, size],
-        "networks": [{"bundle": grid_folder, "prefix": PREFIX_GRID}, {"bundle": ".", "prefix": PREFIX_DI}],
-        "camera": orbit_camera(),
-        "bookmarks": {"front": orbit_camera(0.0, -10.0), "top": orbit_camera(20.0, -70.0)},
-        "settings": settings,
-        "labels": split_labels("uncompressed", "DI", divider=False),   # the pass draws its own divider
-        "requires": {"gl": 330},
-        "notes": "view: uncompressed (the grids, shipped downsampled to keep the asset small) | di | split | "
-                 "error (|di - uncompressed| x error_scale)",
-    }
+    return scene_json(
+        name, title, PROGRAM, (size, size),
+        networks=[network(grid_folder, PREFIX_GRID), network(".", PREFIX_DI)],
+        camera=orbit_camera(),
+        bookmarks={"front": orbit_camera(0.0, -10.0), "top": orbit_camera(20.0, -70.0)},
+        settings=settings,
+        labels=split_labels("uncompressed", "DI", divider=False),   # the pass draws its own divider
+        requires=requires(),
+        notes="view: uncompressed (the grids, shipped downsampled to keep the asset small) | di | split | "
+              "error (|di - uncompressed| x error_scale)",
+    )
 
 
 def train_heads(density, colour, settings: dict, device="cpu", progress=None) -> dict:

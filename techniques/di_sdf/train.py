@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +37,8 @@ from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models.network_sdf import NetworkSdfModule
 from inshade.models.threads import torch_threads
+from inshade.scene.builder import (display_modes, lut_filter_setting, network_sdf, orbit_around, requires,
+                                    scene_json, sky)
 from inshade.trainer import Run, Trainer, setting
 from inshade.provenance import utc_now
 
@@ -182,28 +183,20 @@ def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, sample
 
 def orbit_camera(frame: Frame, yaw: float = -30.0, pitch: float = -20.0) -> dict:
     """An orbit camera framing the bound sphere (fov 40°)."""
-    dist = frame.radius / math.sin(math.radians(20.0)) * 1.05
-    return {"type": "orbit", "fov_y": 40.0, "target": list(frame.center), "distance": round(dist, 6),
-            "yaw": yaw, "pitch": pitch}
+    return orbit_around(frame.center, frame.radius, yaw, pitch)
 
 
 def scene_dict(name: str, title: str, frame: Frame, lut_filter: str = "exact", size: int = 256) -> dict:
-    cam = orbit_camera(frame)
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title,
-        "program": RENDER_PROGRAM, "size": [size, size], "networks": [],
-        "sdf": {"network": "."},
-        "camera": cam,
-        "bookmarks": {"front": orbit_camera(frame, 0.0, -10.0), "top": orbit_camera(frame, -30.0, -80.0)},
-        "lights": [], "environment": {"sky": "noon", "rotation": 0.0, "degree": 4},
-        "display": {"mode": "final", "modes": ["final", "network"], "split": 0.5},
-        "settings": {
-            **lit_settings(),
-            "lut_filter": {"type": "choice", "default": lut_filter, "choices": ["exact", "fast"],
-                           "codegen": "lut_filter", "label": "LUT filtering"},
-        },
-        "requires": {"gl": 330},
-    }
+    return scene_json(
+        name, title, RENDER_PROGRAM, (size, size), networks=[],
+        sdf=network_sdf(),
+        camera=orbit_camera(frame),
+        bookmarks={"front": orbit_camera(frame, 0.0, -10.0), "top": orbit_camera(frame, -30.0, -80.0)},
+        lights=[], environment=sky("noon"),
+        display=display_modes("final", "network"),
+        settings={**lit_settings(), "lut_filter": lut_filter_setting(lut_filter)},
+        requires=requires(),
+    )
 
 
 def render_torch(bundle, camera: dict, size: int, sky: str = "noon") -> dict:

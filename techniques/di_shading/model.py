@@ -11,14 +11,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import brdf
-from inshade.models.graph import GraphModule
-from inshade.models.lookup_array import LookupArray
-from inshade.models.mlp import Dense
-from inshade.models.disney_glue import disney_glue
-from inshade.models.display import srgb_display
 from inshade.models import footprint_sampler as fp
 from inshade.models import pbr_lanes
+from inshade.models.disney_glue import disney_glue
+from inshade.models.display import srgb_display
+from inshade.models.graph import GraphModule
+from inshade.models.mlp import Dense
 
 # the scene: one point light ahead of the camera, low (its glossy reflection lies at grazing
 # angles), plus a uniform ambient term albedo * AO * AMBIENT

@@ -67,6 +67,8 @@ from inshade.files import atomic_write
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
 from inshade.models import footprint_sampler as fp
+from inshade.scene.builder import (choice_setting, display_modes, float_setting, lut_filter_setting, network,
+                                    point_light, requires, scene_json, texture, view_labels)
 from inshade.trainer import Run, Trainer, setting
 from inshade.provenance import utc_now
 
@@ -241,59 +243,40 @@ def best_run(runs):
 # the asset
 
 def scene_dict(name: str, title: str, e2e: str, size=VIEW_SIZE, view: str = "split") -> dict:
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title,
-        "program": PROGRAM, "size": list(size),
-        "networks": [{"bundle": e2e, "prefix": "e2e"}, {"bundle": lambda_folder(0.0), "prefix": "ind"},
-                     {"bundle": "brdf", "prefix": "brdf"}],
-        "textures": [{"uniform": "u_set0", "image": "set0.png", "mipmaps": True, "repeat": True},
-                     {"uniform": "u_set1", "image": "set1.png", "mipmaps": True, "repeat": True}],
-        "camera": fp.CAMERA,
-        "bookmarks": {"grazing": fp.CAMERA,
-                      "steeper": {**fp.CAMERA, "position": [0.0, 0.6, 0.0], "pitch": -25.0},
-                      "horizon": {**fp.CAMERA, "position": [0.0, 0.15, 0.0], "pitch": -3.0}},
-        "lights": [{"type": "point", "position": list(LIGHT_POSITION), "intensity": LIGHT_INTENSITY}],
-        "environment": None,
-        "display": {"mode": "final", "modes": ["final", "network"], "split": 0.5},
-        "settings": {
-            "view": {"type": "choice", "default": VIEWS[view], "choices": sorted(VIEWS.values()),
-                     "define": "SHADING_VIEW", "label": "view: " + ", ".join(f"{v} {k}" for k, v in VIEWS.items())},
-            "exposure": {"type": "float", "default": EXPOSURE, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
-            "extent": {"type": "float", "default": fp.EXTENT, "min": 0.5, "max": 1000.0, "uniform": "u_extent",
-                       "label": "plane half-size (world units)"},
-            "tile": {"type": "float", "default": fp.TILE, "min": 0.05, "max": 20.0, "uniform": "u_tile",
-                     "label": "tile size (world units)"},
-            "light_x": {"type": "float", "default": LIGHT_POSITION[0], "min": -20.0, "max": 20.0,
-                        "uniform": "u_light_x", "label": "light x"},
-            "light_y": {"type": "float", "default": LIGHT_POSITION[1], "min": 0.01, "max": 20.0,
-                        "uniform": "u_light_y", "label": "light height"},
-            "light_z": {"type": "float", "default": LIGHT_POSITION[2], "min": -20.0, "max": 20.0,
-                        "uniform": "u_light_z", "label": "light z"},
-            "intensity": {"type": "float", "default": LIGHT_INTENSITY, "min": 0.0, "max": 200.0,
-                          "uniform": "u_light_intensity", "label": "light intensity"},
-            "ambient": {"type": "float", "default": AMBIENT, "min": 0.0, "max": 2.0, "uniform": "u_ambient",
-                        "label": "ambient"},
-            "lut_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                           "codegen": "lut_filter", "label": "LUT filtering"},
+    views = ", ".join(f"{v} {k}" for k, v in VIEWS.items())
+    return scene_json(
+        name, title, PROGRAM, size,
+        networks=[network(e2e, "e2e"), network(lambda_folder(0.0), "ind"), network("brdf", "brdf")],
+        textures=[texture("u_set0", "set0.png", mipmaps=True, repeat=True),
+                  texture("u_set1", "set1.png", mipmaps=True, repeat=True)],
+        camera=fp.CAMERA,
+        bookmarks={"grazing": fp.CAMERA,
+                   "steeper": {**fp.CAMERA, "position": [0.0, 0.6, 0.0], "pitch": -25.0},
+                   "horizon": {**fp.CAMERA, "position": [0.0, 0.15, 0.0], "pitch": -3.0}},
+        lights=[point_light(LIGHT_POSITION, LIGHT_INTENSITY)],
+        environment=None,
+        display=display_modes("final", "network"),
+        settings={
+            "view": choice_setting(VIEWS[view], sorted(VIEWS.values()), "view: " + views, define="SHADING_VIEW"),
+            "exposure": float_setting(EXPOSURE, 0.0, 8.0, "exposure", uniform="u_exposure"),
+            "extent": float_setting(fp.EXTENT, 0.5, 1000.0, "plane half-size (world units)", uniform="u_extent"),
+            "tile": float_setting(fp.TILE, 0.05, 20.0, "tile size (world units)", uniform="u_tile"),
+            "light_x": float_setting(LIGHT_POSITION[0], -20.0, 20.0, "light x", uniform="u_light_x"),
+            "light_y": float_setting(LIGHT_POSITION[1], 0.01, 20.0, "light height", uniform="u_light_y"),
+            "light_z": float_setting(LIGHT_POSITION[2], -20.0, 20.0, "light z", uniform="u_light_z"),
+            "intensity": float_setting(LIGHT_INTENSITY, 0.0, 200.0, "light intensity", uniform="u_light_intensity"),
+            "ambient": float_setting(AMBIENT, 0.0, 2.0, "ambient", uniform="u_ambient"),
+            "lut_filter": lut_filter_setting(),
         },
-        "requires": {"gl": 330},
-        "notes": "--set view=N: " + ", ".join(f"{v} {k}" for k, v in VIEWS.items())
-                 + "; split: independent (lambda 0) left | end-to-end right",
-        "labels": [
-            {"text": "independent (lambda 0)", "at": [0.25, 0.95], "when": {"view": VIEWS["split"]}},
-            {"text": "end-to-end", "at": [0.75, 0.95], "when": {"view": VIEWS["split"]}},
-            {"line": [[0.5, 0.0], [0.5, 1.0]], "when": {"view": VIEWS["split"]}},
-            {"text": "end-to-end", "at": [0.5, 0.95], "when": {"view": VIEWS["end_to_end"]}},
-            {"text": "independent (lambda 0)", "at": [0.5, 0.95], "when": {"view": VIEWS["independent"]}},
-            {"text": "reference (16 footprint samples, analytic Disney)", "at": [0.5, 0.95],
-             "when": {"view": VIEWS["reference"]}},
-            {"text": "uncompressed + mips (GL trilinear), DI Disney", "at": [0.5, 0.95],
-             "when": {"view": VIEWS["trilinear"]}},
-            {"text": "uncompressed + mips (GL trilinear), analytic Disney", "at": [0.5, 0.95],
-             "when": {"view": VIEWS["analytic"]}},
-        ],
-    }
+        requires=requires(),
+        notes="--set view=N: " + views + "; split: independent (lambda 0) left | end-to-end right",
+        labels=view_labels("independent (lambda 0)", "end-to-end", {"view": VIEWS["split"]}, [
+            ("end-to-end", {"view": VIEWS["end_to_end"]}),
+            ("independent (lambda 0)", {"view": VIEWS["independent"]}),
+            ("reference (16 footprint samples, analytic Disney)", {"view": VIEWS["reference"]}),
+            ("uncompressed + mips (GL trilinear), DI Disney", {"view": VIEWS["trilinear"]}),
+            ("uncompressed + mips (GL trilinear), analytic Disney", {"view": VIEWS["analytic"]})]),
+    )
 
 
 def write_set_textures(out: Path, image: np.ndarray):

@@ -49,6 +49,8 @@ from inshade.files import atomic_write
 from inshade.trainer import Run, Trainer, setting
 from inshade.metrics import psnr, srgb_eotf
 from inshade.models import indirection as di
+from inshade.scene.builder import (display_modes, exposure_setting, float_setting, lut_filter_setting, network,
+                                    plane2d, reference, requires, scene_json)
 from inshade.models.texture_cascade import (DEFAULTS as CASCADE_DEFAULTS, FIELD_PROGRAM, FINISH_OPTIMIZERS,
                                             INITS, CompressionError, Result, compress, load_image, to_srgb8,
                                             torch_decode)
@@ -116,28 +118,21 @@ def decoded_metrics(bundle, image: np.ndarray, linear: bool, filters=("exact", "
 # asset folder
 
 def scene_dict(name: str, title: str, size: int, output: str, lut_filter: str = "exact") -> dict:
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title,
-        "program": RENDER_PROGRAM, "size": [size, size],
-        "networks": [{"bundle": ".", "prefix": "net", "output": output}],
-        "reference": {"image": "reference.png", "colour": "srgb", "space": "field"},
-        "camera": {"type": "plane2d", "center": [0.5, 0.5], "zoom": 1.0, "aspect": 1.0},
-        "bookmarks": {
-            "whole picture": {"type": "plane2d", "center": [0.5, 0.5], "zoom": 1.0, "aspect": 1.0},
-            "detail 4x": {"type": "plane2d", "center": [0.45, 0.6], "zoom": 4.0, "aspect": 1.0},
+    return scene_json(
+        name, title, RENDER_PROGRAM, (size, size),
+        networks=[network(".", "net", output=output)],
+        reference=reference("reference.png", "srgb", "field"),
+        camera=plane2d(),
+        bookmarks={"whole picture": plane2d(), "detail 4x": plane2d((0.45, 0.6), 4.0)},
+        lights=[], environment=None,
+        display=display_modes("final", "network", "reference", "error", "split"),
+        settings={
+            "exposure": exposure_setting(),
+            "error_scale": float_setting(4.0, 1.0, 64.0, "error x", uniform="u_error_scale"),
+            "lut_filter": lut_filter_setting(lut_filter),
         },
-        "lights": [], "environment": None,
-        "display": {"mode": "final", "modes": ["final", "network", "reference", "error", "split"], "split": 0.5},
-        "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
-            "error_scale": {"type": "float", "default": 4.0, "min": 1.0, "max": 64.0,
-                            "uniform": "u_error_scale", "label": "error x"},
-            "lut_filter": {"type": "choice", "default": lut_filter, "choices": ["exact", "fast"],
-                           "codegen": "lut_filter", "label": "LUT filtering"},
-        },
-        "requires": {"gl": 330},
-    }
+        requires=requires(),
+    )
 
 
 def write_asset(result: Result, out, title: str, lut_filter: str = "exact") -> Path:

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.scene.builder import (choice_setting, display_modes, exposure_setting, float_setting, int_setting,
+                                    orbit, point_light, scene_json, sky)
 from inshade.scene.tonemap import TONEMAPS
 from inshade.technique import Choice, ProgramSpec, Technique
 
@@ -36,32 +38,26 @@ def scene_data(path) -> dict:
     lo, hi = asset.mesh.bounds
     centre = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-6)
-    light = lambda offset, power: {"type": "point", "position": (centre + radius * np.array(offset)).tolist(),  # noqa: E731
-                                   "intensity": power * radius * radius}
-    return {"format": "inshade.scene", "version": 1, "name": path.stem,
-            "title": f"{path.name}: glTF reference shading", "program": PROGRAM, "size": [512, 512],
-            "networks": [], "mesh": path.name,
-            "camera": {"type": "orbit", "fov_y": 40.0, "target": centre.tolist(), "distance": 3.0 * radius,
-                       "yaw": 30.0, "pitch": -20.0},
-            "lights": [light((2.0, 2.5, 2.0), 4.0), light((-2.5, 1.0, 1.5), 1.5)],
-            "environment": {"sky": "neutral", "rotation": 0.0, "degree": 3},
-            "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-            "settings": {
-                "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                             "label": "exposure"},
-                "view": {"type": "choice", "default": "shaded", "choices": list(VIEWS), "uniform": "u_gltf_view",
-                         "label": "view (shaded, or one material channel)"},
-                "tonemap": {"type": "choice", "default": "pbr_neutral", "choices": list(TONEMAPS),
-                            "present": "u_tonemap", "label": "tone mapping"},
-                "lights": {"type": "int", "default": 0, "min": 0, "max": 2, "uniform": "u_light_count",
-                           "label": "point lights"},
-                "sky": {"type": "choice", "default": "neutral", "choices": SKIES, "environment": "sky",
-                        "label": "environment"},
-                "env_intensity": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0,
-                                  "environment": "intensity", "label": "env intensity"},
-                "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0,
-                                 "environment": "rotation", "label": "env rotation (deg)"}},
-            "notes": "; ".join(asset.notes)}
+
+    def light(offset, power):
+        return point_light((centre + radius * np.array(offset)).tolist(), power * radius * radius)
+
+    return scene_json(
+        path.stem, f"{path.name}: glTF reference shading", PROGRAM, (512, 512),
+        networks=[], mesh=path.name,
+        camera=orbit(centre.tolist(), 3.0 * radius, 30.0, -20.0),
+        lights=[light((2.0, 2.5, 2.0), 4.0), light((-2.5, 1.0, 1.5), 1.5)],
+        environment=sky("neutral", degree=3),
+        display=display_modes(),
+        settings={
+            "exposure": exposure_setting(),
+            "view": choice_setting("shaded", VIEWS, "view (shaded, or one material channel)", uniform="u_gltf_view"),
+            "tonemap": choice_setting("pbr_neutral", TONEMAPS, "tone mapping", present="u_tonemap"),
+            "lights": int_setting(0, 0, 2, "point lights", uniform="u_light_count"),
+            "sky": choice_setting("neutral", SKIES, "environment", environment="sky"),
+            "env_intensity": float_setting(1.0, 0.0, 8.0, "env intensity", environment="intensity"),
+            "env_rotation": float_setting(0.0, -180.0, 180.0, "env rotation (deg)", environment="rotation")},
+        notes="; ".join(asset.notes))
 
 
 TECHNIQUE = Technique(

@@ -22,9 +22,11 @@ from inshade.metrics import psnr, psnr_from_mse, srgb_eotf
 from inshade.models.graph import GraphModule
 from inshade.pixels import pixel_uvs
 from inshade.provenance import utc_now
+from inshade.scene.builder import (choice_setting, display_modes, exposure_setting, float_setting, network,
+                                    plane2d, reference, requires, scene_json)
 
 from . import mosaic
-from .network import add_frequency_mlp, add_hash_grid, add_mlp, cosine, grid_shape, network_bytes, optimizer
+from .network import add_frequency_mlp, add_hash_grid, add_mlp, grid_shape, network_bytes, optimizer
 
 KIND = "hash_grid_image"
 RENDER_PROGRAM = "passes/field2d.frag"
@@ -91,27 +93,26 @@ def quality(prediction: np.ndarray, target: np.ndarray) -> dict:
 def fit(g: GraphModule, target: np.ndarray, *, steps: int, batch: int, seed: int, lrs: dict,
         desc: str = "hash_grid image") -> dict:
     """Adam (network.optimizer) on MSE of random pixel batches, cosine-decayed; on the graph's device."""
-    from inshade.progress import progress as progress_bar
+    from inshade.models.fit_loop import cosine, fit as fit_steps
 
     h, w = target.shape[:2]
     device = next(g.parameters()).device
     uv = torch.from_numpy(pixel_uvs(w, h).reshape(-1, 2)).to(device)
     rgb = torch.from_numpy(target.reshape(-1, 3)).to(device)
     opt = optimizer(g, **lrs)
-    sched = cosine(opt, steps)
     gen = torch.Generator().manual_seed(seed)
     losses, start = [], time.perf_counter()
-    bar = progress_bar(range(steps), desc=desc)
-    for step in bar:
+
+    def step_loss(step):
         idx = torch.randint(0, uv.shape[0], (batch,), generator=gen).to(device)
-        loss = torch.mean((g(uv[idx]) - rgb[idx]) ** 2)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        sched.step()
+        return torch.mean((g(uv[idx]) - rgb[idx]) ** 2)
+
+    def after(step, loss, bar):
         if step % 100 == 0 or step == steps - 1:
             losses.append((step, round(psnr_from_mse(max(float(loss.detach()), 1e-12)), 3)))
             bar.set_postfix(psnr=f"{losses[-1][1]:.2f}")
+
+    fit_steps(opt, step_loss, steps, lr_factor=cosine(steps), after_step=after, desc=desc)
     return {"seconds": time.perf_counter() - start, "psnr_batches": losses}
 
 
@@ -221,32 +222,28 @@ def write_scene(out, s, metrics: dict) -> None:
     from inshade.files import atomic_write
 
     side = min(s.size, 1024)
-    cam = {"type": "plane2d", "center": [0.5, 0.5], "zoom": 1.0, "aspect": 1.0}
     native = s.size / side    # zoom at which one screen pixel is one image pixel
-    scene = {
-        "format": "inshade.scene", "version": 1, "name": out.name,
-        "title": f"Hash grid image: {s.size}x{s.size} photograph collage, {metrics['bytes'] / 1024:.0f} KiB, "
-                 f"{metrics['psnr_srgb']:.1f} dB sRGB",
-        "program": RENDER_PROGRAM, "size": [side, side],
-        "networks": [{"bundle": ".", "prefix": "net", "output": "rgb"}],
-        "reference": {"image": "reference.jpg", "colour": "srgb", "space": "field"},
-        "camera": cam,
-        "bookmarks": {"whole picture": cam,
-                      "astronaut, native pixels": {**cam, "center": [0.487, 0.452], "zoom": native},
-                      "galaxies, 4x": {**cam, "center": [0.2, 0.8], "zoom": 4 * native},
-                      "retina vessels, 4x": {**cam, "center": [0.56, 0.86], "zoom": 4 * native}},
-        "lights": [], "environment": None,
-        "display": {"mode": "final", "modes": ["final", "network", "reference", "error", "split"], "split": 0.5},
-        "settings": {
-            "exposure": {"type": "float", "default": 1.0, "min": 0.0, "max": 8.0, "uniform": "u_exposure",
-                         "label": "exposure"},
-            "error_scale": {"type": "float", "default": 4.0, "min": 1.0, "max": 64.0, "uniform": "u_error_scale",
-                            "label": "error x"},
-            "storage": {"type": "choice", "default": "auto", "choices": ["auto", "inline", "ubo", "texture"],
-                        "codegen": "storage", "label": "weight storage"},
+    scene = scene_json(
+        out.name, f"Hash grid image: {s.size}x{s.size} photograph collage, {metrics['bytes'] / 1024:.0f} KiB, "
+                  f"{metrics['psnr_srgb']:.1f} dB sRGB",
+        RENDER_PROGRAM, (side, side),
+        networks=[network(".", "net", output="rgb")],
+        reference=reference("reference.jpg", "srgb", "field"),
+        camera=plane2d(),
+        bookmarks={"whole picture": plane2d(),
+                   "astronaut, native pixels": plane2d((0.487, 0.452), native),
+                   "galaxies, 4x": plane2d((0.2, 0.8), 4 * native),
+                   "retina vessels, 4x": plane2d((0.56, 0.86), 4 * native)},
+        lights=[], environment=None,
+        display=display_modes("final", "network", "reference", "error", "split"),
+        settings={
+            "exposure": exposure_setting(),
+            "error_scale": float_setting(4.0, 1.0, 64.0, "error x", uniform="u_error_scale"),
+            "storage": choice_setting("auto", ["auto", "inline", "ubo", "texture"], "weight storage",
+                                      codegen="storage"),
         },
-        "requires": {"gl": 330},
-    }
+        requires=requires(),
+    )
     atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
 
 

@@ -1,4 +1,4 @@
-"""The instant-NGP network as a bundle graph: a multiresolution hash encoding (models/hash_grid.py
+"""The instant-NGP network as a bundle graph: a multiresolution hash encoding (components/grids/torch_twin.py
 HashGrid, tiny-cuda-nn's rules) into a small ReLU MLP, sized to a byte budget; the MLP-only network
 it is compared with at equal bytes; and the optimiser with instant-NGP's settings.
 
@@ -13,13 +13,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import torch
-
+from inshade.components.encodings import torch_twin as _enc
+from inshade.components.grids.torch_twin import HashGrid
 from inshade.grid_layout import MAX_LOG2_TABLE, grid_levels, table_rows
 from inshade.models import activations as _act
-from inshade.models import encodings as _enc
+from inshade.models.fit_loop import adam
 from inshade.models.graph import GraphModule
-from inshade.models.hash_grid import HashGrid
 
 FP16_BYTES, FP32_BYTES = 2, 4
 ARCHES = ("hash_grid", "mlp")
@@ -123,7 +122,7 @@ def network_bytes(g: GraphModule) -> int:
 
 
 def optimizer(g: GraphModule, *, grid_lr: float, mlp_lr: float, grid_eps: float, mlp_eps: float,
-              mlp_l2: float, betas=(0.9, 0.99)) -> torch.optim.Adam:
+              mlp_l2: float, betas=(0.9, 0.99)):
     """Adam with instant-NGP's split: the tables at ``grid_lr`` / ``grid_eps`` without weight decay,
     the MLP (and any other trainable weights) at ``mlp_lr`` / ``mlp_eps`` with L2 ``mlp_l2``.
     Frozen parameters (requires_grad False) are left out."""
@@ -132,10 +131,4 @@ def optimizer(g: GraphModule, *, grid_lr: float, mlp_lr: float, grid_eps: float,
     groups = [{"params": rest, "lr": mlp_lr, "eps": mlp_eps, "weight_decay": mlp_l2}]
     if tables:
         groups.insert(0, {"params": tables, "lr": grid_lr, "eps": grid_eps, "weight_decay": 0.0})
-    return torch.optim.Adam(groups, betas=betas)
-
-
-def cosine(opt: torch.optim.Optimizer, steps: int, floor: float = 0.05):
-    """Learning rates decayed by a half cosine to ``floor`` of their start over ``steps``."""
-    return torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda s: floor + (1 - floor) * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0))))
+    return adam(groups, betas=betas)

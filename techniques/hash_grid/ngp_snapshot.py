@@ -267,23 +267,24 @@ def camera(snap: Snapshot, m) -> dict:
 
 def scene_dict(name: str, source_name: str, cam: dict) -> dict:
     """scene.json: the radiance field's pass on the two bundles, the torch march as the reference."""
+    from inshade.scene.builder import (display_modes, network, reference, requires, scene_json, text_label,
+                                        texture)
+
     from .radiance_field_render import PREFIX_FIELD, PREFIX_OCCUPANCY, PROGRAM, REFERENCE_UNIFORM, SETTINGS
 
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": f"instant-ngp snapshot {source_name}",
-        "program": PROGRAM, "size": [REFERENCE_SIZE, REFERENCE_SIZE],
-        "networks": [{"bundle": ".", "prefix": PREFIX_FIELD}, {"bundle": "occupancy", "prefix": PREFIX_OCCUPANCY}],
-        "reference": {"image": f"{REFERENCE_IMAGE}.exr", "colour": "linear", "space": "screen"},
-        "textures": [{"uniform": REFERENCE_UNIFORM, "image": f"{REFERENCE_IMAGE}.png", "mipmaps": False,
-                      "repeat": False}],
-        "camera": cam, "bookmarks": {"snapshot": cam},
-        "display": {"mode": "final", "modes": ["final", "reference", "error", "split"], "split": 0.5},
-        "labels": [{"text": "torch march", "at": [0.25, 0.95], "when": {"view": "split"}},
-                   {"text": "shader", "at": [0.75, 0.95], "when": {"view": "split"}}],
-        "settings": {k: dict(v) for k, v in SETTINGS.items()}, "requires": {"gl": 330},
-        "notes": "converted from an instant-ngp snapshot, which holds no ground truth: the reference is the torch "
-                 "march of this field at the scene's camera, so split and error show the shader against its twin",
-    }
+    return scene_json(
+        name, f"instant-ngp snapshot {source_name}", PROGRAM, (REFERENCE_SIZE, REFERENCE_SIZE),
+        networks=[network(".", PREFIX_FIELD), network("occupancy", PREFIX_OCCUPANCY)],
+        reference=reference(f"{REFERENCE_IMAGE}.exr", "linear", "screen"),
+        textures=[texture(REFERENCE_UNIFORM, f"{REFERENCE_IMAGE}.png", mipmaps=False, repeat=False)],
+        camera=cam, bookmarks={"snapshot": cam},
+        display=display_modes("final", "reference", "error", "split"),
+        labels=[text_label("torch march", (0.25, 0.95), {"view": "split"}),
+                text_label("shader", (0.75, 0.95), {"view": "split"})],
+        settings={k: dict(v) for k, v in SETTINGS.items()}, requires=requires(),
+        notes="converted from an instant-ngp snapshot, which holds no ground truth: the reference is the torch "
+              "march of this field at the scene's camera, so split and error show the shader against its twin",
+    )
 
 
 def convert(source, folder, *, force: bool = False, quiet: bool = False) -> str:

@@ -51,12 +51,12 @@ import math
 import numpy as np
 import torch
 
+from inshade.components.encodings.torch_twin import SphericalHarmonics
+from inshade.components.feature_axis.torch_twin import Select
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.grid_layout import MAX_LOG2_TABLE
 from inshade.models.activations import Clamp, Exp, ReLU, Sigmoid
-from inshade.models.encodings import SphericalHarmonics
-from inshade.models.feature_ops import Select
 from inshade.models.graph import GraphModule
-from inshade.models.lookup_array import LookupArray
 from inshade.models.mlp import Dense
 
 from .network import FP32_BYTES, GridShape, HashGridError, add_frequency_mlp, add_hash_grid, per_level_scale

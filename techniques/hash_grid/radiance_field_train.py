@@ -42,11 +42,13 @@ from inshade.files import atomic_write
 from inshade.metrics import psnr
 from inshade.models.graph import GraphModule
 from inshade.provenance import utc_now
+from inshade.scene.builder import (display_modes, network, reference, requires, scene_json, text_label,
+                                    texture)
 
 from . import radiance_field as rf
 from . import radiance_field_march as march
 from . import radiance_field_scene as scene
-from .network import HashGridError, cosine, network_bytes, optimizer
+from .network import HashGridError, network_bytes, optimizer
 from .radiance_field_render import (KIND, PREFIX_FIELD, PREFIX_OCCUPANCY, PROGRAM, REFERENCE_UNIFORM, SETTINGS,
                                     STOP, MarchSettings)
 
@@ -189,21 +191,22 @@ def _empty_space(density_fn, occupied, m: MarchSettings, gen) -> torch.Tensor:
 
 def fit(graph: GraphModule, train: Views, s, m: MarchSettings, lrs: dict, steps: int, desc: str) -> dict:
     """Train ``graph`` in place (module docstring); returns the training record."""
-    from inshade.progress import progress as progress_bar
+    from inshade.models.fit_loop import cosine, fit as fit_steps
 
     gen = torch.Generator().manual_seed(s.seed)
     density_fn = partial(graph, "density")
     grid = DensityGrid(m, s.occupancy_threshold, gen)
     opt = optimizer(graph, **lrs)
-    sched = cosine(opt, steps)
     bg = torch.tensor(m.background, dtype=torch.float32)
-    per_ray, history, start = 32.0, [], time.perf_counter()
-    bar = progress_bar(range(steps), desc=desc)
-    for step in bar:
+    state = {"per_ray": 32.0, "occupied": None}
+    history, start = [], time.perf_counter()
+
+    def step_loss(step):
         if step % s.occupancy_every == 0:
             grid.update(density_fn)
-            occupied = grid.occupied()
-        rays = int(min(max(s.batch / per_ray, 64), 1 << 14))
+            state["occupied"] = grid.occupied()
+        occupied = state["occupied"]
+        rays = int(min(max(s.batch / state["per_ray"], 64), 1 << 14))
         pick = torch.randint(0, len(train.ro), (rays,), generator=gen)
         rd, target = train.rd[pick], train.rgb[pick]
         x, valid = march.candidates(train.ro[pick], rd, occupied, m)
@@ -218,14 +221,16 @@ def fit(graph: GraphModule, train: Views, s, m: MarchSettings, lrs: dict, steps:
         photometric = float(loss.detach())
         if s.empty_weight > 0:
             loss = loss + s.empty_weight * _empty_space(density_fn, occupied, m, gen)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        sched.step()
-        per_ray = 0.9 * per_ray + 0.1 * max(len(r) / rays, 1.0)
+        return loss, photometric, rays, len(r)
+
+    def after(step, returned, bar):
+        _, photometric, rays, samples = returned
+        state["per_ray"] = 0.9 * state["per_ray"] + 0.1 * max(samples / rays, 1.0)
         if step % 100 == 0 or step == steps - 1:
             history.append((step, round(-10 * math.log10(max(photometric, 1e-12)), 3)))
             bar.set_postfix(psnr=f"{history[-1][1]:.2f}", rays=rays)
+
+    fit_steps(opt, step_loss, steps, lr_factor=cosine(steps), after_step=after, desc=desc)
     return {"steps": steps, "seconds": round(time.perf_counter() - start, 1), "psnr_batches": history,
             "occupied_fraction": round(float(grid.occupied().float().mean()), 4) if steps else 1.0}
 
@@ -280,25 +285,23 @@ def scene_dict(name: str, title: str, heldout: Views) -> dict:
     """scene.json: the pass, both networks, the first held-out camera with its ground truth as the
     pass's reference texture (views reference / split / error; 8-bit sRGB) and as the scene's
     reference (display modes; linear EXR, the exact values)."""
-    return {
-        "format": "inshade.scene", "version": 1, "name": name, "title": title, "program": PROGRAM,
-        "size": [heldout.size, heldout.size],
-        "networks": [{"bundle": ".", "prefix": PREFIX_FIELD}, {"bundle": "occupancy", "prefix": PREFIX_OCCUPANCY}],
-        "reference": {"image": heldout_image(0), "colour": "linear", "space": "screen"},
-        "textures": [{"uniform": REFERENCE_UNIFORM, "image": heldout_image(0, "png"), "mipmaps": False,
-                      "repeat": False}],
-        "camera": heldout.cameras[0],
-        "bookmarks": {"held-out 0": heldout.cameras[0], "front": scene.orbit_camera(0.0, -15.0),
-                      "top": scene.orbit_camera(30.0, -75.0)},
-        "display": {"mode": "final", "modes": ["final", "reference", "error", "split"], "split": 0.5},
-        "labels": [{"text": "held-out truth", "at": [0.25, 0.95], "when": {"view": "split"}},
-                   {"text": "hash grid", "at": [0.75, 0.95], "when": {"view": "split"}}],
-        "settings": json.loads(json.dumps(SETTINGS)),
-        "requires": {"gl": 330},
-        "notes": "the reference is the ground truth of held-out view 0 (the scene's camera): views reference, "
-                 "split and error compare the shader's march with it there; view samples shows network "
-                 "evaluations per pixel / 64; empty_space evaluate marches without the occupancy grid",
-    }
+    return scene_json(
+        name, title, PROGRAM, (heldout.size, heldout.size),
+        networks=[network(".", PREFIX_FIELD), network("occupancy", PREFIX_OCCUPANCY)],
+        reference=reference(heldout_image(0), "linear", "screen"),
+        textures=[texture(REFERENCE_UNIFORM, heldout_image(0, "png"), mipmaps=False, repeat=False)],
+        camera=heldout.cameras[0],
+        bookmarks={"held-out 0": heldout.cameras[0], "front": scene.orbit_camera(0.0, -15.0),
+                   "top": scene.orbit_camera(30.0, -75.0)},
+        display=display_modes("final", "reference", "error", "split"),
+        labels=[text_label("held-out truth", (0.25, 0.95), {"view": "split"}),
+                text_label("hash grid", (0.75, 0.95), {"view": "split"})],
+        settings=json.loads(json.dumps(SETTINGS)),
+        requires=requires(),
+        notes="the reference is the ground truth of held-out view 0 (the scene's camera): views reference, "
+              "split and error compare the shader's march with it there; view samples shows network "
+              "evaluations per pixel / 64; empty_space evaluate marches without the occupancy grid",
+    )
 
 
 def write_views(out, heldout: Views, scene_name: str, metrics: dict) -> None:

@@ -47,9 +47,10 @@ from inshade.models.mlp_sdf import trace_settings
 from inshade.models.mlp_sdf_fit import BOUND_MARGIN, SIGMAS, sample_points, signed_distance
 from inshade.models.network_sdf import NetworkSdfModule
 from inshade.provenance import utc_now
+from inshade.scene.builder import display_modes, network_sdf, orbit_around, requires, scene_json, sky
 
 from .lipschitz import measured_slope, sound_bound
-from .network import add_frequency_mlp, add_hash_grid, add_mlp, cosine, grid_shape, network_bytes, optimizer
+from .network import add_frequency_mlp, add_hash_grid, add_mlp, grid_shape, network_bytes, optimizer
 
 KIND = "hash_grid_sdf"
 RENDER_PROGRAM = "passes/sdf_diffuse.frag"
@@ -111,16 +112,15 @@ def fit(g: GraphModule, q, d, off, *, steps: int, batch: int, seed: int, lrs: di
         desc: str = "hash_grid sdf") -> dict:
     """Adam (network.optimizer), cosine decay: L1 on the normalised distance plus the eikonal term on a
     quarter of the batch's off-surface points (forward differences of length ``h`` in q units)."""
-    from inshade.progress import progress as progress_bar
+    from inshade.models.fit_loop import cosine, fit as fit_steps
 
     device = q.device
     opt = optimizer(g, **lrs)
-    sched = cosine(opt, steps, floor=0.02)
     gen = torch.Generator().manual_seed(seed)
     eye = torch.eye(3, device=device) * h
     losses, start = [], time.perf_counter()
-    bar = progress_bar(range(steps), desc=desc)
-    for step in bar:
+
+    def step_loss(step):
         idx = torch.randint(0, q.shape[0], (batch,), generator=gen).to(device)
         qb = q[idx]
         l1 = (g(qb)[:, 0] - d[idx]).abs().mean()
@@ -130,13 +130,15 @@ def fit(g: GraphModule, q, d, off, *, steps: int, batch: int, seed: int, lrs: di
             f0 = g(pe)
             grad = torch.cat([(g(pe + eye[k]) - f0) / h for k in range(3)], 1)
             loss = loss + eikonal * ((grad.norm(dim=1) - 1.0) ** 2).mean()
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        sched.step()
+        return loss, l1
+
+    def after(step, returned, bar):
         if step % 100 == 0 or step == steps - 1:
-            losses.append((step, round(float(l1.detach()), 7)))
-            bar.set_postfix(l1=f"{float(l1.detach()):.2e}")
+            l1 = float(returned[1].detach())
+            losses.append((step, round(l1, 7)))
+            bar.set_postfix(l1=f"{l1:.2e}")
+
+    fit_steps(opt, step_loss, steps, lr_factor=cosine(steps, 0.02), after_step=after, desc=desc)
     return {"seconds": time.perf_counter() - start, "l1": losses}
 
 
@@ -300,30 +302,27 @@ def shipped_neural_sdf(tri, center, radius, diagonal, held, mc_resolution, mesh_
 
 
 def orbit_camera(center, radius: float, yaw: float = -30.0, pitch: float = -15.0) -> dict:
-    dist = radius / math.sin(math.radians(20.0)) * 1.05
-    return {"type": "orbit", "fov_y": 40.0, "target": [float(c) for c in center], "distance": round(dist, 6),
-            "yaw": yaw, "pitch": pitch}
+    return orbit_around(center, radius, yaw, pitch)
 
 
 def write_scene(out: Path, center, radius: float, metrics: dict) -> None:
-    scene = {
-        "format": "inshade.scene", "version": 1, "name": out.name,
-        "title": f"Hash grid SDF: procedural rabbit, {metrics['bytes'] / 1024:.0f} KiB, surface error "
-                 f"{metrics['surface_abs_mean_per_diagonal']:.1e} of the diagonal",
-        "program": RENDER_PROGRAM, "size": [256, 256], "networks": [],
-        "sdf": {"network": "."},
-        "notes": {"grid_box": metrics["grid_box"],
-                  "contract": "the hash grid's [0, 1]^3 is the cube grid_box (min, max; world units) around "
-                              "the bound sphere; mesh_bounds is the mesh's own bounding box"},
-        "camera": orbit_camera(center, radius),
-        "bookmarks": {"front": orbit_camera(center, radius, 0.0, -10.0),
-                      "ears": orbit_camera(center, radius * 0.6, 60.0, -35.0),
-                      "top": orbit_camera(center, radius, -30.0, -80.0)},
-        "lights": [], "environment": {"sky": "noon", "rotation": 0.0, "degree": 4},
-        "display": {"mode": "final", "modes": ["final", "network"], "split": 0.5},
-        "settings": {**lit_settings()},
-        "requires": {"gl": 330},
-    }
+    scene = scene_json(
+        out.name, f"Hash grid SDF: procedural rabbit, {metrics['bytes'] / 1024:.0f} KiB, surface error "
+                  f"{metrics['surface_abs_mean_per_diagonal']:.1e} of the diagonal",
+        RENDER_PROGRAM, (256, 256), networks=[],
+        sdf=network_sdf(),
+        notes={"grid_box": metrics["grid_box"],
+               "contract": "the hash grid's [0, 1]^3 is the cube grid_box (min, max; world units) around "
+                           "the bound sphere; mesh_bounds is the mesh's own bounding box"},
+        camera=orbit_camera(center, radius),
+        bookmarks={"front": orbit_camera(center, radius, 0.0, -10.0),
+                   "ears": orbit_camera(center, radius * 0.6, 60.0, -35.0),
+                   "top": orbit_camera(center, radius, -30.0, -80.0)},
+        lights=[], environment=sky("noon"),
+        display=display_modes("final", "network"),
+        settings={**lit_settings()},
+        requires=requires(),
+    )
     atomic_write(out / "scene.json", json.dumps(scene, indent=1) + "\n")
 
 

@@ -1,5 +1,5 @@
 """Hash grid: instant-NGP's multiresolution hash encoding + a small ReLU MLP (Müller et al. 2022),
-trained with the torch twin (models/hash_grid.py) and drawn by the shared passes, one application
+trained with the torch twin (components/grids/torch_twin.py) and drawn by the shared passes, one application
 per entry of ``APPS``:
 
 - ``image``: uv -> sRGB colour of a 2048x2048 collage of photographs (image.py), drawn by

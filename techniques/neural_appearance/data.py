@@ -17,6 +17,9 @@ import torch
 from inshade.lit_settings import lit_settings
 from inshade.models.latent_pyramid import bilinear_repeat
 from inshade.models.proxy_lobe import cosine_direction
+from inshade.scene.builder import (bool_setting, choice_setting, directional_light, display_modes, float_setting,
+                                    int_setting, mesh_shape, network, orbit, point_light, requires, scene_json,
+                                    sky, texture)
 from inshade.scene.labels import split_labels
 
 from . import NETWORKS
@@ -117,50 +120,38 @@ def scene_description(mat, name: str) -> dict:
     """The asset's scene: the teapot under two lights and the studio environment."""
     from . import LIGHTING, SAMPLING, VIEWS
 
-    return {
-        "format": "inshade.scene", "version": 1, "name": name,
-        "title": f"neural appearance: {mat.name} (latent pyramid + MLP decoder) on the Utah teapot",
-        "program": "passes/mesh_neural_appearance.frag", "size": [384, 288],
-        "networks": [{"bundle": folder, "prefix": prefix} for folder, prefix in NETWORKS],
-        "mesh": {"shape": "teapot", "segments": 12},
+    return scene_json(
+        name, f"neural appearance: {mat.name} (latent pyramid + MLP decoder) on the Utah teapot",
+        "passes/mesh_neural_appearance.frag", (384, 288),
+        networks=[network(folder, prefix) for folder, prefix in NETWORKS],
+        mesh=mesh_shape("teapot", segments=12),
         # the spout's tip inside a square picture too (the teapot is wider than tall)
-        "camera": {"type": "orbit", "fov_y": 35.0, "target": [0.35, 1.15, 0.0], "distance": 10.4, "yaw": 30.0,
-                   "pitch": -22.0},
-        "bookmarks": {
-            "close-up": {"type": "orbit", "fov_y": 35.0, "target": [0.6, 1.6, 1.2], "distance": 3.0, "yaw": 20.0,
-                         "pitch": -20.0},
-            "far": {"type": "orbit", "fov_y": 35.0, "target": [0.0, 1.2, 0.0], "distance": 24.0, "yaw": 30.0,
-                    "pitch": -22.0}},
-        "lights": [{"type": "point", "position": [4.0, 6.0, 5.0], "intensity": 60.0},
-                   {"type": "directional", "direction": [-0.6, 0.5, 0.3], "intensity": 1.5}],
-        "environment": {"sky": "studio", "rotation": 0.0, "degree": 4},
-        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "labels": split_labels("reference", "neural"),
-        "settings": {
+        camera=orbit((0.35, 1.15, 0.0), 10.4, 30.0, -22.0, fov_y=35.0),
+        bookmarks={
+            "close-up": orbit((0.6, 1.6, 1.2), 3.0, 20.0, -20.0, fov_y=35.0),
+            "far": orbit((0.0, 1.2, 0.0), 24.0, 30.0, -22.0, fov_y=35.0)},
+        lights=[point_light((4.0, 6.0, 5.0), 60.0), directional_light((-0.6, 0.5, 0.3), 1.5)],
+        environment=sky("studio"),
+        display=display_modes(),
+        labels=split_labels("reference", "neural"),
+        settings={
             **lit_settings("studio"),
-            "view": {"type": "choice", "default": "neural", "choices": list(VIEWS), "uniform": "u_na_view",
-                     "label": "view (split: left reference, right neural)"},
-            "decoder": {"type": "choice", "default": 32, "choices": [16, 32, 64], "define": "NA_DECODER",
-                        "label": "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64"},
-            "lighting": {"type": "choice", "default": "lights", "choices": list(LIGHTING),
-                         "uniform": "u_na_lighting", "label": "lighting (environment: Monte Carlo, accumulated)"},
-            "sampling": {"type": "choice", "default": "learned", "choices": list(SAMPLING),
-                         "uniform": "u_na_sampling", "label": "BRDF sampling"},
-            "mis": {"type": "bool", "default": True, "uniform": "u_na_mis", "label": "MIS with the environment"},
-            "latent_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                              "codegen": "latent_pyramid.filter",
-                              "label": "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)"},
-            "lights": {"type": "int", "default": 2, "min": 0, "max": 4, "uniform": "u_light_count",
-                       "label": "lights"},
-            "level_bias": {"type": "float", "default": 0.0, "min": -4.0, "max": 4.0, "uniform": "u_na_level_bias",
-                           "label": "pyramid level bias"},
-            "error_scale": {"type": "float", "default": 4.0, "min": 0.0, "max": 64.0, "uniform": "u_na_error_scale",
-                            "label": "error scale"},
-            "latent_page": {"type": "int", "default": 0, "min": 0, "max": 2, "uniform": "u_na_latent_page",
-                            "label": "latent channels (page)"},
+            "view": choice_setting("neural", VIEWS, "view (split: left reference, right neural)", uniform="u_na_view"),
+            "decoder": choice_setting(32, [16, 32, 64], "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64",
+                                      define="NA_DECODER"),
+            "lighting": choice_setting("lights", LIGHTING, "lighting (environment: Monte Carlo, accumulated)",
+                                       uniform="u_na_lighting"),
+            "sampling": choice_setting("learned", SAMPLING, "BRDF sampling", uniform="u_na_sampling"),
+            "mis": bool_setting(True, "MIS with the environment", uniform="u_na_mis"),
+            "latent_filter": choice_setting("exact", ["exact", "fast"],
+                                            "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)",
+                                            codegen="latent_pyramid.filter"),
+            "lights": int_setting(2, 0, 4, "lights", uniform="u_light_count"),
+            "level_bias": float_setting(0.0, -4.0, 4.0, "pyramid level bias", uniform="u_na_level_bias"),
+            "error_scale": float_setting(4.0, 0.0, 64.0, "error scale", uniform="u_na_error_scale"),
+            "latent_page": int_setting(0, 0, 2, "latent channels (page)", uniform="u_na_latent_page"),
         },
-        "textures": [{"uniform": f"u_na_param{k}", "image": f"param{k}.png", "mipmaps": True, "repeat": True}
-                     for k in range(3)],
-        "requires": {"gl": 330},
-        "notes": "neural | reference: the 'view' setting; environment lighting accumulates (inshade render --spp N)",
-    }
+        textures=[texture(f"u_na_param{k}", f"param{k}.png", mipmaps=True, repeat=True) for k in range(3)],
+        requires=requires(),
+        notes="neural | reference: the 'view' setting; environment lighting accumulates (inshade render --spp N)",
+    )

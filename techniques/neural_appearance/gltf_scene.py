@@ -26,6 +26,8 @@ SIZE = (384, 384)
 def scene_description(out: Path, source: str, material: int, material_name: str, bounds) -> dict:
     """scene.json data of the asset in ``out`` whose mesh is ``out / source``; ``bounds``: the learnt
     material's world-space box (lo, hi)."""
+    from inshade.scene.builder import (bool_setting, choice_setting, display_modes, float_setting, network, requires,
+                                        scene_json)
     from inshade.scene.labels import split_labels
     from inshade.technique import opener
 
@@ -46,42 +48,38 @@ def scene_description(out: Path, source: str, material: int, material_name: str,
     # as the opener frames the file (3 bounding radii away), around the learnt material only
     camera = {**base["camera"], "target": ((lo + hi) / 2).tolist(),
               "distance": 3.0 * max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-6)}
-    return {
-        "format": "inshade.scene", "version": 1, "name": Path(out).name,
-        "title": f"neural appearance: {Path(source).name} material {material} ({material_name}), "
-                 "glTF reference | latent pyramid + MLP decoder",
-        "program": GLTF_PROGRAM, "size": list(SIZE),
-        "networks": [{"bundle": folder, "prefix": prefix} for folder, prefix in NETWORKS],
-        "mesh": source,
-        "camera": camera, "bookmarks": {"file": base["camera"]},
-        "lights": base["lights"], "environment": {**base["environment"], "sky": "studio"},
-        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "labels": split_labels("reference", "neural"),
-        "settings": {
+    return scene_json(
+        Path(out).name,
+        f"neural appearance: {Path(source).name} material {material} ({material_name}), "
+        "glTF reference | latent pyramid + MLP decoder",
+        GLTF_PROGRAM, SIZE,
+        networks=[network(folder, prefix) for folder, prefix in NETWORKS],
+        mesh=source,
+        camera=camera, bookmarks={"file": base["camera"]},
+        lights=base["lights"], environment={**base["environment"], "sky": "studio"},
+        display=display_modes(),
+        labels=split_labels("reference", "neural"),
+        settings={
             **settings,
-            "view": {"type": "choice", "default": "split", "choices": list(GLTF_VIEWS), "uniform": "u_na_view",
-                     "label": "view (split: left reference, right neural)"},
-            "lighting": {"type": "choice", "default": "shaded", "choices": list(GLTF_LIGHTING),
-                         "uniform": "u_na_lighting",
-                         "label": "lighting: shaded = lights + environment + emission (neural: Monte Carlo, "
-                                  "accumulated) | lights = lights + emission"},
-            "decoder": {"type": "choice", "default": 32, "choices": [16, 32, 64], "define": "NA_DECODER",
-                        "label": "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64"},
-            "sampling": {"type": "choice", "default": "learned", "choices": list(SAMPLING),
-                         "uniform": "u_na_sampling", "label": "BRDF sampling (environment)"},
-            "mis": {"type": "bool", "default": True, "uniform": "u_na_mis", "label": "MIS with the environment"},
-            "latent_filter": {"type": "choice", "default": "exact", "choices": ["exact", "fast"],
-                              "codegen": "latent_pyramid.filter",
-                              "label": "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)"},
-            "level_bias": {"type": "float", "default": 0.0, "min": -4.0, "max": 4.0, "uniform": "u_na_level_bias",
-                           "label": "pyramid level bias"},
-            "error_scale": {"type": "float", "default": 4.0, "min": 0.0, "max": 64.0,
-                            "uniform": "u_na_error_scale", "label": "error scale"},
+            "view": choice_setting("split", GLTF_VIEWS, "view (split: left reference, right neural)",
+                                   uniform="u_na_view"),
+            "lighting": choice_setting("shaded", GLTF_LIGHTING,
+                                       "lighting: shaded = lights + environment + emission (neural: Monte Carlo, "
+                                       "accumulated) | lights = lights + emission", uniform="u_na_lighting"),
+            "decoder": choice_setting(32, [16, 32, 64], "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64",
+                                      define="NA_DECODER"),
+            "sampling": choice_setting("learned", SAMPLING, "BRDF sampling (environment)", uniform="u_na_sampling"),
+            "mis": bool_setting(True, "MIS with the environment", uniform="u_na_mis"),
+            "latent_filter": choice_setting("exact", ["exact", "fast"],
+                                            "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)",
+                                            codegen="latent_pyramid.filter"),
+            "level_bias": float_setting(0.0, -4.0, 4.0, "pyramid level bias", uniform="u_na_level_bias"),
+            "error_scale": float_setting(4.0, 0.0, 64.0, "error scale", uniform="u_na_error_scale"),
         },
-        "requires": {"gl": 330},
-        "notes": f"material {material} is neural, the others are the file's; shaded lighting accumulates "
-                 "(inshade render --spp N)" + (f"; {base['notes']}" if base.get("notes") else ""),
-    }
+        requires=requires(),
+        notes=f"material {material} is neural, the others are the file's; shaded lighting accumulates "
+              "(inshade render --spp N)" + (f"; {base['notes']}" if base.get("notes") else ""),
+    )
 
 
 def display8(image: np.ndarray) -> np.ndarray:

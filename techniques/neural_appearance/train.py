@@ -53,7 +53,8 @@ from inshade import asset_folder
 from inshade.devices import resolve_device
 from inshade.files import atomic_write
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
-from inshade.models.latent_pyramid import LatentPyramid
+from inshade.models.fit_loop import adam, cosine, fit, learning_rates
+from inshade.components.latent_pyramid.torch_twin import LatentPyramid
 from inshade.provenance import utc_now
 from inshade.trainer import GIVEN, Run, Trainer, setting
 
@@ -150,7 +151,29 @@ def _optimizer(model: NeuralMaterial, phase: int, lr: float, latent_lr: float):
         groups = [{"params": list(model.encoder.parameters()), "lr": lr}, {"params": nets, "lr": lr}]
     else:
         groups = [{"params": list(model.pyramid.parameters()), "lr": latent_lr}, {"params": nets, "lr": lr}]
-    return torch.optim.Adam(groups, eps=1e-15)
+    return adam(groups, eps=1e-15)
+
+
+def _phase_loss(model: NeuralMaterial, s: Settings, targets: Targets, encoder_inputs, levels: int, phase: int,
+                steps: int, device):
+    """Step -> (decoders' loss + 0.1 x sampler loss, decoder terms, sampler terms) on the step's own
+    seeded batch: phase 1 decodes the encoder's latents, phase 2 the pyramid's."""
+    def step_loss(step):
+        gen = torch.Generator().manual_seed(s.seed * 1_000_003 + phase * 100_000 + step)
+        uv = torch.rand(s.batch, 2, generator=gen).to(device)
+        level = draw_levels(s.batch, levels, s.level_scale, gen).to(device)
+        light, view = (d.to(device) for d in direction_pairs(s.batch, gen))
+        cone = math.radians(s.mollify_degrees) * max(0.0, 1.0 - 2.0 * (step / max(steps, 1))) if phase == 1 else 0.0
+        with torch.no_grad():
+            target = targets(uv, level, light, view, s.footprint_samples, cone, gen)
+        if phase == 1:
+            z = model.encoder(encoder_inputs(torch.cat([uv, level[:, None].float()], -1)))
+        else:
+            z = model.pyramid(torch.cat([uv, level[:, None].float()], -1))
+        loss, parts = decoder_loss(model, z, light, view, target)
+        s_loss, s_parts = sampler_loss(model, z[:s.sampler_batch], view[:s.sampler_batch], s.sampler_samples, gen)
+        return loss + 0.1 * s_loss, parts, s_parts
+    return step_loss
 
 
 def encode_pyramid(model: NeuralMaterial, encoder_levels: list[torch.Tensor]) -> list[torch.Tensor]:
@@ -187,7 +210,6 @@ def train(*, material=None, gltf=None, preset="ship", out=None, resolution=None,
 def fit_material(run: Run, progress=None) -> dict:
     """Train on ``run.settings`` and write the asset folder ``run.out`` (metrics.json through the
     run, then preview.png unless --no-preview); returns the metrics beside the run's record."""
-    from inshade.progress import progress as progress_bar
     from inshade.trainer import recorded
 
     source = open_source(run.settings.material, run.settings.gltf)
@@ -226,40 +248,23 @@ def fit_material(run: Run, progress=None) -> dict:
             if checkpoint_every and saved is None:
                 _save_checkpoint(ckpt, model, _optimizer(model, 2, lr, latent_lr), 2, 0, config)
         opt = _optimizer(model, phase, lr, latent_lr)
+        base = learning_rates(opt)       # a restored state holds decayed rates; the schedule starts from these
         first = 0
         if saved is not None and phase == start_phase:
             _restore(model, opt, *saved)
             first, saved = start_step, None
-        base = [g["lr"] for g in opt.param_groups]
-        bar = progress_bar(range(first, steps), desc=f"neural_appearance {source.name} phase {phase}",
-                           enabled=progress)
-        for step in bar:
-            t = step / max(steps, 1)
-            for g, lr0 in zip(opt.param_groups, base):
-                g["lr"] = lr0 * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * t)))
-            gen = torch.Generator().manual_seed(seed * 1_000_003 + phase * 100_000 + step)
-            uv = torch.rand(s.batch, 2, generator=gen).to(device)
-            level = draw_levels(s.batch, levels, s.level_scale, gen).to(device)
-            light, view = (d.to(device) for d in direction_pairs(s.batch, gen))
-            cone = math.radians(s.mollify_degrees) * max(0.0, 1.0 - 2.0 * (step / max(steps, 1))) if phase == 1 else 0.0
-            with torch.no_grad():
-                target = targets(uv, level, light, view, s.footprint_samples, cone, gen)
-            if phase == 1:
-                z = model.encoder(encoder_inputs(torch.cat([uv, level[:, None].float()], -1)))
-            else:
-                z = model.pyramid(torch.cat([uv, level[:, None].float()], -1))
-            loss, parts = decoder_loss(model, z, light, view, target)
-            s_loss, s_parts = sampler_loss(model, z[:s.sampler_batch], view[:s.sampler_batch], s.sampler_samples,
-                                           gen)
-            opt.zero_grad(set_to_none=True)
-            (loss + 0.1 * s_loss).backward()
-            opt.step()
+
+        def after(step, returned, bar, phase=phase, steps=steps):
+            _, parts, s_parts = returned
             if step % 25 == 0 or step == steps - 1:
                 history[f"phase{phase}"].append({"step": step, **{f"l1_{k}": round(v, 5) for k, v in parts.items()},
                                                  **{f"kl_{k}": round(v, 5) for k, v in s_parts.items()}})
                 bar.set_postfix(l1=f"{parts['3x64']:.4f}")
-            if checkpoint_every and (step + 1) % checkpoint_every == 0 and step + 1 < steps:
-                _save_checkpoint(ckpt, model, opt, phase, step + 1, config)
+
+        fit(opt, _phase_loss(model, s, targets, encoder_inputs, levels, phase, steps, device), steps, start=first,
+            lr_factor=cosine(steps), base_lrs=base, after_step=after, checkpoint_every=checkpoint_every,
+            checkpoint=lambda done, phase=phase, opt=opt: _save_checkpoint(ckpt, model, opt, phase, done, config),
+            checkpoint_last=False, desc=f"neural_appearance {source.name} phase {phase}", progress=progress)
     seconds = time.perf_counter() - started
     if model.pyramid is None:     # steps2 == 0: latents straight from the encoder
         model.make_pyramid(encode_pyramid(model, enc_levels))

@@ -38,9 +38,9 @@ from inshade.trainer import Run, Trainer, setting
 from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
 from inshade.pixels import pixel_uvs
 from inshade.models import activations as _act
-from inshade.models import encodings as _enc
+from inshade.components.encodings import torch_twin as _enc
 from inshade.models.graph import GraphModule
-from inshade.models.lookup_array import LookupArray
+from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.provenance import utc_now
 
 IMAGES = ("astronaut", "chelsea", "coffee", "camera", "rocket")  # skimage.data names (RGB or grey)
@@ -241,35 +241,33 @@ def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr
     rgb = torch.from_numpy(target.reshape(-1, 3)).to(device)
     n = uv.shape[0]
     lr = lr if lr is not None else (3e-4 if arch == "siren" else 2e-3)
+    from inshade.models.fit_loop import adam, cosine, fit as fit_steps
+
     cells = [p for name, p in model.named_parameters() if name.endswith(".cells")]
     if cells:
         rest = [p for name, p in model.named_parameters() if not name.endswith(".cells")]
-        opt = torch.optim.Adam([{"params": cells, "lr": grid_lr}, {"params": rest, "lr": lr}], eps=1e-15)
+        opt = adam([{"params": cells, "lr": grid_lr}, {"params": rest, "lr": lr}], eps=1e-15)
     else:
-        opt = torch.optim.Adam(model.parameters(), lr=lr)
-    sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda s: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0))))
+        opt = adam(model.parameters(), lr=lr)
     gen = torch.Generator().manual_seed(seed)
-    from inshade.progress import progress as progress_bar
-
     losses = []
     start = time.perf_counter()
-    bar = progress_bar(range(steps), desc="neural_image", enabled=progress)
-    for step in bar:
+
+    def step_loss(step):
         if batch >= n:
             xb, yb = uv, rgb
         else:
             idx = torch.randint(0, n, (batch,), generator=gen).to(device)
             xb, yb = uv[idx], rgb[idx]
-        loss = torch.mean((model(xb) - yb) ** 2)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        sched.step()
+        return torch.mean((model(xb) - yb) ** 2)
+
+    def after(step, loss, bar):
         if step % 50 == 0 or step == steps - 1:
             value = float(loss.detach())
             losses.append((step, value))
             bar.set_postfix(psnr=f"{psnr_from_mse(max(value, 1e-12)):.2f}")
+
+    fit_steps(opt, step_loss, steps, lr_factor=cosine(steps), after_step=after, desc="neural_image", progress=progress)
     return {"seconds": time.perf_counter() - start, "losses": losses, "lr": lr}
 
 

@@ -34,7 +34,7 @@ from pathlib import Path
 from inshade import asset_folder, command
 from inshade.devices import DeviceError
 from inshade.files import atomic_write
-from inshade.techniques.prt.train import write_previews
+from inshade.techniques.prt.train import prt_scene, write_previews
 from inshade.provenance import utc_now
 
 SHIP = dict(points=60000, dirs=128, holdout=3000, holdout_dirs=512, resolution=256, grid=(4, 3), networks=9,
@@ -69,14 +69,8 @@ def width_for_params(target: int, layers: int, pos_freqs: int = 6, normal_freqs:
 
 
 def scene_dict(networks: list[dict], title: str) -> dict:
-    from inshade.techniques.prt.train import PRT_SETTINGS
-
-    return {"format": "inshade.scene", "version": 1, "name": "prt_atrium", "title": title,
-            "program": "passes/sdf_prt.frag", "size": [256, 256], "networks": networks, "sdf": "sdf.json",
-            "camera": CAMERA, "bookmarks": BOOKMARKS, "lights": [],
-            "environment": {"sky": "noon", "rotation": 0.0, "degree": 4},
-            "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-            "settings": PRT_SETTINGS, "requires": {"gl": 330}}
+    return prt_scene("prt_atrium", title, "passes/sdf_prt.frag", 256, networks, {"sdf": "sdf.json"}, CAMERA,
+                     BOOKMARKS)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:

@@ -4,7 +4,7 @@ uv-mapped mesh, shaded with the same triple-product light matrix).
 
 The transfer texture is a bundle of kind ``prt_texture``: input ``uv`` [2], one ``lookup_array``
 node (2D, 16 channels: four RGBA textures, the lookup-array texel convention, 8/16/32-bit cells;
-codegen/lookup_array.py) whose output is the 16 SH coefficients of cosine-weighted visibility, the
+components/lookup_array/emit.py) whose output is the 16 SH coefficients of cosine-weighted visibility, the
 same contract as the learnt transfer network. Its ``render.transfer_texture`` record says how it
 was baked (resolution, rays, atlas). Built by techniques/prt/texture_prt.py.
 

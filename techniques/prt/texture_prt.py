@@ -262,8 +262,8 @@ def bleed_check(mesh, resolution: int, samples: dict, n_points: int = 20000, see
 # the bundle -----------------------------------------------------------------------------------------
 def texture_graph(table: np.ndarray, bits: int = 16):
     """GraphModule uv[2] -> transfer[16]: one 2D lookup array holding ``table`` [N, N, 16]."""
+    from inshade.components.lookup_array.torch_twin import LookupArray
     from inshade.models import GraphModule
-    from inshade.models.lookup_array import LookupArray
 
     table = np.asarray(table, np.float32)
     if table.ndim != 3 or table.shape[0] != table.shape[1] or table.shape[2] != COEFFS:

@@ -57,6 +57,7 @@ from inshade.files import atomic_write
 from inshade.geometry.gltf import GltfError
 from inshade.models.bake import BakeError, executor_from_args
 from inshade.lit_settings import lit_settings
+from inshade.scene.builder import display_modes, network, network_sdf, requires, scene_json, sky
 from inshade.trainer import Run, Trainer, recorded
 
 from inshade.techniques.prt import transfer_net
@@ -174,13 +175,17 @@ def scene_dict(kind: str, geometry_name: str, name: str, title: str, camera: dic
 
         return gltf_scene(scene_dict("mesh", geometry_name, name, title, camera, bookmarks), PROGRAMS[kind])
     geometry = ({"mesh": geometry_name} if kind == "mesh" else
-                {"sdf": {"network": geometry_name}} if kind == "neural_sdf" else {"sdf": geometry_name})
-    return {"format": "inshade.scene", "version": 1, "name": name, "title": title, "program": PROGRAMS[kind],
-            "size": [PREVIEW_SIZE, PREVIEW_SIZE], "networks": [{"bundle": "transfer", "prefix": "transfer"}],
-            **geometry, "camera": camera, "bookmarks": bookmarks, "lights": [],
-            "environment": {"sky": "noon", "rotation": 0.0, "degree": 4},
-            "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-            "settings": PRT_SETTINGS, "requires": {"gl": 330}}
+                {"sdf": network_sdf(geometry_name)} if kind == "neural_sdf" else {"sdf": geometry_name})
+    return prt_scene(name, title, PROGRAMS[kind], PREVIEW_SIZE, [network("transfer", "transfer")], geometry,
+                     camera, bookmarks)
+
+
+def prt_scene(name: str, title: str, program: str, size: int, networks: list, geometry: dict, camera: dict,
+              bookmarks: dict) -> dict:
+    """A PRT asset's scene: its transfer network(s) over its geometry, lit by the noon sky."""
+    return scene_json(name, title, program, (size, size), networks=networks, **geometry, camera=camera,
+                      bookmarks=bookmarks, lights=[], environment=sky("noon"), display=display_modes("final"),
+                      settings=PRT_SETTINGS, requires=requires())
 
 
 # Options the recorded command leaves out: the device is recorded resolved in the transfer bundle's

@@ -21,6 +21,7 @@ import torch
 from inshade.metrics import psnr_from_mse
 
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
+from inshade.models.fit_loop import adam, cosine, fit
 from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
 TANH_SCALE = 1.25
@@ -179,39 +180,35 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
         with torch.no_grad():
             return transfer_metrics((net(x_ho) * scale).cpu(), t_ho)
 
-    opt = torch.optim.Adam(net.parameters(), lr=lr)
-    sched = lambda s: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(s / max(steps, 1), 1.0)))  # noqa: E731
+    opt = adam(net.parameters(), lr=lr)
     start_step = 0
     ckpt = Path(checkpoint) if checkpoint is not None else None
     before = heldout()
     if ckpt is not None and ckpt.is_file():
         start_step = _load_checkpoint(ckpt, net, opt, config)
-    every = checkpoint_every or max(1, steps // 10)
-    from inshade.progress import progress as progress_bar
-
     stop = steps if until is None else max(start_step, min(int(until), steps))
-    bar = progress_bar(range(start_step, stop), desc=f"transfer k={width}", enabled=progress,
-                       initial=start_step, total=steps)
     start = time.perf_counter()
-    acc, count, train_l1 = 0.0, 0, float("nan")
+    interval = {"acc": 0.0, "count": 0, "train_l1": float("nan")}
     n_tr = x_tr.shape[0]
-    for step in bar:
-        for g in opt.param_groups:
-            g["lr"] = lr * sched(step)
+
+    def step_loss(step):
         gen = torch.Generator().manual_seed(int(seed) * 1_000_003 + step)
         idx = torch.randint(0, n_tr, (min(batch, n_tr),), generator=gen).to(device)
-        loss = (net(x_tr[idx]) - y_tr[idx]).abs().mean()
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        acc, count = acc + float(loss.detach()), count + 1
+        return (net(x_tr[idx]) - y_tr[idx]).abs().mean()
+
+    def after(step, loss, bar):
+        interval["acc"], interval["count"] = interval["acc"] + float(loss.detach()), interval["count"] + 1
         if (step + 1) % 100 == 0 or step + 1 == stop:
-            train_l1 = acc / count * scale
-            bar.set_postfix(l1=f"{train_l1:.4f}")
-            acc, count = 0.0, 0
-        if ckpt is not None and ((step + 1) % every == 0 or step + 1 == stop):
-            _save_checkpoint(ckpt, net, opt, step + 1, config)
+            interval["train_l1"] = interval["acc"] / interval["count"] * scale
+            bar.set_postfix(l1=f"{interval['train_l1']:.4f}")
+            interval["acc"], interval["count"] = 0.0, 0
+
+    save = None if ckpt is None else (lambda done: _save_checkpoint(ckpt, net, opt, done, config))
+    fit(opt, step_loss, steps, start=start_step, stop=stop, lr_factor=cosine(steps), base_lrs=[lr], after_step=after,
+        checkpoint=save, checkpoint_every=checkpoint_every or max(1, steps // 10), desc=f"transfer k={width}",
+        progress=progress)
     seconds = time.perf_counter() - start
+    train_l1 = interval["train_l1"]
     after = heldout()
     metrics = {f"heldout_{k}": round(v, 6) for k, v in after.items()}
     metrics.update({f"heldout_{k}_step0": round(v, 6) for k, v in before.items()})

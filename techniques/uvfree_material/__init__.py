@@ -3,7 +3,7 @@ Material Properties using a Geometry-Associated Feature Hierarchy"), decoded in 
 
 Features live on a regular 2^l subdivision of every triangle (L levels), shared across edges and
 vertices through precomputed owner tables and stored in per-level hash tables (component
-``mesh_features``: geometry/mesh_topology.py, models/mesh_features.py, codegen/mesh_features.py);
+``mesh_features``: geometry/mesh_topology.py, models/mesh_features.py, components/mesh_features/emit.py);
 an MLP decodes the concatenated features to 9 material channels (model.py CHANNELS). The pass
 reads the mesh's visibility buffer (face id + barycentrics, ProgramSpec.visibility) and decodes
 each visible pixel once, then shades the channels with lib/pbr_shading. An asset folder

@@ -2,7 +2,6 @@
 gltf_train.py): area-weighted surface samples, the fit loop and the preview."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -64,30 +63,26 @@ def fit(graph, batch, s: Settings, device, desc: str, progress=None) -> list:
     """Adam on the feature table (``s.lr``) and the decoder (``s.mlp_lr``), MSE, cosine decay to 2 %
     over ``s.steps``; ``batch(rng)`` gives each step's (inputs [n, 3] float32: face, t0, t1; targets
     [n, C] float32). Returns the loss every 50 steps."""
-    from inshade.progress import progress as progress_bar
+    from inshade.models.fit_loop import adam, cosine, fit as fit_steps
 
     table = graph.nodes["features"].table
     mlp = [q for n, q in graph.named_parameters() if not n.startswith("nodes.features.")]
-    opt = torch.optim.Adam([{"params": [table], "lr": s.lr}, {"params": mlp, "lr": s.mlp_lr}], betas=(0.9, 0.99),
-                           eps=1e-15)
-    base = [g["lr"] for g in opt.param_groups]
+    opt = adam([{"params": [table], "lr": s.lr}, {"params": mlp, "lr": s.mlp_lr}], betas=(0.9, 0.99), eps=1e-15)
     rng = np.random.default_rng(s.seed)
     history = []
     steps = s.steps
-    bar = progress_bar(range(steps), desc=desc, enabled=progress)
-    for step in bar:
-        t = step / max(steps, 1)
-        for g, lr0 in zip(opt.param_groups, base):
-            g["lr"] = lr0 * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * t)))
+
+    def step_loss(step):
         x, y = batch(rng)
         x, y = torch.from_numpy(x).to(device), torch.from_numpy(y).to(device)
-        loss = torch.mean((graph(x) - y) ** 2)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
+        return torch.mean((graph(x) - y) ** 2)
+
+    def after(step, loss, bar):
         if step % 50 == 0 or step == steps - 1:
             history.append({"step": step, "mse": round(loss.item(), 7)})
             bar.set_postfix(mse=f"{loss.item():.5f}")
+
+    fit_steps(opt, step_loss, steps, lr_factor=cosine(steps, 0.02), after_step=after, desc=desc, progress=progress)
     return history
 
 

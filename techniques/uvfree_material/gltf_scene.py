@@ -16,6 +16,7 @@ import numpy as np
 
 from inshade.lit_settings import lit_settings
 from inshade.metrics import psnr, srgb_oetf
+from inshade.scene.builder import choice_setting, display_modes, float_setting, network, scene_json
 from inshade.scene.labels import split_labels
 
 PROGRAM = "passes/mesh_uvfree_gltf.frag"
@@ -29,31 +30,30 @@ def scene_description(name: str, mesh: str, source_name: str, folder: Path, bund
 
     opened = technique.opener(Path(mesh).suffix)(folder / mesh)
     sky = opened["environment"].get("sky", "studio")
-    return {
-        "format": "inshade.scene", "version": 1, "name": name,
-        "title": f"UV-free neural material of {source_name} ({config}): hashed per-triangle features + MLP "
-                 f"decoding {', '.join(channels)}",
-        "program": PROGRAM, "size": opened["size"],
-        "networks": [{"bundle": bundle, "prefix": "mat"}],
-        "mesh": mesh,
-        "camera": opened["camera"], "lights": opened["lights"], "environment": opened["environment"],
-        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "labels": split_labels("reference", "decoded"),
-        "settings": {
+    return scene_json(
+        name, f"UV-free neural material of {source_name} ({config}): hashed per-triangle features + MLP "
+              f"decoding {', '.join(channels)}",
+        PROGRAM, opened["size"],
+        networks=[network(bundle, "mat")],
+        mesh=mesh,
+        camera=opened["camera"], lights=opened["lights"], environment=opened["environment"],
+        display=display_modes(),
+        labels=split_labels("reference", "decoded"),
+        settings={
             **lit_settings(sky),
-            "view": {"type": "choice", "default": "split", "choices": list(GLTF_VIEWS), "uniform": "u_uvg_view",
-                     "label": "view (split: left the file's material, right the network's)"},
-            "channel": {"type": "choice", "default": "shaded", "choices": list(GLTF_CHANNEL_VIEWS),
-                        "uniform": "u_uvg_channel", "label": "shaded, or one material channel as the shader sees it"},
+            "view": choice_setting("split", GLTF_VIEWS, "view (split: left the file's material, right the network's)",
+                                   uniform="u_uvg_view"),
+            "channel": choice_setting("shaded", GLTF_CHANNEL_VIEWS,
+                                      "shaded, or one material channel as the shader sees it", uniform="u_uvg_channel"),
             "lights": opened["settings"]["lights"],
             "tonemap": opened["settings"]["tonemap"],
             "env_intensity": opened["settings"]["env_intensity"],
-            "error_scale": {"type": "float", "default": ERROR_SCALE, "min": 1.0, "max": 64.0,
-                            "uniform": "u_uvg_error_scale", "label": "error view: |network - reference| x"},
+            "error_scale": float_setting(ERROR_SCALE, 1.0, 64.0, "error view: |network - reference| x",
+                                         uniform="u_uvg_error_scale"),
         },
-        "notes": f"the decoder outputs {', '.join(channels)}; every other material input (alpha, ior, KHR lobes) "
-                 "is the file's; the mesh's uv feed only the reference, the decoder reads the visibility buffer",
-    }
+        notes=f"the decoder outputs {', '.join(channels)}; every other material input (alpha, ior, KHR lobes) "
+              "is the file's; the mesh's uv feed only the reference, the decoder reads the visibility buffer",
+    )
 
 
 def display_psnr(test: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:

@@ -1,10 +1,10 @@
 """What a UV-free material costs in GPU memory, against the uncompressed textures it replaces
 (torch-free: the trainer's metrics and the bench share it).
 
-Bytes as the generated code's resources hold them (codegen/mesh_features.py): the feature-table
+Bytes as the generated code's resources hold them (components/mesh_features/emit.py): the feature-table
 textures (fp16, or unorm8 for precision u8, whose per-lane scale/offset float32 constants count
 with them), the owner-table texture (12, 16 or 24 bytes per face as the mesh's size allows:
-codegen/mesh_features.py TOPOLOGY_LAYOUTS) and the MLP's fp32 weights (literals or a uniform block).
+components/mesh_features/emit.py TOPOLOGY_LAYOUTS) and the MLP's fp32 weights (literals or a uniform block).
 The thesis counts features and MLP only; the owner tables are reported beside them, since a
 renderer holds them too.
 """

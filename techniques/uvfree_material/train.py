@@ -42,6 +42,8 @@ from inshade import asset_folder
 from inshade.components import ComponentError
 from inshade.devices import resolve_device
 from inshade.files import atomic_write
+from inshade.scene.builder import (bool_setting, choice_setting, display_modes, float_setting, int_setting,
+                                    network, orbit, point_light, requires, scene_json, sky, texture)
 from inshade.scene.labels import split_labels
 from inshade.lit_settings import lit_settings
 from inshade.geometry.mesh import MeshError, load_mesh, mesh_uv
@@ -259,44 +261,35 @@ def write_material(run: Run, progress=None) -> dict:
 def scene_description(name: str, object_name: str, config: str) -> dict:
     from . import CHANNEL_VIEWS, VIEWS, WIREFRAME
 
-    return {
-        "format": "inshade.scene", "version": 1, "name": name,
-        "title": f"UV-free neural material: {object_name} ({config}), hashed per-triangle features + MLP",
-        "program": "passes/mesh_uvfree_material.frag", "size": [320, 320],
-        "networks": [{"bundle": BUNDLE, "prefix": "mat"}],
-        "mesh": objects.FILES["mesh"],
-        "textures": [{"uniform": f"u_uvf_{k}", "image": objects.FILES[k], "mipmaps": False, "repeat": False}
-                     for k in objects.TEXTURES],
-        "camera": {"type": "orbit", "fov_y": 35.0, "target": [0.0, 0.0, 0.0], "distance": 3.4, "yaw": 30.0,
-                   "pitch": -20.0},
-        "bookmarks": {"close-up": {"type": "orbit", "fov_y": 35.0, "target": [0.3, 0.3, 0.3], "distance": 1.3,
-                                   "yaw": 35.0, "pitch": -25.0}},
-        "lights": [{"type": "point", "position": [2.5, 3.0, 2.5], "intensity": 14.0},
-                   {"type": "point", "position": [-3.0, 1.5, 1.5], "intensity": 6.0}],
-        "environment": {"sky": "studio", "rotation": 0.0, "degree": 3},
-        "display": {"mode": "final", "modes": ["final"], "split": 0.5},
-        "labels": split_labels("reference", "decoded"),
-        "settings": {
+    return scene_json(
+        name, f"UV-free neural material: {object_name} ({config}), hashed per-triangle features + MLP",
+        "passes/mesh_uvfree_material.frag", (320, 320),
+        networks=[network(BUNDLE, "mat")],
+        mesh=objects.FILES["mesh"],
+        textures=[texture(f"u_uvf_{k}", objects.FILES[k], mipmaps=False, repeat=False) for k in objects.TEXTURES],
+        camera=orbit((0.0, 0.0, 0.0), 3.4, 30.0, -20.0, fov_y=35.0),
+        bookmarks={"close-up": orbit((0.3, 0.3, 0.3), 1.3, 35.0, -25.0, fov_y=35.0)},
+        lights=[point_light((2.5, 3.0, 2.5), 14.0), point_light((-3.0, 1.5, 1.5), 6.0)],
+        environment=sky("studio", degree=3),
+        display=display_modes(),
+        labels=split_labels("reference", "decoded"),
+        settings={
             **lit_settings("studio"),
-            "view": {"type": "choice", "default": "split", "choices": list(VIEWS), "uniform": "u_uvf_view",
-                     "label": "view (split: left reference, right decoded)"},
-            "channel": {"type": "choice", "default": "shaded", "choices": list(CHANNEL_VIEWS),
-                        "uniform": "u_uvf_channel", "label": "shaded, or one channel as stored (debug)"},
-            "wireframe": {"type": "choice", "default": "off", "choices": list(WIREFRAME),
-                          "uniform": "u_uvf_wireframe", "label": "overlay: mesh triangles | sub-triangles of a level"},
-            "wire_level": {"type": "int", "default": 1, "min": 0, "max": 7, "uniform": "u_uvf_wire_level",
-                           "label": "overlay level"},
-            "decoder": {"type": "bool", "default": True, "define": "UVF_DECODER",
-                        "label": "decoder compiled in (off: the reference-only shader, for timing)"},
-            "error_scale": {"type": "float", "default": 4.0, "min": 0.0, "max": 64.0, "uniform": "u_uvf_error_scale",
-                            "label": "error scale"},
-            "lights": {"type": "int", "default": 2, "min": 0, "max": 4, "uniform": "u_light_count",
-                       "label": "point lights"},
+            "view": choice_setting("split", VIEWS, "view (split: left reference, right decoded)", uniform="u_uvf_view"),
+            "channel": choice_setting("shaded", CHANNEL_VIEWS, "shaded, or one channel as stored (debug)",
+                                      uniform="u_uvf_channel"),
+            "wireframe": choice_setting("off", WIREFRAME, "overlay: mesh triangles | sub-triangles of a level",
+                                        uniform="u_uvf_wireframe"),
+            "wire_level": int_setting(1, 0, 7, "overlay level", uniform="u_uvf_wire_level"),
+            "decoder": bool_setting(True, "decoder compiled in (off: the reference-only shader, for timing)",
+                                    define="UVF_DECODER"),
+            "error_scale": float_setting(4.0, 0.0, 64.0, "error scale", uniform="u_uvf_error_scale"),
+            "lights": int_setting(2, 0, 4, "point lights", uniform="u_light_count"),
         },
-        "requires": {"gl": 330},
-        "notes": "decoded | reference: the 'view' setting (channels as debug views); the mesh's uvs feed only "
-                 "the reference and the tangent frame, the decoder reads the visibility buffer",
-    }
+        requires=requires(),
+        notes="decoded | reference: the 'view' setting (channels as debug views); the mesh's uvs feed only "
+              "the reference and the tangent frame, the decoder reads the visibility buffer",
+    )
 
 
 # ---------------------------------------------------------------------------------------------
