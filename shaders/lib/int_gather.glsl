@@ -1,7 +1,0 @@
-// Table rows at computed integer indices (codegen/int_gather.py; torch twin models/int_gather.py).
-#include <lib/texture_rows>
-
-// Row `index` of a table laid out in rows of 2^log2w texels; zeros past its `rows` rows.
-vec4 int_gather_row(sampler2D table, int log2w, uint index, uint rows) {
-    return index < rows ? texelFetch(table, rows_texel(index, log2w), 0) : vec4(0.0);
-}
