@@ -231,7 +231,7 @@ SKY_PRESETS: dict[str, dict] = {
                  lobes=[((65.0, -30.0), (60.0, 57.0, 50.0), 3000.0)]),
     # a grey room lit by soft panels above and around, no colour cast: the first look of a glTF file, as
     # viewers show one (a neutral studio environment); its level lights a diffuse surface as three.js's
-    # RoomEnvironment does (tests/test_three_peer.py: the same mean brightness within a few percent)
+    # RoomEnvironment does (tests/web/test_three_peer.py: the same mean brightness within a few percent)
     "neutral": dict(zenith=(1.5, 1.5, 1.5), horizon=(1.1, 1.1, 1.1), ground=(0.6, 0.6, 0.6),
                     gradient=1.0, ground_blend=0.5,
                     lobes=[((75.0, 0.0), (3.2, 3.2, 3.2), 6.0),        # ceiling panels

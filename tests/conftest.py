@@ -1,6 +1,12 @@
 """Shared fixtures, and ``--gl-backend egl|osmesa``: the GL backend every context of the run uses
-(the same switch as the CLI's flag and ``INSHADE_GL_BACKEND``; subprocesses inherit it)."""
+(the same switch as the CLI's flag and ``INSHADE_GL_BACKEND``; subprocesses inherit it).
+
+The tests follow the project's layers: core/, components/, codegen/, convert/, runtime/, scene/,
+geometry/, models/, web/, viewer/, bench/ and techniques/<name>/; what checks the whole house
+(architecture, layers, words, docs, shipped renders, bad inputs, the CLI) sits here at the top,
+with the shared helpers (parity.py, zoo.py, ...)."""
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -22,6 +28,11 @@ def pytest_configure(config):
 
 def pytest_report_header(config):
     return f"GL backend: {os.environ.get(BACKEND_ENV) or 'egl'}"
+
+# A test file may reuse another layer's test helpers (a technique's tests the component tables'
+# generators): every folder of tests is importable by module name, as the top folder is.
+TESTS = Path(__file__).resolve().parent
+sys.path[1:1] = sorted(str(d.parent) for d in TESTS.glob("*/**/test_*.py") if str(d.parent) not in sys.path)
 
 # Test-only passes (tests/shaders/passes/*_test.frag.glsl) that feed chunks sample inputs.
 add_search_path(Path(__file__).resolve().parent / "shaders")

@@ -23,7 +23,7 @@ answer is, the rule `inshade check` applies to imported networks.
 
 Paths that are not fp32 state their own bound next to the test and say why: the fp16 weight
 texture (compared with a reference whose weights are rounded to fp16 first, so the same rule
-applies) and the hardware-filtered ("fast") lookup path (tests/test_lookup_array.py).
+applies) and the hardware-filtered ("fast") lookup path (tests/components/test_lookup_array.py).
 """
 from __future__ import annotations
 

@@ -140,7 +140,7 @@ def test_show_without_ipython_says_which_extra(monkeypatch):
 
 def test_the_inlined_page_draws_what_the_picture_shows(gl, tmp_path):
     """The iframe's page in headless Chromium (no server: a file with the iframe in it) against the
-    headless render, as the exported pages are held (tests/test_web.py: >= 40 dB, two rasterisers)."""
+    headless render, as the exported pages are held (tests/web/test_web.py: >= 40 dB, two rasterisers)."""
     from inshade.web.browser import Browser, psnr8
 
     host = tmp_path / "notebook.html"

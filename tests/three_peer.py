@@ -8,7 +8,7 @@ held against three.js's ``MeshStandardMaterial`` / ``MeshPhysicalMaterial``.
 - ``inshade_render(glb, w, h, ...)``: inshade's linear float render of the same file and its coverage.
 - ``coverage_iou`` / ``covered_psnr``: how the two compare.
 
-Conventions checked here and by tests/test_three_peer.py:
+Conventions checked here and by tests/web/test_three_peer.py:
 
 - Matrices: inshade's cameras give pyrr matrices in the row-vector convention (``p_row @ view``), so
   ``view.ravel()`` in C order is the column-major array ``Matrix4.fromArray`` takes (the transpose of

@@ -1,5 +1,5 @@
 """A zoo of networks written in plain torch (no inshade classes), as users write them: each entry is
-(module, example input). Together they use every op inshade.export lowers (tests/test_export.py
+(module, example input). Together they use every op inshade.export lowers (tests/convert/test_export.py
 checks the coverage against the handler table)."""
 from __future__ import annotations
 

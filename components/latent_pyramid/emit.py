@@ -7,7 +7,7 @@ sampler wraps with repeat.
 
 Option ``latent_pyramid.filter``: "exact" = 4 texelFetch at the chosen level with integer
 repeat wrap + fp32 mix (matches torch to fp32 rounding); "fast" = textureLod at the integer
-level (hardware bilinear within it; see tests/test_latent_pyramid.py for the measured bound).
+level (hardware bilinear within it; see tests/components/test_latent_pyramid.py for the measured bound).
 """
 from __future__ import annotations
 

@@ -15,7 +15,7 @@ never wraps: hardware filtering would mix cells across the wrap seam.
 
 Option ``lookup_array.filter`` (``lut_filter`` for short): "exact" = texelFetch + fp32 mix (matches torch to fp32 rounding);
 "fast" = hardware linear filtering (fewer instructions; filter weights may have as few as
-8 fractional bits, see tests/test_lookup_array.py for the measured bound).
+8 fractional bits, see tests/components/test_lookup_array.py for the measured bound).
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ against the bundle's torch twin through the GL driver before anything is written
 
 tiny-cuda-nn needs CUDA, so it is not what the check runs: the lowering itself is tested against
 a torch reimplementation of tiny-cuda-nn's forward written from its source
-(tests/tcnn_reference.py, tests/test_tcnn_convert.py). The rules, with the tiny-cuda-nn file and
+(tests/tcnn_reference.py, tests/convert/test_tcnn_convert.py). The rules, with the tiny-cuda-nn file and
 function each comes from, are in docs/tcnn.md; the model description is tcnn_config.py.
 
 Each encoding becomes the components computing the same function, in tiny-cuda-nn's lane order:

@@ -1,4 +1,4 @@
-"""toy_noise: a test-only stochastic technique (tests/test_accumulation.py). Its program accumulates
+"""toy_noise: a test-only stochastic technique (tests/runtime/test_accumulation.py). Its program accumulates
 (ProgramSpec.accumulate): each draw writes one sample of shaders/lib/random.glsl per pixel, so
 the runtime's running mean can be checked against inshade/random.py. Attachment 0 is
 (gain * random_uniform3(stream 0), 1), attachment 1 is (random_uniform3(stream 1), u of the pixel

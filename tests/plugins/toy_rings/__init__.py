@@ -2,7 +2,7 @@
 through INSHADE_TECHNIQUES). It draws a 2 -> 3 sine network over the uv plane, tinted by a colour
 the CPU computes each frame from a scene setting, with a palette chunk generated from Python:
 every hook a ProgramSpec has, and a bench `inshade bench suite` runs from its SUITE entry
-(tests/test_bench_suite.py), with no edit outside this folder."""
+(tests/bench/test_bench_suite.py), with no edit outside this folder."""
 from pathlib import Path
 
 from inshade.technique import Paper, ProgramSpec, Technique

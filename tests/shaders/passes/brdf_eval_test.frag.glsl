@@ -2,7 +2,7 @@
 // (data orientation): (l.xyz, v.x), (v.yz, base.xy), (base.z, roughness, metallic, anisotropic),
 // (subsurface, specular, specular_tint, sheen), (sheen_tint, clearcoat, clearcoat_gloss, -),
 // (n.h, alpha_h, -, -). Attachment 0: (disney_brdf(l, v).rgb, ggx(n.h, alpha_h)).
-// Used by tests/test_brdf.py.
+// Used by tests/models/test_brdf.py.
 #include <lib/brdf>
 
 uniform sampler2D u_inputs;

@@ -1,7 +1,7 @@
 // Test pass for lib/environment: per pixel two texels of u_inputs (data orientation):
 // texel 2x = (u.x, u.y, a, b), texel 2x+1 = (direction xyz, 0). Outputs: 0: env_sample(u) xyz +
 // its pdf in w; 1: env_radiance(dir) rgb + env_pdf(dir) in w; 2: (mis_power(a, b), mis_power(b, a)).
-// Used by tests/test_environment.py.
+// Used by tests/runtime/test_environment.py.
 #include <lib/environment>
 
 uniform sampler2D u_inputs;

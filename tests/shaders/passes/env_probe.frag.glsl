@@ -1,4 +1,4 @@
-// Test-only scene program (registered by tests/test_environment.py, geometry "sdf"): the
+// Test-only scene program (registered by tests/runtime/test_environment.py, geometry "sdf"): the
 // environment texture seen along each camera ray (the runtime binds lib/environment's textures),
 // the ray direction in attachment 1 so the test can look the same directions up in numpy.
 #include <lib/camera>

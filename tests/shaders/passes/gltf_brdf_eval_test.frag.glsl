@@ -3,7 +3,7 @@
 // t4 = (l.yz, base.xy), t5 = (base.z, metallic, roughness, f0), t6 = (clearcoat, clearcoat
 // roughness, sheen.xy), t7 = (sheen.z, sheen roughness, anisotropy, -), t8 = (irradiance.xyz, -),
 // t9 = (radiance.xyz, -). Attachment 0: gltf_brdf; attachment 1: gltf_environment.
-// Used by tests/test_gltf_brdf.py.
+// Used by tests/models/test_gltf_brdf.py.
 #include <lib/gltf_brdf>
 
 uniform sampler2D u_inputs;

@@ -6,7 +6,7 @@
 //   2: mf_subtriangle(t, level) sub-vertices (w0.x, w0.y, w1.x, w1.y)
 //   3: (w2.x, w2.y, weight.x, weight.y)
 //   4: (weight.z, mf_level_taps indices 0..2)
-// Used by tests/test_mesh_features.py.
+// Used by tests/components/test_mesh_features.py.
 #include <lib/mesh_features>
 
 uniform sampler2D u_inputs;

@@ -1,6 +1,6 @@
 // Test pass for lib/na_reference's na_fetch_parameters: one sample per pixel, (uv, lod, -) read
 // from u_inputs (data orientation); the caller binds u_na_param0..2. Attachments 0-2: p0, p1, p2.
-// Used by tests/test_neural_appearance_material.py.
+// Used by tests/techniques/neural_appearance/test_neural_appearance_material.py.
 #include <lib/na_reference>
 
 uniform sampler2D u_inputs;

@@ -1,7 +1,7 @@
 // Test pass for lib/na_reference: one sample per pixel, read from 5 texels side by side in
 // u_inputs (data orientation): p0, p1, p2, (light.xyz, -), (view.xyz, -). Attachment 0:
 // (na_reflectance(p0, p1, p2, light, view), 1). The u_na_* uniforms come from
-// material.uniforms(). Used by tests/test_neural_appearance_material.py.
+// material.uniforms(). Used by tests/techniques/neural_appearance/test_neural_appearance_material.py.
 #include <lib/na_reference>
 
 uniform sampler2D u_inputs;

@@ -1,7 +1,7 @@
 // Test pass for lib/proxy_lobe: one sample per pixel, read from 5 texels side by side in u_inputs
 // (data orientation): params 0-3, params 4-7, (param 8, view.xyz), (u.xyz, -), (light.xyz, -).
 // Attachment 0: (proxy_sample(p, view, u), proxy_pdf of that sample); attachment 1:
-// (proxy_pdf(p, view, light), 0, 0, 0). Used by tests/test_proxy_lobe.py.
+// (proxy_pdf(p, view, light), 0, 0, 0). Used by tests/components/test_proxy_lobe.py.
 #include <lib/proxy_lobe>
 
 uniform sampler2D u_inputs;

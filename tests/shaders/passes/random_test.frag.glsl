@@ -1,4 +1,4 @@
-// Test pass for lib/random (tests/test_accumulation.py): pixel (x, y) -> attachment 0:
+// Test pass for lib/random (tests/runtime/test_accumulation.py): pixel (x, y) -> attachment 0:
 // random_uniform4(pixel, u_sample_index, u_stream); attachment 1: (random_uniform, the .y of
 // random_uniform2, the .z of random_uniform3, 0) with the same arguments (each must equal the
 // matching component of attachment 0). The pixel is offset by u_pixel_offset (large coordinates).

@@ -1,6 +1,6 @@
 // Test pass for lib/lights: one sample per pixel, (p.xyz, light index) from texel (x, y) of
 // u_inputs (data orientation) -> (to_light.xyz, irradiance_scale) of scene_light(index, p).
-// Used by tests/test_lights.py.
+// Used by tests/runtime/test_lights.py.
 #include <lib/lights>
 
 uniform sampler2D u_inputs;

@@ -1,6 +1,6 @@
 // Test pass for the generated <sdf_scene>: one point per pixel (texel (x, y) of u_points, data
 // orientation) -> attachment 0: (scene_sdf, 0, 0, 1), attachment 1: (scene_albedo, 1),
-// attachment 2: (sdf_normal, 1). Used by tests/test_sdf.py.
+// attachment 2: (sdf_normal, 1). Used by tests/geometry/test_sdf.py.
 #include <lib/sdf>
 
 uniform sampler2D u_points;

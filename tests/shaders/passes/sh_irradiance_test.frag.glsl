@@ -1,7 +1,7 @@
 // Test pass for lib/spherical_harmonics: one unit direction per pixel (texel (x, y) of
 // u_dirs, data orientation) -> attachment 0: sh_irradiance, 1: sh_radiance,
 // 2: sh_convolved with u_bands, 3: sh_background. Needs chunks=sh_chunks(degree). Used by
-// tests/test_spherical_harmonics.py.
+// tests/components/test_spherical_harmonics.py.
 #include <lib/spherical_harmonics>
 
 uniform sampler2D u_dirs;

@@ -1,4 +1,4 @@
-// Test pass for lib/shadow_map (tests/test_shadow_map.py): one point per pixel, (p.xyz, layer) from
+// Test pass for lib/shadow_map (tests/runtime/test_shadow_map.py): one point per pixel, (p.xyz, layer) from
 // texel (x, y) of u_points (data orientation) -> shadow_visibility(p, layer, u_bias) in every channel.
 #include <lib/shadow_map>
 

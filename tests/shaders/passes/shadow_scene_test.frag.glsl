@@ -1,4 +1,4 @@
-// Test program for ProgramSpec.shadows through the real SceneRenderer (tests/test_shadow_map.py):
+// Test program for ProgramSpec.shadows through the real SceneRenderer (tests/runtime/test_shadow_map.py):
 // pixel (x, y) of the target looks at the ground point (x + 0.5) / u_size.x, 0, (y + 0.5) / u_size.y
 // of a unit-square ground and writes shadow_visibility of it for light u_layer, bias u_bias.
 #define SHADOW_MAX_LAYERS 4

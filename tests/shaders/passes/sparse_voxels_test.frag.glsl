@@ -1,9 +1,9 @@
-// Test pass for the sparse_voxels emitter's fixed functions (codegen/sparse_voxels.py), reached
+// Test pass for the sparse_voxels emitter's fixed functions (components/sparse_voxels/emit.py), reached
 // through a generated network chunk with prefix "net": one sample per pixel, one texel in u_inputs
 // (data orientation, small exact integers as floats): (scale, i, j, k) of a cell query.
 // Outputs: 0: (net_voxel_slot(scale, cell), NET_SCALE_MIN, NET_SCALE_MAX, NET_VOXELS);
 //          1: net_voxel_sphere(uint(i)) (the i lane doubles as a slot query).
-// Used by tests/test_sparse_voxels.py.
+// Used by tests/components/test_sparse_voxels.py.
 #include <network>
 
 uniform sampler2D u_inputs;

@@ -1,4 +1,4 @@
-// Test pass for 3D textures with mip chains and 2D texture arrays (tests/test_texture_arrays.py).
+// Test pass for 3D textures with mip chains and 2D texture arrays (tests/runtime/test_texture_arrays.py).
 // Defines: TEX_ARRAY (sampler2DArray), TEX_2D (sampler2D, fetch only), else sampler3D; TEX_UINT (the usampler kind, uvec4 output),
 // TEX_SAMPLE (filtered lookups instead of fetches).
 // Fetch mode: pixel (x, y) of a W x (H * D) target -> texelFetch(u_tex, (x, y % u_rows, y / u_rows),

@@ -1,4 +1,4 @@
-// Test pass for runtime/network.py mip-chained textures (tests/test_texture_mips.py): pixel (x, y)
+// Test pass for runtime/network.py mip-chained textures (tests/runtime/test_texture_mips.py): pixel (x, y)
 // -> attachment 0: texelFetch(u_tex, (x, y), u_level) (a target the size of level u_level reads
 // that level back texel for texel); attachment 1: textureLod(u_tex, uv, u_level) at the uv stored
 // in texel (x, y) of u_uvs (hardware filtering within one level, as the texture's filter says).
