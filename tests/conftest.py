@@ -56,3 +56,42 @@ def gl_limits(gl):
     from inshade.runtime.context import gl_info
 
     return gl_info(gl)
+
+
+@pytest.fixture(scope="module")
+def program_cache():
+    """Programs compiled once per test module on the shared context (a module's draws share them)."""
+    from inshade.runtime.context import shared_context
+    from inshade.runtime.programs import ProgramCache
+
+    return ProgramCache(shared_context())
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread():
+    """torch on one thread for a module: two spinning OpenMP threads on a shared 2-core machine run
+    small training steps ~10x slower. A module asks with ``pytestmark = pytest.mark.usefixtures(...)``."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+
+@pytest.fixture
+def fullscreen_test_pass(gl):
+    """``make(fragment)``: the full-screen pass of a test fragment shader (tests/shaders/passes/...),
+    compiled for this test and released after it."""
+    from inshade.runtime.programs import ProgramCache
+    from inshade.runtime.render import FullscreenPass
+
+    cache, made = ProgramCache(gl), []
+
+    def make(fragment: str):
+        made.append(FullscreenPass(gl, cache.get("common/fullscreen.vert", fragment)))
+        return made[-1]
+    yield make
+    for p in made:
+        p.vao.release()

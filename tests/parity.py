@@ -168,6 +168,16 @@ def run_sample_pass(ctx, fragment: str, rows: np.ndarray, texels: int = 1, *, sa
         cache.release()
 
 
+def node_values(graph: GraphModule, x: torch.Tensor) -> dict[str, torch.Tensor]:
+    """Every node's torch output for the input ``x`` (its ports concatenated), by node id."""
+    values = {"x": x}
+    with torch.no_grad():
+        for node_id, comp in graph.nodes.items():
+            srcs = [values[s] for s in graph.wiring[node_id]]
+            values[node_id] = comp(srcs[0] if len(srcs) == 1 else torch.cat(srcs, -1))
+    return values
+
+
 def uniform_inputs(seed: int, n: int, dim: int, lo: float = -1.0, hi: float = 1.0) -> np.ndarray:
     return np.random.default_rng(seed).uniform(lo, hi, (n, dim)).astype(np.float32)
 

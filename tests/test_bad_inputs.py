@@ -268,13 +268,19 @@ _scene_bytes("truncated", lambda d: d[:100])
 _scene_bytes("binary", lambda d: bytes(range(256)))
 
 
-def _scene_edit(name, edit, expect):
-    @case("scene", name)
-    def build(tmp):
-        s = _scene(tmp)
-        _edit_json(s / "scene.json", edit)
-        argv, out = _render_scene(tmp, s)
-        return argv, expect, [out]
+def _scene_json_edit(area, make_scene):
+    """A case maker: ``make_scene(tmp)``'s scene.json edited by ``edit``, rendered, must fail naming ``expect``."""
+    def add(name, edit, expect):
+        @case(area, name)
+        def build(tmp):
+            s = make_scene(tmp)
+            _edit_json(s / "scene.json", edit)
+            argv, out = _render_scene(tmp, s)
+            return argv, expect, [out]
+    return add
+
+
+_scene_edit = _scene_json_edit("scene", _scene)
 
 
 _scene_edit("size_zero", lambda d: d.update(size=[0, 0]), "size")
@@ -563,13 +569,7 @@ def _(tmp):
     return argv, "zero uv area", [out]
 
 
-def _pbr_edit(name, edit, expect):
-    @case("mesh", name)
-    def build(tmp):
-        s = _pbr_scene(tmp)
-        _edit_json(s / "scene.json", edit)
-        argv, out = _render_scene(tmp, s)
-        return argv, expect, [out]
+_pbr_edit = _scene_json_edit("mesh", _pbr_scene)
 
 
 _pbr_edit("shape_unknown", lambda d: d.update(mesh={"shape": "cube"}), "mesh.shape")

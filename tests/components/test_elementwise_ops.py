@@ -27,7 +27,8 @@ from inshade.models import GraphModule
 from inshade.models.activations import Ceil, Floor, Fmod, Frac, Log, Log2, Power, Remainder, Round, Tanh, Trunc
 from inshade.models.mlp import Dense
 
-from parity import TOL, check_parity, glsl_eval, parity_settings, scaled_error, torch_reference, uniform_inputs
+from parity import (TOL, check_parity, glsl_eval, node_values, parity_settings, scaled_error, torch_reference,
+                    uniform_inputs)
 
 F32 = np.finfo(np.float32)
 TINY = float(F32.tiny)            # 2^-126: below it drivers flush, torch does not
@@ -328,11 +329,7 @@ def test_envelope_bounds_hold_on_samples():
         g = build_op_graph(recipe)
         env = analyse(g.export("ops"), {"x": (-4.0, 4.0)})
         x = torch.from_numpy(uniform_inputs(seed, 4096, 4, -4.0, 4.0))
-        values = {"x": x}
-        with torch.no_grad():
-            for node_id, comp in g.nodes.items():
-                srcs = [values[s] for s in g.wiring[node_id]]
-                values[node_id] = comp(srcs[0] if len(srcs) == 1 else torch.cat(srcs, -1))
+        values = node_values(g, x)
         for node_id, (lo, hi) in env.intervals.items():
             v = values[node_id].numpy()
             slack = 1e-5 * np.maximum(1, np.maximum(abs(lo), abs(hi)))

@@ -18,7 +18,7 @@ from inshade.models import GraphModule
 from inshade.models.activations import Reciprocal, Sqrt
 from inshade.models.mlp import Dense
 
-from parity import check_parity, parity_settings, torch_reference, uniform_inputs
+from parity import check_parity, node_values, parity_settings, torch_reference, uniform_inputs
 
 N = 512
 
@@ -119,11 +119,7 @@ def test_envelope_bounds_hold_on_samples():
         bundle = g.export("ops")
         env = analyse(bundle)
         x = torch.from_numpy(uniform_inputs(seed, 4096, 4))
-        values = {"x": x}
-        with torch.no_grad():
-            for node_id, comp in g.nodes.items():
-                srcs = [values[s] for s in g.wiring[node_id]]
-                values[node_id] = comp(srcs[0] if len(srcs) == 1 else torch.cat(srcs, -1))
+        values = node_values(g, x)
         for node_id, (lo, hi) in env.intervals.items():
             v = values[node_id].numpy()
             assert (v >= lo - 1e-5 * np.maximum(1, abs(lo))).all() and (v <= hi + 1e-5 * np.maximum(1, abs(hi))).all(), \

@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 from inshade.codegen.sdf import SDF_CHUNK, environment_sh, sdf_chunk, sdf_chunks
 from inshade.models.sdf import SdfModule, camera_rays, gradient, normals, render, sh_background_t
 from inshade.geometry.sdf import SdfError, SdfScene, load_sdf, parse_sdf
+from network_view import network_view
 from parity import run_sample_pass
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -232,20 +233,12 @@ def test_primitives_closed_forms():
 # rendering -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", SCENES)
 def test_render_glsl_vs_torch(gl, name):
-    from inshade.runtime.renderer import SceneRenderer
     from inshade.scene.description import load_scene
 
     scene = load_scene(ROOT / f"trained/sdf_{name}")
     size = 64
     cam = scene.make_camera()
-    r = SceneRenderer(scene, gl)
-    try:
-        r.render_network(cam, size, size)
-        from inshade.runtime.render import read_rgba
-        image = read_rgba(r._targets["network"])
-        sh = r.environment_sh()
-    finally:
-        r.release()
+    image, sh = network_view(gl, scene, size)
     ref = render(scene.sdf, cam.uniforms(size, size), size, size, sh)
     diff = image[..., :3] - ref["rgba"][..., :3]
     mse = float(np.mean(diff ** 2))

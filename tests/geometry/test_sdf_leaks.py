@@ -14,6 +14,8 @@ import torch
 
 from inshade.models.sdf import camera_rays, sh_background_t
 
+from network_view import network_view
+
 ROOT = Path(__file__).resolve().parents[2]
 SIZE = 256
 
@@ -43,18 +45,9 @@ def _scene():
 def test_sdf_occlusion_no_leaks_glsl(gl):
     """The shader path (`inshade render trained/sdf_occlusion`): misses are the pixels showing the
     environment colour of their ray."""
-    from inshade.runtime.render import read_rgba
-    from inshade.runtime.renderer import SceneRenderer
-
     scene = _scene()
     cam = scene.make_camera()
-    r = SceneRenderer(scene, gl)
-    try:
-        r.render_network(cam, SIZE, SIZE)
-        image = read_rgba(r._targets["network"])
-        sh = r.environment_sh()
-    finally:
-        r.release()
+    image, sh = network_view(gl, scene, SIZE)
     _, rd = camera_rays(cam.uniforms(SIZE, SIZE), SIZE, SIZE)
     env = sh_background_t(torch.from_numpy(sh), rd).numpy().reshape(SIZE, SIZE, 3)
     hit = np.abs(image[..., :3] - env).max(-1) > 1e-5

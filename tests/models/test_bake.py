@@ -26,13 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # tiny bakes: 8 dirs x 16 points a chunk, so 200 points are 13 shards (the last one short)
 TINY = dict(n_points=200, n_dirs=8, seed=3, holdout=20, holdout_dirs=16, chunk_rays=8 * 16)
 
-
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def _sdf():

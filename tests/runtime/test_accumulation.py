@@ -19,8 +19,7 @@ from hypothesis import strategies as st
 
 from inshade import technique
 from inshade.random import pcg, random_uniform
-from inshade.runtime.programs import ProgramCache
-from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target
+from inshade.runtime.render import float_target, read_rgba_raw, release_target
 
 PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
 TOY = PLUGINS / "toy_noise"
@@ -75,11 +74,8 @@ def test_pcg_known_values():
 
 
 @pytest.fixture
-def random_pass(gl):
-    cache = ProgramCache(gl)
-    p = FullscreenPass(gl, cache.get("common/fullscreen.vert", "passes/random_test.frag"))
-    yield gl, p
-    p.vao.release()
+def random_pass(gl, fullscreen_test_pass):
+    return gl, fullscreen_test_pass("passes/random_test.frag")
 
 
 @FEW

@@ -12,8 +12,7 @@ from hypothesis import strategies as st
 
 from inshade.codegen.glsl import TextureResource
 from inshade.runtime.network import NetworkResources, _make_texture
-from inshade.runtime.programs import ProgramCache
-from inshade.runtime.render import FullscreenPass, float_target, read_rgba_raw, release_target, upload_float_texture
+from inshade.runtime.render import float_target, read_rgba_raw, release_target, upload_float_texture
 
 # Program compiles dominate on llvmpipe: few, small examples.
 FEW = settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -59,11 +58,8 @@ def bilinear(level: np.ndarray, uv: np.ndarray, wrap: str) -> np.ndarray:
 
 
 @pytest.fixture
-def mip_pass(gl):
-    cache = ProgramCache(gl)
-    p = FullscreenPass(gl, cache.get("common/fullscreen.vert", "passes/texture_mips_test.frag"))
-    yield gl, p
-    p.vao.release()
+def mip_pass(gl, fullscreen_test_pass):
+    return gl, fullscreen_test_pass("passes/texture_mips_test.frag")
 
 
 def draw(gl, p, tex, level: int, uvs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

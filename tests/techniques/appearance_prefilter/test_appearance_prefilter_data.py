@@ -160,14 +160,20 @@ def test_brdf_is_reciprocal(rough, metal, seed):
     assert np.allclose(brdf(n, v, l, base, rough, metal), brdf(n, l, v, base, rough, metal), rtol=1e-10, atol=1e-12)
 
 
-def test_white_metal_directional_albedo_is_at_most_one():
-    # midpoint quadrature over the hemisphere of f cos: a GGX-Smith metal loses energy, never gains it
-    k = 400
+def hemisphere(k: int) -> np.ndarray:
+    """Midpoint quadrature directions over the +z hemisphere: k cos-theta rows x 2k phi columns,
+    each of solid angle (1 / k) (2 pi / 2k)."""
     cos_t = (np.arange(k) + 0.5) / k
     phi = (np.arange(2 * k) + 0.5) / (2 * k) * 2 * math.pi
     c, p = np.meshgrid(cos_t, phi, indexing="ij")
     s = np.sqrt(1 - c * c)
-    l = np.stack([s * np.cos(p), s * np.sin(p), c], -1).reshape(-1, 3)
+    return np.stack([s * np.cos(p), s * np.sin(p), c], -1).reshape(-1, 3)
+
+
+def test_white_metal_directional_albedo_is_at_most_one():
+    # midpoint quadrature over the hemisphere of f cos: a GGX-Smith metal loses energy, never gains it
+    k = 400
+    l = hemisphere(k)
     n = np.array([0.0, 0.0, 1.0])
     # (roughness, lower bound): alpha = 1 is analytic, 2 (1 - ln 2) / 2 ~ 0.307 (half the
     # reflections leave below the horizon); smooth metal keeps almost everything
@@ -519,11 +525,7 @@ def test_reference_one_quad_matches_closed_form_values():
     img = render_reference(scene, cam, 5, spp=1, sun_dir=(0, 0, 1), sun_radiance=0.0, env_sh=sh[:1],
                            env_samples=20000, seed=3)
     k = 200
-    c = (np.arange(k) + 0.5) / k
-    p = (np.arange(2 * k) + 0.5) / (2 * k) * 2 * math.pi
-    cc, pp = np.meshgrid(c, p, indexing="ij")
-    s = np.sqrt(1 - cc * cc)
-    l = np.stack([s * np.cos(pp), s * np.sin(pp), cc], -1).reshape(-1, 3)
+    l = hemisphere(k)
     n = np.array([0.0, 0.0, 1.0])
     albedo = (brdf(n, n, l, base, rough, 0.0) * l[:, 2:]).sum(0) / k * (2 * math.pi / (2 * k))
     assert np.allclose(img[2, 2], sh[0] * 0.28209479177387814 * albedo, rtol=0.03)

@@ -29,7 +29,7 @@ from inshade.components.sparse_voxels.torch_twin import SparseVoxels
 from inshade.models import GraphModule
 
 from parity import parity_settings, run_sample_pass
-from test_sparse_voxels import random_voxels
+from test_sparse_voxels import grid_queries, random_voxels
 
 from inshade.techniques.appearance_prefilter import march, memory
 
@@ -37,16 +37,8 @@ GROVE = Path(__file__).resolve().parents[3] / "trained" / "appearance_prefilter_
 
 
 def queries(scale_min: int, scale_max: int) -> np.ndarray:
-    """(scale, i, j, k) int64 for every cell of every scale, each grid padded by one cell all round,
-    plus queries at the scales just outside the range."""
-    rows = []
-    for s in range(scale_min, scale_max + 1):
-        r = np.arange(-1, (1 << s) + 1)
-        k, j, i = np.meshgrid(r, r, r, indexing="ij")
-        rows.append(np.column_stack([np.full(k.size, s), i.ravel(), j.ravel(), k.ravel()]))
-    for s in (scale_min - 1, scale_max + 1):
-        rows.append(np.array([[s, 0, 0, 0], [s, 1, 0, 1]]))
-    return np.concatenate(rows).astype(np.int64)
+    """(scale, i, j, k) int64 of every padded cell of every scale and just outside the range."""
+    return grid_queries(scale_min, scale_max).astype(np.int64)
 
 
 def dense_slot(cells: np.ndarray, scale_min: int, scale_max: int, q: np.ndarray) -> np.ndarray:

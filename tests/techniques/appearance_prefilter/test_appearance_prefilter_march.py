@@ -22,7 +22,6 @@ import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
-from inshade import technique
 from inshade.scene.camera import OrbitCamera
 from inshade.scene.description import DirectionalLight, SceneError, load_scene
 
@@ -37,17 +36,6 @@ MASK, BT, BP = 4, 2, 4
 BINS = BT * BP
 PSNR_MIN = 50.0   # the march against its torch reference
 
-
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    """The record, registered for this module if the built-in list does not hold it yet."""
-    names = [t.name for t in technique.techniques()]
-    if record.TECHNIQUE.name not in names:
-        technique.register(record.TECHNIQUE)
-        yield
-        technique.unregister(record.TECHNIQUE.name)
-    else:
-        yield
 
 
 # --- the view frame ---------------------------------------------------------------------------

@@ -112,13 +112,6 @@ def asset(tmp_path_factory):
     return source, out
 
 
-@pytest.fixture(scope="module")
-def cache():
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.programs import ProgramCache
-
-    return ProgramCache(shared_context())
-
 
 def _draw(renderer, camera, **settings):
     for k, v in settings.items():
@@ -149,11 +142,11 @@ def _scene_folder(folder, scene: dict, files: dict):
     return load_scene(folder)
 
 
-def test_split_is_the_reference_pass_beside_the_prefiltered_voxels(asset, cache, tmp_path):
+def test_split_is_the_reference_pass_beside_the_prefiltered_voxels(asset, program_cache, tmp_path):
     _, out = asset
     dap = json.loads((out / "scene.json").read_text())
     scene = load_scene(out)
-    renderer = SceneRenderer(scene, cache=cache)
+    renderer = SceneRenderer(scene, cache=program_cache)
     try:
         camera = scene.make_camera()
         split = _draw(renderer, camera, view="split")
@@ -167,7 +160,7 @@ def test_split_is_the_reference_pass_beside_the_prefiltered_voxels(asset, cache,
         "program": "passes/gltf_pbr.frag", "networks": [], "mesh": "source.glb", "camera": dap["camera"],
         "lights": dap["lights"], "environment": dap["environment"],
         "settings": {"lights": {"type": "int", "default": 1, "min": 0, "max": 2, "uniform": "u_light_count"}}},
-        {"source.glb": out / "source.glb"}), cache=cache)
+        {"source.glb": out / "source.glb"}), cache=program_cache)
     try:
         shaded = _draw(reference, camera)
     finally:
@@ -183,7 +176,7 @@ def test_split_is_the_reference_pass_beside_the_prefiltered_voxels(asset, cache,
     assert (coverage[far] == 0).mean() >= 0.95
 
 
-def test_the_glTF_pass_marches_the_voxels_as_the_box_pass_does(asset, cache, tmp_path):
+def test_the_glTF_pass_marches_the_voxels_as_the_box_pass_does(asset, program_cache, tmp_path):
     """The prefiltered view from the file's camera equals the procedural scenes' pass
     (passes/appearance_prefilter.frag) from the same camera taken into the unit box (user_asset.py
     cameras): >= 50 dB, the march's parity bound (a few pixels take another DDA step where the
@@ -200,7 +193,7 @@ def test_the_glTF_pass_marches_the_voxels_as_the_box_pass_does(asset, cache, tmp
         {"bundle.json": out / "bundle.json", "weights.safetensors": out / "weights.safetensors"})
     images = []
     for scene in (load_scene(out), box):
-        renderer = SceneRenderer(scene, cache=cache)
+        renderer = SceneRenderer(scene, cache=program_cache)
         try:
             images.append(_draw(renderer, scene.make_camera(), view="prefiltered"))
         finally:

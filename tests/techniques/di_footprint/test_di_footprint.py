@@ -158,13 +158,17 @@ def _camera():
     return camera_from_dict(sampler.CAMERA)
 
 
-def test_di_pass_matches_torch_on_the_shaders_inputs(gl, trained):
-    tex = np.ascontiguousarray(trained.image[::-1])
-    r = bench.PlaneRenderer(gl, trained.bundle, tex, "exact")
+def _plane(gl, trained, *modes):
+    """The plane pass in each of ``modes``: {mode: (colour, the shader's inputs)}."""
+    r = bench.PlaneRenderer(gl, trained.bundle, np.ascontiguousarray(trained.image[::-1]), "exact")
     try:
-        colour, inputs = r.render("di", _camera(), *VIEW, 1.0, sampler.EXTENT)
+        return {m: r.render(m, _camera(), *VIEW, 1.0, sampler.EXTENT) for m in modes}
     finally:
         r.release()
+
+
+def test_di_pass_matches_torch_on_the_shaders_inputs(gl, trained):
+    colour, inputs = _plane(gl, trained, "di")["di"]
     hit = inputs[..., 3] > 0.5
     assert hit.mean() > 0.3 and (~hit).any()                  # plane and sky both in view
     lf = inputs[..., 2][hit]
@@ -182,11 +186,7 @@ def test_emulated_trilinear_matches_gl(gl, trained):
     filter: measured up to 2 8-bit steps off, biased up by 0.3-1.3 steps on average per level):
     3 * 2^-8 + 2/255 ~ 0.0196; the mean stays within one 8-bit step."""
     tex = np.ascontiguousarray(trained.image[::-1])
-    r = bench.PlaneRenderer(gl, trained.bundle, tex, "exact")
-    try:
-        colour, inputs = r.render("explicit_lod", _camera(), *VIEW, 1.0, sampler.EXTENT)
-    finally:
-        r.release()
+    colour, inputs = _plane(gl, trained, "explicit_lod")["explicit_lod"]
     mask = _eroded_hit(inputs)
     chain = sampler.mip_chain(torch.from_numpy(tex))
     x = torch.from_numpy(np.ascontiguousarray(inputs[..., :3][mask]))
@@ -198,12 +198,7 @@ def test_emulated_trilinear_matches_gl(gl, trained):
 
 
 def test_gl_modes_render_and_differ(gl, trained):
-    tex = np.ascontiguousarray(trained.image[::-1])
-    r = bench.PlaneRenderer(gl, trained.bundle, tex, "exact")
-    try:
-        out = {m: r.render(m, _camera(), *VIEW, 1.0, sampler.EXTENT)[0] for m in ("trilinear", "bilinear")}
-    finally:
-        r.release()
+    out = {m: colour for m, (colour, _) in _plane(gl, trained, "trilinear", "bilinear").items()}
     for img in out.values():
         assert np.isfinite(img).all()
     assert np.abs(out["trilinear"] - out["bilinear"]).max() > 0.05   # mips blur what bilinear aliases

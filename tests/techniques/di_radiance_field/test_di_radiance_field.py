@@ -17,7 +17,6 @@ import torch
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from inshade import technique
 from inshade.bundle import load
 from inshade.models.graph import GraphModule
 from inshade.scene.camera import OrbitCamera
@@ -31,16 +30,6 @@ from inshade.techniques.di_radiance_field import field, march, model, train
 W = H = 40
 PSNR_MIN = 50.0   # the march against its torch twin
 
-
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    names = [t.name for t in technique.techniques()]
-    if record.TECHNIQUE.name not in names:
-        technique.register(record.TECHNIQUE)
-        yield
-        technique.unregister(record.TECHNIQUE.name)
-    else:
-        yield
 
 
 @pytest.fixture(scope="module")

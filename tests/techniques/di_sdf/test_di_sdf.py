@@ -25,6 +25,7 @@ from inshade.techniques.di_sdf import data as di_data
 from inshade.techniques.di_sdf import model as di_model
 from inshade.techniques.di_sdf import train as di_sdf
 
+from network_view import network_view
 from parity import assert_parity, parity_settings, run_sample_pass
 
 TINY = dict(rho=2.0, steps=80, batch=4096, samples=30000, lr=1e-2, seed=0)
@@ -151,21 +152,13 @@ def test_scene_sdf_fast_path_within_bound(gl, tiny):
 
 def test_asset_renders_like_torch(gl, tiny):
     """The asset's scene (SceneRenderer, sdf_diffuse + the DI-SDF's textures) vs models/sdf.py."""
-    from inshade.runtime.render import read_rgba
-    from inshade.runtime.renderer import SceneRenderer
     from inshade.scene.description import load_scene
 
     result, out = tiny
     scene = load_scene(out)
     size = 48
     cam = scene.make_camera()
-    r = SceneRenderer(scene, gl)
-    try:
-        r.render_network(cam, size, size)
-        image = read_rgba(r._targets["network"])
-        sh = r.environment_sh()
-    finally:
-        r.release()
+    image, sh = network_view(gl, scene, size)
     ref = di_sdf.render_module(di_model.sdf_module(result.bundle), cam.uniforms(size, size), size, sh)
     from inshade.models.sdf import camera_rays, sh_background_t
 

@@ -23,7 +23,6 @@ from inshade.techniques.neural_image.train import predict
 from inshade.runtime.context import gl_info, shared_context
 from inshade.runtime.headless import RenderSpecError, render_bundle, save_render
 from inshade.scene.image_io import read_exr, write_png
-from inshade.runtime.programs import ProgramCache
 
 SHIPPED = Path(__file__).resolve().parents[3] / "trained" / "neural_image"
 ATOL = 1e-5
@@ -36,13 +35,8 @@ def shipped():
 
 
 @pytest.fixture(scope="module")
-def programs():
-    return ProgramCache(shared_context())
-
-
-@pytest.fixture(scope="module")
-def rendered(shipped, programs):
-    return render_bundle(shipped, width=SIZE, height=SIZE, cache=programs)
+def rendered(shipped, program_cache):
+    return render_bundle(shipped, width=SIZE, height=SIZE, cache=program_cache)
 
 
 @pytest.fixture(scope="module")
@@ -125,10 +119,10 @@ def test_orientation_top_left_is_not_flipped(rendered, shipped):
     assert np.abs(image[::-1, :, :3] - image[..., :3]).mean() > 0.02
 
 
-def test_full_size_render_matches_torch_preview(shipped, programs, tmp_path):
+def test_full_size_render_matches_torch_preview(shipped, program_cache, tmp_path):
     """The 256x256 GL render encodes to the PNG torch wrote at training time (same program,
     so no second JIT): at most one 8-bit level apart (rounding at a .5 boundary)."""
-    image, _ = render_bundle(shipped, cache=programs)
+    image, _ = render_bundle(shipped, cache=program_cache)
     assert image.shape == (256, 256, 4)
     preview = np.asarray(Image.open(SHIPPED / "preview.png").convert("RGB"), np.int16)
     ours = np.asarray(Image.open(write_png(tmp_path / "gl.png", image[..., :3])), np.int16)

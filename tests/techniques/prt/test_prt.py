@@ -28,6 +28,8 @@ from inshade.techniques.prt.twin import (PrtShading, compose, image_metrics, lig
 from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 from inshade.sh import (convolve_zonal, lambert_bands, phong_bands, sh_evaluate, sh_product, triple_product_tensor)
 
+from prt_gl import render_with_gbuffer
+
 ROOT = Path(__file__).resolve().parents[3]
 SIZE = 48
 
@@ -86,15 +88,8 @@ def prt_scene(tmp_path_factory):
     return folder, graph, frame
 
 
-@pytest.fixture(scope="module")
-def cache():
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.programs import ProgramCache
 
-    return ProgramCache(shared_context())  # one compile of the PRT program for the whole module
-
-
-def _gl_render(gl, cache, folder, settings_seq, size=SIZE):
+def _gl_render(gl, program_cache, folder, settings_seq, size=SIZE):
     """Render the scene once per settings dict in ``settings_seq`` through one SceneRenderer
     (settings changes take the uniform path); returns the linear RGBA images and the renderer's
     environment SH of the last one."""
@@ -103,7 +98,7 @@ def _gl_render(gl, cache, folder, settings_seq, size=SIZE):
     from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
-    r = SceneRenderer(scene, gl, cache=cache)
+    r = SceneRenderer(scene, gl, cache=program_cache)
     images, outcomes = [], []
     try:
         cam = scene.make_camera()
@@ -237,13 +232,13 @@ def test_prt_passes_pass_glslang(prt_scene, tmp_path, version):
 
 
 # GLSL vs torch ---------------------------------------------------------------------------------------
-def test_transfer_at_hit_points_glsl_vs_torch(gl, cache, prt_scene):
+def test_transfer_at_hit_points_glsl_vs_torch(gl, program_cache, prt_scene):
     """The network in the shader at the shader's own hit points and normals vs the torch network
     at those points: <= 1e-4."""
     from inshade.techniques.prt.transfer_model import evaluate_transfer
 
     folder, graph, frame = prt_scene
-    images, _, _, _, _ = _gl_render(gl, cache, folder, [{"debug": d} for d in (5, 6, 1, 2, 3, 4)])
+    images, _, _, _, _ = _gl_render(gl, program_cache, folder, [{"debug": d} for d in (5, 6, 1, 2, 3, 4)])
     pos, nrm = images[0], images[1]
     mask = pos[..., 3] > 0.5
     assert mask.sum() > 0.25 * SIZE * SIZE, "the test camera should see the object"
@@ -257,10 +252,10 @@ def test_transfer_at_hit_points_glsl_vs_torch(gl, cache, prt_scene):
 
 
 @pytest.mark.parametrize("mode,sky,rotation", [("diffuse", "noon", 0.0), ("glossy", "sunset", 90.0)])
-def test_image_glsl_vs_torch_reference(gl, cache, prt_scene, mode, sky, rotation):
+def test_image_glsl_vs_torch_reference(gl, program_cache, prt_scene, mode, sky, rotation):
     folder, graph, frame = prt_scene
     settings = {"shading": mode, "sky": sky, "env_rotation": rotation, "phong_exponent": 8.0, "ks": 0.7}
-    images, sh, scene, _, _ = _gl_render(gl, cache, folder, [settings])
+    images, sh, scene, _, _ = _gl_render(gl, program_cache, folder, [settings])
     np.testing.assert_array_equal(sh, environment_sh(sky, rotation))
     cam = scene.make_camera()
     shading = PrtShading(mode=mode, exponent=8.0, albedo=1.0, kd=1.0, ks=0.7)
@@ -273,11 +268,11 @@ def test_image_glsl_vs_torch_reference(gl, cache, prt_scene, mode, sky, rotation
     assert psnr >= 50.0, f"{mode}: PSNR {psnr:.1f} dB (surface max err {np.abs(surface).max():.3g})"
 
 
-def test_glossy_ks_and_settings_take_the_uniform_path(gl, cache, prt_scene):
+def test_glossy_ks_and_settings_take_the_uniform_path(gl, program_cache, prt_scene):
     folder, _, _ = prt_scene
     seq = [{}, {"shading": "glossy", "ks": 0.0}, {"ks": 0.8}, {"phong_exponent": 64.0}, {"sky": "sunset"},
            {"env_rotation": 120.0}, {"albedo": 0.5}]
-    images, sh, _, outcomes, _ = _gl_render(gl, cache, folder, seq)
+    images, sh, _, outcomes, _ = _gl_render(gl, program_cache, folder, seq)
     assert all(o == "uniform" for row in outcomes for o in row), outcomes
     diffuse, glossy_ks0 = images[0], images[1]
     np.testing.assert_array_equal(glossy_ks0, diffuse)          # ks = 0: glossy adds exactly nothing
@@ -285,13 +280,13 @@ def test_glossy_ks_and_settings_take_the_uniform_path(gl, cache, prt_scene):
         assert np.abs(a - b).max() > 1e-3, f"changing {what} did not change the image"
 
 
-def test_light_matrix_follows_environment(gl, cache, prt_scene):
+def test_light_matrix_follows_environment(gl, program_cache, prt_scene):
     from inshade.runtime.renderer import SceneRenderer
     from inshade.scene.description import load_scene
 
     folder, _, _ = prt_scene
     scene = load_scene(folder)
-    r = SceneRenderer(scene, gl, cache=cache)
+    r = SceneRenderer(scene, gl, cache=program_cache)
     try:
         cam = scene.make_camera()
         u1 = r._uniforms(r.program, cam, 8, 8)["u_prt_light"]
@@ -303,7 +298,7 @@ def test_light_matrix_follows_environment(gl, cache, prt_scene):
     assert u2 == light_matrix_uniform(environment_sh("noon", 45.0)) and u1 != u2
 
 
-def test_unbound_prt_uniforms_take_defaults(gl, cache, prt_scene, tmp_path):
+def test_unbound_prt_uniforms_take_defaults(gl, program_cache, prt_scene, tmp_path):
     """A scene without PRT settings gets techniques/prt/codegen.py UNIFORM_DEFAULTS (= PrtShading()) every
     frame, even on a program another renderer left in a debug view."""
     import dataclasses
@@ -317,8 +312,8 @@ def test_unbound_prt_uniforms_take_defaults(gl, cache, prt_scene, tmp_path):
     src, _, _ = prt_scene
     shutil.copytree(src / "transfer", tmp_path / "transfer")
     plain = write_scene(tmp_path, settings={})
-    first, _, _, _, _ = _gl_render(gl, cache, src, [{"debug": 5}, {"debug": 0}])
-    second, _, _, _, _ = _gl_render(gl, cache, plain, [{}])
+    first, _, _, _, _ = _gl_render(gl, program_cache, src, [{"debug": 5}, {"debug": 0}])
+    second, _, _, _, _ = _gl_render(gl, program_cache, plain, [{}])
     np.testing.assert_array_equal(second[0], first[1])
 
 
@@ -420,7 +415,7 @@ def test_bad_environment_one_clear_error(tmp_path, prt_scene):
     _scene_error(with_env("degree", {"sky": "noon", "degree": 3}), "environment.degree")
 
 
-def test_environment_map_lights_the_scene(gl, cache, tmp_path, prt_scene):
+def test_environment_map_lights_the_scene(gl, program_cache, tmp_path, prt_scene):
     """An equirectangular map (here the sunset preset written to EXR) lights the scene as the
     preset's own SH does, and rotates with the environment setting."""
     from inshade.sh import procedural_sky
@@ -434,7 +429,7 @@ def test_environment_map_lights_the_scene(gl, cache, tmp_path, prt_scene):
     write_exr(folder / "env.exr", procedural_sky("sunset", 256))
     settings = {"env_rotation": dict(PRT_SETTINGS["env_rotation"], default=30.0)}
     write_scene(folder, environment={"map": "env.exr", "rotation": 30.0}, settings=settings)
-    r = SceneRenderer(load_scene(folder), gl, cache=cache)
+    r = SceneRenderer(load_scene(folder), gl, cache=program_cache)
     try:
         np.testing.assert_allclose(r.environment_sh(), environment_sh("sunset", 30.0), rtol=1e-5, atol=1e-5)
         r.set_setting("env_rotation", -60.0)
@@ -444,12 +439,12 @@ def test_environment_map_lights_the_scene(gl, cache, tmp_path, prt_scene):
 
 
 # headless + quality ---------------------------------------------------------------------------------
-def test_headless_render_and_sidecar(gl, cache, prt_scene, tmp_path):
+def test_headless_render_and_sidecar(gl, program_cache, prt_scene, tmp_path):
     from inshade.runtime.headless import render_scene, save_render
 
     folder, _, _ = prt_scene
     image, info = render_scene(folder, width=24, height=24, settings={"shading": "glossy", "sky": "sunset"}, ctx=gl,
-                               cache=cache)
+                               cache=program_cache)
     assert image.shape == (24, 24, 4) and np.isfinite(image).all()
     assert info["bundles"][0]["prefix"] == "transfer" and info["sdf"]["name"] == "prt_test"
     assert info["environment"]["sky"] == "sunset" and info["view"]["settings"]["shading"] == "glossy"
@@ -464,12 +459,12 @@ def test_transfer_bundle_alone_is_one_clear_error(prt_scene):
         render_bundle(prt_scene[0] / "transfer")
 
 
-def test_quality_orbit_smoke(gl, cache, prt_scene):
+def test_quality_orbit_smoke(gl, program_cache, prt_scene):
     """quality_orbit runs GL vs the ray-cast ground truth (tiny: 2 views, 16x16, 16 rays) and
     reports finite, per-view PSNR/SSIM/MAE for both materials. The values are meaningless for an
     untrained network; benchmarks report the real ones."""
     folder, _, _ = prt_scene
-    out = quality_orbit(folder, n_views=2, size=16, n_dirs=16, ctx=gl, cache=cache, progress=False)
+    out = quality_orbit(folder, n_views=2, size=16, n_dirs=16, ctx=gl, cache=program_cache, progress=False)
     assert out["gl_renderer"] and out["n_views"] == 2
     for mode in SHADING_MODES:
         assert len(out[mode]["views"]) == 2
@@ -520,32 +515,15 @@ def mesh_scene(tmp_path_factory):
     return folder, graph, frame
 
 
-def _gl_mesh(gl, cache, folder, settings_seq, size=SIZE):
-    from inshade.runtime.render import read_rgba
-    from inshade.runtime.renderer import SceneRenderer
-    from inshade.scene.description import load_scene
-
-    scene = load_scene(folder)
-    r = SceneRenderer(scene, gl, cache=cache)
-    out = []
-    try:
-        cam = scene.make_camera()
-        for settings in settings_seq:
-            for k, v in settings.items():
-                r.set_setting(k, v)
-            image = read_rgba(r.render_network(cam, size, size)).copy()
-            out.append((image, *[a.copy() for a in r.gbuffer.read()[:2]]))
-        sh = r.environment_sh()
-    finally:
-        r.release()
-    return out, sh, scene
+def _gl_mesh(gl, program_cache, folder, settings_seq, size=SIZE):
+    return render_with_gbuffer(gl, program_cache, folder, settings_seq, size, targets=2)
 
 
-def test_mesh_transfer_at_gbuffer_points_glsl_vs_torch(gl, cache, mesh_scene):
+def test_mesh_transfer_at_gbuffer_points_glsl_vs_torch(gl, program_cache, mesh_scene):
     from inshade.techniques.prt.transfer_model import evaluate_transfer
 
     folder, graph, frame = mesh_scene
-    out, _, _ = _gl_mesh(gl, cache, folder, [{"debug": d} for d in (1, 2, 3, 4)])
+    out, _, _ = _gl_mesh(gl, program_cache, folder, [{"debug": d} for d in (1, 2, 3, 4)])
     _, pos, nrm = out[0]
     covered = pos[..., 3] > 0
     assert covered.mean() > 0.2
@@ -558,11 +536,11 @@ def test_mesh_transfer_at_gbuffer_points_glsl_vs_torch(gl, cache, mesh_scene):
 
 
 @pytest.mark.parametrize("mode", SHADING_MODES)
-def test_mesh_image_glsl_vs_torch_reference(gl, cache, mesh_scene, mode):
+def test_mesh_image_glsl_vs_torch_reference(gl, program_cache, mesh_scene, mode):
     from inshade.techniques.prt.twin import render_gbuffer
 
     folder, graph, frame = mesh_scene
-    out, sh, scene = _gl_mesh(gl, cache, folder, [{"shading": mode, "sky": "sunset", "env_rotation": 45.0}])
+    out, sh, scene = _gl_mesh(gl, program_cache, folder, [{"shading": mode, "sky": "sunset", "env_rotation": 45.0}])
     image, pos, nrm = out[0]
     ref = render_gbuffer(pos, nrm, graph, frame, scene.make_camera().uniforms(SIZE, SIZE), SIZE, SIZE, sh,
                          PrtShading(mode=mode, exponent=8.0, ks=0.5))
@@ -570,7 +548,7 @@ def test_mesh_image_glsl_vs_torch_reference(gl, cache, mesh_scene, mode):
     assert psnr >= 50.0, f"mesh {mode}: PSNR {psnr:.1f} dB"
 
 
-def test_mesh_scene_errors_and_quality_smoke(gl, cache, mesh_scene, tmp_path):
+def test_mesh_scene_errors_and_quality_smoke(gl, program_cache, mesh_scene, tmp_path):
     folder, _, _ = mesh_scene
     bad = tmp_path / "bad"
     shutil.copytree(folder, bad)
@@ -578,7 +556,7 @@ def test_mesh_scene_errors_and_quality_smoke(gl, cache, mesh_scene, tmp_path):
     _scene_error(bad, "mesh: .*mesh.ply")
     (bad / "mesh.ply").unlink()
     _scene_error(bad, "mesh: .*no such file")
-    out = quality_orbit(folder, n_views=2, size=16, n_dirs=8, ctx=gl, cache=cache, progress=False)
+    out = quality_orbit(folder, n_views=2, size=16, n_dirs=8, ctx=gl, cache=program_cache, progress=False)
     assert all(math.isfinite(out[m]["mae"]) for m in SHADING_MODES)
 
 
@@ -647,10 +625,10 @@ def test_bench_prt_quick_writes_reports(tmp_path):
 # evaluated per ground-truth sample) takes ~35 s: under INSHADE_SLOW.
 @pytest.mark.parametrize("asset", ["prt_creature", pytest.param("prt_neural_bunny", marks=pytest.mark.skipif(
     not os.environ.get("INSHADE_SLOW"), reason="~35 s; set INSHADE_SLOW=1")), "prt_mesh"])
-def test_shipped_prt_asset_meets_quality_targets(asset, cache):
+def test_shipped_prt_asset_meets_quality_targets(asset, program_cache):
     from inshade.techniques.prt.twin import quality_orbit
 
     root = Path(__file__).resolve().parents[3] / "trained" / asset
-    q = quality_orbit(root, n_views=3, size=48, n_dirs=256, cache=cache, progress=False)
+    q = quality_orbit(root, n_views=3, size=48, n_dirs=256, cache=program_cache, progress=False)
     assert q["diffuse"]["psnr"] >= 45.0, q["diffuse"]
     assert q["glossy"]["psnr"] >= 38.0, q["glossy"]

@@ -54,14 +54,6 @@ def asset(tmp_path_factory):
     return source, out
 
 
-@pytest.fixture(scope="module")
-def cache():
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.programs import ProgramCache
-
-    return ProgramCache(shared_context())
-
-
 def _draw(renderer, camera, **settings):
     for k, v in settings.items():
         renderer.set_setting(k, v)
@@ -98,10 +90,10 @@ def test_the_asset_carries_the_file_and_the_glTF_pass(asset):
     assert metrics["provenance"]["gltf"].endswith("source.glb")
 
 
-def test_split_is_the_reference_pass_beside_prt(asset, cache, tmp_path):
+def test_split_is_the_reference_pass_beside_prt(asset, program_cache, tmp_path):
     _, out = asset
     scene = load_scene(out)
-    renderer = SceneRenderer(scene, cache=cache)
+    renderer = SceneRenderer(scene, cache=program_cache)
     try:
         camera = scene.make_camera()
         split = _draw(renderer, camera, view="split", shading="diffuse")
@@ -110,7 +102,7 @@ def test_split_is_the_reference_pass_beside_prt(asset, cache, tmp_path):
     finally:
         renderer.release()
     reference_scene = load_scene(_reference_scene(tmp_path / "reference", out))
-    reference = SceneRenderer(reference_scene, cache=cache)
+    reference = SceneRenderer(reference_scene, cache=program_cache)
     try:
         shaded = _draw(reference, camera, view="shaded", lights=0)
         base_color = _draw(reference, camera, view="base_color")
@@ -123,7 +115,7 @@ def test_split_is_the_reference_pass_beside_prt(asset, cache, tmp_path):
     assert np.array_equal(albedo, base_color)
 
 
-def test_prt_view_matches_the_torch_twin_with_the_files_albedo(asset, cache):
+def test_prt_view_matches_the_torch_twin_with_the_files_albedo(asset, program_cache):
     from inshade.bundle import load
     from inshade.models.graph import GraphModule
     from inshade.techniques.prt.transfer_model import TransferFrame
@@ -131,7 +123,7 @@ def test_prt_view_matches_the_torch_twin_with_the_files_albedo(asset, cache):
 
     _, out = asset
     scene = load_scene(out)
-    renderer = SceneRenderer(scene, cache=cache)
+    renderer = SceneRenderer(scene, cache=program_cache)
     try:
         camera = scene.make_camera()
         albedo = _draw(renderer, camera, view="albedo")

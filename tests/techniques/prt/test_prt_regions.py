@@ -74,22 +74,15 @@ def write_region_scene(folder: Path, bundles, camera=TOP, order=None) -> Path:
     return folder
 
 
-@pytest.fixture(scope="module")
-def cache():
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.programs import ProgramCache
 
-    return ProgramCache(shared_context())
-
-
-def _renders(folder, settings_seq, cache, size=SIZE):
+def _renders(folder, settings_seq, program_cache, size=SIZE):
     from inshade.runtime.context import shared_context
     from inshade.runtime.render import read_rgba
     from inshade.runtime.renderer import SceneRenderer
     from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
-    r = SceneRenderer(scene, shared_context(), cache=cache)
+    r = SceneRenderer(scene, shared_context(), cache=program_cache)
     try:
         cam = scene.make_camera()
         images = []
@@ -104,9 +97,9 @@ def _renders(folder, settings_seq, cache, size=SIZE):
     return images, sh, scene, bundles
 
 
-def _gl_transfer(folder, cache, size=SIZE):
+def _gl_transfer(folder, program_cache, size=SIZE):
     """(positions [H, W, 4], normals, transfer [H, W, 16]) the shader computed (debug views)."""
-    images, _, _, bundles = _renders(folder, [{"debug": d} for d in (5, 6, 1, 2, 3, 4)], cache, size)
+    images, _, _, bundles = _renders(folder, [{"debug": d} for d in (5, 6, 1, 2, 3, 4)], program_cache, size)
     return images[0], images[1], np.concatenate(images[2:], -1), bundles
 
 
@@ -119,8 +112,8 @@ def three_regions(tmp_path_factory):
     return write_region_scene(tmp_path_factory.mktemp("three_regions"), bundles, SLANT, order=[2, 0, 1])
 
 
-def test_region_transfer_glsl_vs_torch_at_hit_points(cache, three_regions):
-    pos, nrm, t_gl, bundles = _gl_transfer(three_regions, cache)
+def test_region_transfer_glsl_vs_torch_at_hit_points(program_cache, three_regions):
+    pos, nrm, t_gl, bundles = _gl_transfer(three_regions, program_cache)
     mask = pos[..., 3] > 0.5
     assert mask.mean() > 0.3
     rs, nets, frames = load_region_set(bundles)
@@ -135,8 +128,8 @@ def test_region_transfer_glsl_vs_torch_at_hit_points(cache, three_regions):
 
 
 @pytest.mark.parametrize("mode", ["diffuse", "glossy"])
-def test_region_image_glsl_vs_torch(cache, three_regions, mode):
-    images, sh, scene, bundles = _renders(three_regions, [{"shading": mode, "ks": 0.7}], cache)
+def test_region_image_glsl_vs_torch(program_cache, three_regions, mode):
+    images, sh, scene, bundles = _renders(three_regions, [{"shading": mode, "ks": 0.7}], program_cache)
     rs, nets, frames = load_region_set(bundles)
     from inshade.techniques.prt.twin import PrtShading
 
@@ -151,22 +144,20 @@ def test_region_image_glsl_vs_torch(cache, three_regions, mode):
 
 
 # the seam -----------------------------------------------------------------------------------------------
-def _row_jumps(folder, cache):
-    """Per pixel row of a top view of the slab: (|T| jump between the two pixels straddling x = 0,
-    the largest pixel-to-pixel change within the band away from the boundary pair), and the
-    shader/twin difference over the band pixels on both sides."""
-    pos, nrm, t_gl, bundles = _gl_transfer(folder, cache, 64)
+def seam_rows(pos, nrm, t_gl, bundles, surface, boundary_pair):
+    """Per pixel row of a top view crossing x = 0: the |T| jump between the two ``surface`` pixels
+    straddling it (``boundary_pair(left, right)``: their indices, or None to skip the row), the
+    largest pixel-to-pixel change within the band away from that pair, and the shader/twin
+    difference over the band pixels on both sides. ``surface(row)``: the row's flat-surface mask."""
     rs, nets, frames = load_region_set(bundles)
     jumps, inner, parity = [], [], []
     for row in range(pos.shape[0]):
-        hit = pos[row, :, 3] > 0.5
-        x = pos[row, :, 0]
-        flat = hit & (np.abs(nrm[row, :, 1] - 1.0) < 1e-3) & (np.abs(pos[row, :, 2]) < 1.2)
-        left = np.nonzero(flat & (x < 0))[0]
-        right = np.nonzero(flat & (x >= 0))[0]
-        if not len(left) or not len(right) or right[0] != left[-1] + 1 and left[0] != right[-1] + 1:
+        x, flat = pos[row, :, 0], surface(row)
+        left, right = np.nonzero(flat & (x < 0))[0], np.nonzero(flat & (x >= 0))[0]
+        pair = boundary_pair(left, right) if len(left) and len(right) else None
+        if pair is None:
             continue
-        a, b = (left[-1], right[0]) if right[0] == left[-1] + 1 else (right[-1], left[0])
+        a, b = pair
         jumps.append(np.abs(t_gl[row, a] - t_gl[row, b]).max())
         band = np.nonzero(flat & (np.abs(x) < 0.3))[0]
         steps = [np.abs(t_gl[row, i + 1] - t_gl[row, i]).max() for i in band[:-1]
@@ -180,13 +171,15 @@ def _row_jumps(folder, cache):
     return np.array(jumps), np.array(inner), np.array(parity)
 
 
-def test_seam_blend_is_continuous_and_hard_switch_is_not(cache, tmp_path):
+def check_seam(write_scene, row_jumps, program_cache, tmp_path):
+    """Two networks side by side: blended across the seam the picture is continuous, switched hard
+    it jumps, and on both sides the shader agrees with the twin."""
     grid = regions.RegionGrid(-2.0, -1.5, 2.0, 1.5, 2, 1)
     table = np.array([0, 1])
-    blended = write_region_scene(tmp_path / "blend", region_bundles(grid, table, (0.1, 0.0), seed=3), TOP)
-    hard = write_region_scene(tmp_path / "hard", region_bundles(grid, table, (0.0, 0.0), seed=3), TOP)
-    j_blend, inner, parity = _row_jumps(blended, cache)
-    j_hard, _, parity_hard = _row_jumps(hard, cache)
+    blended = write_scene(tmp_path / "blend", region_bundles(grid, table, (0.1, 0.0), seed=3), TOP)
+    hard = write_scene(tmp_path / "hard", region_bundles(grid, table, (0.0, 0.0), seed=3), TOP)
+    j_blend, inner, parity = row_jumps(blended, program_cache)
+    j_hard, _, parity_hard = row_jumps(hard, program_cache)
     # both sides of the band agree with the twin
     assert parity.max() <= 1e-4 and parity_hard.max() <= 1e-4, (parity.max(), parity_hard.max())
     # the hard switch jumps by the networks' difference (the test can fail) ...
@@ -194,6 +187,24 @@ def test_seam_blend_is_continuous_and_hard_switch_is_not(cache, tmp_path):
     # ... the blend is continuous: the step across x = 0 is like any step inside the band
     assert np.all(j_blend <= 2.0 * inner + 1e-4), (j_blend, inner)
     assert np.median(j_blend) < 0.25 * np.median(j_hard)
+
+
+def _adjacent(left, right):
+    """The pair straddling x = 0 where the row's surface pixels run on across it."""
+    if right[0] == left[-1] + 1:
+        return left[-1], right[0]
+    return (right[-1], left[0]) if left[0] == right[-1] + 1 else None
+
+
+def _row_jumps(folder, program_cache):
+    """seam_rows over a top view of the slab."""
+    pos, nrm, t_gl, bundles = _gl_transfer(folder, program_cache, 64)
+    return seam_rows(pos, nrm, t_gl, bundles, lambda row: (pos[row, :, 3] > 0.5)
+                     & (np.abs(nrm[row, :, 1] - 1.0) < 1e-3) & (np.abs(pos[row, :, 2]) < 1.2), _adjacent)
+
+
+def test_seam_blend_is_continuous_and_hard_switch_is_not(program_cache, tmp_path):
+    check_seam(write_region_scene, _row_jumps, program_cache, tmp_path)
 
 
 def test_blend_is_continuous_in_the_twin_along_a_fine_line():

@@ -26,7 +26,7 @@ from inshade.techniques.prt.region_twin import load_region_set, region_transfer,
 from inshade.techniques.prt.transfer_model import evaluate_transfer
 from inshade.techniques.prt.twin import PrtShading
 
-from test_prt_regions import SETTINGS, SLANT, TOP, region_bundles
+from test_prt_regions import SETTINGS, SLANT, check_seam, region_bundles, seam_rows
 
 SIZE = 48
 GRID = regions.RegionGrid(-2.0, -1.5, 2.0, 1.5, 2, 2)
@@ -79,15 +79,8 @@ def write_mesh_scene(folder: Path, bundles, camera, order=None) -> Path:
     return folder
 
 
-@pytest.fixture(scope="module")
-def cache():
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.programs import ProgramCache
 
-    return ProgramCache(shared_context())
-
-
-def _renders(folder, settings_seq, cache, size=SIZE):
+def _renders(folder, settings_seq, program_cache, size=SIZE):
     """GL images (image orientation) per settings dict, the G-buffer position/normal of the last
     (data orientation), the environment SH, the scene and the bundles."""
     from inshade.runtime.context import shared_context
@@ -96,7 +89,7 @@ def _renders(folder, settings_seq, cache, size=SIZE):
     from inshade.scene.description import load_scene
 
     scene = load_scene(folder)
-    r = SceneRenderer(scene, shared_context(), cache=cache)
+    r = SceneRenderer(scene, shared_context(), cache=program_cache)
     try:
         cam = scene.make_camera()
         images = []
@@ -112,20 +105,20 @@ def _renders(folder, settings_seq, cache, size=SIZE):
     return images, pos, nrm, sh, scene, bundles
 
 
-def _gl_transfer(folder, cache, size=SIZE):
+def _gl_transfer(folder, program_cache, size=SIZE):
     """(G-buffer position [H, W, 4], normal, transfer [H, W, 16] the pass computed, bundles), all in
     data orientation (row 0 = GL y 0)."""
-    images, pos, nrm, _, _, bundles = _renders(folder, [{"debug": d} for d in (1, 2, 3, 4)], cache, size)
+    images, pos, nrm, _, _, bundles = _renders(folder, [{"debug": d} for d in (1, 2, 3, 4)], program_cache, size)
     return pos, nrm, np.concatenate([img[::-1] for img in images], -1), bundles
 
 
 # GLSL vs torch ---------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def three_regions(tmp_path_factory, cache):
+def three_regions(tmp_path_factory, program_cache):
     table = np.array([0, 1, 2, 2])        # sides 0|1, 0|2, 1|2 and a corner cross the floor
     bundles = region_bundles(GRID, table, (0.15, 0.2), seed=7)
     folder = write_mesh_scene(tmp_path_factory.mktemp("mesh_three_regions"), bundles, SLANT, order=[1, 2, 0])
-    return folder, _gl_transfer(folder, cache)
+    return folder, _gl_transfer(folder, program_cache)
 
 
 def test_mesh_scene_has_parts_over_several_cells():
@@ -173,9 +166,9 @@ def test_mesh_part_in_one_cell_is_shaded_by_that_cells_network_alone(three_regio
 
 
 @pytest.mark.parametrize("mode", ["diffuse", "glossy"])
-def test_mesh_region_image_glsl_vs_torch(cache, three_regions, mode):
+def test_mesh_region_image_glsl_vs_torch(program_cache, three_regions, mode):
     folder, _ = three_regions
-    images, pos, nrm, sh, scene, bundles = _renders(folder, [{"shading": mode, "ks": 0.7}], cache)
+    images, pos, nrm, sh, scene, bundles = _renders(folder, [{"shading": mode, "ks": 0.7}], program_cache)
     rs, nets, frames = load_region_set(bundles)
     ref = render_gbuffer_regions(pos, nrm, rs, nets, frames, scene.make_camera().uniforms(SIZE, SIZE), SIZE, SIZE,
                                  sh, PrtShading(mode=mode, exponent=8.0, ks=0.7))
@@ -187,48 +180,18 @@ def test_mesh_region_image_glsl_vs_torch(cache, three_regions, mode):
 
 
 # the seam ---------------------------------------------------------------------------------------------
-def _row_jumps(folder, cache):
-    """Per pixel row of a top view of the floor (G-buffer rows): the |T| jump between the two floor
-    pixels straddling x = 0, the largest pixel-to-pixel change within the band away from that pair,
-    and the shader/twin difference over the band pixels on both sides."""
-    pos, nrm, t_gl, bundles = _gl_transfer(folder, cache, 64)
-    rs, nets, frames = load_region_set(bundles)
-    jumps, inner, parity = [], [], []
-    for row in range(pos.shape[0]):
-        x = pos[row, :, 0]
-        floor = (pos[row, :, 3] > 0) & (np.abs(nrm[row, :, 1] - 1.0) < 1e-3) & (np.abs(pos[row, :, 1]) < 1e-4)
-        floor &= np.abs(pos[row, :, 2]) < 1.2
-        left, right = np.nonzero(floor & (x < 0))[0], np.nonzero(floor & (x >= 0))[0]
-        if not len(left) or not len(right):
-            continue
-        pairs = [(a, a + 1) for a in left if a + 1 in right] + [(a, a - 1) for a in left if a - 1 in right]
-        if len(pairs) != 1:
-            continue
-        a, b = pairs[0]
-        jumps.append(np.abs(t_gl[row, a] - t_gl[row, b]).max())
-        band = np.nonzero(floor & (np.abs(x) < 0.3))[0]
-        steps = [np.abs(t_gl[row, i + 1] - t_gl[row, i]).max() for i in band[:-1]
-                 if i + 1 in band and {i, i + 1} != {a, b}]
-        inner.append(max(steps) if steps else 0.0)
-        sel = floor & (np.abs(x) < 0.3)
-        ref = region_transfer(rs, nets, frames, torch.from_numpy(pos[row, sel, :3]),
-                              torch.from_numpy(nrm[row, sel, :3])).numpy()
-        parity.append(np.abs(t_gl[row, sel] - ref).max())
-    assert len(jumps) >= 10, "the top view should cross the boundary on many floor rows"
-    return np.array(jumps), np.array(inner), np.array(parity)
+def _one_pair(left, right):
+    """The only pair of floor pixels straddling x = 0 (a row with more, or none, is skipped)."""
+    pairs = [(a, a + 1) for a in left if a + 1 in right] + [(a, a - 1) for a in left if a - 1 in right]
+    return pairs[0] if len(pairs) == 1 else None
 
 
-def test_mesh_seam_blend_is_continuous_and_hard_switch_is_not(cache, tmp_path):
-    grid = regions.RegionGrid(-2.0, -1.5, 2.0, 1.5, 2, 1)
-    table = np.array([0, 1])
-    blended = write_mesh_scene(tmp_path / "blend", region_bundles(grid, table, (0.1, 0.0), seed=3), TOP)
-    hard = write_mesh_scene(tmp_path / "hard", region_bundles(grid, table, (0.0, 0.0), seed=3), TOP)
-    j_blend, inner, parity = _row_jumps(blended, cache)
-    j_hard, _, parity_hard = _row_jumps(hard, cache)
-    # both sides of the band agree with the twin
-    assert parity.max() <= 1e-4 and parity_hard.max() <= 1e-4, (parity.max(), parity_hard.max())
-    # the hard switch jumps by the networks' difference (the test can fail) ...
-    assert np.median(j_hard) > 0.02, j_hard
-    # ... the blend is continuous: the step across x = 0 is like any step inside the band
-    assert np.all(j_blend <= 2.0 * inner + 1e-4), (j_blend, inner)
-    assert np.median(j_blend) < 0.25 * np.median(j_hard)
+def _row_jumps(folder, program_cache):
+    """seam_rows over a top view of the floor (G-buffer rows)."""
+    pos, nrm, t_gl, bundles = _gl_transfer(folder, program_cache, 64)
+    return seam_rows(pos, nrm, t_gl, bundles, lambda row: (pos[row, :, 3] > 0) & (np.abs(nrm[row, :, 1] - 1.0) < 1e-3)
+                     & (np.abs(pos[row, :, 1]) < 1e-4) & (np.abs(pos[row, :, 2]) < 1.2), _one_pair)
+
+
+def test_mesh_seam_blend_is_continuous_and_hard_switch_is_not(program_cache, tmp_path):
+    check_seam(write_mesh_scene, _row_jumps, program_cache, tmp_path)

@@ -26,6 +26,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from parity import assert_parity, parity_settings
+from prt_gl import render_with_gbuffer
 
 from inshade.techniques.prt import texture_prt as tp
 from inshade.techniques.prt.texture_codegen import KIND, PREFIX, PROGRAM
@@ -132,38 +133,13 @@ def test_bake_is_deterministic_and_cached(atlas_mesh, tmp_path):
 
 
 # parity through the driver ----------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def cache():
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.programs import ProgramCache
-
-    return ProgramCache(shared_context())
-
-
-def _gl(gl, cache, folder, settings_seq):
-    from inshade.runtime.render import read_rgba
-    from inshade.runtime.renderer import SceneRenderer
-    from inshade.scene.description import load_scene
-
-    scene = load_scene(folder)
-    r = SceneRenderer(scene, gl, cache=cache)
-    out = []
-    try:
-        cam = scene.make_camera()
-        for settings in settings_seq:
-            for k, v in settings.items():
-                r.set_setting(k, v)
-            image = read_rgba(r.render_network(cam, SIZE, SIZE)).copy()
-            out.append((image, *[a.copy() for a in r.gbuffer.read()[:3]]))
-        sh = r.environment_sh()
-    finally:
-        r.release()
-    return out, sh, scene
+def _gl(gl, program_cache, folder, settings_seq):
+    return render_with_gbuffer(gl, program_cache, folder, settings_seq, SIZE, targets=3)
 
 
 @parity_settings(max_examples=3)
 @given(seed=st.integers(0, 2 ** 16), bits=st.sampled_from(tp.BITS))
-def test_texture_transfer_and_images_glsl_vs_torch(gl, cache, atlas_mesh, tmp_path_factory, seed, bits):
+def test_texture_transfer_and_images_glsl_vs_torch(gl, program_cache, atlas_mesh, tmp_path_factory, seed, bits):
     from inshade.models import GraphModule
     from inshade.techniques.prt.twin import PrtShading
 
@@ -176,7 +152,7 @@ def test_texture_transfer_and_images_glsl_vs_torch(gl, cache, atlas_mesh, tmp_pa
     _scene(folder, bundle)
     seq = [{"debug": d} for d in (1, 2, 3, 4)] + [{"debug": 0, "shading": m, "sky": "sunset"}
                                                 for m in ("diffuse", "glossy")]
-    out, sh, scene = _gl(gl, cache, folder, seq)
+    out, sh, scene = _gl(gl, program_cache, folder, seq)
     _, pos, nrm, uv = out[0]
     covered = pos[..., 3] > 0
     assert covered.mean() > 0.2
@@ -268,7 +244,7 @@ def test_cli_quick_preset_end_to_end(tmp_path):
 ASSET = ROOT / "trained" / "prt_mesh_texture"
 
 
-def test_shipped_texture_asset_renders_and_matches_twin(gl, cache):
+def test_shipped_texture_asset_renders_and_matches_twin(gl, program_cache):
     from inshade.bundle import load
     from inshade.models import GraphModule
     from inshade.techniques.prt.twin import PrtShading
@@ -278,7 +254,7 @@ def test_shipped_texture_asset_renders_and_matches_twin(gl, cache):
     bundle = load(ASSET / "transfer")
     info = bundle.meta["render"]["transfer_texture"]
     assert bundle.kind == KIND and info["bleed"]["footprint_cells_other_chart"] == 0
-    out, sh, scene = _gl(gl, cache, ASSET, [{"shading": "glossy"}])
+    out, sh, scene = _gl(gl, program_cache, ASSET, [{"shading": "glossy"}])
     image, p, n, u = out[0]
     ref = tp.render_gbuffer_texture(p, n, u, GraphModule.from_bundle(bundle),
                                     scene.make_camera().uniforms(SIZE, SIZE), SIZE, SIZE, sh,
@@ -289,7 +265,7 @@ def test_shipped_texture_asset_renders_and_matches_twin(gl, cache):
     # rays: estimator noise ~51 dB diffuse); the 30-view numbers are in metrics.json (55.8 / 52.8 dB)
     from inshade.techniques.prt.twin import quality_orbit
 
-    q = quality_orbit(ASSET, n_views=3, size=48, n_dirs=256, cache=cache, progress=False)
+    q = quality_orbit(ASSET, n_views=3, size=48, n_dirs=256, cache=program_cache, progress=False)
     assert q["diffuse"]["psnr"] >= 45.0 and q["glossy"]["psnr"] >= 40.0, q
 
 

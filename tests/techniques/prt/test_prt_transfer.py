@@ -32,13 +32,7 @@ from inshade.techniques.prt.transfer_training import train_transfer, transfer_me
 from inshade.geometry.sdf import parse_sdf
 from inshade.sh import band_of, lambert_bands, sh_basis
 
-@pytest.fixture(autouse=True, scope="module")
-def one_thread():
-    # two OpenMP threads on the shared 2-core machine spin against other work: ~10x slower
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 R, H = 0.5, 1.0      # occluder sphere radius and its centre's height above the plane (along +z)
