@@ -52,7 +52,7 @@ NAME = "suite"              # this bench's own name in the bench table (it does 
 
 def entry(name: str) -> SuiteEntry | None:
     """The suite entry a registered bench's module declares (``SUITE``); None for a bench not
-    registered or declaring none (reported as not run, and tests/test_bench_suite.py fails)."""
+    registered or declaring none (reported as not run, and tests/bench/test_bench_suite.py fails)."""
     module = registered().get(name)
     if module is None:
         return None

@@ -110,6 +110,15 @@ def choice_chunks(spec: ProgramSpec) -> dict[str, str]:
     return {CHOICES_CHUNK: "\n".join(lines) + "\n"}
 
 
+def prefixed_bundle(bundles, networks, prefix: str, program: str, what: str = ""):
+    """The loaded bundle of the scene's network at ``prefix``: a program's hooks get the bundles and
+    the networks side by side. ``what`` names the network in the error."""
+    for bundle, net in zip(bundles, networks):
+        if net.prefix == prefix:
+            return bundle
+    raise ValueError(f"networks: {program} needs one network with prefix \"{prefix}\"" + (f" ({what})" if what else ""))
+
+
 @dataclass(frozen=True)
 class FrameInputs:
     """What a program's per-frame hook sees: the scene, the current setting values, and the
@@ -306,6 +315,21 @@ class Technique:
         if self.train_alias is not None and not (self.train and self.train_alias.isidentifier()):
             raise TechniqueError(f"technique {self.name!r}: train_alias needs a trainer and an identifier, "
                                  f"got {self.train_alias!r}")
+
+
+def folder_fields(package: str, *, train: str | None = None, bench: str | None = None,
+                  shaders: bool = False) -> dict:
+    """A record's fields that follow from its folder, for ``Technique(**folder_fields(__name__, ...))``:
+    the ``train`` / ``bench`` modules beside the package's ``__init__`` (given: their help lines) and
+    its ``shaders/`` folder, so a record never spells its own folder's name."""
+    fields = {}
+    if train is not None:
+        fields.update(train=f"{package}.train", train_help=train)
+    if bench is not None:
+        fields.update(bench=f"{package}.bench", bench_help=bench)
+    if shaders:
+        fields["shaders"] = Path(sys.modules[package].__file__).resolve().parent / "shaders"
+    return fields
 
 
 _REGISTRY: dict[str, Technique] = {}

@@ -36,6 +36,7 @@ from typing import Callable
 import numpy as np
 
 from inshade.files import atomic_files
+from inshade.models.tensor_file import read_tensors
 
 FORMAT = "inshade.bake_shard"
 
@@ -118,14 +119,8 @@ def save_shard(path, name: str, result: dict) -> None:
 
 
 def load_shard(path, name: str) -> dict:
-    from safetensors import safe_open
-
-    try:
-        with safe_open(str(path), framework="np") as f:
-            header = f.metadata() or {}
-            arrays = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception as exc:  # safetensors raises several types for corrupt files
-        raise BakeError(f"{path}: unreadable bake shard ({exc}); delete it to recompute") from None
+    header, arrays = read_tensors(
+        path, "np", lambda exc: BakeError(f"{path}: unreadable bake shard ({exc}); delete it to recompute"))
     if header.get("format") != FORMAT or header.get("shard") != name:
         raise BakeError(f"{path}: not shard {name!r} of this bake ({json.dumps(header)}); delete it to recompute")
     return arrays

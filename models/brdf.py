@@ -19,7 +19,7 @@ clearcoat_gloss (Li's / Burley's names in snake case), plus base_color [..., 3] 
 
 float32 mirroring (as codegen/sdf.py): the GLSL performs these operations one for one in the same
 order; powers are written as products, constants are float32 literals, the one log and the sqrts
-are the driver's. Parity is |glsl - torch| <= 1e-5 max(1, |torch|) (tests/test_brdf.py).
+are the driver's. Parity is |glsl - torch| <= 1e-5 max(1, |torch|) (tests/models/test_brdf.py).
 """
 from __future__ import annotations
 

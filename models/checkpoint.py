@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from inshade.files import atomic_files
+from inshade.models.tensor_file import read_tensors
 
 
 def write_checkpoint(path, kind: str, tensors: dict, config: dict, **meta) -> None:
@@ -24,15 +25,8 @@ def write_checkpoint(path, kind: str, tensors: dict, config: dict, **meta) -> No
 def read_checkpoint(path, kind: str, config: dict, hint: str) -> tuple[dict, dict]:
     """(tensors, metadata) of a checkpoint of this ``kind`` and ``config``; ``hint`` ends the
     config-mismatch message (how to start over)."""
-    from safetensors import safe_open
-
     path = Path(path)
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            header = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception as exc:  # safetensors raises several types for corrupt files
-        raise ValueError(f"{path}: unreadable checkpoint ({exc}); {hint}") from None
+    header, tensors = read_tensors(path, "pt", lambda exc: ValueError(f"{path}: unreadable checkpoint ({exc}); {hint}"))
     if header.get("format") != f"inshade.{kind}_checkpoint":
         raise ValueError(f"{path}: format: not a {kind} checkpoint")
     saved = json.loads(header.get("config", "{}"))

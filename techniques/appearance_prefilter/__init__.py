@@ -16,10 +16,9 @@ passes/appearance_prefilter_gltf.frag: the file as the scene's mesh with its ref
 also holds ``world`` ({"centre": [3], "scale": s}: box = (world - centre) * scale + 0.5), which
 becomes DAP_WORLD_CENTRE / DAP_WORLD_SCALE in <dap_config>.
 """
-from pathlib import Path
 
 from inshade.papers import APPEARANCE_PREFILTERING
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields, prefixed_bundle
 
 KIND = "appearance_prefilter"
 PREFIX = "dap"
@@ -65,10 +64,7 @@ def bins_layout(render: dict, where: str) -> tuple[int, int, int, int]:
 
 
 def _dap_bundle(scene, bundles, networks):
-    for b, n in zip(bundles, networks):
-        if n.prefix == PREFIX:
-            return b
-    raise ValueError(f"networks: {PROGRAM} needs one network with prefix \"{PREFIX}\" (the {KIND} bundle)")
+    return prefixed_bundle(bundles, networks, PREFIX, PROGRAM, f"the {KIND} bundle")
 
 
 def _chunks(scene, bundles, networks, codegen_options) -> dict:
@@ -221,11 +217,11 @@ TECHNIQUE = Technique(
               ProgramSpec(GLTF_PROGRAM, geometry="mesh", mesh_attributes=("materials",), bundle_kinds=(KIND,),
                           uniforms=UNIFORM_DEFAULTS, chunks=_gltf_chunks, frame=_frame, validate=_validate,
                           shadows=_shadows, choices=(Choice("u_dap_view", "DAP_VIEW", GLTF_VIEWS),))),
-    train="inshade.techniques.appearance_prefilter.train",
-    train_help="voxelise a procedural scene or a glTF / OBJ file at several scales, bake per-voxel "
-               "coverage/albedo/phase, fit voxel latents + decoders",
-    bench="inshade.techniques.appearance_prefilter.bench",
-    bench_help="prefiltered voxels vs supersampled and 1-spp full geometry and a decimated mesh: quality, "
-               "memory, speed",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="voxelise a procedural scene or a glTF / OBJ file at several scales, bake per-voxel "
+              "coverage/albedo/phase, fit voxel latents + decoders",
+        bench="prefiltered voxels vs supersampled and 1-spp full geometry and a decimated mesh: quality, "
+              "memory, speed",
+        shaders=True),
 )

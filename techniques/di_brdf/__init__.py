@@ -1,9 +1,8 @@
 """di_brdf: DI approximations of the GGX and Disney BRDFs, shown on material-ball grids next to the
 analytic BRDFs."""
-from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
 
 # BRDF_VIEW and BRDF_MODEL of the material-ball pass, with their indices (its BRDF_VIEW_* and
 # BRDF_MODEL_* come from the program's choices)
@@ -19,9 +18,9 @@ TECHNIQUE = Technique(
     programs=(ProgramSpec("passes/material_balls.frag", geometry="fullscreen",
                           choices=(Choice("BRDF_VIEW", "BRDF_VIEW", VIEWS),
                                    Choice("BRDF_MODEL", "BRDF_MODEL", MODELS))),),
-    train="inshade.techniques.di_brdf.train",
-    train_help="DI approximations of the GGX and Disney BRDFs",
-    bench="inshade.techniques.di_brdf.bench",
-    bench_help="learned (DI) vs analytic GGX / Disney BRDF shader speed, 1-4 lights",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="DI approximations of the GGX and Disney BRDFs",
+        bench="learned (DI) vs analytic GGX / Disney BRDF shader speed, 1-4 lights",
+        shaders=True),
 )

@@ -3,7 +3,7 @@
 A full-screen grid of analytically ray-traced spheres (orthographic camera looking down -z, no
 mesh), each lit by 1-4 point lights, shaded by a BRDF callback. The same operations in the same
 order as the GLSL (lib/material_balls.glsl is folded into the pass), so the two agree to float32
-rounding (tests/test_di_brdf.py).
+rounding (tests/techniques/di_brdf/test_di_brdf.py).
 
 Layout. Pixel centre -> uv = view.xy + (frag / size) * view.zw (the plane2d camera; uv (0, 0)
 bottom-left). With `halves` = 2 (analytic | learned side by side) uv.x is split in two and each

@@ -286,6 +286,7 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
                 gl_modes: bool = False) -> Path:
     """bundle.json + weights.safetensors + scene.json + texture.png (the 8-bit source) +
     preview.png (the scene rendered through the GL driver, DI mode)."""
+    from inshade.runtime.headless import render_scene
     from inshade.scene.image_io import write_png
 
     out = Path(out)
@@ -295,16 +296,8 @@ def write_asset(result: Result, out, title: str | None = None, preview_size=(512
     atomic_write(out / "scene.json", json.dumps(scene_dict(out.name, title, output, preview_size, gl_modes), indent=2) + "\n")
     src = result.image if result.image.shape[2] == 3 else np.repeat(result.image, 3, -1)
     write_png(out / "texture.png", srgb_eotf(src))
-    from inshade.runtime.renderer import SceneRenderer
-    from inshade.scene.description import load_scene
-
-    scene = load_scene(out)
-    r = SceneRenderer(scene)
-    try:
-        r.render(scene.make_camera(), *preview_size)
-        write_png(out / "preview.png", r.read()[..., :3])
-    finally:
-        r.release()
+    image, _ = render_scene(out, width=preview_size[0], height=preview_size[1])
+    write_png(out / "preview.png", image[..., :3])
     return out
 
 

@@ -7,10 +7,9 @@ di_pbr_set --gltf FILE``: albedo, a two-lane normal, roughness, occlusion, metal
 next to the file's own material shaded the same way (lib/gltf_material, the reference). Its bundle's
 ``render.uv_domain`` (material, uv origin, extent, repeat) becomes the chunk <pbr_set_gltf_domain>.
 """
-from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import Choice, MaterialBake, ProgramSpec, Technique
+from inshade.technique import Choice, MaterialBake, ProgramSpec, Technique, folder_fields
 
 # u_pbr_view's values in index order (the pass's PBR_VIEW_* come from the program's choices)
 VIEWS = ("uncompressed", "di", "split")
@@ -81,7 +80,8 @@ TECHNIQUE = Technique(
                           chunks=_gltf_chunks, validate=_gltf_validate, bake=_gltf_bake,
                           uniforms={"u_pbr_error_scale": ERROR_SCALE},
                           choices=(Choice("u_pbr_view", "PBR_VIEW", GLTF_VIEWS),))),
-    train="inshade.techniques.di_pbr_set.train",
-    train_help="a DI-compressed PBR texture set (8 lanes) on a lit mesh, procedural or a glTF file's material",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="a DI-compressed PBR texture set (8 lanes) on a lit mesh, procedural or a glTF file's material",
+        shaders=True),
 )

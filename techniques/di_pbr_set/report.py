@@ -75,6 +75,21 @@ def render_psnr(test: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
     return psnr(a, b, 255.0, mask=mask)
 
 
+DECODERS = (("di_glsl_exact", "DI (GLSL exact)"), ("di_glsl_fast", "DI (GLSL fast)"), ("di_torch", "DI (torch)"))
+
+
+def codec_lines(metrics: dict, row) -> list[str]:
+    """The table's rows, DI's decoders then ASTC's block sizes (``row(name, sizes, quality)``, with
+    ``sizes`` holding bytes and ratio), a blank line and DI's training line: both reports share them."""
+    t = metrics["texture"]
+    lines = [row(label, t, metrics[key]) for key, label in DECODERS if key in metrics]
+    lines += [row(a["codec"], a, a) if a["available"] else f"| {a['codec']} | unavailable: {a['reason']} |||||||"
+              for a in metrics.get("astc", [])]
+    device = metrics.get("device", "cpu")
+    return lines + ["", f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, "
+                        f"{t['train_seconds']:.0f} s training on {'1 CPU thread' if device == 'cpu' else device}."]
+
+
 def markdown(metrics: dict) -> str:
     """The asset's quality table: DI (GLSL-decoded, both LUT paths) against ASTC on the same lanes."""
     t = metrics["texture"]
@@ -85,21 +100,12 @@ def markdown(metrics: dict) -> str:
     head = "| codec | bytes | ratio | albedo dB | normal dB | normal mean / p99 deg | roughness dB | AO dB | all lanes dB |"
     lines += [head, "|---" * (head.count("|") - 1) + "|"]
 
-    def row(name, nbytes, ratio, q):
-        return (f"| {name} | {nbytes} | {ratio:.2f} | {q['psnr_albedo']:.2f} | {q['psnr_normal']:.2f} | "
-                f"{q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f} | {q['psnr_roughness']:.2f} | "
-                f"{q['psnr_ao']:.2f} | {q['psnr_all_lanes']:.2f} |")
+    def row(name, sizes, q):
+        return (f"| {name} | {sizes['bytes']} | {sizes['ratio']:.2f} | {q['psnr_albedo']:.2f} | "
+                f"{q['psnr_normal']:.2f} | {q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f} | "
+                f"{q['psnr_roughness']:.2f} | {q['psnr_ao']:.2f} | {q['psnr_all_lanes']:.2f} |")
 
-    for key, label in (("di_glsl_exact", "DI (GLSL exact)"), ("di_glsl_fast", "DI (GLSL fast)"), ("di_torch", "DI (torch)")):
-        if key in metrics:
-            lines.append(row(label, t["bytes"], t["ratio"], metrics[key]))
-    for a in metrics.get("astc", []):
-        lines.append(row(a["codec"], a["bytes"], a["ratio"], a) if a["available"]
-                     else f"| {a['codec']} | unavailable: {a['reason']} |||||||")
-    lines.append("")
-    device = metrics.get("device", "cpu")
-    lines.append(f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, {t['train_seconds']:.0f} s "
-                 f"training on {'1 CPU thread' if device == 'cpu' else device}.")
+    lines += codec_lines(metrics, row)
     if "render" in metrics:
         r = metrics["render"]
         lines.append(f"Rendered torus ({r['size']}^2, {r['lights']} lights + environment): DI vs uncompressed "
@@ -127,22 +133,12 @@ def gltf_markdown(metrics: dict) -> str:
     def dbs(v):
         return "exact" if v is None else f"{v:.2f}"
 
-    def row(name, nbytes, q):
-        return (f"| {name} | {nbytes} | {dbs(q['psnr_albedo'])} | {dbs(q['psnr_normal'])} | "
+    def row(name, sizes, q):
+        return (f"| {name} | {sizes['bytes']} | {dbs(q['psnr_albedo'])} | {dbs(q['psnr_normal'])} | "
                 f"{q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f} | {dbs(q['psnr_roughness'])} | "
                 f"{dbs(q['psnr_occlusion'])} | {dbs(q['psnr_metallic'])} | {dbs(q['psnr_all_lanes'])} |")
 
-    decoders = (("di_glsl_exact", "DI (GLSL exact)"), ("di_glsl_fast", "DI (GLSL fast)"), ("di_torch", "DI (torch)"))
-    for key, label in decoders:
-        if key in metrics:
-            lines.append(row(label, t["bytes"], metrics[key]))
-    for a in metrics.get("astc", []):
-        lines.append(row(a["codec"], a["bytes"], a) if a["available"]
-                     else f"| {a['codec']} | unavailable: {a['reason']} |||||||")
-    lines.append("")
-    device = metrics.get("device", "cpu")
-    lines.append(f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, {t['train_seconds']:.0f} s "
-                 f"training on {'1 CPU thread' if device == 'cpu' else device}.")
+    lines += codec_lines(metrics, row)
     if "render" in metrics:
         r = metrics["render"]
         lines.append(f"Rendered at the scene camera ({r['size']}^2, {r['lights']} lights + environment): DI vs the "

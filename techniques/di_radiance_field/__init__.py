@@ -14,10 +14,9 @@ metadata gives the march: ``step`` (dt, box units), ``max_steps``, ``background`
 are empty space, optional, default 0), turned into the chunk <rf_config>. The march: shaders/lib/rf_march.glsl (torch twin march.py); the view setting
 switches uncompressed | di | split | error.
 """
-from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields, prefixed_bundle
 
 KIND = "di_radiance_field"
 PROGRAM = "passes/di_radiance_field.frag"
@@ -58,18 +57,11 @@ def march_settings(render: dict, where: str) -> tuple[float, int, tuple, float, 
     return float(step), steps, tuple(float(v) for v in bg), float(scale), float(floor)
 
 
-def _bundle(bundles, networks, prefix):
-    for b, n in zip(bundles, networks):
-        if n.prefix == prefix:
-            return b
-    raise ValueError(f"networks: {PROGRAM} needs one network with prefix \"{prefix}\" (a {KIND} bundle)")
-
-
 def _chunks(scene, bundles, networks, codegen_options) -> dict:
     from inshade.codegen.glsl import flt
     from inshade.codegen.spherical_harmonics import sh_chunks
 
-    b = _bundle(bundles, networks, PREFIX_DI)
+    b = prefixed_bundle(bundles, networks, PREFIX_DI, PROGRAM, f"a {KIND} bundle")
     step, steps, bg, scale, floor = march_settings(b.meta.get("render") or {}, f"bundle {b.name!r}")
     out = {"rf_config": "\n".join([f"#define RF_STEP {flt(step)}", f"#define RF_MAX_STEPS {steps}",
                                    f"#define RF_STOP {flt(STOP)}", f"#define RF_SIGMA_SCALE {flt(scale)}",
@@ -107,10 +99,10 @@ TECHNIQUE = Technique(
     kinds=(KIND,),
     programs=(ProgramSpec(PROGRAM, geometry="fullscreen", bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS,
                           chunks=_chunks, validate=_validate, choices=(Choice("u_rf_view", "RF_VIEW", VIEWS),)),),
-    train="inshade.techniques.di_radiance_field.train",
-    train_help="bake a procedural radiance field (density + SH colour grids) and compress it with "
-               "multi-head DI cascades",
-    bench="inshade.techniques.di_radiance_field.bench",
-    bench_help="DI vs uncompressed grids per compression ratio: PSNR, FLIP, MB per field, frame time",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="bake a procedural radiance field (density + SH colour grids) and compress it with "
+              "multi-head DI cascades",
+        bench="DI vs uncompressed grids per compression ratio: PSNR, FLIP, MB per field, frame time",
+        shaders=True),
 )

@@ -79,7 +79,7 @@ def trace_settings(frame: Frame, truncation: float, n_primary: int, step_scale: 
 
 def fast_path_bound(bundle) -> float:
     """World-space bound on |fast - exact| of ``scene_sdf`` (hardware-filtered lookups): the
-    lookup-array bound of tests/test_lookup_array.py, ``3 * 2^-8 * D + 2^-9 * scale`` per 3D array
+    lookup-array bound of tests/components/test_lookup_array.py, ``3 * 2^-8 * D + 2^-9 * scale`` per 3D array
     (D its largest adjacent-cell difference), with the primary's error e_k on channel k carried
     through the cascaded array's slope along axis k, ``D_c * (N_c - 1)``:
 

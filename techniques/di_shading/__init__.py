@@ -1,10 +1,9 @@
 """di_shading: the DI footprint sampler trained end to end through the frozen DI Disney decoder
 (a shaded loss blended with the sampler's proxy loss by lambda), on the PBR bricks set on a plane seen
 at grazing angles, next to the independently trained sampler and the appearance-filtered reference."""
-from pathlib import Path
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
 
 # SHADING_VIEW: the pass's views and their indices (its SHADING_* come from the program's choices)
 VIEWS = {"end_to_end": 0, "independent": 1, "reference": 2, "split": 3, "trilinear": 4, "analytic": 5}
@@ -16,9 +15,9 @@ TECHNIQUE = Technique(
     kinds=("di_shading", "di_shading_brdf"),
     programs=(ProgramSpec("passes/shading_plane.frag", geometry="fullscreen", attachments=4,
                           choices=(Choice("SHADING_VIEW", "SHADING", VIEWS),)),),
-    train="inshade.techniques.di_shading.train",
-    train_help="DI footprint sampler trained end to end through the frozen DI Disney decoder (lambda sweep)",
-    bench="inshade.techniques.di_shading.bench",
-    bench_help="end-to-end vs independent DI sampler + decoder: PSNR / FLIP vs the 16-sample reference, frame time",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="DI footprint sampler trained end to end through the frozen DI Disney decoder (lambda sweep)",
+        bench="end-to-end vs independent DI sampler + decoder: PSNR / FLIP vs the 16-sample reference, frame time",
+        shaders=True),
 )

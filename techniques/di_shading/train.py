@@ -293,9 +293,8 @@ def write_set_textures(out: Path, image: np.ndarray):
 
 
 def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, preview_size=VIEW_SIZE) -> Path:
+    from inshade.runtime.headless import render_scene
     from inshade.scene.image_io import write_png
-    from inshade.runtime.renderer import SceneRenderer
-    from inshade.scene.description import load_scene
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -309,13 +308,8 @@ def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, preview_s
     lam = next(r.lam for r in runs if lambda_folder(r.lam) == e2e)
     title = f"DI shading pipeline (bricks): independent | end-to-end (lambda {lam:g})"
     atomic_write(out / "scene.json", json.dumps(scene_dict(out.name, title, e2e, preview_size), indent=2) + "\n")
-    scene = load_scene(out)
-    r = SceneRenderer(scene)
-    try:
-        r.render(scene.make_camera(), *preview_size)
-        write_png(out / "preview.png", r.read()[..., :3])
-    finally:
-        r.release()
+    image, _ = render_scene(out, width=preview_size[0], height=preview_size[1])
+    write_png(out / "preview.png", image[..., :3])
     return out
 
 

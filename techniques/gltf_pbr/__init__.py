@@ -17,7 +17,7 @@ import numpy as np
 from inshade.scene.builder import (choice_setting, display_modes, exposure_setting, float_setting, int_setting,
                                     orbit, point_light, scene_json, sky)
 from inshade.scene.tonemap import TONEMAPS
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
 
 PROGRAM = "passes/gltf_pbr.frag"
 # u_gltf_view's values in index order (GLTF_VIEW_* in the pass, from <choices>)
@@ -65,6 +65,6 @@ TECHNIQUE = Technique(
     summary="a glTF 2.0 asset with the spec's reference PBR shading (no network)",
     programs=(ProgramSpec(PROGRAM, geometry="mesh", mesh_attributes=("materials",), networks=False,
                           choices=(Choice("u_gltf_view", "GLTF_VIEW", VIEWS),)),),
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(__name__, shaders=True),
     opens={".glb": scene_data, ".gltf": scene_data},
 )

@@ -2,9 +2,8 @@
 trainer for several applications (train.py APPS): an image drawn by the shared 2D field pass, a
 mesh's signed distance traced by the sdf technique's pass, and a radiance field ray marched with an
 occupancy grid by its own pass (radiance_field_render.py)."""
-from pathlib import Path
 
-from inshade.technique import Paper, Technique
+from inshade.technique import Paper, Technique, folder_fields
 
 from .radiance_field_render import KIND as RADIANCE_FIELD_KIND, PROGRAM_SPEC as RADIANCE_FIELD_PROGRAM
 
@@ -19,13 +18,13 @@ TECHNIQUE = Technique(
     # The image is drawn by passes/field2d.frag (neural_image's), the SDF by passes/sdf_diffuse.frag
     # (sdf's) through the network-SDF contract; the radiance field by its own march.
     programs=(RADIANCE_FIELD_PROGRAM,),
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="fit a hash grid + MLP: APP image (2048^2 photo collage), sdf (a mesh) or radiance_field "
+              "(a procedural scene from its views)",
+        bench="hash grid + MLP image, SDF and radiance field vs the MLP-only network and a DI cascade at equal "
+              "bytes: quality, bytes, FLOPs and fetches per pixel, frame time",
+        shaders=True),
     # instant-ngp NeRF snapshots become radiance-field assets (inshade convert FILE -o FOLDER)
     converts={".msgpack": "inshade.techniques.hash_grid.ngp_snapshot", ".ingp": "inshade.techniques.hash_grid.ngp_snapshot"},
-    train="inshade.techniques.hash_grid.train",
-    train_help="fit a hash grid + MLP: APP image (2048^2 photo collage), sdf (a mesh) or radiance_field "
-               "(a procedural scene from its views)",
-    bench="inshade.techniques.hash_grid.bench",
-    bench_help="hash grid + MLP image, SDF and radiance field vs the MLP-only network and a DI cascade at equal "
-               "bytes: quality, bytes, FLOPs and fetches per pixel, frame time",
 )

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from inshade.technique import Choice, ProgramSpec
+from inshade.technique import Choice, ProgramSpec, prefixed_bundle
 
 KIND = "hash_grid_radiance_field"
 PROGRAM = "passes/radiance_field_hash_grid.frag"
@@ -110,13 +110,6 @@ def march_settings(render, where: str) -> MarchSettings:
                          tuple(float(v) for v in bg), float(scale), res)
 
 
-def _network(bundles, networks, prefix: str):
-    for b, n in zip(bundles, networks):
-        if n.prefix == prefix:
-            return b
-    raise ValueError(f"networks: {PROGRAM} needs one network with prefix \"{prefix}\"")
-
-
 def config_chunk(m: MarchSettings) -> str:
     """<radiance_field_config>: the march settings as the defines lib/radiance_field_march reads."""
     from inshade.codegen.glsl import flt
@@ -132,7 +125,7 @@ def config_chunk(m: MarchSettings) -> str:
 
 
 def _chunks(scene, bundles, networks, codegen_options) -> dict:
-    field = _network(bundles, networks, PREFIX_FIELD)
+    field = prefixed_bundle(bundles, networks, PREFIX_FIELD, PROGRAM)
     return {CONFIG_CHUNK: config_chunk(march_settings(field.meta.get("render"), f"bundle {field.name!r}"))}
 
 

@@ -23,7 +23,7 @@ points (``lipschitz.measured_slope``): the eikonal term keeps the true slope nea
 stays near 1 where the sound bound would make rays crawl. ``max_steps`` is set on its own (1024 for the
 shipped rabbit): with a hit distance of 2e-4 of the radius, rays grazing the ears ran out of the 216
 steps ``mlp_sdf.trace_settings`` allows at that step and showed as holes. That choice is checked, not assumed:
-tests/test_hash_grid_technique.py traces the shipped asset from its views in GLSL and finds no leak
+tests/techniques/hash_grid/test_hash_grid_technique.py traces the shipped asset from its views in GLSL and finds no leak
 pixel, and proves with the sound bound (lipschitz.certify_positive) that no ray of its view stepped
 over a surface: the network is positive along every miss and up to every hit.
 """

@@ -9,9 +9,8 @@ network is marched through), ``step`` (dt, world units), ``max_steps``, ``backgr
 turned into the chunk <imported_field_config>. The network: inputs 6 lanes (position, direction,
 in one or two ports), outputs 4 lanes (rgb, density; one or two ports).
 """
-from pathlib import Path
 
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import ProgramSpec, Technique, folder_fields
 
 KIND = "imported"
 PROGRAM = "passes/imported_field.frag"
@@ -72,5 +71,5 @@ TECHNIQUE = Technique(
     summary="your own network (inshade.export / inshade convert), drawn as an image, an SDF or a radiance field",
     kinds=(KIND,),
     programs=(ProgramSpec(PROGRAM, geometry="fullscreen", chunks=_chunks, validate=_validate),),
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(__name__, shaders=True),
 )

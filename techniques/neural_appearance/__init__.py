@@ -14,10 +14,9 @@ file as the scene's mesh (``source.glb``) and ``gltf_material.json`` (which mate
 uv box); its scene draws ``passes/mesh_neural_appearance_gltf.frag``: the neural material next to the
 file's own shading (lib/gltf_material), views ``GLTF_VIEWS``.
 """
-from pathlib import Path
 
 from inshade.papers import NEURAL_APPEARANCE
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
 
 KIND = "neural_appearance"
 # (bundle folder in the asset, GLSL prefix): the pass includes <network_PREFIX> for each.
@@ -114,9 +113,9 @@ TECHNIQUE = Technique(
               ProgramSpec(GLTF_PROGRAM, geometry="mesh", mesh_attributes=("uv", "tangent", "materials"),
                           bundle_kinds=(KIND,), uniforms=GLTF_UNIFORM_DEFAULTS, chunks=_gltf_chunks,
                           validate=_validate_gltf, accumulate=True, choices=GLTF_CHOICES)),
-    train="inshade.techniques.neural_appearance.train",
-    train_help="bake a layered material or a glTF file's material into a latent pyramid + decoders + sampler",
-    bench="inshade.techniques.neural_appearance.bench",
-    bench_help="neural vs reference layered material: quality, speed, sampler variance, memory",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="bake a layered material or a glTF file's material into a latent pyramid + decoders + sampler",
+        bench="neural vs reference layered material: quality, speed, sampler variance, memory",
+        shaders=True),
 )

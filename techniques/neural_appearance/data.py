@@ -17,12 +17,12 @@ import torch
 from inshade.lit_settings import lit_settings
 from inshade.models.latent_pyramid import bilinear_repeat
 from inshade.models.proxy_lobe import cosine_direction
-from inshade.scene.builder import (bool_setting, choice_setting, directional_light, display_modes, float_setting,
-                                    int_setting, mesh_shape, network, orbit, point_light, requires, scene_json,
-                                    sky, texture)
+from inshade.scene.builder import (choice_setting, directional_light, display_modes, int_setting, mesh_shape, network,
+                                    orbit, point_light, requires, scene_json, sky, texture)
 from inshade.scene.labels import split_labels
 
 from . import NETWORKS
+from .scene_settings import pyramid_settings, sampling_settings
 
 
 # ---------------------------------------------------------------------------------------------
@@ -118,7 +118,7 @@ class Targets:
 
 def scene_description(mat, name: str) -> dict:
     """The asset's scene: the teapot under two lights and the studio environment."""
-    from . import LIGHTING, SAMPLING, VIEWS
+    from . import LIGHTING, VIEWS
 
     return scene_json(
         name, f"neural appearance: {mat.name} (latent pyramid + MLP decoder) on the Utah teapot",
@@ -141,14 +141,9 @@ def scene_description(mat, name: str) -> dict:
                                       define="NA_DECODER"),
             "lighting": choice_setting("lights", LIGHTING, "lighting (environment: Monte Carlo, accumulated)",
                                        uniform="u_na_lighting"),
-            "sampling": choice_setting("learned", SAMPLING, "BRDF sampling", uniform="u_na_sampling"),
-            "mis": bool_setting(True, "MIS with the environment", uniform="u_na_mis"),
-            "latent_filter": choice_setting("exact", ["exact", "fast"],
-                                            "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)",
-                                            codegen="latent_pyramid.filter"),
+            **sampling_settings("BRDF sampling"),
             "lights": int_setting(2, 0, 4, "lights", uniform="u_light_count"),
-            "level_bias": float_setting(0.0, -4.0, 4.0, "pyramid level bias", uniform="u_na_level_bias"),
-            "error_scale": float_setting(4.0, 0.0, 64.0, "error scale", uniform="u_na_error_scale"),
+            **pyramid_settings(),
             "latent_page": int_setting(0, 0, 2, "latent channels (page)", uniform="u_na_latent_page"),
         },
         textures=[texture(f"u_na_param{k}", f"param{k}.png", mipmaps=True, repeat=True) for k in range(3)],

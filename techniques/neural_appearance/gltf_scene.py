@@ -26,12 +26,12 @@ SIZE = (384, 384)
 def scene_description(out: Path, source: str, material: int, material_name: str, bounds) -> dict:
     """scene.json data of the asset in ``out`` whose mesh is ``out / source``; ``bounds``: the learnt
     material's world-space box (lo, hi)."""
-    from inshade.scene.builder import (bool_setting, choice_setting, display_modes, float_setting, network, requires,
-                                        scene_json)
+    from inshade.scene.builder import choice_setting, display_modes, network, requires, scene_json
     from inshade.scene.labels import split_labels
     from inshade.technique import opener
 
-    from . import GLTF_LIGHTING, GLTF_PROGRAM, GLTF_VIEWS, NETWORKS, SAMPLING
+    from . import GLTF_LIGHTING, GLTF_PROGRAM, GLTF_VIEWS, NETWORKS
+    from .scene_settings import pyramid_settings, sampling_settings
 
     opens = opener(Path(source).suffix)
     if opens is None:
@@ -68,13 +68,8 @@ def scene_description(out: Path, source: str, material: int, material_name: str,
                                        "accumulated) | lights = lights + emission", uniform="u_na_lighting"),
             "decoder": choice_setting(32, [16, 32, 64], "decoder: 16 = 2x16, 32 = 2x32, 64 = 3x64",
                                       define="NA_DECODER"),
-            "sampling": choice_setting("learned", SAMPLING, "BRDF sampling (environment)", uniform="u_na_sampling"),
-            "mis": bool_setting(True, "MIS with the environment", uniform="u_na_mis"),
-            "latent_filter": choice_setting("exact", ["exact", "fast"],
-                                            "latents: exact (texelFetch + fp32 mix) | fast (hardware bilinear)",
-                                            codegen="latent_pyramid.filter"),
-            "level_bias": float_setting(0.0, -4.0, 4.0, "pyramid level bias", uniform="u_na_level_bias"),
-            "error_scale": float_setting(4.0, 0.0, 64.0, "error scale", uniform="u_na_error_scale"),
+            **sampling_settings("BRDF sampling (environment)"),
+            **pyramid_settings(),
         },
         requires=requires(),
         notes=f"material {material} is neural, the others are the file's; shaded lighting accumulates "

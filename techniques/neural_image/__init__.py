@@ -1,6 +1,6 @@
 """neural_image: an image as a coordinate network (a multiresolution lookup-array encoding, or a
 frequency or SIREN encoding, + MLP), drawn as a field over the camera's uv plane."""
-from inshade.technique import ProgramSpec, Technique
+from inshade.technique import ProgramSpec, Technique, folder_fields
 
 TECHNIQUE = Technique(
     name="neural_image",
@@ -8,6 +8,5 @@ TECHNIQUE = Technique(
     kinds=("neural_image",),
     # passes/field2d.frag (shared library) draws any bundle uv -> colour: DI textures use it too.
     programs=(ProgramSpec("passes/field2d.frag", geometry="fullscreen", field_inputs=2),),
-    train="inshade.techniques.neural_image.train",
-    train_help="fit a neural image to a skimage.data photo",
+    **folder_fields(__name__, train="fit a neural image to a skimage.data photo"),
 )

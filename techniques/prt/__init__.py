@@ -2,10 +2,9 @@
 normal to 16 SH coefficients of cosine-weighted visibility; diffuse and glossy (triple-product
 light matrix) shading on sphere-traced SDFs and rasterised meshes (a glTF file's with its base
 colour, next to its reference shading)."""
-from pathlib import Path
 
 from inshade.papers import LEARNT_TRANSFER
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
 
 
 def _chunks(scene, bundles, networks, codegen_options):
@@ -82,9 +81,9 @@ TECHNIQUE = Technique(
               ProgramSpec("passes/mesh_prt_gltf.frag", geometry="mesh", mesh_attributes=("materials",),
                           **{**_PRT, "uniforms": {**UNIFORM_DEFAULTS, "u_prt_view": GLTF_VIEWS.index("prt")},
                              "choices": (*_PRT["choices"], Choice("u_prt_view", "PRT_VIEW", GLTF_VIEWS))})),
-    train="inshade.techniques.prt.train",
-    train_help="a complete PRT asset: ground-truth transfer (cached), transfer MLP, scene, previews, quality",
-    bench="inshade.techniques.prt.bench",
-    bench_help="learnt-transfer PRT frame times (k, size, shading, geometry) vs torch",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="a complete PRT asset: ground-truth transfer (cached), transfer MLP, scene, previews, quality",
+        bench="learnt-transfer PRT frame times (k, size, shading, geometry) vs torch",
+        shaders=True),
 )

@@ -25,7 +25,7 @@ the hit point's region. numpy only (no torch): the runtime's chunks hook calls `
   dynamic branch per network, and ``PRT_NET_EVAL`` = ``prt_regions_eval`` (lib/prt_regions.glsl)
   with the identity frame, so the unchanged sdf_prt pass shades the blended transfer. The deferred
   mesh_prt pass calls the same prt_transfer with the G-buffer's surface point, so a mesh scene
-  selects and blends by region the same way (tests/test_prt_regions_mesh.py).
+  selects and blends by region the same way (tests/techniques/prt/test_prt_regions_mesh.py).
 """
 from __future__ import annotations
 

@@ -102,6 +102,25 @@ def _shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, r
     return occluded
 
 
+def _transfer(p, nrm, n_dirs: int, seed: int, start: int, chunk_rays: int, offset: float, occluded, desc: str,
+              progress) -> torch.Tensor:
+    """Transfer [N, 16] at points p with normals nrm, ``chunk_rays`` rays at a time: hemisphere
+    directions from the chunk's random stream (CPU draws), shadow rays from p + offset n, and
+    ``occluded(origins [R, 3], dirs [R, 3])`` -> CPU bool [R] for the geometry's own ray test."""
+    per = max(1, chunk_rays // n_dirs)
+    gen = chunk_generator(seed, start, per)
+    out = torch.empty(p.shape[0], DEGREE * DEGREE)
+    with torch.no_grad(), _bar(p.shape[0] * n_dirs, desc, progress) as bar:
+        for i in range(0, p.shape[0], per):
+            pc, nc = p[i:i + per], nrm[i:i + per]
+            dirs = hemisphere_directions(nc, n_dirs, gen)                    # [n, D, 3]
+            o = (pc + nc * offset)[:, None].expand_as(dirs).reshape(-1, 3)
+            occ = occluded(o, dirs.reshape(-1, 3))
+            out[i:i + per] = project_visibility(~occ.reshape(dirs.shape[:2]), dirs)
+            bar.update(dirs.shape[0] * n_dirs)
+    return out
+
+
 def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool | None = False,
                  max_steps: int | None = None, chunk_rays: int = CHUNK_RAYS, device="cpu",
                  start: int = 0, shadow: str = DEFAULT_SHADOW) -> torch.Tensor:
@@ -122,19 +141,11 @@ def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool |
     offset, threshold = (k * hit_eps for k in SHADOW_SCHEMES[shadow])
     center = torch.tensor(scene.center, dtype=torch.float32, device=device)
     radius = float(scene.radius)
-    per = max(1, chunk_rays // n_dirs)
-    gen = chunk_generator(seed, start, per)
-    out = torch.empty(p.shape[0], DEGREE * DEGREE)
-    with torch.no_grad(), _bar(p.shape[0] * n_dirs, "transfer (sdf)", progress) as bar:
-        for i in range(0, p.shape[0], per):
-            pc, nc = p[i:i + per], nrm[i:i + per]
-            dirs = hemisphere_directions(nc, n_dirs, gen)                    # [n, D, 3], CPU draws
-            o = (pc + nc * offset)[:, None].expand_as(dirs).reshape(-1, 3)
-            occ = _shadow_trace(sdf, o.to(device), dirs.reshape(-1, 3).to(device), center, radius, step_scale,
-                                threshold, steps).cpu()
-            out[i:i + per] = project_visibility(~occ.reshape(dirs.shape[:2]), dirs)
-            bar.update(dirs.shape[0] * n_dirs)
-    return out
+
+    def occluded(o, d):
+        return _shadow_trace(sdf, o.to(device), d.to(device), center, radius, step_scale, threshold, steps).cpu()
+
+    return _transfer(p, nrm, n_dirs, seed, start, chunk_rays, offset, occluded, "transfer (sdf)", progress)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -154,19 +165,12 @@ def mesh_transfer(mesh, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool
         warnings.warn("embreex is not installed: trimesh falls back to its pure-Python ray caster, "
                       "which is ~100x slower (pip install embreex)", stacklevel=2)
     offset = MESH_OFFSET * float(np.linalg.norm(mesh.extents))
-    per = max(1, chunk_rays // n_dirs)
-    gen = chunk_generator(seed, start, per)
-    out = torch.empty(p.shape[0], DEGREE * DEGREE)
-    with torch.no_grad(), _bar(p.shape[0] * n_dirs, "transfer (mesh)", progress) as bar:
-        for i in range(0, p.shape[0], per):
-            pc, nc = p[i:i + per], nrm[i:i + per]
-            dirs = hemisphere_directions(nc, n_dirs, gen)
-            o = (pc + nc * offset)[:, None].expand_as(dirs).reshape(-1, 3)
-            occ = mesh.ray.intersects_any(o.numpy().astype(np.float64), dirs.reshape(-1, 3).numpy().astype(np.float64))
-            occ = torch.from_numpy(np.asarray(occ, bool)).reshape(dirs.shape[:2])
-            out[i:i + per] = project_visibility(~occ, dirs)
-            bar.update(dirs.shape[0] * n_dirs)
-    return out
+
+    def occluded(o, d):
+        return torch.from_numpy(np.asarray(mesh.ray.intersects_any(o.numpy().astype(np.float64),
+                                                                   d.numpy().astype(np.float64)), bool))
+
+    return _transfer(p, nrm, n_dirs, seed, start, chunk_rays, offset, occluded, "transfer (mesh)", progress)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ the ground-truth renderer, and the quality measurement over an orbit.
 - ``render(sdf, net, frame, uniforms, w, h, sh, shading)``: the pass in torch, float32, the
   operations of shaders/lib/sdf.glsl + lib/prt.glsl in the same order (camera, sphere tracing,
   central-difference normals, the transfer network with its input normalisation, shading). For
-  parity with the GLSL (tests/test_prt.py).
+  parity with the GLSL (tests/techniques/prt/test_prt.py).
 - ``render_ground_truth(sdf, uniforms, w, h, sh, shading, n_dirs=...)``: identical, except the
   transfer at every hit pixel is cast by rays (techniques/prt/transfer.py ``sdf_transfer``), so a
   comparison with the GL image measures the network's error alone (both are SH-truncated and lit

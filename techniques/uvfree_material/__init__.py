@@ -18,10 +18,9 @@ material channels (gltf_channels.py) on the file's own mesh, and passes/mesh_uvf
 it against the file's material (lib/gltf_material): bundle kind ``uvfree_material_gltf``, the
 copied file as the scene's mesh (gltf_scene.py).
 """
-from pathlib import Path
 
 from inshade.papers import FEATURE_HIERARCHY
-from inshade.technique import Choice, ProgramSpec, Technique
+from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
 
 KIND = "uvfree_material"
 KIND_GLTF = "uvfree_material_gltf"   # decodes a glTF file's channels (gltf_channels.py), drawn with its materials
@@ -98,9 +97,9 @@ TECHNIQUE = Technique(
               ProgramSpec("passes/mesh_uvfree_gltf.frag", geometry="mesh", mesh_attributes=("materials",),
                           bundle_kinds=(KIND_GLTF,), uniforms=GLTF_UNIFORM_DEFAULTS, chunks=_gltf_chunks,
                           validate=_validate_gltf, visibility=True, choices=GLTF_CHOICES)),
-    train="inshade.techniques.uvfree_material.train",
-    train_help="fit a hashed per-triangle feature hierarchy + MLP to a uv-textured mesh or a glTF file's materials",
-    bench="inshade.techniques.uvfree_material.bench",
-    bench_help="UV-free material vs its uv textures, BC1/BC7/ASTC at equal bytes: quality, memory, speed",
-    shaders=Path(__file__).resolve().parent / "shaders",
+    **folder_fields(
+        __name__,
+        train="fit a hashed per-triangle feature hierarchy + MLP to a uv-textured mesh or a glTF file's materials",
+        bench="UV-free material vs its uv textures, BC1/BC7/ASTC at equal bytes: quality, memory, speed",
+        shaders=True),
 )

@@ -25,6 +25,8 @@ from inshade.techniques.prt import regions
 from inshade.techniques.prt.region_twin import load_region_set, region_transfer, render_regions
 from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
+from prt_gl import render_views
+
 SIZE = 48
 SDF_SCENE = {  # a floor slab with a few blobs across the grid's cell sides (occlusion on both sides)
     "format": "inshade.geometry.sdf", "version": 1, "name": "prt_regions_test",
@@ -76,25 +78,8 @@ def write_region_scene(folder: Path, bundles, camera=TOP, order=None) -> Path:
 
 
 def _renders(folder, settings_seq, program_cache, size=SIZE):
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.render import read_rgba
-    from inshade.runtime.renderer import SceneRenderer
-    from inshade.scene.description import load_scene
-
-    scene = load_scene(folder)
-    r = SceneRenderer(scene, shared_context(), cache=program_cache)
-    try:
-        cam = scene.make_camera()
-        images = []
-        for s in settings_seq:
-            for k, v in s.items():
-                r.set_setting(k, v)
-            images.append(read_rgba(r.render_network(cam, size, size)).copy())
-        sh = r.environment_sh()
-        bundles = r.bundles
-    finally:
-        r.release()
-    return images, sh, scene, bundles
+    views, sh, scene, bundles = render_views(program_cache, folder, settings_seq, size)
+    return [image for image, in views], sh, scene, bundles
 
 
 def _gl_transfer(folder, program_cache, size=SIZE):

@@ -26,6 +26,7 @@ from inshade.techniques.prt.region_twin import load_region_set, region_transfer,
 from inshade.techniques.prt.transfer_model import evaluate_transfer
 from inshade.techniques.prt.twin import PrtShading
 
+from prt_gl import render_views
 from test_prt_regions import SETTINGS, SLANT, check_seam, region_bundles, seam_rows
 
 SIZE = 48
@@ -83,26 +84,9 @@ def write_mesh_scene(folder: Path, bundles, camera, order=None) -> Path:
 def _renders(folder, settings_seq, program_cache, size=SIZE):
     """GL images (image orientation) per settings dict, the G-buffer position/normal of the last
     (data orientation), the environment SH, the scene and the bundles."""
-    from inshade.runtime.context import shared_context
-    from inshade.runtime.render import read_rgba
-    from inshade.runtime.renderer import SceneRenderer
-    from inshade.scene.description import load_scene
-
-    scene = load_scene(folder)
-    r = SceneRenderer(scene, shared_context(), cache=program_cache)
-    try:
-        cam = scene.make_camera()
-        images = []
-        for s in settings_seq:
-            for k, v in s.items():
-                r.set_setting(k, v)
-            images.append(read_rgba(r.render_network(cam, size, size)).copy())
-            pos, nrm = (a.copy() for a in r.gbuffer.read()[:2])
-        sh = r.environment_sh()
-        bundles = r.bundles
-    finally:
-        r.release()
-    return images, pos, nrm, sh, scene, bundles
+    views, sh, scene, bundles = render_views(program_cache, folder, settings_seq, size, targets=2)
+    _, pos, nrm = views[-1]
+    return [image for image, _, _ in views], pos, nrm, sh, scene, bundles
 
 
 def _gl_transfer(folder, program_cache, size=SIZE):
