@@ -166,21 +166,25 @@ class _Emitter:
         return a, ca
 
     def _union(self, node, p, colour):
-        def combine(k, a, ca, b, cb):
-            d = self.name("d")
-            c = self.name("c") if self.colour else None
-            if k == 0:
-                self.emit(f"float {d} = min({a}, {b});")
-                if c:
-                    self.emit(f"vec3 {c} = {a} <= {b} + {flt(TIE_EPS)} ? {ca} : {cb};")
-                return d, c
-            h = self.name("h")
-            self.emit(f"float {h} = clamp(0.5 + ({b} - {a}) * {flt(0.5 / k)}, 0.0, 1.0);")
-            self.emit(f"float {d} = {b} + ({a} - {b}) * {h} - {flt(k)} * {h} * (1.0 - {h});")
+        return self._fold(node, p, colour, functools.partial(self._nearer_or_farther, "+"))
+
+    def _nearer_or_farther(self, sign, k, a, ca, b, cb):
+        """Union (sign "+": the nearer of a and b, smooth min) or intersection (sign "-": the
+        farther, smooth max), with colour: the two formulas mirror each other in sign."""
+        union = sign == "+"
+        d = self.name("d")
+        c = self.name("c") if self.colour else None
+        if k == 0:
+            self.emit(f"float {d} = {'min' if union else 'max'}({a}, {b});")
             if c:
-                self.emit(f"vec3 {c} = {cb} + ({ca} - {cb}) * {h};")
+                self.emit(f"vec3 {c} = {a} {'<=' if union else '>='} {b} {sign} {flt(TIE_EPS)} ? {ca} : {cb};")
             return d, c
-        return self._fold(node, p, colour, combine)
+        h = self.name("h")
+        self.emit(f"float {h} = clamp(0.5 {sign} ({b} - {a}) * {flt(0.5 / k)}, 0.0, 1.0);")
+        self.emit(f"float {d} = {b} + ({a} - {b}) * {h} {'-' if union else '+'} {flt(k)} * {h} * (1.0 - {h});")
+        if c:
+            self.emit(f"vec3 {c} = {cb} + ({ca} - {cb}) * {h};")
+        return d, c
 
     def _subtract(self, node, p, colour):
         def combine(k, a, ca, b, cb):
@@ -195,21 +199,7 @@ class _Emitter:
         return self._fold(node, p, colour, combine)
 
     def _intersect(self, node, p, colour):
-        def combine(k, a, ca, b, cb):
-            d = self.name("d")
-            c = self.name("c") if self.colour else None
-            if k == 0:
-                self.emit(f"float {d} = max({a}, {b});")
-                if c:
-                    self.emit(f"vec3 {c} = {a} >= {b} - {flt(TIE_EPS)} ? {ca} : {cb};")
-                return d, c
-            h = self.name("h")
-            self.emit(f"float {h} = clamp(0.5 - ({b} - {a}) * {flt(0.5 / k)}, 0.0, 1.0);")
-            self.emit(f"float {d} = {b} + ({a} - {b}) * {h} + {flt(k)} * {h} * (1.0 - {h});")
-            if c:
-                self.emit(f"vec3 {c} = {cb} + ({ca} - {cb}) * {h};")
-            return d, c
-        return self._fold(node, p, colour, combine)
+        return self._fold(node, p, colour, functools.partial(self._nearer_or_farther, "-"))
 
     # domain operators ---------------------------------------------------------------------------
     def _transform(self, node, p, colour):

@@ -12,7 +12,7 @@
 
 Both are the optional ``gltf`` extra; a file that needs one when it is missing gets one line naming
 the extension and the install. Decoded data is what the same libraries give other readers
-(tests/test_gltf_codecs.py compares with glTF Transform's decode, bit for bit).
+(tests/geometry/test_gltf_codecs.py compares with glTF Transform's decode, bit for bit).
 """
 from __future__ import annotations
 

@@ -225,7 +225,7 @@ def mikktspace_tangents(v: np.ndarray, n: np.ndarray, uv_gltf: np.ndarray, f: np
     with equal position, normal and uv share one; each face's uv-gradient tangent, projected into
     the corner's normal plane and normalised, weighted by the corner's angle in that plane; w from
     the bitangent's side, negated for glTF's v-down uv (as three.js does for glTF).
-    Checked against the reference MikkTSpace (npm ``mikktspace``) in tests/test_gltf.py."""
+    Checked against the reference MikkTSpace (npm ``mikktspace``) in tests/geometry/test_gltf.py."""
     key = np.concatenate([v, n, uv_gltf], 1)
     _, group, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)

@@ -36,7 +36,7 @@ Exactness: repetition and smooth booleans give a bound, not an exact distance; s
 steps with ``step_scale`` < 1 and stops within the ``bound`` sphere and ``max_steps``. A ray that
 grazes an edge or approaches a surface at a shallow angle crawls (each step shrinks by about
 ``step_scale * sin(angle)``): such rays need up to ~180 steps in the shipped scenes at 512 px, and
-one that runs out of steps is a miss, i.e. a sky-coloured hole in a surface (tests/test_sdf_leaks.py).
+one that runs out of steps is a miss, i.e. a sky-coloured hole in a surface (tests/geometry/test_sdf_leaks.py).
 Hence the default of 256; only the crawling rays pay for it.
 
 Every problem is one ``SdfError`` naming the file and the field (``root.children[1].radius``).

@@ -297,7 +297,7 @@ def tessellate(segments: int = 8) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         positions.append(evaluate(cp[index], grid, grid).reshape(-1, 3))
         uvs.append(_patch_uv(index, grid, grid, lengths).reshape(-1, 2))
         # (row i, column j) -> (v00, v11, v10): counter-clockwise seen from outside for all 32
-        # of Newell's patches (tests/test_shapes.py checks the normals point out)
+        # of Newell's patches (tests/geometry/test_shapes.py checks the normals point out)
         faces.append(np.concatenate([np.stack([v00, v11, v10], 1), np.stack([v00, v01, v11], 1)]) + base)
         base += (n + 1) * (n + 1)
     pos = np.concatenate(positions)

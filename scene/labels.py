@@ -24,6 +24,8 @@ import logging
 import math
 from dataclasses import dataclass
 
+from .common import object_items
+
 log = logging.getLogger("inshade")
 
 LABEL_KEYS = ("text", "line", "at", "align", "when", "modes")
@@ -62,13 +64,7 @@ def parse_labels(data, settings: dict | None = None, modes=None) -> tuple:
     if not isinstance(data, list):
         raise ValueError("labels: must be a list of {\"text\": ..., \"at\": [u, v], \"when\": {...}}")
     out = []
-    for i, item in enumerate(data):
-        w = f"labels[{i}]"
-        if not isinstance(item, dict):
-            raise ValueError(f"{w}: must be an object")
-        extra = sorted(set(item) - set(LABEL_KEYS))
-        if extra:
-            raise ValueError(f"{w}.{extra[0]}: unknown field (known: {', '.join(LABEL_KEYS)})")
+    for w, item in object_items(data, "labels", LABEL_KEYS, error=ValueError):
         text, at, line = item.get("text"), None, None
         if ("text" in item) == ("line" in item):
             raise ValueError(f"{w}: needs exactly one of \"text\" (with \"at\") or \"line\"")

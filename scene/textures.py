@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .common import SceneError, check_image
+from .common import SceneError, check_image, object_items
 
 TEXTURE_KEYS = {"uniform", "image", "mipmaps", "anisotropy", "repeat"}
 
@@ -24,13 +24,7 @@ def parse_textures(data, root: Path) -> list:
     if not isinstance(data, list):
         raise SceneError("textures: must be a list of {\"uniform\": ..., \"image\": ...}")
     out = []
-    for i, t in enumerate(data):
-        w = f"textures[{i}]"
-        if not isinstance(t, dict):
-            raise SceneError(f"{w}: must be an object")
-        extra = sorted(set(t) - TEXTURE_KEYS)
-        if extra:
-            raise SceneError(f"{w}.{extra[0]}: unknown field (known: {', '.join(sorted(TEXTURE_KEYS))})")
+    for w, t in object_items(data, "textures", sorted(TEXTURE_KEYS)):
         name = t.get("uniform")
         if not isinstance(name, str) or not name.isidentifier():
             raise SceneError(f"{w}.uniform: must be a GLSL identifier, got {name!r}")

@@ -22,9 +22,18 @@ def add_parsers(sub) -> None:
     _add_serve(sub)
 
 
-def _add_render(sub) -> None:
+def _add_program_overrides(p, shown: bool = True) -> None:
+    """--storage and --lut-filter: the program's weight storage and lookup array path in place of
+    the scene's (listed in --help where ``shown``; export-gltf and serve take them unlisted)."""
     from inshade.codegen import FILTERS, STORAGE_MODES
 
+    p.add_argument("--storage", choices=STORAGE_MODES,
+                   help="weight storage (default: the scene's, else auto)" if shown else argparse.SUPPRESS)
+    p.add_argument("--lut-filter", choices=FILTERS,
+                   help="lookup array path (default: the scene's, else exact)" if shown else argparse.SUPPRESS)
+
+
+def _add_render(sub) -> None:
     p = sub.add_parser("render", help="render a bundle headless to PNG/EXR + JSON sidecar",
                        description="Render an asset headless (EGL). .png: exposure applied, then the scene's tone mapper "
                                    "(--set tonemap=none|reinhard|pbr_neutral; none unless the scene says otherwise, "
@@ -40,8 +49,7 @@ def _add_render(sub) -> None:
                    help="re-render exactly what a screenshot's JSON sidecar (shot.png.json) describes")
     p.add_argument("--width", type=image_size)
     p.add_argument("--height", type=image_size)
-    p.add_argument("--storage", choices=STORAGE_MODES, help="weight storage (default: the scene's, else auto)")
-    p.add_argument("--lut-filter", choices=FILTERS, help="lookup array path (default: the scene's, else exact)")
+    _add_program_overrides(p)
     p.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="a scene setting, e.g. --set sky=sunset --set env_rotation=90 (repeatable)")
     p.add_argument("--spp", type=count, metavar="N",
@@ -50,8 +58,6 @@ def _add_render(sub) -> None:
 
 
 def _add_export_web(sub) -> None:
-    from inshade.codegen import FILTERS, STORAGE_MODES
-
     p = sub.add_parser("export-web", help="an asset as a static WebGL2 page (index.html + inshade.js + data)",
                        description="Write ASSET as a static folder that any file server shows (python -m http.server): "
                                    "index.html (the viewer: orbit / zoom / pan, the settings, split and error views "
@@ -65,16 +71,13 @@ def _add_export_web(sub) -> None:
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write (new or empty)")
     p.add_argument("--width", type=image_size, help="canvas width (default: the scene's)")
     p.add_argument("--height", type=image_size, help="canvas height (default: the scene's)")
-    p.add_argument("--storage", choices=STORAGE_MODES, help="weight storage (default: the scene's, else auto)")
-    p.add_argument("--lut-filter", choices=FILTERS, help="lookup array path (default: the scene's, else exact)")
+    _add_program_overrides(p)
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
     p.add_argument("--force", action="store_true", help="replace what the folder holds")
     p.set_defaults(func=cmd_export_web)
 
 
 def _add_export_gltf(sub) -> None:
-    from inshade.codegen import FILTERS, STORAGE_MODES
-
     p = sub.add_parser("export-gltf", help="an asset's mesh and material as a glTF 2.0 binary (.glb)",
                        description="Write ASSET's mesh (normals, uv, tangents; a primitive per material) with its "
                                    "material as one .glb: the material its network decodes, baked into the mesh's "
@@ -92,23 +95,19 @@ def _add_export_gltf(sub) -> None:
     p.add_argument("--textures", choices=("png", "ktx2"), default="png",
                    help="texture images: png (default), or ktx2 (KHR_texture_basisu, UASTC; needs the gltf extra)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
-    p.add_argument("--storage", choices=STORAGE_MODES, help=argparse.SUPPRESS)
-    p.add_argument("--lut-filter", choices=FILTERS, help=argparse.SUPPRESS)
+    _add_program_overrides(p, shown=False)
     p.add_argument("--force", action="store_true", help="replace OUT.glb if it exists")
     p.set_defaults(func=cmd_export_gltf)
 
 
 def _add_serve(sub) -> None:
-    from inshade.codegen import FILTERS, STORAGE_MODES
-
     p = sub.add_parser("serve", help="export ASSET to a temporary page and serve it on localhost",
                        description="Export ASSET as export-web does, into a temporary folder, and serve it on "
                                    "localhost until Ctrl+C; prints the address to open.")
     p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
     p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0: any free port)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
-    p.add_argument("--storage", choices=STORAGE_MODES, help=argparse.SUPPRESS)
-    p.add_argument("--lut-filter", choices=FILTERS, help=argparse.SUPPRESS)
+    _add_program_overrides(p, shown=False)
     p.set_defaults(func=cmd_serve)
 
 

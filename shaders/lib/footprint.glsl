@@ -27,3 +27,28 @@ vec2 footprint_plane_uv(vec3 ro, vec3 rd, float tile, float extent, out bool hit
 float footprint_log2(vec2 dx, vec2 dy) {
     return 0.5 * log2(max(max(dot(dx, dx), dot(dy, dy)), 1e-30));
 }
+
+// What a full-screen pass over the plane knows of its pixel: the camera ray, the tiled uv of its
+// hit (see footprint_plane_uv), the uv's screen derivatives, log2 of the footprint and the uv
+// within its tile. Call it from main's uniform control flow (it takes derivatives).
+struct FootprintPixel {
+    vec3 ro;
+    vec3 rd;
+    vec2 uv;
+    vec2 dx;
+    vec2 dy;
+    float log2_fp;
+    vec2 tile_uv;
+    bool hit;
+};
+
+FootprintPixel footprint_pixel(vec2 size, float tile, float extent) {
+    FootprintPixel f;
+    camera_ray(gl_FragCoord.xy, size, f.ro, f.rd);
+    f.uv = footprint_plane_uv(f.ro, f.rd, tile, extent, f.hit);
+    f.dx = dFdx(f.uv);
+    f.dy = dFdy(f.uv);
+    f.log2_fp = footprint_log2(f.dx, f.dy);
+    f.tile_uv = fract(f.uv);
+    return f;
+}

@@ -8,14 +8,7 @@
 #include <lib/brdf>
 #include <lib/spherical_harmonics>
 #include <lib/lights>
-
-struct PbrSample {
-    vec3 albedo;      // linear
-    vec3 normal_ts;   // unit, tangent space (x along +u, y along +v, z out)
-    float roughness;
-    float metallic;
-    float ao;
-};
+#include <lib/pbr_sample>
 
 vec3 pbr_local(vec3 w, vec3 t, vec3 b, vec3 n) {
     return vec3(w.x * t.x + w.y * t.y + w.z * t.z, w.x * b.x + w.y * b.y + w.z * b.z,

@@ -73,6 +73,19 @@ bool sdf_hit(vec3 ro, vec3 rd, out float t, out vec3 n) {
     return false;
 }
 
+// What this pixel of a size-pixel view sees: its camera ray direction rd and the hit point p with
+// its unit normal n; false on a miss, where rd alone is set.
+bool sdf_pixel(vec2 size, out vec3 rd, out vec3 p, out vec3 n) {
+    vec3 ro;
+    camera_ray(gl_FragCoord.xy, size, ro, rd);
+    float t;
+    if (!sdf_hit(ro, rd, t, n)) {
+        return false;
+    }
+    p = ro + rd * t;
+    return true;
+}
+
 // Unit normal at p alone (the same taps), for callers that have a point but no ray.
 vec3 sdf_normal(vec3 p) {
     vec3 g = vec3(0.0);

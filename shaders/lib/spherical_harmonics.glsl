@@ -21,18 +21,6 @@ vec3 sh_radiance(vec3 d, in vec3 coeffs[SH_COEFFS]) {
     return sh_dot(y, coeffs);
 }
 
-// Irradiance at normal n from radiance coefficients: sum A_l L_lm Y_lm(n), not divided by pi
-// (diffuse outgoing radiance is albedo / pi * this).
-vec3 sh_irradiance(vec3 n, in vec3 coeffs[SH_COEFFS]) {
-    float y[SH_COEFFS];
-    sh_basis(n, y);
-    vec3 acc = vec3(0.0);
-    for (int i = 0; i < SH_COEFFS; ++i) {
-        acc += coeffs[i] * (SH_LAMBERT[SH_BAND[i]] * y[i]);
-    }
-    return acc;
-}
-
 // A zonal convolution evaluated at d: sum bands[l] c_lm Y_lm(d), with per-band factors from
 // inshade.sh.phong_bands / zonal_bands (e.g. glossy Phong at the reflection direction).
 vec3 sh_convolved(vec3 d, in vec3 coeffs[SH_COEFFS], in float bands[SH_DEGREE]) {
@@ -43,6 +31,12 @@ vec3 sh_convolved(vec3 d, in vec3 coeffs[SH_COEFFS], in float bands[SH_DEGREE]) 
         acc += coeffs[i] * (bands[SH_BAND[i]] * y[i]);
     }
     return acc;
+}
+
+// Irradiance at normal n from radiance coefficients: sum A_l L_lm Y_lm(n), the Lambert lobe's
+// convolution, not divided by pi (diffuse outgoing radiance is albedo / pi * this).
+vec3 sh_irradiance(vec3 n, in vec3 coeffs[SH_COEFFS]) {
+    return sh_convolved(n, coeffs, SH_LAMBERT);
 }
 
 // The environment as a background at direction d: the series smoothed by SH_BACKGROUND (a Hann

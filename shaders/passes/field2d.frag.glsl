@@ -19,15 +19,9 @@
 //   FIELD_OUT_DIM     its width: 1 (grey), 3 (rgb, alpha = 1) or 4 (rgba)
 //   FIELD_OUT_SRGB    defined when the output's semantic is "srgb": its colour is sRGB-encoded (a
 //                     network fitted to sRGB pixels) and is decoded to linear here, as textures are
-#include <network>
+#include <lib/field_output>
 #include <lib/colour>
 
-#ifndef FIELD_OUT_OFFSET
-#define FIELD_OUT_OFFSET 0
-#endif
-#ifndef FIELD_OUT_DIM
-#define FIELD_OUT_DIM 3
-#endif
 #if NET_IN_DIM != 2
 #error "passes/field2d.frag needs a network with one 2-wide input (uv)"
 #endif
@@ -35,10 +29,6 @@
 uniform vec2 u_size;  // target size in pixels
 uniform vec4 u_view;  // camera: uv offset (xy) and uv extent of the target (zw)
 layout(location = 0) out vec4 frag_color;
-
-float field_lane(in vec4 y[NET_OUT_BLOCKS], int lane) {
-    return y[lane / 4][lane % 4];
-}
 
 void main() {
     vec2 uv = u_view.xy + (gl_FragCoord.xy / u_size) * u_view.zw;
@@ -50,14 +40,10 @@ void main() {
     x[0] = vec4(uv, 0.0, 0.0);
     vec4 y[NET_OUT_BLOCKS];
     net_eval(x, y);
-#if FIELD_OUT_DIM == 1
-    frag_color = vec4(vec3(field_lane(y, FIELD_OUT_OFFSET)), 1.0);
-#elif FIELD_OUT_DIM == 3
-    frag_color = vec4(field_lane(y, FIELD_OUT_OFFSET), field_lane(y, FIELD_OUT_OFFSET + 1),
-                      field_lane(y, FIELD_OUT_OFFSET + 2), 1.0);
+#if FIELD_OUT_DIM == 1 || FIELD_OUT_DIM == 3
+    frag_color = vec4(field_rgb(y), 1.0);
 #else
-    frag_color = vec4(field_lane(y, FIELD_OUT_OFFSET), field_lane(y, FIELD_OUT_OFFSET + 1),
-                      field_lane(y, FIELD_OUT_OFFSET + 2), field_lane(y, FIELD_OUT_OFFSET + 3));
+    frag_color = vec4(field_rgb(y), field_lane(y, FIELD_OUT_OFFSET + 3));
 #endif
 #ifdef FIELD_OUT_SRGB
     frag_color.rgb = srgb_eotf(clamp(frag_color.rgb, 0.0, 1.0));

@@ -15,12 +15,8 @@ layout(location = 0) out vec4 frag_color;
 const float SDF_INV_PI = 0.318309873;  // float32(1 / pi), as models/sdf.py INV_PI
 
 void main() {
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    float t;
-    vec3 n;
-    if (sdf_hit(ro, rd, t, n)) {
-        vec3 p = ro + rd * t;
+    vec3 rd, p, n;
+    if (sdf_pixel(u_size, rd, p, n)) {
         frag_color = vec4(scene_albedo(p) * sh_irradiance(n, u_sh) * SDF_INV_PI, 1.0);
     } else {
         frag_color = vec4(sh_background(rd, u_sh), 1.0);

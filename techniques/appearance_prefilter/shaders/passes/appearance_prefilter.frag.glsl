@@ -15,21 +15,11 @@
 #include <lib/lights>
 #include <network_dap>
 #include <dap_config>
-#include <lib/dap_march>
+#include <lib/dap_view>
 #include <choices>
 
-uniform vec2 u_size;
-uniform mat4 u_proj;
-uniform vec3 u_sh[SH_COEFFS];
 uniform float u_dap_distance;     // dolly: the eye's distance to the box centre times this (> 0)
-uniform int u_dap_force_scale;    // >= 0: march this scale only (tests, bench)
-uniform int u_dap_view;
-uniform int u_dap_shadows;        // 0: no global shadows
 layout(location = 0) out vec4 frag_color;
-
-vec3 dap_ramp(float x) {
-    return vec3(x, 1.0 - abs(2.0 * x - 1.0), 1.0 - x);
-}
 
 void main() {
     vec3 ro, rd;
@@ -41,17 +31,5 @@ void main() {
         frag_color = vec4(u_dap_view == DAP_VIEW_PREFILTERED ? background : vec3(0.0), 0.0);
         return;
     }
-    float px = 2.0 / (u_proj[1][1] * u_size.y);
-    float L = dap_footprint_scale(t0, px, u_dap_force_scale);
-    vec3 sun_dir, sun;
-    dap_scene_sun(sun_dir, sun);
-    DapPixel p = dap_pixel(ro, rd, px, t0, sun_dir, sun, u_sh);
-    DapResult a = dap_march_at(p, L, u_dap_shadows != 0);
-    vec3 colour = a.radiance + (1.0 - a.coverage) * background;
-    if (u_dap_view == DAP_VIEW_COVERAGE) colour = vec3(a.coverage);
-    if (u_dap_view == DAP_VIEW_ALBEDO) colour = a.albedo;
-    if (u_dap_view == DAP_VIEW_SCALE) {
-        colour = a.coverage * dap_ramp((L - float(DAP_SCALE_MIN)) / float(max(DAP_SCALE_MAX - DAP_SCALE_MIN, 1)));
-    }
-    frag_color = vec4(colour, a.coverage);
+    frag_color = dap_view_colour(ro, rd, t0, background);
 }

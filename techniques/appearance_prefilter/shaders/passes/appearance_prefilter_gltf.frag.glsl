@@ -17,24 +17,14 @@
 #include <lib/lights>
 #include <network_dap>
 #include <dap_config>
-#include <lib/dap_march>
+#include <lib/dap_view>
 #include <choices>
 
 #if !defined(DAP_WORLD_CENTRE) || !defined(DAP_WORLD_SCALE)
 #error "passes/appearance_prefilter_gltf.frag needs DAP_WORLD_CENTRE and DAP_WORLD_SCALE (the bundle's render.world)"
 #endif
 
-uniform vec2 u_size;
-uniform mat4 u_proj;
-uniform vec3 u_sh[SH_COEFFS];
-uniform int u_dap_force_scale;    // >= 0: march this scale only
-uniform int u_dap_view;
-uniform int u_dap_shadows;        // 0: no global shadows
 layout(location = 0) out vec4 frag_color;
-
-vec3 dap_ramp(float x) {
-    return vec3(x, 1.0 - abs(2.0 * x - 1.0), 1.0 - x);
-}
 
 // The file's reference shading at this pixel (passes/gltf_pbr.frag's, every light of the scene).
 vec3 reference_colour(vec3 background) {
@@ -54,19 +44,7 @@ vec4 prefiltered_colour(vec3 ro_world, vec3 rd, vec3 background) {
     if (!unit_box(ro, rd, t0, t1)) {
         return vec4(u_dap_view == DAP_VIEW_PREFILTERED || u_dap_view == DAP_VIEW_SPLIT ? background : vec3(0.0), 0.0);
     }
-    float px = 2.0 / (u_proj[1][1] * u_size.y);
-    float L = dap_footprint_scale(t0, px, u_dap_force_scale);
-    vec3 sun_dir, sun;
-    dap_scene_sun(sun_dir, sun);
-    DapPixel p = dap_pixel(ro, rd, px, t0, sun_dir, sun, u_sh);
-    DapResult a = dap_march_at(p, L, u_dap_shadows != 0);
-    vec3 colour = a.radiance + (1.0 - a.coverage) * background;
-    if (u_dap_view == DAP_VIEW_COVERAGE) colour = vec3(a.coverage);
-    if (u_dap_view == DAP_VIEW_ALBEDO) colour = a.albedo;
-    if (u_dap_view == DAP_VIEW_SCALE) {
-        colour = a.coverage * dap_ramp((L - float(DAP_SCALE_MIN)) / float(max(DAP_SCALE_MAX - DAP_SCALE_MIN, 1)));
-    }
-    return vec4(colour, a.coverage);
+    return dap_view_colour(ro, rd, t0, background);
 }
 
 void main() {

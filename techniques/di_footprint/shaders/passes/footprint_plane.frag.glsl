@@ -13,19 +13,13 @@
 // can feed torch exactly what the network saw (derivatives cannot be recomputed off-GPU).
 // GL modes sample with textureGrad from the same derivatives: implicit-derivative texture() is
 // undefined inside the hit branch (non-uniform control flow).
-#include <network>
+#include <lib/field_output>
 #include <lib/footprint>
 #include <lib/colour>
 #include <choices>
 
 #ifndef FOOTPRINT_MODE
 #define FOOTPRINT_MODE FOOTPRINT_DI
-#endif
-#ifndef FIELD_OUT_OFFSET
-#define FIELD_OUT_OFFSET 0
-#endif
-#ifndef FIELD_OUT_DIM
-#define FIELD_OUT_DIM 3
 #endif
 #if NET_IN_DIM != 3
 #error "passes/footprint_plane.frag needs a network with inputs uv (2) and log2_footprint (1)"
@@ -42,48 +36,32 @@ uniform sampler2D u_texture;
 layout(location = 0) out vec4 frag_color;
 layout(location = 1) out vec4 frag_inputs;
 
-float footprint_lane(in vec4 y[NET_OUT_BLOCKS], int lane) {
-    return y[lane / 4][lane % 4];
-}
-
 vec3 footprint_network(vec2 uv, float log2_fp) {
     vec4 x[NET_IN_BLOCKS];
     x[0] = vec4(uv, log2_fp, 0.0);
     vec4 y[NET_OUT_BLOCKS];
     net_eval(x, y);
-#if FIELD_OUT_DIM == 1
-    return vec3(footprint_lane(y, FIELD_OUT_OFFSET));
-#else
-    return vec3(footprint_lane(y, FIELD_OUT_OFFSET), footprint_lane(y, FIELD_OUT_OFFSET + 1),
-                footprint_lane(y, FIELD_OUT_OFFSET + 2));
-#endif
+    return field_rgb(y);
 }
 
 void main() {
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    bool hit;
-    vec2 uv = footprint_plane_uv(ro, rd, u_tile, u_extent, hit);
-    vec2 dx = dFdx(uv);
-    vec2 dy = dFdy(uv);
-    float log2_fp = footprint_log2(dx, dy);
-    vec2 tile_uv = fract(uv);
-    frag_inputs = vec4(tile_uv, log2_fp, hit ? 1.0 : 0.0);
-    if (!hit) {
+    FootprintPixel f = footprint_pixel(u_size, u_tile, u_extent);
+    frag_inputs = vec4(f.tile_uv, f.log2_fp, f.hit ? 1.0 : 0.0);
+    if (!f.hit) {
         frag_color = vec4(0.0);
         return;
     }
 #if FOOTPRINT_MODE == FOOTPRINT_DI
-    vec3 rgb = footprint_network(tile_uv, log2_fp);
+    vec3 rgb = footprint_network(f.tile_uv, f.log2_fp);
 #elif FOOTPRINT_MODE == FOOTPRINT_TRILINEAR
-    vec3 rgb = srgb_eotf(textureGrad(u_texture, uv, dx, dy).rgb);
+    vec3 rgb = srgb_eotf(textureGrad(u_texture, f.uv, f.dx, f.dy).rgb);
 #elif FOOTPRINT_MODE == FOOTPRINT_ANISOTROPIC
-    vec3 rgb = srgb_eotf(textureGrad(u_texture_aniso, uv, dx, dy).rgb);
+    vec3 rgb = srgb_eotf(textureGrad(u_texture_aniso, f.uv, f.dx, f.dy).rgb);
 #elif FOOTPRINT_MODE == FOOTPRINT_BILINEAR
-    vec3 rgb = srgb_eotf(textureLod(u_texture, uv, 0.0).rgb);
+    vec3 rgb = srgb_eotf(textureLod(u_texture, f.uv, 0.0).rgb);
 #else
-    float lod = log2_fp + log2(float(textureSize(u_texture, 0).x));
-    vec3 rgb = srgb_eotf(textureLod(u_texture, uv, lod).rgb);
+    float lod = f.log2_fp + log2(float(textureSize(u_texture, 0).x));
+    vec3 rgb = srgb_eotf(textureLod(u_texture, f.uv, lod).rgb);
 #endif
     frag_color = vec4(rgb, 1.0);
 }

@@ -27,11 +27,8 @@ layout(location = 0) out vec4 frag_color;
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    vec3 p, n;
-    bool covered = gbuffer_surface(px, p, n);
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (!covered) {
+    vec3 rd, p, n;
+    if (!gbuffer_pixel(u_size, rd, p, n)) {
         frag_color = vec4(sh_background(rd, u_sh), 1.0);
         return;
     }

@@ -11,27 +11,7 @@
 #include <lib/colour>
 #include <lib/brdf>
 #include <lib/di_brdf>
-
-// One sample of the 8-lane set (models/pbr_lanes.py LANES), unpacked as lib/pbr_set's
-// pbr_set_unpack does (torch: models/pbr_lanes.py unpack); lib/pbr_set itself pulls in the SH
-// lighting chunks this pass has no use for.
-struct PbrSample {
-    vec3 albedo;      // linear
-    vec3 normal_ts;   // unit, tangent space (x along +u, y along +v, z out)
-    float roughness;
-    float ao;
-};
-
-PbrSample pbr_set_unpack(vec4 a, vec4 b) {
-    PbrSample s;
-    s.albedo = srgb_eotf(clamp(a.xyz, 0.0, 1.0));
-    vec3 n = vec3(a.w, b.x, b.y) * 2.0 - 1.0;
-    float len2 = n.x * n.x + n.y * n.y + n.z * n.z;
-    s.normal_ts = len2 > 1e-12 ? n * inversesqrt(len2) : vec3(0.0, 0.0, 1.0);
-    s.roughness = clamp(b.z, 0.0, 1.0);
-    s.ao = clamp(b.w, 0.0, 1.0);
-    return s;
-}
+#include <lib/pbr_sample>   // one sample of the 8-lane set: PbrSample, pbr_set_unpack
 
 struct DiShadingGeometry {
     vec3 l;     // to the light, plane tangent space

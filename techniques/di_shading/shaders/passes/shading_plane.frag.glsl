@@ -50,37 +50,30 @@ layout(location = 1) out vec4 frag_inputs;
 layout(location = 2) out vec4 frag_derivatives;
 layout(location = 3) out vec4 frag_position;
 
-PbrSample shading_e2e(vec2 uv, float lf) {
+// The set's sample from the independent sampler <network_ind> or the end-to-end one <network_e2e>
+// (the same inputs and lanes, checked above).
+PbrSample shading_sampler(bool independent, vec2 uv, float lf) {
     vec4 x[E2E_IN_BLOCKS];
     x[0] = vec4(uv, lf, 0.0);
     vec4 y[E2E_OUT_BLOCKS];
-    e2e_eval(x, y);
-    return pbr_set_unpack(y[0], y[1]);
-}
-
-PbrSample shading_ind(vec2 uv, float lf) {
-    vec4 x[IND_IN_BLOCKS];
-    x[0] = vec4(uv, lf, 0.0);
-    vec4 y[IND_OUT_BLOCKS];
-    ind_eval(x, y);
+    if (independent) {
+        ind_eval(x, y);
+    } else {
+        e2e_eval(x, y);
+    }
     return pbr_set_unpack(y[0], y[1]);
 }
 
 void main() {
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    bool hit;
-    vec2 uv = footprint_plane_uv(ro, rd, u_tile, u_extent, hit);
-    vec2 dx = dFdx(uv);
-    vec2 dy = dFdy(uv);
-    float lf = footprint_log2(dx, dy);
-    vec2 tile_uv = fract(uv);
-    float t = ro.y / max(-rd.y, 1e-6);
-    vec3 p = ro + rd * t;
-    frag_inputs = vec4(tile_uv, lf, hit ? 1.0 : 0.0);
+    FootprintPixel f = footprint_pixel(u_size, u_tile, u_extent);
+    vec2 dx = f.dx, dy = f.dy, tile_uv = f.tile_uv;
+    float lf = f.log2_fp;
+    float t = f.ro.y / max(-f.rd.y, 1e-6);
+    vec3 p = f.ro + f.rd * t;
+    frag_inputs = vec4(tile_uv, lf, f.hit ? 1.0 : 0.0);
     frag_derivatives = vec4(dx, dy);
     frag_position = vec4(p, 1.0);
-    if (!hit) {
+    if (!f.hit) {
         frag_color = vec4(0.0);
         return;
     }
@@ -105,12 +98,11 @@ void main() {
     vec3 rgb = di_shading_analytic(s, g, u_ambient);
 #endif
 #elif SHADING_VIEW == SHADING_END_TO_END
-    vec3 rgb = di_shading_learned(shading_e2e(tile_uv, lf), g, u_ambient);
+    vec3 rgb = di_shading_learned(shading_sampler(false, tile_uv, lf), g, u_ambient);
 #elif SHADING_VIEW == SHADING_INDEPENDENT
-    vec3 rgb = di_shading_learned(shading_ind(tile_uv, lf), g, u_ambient);
+    vec3 rgb = di_shading_learned(shading_sampler(true, tile_uv, lf), g, u_ambient);
 #else
-    vec3 rgb = gl_FragCoord.x < 0.5 * u_size.x ? di_shading_learned(shading_ind(tile_uv, lf), g, u_ambient)
-                                               : di_shading_learned(shading_e2e(tile_uv, lf), g, u_ambient);
+    vec3 rgb = di_shading_learned(shading_sampler(gl_FragCoord.x < 0.5 * u_size.x, tile_uv, lf), g, u_ambient);
 #endif
     frag_color = vec4(rgb * u_exposure, 1.0);
 }

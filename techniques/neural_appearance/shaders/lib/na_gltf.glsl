@@ -7,10 +7,8 @@
 // learnt BRDF. Local frame: the geometric one gltf_surface builds (gltf_tangent_frame, turned over on
 // the back of a double-sided surface): x = t, y = b, z = ng, as in training (gltf_source.py).
 #include <lib/na_neural>
-#include <lib/na_sampling>
+#include <lib/na_estimator>
 #include <lib/gltf_material>
-#include <lib/environment>
-#include <lib/random>
 #include <choices>
 
 // Training draws views above the geometric horizon only; interpolated normals put some silhouette
@@ -30,10 +28,6 @@ struct NaGltfPoint {
 
 vec3 na_gltf_local(NaGltfPoint s, vec3 w) {
     return vec3(dot(w, s.t), dot(w, s.b), dot(w, s.n));
-}
-
-vec3 na_gltf_world(NaGltfPoint s, vec3 w) {
-    return s.t * w.x + s.b * w.y + s.n * w.z;
 }
 
 // The frame of material m's surface at a G-buffer pixel, as gltf_surface orients it.
@@ -70,24 +64,10 @@ vec3 na_gltf_sky(vec3 dir, in vec3 sh[SH_COEFFS]) {
 
 // One Monte Carlo sample of the SH environment's reflected radiance (pixel px, sample index k).
 vec3 na_gltf_environment(NaGltfPoint s, in vec3 sh[SH_COEFFS], int sampling, bool mis, uvec2 px, int k) {
-    ProxyLobe lobe = na_lobe(s.z, s.view, sampling == NA_SAMPLING_ISOTROPIC);
+    NaEnvSample e = na_env_sample(s.z, s.view, s.t, s.b, s.n, sampling, mis, px, k);
     vec3 sum = vec3(0.0);
-    vec3 light = na_bsdf_sample(sampling, lobe, s.view, random_uniform3(px, k, 1));
-    float pdf = na_bsdf_pdf(sampling, lobe, s.view, light);
-    if (light.z > 0.0 && pdf > 0.0) {
-        vec3 dir = na_gltf_world(s, light);
-        float w = mis ? mis_power(pdf, env_pdf(dir)) : 1.0;
-        sum += na_neural(s.z, light, s.view) * na_gltf_sky(dir, sh) * (w / pdf);
-    }
-    if (mis) {
-        float env_p;
-        vec3 dir = env_sample(random_uniform2(px, k, 2), env_p);
-        vec3 l = na_gltf_local(s, dir);
-        if (l.z > 0.0 && env_p > 0.0) {
-            float w = mis_power(env_p, na_bsdf_pdf(sampling, lobe, s.view, l));
-            sum += na_neural(s.z, l, s.view) * na_gltf_sky(dir, sh) * (w / env_p);
-        }
-    }
+    if (e.used[0]) sum += na_neural(s.z, e.light[0], s.view) * na_gltf_sky(e.dir[0], sh) * e.weight[0];
+    if (e.used[1]) sum += na_neural(s.z, e.light[1], s.view) * na_gltf_sky(e.dir[1], sh) * e.weight[1];
     return sum;
 }
 

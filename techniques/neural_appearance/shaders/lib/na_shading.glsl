@@ -10,10 +10,9 @@
 // techniques/neural_appearance/__init__.py), generated into <choices>.
 #include <lib/na_neural>
 #include <lib/na_reference>
-#include <lib/na_sampling>
+#include <lib/na_estimator>
 #include <lib/lights>
 #include <lib/environment>
-#include <lib/random>
 #include <choices>
 
 
@@ -33,10 +32,6 @@ struct NaPoint {
 
 vec3 na_local(NaPoint s, vec3 w) {
     return vec3(dot(w, s.t), dot(w, s.b), dot(w, s.n));
-}
-
-vec3 na_world(NaPoint s, vec3 w) {
-    return s.t * w.x + s.b * w.y + s.n * w.z;
 }
 
 // f cos of the shown material: the neural decoder or the reference.
@@ -59,23 +54,9 @@ vec3 na_lights(NaPoint s, bool neural, int light_count) {
 
 // One Monte Carlo sample of the environment's reflected radiance (pixel px, sample index k).
 vec3 na_environment(NaPoint s, bool neural, int sampling, bool mis, uvec2 px, int k) {
-    ProxyLobe lobe = na_lobe(s.z, s.view, sampling == NA_SAMPLING_ISOTROPIC);
+    NaEnvSample e = na_env_sample(s.z, s.view, s.t, s.b, s.n, sampling, mis, px, k);
     vec3 sum = vec3(0.0);
-    vec3 light = na_bsdf_sample(sampling, lobe, s.view, random_uniform3(px, k, 1));
-    float pdf = na_bsdf_pdf(sampling, lobe, s.view, light);
-    if (light.z > 0.0 && pdf > 0.0) {
-        vec3 dir = na_world(s, light);
-        float w = mis ? mis_power(pdf, env_pdf(dir)) : 1.0;
-        sum += na_reflectance_of(s, neural, light) * env_radiance(dir) * (w / pdf);
-    }
-    if (mis) {
-        float env_p;
-        vec3 dir = env_sample(random_uniform2(px, k, 2), env_p);
-        vec3 l = na_local(s, dir);
-        if (l.z > 0.0 && env_p > 0.0) {
-            float w = mis_power(env_p, na_bsdf_pdf(sampling, lobe, s.view, l));
-            sum += na_reflectance_of(s, neural, l) * env_radiance(dir) * (w / env_p);
-        }
-    }
+    if (e.used[0]) sum += na_reflectance_of(s, neural, e.light[0]) * env_radiance(e.dir[0]) * e.weight[0];
+    if (e.used[1]) sum += na_reflectance_of(s, neural, e.light[1]) * env_radiance(e.dir[1]) * e.weight[1];
     return sum;
 }

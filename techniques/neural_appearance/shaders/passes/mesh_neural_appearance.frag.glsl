@@ -12,16 +12,9 @@
 #include <lib/gbuffer>
 #include <choices>
 #include <lib/na_shading>
+#include <lib/na_settings>
 
 uniform vec2 u_size;
-uniform int u_sample_index;
-uniform int u_na_view;
-uniform int u_na_lighting;
-uniform int u_na_sampling;
-uniform int u_na_mis;
-uniform int u_light_count;
-uniform float u_na_level_bias;
-uniform float u_na_error_scale;
 uniform int u_na_latent_page;
 uniform sampler2D u_gbuffer_uv_grad;
 layout(location = 0) out vec4 frag_color;
@@ -40,10 +33,8 @@ void main() {
     ivec2 ipx = ivec2(gl_FragCoord.xy);
     uvec2 px = uvec2(ipx);
     NaPoint s;
-    bool covered = gbuffer_surface(ipx, s.position, s.n);
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (!covered) {
+    vec3 rd;
+    if (!gbuffer_pixel(u_size, rd, s.position, s.n)) {
         frag_color = vec4(env_radiance(rd), 0.0);
         return;
     }

@@ -15,17 +15,10 @@
 #include <na_latents_info>
 #include <na_gltf_info>
 #include <lib/na_gltf>
+#include <lib/na_settings>
 
 uniform vec2 u_size;
 uniform vec3 u_sh[SH_COEFFS];
-uniform int u_sample_index;
-uniform int u_na_view;
-uniform int u_na_lighting;
-uniform int u_na_sampling;
-uniform int u_na_mis;
-uniform int u_light_count;
-uniform float u_na_level_bias;
-uniform float u_na_error_scale;
 layout(location = 0) out vec4 frag_color;
 
 void main() {

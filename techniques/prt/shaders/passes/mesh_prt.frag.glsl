@@ -7,36 +7,16 @@
 // Torch reference: techniques/prt/twin.py render_gbuffer() (fed the same G-buffer).
 #include <lib/camera>
 #include <lib/gbuffer>
-#include <lib/prt>
+#include <lib/prt_pass>
 #include <choices>
 
-uniform vec2 u_size;
-uniform vec3 u_sh[SH_COEFFS];
-uniform int u_shading;          // PRT_DIFFUSE | PRT_GLOSSY
-uniform float u_phong_exponent;
-uniform float u_albedo;         // tint of the mesh's base colour
-uniform float u_kd;
-uniform float u_ks;
-uniform int u_prt_debug;
 layout(location = 0) out vec4 frag_color;
 
-const vec3 MESH_ALBEDO = vec3(0.8);  // the mesh's base colour (techniques/prt/twin.py MESH_ALBEDO)
-
 void main() {
-    vec3 p, n;
-    bool covered = gbuffer_surface(ivec2(gl_FragCoord.xy), p, n);
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    if (!covered) {
-        frag_color = u_prt_debug > 0 ? vec4(0.0) : vec4(sh_background(rd, u_sh), 1.0);
-        return;
+    vec3 rd, p, n;
+    if (gbuffer_pixel(u_size, rd, p, n)) {
+        frag_color = prt_network_pixel(PRT_MESH_ALBEDO, p, n, rd);
+    } else {
+        frag_color = prt_background(rd);
     }
-    vec4 tr[PRT_BLOCKS];
-    prt_transfer(p, n, tr);
-    if (u_prt_debug > 0) {
-        frag_color = prt_debug(u_prt_debug, tr, p, n);
-        return;
-    }
-    vec3 albedo = MESH_ALBEDO * u_albedo;
-    frag_color = vec4(prt_shade(tr, albedo, n, rd, u_sh, u_shading, u_phong_exponent, u_kd, u_ks), 1.0);
 }

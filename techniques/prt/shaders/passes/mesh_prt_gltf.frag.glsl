@@ -11,17 +11,9 @@
 // quality measurement shades its ground truth with). Debug u_prt_debug as passes/mesh_prt.frag.
 // Torch reference of the prt view: techniques/prt/twin.py compose() with the albedo view's colours.
 #include <lib/gltf_gbuffer>
-#include <lib/prt>
+#include <lib/prt_pass>
 #include <choices>
 
-uniform vec2 u_size;
-uniform vec3 u_sh[SH_COEFFS];
-uniform int u_shading;          // PRT_DIFFUSE | PRT_GLOSSY
-uniform float u_phong_exponent;
-uniform float u_albedo;         // tint of the file's base colour
-uniform float u_kd;
-uniform float u_ks;
-uniform int u_prt_debug;
 uniform int u_prt_view;
 layout(location = 0) out vec4 frag_color;
 
@@ -29,7 +21,7 @@ void main() {
     GltfPixel g;
     GltfSurface s;
     if (!gltf_pixel(gl_FragCoord.xy, u_size, g, s)) {
-        frag_color = u_prt_debug > 0 ? vec4(0.0) : vec4(sh_background(-g.v, u_sh), 1.0);
+        frag_color = prt_background(-g.v);
         return;
     }
     vec3 p = g.p, n = g.n, rd = -g.v;
@@ -43,12 +35,5 @@ void main() {
         frag_color = vec4(s.s.base_color, 1.0);
         return;
     }
-    vec4 tr[PRT_BLOCKS];
-    prt_transfer(p, n, tr);
-    if (u_prt_debug > 0) {
-        frag_color = prt_debug(u_prt_debug, tr, p, n);
-        return;
-    }
-    vec3 albedo = s.s.base_color * u_albedo;
-    frag_color = vec4(prt_shade(tr, albedo, n, rd, u_sh, u_shading, u_phong_exponent, u_kd, u_ks), 1.0);
+    frag_color = prt_network_pixel(s.s.base_color, p, n, rd);
 }

@@ -8,37 +8,16 @@
 // tests (the network checked at the shader's own p, n) and the viewer's transfer inspection.
 // Torch reference: techniques/prt/twin.py render().
 #include <lib/sdf>
-#include <lib/prt>
+#include <lib/prt_pass>
 #include <choices>
 
-uniform vec2 u_size;
-uniform vec3 u_sh[SH_COEFFS];
-uniform int u_shading;          // PRT_DIFFUSE | PRT_GLOSSY
-uniform float u_phong_exponent;
-uniform float u_albedo;         // tint: scales the scene's albedo
-uniform float u_kd;
-uniform float u_ks;
-uniform int u_prt_debug;
 layout(location = 0) out vec4 frag_color;
 
 void main() {
-    vec3 ro, rd;
-    camera_ray(gl_FragCoord.xy, u_size, ro, rd);
-    float t;
-    vec3 n;
-    if (sdf_hit(ro, rd, t, n)) {
-        vec3 p = ro + rd * t;
-        vec4 tr[PRT_BLOCKS];
-        prt_transfer(p, n, tr);
-        if (u_prt_debug > 0) {
-            frag_color = prt_debug(u_prt_debug, tr, p, n);
-            return;
-        }
-        vec3 albedo = scene_albedo(p) * u_albedo;
-        frag_color = vec4(prt_shade(tr, albedo, n, rd, u_sh, u_shading, u_phong_exponent, u_kd, u_ks), 1.0);
-    } else if (u_prt_debug > 0) {
-        frag_color = vec4(0.0);
+    vec3 rd, p, n;
+    if (sdf_pixel(u_size, rd, p, n)) {
+        frag_color = prt_network_pixel(scene_albedo(p), p, n, rd);
     } else {
-        frag_color = vec4(sh_background(rd, u_sh), 1.0);
+        frag_color = prt_background(rd);
     }
 }

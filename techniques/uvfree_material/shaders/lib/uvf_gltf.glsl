@@ -11,6 +11,7 @@
 #if !defined(MAT_IN_UINT_DIM) || MAT_OUT_DIM != UVG_LANES
 #error "passes/mesh_uvfree_gltf.frag needs a (triangle uint, barycentric) network with the bundle's render.channels lanes"
 #endif
+#include <lib/uvf_decoder>
 
 float uvg_lane(in vec4 y[MAT_OUT_BLOCKS], int i) {
     return y[i / 4][i % 4];
@@ -24,12 +25,8 @@ vec3 uvg_lanes3(in vec4 y[MAT_OUT_BLOCKS], int i) {
 // gltf_surface(m, ...) made at the same pixel, ng the interpolated normal, tangent the G-buffer's,
 // v towards the camera (the normal is mapped in the frame gltf_surface used).
 void uvg_decode(uint k, vec2 t, int m, vec3 ng, vec4 tangent, vec3 v, inout GltfSurface s) {
-    uvec4 xu[MAT_IN_UINT_BLOCKS];
-    xu[0] = uvec4(k, 0u, 0u, 0u);
-    vec4 x[MAT_IN_BLOCKS];
-    x[0] = vec4(t, 0.0, 0.0);
     vec4 y[MAT_OUT_BLOCKS];
-    mat_eval(xu, x, y);
+    uvf_eval(k, t, y);
     s.s.base_color = srgb_eotf(clamp(uvg_lanes3(y, UVG_LANE_BASE_COLOR), 0.0, 1.0));
     s.s.metallic = clamp(uvg_lane(y, UVG_LANE_METALLIC), 0.0, 1.0);
     s.s.roughness = clamp(uvg_lane(y, UVG_LANE_ROUGHNESS), MATERIAL_MIN_ROUGHNESS, 1.0);

@@ -9,6 +9,7 @@
 #if MAT_OUT_DIM != 9 || !defined(MAT_IN_UINT_DIM)
 #error "passes/mesh_uvfree_material.frag needs a (triangle uint, barycentric) -> 9-channel material network"
 #endif
+#include <lib/uvf_decoder>
 
 uniform sampler2D u_uvf_albedo;   // the reference textures (scene.json "textures"), bilinear, clamp
 uniform sampler2D u_uvf_normal;
@@ -22,12 +23,8 @@ struct UvfChannels {
 
 // The network at face k, barycentrics t = (t0, t1) of the face's vertices 0, 1.
 UvfChannels uvf_decode(uint k, vec2 t) {
-    uvec4 xu[MAT_IN_UINT_BLOCKS];
-    xu[0] = uvec4(k, 0u, 0u, 0u);
-    vec4 x[MAT_IN_BLOCKS];
-    x[0] = vec4(t, 0.0, 0.0);
     vec4 y[MAT_OUT_BLOCKS];
-    mat_eval(xu, x, y);
+    uvf_eval(k, t, y);
     return UvfChannels(y[0].xyz, vec3(y[0].w, y[1].xy), vec3(y[1].zw, y[2].x));
 }
 
