@@ -15,6 +15,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,8 +85,10 @@ def gl_env(monkeypatch):
 def _render_set_in(backend: str, tmp_path_factory) -> dict:
     """The parity set rendered by a fresh process on ``backend`` (each backend is chosen once per process)."""
     out = tmp_path_factory.mktemp(backend) / "set.npz"
+    tests = str(Path(__file__).resolve().parents[1])     # the shared helpers (parity.py, shipped_renders.py)
+    path = os.pathsep.join(filter(None, [tests, os.environ.get("PYTHONPATH")]))
     r = subprocess.run([sys.executable, __file__, str(out)], capture_output=True, text=True,
-                       env=_fresh_env(**{BACKEND_ENV: backend}))
+                       env=_fresh_env(**{BACKEND_ENV: backend, "PYTHONPATH": path}))
     assert r.returncode == 0, r.stderr
     with np.load(out) as data:
         return {k: data[k] for k in data.files}
