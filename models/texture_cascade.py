@@ -30,7 +30,7 @@ from inshade.models.graph import GraphModule
 from inshade.models.mlp import Dense
 from inshade.pixels import pixel_uvs
 from inshade.progress import default_interval
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 KIND = "di_texture"          # the bundle kind of a DI texture
 MAX_CHANNELS = 8
@@ -418,7 +418,7 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
                   if decode else "arrays hold the channel values as given (no colour decode)",
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
         "notes": notes, "torch": torch.__version__, "device": str(device),
-        "date_utc": utc_now(),
+        **recorded_at(),
     }
     prov.update(provenance or {})
     render = {"program": FIELD_PROGRAM, "width": w, "height": h, "input": "uv",

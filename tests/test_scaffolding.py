@@ -12,6 +12,9 @@ SHARED = {
     r"datetime\.(datetime\.)?(now|utcnow)\(|time\.strftime\(": (
         {"inshade/provenance.py", "viewer/capture.py"},
         "a record's time is inshade.provenance.utc_now() (the viewer's screenshot names use the local clock)"),
+    r"""["']date_utc["']\s*:\s*utc_now|\[["']date_utc["']\]\s*=""": (
+        {"inshade/provenance.py"},
+        "a provenance or metrics record gets its time from inshade.provenance.recorded_at()"),
 }
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from .lowering import ConvertError, Lowering
 from .shown_as import SHOWN_AS, apply_shown_as, check_colour, colour_warning, with_semantics
@@ -88,7 +88,7 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
         lowering.output(out_name, f, leading=lead)
     provenance = {"source": "torch", "module": type(module).__qualname__, "exported_by": "inshade.export",
                   "torch": torch.__version__,
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
     source = module if lead == 1 else LeadingAxes(module, lead)
     return finish(bundle, source, [r.numpy() for r in rows], folder, check=check, quiet=quiet, limits=limits, as_=as_,

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from inshade.components import registry as component_registry
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from .lowering import ConvertError, Feat, IntFeat, Lowering
 from .onnx_file import _onnx, load_model
@@ -280,7 +280,7 @@ def to_bundle(source, *, name: str | None = None):
     onnx = _onnx()
     provenance = {"source": "onnx", "file": where, "opset": opset, "producer": model.producer_name or "",
                   "onnx": onnx.__version__,
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     default = Path(where).stem if where != "<model>" else (model.graph.name or "model")
     bundle = lowering.L.bundle("imported", name or _port_name(default), provenance)
     return bundle, model, lowering

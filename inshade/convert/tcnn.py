@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from .lowering import ConvertError
 from .tcnn_config import Model, parse_model
@@ -217,7 +217,7 @@ def provenance(model: Model, config_path, params_path, dtype: str, count: int) -
     out = {"source": "tiny-cuda-nn", "model": model.kind, "config": str(config_path), "params": str(params_path),
            "params_dtype": dtype, "params_count": int(count), "resolved": model.resolved(),
            "checked_against": "the bundle's torch twin (tiny-cuda-nn needs CUDA; docs/tcnn.md)",
-           "date_utc": utc_now()}
+           **recorded_at()}
     if model.ctx.ignored:
         out["ignored_keys"] = list(model.ctx.ignored)
     return out

@@ -55,7 +55,7 @@ from inshade.geometry.gltf import GltfError
 from inshade.geometry.mesh import MeshError
 from inshade.scene.builder import directional_light, network, orbit, reference, requires, scene_json, sky
 from inshade.trainer import GIVEN, Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from .data import DataError
 from .memory import memory_report
@@ -275,7 +275,7 @@ def train(run: Run) -> int:
     bt, bp = settings["bins"]
     provenance = {"command": run.command, "preset": preset, **settings, "voxels": int(len(data["cells"])),
                   "faces": int(data["faces"]), "torch": torch.__version__, "device": str(device),
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     user = None
     render = {"mask": settings["mask"], "bins": bt * bp, "bins_theta": bt, "bins_phi": bp}
     if is_file_scene(settings["scene"]):

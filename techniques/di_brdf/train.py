@@ -71,7 +71,7 @@ from inshade.models.graph import GraphModule
 from inshade.scene.builder import (display_modes, exposure_setting, int_setting, lut_filter_setting, network,
                                     plane2d, point_light, requires, scene_json, view_labels)
 from inshade.trainer import Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from .data import (GGX_ALPHA_RANGE, SWEEP_COLUMNS, disney_samples, ggx_ball_display, ggx_ball_sampler, ggx_sampler,
                    sweep_grid)
@@ -225,7 +225,7 @@ def scene_dict(name: str, title: str, model: str, size, cols: int, rows: int, ba
 
 def _provenance(command, extra):
     return {"command": command, "torch": torch.__version__,
-            "date_utc": utc_now(), **extra}
+            **recorded_at(), **extra}
 
 
 def _write_scene(out: Path, scene: dict, preview: np.ndarray):

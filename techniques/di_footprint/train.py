@@ -66,7 +66,7 @@ from inshade.models.graph import GraphModule
 from inshade.scene.builder import (choice_setting, display_modes, exposure_setting, float_setting,
                                     lut_filter_setting, network, requires, scene_json, text_label, texture)
 from inshade.techniques.di_footprint import MODES
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 KIND = "di_footprint"
 RENDER_PROGRAM = "passes/footprint_plane.frag"
@@ -211,7 +211,7 @@ def _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenanc
         "colour": "arrays hold sRGB-encoded values; the graph decodes to linear (sRGB EOTF tables)",
         "uv_convention": "uv (0,0) = bottom-left of the picture; the shader passes fract(tiled uv)",
         "torch": torch.__version__, "device": str(device),
-        "date_utc": utc_now(),
+        **recorded_at(),
     }
     prov.update(provenance or {})
     metrics = {

@@ -36,7 +36,7 @@ from inshade.techniques.di_pbr_set import ERROR_SCALE, GLTF_PROGRAM, GLTF_VIEWS
 from inshade.techniques.di_pbr_set import gltf_lanes as L
 from inshade.techniques.di_pbr_set.render import render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, gltf_lane_metrics, gltf_markdown, render_psnr
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 LIGHTS = 2          # the point lights of a glTF scene (as ``inshade render FILE.glb`` places them)
 
@@ -168,7 +168,7 @@ def build_gltf(out, path, *, material: int | None, size: int | None, ratio: floa
     metrics["settings"] = dict(size=side, ratio=ratio, steps=steps, lr=lr, batch=batch, seed=seed,
                                finish_optimizer=finish_optimizer, gltf=str(path), material=m)
     metrics["device"] = str(torch.device("cpu") if device is None else torch.device(device))
-    metrics["date_utc"] = utc_now()
+    metrics.update(recorded_at())
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     atomic_write(out / "report.md", gltf_markdown(metrics))
     return metrics

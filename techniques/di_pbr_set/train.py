@@ -47,7 +47,7 @@ from inshade.techniques.di_pbr_set import VIEWS
 from inshade.techniques.di_pbr_set.render import DEFAULT_LIGHTS, LIGHTS, render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, lane_metrics, markdown, render_psnr
 from inshade.trainer import GIVEN, Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 PROGRAM = "passes/mesh_pbr_set.frag"
 ASSET = "di_pbr_set_bricks"
@@ -168,7 +168,7 @@ def build(out, *, size: int = Settings.size, ratio: float = Settings.ratio, step
     metrics["settings"] = dict(size=size, ratio=ratio, steps=steps, lr=lr, batch=batch, seed=seed,
                                finish_optimizer=finish_optimizer)
     metrics["device"] = str(torch.device("cpu") if device is None else torch.device(device))
-    metrics["date_utc"] = utc_now()
+    metrics.update(recorded_at())
     atomic_write(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     atomic_write(out / "report.md", markdown(metrics))
     return metrics

@@ -34,7 +34,7 @@ from inshade.scene.builder import network, orbit, requires, scene_json
 from inshade.scene.labels import split_labels
 from inshade.files import atomic_write
 from inshade.trainer import Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from . import KIND, PREFIX_DI, PREFIX_GRID, PROGRAM, SETTINGS as SCENE_SETTINGS
 from . import field, march, model
@@ -152,7 +152,7 @@ def fit(settings: dict, device="cpu", progress=None, provenance: dict | None = N
                     f"Adam (colour lr {settings['lr_colour']:g}, density lr {settings['lr_density']:g}), cosine, "
                     f"batch {settings['batch']}, {settings['steps']} steps, primary clip auto, seed {settings['seed']}",
         "device": str(device), "torch": torch.__version__,
-        "date_utc": utc_now(),
+        **recorded_at(),
         **(provenance or {}),
     }
     di_bundle = graph.export(KIND, "di_radiance_field", provenance=prov, metrics=metrics, render=render)

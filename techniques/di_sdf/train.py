@@ -40,7 +40,7 @@ from inshade.models.threads import torch_threads
 from inshade.scene.builder import (display_modes, lut_filter_setting, network_sdf, orbit_around, requires,
                                     scene_json, sky)
 from inshade.trainer import Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from .data import (MARGIN, NEAR_SIGMAS, UNIFORM_FRACTION, DiSdfError, DistanceQuery, Frame, check_mesh, eval_set,
                    load_mesh, make_samples, mesh_frame, nearest_init, sample_batches, sdf_metrics)
@@ -165,7 +165,7 @@ def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, sample
         "contract": "q = (p - center) / radius; distance = radius * graph(q) (models/network_sdf.py)",
         "device": str(device),
         "torch": torch.__version__,
-        "date_utc": utc_now(),
+        **recorded_at(),
     }
     prov.update(provenance or {})
     bundle = graph.export(KIND, name, provenance=prov, metrics=metrics, render=module.render_meta())

@@ -70,7 +70,7 @@ from inshade.models import footprint_sampler as fp
 from inshade.scene.builder import (choice_setting, display_modes, float_setting, lut_filter_setting, network,
                                     point_light, requires, scene_json, texture, view_labels)
 from inshade.trainer import Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from . import VIEWS
 from .data import VIEW_SIZE, Samples, batches, material, plane_samples
@@ -337,7 +337,7 @@ def train(run: Run) -> int:
                "note": "psnr_*: torch, 8-bit samplers, held-out plane pixels, display domain sRGB(clamp(x)); "
                        "the GLSL-rendered numbers are inshade bench di_shading's"}
     prov = {"command": run.command, "torch": torch.__version__, "device": str(run.device),
-            "date_utc": utc_now(),
+            **recorded_at(),
             "technique": "Differentiable Indirection end-to-end shading (Datta et al. 2023 supp. 1.5): "
                          "footprint sampler trained through the frozen DI Disney decoder"}
     out = write_asset(run.out, runs, decoder, image, lambda_folder(best.lam), prov)

@@ -21,7 +21,7 @@ import torch
 from inshade.metrics import psnr, psnr_from_mse, srgb_eotf
 from inshade.models.graph import GraphModule
 from inshade.pixels import pixel_uvs
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 from inshade.scene.builder import (choice_setting, display_modes, exposure_setting, float_setting, network,
                                     plane2d, reference, requires, scene_json)
 
@@ -134,7 +134,7 @@ def train(run) -> int:
         "uv_convention": "uv (0,0) = bottom-left of the picture, (1,1) = top-right; pixel centres",
         "optimizer": "adam betas (0.9, 0.99), tables and MLP in separate groups, cosine decay to 5%",
         "device": str(run.device), "torch": torch.__version__,
-        "date_utc": utc_now(),
+        **recorded_at(),
     }
     render = {"program": RENDER_PROGRAM, "width": s.size, "height": s.size, "input": "uv", "output": "rgb"}
     bundle = g.export(KIND, run.out.name, provenance=provenance, render=render)

@@ -41,7 +41,7 @@ import torch
 from inshade.files import atomic_write
 from inshade.metrics import psnr
 from inshade.models.graph import GraphModule
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 from inshade.scene.builder import (display_modes, network, reference, requires, scene_json, text_label,
                                     texture)
 
@@ -363,7 +363,7 @@ def train(run) -> int:
         "training": "occupancy-guided samples of the march, MSE on composited pixels + empty-space term, Adam "
                     "(instant-NGP's split), cosine decay to 5%",
         "device": str(run.device), "torch": torch.__version__,
-        "date_utc": utc_now(),
+        **recorded_at(),
     }
     bundle = g.export(KIND, run.out.name, provenance=provenance, render=m.to_render())
     shipped = GraphModule.from_bundle(bundle)        # fp16 tables as exported: what the shader reads

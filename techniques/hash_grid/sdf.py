@@ -46,7 +46,7 @@ from inshade.models.mlp import Dense
 from inshade.models.mlp_sdf import trace_settings
 from inshade.models.mlp_sdf_fit import BOUND_MARGIN, SIGMAS, sample_points, signed_distance
 from inshade.models.network_sdf import NetworkSdfModule
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 from inshade.scene.builder import display_modes, network_sdf, orbit_around, requires, scene_json, sky
 
 from .lipschitz import measured_slope, sound_bound
@@ -251,7 +251,7 @@ def train(run) -> int:
         "loss": f"L1 on distance / radius + {s.eikonal} * eikonal (forward differences, {h:.3g} in q)",
         "step": f"step_scale = 1 / ({s.step_safety} * measured slope {measured:.4g}); sound bound {sound:.4g}",
         "device": str(run.device), "torch": torch.__version__,
-        "date_utc": utc_now(),
+        **recorded_at(),
     }
     bundle = module.export(KIND, run.out.name, provenance=provenance, metrics={
         k: v for k, v in metrics.items() if k not in ("mlp_baseline", "neural_sdf_shipped", "l1_batches")})

@@ -55,7 +55,7 @@ from inshade.files import atomic_write
 from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 from inshade.models.fit_loop import adam, cosine, fit, learning_rates
 from inshade.components.latent_pyramid.torch_twin import LatentPyramid
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 from inshade.trainer import GIVEN, Run, Trainer, setting
 
 from . import KIND, NETWORKS
@@ -306,7 +306,7 @@ def write_asset(out: Path, model: NeuralMaterial, source, raw, config, command_l
     out.mkdir(parents=True, exist_ok=True)
     provenance = {"command": command_line, "preset": preset, "material": source.name, **config,
                   "torch": torch.__version__, "device": str(device),
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     graphs = export_graphs(model.to("cpu"))
     sizes = {}
     for folder, _prefix in NETWORKS:

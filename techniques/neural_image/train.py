@@ -41,7 +41,7 @@ from inshade.models import activations as _act
 from inshade.components.encodings import torch_twin as _enc
 from inshade.models.graph import GraphModule
 from inshade.components.lookup_array.torch_twin import LookupArray
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 IMAGES = ("astronaut", "chelsea", "coffee", "camera", "rocket")  # skimage.data names (RGB or grey)
 ARCHES = ("multires", "siren", "frequency_relu")
@@ -303,7 +303,7 @@ def train(run: Run) -> int:
         "loss": "mse, linear rgb",
         "device": str(device),
         "torch": torch.__version__,
-        "date_utc": utc_now(),
+        **recorded_at(),
     }
     provenance = {k: v for k, v in provenance.items() if v is not None}
     render = {"program": RENDER_PROGRAM, "width": s.size, "height": s.size, "input": "uv", "output": "rgb"}

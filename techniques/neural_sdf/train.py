@@ -38,7 +38,7 @@ from inshade.models.mlp_sdf import ACTIVATIONS
 from inshade.models.mlp_sdf_fit import DEFAULTS as FIT_DEFAULTS, SIGMAS, fit_mesh
 from inshade.models.threads import torch_threads
 from inshade.trainer import Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 KIND = "neural_sdf"
 ALBEDO = (0.8, 0.8, 0.8)
@@ -134,7 +134,7 @@ def fit_and_write(run: Run, *, hit_eps=FIT_DEFAULTS["hit_eps"], albedo=ALBEDO, p
             "preset": run.preset,
             "device": str(run.device),
             "torch": torch.__version__,
-            "date_utc": utc_now(),
+            **recorded_at(),
         }
         bundle = module.export(KIND, KIND, provenance=provenance, metrics=metrics)
         bundle.save(run.out)

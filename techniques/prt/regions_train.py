@@ -35,7 +35,7 @@ from inshade import asset_folder, command
 from inshade.devices import DeviceError
 from inshade.files import atomic_write
 from inshade.techniques.prt.train import prt_scene, write_previews
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 SHIP = dict(points=60000, dirs=128, holdout=3000, holdout_dirs=512, resolution=256, grid=(4, 3), networks=9,
             delta=0.75, band=0.4, region_width=16, other_set_widths=(24,), layers=4, steps=10000, batch=512,
@@ -126,7 +126,7 @@ def run(args) -> int:
     cmd = shlex.join(["python", "-m", "inshade.techniques.prt.regions_train", f"--out={out}",
                       f"--preset={args.preset}"])
     provenance = {"command": cmd, "dataset_key": data["key"], "torch": torch.__version__,
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     export_regions(trained, out, provenance)
     widths = [64, width_for_params(sum(m["params"] for _, _, m, _ in trained), s["layers"])]
     for width in s["other_set_widths"]:             # the same split with wider networks, for the report

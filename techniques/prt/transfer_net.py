@@ -23,7 +23,7 @@ from inshade.devices import DeviceError, add_device_argument, resolve_device
 
 from inshade.techniques.prt.transfer_model import export_transfer
 from inshade.techniques.prt.transfer_training import DEFAULTS, EVAL_SKY, train_transfer, training_config
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 
 def command_options(args: argparse.Namespace, names) -> list[str]:
@@ -165,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
                   "estimator": "cosine-weighted Fibonacci lattice, per-point Cranley-Patterson shift",
                   "loss": "l1 on transfer / scale", "optimizer": "adam, cosine decay to 5%",
                   "device": str(device), "torch": torch.__version__,
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     name = getattr(getattr(geometry, "scene", None), "name", "") or "transfer"
     export_transfer(net, frame, out, metrics, provenance, name=f"{name}_transfer")
     resumed = (f" (went on from step {metrics['resumed_from']} of a checkpoint)"

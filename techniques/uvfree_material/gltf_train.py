@@ -35,7 +35,7 @@ from inshade.geometry.gltf_sample import material_channels
 from inshade.geometry.mesh_topology import mesh_topology
 from inshade.metrics import psnr
 from inshade.trainer import Run
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from . import KIND_GLTF, gltf_channels, gltf_scene, gltf_source
 from .memory import network_bytes
@@ -123,7 +123,7 @@ def write_gltf_material(run: Run, progress=None) -> dict:
                   "table_size": table_size, "hidden": list(hidden), "steps": s.steps, "batch": s.batch,
                   "seed": s.seed, "lr": s.lr, "mlp_lr": s.mlp_lr, "mesh_digest": mesh_topology(mesh.vertices, faces).digest,
                   "faces": int(len(faces)), "torch": torch.__version__, "device": str(device),
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     bundle = graph.export(KIND_GLTF, f"{s.object}_{s.config}", provenance=provenance, metrics=quality,
                           render=gltf_channels.render_meta(targets.channels, targets.scale))
     # the fp16 table (what an RGBA16F texture holds) stored as F16: half the file, widened exactly at load

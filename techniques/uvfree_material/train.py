@@ -51,7 +51,7 @@ from inshade.geometry.gltf import GltfError
 from inshade.geometry.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.metrics import psnr
 from inshade.trainer import Run, Trainer, setting
-from inshade.provenance import utc_now
+from inshade.provenance import recorded_at
 
 from . import objects
 from .fitting import BUNDLE, SurfaceSampler, TrainError, fit, render_preview
@@ -241,7 +241,7 @@ def write_material(run: Run, progress=None) -> dict:
                   "hidden": list(hidden), "steps": steps, "batch": s.batch, "seed": s.seed, "lr": s.lr,
                   "mlp_lr": s.mlp_lr, "mesh_digest": topo.digest, "faces": int(len(faces)),
                   "torch": torch.__version__, "device": str(device),
-                  "date_utc": utc_now()}
+                  **recorded_at()}
     bundle = graph.export(KIND, f"{s.object}_{s.config}", provenance=provenance, metrics=quality)
     # the fp16 table (what an RGBA16F texture holds) stored as F16: half the file, widened exactly at load
     bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") and v.dtype.kind == "f" else v)
