@@ -8,3 +8,23 @@ string and ratios measured side by side in the same run, all written with the sh
 """
 
 from inshade.bench.harness import machine  # noqa: F401  (re-exported: every bench's machine record)
+
+# The benches of shared machinery (not of one technique: a technique's bench is on its record,
+# inshade/technique.py), one registration line each: name -> (module, the line `inshade bench
+# --help` shows). Their modules are imported only when run (their deps are optional extras).
+SHARED = {
+    "mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak"),
+    "export": ("inshade.bench.export", "inshade.export / convert: export + check time, ONNX import time, "
+                                       "export peak memory"),
+    "web": ("inshade.web.bench", "every shipped asset as a WebGL2 page in headless Chromium: page bytes, "
+                                 "load time, frame time, PSNR vs inshade render"),
+    "suite": ("inshade.bench.suite", "every bench, sized by --preset cpu|device, and a one-page summary "
+                                     "against the papers (docs/bench/<renderer>/)"),
+}
+
+
+def benches() -> dict[str, tuple[str, str]]:
+    """name -> (module, help) of every registered bench: the shared ones, then each technique's."""
+    from inshade import technique
+
+    return {**SHARED, **{t.name: (t.bench, t.bench_help or t.summary) for t in technique.techniques() if t.bench}}

@@ -13,8 +13,10 @@ entry (``SUITE``: its command line per preset, claims and headline rows).
                   sizes={"cpu": sized(5, size=16), "device": sized(5, size=256)})
     add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite
 
-The fields reuse the trainer contract's ``setting`` (help, choices, flag, metavar); a bench adds
-``parse`` (a function of the option's text, e.g. a comma-separated list) and ``nargs``. Settings are
+The fields reuse the trainer contract's ``setting`` (help, choices, flag, metavar, positional); a bench
+adds ``parse`` (a function of the option's text, e.g. a comma-separated list) and ``nargs``. A
+positional setting (``positional="assets"``, the name its help shows) left off the command line holds
+what argparse gives it (``[]`` for ``nargs="*"``), as a trainer's positional does. Settings are
 not frozen: a run may keep what it derives from them (parsed lists, its clock) beside them.
 """
 from __future__ import annotations
@@ -37,10 +39,10 @@ CLOCKS = ("auto", "gpu", "wall")
 
 def option(default, help: str | None = None, *, parse: Callable[[str], object] | None = None,
            nargs: str | None = None, required: bool = False, choices=None, flag: str | None = None,
-           metavar: str | None = None):
+           metavar: str | None = None, positional: str | None = None):
     """A bench setting: a trainer ``setting`` whose help is shown as written, plus ``parse`` (the
     option's type: a function of its text), ``nargs`` and ``required``."""
-    base = setting(default, help, choices=choices, flag=flag, metavar=metavar)
+    base = setting(default, help, choices=choices, flag=flag, metavar=metavar, positional=positional)
     return field(default=base.default,
                  metadata={**base.metadata, "parse": parse, "nargs": nargs, "required": required})
 
@@ -49,6 +51,16 @@ def clock_option(default: str = "auto"):
     """``--clock``: the GL timing every frame-timing bench offers (harness ``clock_for``)."""
     return option(default, "GL timing: timer query (gpu), draw + glFinish wall time (wall), or auto = gpu "
                            "on a hardware renderer, wall on a software one (default %(default)s)", choices=CLOCKS)
+
+
+def rounds_option(default: int = 7):
+    """``--rounds``: the timed rounds of harness ``interleave``."""
+    return option(default, "timed rounds (default %(default)s)")
+
+
+def warmup_option(default: int = 2):
+    """``--warmup``: harness ``interleave``'s untimed draws of each variant before the rounds."""
+    return option(default, "untimed draws per variant (default %(default)s)")
 
 
 @dataclass(frozen=True)
@@ -111,7 +123,11 @@ class Bench:
             for key in ("choices", "metavar", "required"):
                 if meta[key]:
                     kw[key] = meta[key]
-            parser.add_argument(_spelling(f), dest=f.name, **kw)
+            if meta["positional"]:
+                del kw["default"]   # argparse's own value when left off, as a trainer's positional
+                parser.add_argument(f.name, **{"metavar": meta["positional"], **kw})
+            else:
+                parser.add_argument(_spelling(f), dest=f.name, **kw)
         return parser
 
     @staticmethod
@@ -155,7 +171,9 @@ class Bench:
         out: list[str] = []
         for name, value in values.items():
             f = fields[name]
-            if value is True:
+            if f.metadata["positional"]:
+                out += [str(v) for v in value] if isinstance(value, (list, tuple)) else [str(value)]
+            elif value is True:
                 out.append(_spelling(f))
             elif isinstance(value, (list, tuple)):
                 words = [str(v) for v in value]

@@ -93,7 +93,7 @@ def slug(renderer: str) -> str:
 
 def registered() -> dict[str, str]:
     """name -> module of every bench `inshade bench` mounts, but this one."""
-    from inshade.cli import benches
+    from inshade.bench import benches
 
     return {name: module for name, (module, _) in benches().items() if name != NAME}
 

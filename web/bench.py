@@ -13,12 +13,13 @@ import json
 import statistics
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from inshade import command
-from inshade.bench.entry import Claim, Sizing, SuiteEntry, claim_row
+from inshade.bench.contract import Bench, option, sized
+from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -114,16 +115,16 @@ def plot(report: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("assets", nargs="*", help="asset folders (default: every shipped asset)")
-    parser.add_argument("--out", default=DEFAULT_OUT, help="output folder")
-    return parser
+@dataclass
+class Settings:
+    assets: list[str] = option((), "asset folders (default: every shipped asset)", positional="assets", nargs="*")
+    out: str = option(DEFAULT_OUT, "output folder")
 
 
-def run(args) -> int:
+def run(settings: Settings) -> int:
     from .browser import Browser, BrowserError
 
-    assets = [Path(a) for a in args.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir())
+    assets = [Path(a) for a in settings.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir())
     report = {"benchmark": "web", "machine": machine(), "assets": []}
     try:
         with Browser() as browser, tempfile.TemporaryDirectory() as tmp:
@@ -134,13 +135,8 @@ def run(args) -> int:
                 report["assets"].append(row)
     except BrowserError as exc:
         raise BenchError(str(exc)) from None
-    write_report(args.out, "web", report, markdown, plot)
+    write_report(settings.out, "web", report, markdown, plot)
     return 0
-
-
-def main(argv=None) -> int:
-    return command.main("inshade bench web", __doc__, add_arguments, run, argv, errors=(BenchError,),
-                        formatter=argparse.ArgumentDefaultsHelpFormatter)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -159,11 +155,13 @@ def headlines(r: dict) -> list[dict]:
                       f"over {len(rows)} pages in {r['browser_renderer'][:40]}", worst["psnr_db_vs_render"])]
 
 
-SUITE = SuiteEntry(sizes={
-    "cpu": Sizing(("trained/neural_image", "trained/di_texture_astronaut", "trained/sdf_creature"), 60),
+BENCH = Bench("web", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
+              formatter=argparse.ArgumentDefaultsHelpFormatter, sizes={
+    "cpu": sized(60, assets=("trained/neural_image", "trained/di_texture_astronaut", "trained/sdf_creature")),
     # the GPU machine needs Debian's chromium + chromium-driver for this one
-    "device": Sizing(("trained/neural_image",), 10),
-}, claims=CLAIMS, headlines=headlines)
+    "device": sized(10, assets=("trained/neural_image",)),
+})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite
 
 
 if __name__ == "__main__":

@@ -5,15 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 
-# Benchmarks of shared machinery (not of one technique); technique benches and trainers come
-# from the technique registry (inshade/technique.py). name -> (module, help)
-SHARED_BENCHES = {"mlp": ("inshade.bench.mlp", "MLP throughput: GLSL per storage mode vs torch CPU vs sgemm peak"),
-                  "export": ("inshade.bench.export", "inshade.export / convert: export + check time, ONNX import "
-                                                     "time, export peak memory"),
-                  "web": ("inshade.web.bench", "every shipped asset as a WebGL2 page in headless Chromium: page bytes, "
-                                               "load time, frame time, PSNR vs inshade render"),
-                  "suite": ("inshade.bench.suite", "every bench, sized by --preset cpu|device, and a one-page "
-                                                   "summary against the papers (docs/bench/<renderer>/)")}
+from inshade.bench import benches   # name -> (module, help) of every registered bench
 
 
 def trainers() -> dict:
@@ -29,15 +21,6 @@ def aliases() -> dict:
     from inshade import technique
 
     return {t.train_alias: ("train", t.name) for t in technique.techniques() if t.train and t.train_alias}
-
-
-def benches() -> dict:
-    """name -> (module, help): the shared benches, then every registered technique's bench."""
-    from inshade import technique
-
-    out = dict(SHARED_BENCHES)
-    out.update({t.name: (t.bench, t.bench_help or t.summary) for t in technique.techniques() if t.bench})
-    return out
 
 
 def add_parsers(sub) -> None:
