@@ -357,6 +357,13 @@ def matplotlib_pyplot():
     return plt
 
 
+def label_axes(ax, xlabel: str, ylabel: str) -> None:
+    """A report plot's axes named, over the light grid every report draws."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
+
+
 def save_figure(fig, path: Path, title: str, result: Mapping, dpi: int = 110) -> None:
     """A report's figure finished the one way: titled with the GL_RENDERER, laid out, written, closed."""
     fig.suptitle(f"{title} — {result['machine']['gl_renderer']}", fontsize=9)

@@ -54,3 +54,13 @@ def feature_textures(ctx, node_id: str, table: np.ndarray, precision: str, log2w
 def texture_formats(groups, precision: str) -> str:
     """e.g. "RG16F" or "RGBA32F + RGBA32F" for the plan."""
     return " + ".join(f"{CHANNELS[w]}{FLOAT_FORMATS[precision][2]}" for _, w in groups)
+
+
+def store_group(ctx, out, first: int, width: int, fetch: str, scratch: str) -> None:
+    """Lanes ``first``.. of ``out`` from one texture's ``fetch`` (a vec4 expression): a whole block
+    where the texture is RGBA (``first`` is then a multiple of 4), else through the vec4 ``scratch``."""
+    if width == 4:
+        ctx.body.append(f"{out.array}[{first // 4}] = {fetch};")
+        return
+    ctx.body.append(f"{scratch} = {fetch};")
+    ctx.body += [f"{out.lane(first + ch)} = {scratch}.{'xyzw'[ch]};" for ch in range(width)]

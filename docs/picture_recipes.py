@@ -11,10 +11,7 @@ import json
 import os
 import re
 import shlex
-import shutil
-import subprocess
 import tempfile
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -263,23 +260,16 @@ def _xvfb() -> str:
     global _xvfb_display
     if _xvfb_display is not None:
         return _xvfb_display
-    xvfb = shutil.which("Xvfb")
-    if xvfb is None:
-        raise PictureError("Xvfb not found on PATH: the viewer pictures need it (apt-get install xvfb)")
-    number = next(n for n in range(90, 190)
-                  if not Path(f"/tmp/.X{n}-lock").exists() and not Path(f"/tmp/.X11-unix/X{n}").exists())
-    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 20
-    while not Path(f"/tmp/.X11-unix/X{number}").exists():
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            raise PictureError(f"Xvfb :{number} did not start within 20 s")
-        time.sleep(0.05)
     import atexit
 
+    from inshade.viewer.virtual_display import VirtualDisplayError, start_xvfb
+
+    try:
+        proc, display = start_xvfb()
+    except VirtualDisplayError as exc:
+        raise PictureError(f"the viewer pictures need a display: {exc}") from None
     atexit.register(lambda: (proc.terminate(), proc.wait(timeout=10)))
-    _xvfb_display = os.environ["DISPLAY"] = f":{number}"
+    _xvfb_display = os.environ["DISPLAY"] = display
     return _xvfb_display
 
 

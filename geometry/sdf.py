@@ -50,6 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
+from inshade.json_header import check_header
+
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
 PRIMITIVES = ("sphere", "box", "round_box", "capsule", "torus", "cylinder", "plane")
 BOOLEANS = ("union", "subtract", "intersect")
@@ -121,15 +123,8 @@ def load_sdf(path) -> SdfScene:
 
 
 def parse_sdf(data) -> SdfScene:
-    if not isinstance(data, dict):
-        raise SdfError("must be a JSON object")
-    if data.get("format") != "inshade.geometry.sdf":
-        raise SdfError(f"format: expected \"inshade.geometry.sdf\", got {data.get('format')!r}")
-    if data.get("version") != 1:
-        raise SdfError(f"version: this inshade reads version 1, got {data.get('version')!r}")
-    extra = sorted(set(data) - {"format", "version", "name", "notes", "bound", "trace", "root"})
-    if extra:
-        raise SdfError(f"{extra[0]}: unknown field (known: bound, format, name, notes, root, trace, version)")
+    check_header(data, "inshade.geometry.sdf", ("format", "version", "name", "notes", "bound", "trace", "root"),
+                 SdfError)
     bound = data.get("bound")
     if not isinstance(bound, dict):
         raise SdfError("bound: must be {\"center\": [x, y, z], \"radius\": r}")

@@ -332,6 +332,17 @@ def folder_fields(package: str, *, train: str | None = None, bench: str | None =
     return fields
 
 
+def folder_technique(package: str, summary: str, paper: Paper | None = None, *, train: str | None = None,
+                     bench: str | None = None, **record) -> Technique:
+    """The record of the technique folder ``package`` (pass ``__name__``): named after the folder,
+    writing bundles of that kind unless ``kinds`` says otherwise, with the fields ``folder_fields``
+    finds beside it (its ``shaders/`` folder where it has one) and the others as given."""
+    name = package.rpartition(".")[2]
+    shaders = (Path(sys.modules[package].__file__).resolve().parent / "shaders").is_dir()
+    return Technique(name=name, summary=summary, paper=paper, **{"kinds": (name,), **record},
+                     **folder_fields(package, train=train, bench=bench, shaders=shaders))
+
+
 _REGISTRY: dict[str, Technique] = {}
 _LOADED = False
 

@@ -67,6 +67,41 @@ def setting(default, help: str, *, choices=None, positional: str | None = None, 
                                             "flag": flag, "metavar": metavar, "only": only})
 
 
+# The fit settings many trainers share, each worded once; a trainer whose steps, batch or rate
+# mean something of its own (per head, BRDF samples, a decoder's rate) words its own ``setting``.
+def steps_setting(default):
+    return setting(default, "training steps")
+
+
+def lr_setting(default):
+    return setting(default, "Adam learning rate")
+
+
+def batch_setting(default):
+    return setting(default, "samples per step")
+
+
+def seed_setting(default=0):
+    return setting(default, "random seed")
+
+
+def check_fit(settings, error: type[Exception]) -> None:
+    """Refuse negative ``--steps`` or an empty ``--batch`` with the technique's ``error``."""
+    if settings.steps < 0 or settings.batch < 1:
+        raise error("--steps must be >= 0 and --batch >= 1")
+
+
+def print_notes(notes) -> None:
+    """What loading an input changed (a resize, a channel count), one ``inshade: note:`` line each."""
+    for n in notes:
+        print(f"inshade: note: {n}", file=sys.stderr)
+
+
+def without_history(metrics: Mapping) -> dict:
+    """A fit's metrics less the per-step ``history``: the summary metrics.json records."""
+    return {k: v for k, v in metrics.items() if k != "history"}
+
+
 def _applies(f: dataclasses.Field, values: Mapping) -> bool:
     """Whether the setting ``f`` belongs to a run of these setting ``values`` (its ``only``)."""
     only = f.metadata.get("only")
@@ -130,6 +165,13 @@ class Run:
         path = self.out / name
         atomic_write(path, json.dumps({**self.record(), **metrics}, indent=1) + "\n")
         return path
+
+    def finish(self, out: Path, metrics: Mapping, summary: str) -> int:
+        """A fit's end: metrics.json records ``metrics`` less the per-step history, and one line says
+        what was written (``summary``: the numbers that matter). Returns the exit status."""
+        self.write_metrics(without_history(metrics))
+        print(f"wrote {out}: {summary}")
+        return 0
 
 
 @dataclass(frozen=True)

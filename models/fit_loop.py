@@ -100,6 +100,12 @@ def fit(opt: torch.optim.Optimizer, loss_fn: Callable, steps: int, *, start: int
     return done
 
 
+def history_rows(records: list[dict], key: str, digits: int) -> list[dict]:
+    """A fit's evaluation records as its metrics keep them: the step, ``key`` rounded to ``digits``
+    and the seconds so far."""
+    return [{"step": r["step"], key: round(r[key], digits), "seconds": round(r["seconds"], 2)} for r in records]
+
+
 def lbfgs(params, loss_fn: Callable[[], torch.Tensor], evaluations: int, *,
           on_evaluation: Callable[[int, torch.Tensor], None] | None = None, **options) -> int:
     """Full-batch L-BFGS on ``params`` for at most ``evaluations`` loss/gradient evaluations of

@@ -63,6 +63,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from inshade import technique
+from inshade.json_header import check_header
 from inshade.shaders import find_chunk
 
 from .assets import ASSETS_ENV, asset_roots, list_scenes, resolve_asset
@@ -244,15 +245,7 @@ def parse_scene(data, *, root: Path, path: Path | None = None) -> Scene:
 
 def _header(data) -> tuple[str, str, technique.ProgramSpec, list]:
     """(name, program, its spec, size): what a scene.json says it is and draws."""
-    if not isinstance(data, dict):
-        raise SceneError("must be a JSON object")
-    if data.get("format") != "inshade.scene":
-        raise SceneError(f"format: expected \"inshade.scene\", got {data.get('format')!r}")
-    if data.get("version") != 1:
-        raise SceneError(f"version: this inshade reads version 1, got {data.get('version')!r}")
-    unknown = sorted(set(data) - _KEYS)
-    if unknown:
-        raise SceneError(f"{unknown[0]}: unknown field (known: {', '.join(sorted(_KEYS))})")
+    check_header(data, "inshade.scene", _KEYS, SceneError)
     name = data.get("name")
     if not isinstance(name, str) or not name:
         raise SceneError("name: must be a non-empty string")

@@ -148,12 +148,17 @@ _bundle_meta("unknown_field", lambda m: m.update(extra=1), "extra")
 _bundle_meta("inputs_not_list", lambda m: m.update(inputs={"uv": 2}), "inputs")
 
 
-@case("bundle_json", "bundle_json_is_a_folder")
-def _(tmp):
-    b = _bundle(tmp)
-    (b / "bundle.json").unlink()
-    (b / "bundle.json").mkdir()
-    return ["info", str(b)], "bundle.json", []
+def _bundle_file_is_a_folder(cls, name, file):
+    """A bundle whose ``file`` is a folder: the error names the file."""
+    @case(cls, name)
+    def build(tmp):
+        b = _bundle(tmp)
+        (b / file).unlink()
+        (b / file).mkdir()
+        return ["info", str(b)], file, []
+
+
+_bundle_file_is_a_folder("bundle_json", "bundle_json_is_a_folder", "bundle.json")
 
 
 @case("bundle_json", "bundle_folder_missing")
@@ -234,12 +239,7 @@ _save_tensors("extra_tensor", lambda t: t.update({"zz.weight": np.zeros(3, np.fl
 _save_tensors("transposed", lambda t: t.update({"l0.weight": t["l0.weight"].T.copy()}), "l0.weight")
 
 
-@case("weights", "weights_is_a_folder")
-def _(tmp):
-    b = _bundle(tmp)
-    (b / "weights.safetensors").unlink()
-    (b / "weights.safetensors").mkdir()
-    return ["info", str(b)], "weights.safetensors", []
+_bundle_file_is_a_folder("weights", "weights_is_a_folder", "weights.safetensors")
 
 
 # scene.json (render: the scene is read before any GL context or output) --------------------------

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from inshade.codegen.glsl import PlanRow, flt
 from inshade.codegen.registry import emitter
-from inshade.codegen.texture_rows import feature_textures, row_layout, texture_formats
+from inshade.codegen.texture_rows import feature_textures, row_layout, store_group, texture_formats
 from inshade.codegen.values import declare
 from inshade.components import grid_node_levels
 from inshade.grid_layout import HASH_PRIMES
@@ -37,12 +37,7 @@ def emit_grid(ctx, node, src, bundle):
         for g, (name, width) in enumerate(groups):
             call = (f"hg_level({name}, {log2w}, {x}, {dims}, {flt(lv.scale)}, {lv.resolution}u, {lv.rows}u, "
                     f"{lv.offset}u, {'true' if lv.dense else 'false'}, uvec3({primes[0]}u, {primes[1]}u, {primes[2]}u))")
-            first = li * feats + 4 * g
-            if width == 4:
-                ctx.body.append(f"{out.array}[{first // 4}] = {call};")
-                continue
-            ctx.body.append(f"{s} = {call};")
-            ctx.body += [f"{out.lane(first + ch)} = {s}.{'xyzw'[ch]};" for ch in range(width)]
+            store_group(ctx, out, li * feats + 4 * g, width, call, s)
 
     tex_bytes = sum(r.nbytes for r in ctx.resources[-len(groups):])
     fmt = texture_formats(groups, p["precision"])

@@ -25,7 +25,8 @@ import numpy as np
 
 from inshade.codegen.glsl import PlanRow, TextureResource, vec4
 from inshade.codegen.registry import emitter
-from inshade.codegen.texture_rows import feature_textures, row_layout, rows_data, texture_formats
+from inshade.codegen.texture_rows import (feature_textures, row_layout, rows_data, store_group,
+                                          texture_formats)
 from inshade.codegen.values import declare
 from inshade.geometry.mesh_topology import check_tables
 
@@ -108,12 +109,7 @@ def emit_mesh_features(ctx, node, srcs, bundle):
             blend = f"mf_blend({name}, {tab_log2w}, {idx}, {wt})"
             if u8:
                 blend = f"{vec4(lanes4(offset, g))} + {vec4(lanes4(scale, g))} * {blend}"
-            first = level * feats + 4 * g
-            if width == 4:
-                ctx.body.append(f"{out.array}[{first // 4}] = {blend};")
-                continue
-            ctx.body.append(f"{s} = {blend};")
-            ctx.body += [f"{out.lane(first + ch)} = {s}.{'xyzw'[ch]};" for ch in range(width)]
+            store_group(ctx, out, level * feats + 4 * g, width, blend, s)
 
     tex_bytes = sum(r.nbytes for r in ctx.resources[-1 - len(groups):])
     fmt = texture_formats(groups, p["precision"])

@@ -54,7 +54,7 @@ from inshade.files import atomic_write
 from inshade.geometry.gltf import GltfError
 from inshade.geometry.mesh import MeshError
 from inshade.scene.builder import directional_light, network, orbit, reference, requires, scene_json, sky
-from inshade.trainer import GIVEN, Run, Trainer, setting
+from inshade.trainer import GIVEN, Run, Trainer, seed_setting, setting, steps_setting
 from inshade.provenance import recorded_at
 
 from .data import DataError
@@ -79,9 +79,9 @@ class Settings:
     rays_per_texel: int = setting(1, "rays per mask texel per view")
     latent: int = setting(60, "learned latent floats per voxel (+ 4 raw; the sum a multiple of 4, at most 64)")
     width: int = setting(32, "decoder width")
-    steps: int = setting(24000, "training steps")
+    steps: int = steps_setting(24000)
     batch: int = setting(4096, "(voxel, view, light) samples per step")
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
     lr: float = setting(1e-3, "decoder learning rate (Adam; the paper uses 3e-4 over days of training, this "
                         "CPU budget a larger one)")
     latent_lr: float = setting(1e-2, "latent learning rate")

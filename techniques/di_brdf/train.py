@@ -66,11 +66,13 @@ import torch
 from inshade.files import atomic_files, atomic_write
 from inshade.models import brdf
 from inshade.models import indirection as di
+from inshade.models.fit_loop import history_rows
 from inshade.techniques.di_brdf import material_balls as mb
 from inshade.models.graph import GraphModule
 from inshade.scene.builder import (display_modes, exposure_setting, int_setting, lut_filter_setting, network,
                                     plane2d, point_light, requires, scene_json, view_labels)
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import (Run, Trainer, batch_setting, lr_setting, seed_setting, setting, steps_setting,
+                             without_history)
 from inshade.provenance import recorded_at
 
 from .data import (GGX_ALPHA_RANGE, SWEEP_COLUMNS, disney_samples, ggx_ball_display, ggx_ball_sampler, ggx_sampler,
@@ -112,11 +114,11 @@ class Settings:
     lengths per BRDF (PRESETS)."""
     which: str = setting(None, "which learned BRDF to build: ggx or disney", choices=("ggx", "disney"),
                          positional="WHICH")
-    steps: int = setting(None, "training steps")
-    batch: int = setting(None, "samples per step")
-    lr: float = setting(None, "Adam learning rate")
+    steps: int = steps_setting(None)
+    batch: int = batch_setting(None)
+    lr: float = lr_setting(None)
     samples: int | None = setting(None, "training samples drawn once", only={"which": ("disney",)})
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
 
 
 # training
@@ -243,8 +245,7 @@ def build_ggx(out, steps=GGX_DEFAULTS["steps"], batch=GGX_DEFAULTS["batch"], lr=
     for p in g.parameters():
         p.requires_grad_(False)
     metrics = {"train_seconds": round(seconds, 2), "steps": steps, "batch": batch, "lr": lr,
-               "history": [{"step": r["step"], "psnr": round(r["psnr"], 3), "seconds": round(r["seconds"], 2)}
-                           for r in hist.records]}
+               "history": history_rows(hist.records, "psnr", 3)}
     prov = _provenance(command, {
         "technique": "Differentiable Indirection isotropic GGX (Datta et al. 2023): 16x16x2 primary "
                      "(uv ramp, triangle F, 8-bit) -> 8x8x1 cascaded (init D clamped to "
@@ -345,7 +346,7 @@ def train(run: Run) -> int:
     else:
         m = build_disney(run.out, s.steps, s.batch, s.lr, s.samples, s.seed, command=run.command,
                          gl_metrics=gl_metrics, device=run.device)
-    run.write_metrics({k: v for k, v in m.items() if k != "history"})
+    run.write_metrics(without_history(m))
     if s.which == "ggx":
         print(f"wrote {run.out}: GGX ball PSNR all pixels {m['psnr_balls_all_pixels']:.2f} dB, "
               f"mean {m['psnr_balls_mean']:.2f} dB (min {m['psnr_balls_min']:.2f}), "

@@ -35,7 +35,7 @@ import numpy as np
 
 from inshade.bench.contract import Bench, option, sized
 from inshade.bench.entry import Claim, claim_row
-from inshade.bench.harness import (BenchError, atomic_path, machine, machine_markdown, matplotlib_pyplot,
+from inshade.bench.harness import (BenchError, atomic_path, label_axes, machine, machine_markdown, matplotlib_pyplot,
                                    portable_command, portable_path, save_figure, write_report)
 from inshade.metrics import psnr, srgb_eotf, srgb_oetf
 from inshade.techniques.di_footprint import MODES
@@ -396,14 +396,10 @@ def plot(result: dict, path: Path) -> None:
     a.invert_yaxis()
     per = result["di"]["psnr_per_lod"] or {}
     b.plot([int(k) for k in per], list(per.values()), "o-")
-    b.set_xlabel("GL LOD (mip level)")
-    b.set_ylabel("DI vs emulated trilinear, dB")
-    b.grid(True, alpha=0.3)
+    label_axes(b, "GL LOD (mip level)", "DI vs emulated trilinear, dB")
     hist = result.get("history") or []
     c.plot([r["seconds"] for r in hist], [r["psnr"] for r in hist], "o-", ms=3)
-    c.set_xlabel("training seconds")
-    c.set_ylabel("held-out PSNR vs emulated trilinear (float), dB")
-    c.grid(True, alpha=0.3)
+    label_axes(c, "training seconds", "held-out PSNR vs emulated trilinear (float), dB")
     save_figure(fig, path, "DI footprint sampler", result)
 
 

@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -55,10 +54,12 @@ import numpy as np
 import torch
 
 from inshade.files import atomic_write
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import (Run, Trainer, batch_setting, check_fit, lr_setting, print_notes, seed_setting, setting,
+                             steps_setting)
 from inshade.metrics import srgb_eotf
 from inshade.models import indirection as di
 from inshade.models import texture_cascade as tc
+from inshade.models.fit_loop import history_rows
 from inshade.models.footprint_sampler import (CAMERA, EXTENT, N_CASCADED, PRIMARY_CHANNELS, TILE, FootprintError,
                                               Sizing, footprint_sampler, held_out_set, lod_sets, mip_chain,
                                               plan, sampler_graph, texture_bytes, texture_tensor)
@@ -79,11 +80,11 @@ class Settings:
     size: int = setting(256, "centre-crop and resize to SIZE^2, a power of two")
     ratio: float = setting(6.0, "compression vs the RGB8 base level")
     n_cascaded: int = setting(N_CASCADED, "N_c (multiple of 4)")
-    steps: int = setting(1500, "training steps")
-    lr: float = setting(1e-2, "Adam learning rate")
-    batch: int = setting(16384, "samples per step")
+    steps: int = steps_setting(1500)
+    lr: float = lr_setting(1e-2)
+    batch: int = batch_setting(16384)
     schedule: str = setting("cosine", "learning-rate schedule", choices=sorted(di.SCHEDULES))
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
 
 
 # --preset: "ship" is what built trained/di_footprint; "quick" keeps the 1500-step default.
@@ -224,8 +225,7 @@ def _train(image, ratio, n_cascaded, steps, lr, batch, schedule, seed, provenanc
         "n_lod": sizing.n_lod, "rho": round(sizing.rho, 4),
         "train_seconds": round(seconds, 2), "steps": steps,
         "psnr_step0": round(history.records[0]["psnr"], 4), "psnr_float": round(history.final["psnr"], 4),
-        "history": [{"step": r["step"], "psnr": round(r["psnr"], 3), "seconds": round(r["seconds"], 2)}
-                    for r in history.records],
+        "history": history_rows(history.records, "psnr", 3),
     }
     bundle = graph.export(KIND, name, provenance=prov, metrics=metrics)
     metrics.update(quantised_metrics(bundle, image))
@@ -309,30 +309,24 @@ def extra_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--title", help="scene title")
 
 
-def check(s: Settings) -> None:
-    if s.steps < 0 or s.batch < 1:
-        raise FootprintError("--steps must be >= 0 and --batch >= 1")
-
-
 def train(run: Run) -> int:
     s, args = run.settings, run.args
     image, notes, source = load_texture(s.image, s.size)
-    for n in notes:
-        print(f"inshade: note: {n}", file=sys.stderr)
+    print_notes(notes)
     result = train_sampler(image, s.ratio, n_cascaded=s.n_cascaded, steps=s.steps, lr=s.lr, batch=s.batch,
                            schedule=s.schedule, seed=s.seed, threads=args.threads or None, name=run.out.name,
                            device=run.device,
                            provenance={"command": run.command, "image": source, "image_notes": notes})
     out = write_asset(result, run.out, args.title)
     m = result.metrics
-    run.write_metrics({k: v for k, v in m.items() if k != "history"})
-    print(f"wrote {out}: {m['bytes']} bytes ({m['ratio_vs_base']:.2f}x vs RGB8, {m['ratio_vs_mip_chain']:.2f}x vs "
-          f"RGB8 + mips; N_p0 {m['n_primary']}, N_p1 {m['n_footprint']}, N_c {m['n_cascaded']}, N_lod {m['n_lod']}), "
-          f"held-out PSNR vs emulated trilinear {m['psnr_heldout']:.2f} dB (8-bit arrays), {m['train_seconds']:.1f} s")
-    return 0
+    return run.finish(out, m, f"{m['bytes']} bytes ({m['ratio_vs_base']:.2f}x vs RGB8, {m['ratio_vs_mip_chain']:.2f}x "
+                              f"vs RGB8 + mips; N_p0 {m['n_primary']}, N_p1 {m['n_footprint']}, N_c {m['n_cascaded']}, "
+                              f"N_lod {m['n_lod']}), held-out PSNR vs emulated trilinear {m['psnr_heldout']:.2f} dB "
+                              f"(8-bit arrays), {m['train_seconds']:.1f} s")
 
 
 TRAINER = Trainer(KIND, __doc__, Settings, PRESETS, train, folder=lambda s: KIND,
                   folder_hint=KIND, ship_assets={KIND: {}},
-                  extra_arguments=extra_arguments, check=check, errors=(FootprintError, tc.CompressionError))
+                  extra_arguments=extra_arguments, check=lambda s: check_fit(s, FootprintError),
+                  errors=(FootprintError, tc.CompressionError))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

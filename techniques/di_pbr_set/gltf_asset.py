@@ -27,15 +27,14 @@ import torch
 
 from inshade.files import atomic_write
 from inshade.geometry.gltf import GltfError, copy_gltf
-from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import split_rgba8
 from inshade.models.texture_cascade import compress, torch_decode
-from inshade.scene.builder import (choice_setting, display_modes, float_setting, int_setting, lut_filter_setting,
-                                    network, requires, scene_json, sky, view_labels)
+from inshade.scene.builder import float_setting, network, scene_json, view_labels
 from inshade.techniques.di_pbr_set import ERROR_SCALE, GLTF_PROGRAM, GLTF_VIEWS
 from inshade.techniques.di_pbr_set import gltf_lanes as L
 from inshade.techniques.di_pbr_set.render import render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, gltf_lane_metrics, gltf_markdown, render_psnr
+from inshade.techniques.di_pbr_set.scene import lit_parts
 from inshade.provenance import recorded_at
 
 LIGHTS = 2          # the point lights of a glTF scene (as ``inshade render FILE.glb`` places them)
@@ -57,19 +56,9 @@ def scene_dict(name: str, title: str, mesh_file: str, camera: dict, lights: list
         networks=[network(".", "net")],
         mesh=mesh_file,
         camera=camera,
-        lights=lights,
-        environment=sky("studio", degree=3),
-        display=display_modes(),
-        settings={
-            **lit_settings("studio"),
-            "view": choice_setting("split", GLTF_VIEWS, "material (split: left the file's, right DI)",
-                                   uniform="u_pbr_view"),
-            "lights": int_setting(light_count, 0, len(lights), "point lights", uniform="u_light_count"),
-            "error_scale": float_setting(ERROR_SCALE, 1.0, 64.0, "error view: |DI - reference| x",
-                                         uniform="u_pbr_error_scale"),
-            "lut_filter": lut_filter_setting(),
-        },
-        requires=requires(),
+        **lit_parts(lights, light_count, GLTF_VIEWS, "material (split: left the file's, right DI)",
+                    error_scale=float_setting(ERROR_SCALE, 1.0, 64.0, "error view: |DI - reference| x",
+                                              uniform="u_pbr_error_scale")),
         notes="; ".join(notes),
         labels=view_labels("reference", "DI", {"view": "split"},
                            [("reference", {"view": "reference"}), ("DI", {"view": "di"}),

@@ -76,18 +76,49 @@ def render_psnr(test: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
 
 
 DECODERS = (("di_glsl_exact", "DI (GLSL exact)"), ("di_glsl_fast", "DI (GLSL fast)"), ("di_torch", "DI (torch)"))
+TITLES = {"ao": "AO", "all_lanes": "all lanes"}      # a lane group's column title where not its name
 
 
-def codec_lines(metrics: dict, row) -> list[str]:
-    """The table's rows, DI's decoders then ASTC's block sizes (``row(name, sizes, quality)``, with
-    ``sizes`` holding bytes and ratio), a blank line and DI's training line: both reports share them."""
+def _db(value) -> str:
+    return f"{value:.2f}"
+
+
+def _db_or_exact(value) -> str:     # a lane the decode reproduces exactly has no PSNR (null)
+    return "exact" if value is None else f"{value:.2f}"
+
+
+def lane_columns(lanes, db) -> list[tuple]:
+    """(title, cell(sizes, quality)) of each of ``lanes``' PSNR columns, then the one of all lanes, as
+    ``db`` shows a PSNR; the normal's mean / p99 angle beside the normal's PSNR."""
+    columns = []
+    for lane in (*lanes, "all_lanes"):
+        columns.append((f"{TITLES.get(lane, lane)} dB", lambda sizes, q, key=f"psnr_{lane}": db(q[key])))
+        if lane == "normal":
+            columns.append(("normal mean / p99 deg",
+                            lambda sizes, q: f"{q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f}"))
+    return columns
+
+
+def quality_table(metrics: dict, columns, rendered) -> str:
+    """What both reports end with: the table of DI's decoders and ASTC's block sizes (codec, bytes,
+    then ``columns``: (title, cell(sizes, quality)), ``sizes`` holding bytes and ratio), a blank line,
+    DI's training line and, where the asset was rendered, ``rendered(metrics["render"])``."""
     t = metrics["texture"]
-    lines = [row(label, t, metrics[key]) for key, label in DECODERS if key in metrics]
+
+    def row(name, sizes, q):
+        return "| " + " | ".join([name, str(sizes["bytes"]), *(cell(sizes, q) for _, cell in columns)]) + " |"
+
+    lines = ["| " + " | ".join(["codec", "bytes", *(title for title, _ in columns)]) + " |",
+             "|---" * (len(columns) + 2) + "|"]
+    lines += [row(label, t, metrics[key]) for key, label in DECODERS if key in metrics]
     lines += [row(a["codec"], a, a) if a["available"] else f"| {a['codec']} | unavailable: {a['reason']} |||||||"
               for a in metrics.get("astc", [])]
     device = metrics.get("device", "cpu")
-    return lines + ["", f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, "
-                        f"{t['train_seconds']:.0f} s training on {'1 CPU thread' if device == 'cpu' else device}."]
+    lines += ["", f"DI: N_p {t['n_primary']}, N_c {t['n_cascaded']}, {t['steps']} steps, "
+                  f"{t['train_seconds']:.0f} s training on {'1 CPU thread' if device == 'cpu' else device}."]
+    if "render" in metrics:
+        lines.append(rendered(metrics["render"]))
+    return "\n".join(lines) + "\n"
 
 
 def markdown(metrics: dict) -> str:
@@ -97,25 +128,20 @@ def markdown(metrics: dict) -> str:
              f"- GL_RENDERER: `{metrics.get('gl_renderer', 'n/a')}`",
              "- PSNR of 8-bit lane values (albedo sRGB-encoded) against the uncompressed set; normal: "
              "angle between decoded and original normals", ""]
-    head = "| codec | bytes | ratio | albedo dB | normal dB | normal mean / p99 deg | roughness dB | AO dB | all lanes dB |"
-    lines += [head, "|---" * (head.count("|") - 1) + "|"]
+    columns = [("ratio", lambda sizes, q: f"{sizes['ratio']:.2f}"), *lane_columns(LANES, _db)]
 
-    def row(name, sizes, q):
-        return (f"| {name} | {sizes['bytes']} | {sizes['ratio']:.2f} | {q['psnr_albedo']:.2f} | "
-                f"{q['psnr_normal']:.2f} | {q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f} | "
-                f"{q['psnr_roughness']:.2f} | {q['psnr_ao']:.2f} | {q['psnr_all_lanes']:.2f} |")
+    def rendered(r):
+        return (f"Rendered torus ({r['size']}^2, {r['lights']} lights + environment): DI vs uncompressed "
+                f"{r['psnr_di_vs_uncompressed']:.2f} dB over {r['covered_pixels']} mesh pixels (display sRGB 8-bit).")
 
-    lines += codec_lines(metrics, row)
-    if "render" in metrics:
-        r = metrics["render"]
-        lines.append(f"Rendered torus ({r['size']}^2, {r['lights']} lights + environment): DI vs uncompressed "
-                     f"{r['psnr_di_vs_uncompressed']:.2f} dB over {r['covered_pixels']} mesh pixels (display sRGB 8-bit).")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n" + quality_table(metrics, columns, rendered)
 
 
 def gltf_markdown(metrics: dict) -> str:
     """The glTF mode's report: the decoded lanes against the bake (DI and ASTC), the sizes against
     the file's textures, and the render against the file's own material."""
+    from inshade.techniques.di_pbr_set.gltf_lanes import LANES as GLTF_LANES
+
     t, src, bake = metrics["texture"], metrics["source"], metrics["bake"]
     lines = [f"# {src['file']}, material {src['material']} ({src['material_name'] or 'unnamed'}): "
              f"PBR set (8 lanes) compressed with DI", "",
@@ -126,22 +152,10 @@ def gltf_markdown(metrics: dict) -> str:
              f"- DI: {t['bytes']} bytes, {t['ratio']:.2f}x the 8-lane bake, {src['ratio_vs_lane_textures']:.2f}x "
              f"the file's lane textures as RGBA8 ({src['lane_texture_bytes_rgba8']} bytes)",
              "- PSNR of 8-bit lane values against the bake; normal: angle between rebuilt normals", ""]
-    head = ("| codec | bytes | albedo dB | normal dB | normal mean / p99 deg | roughness dB | occlusion dB | "
-            "metallic dB | all lanes dB |")
-    lines += [head, "|---" * (head.count("|") - 1) + "|"]
 
-    def dbs(v):
-        return "exact" if v is None else f"{v:.2f}"
+    def rendered(r):
+        return (f"Rendered at the scene camera ({r['size']}^2, {r['lights']} lights + environment): DI vs the "
+                f"file's material {r['psnr_di_vs_reference']:.2f} dB over its {r['material_pixels']} pixels "
+                "(display sRGB 8-bit; DI at the base level, the reference mip-mapped).")
 
-    def row(name, sizes, q):
-        return (f"| {name} | {sizes['bytes']} | {dbs(q['psnr_albedo'])} | {dbs(q['psnr_normal'])} | "
-                f"{q['normal_mean_deg']:.2f} / {q['normal_p99_deg']:.2f} | {dbs(q['psnr_roughness'])} | "
-                f"{dbs(q['psnr_occlusion'])} | {dbs(q['psnr_metallic'])} | {dbs(q['psnr_all_lanes'])} |")
-
-    lines += codec_lines(metrics, row)
-    if "render" in metrics:
-        r = metrics["render"]
-        lines.append(f"Rendered at the scene camera ({r['size']}^2, {r['lights']} lights + environment): DI vs the "
-                     f"file's material {r['psnr_di_vs_reference']:.2f} dB over its {r['material_pixels']} pixels "
-                     "(display sRGB 8-bit; DI at the base level, the reference mip-mapped).")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n" + quality_table(metrics, lane_columns(GLTF_LANES, _db_or_exact), rendered)

@@ -38,15 +38,15 @@ import torch
 
 from inshade.files import atomic_files, atomic_write
 from inshade.geometry.gltf import GltfError
-from inshade.lit_settings import lit_settings
 from inshade.models.pbr_lanes import LANES, Bricks, PbrSetError, bricks, split_rgba8
 from inshade.models.texture_cascade import FINISH_OPTIMIZERS, compress, torch_decode
-from inshade.scene.builder import (choice_setting, display_modes, int_setting, lut_filter_setting, network, orbit,
-                                    point_light, requires, scene_json, sky, texture, view_labels)
+from inshade.scene.builder import network, orbit, point_light, scene_json, texture, view_labels
 from inshade.techniques.di_pbr_set import VIEWS
 from inshade.techniques.di_pbr_set.render import DEFAULT_LIGHTS, LIGHTS, render_views
 from inshade.techniques.di_pbr_set.report import astc_rows, lane_metrics, markdown, render_psnr
-from inshade.trainer import GIVEN, Run, Trainer, setting
+from inshade.techniques.di_pbr_set.scene import lit_parts
+from inshade.trainer import (GIVEN, Run, Trainer, batch_setting, check_fit, lr_setting, seed_setting, setting,
+                             steps_setting)
 from inshade.provenance import recorded_at
 
 PROGRAM = "passes/mesh_pbr_set.frag"
@@ -63,10 +63,10 @@ class Settings:
     """What a di_pbr_set run is built from (metrics.json records it)."""
     size: int = setting(256, "texture side in texels (with --gltf: by default what the textures need)")
     ratio: float = setting(6.0, "compression ratio vs 8 lanes x 8 bit")
-    steps: int = setting(3000, "training steps")
-    lr: float = setting(1e-2, "Adam learning rate")
-    batch: int = setting(16384, "samples per step")
-    seed: int = setting(0, "random seed")
+    steps: int = steps_setting(3000)
+    lr: float = lr_setting(1e-2)
+    batch: int = batch_setting(16384)
+    seed: int = seed_setting()
     # "adam" on mixed texel-centre + stratified batches, as for RGB textures (models/texture_cascade.py
     # DEFAULTS); on this set full-batch L-BFGS was 0.17 dB worse with the ramp start
     finish_optimizer: str = setting("adam", "finish phase of the training (inshade train di_texture --help)",
@@ -93,17 +93,8 @@ def scene_dict(name: str, title: str, size: int, lights: int) -> dict:
                   texture("u_pbr_set1", "set1.png", mipmaps=False, repeat=True)],
         camera=orbit((0.0, 0.0, 0.0), 3.9, 25.0, -38.0),
         bookmarks={"close-up": orbit((0.9, 0.3, 0.3), 1.4, 35.0, -25.0)},
-        lights=[point_light(l[:3], l[3]) for l in LIGHTS],
-        environment=sky("studio", degree=3),
-        display=display_modes(),
-        settings={
-            **lit_settings("studio"),
-            "view": choice_setting("split", VIEWS, "texture set (split: left uncompressed, right DI)",
-                                   uniform="u_pbr_view"),
-            "lights": int_setting(lights, 0, len(LIGHTS), "point lights", uniform="u_light_count"),
-            "lut_filter": lut_filter_setting(),
-        },
-        requires=requires(),
+        **lit_parts([point_light(l[:3], l[3]) for l in LIGHTS], lights, VIEWS,
+                    "texture set (split: left uncompressed, right DI)"),
         notes="a DI-compressed PBR set (albedo, normal, roughness, AO: 8 lanes) on a uv-mapped torus",
         labels=view_labels("uncompressed", "DI", {"view": "split"},
                            [("uncompressed", {"view": "uncompressed"}), ("DI", {"view": "di"})]),
@@ -185,8 +176,7 @@ def extra_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def check(s: Settings) -> None:
-    if s.steps < 0 or s.batch < 1:
-        raise PbrSetError("--steps must be >= 0 and --batch >= 1")
+    check_fit(s, PbrSetError)
     if s.gltf is not None:      # a file that cannot be used fails before the asset folder is claimed
         from inshade.techniques.di_pbr_set.gltf_lanes import load
 

@@ -33,8 +33,8 @@ import numpy as np
 
 from inshade.bench.contract import Bench, option, sized
 from inshade.bench.entry import Claim, claim_row
-from inshade.bench.harness import (BenchError, WallClock, atomic_write, interleave, machine, machine_markdown,
-                                   markdown_table, matplotlib_pyplot, save_figure, write_report)
+from inshade.bench.harness import (BenchError, WallClock, atomic_write, interleave, label_axes, machine,
+                                   machine_markdown, markdown_table, matplotlib_pyplot, save_figure, write_report)
 
 STEM = "di_radiance_field"
 
@@ -394,9 +394,7 @@ def plot(r: dict, path: Path, images: dict) -> None:
             bx.plot([x["colour_ratio"] for x in xs], [x["flip_mean"] for x in xs], "o-", label=f"density {dr:g}x")
     for a, label in ((ax, "PSNR dB (mean of views)"), (bx, "FLIP (mean of views)")):
         a.set_xscale("log")
-        a.set_xlabel("colour compression (nominal)")
-        a.set_ylabel(label)
-        a.grid(True, alpha=0.3)
+        label_axes(a, "colour compression (nominal)", label)
         a.legend()
     ax.axhline(35.0, color="grey", ls=":", lw=1)
     strip = [images["uncompressed"]] + [images[k] for k in keys]

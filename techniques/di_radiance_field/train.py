@@ -33,7 +33,7 @@ import torch
 from inshade.scene.builder import network, orbit, requires, scene_json
 from inshade.scene.labels import split_labels
 from inshade.files import atomic_write
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import Run, Trainer, batch_setting, seed_setting, setting
 from inshade.provenance import recorded_at
 
 from . import KIND, PREFIX_DI, PREFIX_GRID, PROGRAM, SETTINGS as SCENE_SETTINGS
@@ -51,14 +51,14 @@ class Settings:
     colour_ratio: float = setting(10.0, "colour compression")
     density_ratio: float = setting(10.0, "density compression")
     steps: int = setting(200, "training steps per head")
-    batch: int = setting(4096, "samples per step")
+    batch: int = batch_setting(4096)
     lr_colour: float = setting(1e-3, "Adam lr, colour head")
     lr_density: float = setting(3e-3, "Adam lr, density head")
     shell_fraction: float = setting(0.75, "share of samples in the surface shell")
     step_voxels: float = setting(1.0, "march step in grid cells")
     preview_grid: int = setting(32, "side of the shipped uncompressed grid")
     preview_bits: int = setting(8, "bits of the shipped grid", choices=(8, 16, 32))
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
 
 
 # "quick" is a 32^3 field in seconds; "ship" is what built trained/di_radiance_field_trinket.

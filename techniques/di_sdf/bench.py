@@ -36,7 +36,7 @@ import numpy as np
 
 from inshade.bench.contract import Bench, clock_option, option, sized
 from inshade.bench.entry import Claim, claim_row
-from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, machine,
+from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, label_axes, machine,
                                    machine_markdown, matplotlib_pyplot, measure, portable_path, save_figure,
                                    write_report)
 from inshade.metrics import psnr
@@ -368,9 +368,7 @@ def plot(result: dict, path: Path) -> None:
             ax.annotate(f"{e['method'].split(' (')[0]} {'fast' if 'fast' in e['method'] else ''} {e['bytes'] // 1024}K",
                         (e["ms_median"], e["psnr"]), fontsize=6)
     ax.set_xscale("log")
-    ax.set_xlabel("ms / frame")
-    ax.set_ylabel("PSNR dB")
-    ax.grid(True, alpha=0.3)
+    label_axes(ax, "ms / frame", "PSNR dB")
     save_figure(fig, path, "DI-SDF vs MLP SDF, equal bytes", result)
 
 

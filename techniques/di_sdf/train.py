@@ -34,12 +34,13 @@ from inshade.lit_settings import lit_settings
 from inshade.geometry.mesh import DEFAULT_OUT as DEFAULT_MESH
 
 from inshade.models import indirection as di
+from inshade.models.fit_loop import history_rows
 from inshade.models.graph import GraphModule
 from inshade.models.network_sdf import NetworkSdfModule
 from inshade.models.threads import torch_threads
 from inshade.scene.builder import (display_modes, lut_filter_setting, network_sdf, orbit_around, requires,
                                     scene_json, sky)
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import Run, Trainer, batch_setting, lr_setting, seed_setting, setting, steps_setting
 from inshade.provenance import recorded_at
 
 from .data import (MARGIN, NEAR_SIGMAS, UNIFORM_FRACTION, DiSdfError, DistanceQuery, Frame, check_mesh, eval_set,
@@ -66,13 +67,13 @@ class Settings:
     budget_kb: float = setting(DEFAULTS["budget_kb"], "bytes of 8-bit cells, KiB")
     rho: float = setting(DEFAULTS["rho"], "N_p / N_c")
     truncation: float = setting(DEFAULTS["truncation"], "truncation band, fraction of the bound radius")
-    steps: int = setting(DEFAULTS["steps"], "training steps")
-    lr: float = setting(DEFAULTS["lr"], "Adam learning rate")
-    batch: int = setting(DEFAULTS["batch"], "samples per step")
+    steps: int = steps_setting(DEFAULTS["steps"])
+    lr: float = lr_setting(DEFAULTS["lr"])
+    batch: int = batch_setting(DEFAULTS["batch"])
     samples: int = setting(DEFAULTS["samples"], "training samples")
     schedule: str = setting(DEFAULTS["schedule"], "learning-rate schedule", choices=sorted(di.SCHEDULES))
     monotonicity: float = setting(DEFAULTS["monotonicity"], "soft-monotonicity weight on the primary (paper supp. §2)")
-    seed: int = setting(DEFAULTS["seed"], "random seed")
+    seed: int = seed_setting(DEFAULTS["seed"])
 
 
 # --preset: "ship" is what built trained/di_sdf; "quick" (the default) keeps the 1500-step default.
@@ -153,8 +154,7 @@ def _fit(mesh, budget_bytes, rho, truncation, steps, lr, batch, schedule, sample
         "center": list(frame.center), "radius": frame.radius, "faces": int(len(mesh.faces)),
         "samples": samples, "sample_seconds": round(train.seconds, 2), "train_seconds": round(seconds, 2),
         "steps": steps, "device": str(device), "heldout_l1_float": l1_float, "heldout_l1_quantised": l1_q,
-        "history": [{"step": r["step"], "loss": round(r["loss"], 6), "seconds": round(r["seconds"], 2)}
-                    for r in history.records],
+        "history": history_rows(history.records, "loss", 6),
     }
     prov = {
         "technique": "Differentiable Indirection SDF (Datta et al. 2023): 3D primary (3 ch, ramp, triangle F) -> "
@@ -266,11 +266,10 @@ def train(run: Run) -> int:
     title = args.title or f"DI-SDF: {Path(mesh_path).name}, {result.metrics['bytes'] / 1024:.1f} KiB"
     out = write_asset(result, run.out, title, args.lut_filter)
     m = result.metrics
-    run.write_metrics({k: v for k, v in m.items() if k != "history"})
-    print(f"wrote {out}: {m['bytes']} bytes (N_p {m['n_primary']}, N_c {m['n_cascaded']}), surface MAE "
-          f"{m['surface_mae_per_radius']:.2e} radius, IoU {m['iou']:.4f}, normals {m['normal_deg_mean']:.2f} deg, "
-          f"samples {m['sample_seconds']:.1f} s, training {m['train_seconds']:.1f} s")
-    return 0
+    return run.finish(out, m, f"{m['bytes']} bytes (N_p {m['n_primary']}, N_c {m['n_cascaded']}), surface MAE "
+                              f"{m['surface_mae_per_radius']:.2e} radius, IoU {m['iou']:.4f}, normals "
+                              f"{m['normal_deg_mean']:.2f} deg, samples {m['sample_seconds']:.1f} s, training "
+                              f"{m['train_seconds']:.1f} s")
 
 
 TRAINER = Trainer("di_sdf", __doc__, Settings, PRESETS, train,

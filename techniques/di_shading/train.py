@@ -69,7 +69,7 @@ from inshade.models.graph import GraphModule
 from inshade.models import footprint_sampler as fp
 from inshade.scene.builder import (choice_setting, display_modes, float_setting, lut_filter_setting, network,
                                     point_light, requires, scene_json, texture, view_labels)
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import Run, Trainer, batch_setting, lr_setting, seed_setting, setting, without_history
 from inshade.provenance import recorded_at
 
 from . import VIEWS
@@ -91,13 +91,13 @@ class Settings:
     ratio: float = setting(6.0, "compression vs the 8-lane RGBA8 base level")
     n_cascaded: int = setting(4, "N_c (multiple of 4)")
     steps: int = setting(1500, "training steps per lambda")
-    lr: float = setting(1e-2, "Adam learning rate")
-    batch: int = setting(4096, "samples per step")
+    lr: float = lr_setting(1e-2)
+    batch: int = batch_setting(4096)
     samples: int = setting(1 << 17, "training pixels")
     views: int = setting(12, "random grazing views the pixels come from")
     metal_clip: float = setting(1.0, "per-sample gradient-norm bound (x 1/batch) through the GGX (metallic) "
                                 "lobe; 0: off")
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
     lambdas: tuple[float, ...] = setting(LAMBDAS, "the sweep (must include 0)")
 
 
@@ -300,7 +300,7 @@ def write_asset(out, runs, decoder, image, e2e: str, provenance: dict, preview_s
     out.mkdir(parents=True, exist_ok=True)
     for r in runs:
         r.graph.export(KIND, lambda_folder(r.lam), provenance={**provenance, "lambda": r.lam},
-                       metrics={k: v for k, v in r.metrics.items() if k != "history"}).save(out / lambda_folder(r.lam))
+                       metrics=without_history(r.metrics)).save(out / lambda_folder(r.lam))
     decoder.export(DECODER_KIND, "brdf", provenance={
         "source": "trained/di_brdf_disney decoders (frozen) + its encoders' rows at anisotropic = "
                   "subsurface = metallic = sheen = 0, clearcoat_gloss = 1"}).save(out / "brdf")
@@ -326,7 +326,7 @@ def train(run: Run) -> int:
     runs, decoder, image, info = train_sweep(settings=run.settings, brdf_folder=run.args.brdf, name=run.out.name,
                                              device=run.device)
     best = best_run(runs)
-    sweep = [{k: v for k, v in r.metrics.items() if k != "history"} for r in runs]
+    sweep = [without_history(r.metrics) for r in runs]
     base = next(r for r in runs if r.lam == 0.0).metrics["psnr_shaded_vs_reference"]
     metrics = {"device": str(run.device), **info,
                "lambda_best": best.lam, "sweep": sweep,

@@ -36,8 +36,8 @@ import numpy as np
 from inshade.bench.contract import Bench, option, sized
 from inshade.bench import codecs
 from inshade.bench.entry import Claim, claim_row
-from inshade.bench.harness import (BenchError, machine, machine_markdown, matplotlib_pyplot, portable_command,
-                                   portable_path, save_figure, write_report)
+from inshade.bench.harness import (BenchError, label_axes, machine, machine_markdown, matplotlib_pyplot,
+                                   portable_command, portable_path, save_figure, write_report)
 from inshade.bench.codecs import ASTC_BLOCKS, ASTC_QUALITY, RGB8_BPP
 from inshade.metrics import flip as flip_mean
 from inshade.metrics import flip_unavailable, psnr, srgb_oetf
@@ -302,9 +302,7 @@ def plot(result: dict, path: Path) -> None:
         ax.xaxis.set_major_formatter(ticker.FormatStrFormatter("%g"))
         ax.xaxis.set_minor_formatter(ticker.NullFormatter())
         ax.set_xticks([1, 2, 4, 8])
-        ax.set_xlabel("bits per pixel (RGB8 = 24)")
-        ax.set_ylabel(label)
-        ax.grid(True, alpha=0.3)
+        label_axes(ax, "bits per pixel (RGB8 = 24)", label)
     axes[0][0].legend(fontsize=6)
     save_figure(fig, path, "DI vs ASTC/BC", result)
 

@@ -46,7 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from inshade.files import atomic_write
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import (Run, Trainer, batch_setting, check_fit, lr_setting, print_notes, seed_setting, setting,
+                             steps_setting)
 from inshade.metrics import psnr, srgb_eotf
 from inshade.models import indirection as di
 from inshade.scene.builder import (display_modes, exposure_setting, float_setting, lut_filter_setting, network,
@@ -68,9 +69,9 @@ class Settings:
     rho: float | None = setting(CASCADE_DEFAULTS["rho"],
                                 "N_p / N_c (None: the cascaded side CASCADE_SIDES chooses, the largest primary "
                                 "next to it)")
-    steps: int = setting(1500, "training steps")
-    lr: float = setting(CASCADE_DEFAULTS["lr"], "Adam learning rate")
-    batch: int = setting(CASCADE_DEFAULTS["batch"], "samples per step")
+    steps: int = steps_setting(1500)
+    lr: float = lr_setting(CASCADE_DEFAULTS["lr"])
+    batch: int = batch_setting(CASCADE_DEFAULTS["batch"])
     schedule: str = setting(CASCADE_DEFAULTS["schedule"], "learning-rate schedule", choices=sorted(di.SCHEDULES))
     finish: float = setting(CASCADE_DEFAULTS["finish"], "fraction of the steps trained last with the squared error "
                             "on texel centres and stratified points (0: the paper's stratified L1 throughout)")
@@ -79,7 +80,7 @@ class Settings:
                                     "sample budget", choices=FINISH_OPTIMIZERS)
     init: str = setting(CASCADE_DEFAULTS["init"], "starting point: the image's principal colour axes (pca) or "
                         "the paper's uv ramp with a mean-colour cascade (ramp)", choices=INITS)
-    seed: int = setting(CASCADE_DEFAULTS["seed"], "random seed")
+    seed: int = seed_setting(CASCADE_DEFAULTS["seed"])
 
 
 # Training lengths: "quick" runs in well under a minute at 256^2 on one CPU thread; "ship" is what the
@@ -166,16 +167,10 @@ def extra_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-gl", action="store_true", help="skip the GLSL-decoded metrics (no GL context)")
 
 
-def check(s: Settings) -> None:
-    if s.steps < 0 or s.batch < 1:
-        raise CompressionError("--steps must be >= 0 and --batch >= 1")
-
-
 def train(run: Run) -> int:
     s, args = run.settings, run.args
     image, notes, source = load_image(s.image, s.size)
-    for n in notes:
-        print(f"inshade: note: {n}", file=sys.stderr)
+    print_notes(notes)
     result = compress(image, s.ratio, rho=s.rho, steps=s.steps, lr=s.lr, batch=s.batch, schedule=s.schedule,
                       seed=s.seed, finish=s.finish, finish_optimizer=s.finish_optimizer, init=s.init,
                       measure=None if args.no_gl else decoded_metrics, name=run.out.name, device=run.device,
@@ -183,17 +178,17 @@ def train(run: Run) -> int:
     title = args.title or f"DI texture: {source}, {result.metrics['ratio']:.2f}x"
     out = write_asset(result, run.out, title, args.lut_filter)
     m = result.metrics
-    run.write_metrics({k: v for k, v in m.items() if k != "history"})
     gl = (f", GLSL exact {m['psnr_srgb8_glsl_exact']:.2f} dB / fast {m['psnr_srgb8_glsl_fast']:.2f} dB"
           if "psnr_srgb8_glsl_exact" in m else "")
-    print(f"wrote {out}: {m['ratio']:.2f}x ({m['bytes']} bytes, N_p {m['n_primary']}, N_c {m['n_cascaded']}), "
-          f"PSNR sRGB8 torch {m['psnr_srgb8_torch'] if 'psnr_srgb8_torch' in m else m['psnr_quantised']:.2f} dB"
-          f"{gl}, {m['train_seconds']:.1f} s")
-    return 0
+    return run.finish(out, m, f"{m['ratio']:.2f}x ({m['bytes']} bytes, N_p {m['n_primary']}, N_c {m['n_cascaded']}), "
+                              f"PSNR sRGB8 torch "
+                              f"{m['psnr_srgb8_torch'] if 'psnr_srgb8_torch' in m else m['psnr_quantised']:.2f} dB"
+                              f"{gl}, {m['train_seconds']:.1f} s")
 
 
 TRAINER = Trainer("di_texture", __doc__, Settings, PRESETS, train,
                   folder=lambda s: f"di_texture_{Path(s.image.removeprefix('skimage:')).stem}",
                   folder_hint="di_texture_<image>",
-                  ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments, check=check, errors=(CompressionError,))
+                  ship_assets=SHIP_ASSETS, extra_arguments=extra_arguments,
+                  check=lambda s: check_fit(s, CompressionError), errors=(CompressionError,))
 add_arguments, preset_settings, main = TRAINER.add_arguments, TRAINER.preset_settings, TRAINER.main

@@ -25,7 +25,7 @@ import importlib
 from dataclasses import dataclass
 
 from inshade.models.threads import torch_threads
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import Run, Trainer, batch_setting, seed_setting, setting
 
 from .network import ARCHES, HashGridError
 
@@ -55,8 +55,8 @@ class Settings:
     arch: str = setting("hash_grid", "network: the hash grid + MLP, or the MLP-only network of its bytes",
                         choices=ARCHES)
     steps: int = setting(3000, "optimizer steps")
-    batch: int = setting(65536, "samples per step")
-    seed: int = setting(0, "random seed")
+    batch: int = batch_setting(65536)
+    seed: int = seed_setting()
     levels: int = setting(16, "grid levels (instant-NGP L)")
     features: int = setting(2, "features per level (F)", choices=(1, 2, 4, 8))
     base_resolution: int = setting(16, "coarsest level's vertices a side (N_min)")

@@ -16,7 +16,7 @@ file's own shading (lib/gltf_material), views ``GLTF_VIEWS``.
 """
 
 from inshade.papers import NEURAL_APPEARANCE
-from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
+from inshade.technique import Choice, ProgramSpec, folder_technique
 
 KIND = "neural_appearance"
 # (bundle folder in the asset, GLSL prefix): the pass includes <network_PREFIX> for each.
@@ -102,20 +102,14 @@ def _frame(inputs):
     return material_uniforms(inputs.scene)
 
 
-TECHNIQUE = Technique(
-    name="neural_appearance",
-    summary="neural materials: latent mip pyramid + MLP decoders with learned frames and a learned sampler",
-    paper=NEURAL_APPEARANCE,
-    kinds=(KIND,),
+TECHNIQUE = folder_technique(
+    __name__, "neural materials: latent mip pyramid + MLP decoders with learned frames and a learned sampler",
+    NEURAL_APPEARANCE,
     programs=(ProgramSpec("passes/mesh_neural_appearance.frag", geometry="mesh", mesh_attributes=("uv", "tangent"),
                           bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS, chunks=_chunks, frame=_frame, validate=_validate,
                           accumulate=True, choices=CHOICES),
               ProgramSpec(GLTF_PROGRAM, geometry="mesh", mesh_attributes=("uv", "tangent", "materials"),
                           bundle_kinds=(KIND,), uniforms=GLTF_UNIFORM_DEFAULTS, chunks=_gltf_chunks,
                           validate=_validate_gltf, accumulate=True, choices=GLTF_CHOICES)),
-    **folder_fields(
-        __name__,
-        train="bake a layered material or a glTF file's material into a latent pyramid + decoders + sampler",
-        bench="neural vs reference layered material: quality, speed, sampler variance, memory",
-        shaders=True),
-)
+    train="bake a layered material or a glTF file's material into a latent pyramid + decoders + sampler",
+    bench="neural vs reference layered material: quality, speed, sampler variance, memory")

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.contract import Bench, clock_option, option, rounds_option, sized, warmup_option
 from inshade.files import atomic_write
 from inshade.bench.entry import Claim, claim_row, ratio_verdict
 from inshade.bench.harness import (BenchError, clock_for, clock_record, interleave, machine,
@@ -51,8 +51,8 @@ class Settings:
     quality_size: int = option(256, "quality/sampler renders' height (default %(default)s)")
     quality_spp: int = option(8, "samples per quality render (default %(default)s)")
     sampler_frames: int = option(32, "1-spp frames per sampler estimate (default %(default)s)")
-    rounds: int = option(7, "timed rounds (default %(default)s)")
-    warmup: int = option(2, "untimed draws per variant (default %(default)s)")
+    rounds: int = rounds_option()
+    warmup: int = warmup_option()
     clock: str = clock_option()
 
 

@@ -101,6 +101,18 @@ PATTERNS = {
 LAYER_KEYS = {"pattern", "amplitude", "seed", "derivative"}
 
 
+def _table(where, desc, key: str, expected: str, known, unknown: str) -> dict:
+    """The object ``desc[key]``, whose keys must lie in ``known``: ``expected`` says what it must be,
+    ``unknown`` what a key outside ``known`` is (``{known}``: their list)."""
+    table = desc.get(key)
+    if not isinstance(table, dict):
+        _fail(where, key, f"expected {expected}, got {table!r}")
+    extra = sorted(set(table) - set(known))
+    if extra:
+        _fail(where, f"{key}.{extra[0]}", unknown.format(known=", ".join(known)))
+    return table
+
+
 def _check_layer(where, fname, layer):
     if not isinstance(layer, dict):
         _fail(where, fname, f"expected an object, got {layer!r}")
@@ -142,12 +154,7 @@ def _parse(where, desc) -> Material:
     if not isinstance(name, str) or not name:
         _fail(where, "name", f"expected a non-empty string, got {name!r}")
     seed = _number(where, "seed", desc.get("seed"), 0, 2**31 - 1, integer=True)
-    consts = desc.get("constants")
-    if not isinstance(consts, dict):
-        _fail(where, "constants", f"expected an object, got {consts!r}")
-    extra = sorted(set(consts) - set(CONSTANTS))
-    if extra:
-        _fail(where, f"constants.{extra[0]}", f"unknown constant (known: {', '.join(CONSTANTS)})")
+    consts = _table(where, desc, "constants", "an object", CONSTANTS, "unknown constant (known: {known})")
     constants = {}
     for key, (n, lo, hi) in CONSTANTS.items():
         if key not in consts:
@@ -162,12 +169,8 @@ def _parse(where, desc) -> Material:
     for key in ("roughness_range", "coat_roughness_range"):
         if constants[key][0] > constants[key][1]:
             _fail(where, f"constants.{key}", f"lower end above upper end: {list(constants[key])}")
-    gens = desc.get("generators")
-    if not isinstance(gens, dict):
-        _fail(where, "generators", f"expected an object with one entry per channel, got {gens!r}")
-    extra = sorted(set(gens) - set(CHANNELS))
-    if extra:
-        _fail(where, f"generators.{extra[0]}", f"unknown channel (channels: {', '.join(CHANNELS)})")
+    gens = _table(where, desc, "generators", "an object with one entry per channel", CHANNELS,
+                  "unknown channel (channels: {known})")
     generators = {}
     for ch in CHANNELS:
         g = gens.get(ch)

@@ -56,7 +56,7 @@ from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 from inshade.models.fit_loop import adam, cosine, fit, learning_rates
 from inshade.components.latent_pyramid.torch_twin import LatentPyramid
 from inshade.provenance import recorded_at
-from inshade.trainer import GIVEN, Run, Trainer, setting
+from inshade.trainer import GIVEN, Run, Trainer, seed_setting, setting
 
 from . import KIND, NETWORKS
 
@@ -85,7 +85,7 @@ class Settings:
     sampler_batch: int = setting(512, "samples per step of the samplers' KL loss")
     sampler_samples: int = setting(8, "directions per sample of the samplers' KL estimate")
     footprint_samples: int = setting(8, "uv points averaged per prefiltered target above level 0")
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
     lr: float = setting(2e-3, "encoder and network learning rate (Adam)")
     latent_lr: float = setting(1e-3, "phase 2 latent learning rate (Adam)")
     level_scale: float = setting(1.5, "scale of the exponential level distribution (favouring fine levels)")

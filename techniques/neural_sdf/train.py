@@ -37,7 +37,7 @@ from inshade.geometry.mesh import DEFAULT_OUT as DEFAULT_MESH
 from inshade.models.mlp_sdf import ACTIVATIONS
 from inshade.models.mlp_sdf_fit import DEFAULTS as FIT_DEFAULTS, SIGMAS, fit_mesh
 from inshade.models.threads import torch_threads
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import Run, Trainer, lr_setting, seed_setting, setting
 from inshade.provenance import recorded_at
 
 KIND = "neural_sdf"
@@ -54,9 +54,9 @@ class Settings:
     activation: str = setting(FIT_DEFAULTS["activation"], "hidden activation", choices=ACTIVATIONS)
     steps: int = setting(FIT_DEFAULTS["steps"], "optimizer steps")
     batch: int = setting(FIT_DEFAULTS["batch"], "points per step")
-    lr: float = setting(FIT_DEFAULTS["lr"], "Adam learning rate")
+    lr: float = lr_setting(FIT_DEFAULTS["lr"])
     samples: int = setting(FIT_DEFAULTS["samples"], "training points")
-    seed: int = setting(FIT_DEFAULTS["seed"], "random seed")
+    seed: int = seed_setting(FIT_DEFAULTS["seed"])
     lipschitz_target: float = setting(FIT_DEFAULTS["lipschitz_target"], "the penalty starts above this bound")
     lipschitz_weight: float = setting(FIT_DEFAULTS["lipschitz_weight"], "weight of the Lipschitz penalty, 0 = off")
 

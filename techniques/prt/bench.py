@@ -33,7 +33,7 @@ from pathlib import Path
 
 from inshade.bench.contract import Bench, clock_option, option, sized
 from inshade.bench.entry import Claim, claim_row
-from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, machine,
+from inshade.bench.harness import (BenchError, WallClock, clock_for, clock_record, label_axes, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
 from inshade.techniques.prt.codegen import KINDS
 
@@ -328,10 +328,8 @@ def plot(result: dict, path: Path) -> None:
                 label=f"{asset} {shading} {size}²")
     ax.set_xscale("log", base=2)
     ax.set_yscale("log")
-    ax.set_xlabel("transfer network width k")
-    ax.set_ylabel("ms / frame")
+    label_axes(ax, "transfer network width k", "ms / frame")
     ax.set_title(f"PRT frame time — {result['machine']['gl_renderer']}", fontsize=9)
-    ax.grid(True, alpha=0.3)
     ax.legend(fontsize=6)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from inshade.trainer import GIVEN, setting
+from inshade.trainer import GIVEN, batch_setting, lr_setting, seed_setting, setting
 
 BASE = "base"
 # Each shipped asset's recipe: what it changes from the base recipe (Settings' defaults; its
@@ -49,8 +49,8 @@ class Settings:
     points: int = setting(40000, "surface samples")
     dirs: int = setting(128, "visibility rays per sample")
     steps: int = setting(16000, "optimizer steps")
-    batch: int = setting(512, "samples per step")
-    lr: float = setting(1e-2, "Adam learning rate")
+    batch: int = batch_setting(512)
+    lr: float = lr_setting(1e-2)
     pos_freqs: int = setting(6, "position octaves")
     normal_freqs: int = setting(4, "normal octaves")
     output: str = setting("tanh", "output activation (tanh: targets scaled by 1/1.25)", choices=("tanh", "identity"))
@@ -62,7 +62,7 @@ class Settings:
                                       only={"near_points": GIVEN})
     drop_enclosed: bool = setting(False, "train without samples whose every visibility ray is blocked "
                                   "(enclosed shells)")
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
     quality_views: int = setting(30, "orbit views of the quality measurement")
     quality_size: int = setting(96, "square size of the quality renders")
     quality_dirs: int = setting(512, "rays per pixel of the ground truth")

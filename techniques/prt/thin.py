@@ -42,31 +42,6 @@ SCHEMES = {
 REFERENCE = (0.1, 0.01, 20000, 0.5, True)
 
 
-def shadow_trace(sdf, o, d, center, radius, step_scale, eps, steps):
-    """(occluded [R], undecided [R]) of rays o + t d: transfer.py ``_shadow_trace`` that also says
-    which rays ran out of steps (counted unoccluded there)."""
-    oc = o - center
-    b = (oc * d).sum(-1)
-    h = b * b - ((oc * oc).sum(-1) - radius * radius)
-    t1 = torch.where(h > 0, -b + torch.sqrt(h.clamp_min(0.0)), torch.zeros_like(b))
-    occ = torch.zeros(o.shape[0], dtype=torch.bool)
-    und = torch.zeros_like(occ)
-    idx = (t1 > 0).nonzero().squeeze(1)
-    o, d, t1 = o[idx], d[idx], t1[idx]
-    t = torch.zeros_like(t1)
-    for _ in range(steps):
-        if idx.numel() == 0:
-            break
-        dist = sdf(o + d * t[:, None])
-        hit = dist < eps
-        occ[idx[hit]] = True
-        t = t + dist * step_scale
-        go = ~hit & (t <= t1)
-        idx, o, d, t, t1 = idx[go], o[go], d[go], t[go], t1[go]
-    und[idx] = True
-    return occ, und
-
-
 def scheme_transfer(sdf, p, n, dirs, scheme):
     """Transfer [N, 16] (and occluded / undecided [N, D]) of points p, n along ``dirs`` [N, D, 3]."""
     scene = sdf.scene
@@ -77,8 +52,8 @@ def scheme_transfer(sdf, p, n, dirs, scheme):
         lift = off * hit_eps + (sdf(p).neg().clamp_min(0.0) if escape else 0.0)
         lift = torch.as_tensor(lift, dtype=torch.float32).expand(p.shape[0])
         o = (p + n * lift[:, None])[:, None].expand_as(dirs).reshape(-1, 3)
-        occ, und = shadow_trace(sdf, o, dirs.reshape(-1, 3), center, float(scene.radius), step_scale,
-                                eps * hit_eps, steps)
+        occ, und = T.shadow_trace(sdf, o, dirs.reshape(-1, 3), center, float(scene.radius), step_scale,
+                                  eps * hit_eps, steps)
     occ, und = occ.reshape(dirs.shape[:2]), und.reshape(dirs.shape[:2])
     return project_visibility(~occ, dirs), occ, und
 

@@ -78,9 +78,10 @@ def _bar(total, desc, progress, unit="ray"):
 # ---------------------------------------------------------------------------------------------
 # SDFs
 
-def _shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, radius: float,
-                  step_scale: float, hit_eps: float, max_steps: int) -> torch.Tensor:
-    """Occluded [R] bool for rays o + t d (unit d), with active-set compaction."""
+def shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, radius: float,
+                 step_scale: float, hit_eps: float, max_steps: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(occluded [R], undecided [R]) bools for rays o + t d (unit d), with active-set compaction;
+    undecided rays ran out of steps before a hit or the bounding sphere's exit (not occluded)."""
     oc = o - center
     b = (oc * d).sum(-1)
     h = b * b - ((oc * oc).sum(-1) - radius * radius)
@@ -99,7 +100,9 @@ def _shadow_trace(sdf, o: torch.Tensor, d: torch.Tensor, center: torch.Tensor, r
         go = ~hit & (t <= t1)
         if not bool(go.all()):
             idx, o, d, t, t1 = idx[go], o[go], d[go], t[go], t1[go]
-    return occluded
+    undecided = torch.zeros_like(occluded)
+    undecided[idx] = True
+    return occluded, undecided
 
 
 def _transfer(p, nrm, n_dirs: int, seed: int, start: int, chunk_rays: int, offset: float, occluded, desc: str,
@@ -143,7 +146,7 @@ def sdf_transfer(sdf, p, nrm, n_dirs: int = 256, seed: int = 0, progress: bool |
     radius = float(scene.radius)
 
     def occluded(o, d):
-        return _shadow_trace(sdf, o.to(device), d.to(device), center, radius, step_scale, threshold, steps).cpu()
+        return shadow_trace(sdf, o.to(device), d.to(device), center, radius, step_scale, threshold, steps)[0].cpu()
 
     return _transfer(p, nrm, n_dirs, seed, start, chunk_rays, offset, occluded, "transfer (sdf)", progress)
 

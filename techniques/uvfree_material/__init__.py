@@ -20,7 +20,7 @@ copied file as the scene's mesh (gltf_scene.py).
 """
 
 from inshade.papers import FEATURE_HIERARCHY
-from inshade.technique import Choice, ProgramSpec, Technique, folder_fields
+from inshade.technique import Choice, ProgramSpec, folder_technique
 
 KIND = "uvfree_material"
 KIND_GLTF = "uvfree_material_gltf"   # decodes a glTF file's channels (gltf_channels.py), drawn with its materials
@@ -86,20 +86,14 @@ def _gltf_chunks(scene, bundles, networks, codegen_options) -> dict:
     return {CHUNK: layout_chunk(*_gltf_layout(bundle))}
 
 
-TECHNIQUE = Technique(
-    name="uvfree_material",
-    summary="UV-free neural material: hashed per-triangle feature hierarchy + MLP, decoded from a visibility buffer",
-    paper=FEATURE_HIERARCHY,
-    kinds=(KIND, KIND_GLTF),
+TECHNIQUE = folder_technique(
+    __name__, "UV-free neural material: hashed per-triangle feature hierarchy + MLP, decoded from a visibility buffer",
+    FEATURE_HIERARCHY, kinds=(KIND, KIND_GLTF),
     programs=(ProgramSpec("passes/mesh_uvfree_material.frag", geometry="mesh", mesh_attributes=("uv", "tangent"),
                           bundle_kinds=(KIND,), uniforms=UNIFORM_DEFAULTS, validate=_validate, visibility=True,
                           choices=CHOICES),
               ProgramSpec("passes/mesh_uvfree_gltf.frag", geometry="mesh", mesh_attributes=("materials",),
                           bundle_kinds=(KIND_GLTF,), uniforms=GLTF_UNIFORM_DEFAULTS, chunks=_gltf_chunks,
                           validate=_validate_gltf, visibility=True, choices=GLTF_CHOICES)),
-    **folder_fields(
-        __name__,
-        train="fit a hashed per-triangle feature hierarchy + MLP to a uv-textured mesh or a glTF file's materials",
-        bench="UV-free material vs its uv textures, BC1/BC7/ASTC at equal bytes: quality, memory, speed",
-        shaders=True),
-)
+    train="fit a hashed per-triangle feature hierarchy + MLP to a uv-textured mesh or a glTF file's materials",
+    bench="UV-free material vs its uv textures, BC1/BC7/ASTC at equal bytes: quality, memory, speed")

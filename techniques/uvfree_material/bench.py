@@ -44,7 +44,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from inshade.bench.contract import Bench, clock_option, option, sized
+from inshade.bench.contract import Bench, clock_option, option, rounds_option, sized, warmup_option
 from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import BenchError, machine, portable_path, write_report
 from inshade.files import atomic_write
@@ -68,8 +68,8 @@ class Settings:
     quality_size: int = option(256, "quality renders' height (default %(default)s)")
     width: int = option(1024, "frame-time width (default %(default)s)")
     height: int = option(768, "frame-time height (default %(default)s)")
-    rounds: int = option(7, "timed rounds (default %(default)s)")
-    warmup: int = option(2, "untimed draws per variant (default %(default)s)")
+    rounds: int = rounds_option()
+    warmup: int = warmup_option()
     codecs: str = option(",".join(CODECS), "comma-separated baselines (default all: %(default)s)")
     clock: str = clock_option()
 

@@ -50,7 +50,7 @@ from inshade.geometry.mesh import MeshError, load_mesh, mesh_uv
 from inshade.geometry.gltf import GltfError
 from inshade.geometry.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.metrics import psnr
-from inshade.trainer import Run, Trainer, setting
+from inshade.trainer import Run, Trainer, seed_setting, setting, steps_setting
 from inshade.provenance import recorded_at
 
 from . import objects
@@ -88,12 +88,12 @@ class Settings:
     config: str = setting("balanced", "memory | balanced | quality: features sized to 1/12, 1/6, 1/3 of the "
                           "uncompressed textures", choices=sorted(CONFIGS))
     resolution: int = setting(512, "procedural texture side, a power of two")
-    steps: int = setting(3000, "training steps")
+    steps: int = steps_setting(3000)
     batch: int = setting(1 << 14, "surface points per step")
     hidden: Widths = setting(Widths(HIDDEN), "hidden layer widths of the decoder MLP, comma-separated",
                              metavar="W,W,...")
     features: int = setting(FEATURES, "features per table entry F", choices=(1, 2, 4, 8))
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
     lr: float = setting(1e-2, "feature table learning rate (Adam)")
     mlp_lr: float = setting(5e-3, "decoder MLP learning rate (Adam)")
 

@@ -22,6 +22,7 @@ from inshade.geometry.mesh_topology import MeshTopologyError, mesh_topology
 from inshade.models import GraphModule
 from inshade.models.mesh_features import canonical, hash_index, hash_value, subvertices
 
+from fitting import fit_losses
 from parity import assert_parity, glsl_eval, parity_settings, run_sample_pass, torch_reference
 
 
@@ -551,12 +552,5 @@ def test_tiny_fit_reduces_loss():
     t = torch.cat([x[:, 1:], 1 - x[:, 1:].sum(1, keepdim=True)], 1)
     pos = (t[:, :, None] * torch.from_numpy(v[f])[x[:, 0].long()]).sum(1)
     target = torch.sin(6 * pos)                       # a colour that varies over the surface
-    opt = torch.optim.Adam(g.parameters(), lr=1e-2)
-    losses = []
-    for _ in range(150):
-        opt.zero_grad()
-        loss = (g(x) - target).square().mean()
-        loss.backward()
-        opt.step()
-        losses.append(loss.item())
+    losses = fit_losses(g, x, target, steps=150, lr=1e-2)
     assert losses[-1] < 0.2 * losses[0], losses[::30]

@@ -69,7 +69,7 @@ def draw(gl, p, tex, level: int, uvs: np.ndarray) -> tuple[np.ndarray, np.ndarra
     fbo = float_target(gl, w, h, 2)
     try:
         gl.viewport = (0, 0, w, h)
-        p.render(fbo, uniforms={"u_level": level}, textures={"u_tex": tex, "u_uvs": uv_tex})
+        p.render(fbo, uniforms={"u_level": level}, textures={"u_tex": tex, "u_inputs": uv_tex})
         return read_rgba_raw(fbo, 0), read_rgba_raw(fbo, 1)
     finally:
         release_target(fbo)

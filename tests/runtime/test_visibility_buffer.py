@@ -91,14 +91,13 @@ def test_render_targets_with_integer_and_two_channel_attachments(gl):
 
 
 _UINT_FETCH = """
+#include <lib/test_pass>
 uniform usampler2D u_ids;
-uniform sampler2D u_pairs;
 layout(location = 0) out vec4 o;
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    uvec4 id = texelFetch(u_ids, p, 0);
+    uvec4 id = texelFetch(u_ids, ivec2(gl_FragCoord.xy), 0);
     // the full 32 bits, exactly: two 16-bit halves as floats, for every channel the format has
-    o = vec4(float(id.x >> 16u), float(id.x & 65535u), float(id.y & 65535u), texelFetch(u_pairs, p, 0).y);
+    o = vec4(float(id.x >> 16u), float(id.x & 65535u), float(id.y & 65535u), test_input(0).y);
 }
 """
 
@@ -114,7 +113,7 @@ def test_uint_textures_hold_32_bits_exactly(gl, channels, seed):
     rng = np.random.default_rng(seed)
     ids = rng.integers(0, 2**32, (5, 7, channels), dtype=np.uint64).astype(np.uint32)
     pairs = rng.standard_normal((5, 7, 2)).astype(np.float32)
-    res = [TextureResource("u_ids", ids, "u4"), TextureResource("u_pairs", pairs, "f4")]
+    res = [TextureResource("u_ids", ids, "u4"), TextureResource("u_inputs", pairs, "f4")]
 
     class _Gen:   # the two resources as a generated network's
         resources = res

@@ -218,23 +218,15 @@ def xvfb():
 
     if os.environ.get(BACKEND_ENV) == "osmesa" or pyopengl_bound_to_osmesa():   # either order fails
         pytest.skip(WINDOW_NEEDS_ITS_OWN_GL)
-    xvfb = shutil.which("Xvfb")
-    if xvfb is None:
-        pytest.fail("Xvfb not found on PATH: install xvfb (apt-get install xvfb), as .ci/run does", pytrace=False)
-    for number in range(90, 190):
-        if not Path(f"/tmp/.X{number}-lock").exists() and not Path(f"/tmp/.X11-unix/X{number}").exists():
-            break
-    proc = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 20
-    while not Path(f"/tmp/.X11-unix/X{number}").exists():
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            pytest.fail(f"Xvfb :{number} did not start within 20 s (exit code {proc.poll()})", pytrace=False)
-        time.sleep(0.05)
+    from inshade.viewer.virtual_display import VirtualDisplayError, start_xvfb
+
+    try:
+        proc, display = start_xvfb()
+    except VirtualDisplayError as exc:
+        pytest.fail(f"{exc}, as .ci/run does", pytrace=False)
     old = os.environ.get("DISPLAY")
-    os.environ["DISPLAY"] = f":{number}"
-    yield f":{number}"
+    os.environ["DISPLAY"] = display
+    yield display
     if old is None:
         os.environ.pop("DISPLAY", None)
     else:

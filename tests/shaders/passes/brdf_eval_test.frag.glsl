@@ -3,15 +3,15 @@
 // (subsurface, specular, specular_tint, sheen), (sheen_tint, clearcoat, clearcoat_gloss, -),
 // (n.h, alpha_h, -, -). Attachment 0: (disney_brdf(l, v).rgb, ggx(n.h, alpha_h)).
 // Used by tests/models/test_brdf.py.
+#define TEST_TEXELS 6
 #include <lib/brdf>
+#include <lib/test_pass>
 
-uniform sampler2D u_inputs;
 layout(location = 0) out vec4 frag_out;
 
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 t[6];
-    for (int i = 0; i < 6; ++i) t[i] = texelFetch(u_inputs, ivec2(p.x * 6 + i, p.y), 0);
+    vec4 t[TEST_TEXELS];
+    test_inputs(t);
     DisneyMaterial m;
     m.base_color = vec3(t[1].zw, t[2].x);
     m.roughness = t[2].y; m.metallic = t[2].z; m.anisotropic = t[2].w;

@@ -4,16 +4,16 @@
 // roughness, sheen.xy), t7 = (sheen.z, sheen roughness, anisotropy, -), t8 = (irradiance.xyz, -),
 // t9 = (radiance.xyz, -). Attachment 0: gltf_brdf; attachment 1: gltf_environment.
 // Used by tests/models/test_gltf_brdf.py.
+#define TEST_TEXELS 10
 #include <lib/gltf_brdf>
+#include <lib/test_pass>
 
-uniform sampler2D u_inputs;
 layout(location = 0) out vec4 out_brdf;
 layout(location = 1) out vec4 out_environment;
 
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 t[10];
-    for (int i = 0; i < 10; ++i) t[i] = texelFetch(u_inputs, ivec2(p.x * 10 + i, p.y), 0);
+    vec4 t[TEST_TEXELS];
+    test_inputs(t);
     GltfShading s = GltfShading(vec3(t[4].zw, t[5].x), t[5].y, t[5].z, t[5].w, t[6].x, t[6].y,
                                 vec3(t[6].zw, t[7].x), t[7].y, t[7].z);
     vec3 n = t[0].xyz, at = vec3(t[0].w, t[1].xy), ab = vec3(t[1].zw, t[2].x), nc = t[2].yzw;

@@ -7,17 +7,15 @@
 //   3: (w2.x, w2.y, weight.x, weight.y)
 //   4: (weight.z, mf_level_taps indices 0..2)
 // Used by tests/components/test_mesh_features.py.
+#define TEST_TEXELS 3
 #include <lib/mesh_features>
+#include <lib/test_pass>
 
-uniform sampler2D u_inputs;
 uniform uint u_table_size;
 layout(location = 0) out vec4 frag_out[5];
 
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 a = texelFetch(u_inputs, ivec2(p.x * 3, p.y), 0);
-    vec4 b = texelFetch(u_inputs, ivec2(p.x * 3 + 1, p.y), 0);
-    vec4 c = texelFetch(u_inputs, ivec2(p.x * 3 + 2, p.y), 0);
+    vec4 a = test_input(0), b = test_input(1), c = test_input(2);
     uint k = uint(a.x);
     int level = int(a.w);
     uvec3 corners = uvec3(b.xyz);

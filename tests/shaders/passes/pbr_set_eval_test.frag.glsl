@@ -2,17 +2,17 @@
 // (data orientation): lanes 0-3, lanes 4-7, (p, -), (geometric normal, -), tangent (xyz,
 // handedness), (view ray, -). Attachment 0: (pbr_shade(...), 1). Needs chunks=sh_chunks(d).
 // Used by tests/test_pbr_set.py.
+#define TEST_TEXELS 6
 #include <lib/pbr_set>
+#include <lib/test_pass>
 
-uniform sampler2D u_inputs;
 uniform vec3 u_sh[SH_COEFFS];
 uniform int u_light_count;
 layout(location = 0) out vec4 frag_out;
 
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 t[6];
-    for (int i = 0; i < 6; ++i) t[i] = texelFetch(u_inputs, ivec2(p.x * 6 + i, p.y), 0);
+    vec4 t[TEST_TEXELS];
+    test_inputs(t);
     frag_out = vec4(pbr_shade(pbr_set_unpack(t[0], t[1]), t[2].xyz, t[3].xyz, t[4], t[5].xyz, u_sh,
                                   u_light_count), 1.0);
 }

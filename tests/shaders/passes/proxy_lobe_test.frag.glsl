@@ -2,15 +2,15 @@
 // (data orientation): params 0-3, params 4-7, (param 8, view.xyz), (u.xyz, -), (light.xyz, -).
 // Attachment 0: (proxy_sample(p, view, u), proxy_pdf of that sample); attachment 1:
 // (proxy_pdf(p, view, light), 0, 0, 0). Used by tests/components/test_proxy_lobe.py.
+#define TEST_TEXELS 5
 #include <lib/proxy_lobe>
+#include <lib/test_pass>
 
-uniform sampler2D u_inputs;
 layout(location = 0) out vec4 frag_out[2];
 
 void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 t[5];
-    for (int i = 0; i < 5; ++i) t[i] = texelFetch(u_inputs, ivec2(p.x * 5 + i, p.y), 0);
+    vec4 t[TEST_TEXELS];
+    test_inputs(t);
     ProxyLobe lobe = proxy_lobe(t[0], t[1], t[2].x);
     vec3 view = t[2].yzw;
     vec3 light = proxy_sample(lobe, view, t[3].xyz);

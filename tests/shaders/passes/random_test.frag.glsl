@@ -8,12 +8,11 @@
 uniform int u_sample_index;
 uniform int u_stream;
 uniform ivec2 u_pixel_offset;
-layout(location = 0) out vec4 out_vec4;
-layout(location = 1) out vec4 out_narrow;
+layout(location = 0) out vec4 frag_out[2];   // the vec4 draw, then the narrower ones
 
 void main() {
     uvec2 px = uvec2(ivec2(gl_FragCoord.xy) + u_pixel_offset);
-    out_vec4 = random_uniform4(px, u_sample_index, u_stream);
-    out_narrow = vec4(random_uniform(px, u_sample_index, u_stream), random_uniform2(px, u_sample_index, u_stream).y,
-                      random_uniform3(px, u_sample_index, u_stream).z, 0.0);
+    frag_out[0] = random_uniform4(px, u_sample_index, u_stream);
+    frag_out[1] = vec4(random_uniform(px, u_sample_index, u_stream), random_uniform2(px, u_sample_index, u_stream).y,
+                       random_uniform3(px, u_sample_index, u_stream).z, 0.0);
 }

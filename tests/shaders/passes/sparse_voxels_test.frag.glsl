@@ -5,12 +5,12 @@
 //          1: net_voxel_sphere(uint(i)) (the i lane doubles as a slot query).
 // Used by tests/components/test_sparse_voxels.py.
 #include <network>
+#include <lib/test_pass>
 
-uniform sampler2D u_inputs;
 layout(location = 0) out vec4 frag_out[2];
 
 void main() {
-    vec4 a = texelFetch(u_inputs, ivec2(gl_FragCoord.xy), 0);
+    vec4 a = test_input(0);
     uint slot = net_voxel_slot(int(a.x), ivec3(a.yzw));
     frag_out[0] = vec4(float(slot), float(NET_SCALE_MIN), float(NET_SCALE_MAX), float(NET_VOXELS));
     frag_out[1] = net_voxel_sphere(uint(max(a.y, 0.0)));

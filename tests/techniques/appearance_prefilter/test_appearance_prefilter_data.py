@@ -243,12 +243,17 @@ def _random_mesh(rng, n=3):
     return trimesh.Trimesh(np.clip(tri, 0.0, 1.0).reshape(-1, 3), np.arange(3 * n).reshape(n, 3), process=False)
 
 
+def _random_voxels(rng, min_scale, max_scale):
+    """A random triangle set, its voxels and spheres over the scales, and its triangles' corners [n, 3, 3]."""
+    mesh = _random_mesh(rng)
+    cells, spheres = voxelise(mesh, min_scale, max_scale)
+    return mesh, cells, spheres, mesh.vertices[mesh.faces]
+
+
 @settings(max_examples=6, deadline=None, derandomize=True)
 @given(triangles)
 def test_voxels_match_a_brute_force_overlap(rng):
-    mesh = _random_mesh(rng)
-    cells, spheres = voxelise(mesh, 0, 3)
-    tri = mesh.vertices[mesh.faces]
+    mesh, cells, spheres, tri = _random_voxels(rng, 0, 3)
     expect = []
     for s in range(4):
         n = 1 << s
@@ -268,9 +273,7 @@ def test_voxels_match_a_brute_force_overlap(rng):
 @settings(max_examples=6, deadline=None, derandomize=True)
 @given(triangles)
 def test_spheres_contain_the_clipped_geometry(rng):
-    mesh = _random_mesh(rng)
-    cells, spheres = voxelise(mesh, 1, 4)
-    tri = mesh.vertices[mesh.faces]
+    _, cells, spheres, tri = _random_voxels(rng, 1, 4)
     # points sampled on every triangle; those inside a cell must lie in its sphere
     u = rng.random((4000, 2))
     u = np.where(u.sum(1, keepdims=True) > 1, 1 - u, u)

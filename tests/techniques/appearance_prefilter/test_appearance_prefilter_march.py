@@ -42,14 +42,14 @@ PSNR_MIN = 50.0   # the march against its torch reference
 
 FRAME_PASS = """
 #include <lib/dap_frame>
-uniform sampler2D u_inputs;
+#include <lib/test_pass>
 uniform int u_bt;
 uniform int u_bp;
 layout(location = 0) out vec4 out_t;
 layout(location = 1) out vec4 out_b;
 layout(location = 2) out vec4 out_c;
 void main() {
-    vec4 x = texelFetch(u_inputs, ivec2(gl_FragCoord.xy), 0);
+    vec4 x = test_input(0);
     vec3 t, b;
     dap_view_frame(x.xyz, t, b);
     int i = int(x.w);

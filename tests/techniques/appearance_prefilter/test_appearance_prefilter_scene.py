@@ -48,6 +48,8 @@ from inshade.techniques.appearance_prefilter import GLTF_PROGRAM, GLTF_VIEWS, tr
 from inshade.techniques.appearance_prefilter.scene import MARGIN
 from inshade.techniques.appearance_prefilter.user_scene import PLAIN, face_samples, load_user_scene
 
+from gltf_inputs import textured_without_uv
+
 SIZE = 64
 SMALL = ["--preset", "quick", "--width", "8", "--latent", "12", "--steps", "40", "--batch", "256", "--device", "cpu"]
 
@@ -225,13 +227,7 @@ def test_bad_files_are_one_line_before_any_work(tmp_path, capsys):
         assert train.main(["--scene", str(path), "--out", str(out), *SMALL]) == 2, name
         assert _one_line(capsys).startswith(f"inshade: error: {path}: {gltf_scenes.MALFORMED[name][1]}"), name
         assert not out.exists()
-    from inshade.geometry.gltf_write import GltfBuilder, Primitive
-
-    b = GltfBuilder()
-    material = b.material({"pbrMetallicRoughness": {"baseColorTexture": {"index": b.texture(b.image(
-        np.full((4, 4, 4), 200, np.uint8)))}}})
-    b.node(b.mesh([Primitive(np.eye(3), np.array([[0, 1, 2]]), material=material)]))
-    path = b.write(tmp_path / "no_uv.glb")
+    path = textured_without_uv(tmp_path / "no_uv.glb")
     assert train.main(["--scene", str(path), "--out", str(tmp_path / "x"), *SMALL]) == 2
     assert _one_line(capsys) == (f"inshade: error: {path}: meshes: materials have textures, but no primitive "
                                  "has TEXCOORD_0")

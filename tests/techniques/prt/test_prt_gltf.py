@@ -40,6 +40,8 @@ from inshade.runtime.renderer import SceneRenderer
 from inshade.scene.description import load_scene
 from inshade.techniques.prt import train as prt_train
 
+from gltf_inputs import textured_without_uv
+
 SIZE = 48
 SMALL = ["--preset", "quick", "--width", "16", "--layers", "2", "--points", "1000", "--dirs", "16", "--steps", "300",
          "--quality-views", "1", "--quality-size", "24", "--quality-dirs", "64", "--device", "cpu"]
@@ -176,13 +178,7 @@ def test_a_malformed_file_is_one_line_before_any_work(tmp_path, capsys):
 
 
 def test_a_textured_file_without_uv_is_one_line(tmp_path, capsys):
-    from inshade.geometry.gltf_write import GltfBuilder, Primitive
-
-    b = GltfBuilder()
-    material = b.material({"pbrMetallicRoughness": {"baseColorTexture": {"index": b.texture(b.image(
-        np.full((4, 4, 4), 200, np.uint8)))}}})
-    b.node(b.mesh([Primitive(np.eye(3), np.array([[0, 1, 2]]), material=material)]))
-    path = b.write(tmp_path / "no_uv.glb")
+    path = textured_without_uv(tmp_path / "no_uv.glb")
     assert prt_train.main(["--gltf", str(path), "--out", str(tmp_path / "prt_no_uv"), *SMALL]) == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == (
         f"inshade: error: {path}: meshes: materials have textures, but no primitive has TEXCOORD_0")

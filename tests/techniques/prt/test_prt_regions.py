@@ -25,7 +25,7 @@ from inshade.techniques.prt import regions
 from inshade.techniques.prt.region_twin import load_region_set, region_transfer, render_regions
 from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 
-from prt_gl import render_views
+from prt_gl import prt_settings, render_views
 
 SIZE = 48
 SDF_SCENE = {  # a floor slab with a few blobs across the grid's cell sides (occlusion on both sides)
@@ -40,12 +40,7 @@ SDF_SCENE = {  # a floor slab with a few blobs across the grid's cell sides (occ
 }
 TOP = {"type": "orbit", "fov_y": 40.0, "target": [0.0, 0.0, 0.0], "distance": 5.2, "yaw": 0.0, "pitch": -89.0}
 SLANT = {"type": "orbit", "fov_y": 40.0, "target": [0.0, 0.0, 0.0], "distance": 5.0, "yaw": -25.0, "pitch": -40.0}
-SETTINGS = {
-    "shading": {"type": "choice", "default": "diffuse", "choices": ["diffuse", "glossy"], "uniform": "u_shading"},
-    "phong_exponent": {"type": "float", "default": 8.0, "min": 0.0, "max": 256.0, "uniform": "u_phong_exponent"},
-    "ks": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0, "uniform": "u_ks"},
-    "debug": {"type": "int", "default": 0, "min": 0, "max": 6, "uniform": "u_prt_debug"},
-}
+SETTINGS = prt_settings("shading", "phong_exponent", "ks", "debug")
 GRID = regions.RegionGrid(-2.0, -1.5, 2.0, 1.5, 2, 2)
 
 
@@ -62,18 +57,24 @@ def region_bundles(grid, table, band, seed=0, width=8):
     return out
 
 
-def write_region_scene(folder: Path, bundles, camera=TOP, order=None) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "sdf.json").write_text(json.dumps(SDF_SCENE))
+def write_regions(folder: Path, bundles, order, scene: dict) -> Path:
+    """The region networks ``order`` (default: all, in turn) saved in ``folder`` beside a scene.json
+    that lists them after the fields of ``scene`` (program, geometry, camera, environment)."""
     order = list(range(len(bundles))) if order is None else order
     for i in order:
         bundles[i].save(folder / f"region_{i}")
-    data = {"format": "inshade.scene", "version": 1, "name": folder.name, "program": "passes/sdf_prt.frag",
-            "size": [SIZE, SIZE], "sdf": "sdf.json", "camera": camera,
-            "networks": [{"bundle": f"region_{i}", "prefix": f"reg{i}"} for i in order],
-            "environment": {"sky": "noon", "rotation": 0.0, "degree": 4}, "settings": SETTINGS}
+    data = {"format": "inshade.scene", "version": 1, "name": folder.name, "size": [SIZE, SIZE], **scene,
+            "networks": [{"bundle": f"region_{i}", "prefix": f"reg{i}"} for i in order], "settings": SETTINGS}
     (folder / "scene.json").write_text(json.dumps(data))
     return folder
+
+
+def write_region_scene(folder: Path, bundles, camera=TOP, order=None) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "sdf.json").write_text(json.dumps(SDF_SCENE))
+    return write_regions(folder, bundles, order, {
+        "program": "passes/sdf_prt.frag", "sdf": "sdf.json", "camera": camera,
+        "environment": {"sky": "noon", "rotation": 0.0, "degree": 4}})
 
 
 
@@ -97,19 +98,26 @@ def three_regions(tmp_path_factory):
     return write_region_scene(tmp_path_factory.mktemp("three_regions"), bundles, SLANT, order=[2, 0, 1])
 
 
-def test_region_transfer_glsl_vs_torch_at_hit_points(program_cache, three_regions):
-    pos, nrm, t_gl, bundles = _gl_transfer(three_regions, program_cache)
-    mask = pos[..., 3] > 0.5
-    assert mask.mean() > 0.3
+def check_region_transfer(pos, nrm, t_gl, bundles, mask):
+    """The shader's blended transfer ``t_gl`` at the ``mask``ed points (positions ``pos``, normals
+    ``nrm``) against the torch twin: |glsl - torch| <= 1e-4, and the view holds blended pixels and
+    corner pixels. Returns torch's transfer there and each point's network ids (blend order)."""
     rs, nets, frames = load_region_set(bundles)
     p = torch.from_numpy(pos[mask][:, :3])
     ref = region_transfer(rs, nets, frames, p, torch.from_numpy(nrm[mask][:, :3])).numpy()
     err = np.abs(t_gl[mask] - ref).max()
     assert err <= 1e-4, f"max |glsl - torch| {err:.3g}"
-    # the view covers every network, blended pixels and corner pixels
     ids, w = regions.blend_weights(rs.grid, np.asarray(rs.table), rs.band, p.numpy())
-    assert set(ids[:, 0].tolist()) >= {0, 1, 2}
     assert ((w > 0).sum(1) >= 2).sum() > 20 and ((w > 0).sum(1) >= 3).any()
+    return ref, ids
+
+
+def test_region_transfer_glsl_vs_torch_at_hit_points(program_cache, three_regions):
+    pos, nrm, t_gl, bundles = _gl_transfer(three_regions, program_cache)
+    mask = pos[..., 3] > 0.5
+    assert mask.mean() > 0.3
+    _, ids = check_region_transfer(pos, nrm, t_gl, bundles, mask)
+    assert set(ids[:, 0].tolist()) >= {0, 1, 2}      # the view covers every network
 
 
 @pytest.mark.parametrize("mode", ["diffuse", "glossy"])

@@ -26,7 +26,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from parity import assert_parity, parity_settings
-from prt_gl import render_with_gbuffer
+from prt_gl import prt_settings, render_with_gbuffer
 
 from inshade.techniques.prt import texture_prt as tp
 from inshade.techniques.prt.texture_codegen import KIND, PREFIX, PROGRAM
@@ -35,13 +35,7 @@ ROOT = Path(__file__).resolve().parents[3]
 SIZE = 40
 RES = 48
 CAMERA = {"type": "orbit", "fov_y": 40.0, "target": [0.0, -0.1, 0.0], "distance": 3.2, "yaw": -25.0, "pitch": -25.0}
-SETTINGS = {
-    "shading": {"type": "choice", "default": "diffuse", "choices": ["diffuse", "glossy"], "uniform": "u_shading"},
-    "phong_exponent": {"type": "float", "default": 8.0, "min": 0.0, "max": 256.0, "uniform": "u_phong_exponent"},
-    "ks": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0, "uniform": "u_ks"},
-    "debug": {"type": "int", "default": 0, "min": 0, "max": 6, "uniform": "u_prt_debug"},
-    "sky": {"type": "choice", "default": "noon", "choices": ["noon", "sunset"], "environment": "sky"},
-}
+SETTINGS = prt_settings("shading", "phong_exponent", "ks", "debug", "sky")
 
 
 def _small_mesh():

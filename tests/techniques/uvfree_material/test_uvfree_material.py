@@ -20,18 +20,15 @@ import trimesh
 from inshade.metrics import srgb_eotf
 
 from parity import assert_parity, glsl_eval
+from uvfree_assets import train_quick
 
 W, H = 64, 64
 
 
 @pytest.fixture(scope="module")
 def asset(tmp_path_factory):
-    from inshade.techniques.uvfree_material.train import train
-
-    out = tmp_path_factory.mktemp("uvf") / "uvfree_material_test"
-    train(object_name="stump_low", config="balanced", preset="quick", steps=40, out=out, write_preview=False,
-          progress=False)
-    return out
+    return train_quick(tmp_path_factory.mktemp("uvf") / "uvfree_material_test", object_name="stump_low",
+                       config="balanced", steps=40)
 
 
 @pytest.fixture(scope="module")
@@ -244,26 +241,21 @@ def test_degenerate_faces_are_dropped_by_the_loader_before_ids_are_given(tmp_pat
     """A face whose corners weld to two positions has zero area: geometry/mesh.py load_mesh drops it
     when the trainer writes and reads the mesh, exactly as the renderer's loader does, so face ids agree."""
     from inshade.bundle import load
-    from inshade.techniques.uvfree_material.train import train
 
     path = _quad_mesh(tmp_path / "weld.obj", uv=True, faces=((0, 1, 2), (1, 4, 3)))
-    out = train(mesh_path=path, textures_dir=asset, preset="quick", steps=2, out=tmp_path / "weld",
-                write_preview=False, progress=False)
+    out = train_quick(tmp_path / "weld", mesh_path=path, textures_dir=asset, steps=2)
     assert next(n for n in load(out / "material").nodes if n.type == "mesh_features").params["faces"] == 1
 
 
 def test_non_manifold_edges_train_and_render_by_the_documented_rule(tmp_path, asset):
     """Three faces on one edge: the lowest face owns it (geometry/mesh_topology.py), training runs."""
-    from inshade.techniques.uvfree_material.train import train
-
     v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]], float)
     mesh = trimesh.Trimesh(v, [[0, 1, 2], [1, 0, 3], [0, 1, 4]], process=False,
                            visual=trimesh.visual.TextureVisuals(uv=v[:, :2] * 0.4 + 0.5))
     from inshade.geometry.mesh import obj_text
 
     (tmp_path / "fin.obj").write_text(obj_text(mesh))
-    out = train(mesh_path=tmp_path / "fin.obj", textures_dir=asset, preset="quick", steps=3, out=tmp_path / "fin",
-                write_preview=False, progress=False)
+    out = train_quick(tmp_path / "fin", mesh_path=tmp_path / "fin.obj", textures_dir=asset, steps=3)
     from inshade.bundle import load
 
     edges = load(out / "material").tensors["features.edges"]

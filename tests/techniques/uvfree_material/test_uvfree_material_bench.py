@@ -12,19 +12,17 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.techniques.uvfree_material import bench, bench_measure
-from inshade.techniques.uvfree_material.train import train
 
 from parity import parity_settings
+from uvfree_assets import train_quick
 
 CODECS = "BC1,BC7,ASTC 4x4,ASTC 12x12"
 
 
 @pytest.fixture(scope="module")
 def asset(tmp_path_factory):
-    out = tmp_path_factory.mktemp("uvf_bench") / "uvfree_material_rock_balanced"
-    train(object_name="rock", config="balanced", preset="quick", steps=60, out=out, write_preview=False,
-          progress=False)
-    return out
+    return train_quick(tmp_path_factory.mktemp("uvf_bench") / "uvfree_material_rock_balanced", object_name="rock",
+                       config="balanced", steps=60)
 
 
 @pytest.fixture(scope="module")

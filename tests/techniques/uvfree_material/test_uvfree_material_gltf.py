@@ -18,18 +18,13 @@ from inshade.metrics import srgb_eotf
 from inshade.techniques.uvfree_material import ERROR_SCALE
 
 from parity import TOL, scaled_error
+from uvfree_assets import train_quick
 
 W, H = 128, 128
 # measured with the quick preset on this asset (llvmpipe, torch CPU): 16.8 dB display PSNR against the
 # reference at the scene camera, the untrained decoder (steps 0) 9.8 dB; the floors leave 1.8 and 2 dB
 RENDER_FLOOR_DB = 15.0
 GAIN_FLOOR_DB = 5.0
-
-
-def _train(tmp, name, glb, **kw):
-    from inshade.techniques.uvfree_material.train import train
-
-    return train(gltf_path=glb, preset="quick", out=tmp / name, write_preview=False, progress=False, **kw)
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +36,7 @@ def torus(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def asset(tmp_path_factory, torus):
-    return _train(tmp_path_factory.mktemp("uvg"), "uvfree_material_tiles_torus", torus)
+    return train_quick(tmp_path_factory.mktemp("uvg") / "uvfree_material_tiles_torus", gltf_path=torus)
 
 
 @pytest.fixture(scope="module")
@@ -163,7 +158,7 @@ def test_network_view_shows_the_decoded_channels_like_torch(asset, graph):
 
 def test_render_psnr_beats_the_untrained_decoder(asset, torus, tmp_path):
     trained = json.loads((asset / "metrics.json").read_text())["render"]["render_psnr_vs_reference"]
-    untrained = json.loads((_train(tmp_path, "u", torus, steps=0) / "metrics.json").read_text())
+    untrained = json.loads((train_quick(tmp_path / "u", gltf_path=torus, steps=0) / "metrics.json").read_text())
     assert trained > RENDER_FLOOR_DB
     assert trained > untrained["render"]["render_psnr_vs_reference"] + GAIN_FLOOR_DB
 

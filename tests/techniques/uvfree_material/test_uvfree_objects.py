@@ -233,7 +233,7 @@ def _gl_lookup(gl, png, uvs: np.ndarray) -> np.ndarray:
     fbo = float_target(gl, n, 1, 2)
     try:
         gl.viewport = (0, 0, n, 1)
-        p.render(fbo, uniforms={"u_level": 0}, textures={"u_tex": tex, "u_uvs": uv_tex})
+        p.render(fbo, uniforms={"u_level": 0}, textures={"u_tex": tex, "u_inputs": uv_tex})
         return read_rgba_raw(fbo, 1).reshape(n, 4)[:, :3].astype(np.float64)
     finally:
         release_target(fbo)
