@@ -6,7 +6,9 @@ from pathlib import Path
 from setuptools import setup
 
 HERE = Path(__file__).resolve().parent
-FIXED = ["inshade", "inshade.commands", "inshade.bench", "inshade.convert", "inshade.codegen", "inshade.components",
+FIXED = ["inshade", "inshade.commands", "inshade.bench", "inshade.convert", "inshade.convert.ops",
+         "inshade.convert.tcnn_encodings", "inshade.codegen", "inshade.codegen.printers",
+         "inshade.components", "inshade.runtime.compute",
          "inshade.models",
          "inshade.runtime", "inshade.scene", "inshade.geometry", "inshade.viewer", "inshade.shaders", "inshade.techniques",
          "inshade.web"]

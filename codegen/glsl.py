@@ -87,10 +87,14 @@ class TextureResource:
 
 @dataclass
 class UniformBlockResource:
-    """A std140 uniform block: the bytes to upload and the block's name in the program."""
+    """A std140 uniform block: the bytes to upload and the block's name in the program; ``instance``
+    and ``members`` ((type, name, count), ...) say how the code names it and its arrays (for a
+    driver that binds a block by its members rather than its bytes)."""
 
     name: str
     data: bytes
+    instance: str = ""
+    members: tuple = ()
 
     @property
     def nbytes(self) -> int:

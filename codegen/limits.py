@@ -64,5 +64,9 @@ def limit(limits: dict, name: str) -> int:
 
 
 def source(limits: dict, name: str) -> str:
-    """Where a limit's value came from, for the plan: the context (or override) or the table."""
+    """Where a limit's value came from, for the plan: a target's own table (codegen/targets.py:
+    the API's name for it), the context (or override), or the GL 3.3 table."""
+    named = limits.get("limit_sources", {}).get(name)
+    if named:
+        return named
     return "context" if limits.get(name) is not None else "GL 3.3 minimum"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from . import ir
 from .glsl import EmitContext, blocks, lane
 
 
@@ -17,6 +18,15 @@ class Value:
     def lane(self, i: int) -> str:
         return lane(self.array, self.offset + i)
 
+    def block_ir(self, b: int) -> ir.Index:
+        """Block b of the array (lowered code)."""
+        return ir.Index(ir.Var(self.array), b)
+
+    def lane_ir(self, i: int) -> ir.Lane:
+        """Lane i of the value (lowered code)."""
+        j = self.offset + i
+        return ir.Lane(ir.Index(ir.Var(self.array), j // 4), j % 4)
+
     @property
     def aligned(self) -> bool:
         return self.offset == 0
@@ -28,7 +38,7 @@ def gather(ctx: EmitContext, name: str, sources: list[Value]) -> Value:
     if len(sources) == 1 and sources[0].aligned and sources[0].kind == "float":
         return sources[0]
     dim = sum(s.dim for s in sources)
-    ctx.body.append(f"vec4 {name}[{blocks(dim)}];")
+    ctx.body.append(ir.Declare("vec4", name, blocks(dim)))
     out = Value(name, 0, dim)
     k = 0
     for s in sources:
@@ -36,16 +46,17 @@ def gather(ctx: EmitContext, name: str, sources: list[Value]) -> Value:
         while i < s.dim:
             # whole vec4 copies when both sides are block-aligned, lanes otherwise
             if (k % 4 == 0) and ((s.offset + i) % 4 == 0) and s.dim - i >= 4:
-                block = f"{s.array}[{(s.offset + i) // 4}]"
-                ctx.body.append(f"{name}[{k // 4}] = {block if s.kind == 'float' else f'vec4({block})'};")
+                block = s.block_ir((s.offset + i) // 4)
+                ctx.body.append(ir.Assign(out.block_ir(k // 4), block if s.kind == "float" else ir.Convert("vec4", block)))
                 i += 4
                 k += 4
             else:
-                ctx.body.append(f"{out.lane(k)} = {s.lane(i) if s.kind == 'float' else f'float({s.lane(i)})'};")
+                lane = s.lane_ir(i)
+                ctx.body.append(ir.Assign(out.lane_ir(k), lane if s.kind == "float" else ir.Convert("float", lane)))
                 i += 1
                 k += 1
     for j in range(k, blocks(dim) * 4):  # zero the padding lanes: dense layers read them
-        ctx.body.append(f"{out.lane(j)} = 0.0;")
+        ctx.body.append(ir.Assign(out.lane_ir(j), ir.Lit(0.0)))
     return out
 
 
@@ -53,9 +64,9 @@ def declare(ctx: EmitContext, name: str, dim: int, spare: int = 0) -> Value:
     """A new array; a partly used last block starts at zero so padding lanes are defined. ``spare``
     blocks past the value: a loop that writes the array must not iterate exactly its length, or
     Mesa's NIR unrolls it whatever its size (a loop over a whole array is unrolled to drop the indexing)."""
-    ctx.body.append(f"vec4 {name}[{blocks(dim) + spare}];")
+    ctx.body.append(ir.Declare("vec4", name, blocks(dim) + spare))
     if dim % 4:
-        ctx.body.append(f"{name}[{blocks(dim) - 1}] = vec4(0.0);")
+        ctx.body.append(ir.Assign(ir.Index(ir.Var(name), blocks(dim) - 1), ir.Vec4.splat(0.0)))
     return Value(name, 0, dim)
 
 

@@ -11,6 +11,10 @@ with its layer's decorator:
     envelope.py    the parity envelope's rule (``inshade.envelope_base.rule``)
     lowering.py    what torch ops, ONNX ops and tiny-cuda-nn otypes become this component
 
+A concern too long for one module is split into ``<module>_<part>.py`` modules beside it (the dense
+layer's emit.py over emit_plan.py, emit_products.py and emit_layer_loop.py), which its module imports
+and which sit in the same layer.
+
 A folder's module for a concern is imported the first time that concern is asked for, so code
 that never trains (the GL runtime) never imports a torch twin. A name registered twice for one
 concern is an error naming both places.

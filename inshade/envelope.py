@@ -77,9 +77,8 @@ docs' parity page (docs/parity.md, "The parity envelope").
 
 API: ``analyse(bundle, ranges=None) -> Envelope``; ``format_findings(envelope) -> list[str]``.
 Each component type's rule is one function registered once with ``rule(type)`` in the table
-``RULES`` (inshade/envelope_base.py, with the limits and ``Finding``): dense layers and elementwise ops in
-envelope_ops.py, encodings, tables and periodic functions in envelope_encodings.py. A type with no rule
-gets a note and no bound downstream.
+``RULES`` (inshade/envelope_base.py, with the limits and ``Finding``), each in its component's folder
+(components/<name>/envelope.py). A type with no rule gets a note and no bound downstream.
 """
 from __future__ import annotations
 
@@ -88,7 +87,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import envelope_encodings, envelope_ops  # noqa: F401  (importing them registers their rules)
 from .bundle import Bundle
 # the limits, findings and the rule table are public here, where the other modules import them
 from .envelope_base import (DENSE_MAGNITUDE, DENSE_MAGNITUDE_WARN, EXP_ARG, GRID_GAIN, LOOKUP_GAIN,  # noqa: F401

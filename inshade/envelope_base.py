@@ -2,8 +2,8 @@
 rules (one per component type, registered once), and the interval helpers.
 
 The limits and the measurements behind them are described in inshade/envelope.py, which walks a
-bundle through this table; the rules themselves live in envelope_ops.py (dense layers and
-elementwise ops) and envelope_encodings.py (encodings, tables and periodic functions).
+bundle through this table; the rules themselves live in the component folders
+(components/<name>/envelope.py).
 """
 from __future__ import annotations
 

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from inshade.components.dense.torch_twin import Dense
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
-from inshade.models.mlp import Dense
 from inshade.models.texture_cascade import CompressionError
 
 PRIMARY_CHANNELS = 3

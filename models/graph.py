@@ -6,7 +6,6 @@ import torch
 from inshade.bundle import FORMAT, VERSION, Bundle
 from inshade.components import registry as component_registry
 
-from . import activations, mlp  # noqa: F401  (register components)
 from .registry import TORCH_COMPONENTS, Component
 
 component_registry.load("torch")
@@ -40,7 +39,7 @@ class GraphModule(torch.nn.Module):
     def dense(self, node_id, inputs, out, bias=True):
         """Shorthand: a Dense layer sized from its inputs."""
         inputs = [inputs] if isinstance(inputs, str) else inputs
-        return self.add(node_id, mlp.Dense(sum(self._dims[s] for s in inputs), out, bias), inputs)
+        return self.add(node_id, TORCH_COMPONENTS["dense"](sum(self._dims[s] for s in inputs), out, bias), inputs)
 
     def output(self, name: str, node: str, semantic: str = "generic"):
         self.outputs.append((name, node, semantic))

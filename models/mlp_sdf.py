@@ -25,7 +25,7 @@ import torch
 from inshade.components.encodings import torch_twin as _enc
 from inshade.geometry.sdf import f32
 
-from . import activations as _act
+from inshade.components.elementwise import torch_twin as _act
 from .graph import GraphModule
 
 ACTIVATIONS = ("softplus", "relu", "leaky_relu", "tanh")

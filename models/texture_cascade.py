@@ -23,11 +23,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.components.dense.torch_twin import Dense
 from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.metrics import srgb_eotf, srgb_oetf
 from inshade.models import indirection as di
+from inshade.models.fit_loop import history_rows
 from inshade.models.graph import GraphModule
-from inshade.models.mlp import Dense
 from inshade.pixels import pixel_uvs
 from inshade.progress import default_interval
 from inshade.provenance import recorded_at
@@ -403,8 +404,7 @@ def compress(image: np.ndarray, ratio: float = DEFAULTS["ratio"], *, rho: float 
         "finish_optimizer": finish_optimizer,
         "psnr_step0": round(history.records[0]["psnr"], 4),
         "psnr_float": round(q["psnr_float"], 4), "psnr_quantised": round(q["psnr_quantised"], 4),
-        "history": [{"step": r["step"], "psnr": round(r["psnr"], 3), "seconds": round(r["seconds"], 2)}
-                    for r in history.records],
+        "history": history_rows(history.records, "psnr", 3),
     }
     prov = {
         "technique": "Differentiable Indirection texture compression (Datta et al. 2023), 2D primary "

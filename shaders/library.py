@@ -207,10 +207,11 @@ def search_path() -> list[Path]:
     return [LIBRARY_DIR, *_EXTRA_ROOTS, *(root for provider in _ROOT_PROVIDERS for root in provider())]
 
 
-def find_chunk(name: str) -> Path | None:
+def find_chunk(name: str, suffix: str = ".glsl") -> Path | None:
     """The file of chunk ``name`` on the search path, None if there is none; a name found in
-    two folders is a ShaderIncludeError."""
-    found = [root / f"{name}.glsl" for root in search_path() if (root / f"{name}.glsl").is_file()]
+    two folders is a ShaderIncludeError. ``suffix`` finds the chunk's version in another shading
+    language (``.wgsl``, ``.hlsl``)."""
+    found = [root / f"{name}{suffix}" for root in search_path() if (root / f"{name}{suffix}").is_file()]
     if len(found) > 1:
         raise ShaderIncludeError(f"chunk <{name}> is ambiguous: {found[0]} and {found[1]}")
     return found[0] if found else None

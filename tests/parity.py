@@ -38,11 +38,11 @@ from hypothesis import strategies as st
 from inshade.codegen import generate
 from inshade.codegen.glsl import blocks
 from inshade.components import ACTIVATIONS
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import (ELU, GELU, Abs, Clamp, Cos, Erf, Exp, Expm1, Identity, LeakyReLU,
+                                                       ReLU, Sigmoid, SiLU, Sin, Softplus, Tanh)
 from inshade.convert.check import CONDITIONING
 from inshade.models import GraphModule
-from inshade.models.activations import (ELU, GELU, Abs, Clamp, Cos, Erf, Exp, Expm1, Identity, LeakyReLU, ReLU,
-                                        Sigmoid, SiLU, Sin, Softplus, Tanh)
-from inshade.models.mlp import Dense
 
 TOL = 1e-5
 

@@ -39,8 +39,8 @@ SHARED = ("inshade.shaders", "inshade.geometry", "inshade.codegen", "inshade.sce
 REGISTRY = ("inshade.technique", "inshade.papers", "inshade.trainer")
 APPS = ("inshade.cli", "inshade.commands", "inshade.notebook")
 CORE = ("inshade.asset_folder", "inshade.bundle", "inshade.command", "inshade.components", "inshade.devices",
-        "inshade.envelope", "inshade.envelope_base", "inshade.envelope_encodings", "inshade.envelope_ops",
-        "inshade.extras", "inshade.files", "inshade.grid_layout", "inshade.lit_settings",
+        "inshade.envelope", "inshade.envelope_base",
+        "inshade.extras", "inshade.files", "inshade.grid_layout", "inshade.json_header", "inshade.lit_settings",
         "inshade.metrics", "inshade.pixels", "inshade.port_layout", "inshade.progress", "inshade.provenance",
         "inshade.random", "inshade.sh")
 LAYER_RULES.update({m: (*SHARED, *REGISTRY, *APPS, *ABOVE_SHARED) for m in CORE})
@@ -96,14 +96,17 @@ def cross_technique_imports(files: dict[str, Path]) -> list[str]:
 
 
 # A component folder (components/<name>/) holds one module per concern; each sits in its concern's layer
-# (the rest of the folder -- spec, envelope rule -- in the core).
+# (the rest of the folder -- spec, envelope rule -- in the core). A concern too long for one module is split
+# into <concern module>_<part>.py modules beside it (dense's emit_plan.py), checked in the same layer.
 CONCERN_LAYERS = {"torch_twin": "inshade.models", "emit": "inshade.codegen", "lowering": "inshade.convert"}
 
 
 def layer_of(module: str) -> str:
     parts = module.split(".")
-    if _within(module, "inshade.components") and len(parts) == 4 and parts[3] in CONCERN_LAYERS:
-        return CONCERN_LAYERS[parts[3]]
+    if _within(module, "inshade.components") and len(parts) == 4:
+        for concern, layer in CONCERN_LAYERS.items():
+            if parts[3] == concern or parts[3].startswith(concern + "_"):
+                return layer
     return module
 
 

@@ -13,3 +13,8 @@ register(ComponentSpec(
     in_dim=lambda p, d: 1 <= d <= MAX_WIDTH,
     category="layer",
 ))
+
+# codegen options of a dense layer (its emitter declares them): where the weights live, and the
+# texel format of the weight texture (float32 or float16)
+STORAGE_MODES = ("inline", "ubo", "texture", "auto")
+TEXTURE_FORMATS = ("f4", "f2")

@@ -16,6 +16,7 @@ PARTIAL_ELEMENTWISE = ("sqrt", "reciprocal", "log", "log2", "power")
 # moves the output by the whole step; not for random MLPs either
 STEPPED_ELEMENTWISE = ("floor", "ceil", "trunc", "round", "frac", "fmod", "remainder")
 GELU_FORMS = ("none", "tanh")
+ELEMENTWISE = ACTIVATIONS + PARTIAL_ELEMENTWISE + STEPPED_ELEMENTWISE   # every type of this folder
 
 for _name in ("relu", "sigmoid", "tanh", "exp", "expm1", "identity", "silu", "abs", "erf", "sqrt", "reciprocal"):
     register(ComponentSpec(_name, f"elementwise {_name}", {}, out_dim=same_width))

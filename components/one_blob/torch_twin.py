@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import torch
 
-from inshade.models.registry import Component, register
+from inshade.models.registry import WithParams, register
 
 
 def quartic_cdf(t: torch.Tensor, n_bins: int) -> torch.Tensor:
@@ -19,7 +19,7 @@ def quartic_cdf(t: torch.Tensor, n_bins: int) -> torch.Tensor:
 
 
 @register
-class OneBlob(Component):
+class OneBlob(WithParams):
     """tiny-cuda-nn's OneBlob encoding (encodings/oneblob.h: kernel_one_blob_soa and the fused device
     function, which compute the same sums). Per input x and bin k < B = n_bins:
 
@@ -33,13 +33,7 @@ class OneBlob(Component):
     refold into this form, so this form is the one both executors can hold bit-identical."""
 
     type = "one_blob"
-
-    def __init__(self, n_bins: int = 16):
-        super().__init__()
-        self.n_bins = int(n_bins)
-
-    def params(self):
-        return {"n_bins": self.n_bins}
+    fields = {"n_bins": (int, 16)}
 
     def forward(self, x):
         b = torch.arange(self.n_bins + 1, dtype=torch.float32) / self.n_bins

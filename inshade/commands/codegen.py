@@ -29,7 +29,14 @@ def add_parser(sub) -> None:
     p.add_argument("-o", "--output", help="GLSL file to write (- : the GLSL alone on standard output, the plan on "
                                           "stderr; only for code that binds no resources)")
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
-    p.add_argument("--target", choices=TARGETS, default="330", help="GLSL target")
+    p.add_argument("--target", choices=TARGETS, default="330",
+                   help="shading language: GLSL 330 / 450 / es300 (OpenGL), vulkan (GLSL 4.50 for Vulkan), wgsl "
+                        "(WebGPU), hlsl (D3D11/12, Unity, Unreal), slang; beyond OpenGL, planned against that API's "
+                        "guaranteed limits")
+    p.add_argument("--check", action="store_true",
+                   help="run the generated code on this machine's driver for the target (OpenGL; wgpu on Vulkan for "
+                        "wgsl / vulkan / hlsl; slangpy for slang) against the bundle's torch twin and print "
+                        "max |code - source| under the 1e-5 rule (exit 1 when it fails)")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")
     p.add_argument("--calls", type=count, default=1, metavar="N",
@@ -178,9 +185,11 @@ def _codegen_program(args, src: Path) -> int:
 
 def _codegen(args, b, prefix, output) -> int:
     from inshade.codegen import generate
+    from inshade.codegen.targets import target as find_target
     from inshade.shaders import flatten
 
-    if args.no_gl:
+    opengl = find_target(args.target).opengl
+    if args.no_gl or not opengl:   # beyond OpenGL: the target API's own limits (codegen/targets.py)
         limits = {}
     else:   # plan against this machine's limits when it can make a context
         from inshade.runtime.context import machine_limits
@@ -194,9 +203,11 @@ def _codegen(args, b, prefix, output) -> int:
                             f"({', '.join(r.name for r in gen.resources)}) that standard output cannot carry; "
                             "write to a file (-o net.glsl) or use --storage inline")
         print(gen.plan.report(), file=sys.stderr)
-        sys.stdout.write(flatten("network", chunks={"network": gen.chunk}))
+        sys.stdout.write(flatten("network", chunks={"network": gen.chunk}) if opengl else gen.chunk)
         return 0
     print(gen.plan.report())
+    if args.check and not _check(b, gen, args.target):
+        return 1
     if output is None:
         return 0
     out = Path(output)
@@ -205,6 +216,19 @@ def _codegen(args, b, prefix, output) -> int:
                 "function": gen.function, "in_dim": gen.in_dim, "out_dim": gen.out_dim, "target": args.target,
                 "plan": gen.plan.to_dict(), "resources": entries}
     # the GLSL, its manifest and its resources appear together or not at all
-    _write_group(out, flatten("network", chunks={"network": gen.chunk}), manifest, tensors)
+    _write_group(out, flatten("network", chunks={"network": gen.chunk}) if opengl else gen.chunk, manifest, tensors)
     print(f"wrote {out} ({len(gen.resources)} resources)", file=sys.stderr)
     return 0
+
+
+def _check(b, gen, target: str) -> bool:
+    """--check: the generated code on its target's driver against the bundle's torch twin."""
+    import numpy as np
+
+    from inshade.convert.check import check, check_inputs
+    from inshade.models import GraphModule
+
+    span = np.stack([np.full(gen.in_dim, -1.0), np.full(gen.in_dim, 1.0)]).astype(np.float32)
+    result = check(GraphModule.from_bundle(b), b, check_inputs(span), generated=gen, target=target)
+    print(f"{result.line()} ({result.rows} rows, {result.gl_renderer})")
+    return result.ok

@@ -36,6 +36,7 @@ class CheckResult:
     glsl_f64: float | None = None     # max |glsl - f64| / max(1, |f64|), when the rule alone fails
     source_f64: float | None = None   # max |source - f64| / max(1, |f64|): fp32's own distance
     f64_missing: str = ""             # why there is no float64 answer, when there is none
+    language: str = "glsl"            # the shading language checked (its printer's name)
 
     @property
     def conditioned(self) -> bool:
@@ -49,13 +50,13 @@ class CheckResult:
 
     def line(self) -> str:
         verdict = "ok" if self.ok else f"FAILED at row {self.worst[0]}, output lane {self.worst[1]}"
-        head = f"max |glsl - source| = {self.max_scaled:.2g}"
+        head = f"max |{self.language} - source| = {self.max_scaled:.2g}"
         if self.max_scaled <= self.rule:
             return f"{head} (rule {self.rule:g}): {verdict}"
         if self.glsl_f64 is None:
             why = f"; no float64 answer ({self.f64_missing})" if self.f64_missing else ""
             return f"{head} (rule {self.rule:g}{why}): {verdict}"
-        return (f"{head}; |glsl - f64| = {self.glsl_f64:.2g} vs |source - f64| = {self.source_f64:.2g} (rule "
+        return (f"{head}; |{self.language} - f64| = {self.glsl_f64:.2g} vs |source - f64| = {self.source_f64:.2g} (rule "
                 f"{self.rule:g}, or within {CONDITIONING:g}x of the source's own fp32 error): "
                 f"{verdict + ' (conditioning)' if self.ok else verdict}")
 
@@ -94,10 +95,21 @@ def scaled_errors(glsl: np.ndarray, ref: np.ndarray) -> np.ndarray:
 
 
 def evaluate(bundle, inputs: np.ndarray, *, storage: str = "auto", ctx=None, limits=None, lut_filter: str = "exact",
-             generated=None):
-    """(outputs [N, out_dim] of the bundle's GLSL through the driver, GL_RENDERER, storage used);
-    the GLSL planned against ``limits`` (default: the driver's), unless ``generated`` is given."""
+             generated=None, target: str = "330"):
+    """(outputs [N, out_dim] of the bundle's generated code through a real driver, the driver's name,
+    storage used); the code planned against ``limits`` (default: the driver's, or for a target other than
+    OpenGL its API's), unless ``generated`` is given. ``target``: 330 (OpenGL), or wgsl / vulkan / hlsl /
+    slang, run by the compute drivers (inshade.runtime.compute)."""
     from inshade.codegen import generate
+    from inshade.codegen.targets import target as find_target
+
+    if not find_target(target).opengl:
+        from inshade.runtime.compute import run_target
+
+        if generated is None:
+            generated = generate(bundle, storage=storage, lut_filter=lut_filter, limits=limits, target=target)
+        out, device = run_target(generated, np.asarray(inputs, np.float32), target)
+        return out, device, storage
     from inshade.runtime.context import gl_info, shared_context
     from inshade.runtime.network import NetworkEvaluator
 
@@ -126,12 +138,14 @@ def compare(glsl: np.ndarray, ref: np.ndarray, renderer: str, storage: str, seco
 
 
 def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=None, limits=None,
-          generated=None) -> CheckResult:
+          generated=None, target: str = "330") -> CheckResult:
     """Run ``bundle``'s GLSL on ``inputs`` ([N, in_dim] concatenated, or a tuple of arrays, one per
     input) and compare with ``source``: a torch module (called on the inputs split per bundle
     input, each reshaped to [N, *shape] when ``shapes`` gives one per input) or an ONNX file path /
-    ModelProto (onnxruntime). ``generated``: the bundle's GLSL already planned (else generated here)."""
+    ModelProto (onnxruntime). ``generated``: the bundle's GLSL already planned (else generated here).
+    ``target``: the shading language checked (``evaluate``)."""
     from inshade.bundle import Bundle, load
+    from inshade.codegen.targets import target as find_target
 
     if not isinstance(bundle, Bundle):
         bundle = load(bundle)
@@ -144,8 +158,10 @@ def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=Non
         parts = [p.reshape(len(p), *shape) for p, shape in zip(parts, shapes)]
     start = time.perf_counter()
     ref = source_outputs(source, parts, bundle)
-    glsl, renderer, storage = evaluate(bundle, x, storage=storage, ctx=ctx, limits=limits, generated=generated)
+    glsl, renderer, storage = evaluate(bundle, x, storage=storage, ctx=ctx, limits=limits, generated=generated,
+                                       target=target)
     result = compare(glsl, ref, renderer, storage, time.perf_counter() - start)
+    result = dataclasses.replace(result, language=find_target(target).printer.language)
     if result.ok:
         return result
     try:

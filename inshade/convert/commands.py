@@ -16,6 +16,9 @@ TCNN_PARTS = ("  encodings: Grid, HashGrid, DenseGrid (Hash and Dense storage, 2
 
 def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     from inshade.codegen import FILTERS, STORAGE_MODES
+    from inshade.codegen.targets import TARGETS
+
+    compute_targets = [name for name, t in TARGETS.items() if not t.opengl]
 
     from .shown_as import SHOWN_AS
 
@@ -76,6 +79,9 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUTPUTS.npy", help="file to write (- : standard output)")
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
+    p.add_argument("--target", choices=("330", *compute_targets), default="330",
+                   help="the code run: OpenGL's GLSL (330) through the GL driver, or wgsl / vulkan / hlsl through wgpu "
+                        "on this machine's Vulkan device, slang through slangpy")
     p.set_defaults(func=cmd_eval)
 
 
@@ -189,7 +195,8 @@ def cmd_eval(args) -> int:
     if x.ndim != 2 or x.shape[1] != bundle.in_dim or x.dtype.kind not in "fiu":
         raise ConvertError(f"{args.inputs}: shape {list(x.shape)} ({x.dtype}); {bundle.name} takes "
                            f"[N, {bundle.in_dim}] numbers")
-    out, renderer, storage = evaluate(bundle, x.astype(np.float32), storage=args.storage, lut_filter=args.lut_filter)
+    out, renderer, storage = evaluate(bundle, x.astype(np.float32), storage=args.storage, lut_filter=args.lut_filter,
+                                      target=args.target)
     if shaped and len(bundle.outputs) == 1:
         out = from_rows(out, port_shape(bundle.outputs[0]), sizes)
     if args.output == "-":   # the .npy bytes on standard output

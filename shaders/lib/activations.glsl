@@ -1,5 +1,5 @@
 // Activations and periodic functions whose plain GLSL forms overflow or lose precision.
-// Torch twins: models/activations.py, models/encodings.py.
+// Torch twins: components/elementwise/torch_twin.py, models/encodings.py.
 
 vec4 inshade_sigmoid(vec4 x) { return 1.0 / (1.0 + exp(-x)); }
 float inshade_sigmoid(float x) { return 1.0 / (1.0 + exp(-x)); }

@@ -46,12 +46,12 @@ import numpy as np
 import torch
 
 from inshade.codegen.voxel_index import best_brick
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import ReLU, Sigmoid
 from inshade.components.encodings.torch_twin import Frequency
 from inshade.components.feature_axis.torch_twin import Add
 from inshade.components.sparse_voxels.torch_twin import SparseVoxels
 from inshade.models import GraphModule
-from inshade.models.activations import ReLU, Sigmoid
-from inshade.models.mlp import Dense
 
 KIND = "appearance_prefilter"
 MU = 2.0                 # range compression of the raw phase input (Eq. 18)

@@ -12,13 +12,13 @@ import math
 
 import torch
 
+from inshade.components.dense.torch_twin import Dense
 from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import brdf
 from inshade.models import indirection as di
 from inshade.models.disney_glue import disney_glue
 from inshade.models.graph import GraphModule
 from inshade.models.indirection import make_array
-from inshade.models.mlp import Dense
 
 # Cascaded init: D at the cells, clamped where the balls saturate (key light: radiance ~ 2 n.l x
 # GGX_KS D, white from D ~ 2). Versus the paper's constant 0.5 it starts the primary in the right

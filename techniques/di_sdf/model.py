@@ -26,9 +26,9 @@ import math
 import numpy as np
 import torch
 
+from inshade.components.dense.torch_twin import Dense
 from inshade.models import indirection as di
 from inshade.models.graph import GraphModule
-from inshade.models.mlp import Dense
 from inshade.models.network_sdf import NetworkSdfModule
 
 from .data import DiSdfError, Frame

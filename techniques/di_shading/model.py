@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.components.dense.torch_twin import Dense
 from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import brdf
 from inshade.models import footprint_sampler as fp
@@ -18,7 +19,6 @@ from inshade.models import pbr_lanes
 from inshade.models.disney_glue import disney_glue
 from inshade.models.display import srgb_display
 from inshade.models.graph import GraphModule
-from inshade.models.mlp import Dense
 
 # the scene: one point light ahead of the camera, low (its glossy reflection lies at grazing
 # angles), plus a uniform ambient term albedo * AO * AMBIENT

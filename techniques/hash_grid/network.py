@@ -13,10 +13,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from inshade.components.elementwise import torch_twin as _act
 from inshade.components.encodings import torch_twin as _enc
 from inshade.components.grids.torch_twin import HashGrid
 from inshade.grid_layout import MAX_LOG2_TABLE, grid_levels, table_rows
-from inshade.models import activations as _act
 from inshade.models.fit_loop import adam
 from inshade.models.graph import GraphModule
 

@@ -51,13 +51,13 @@ import math
 import numpy as np
 import torch
 
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import Clamp, Exp, ReLU, Sigmoid
 from inshade.components.encodings.torch_twin import SphericalHarmonics
 from inshade.components.feature_axis.torch_twin import Select
 from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.grid_layout import MAX_LOG2_TABLE
-from inshade.models.activations import Clamp, Exp, ReLU, Sigmoid
 from inshade.models.graph import GraphModule
-from inshade.models.mlp import Dense
 
 from .network import FP32_BYTES, GridShape, HashGridError, add_frequency_mlp, add_hash_grid, per_level_scale
 from .radiance_field_render import KIND

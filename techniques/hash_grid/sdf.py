@@ -37,12 +37,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from inshade.components.dense.torch_twin import Dense
 from inshade.files import atomic_write
 from inshade.geometry.mesh import DEFAULT_OUT as DEFAULT_MESH, bounding_sphere, load_mesh
 from inshade.geometry.sdf import f32
 from inshade.lit_settings import lit_settings
 from inshade.models.graph import GraphModule
-from inshade.models.mlp import Dense
 from inshade.models.mlp_sdf import trace_settings
 from inshade.models.mlp_sdf_fit import BOUND_MARGIN, SIGMAS, sample_points, signed_distance
 from inshade.models.network_sdf import NetworkSdfModule

@@ -33,15 +33,15 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from inshade.files import atomic_write
-from inshade.trainer import Run, Trainer, setting
-from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
-from inshade.pixels import pixel_uvs
-from inshade.models import activations as _act
+from inshade.components.elementwise import torch_twin as _act
 from inshade.components.encodings import torch_twin as _enc
-from inshade.models.graph import GraphModule
 from inshade.components.lookup_array.torch_twin import LookupArray
+from inshade.files import atomic_write
+from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
+from inshade.models.graph import GraphModule
+from inshade.pixels import pixel_uvs
 from inshade.provenance import recorded_at
+from inshade.trainer import Run, Trainer, seed_setting, setting
 
 IMAGES = ("astronaut", "chelsea", "coffee", "camera", "rocket")  # skimage.data names (RGB or grey)
 ARCHES = ("multires", "siren", "frequency_relu")
@@ -77,7 +77,7 @@ class Settings:
     image: str = setting("astronaut", "skimage.data photograph", choices=IMAGES)
     size: int = setting(256, "target resolution, square")
     steps: int = setting(SHIP["steps"], "optimizer steps")
-    seed: int = setting(0, "random seed")
+    seed: int = seed_setting()
     arch: str = setting(SHIP["arch"], "network", choices=ARCHES)
     width: int = setting(SHIP["width"], "hidden width")
     depth: int = setting(SHIP["depth"], "hidden layers")

@@ -24,8 +24,8 @@ import torch
 from inshade.bundle import Bundle
 from inshade.geometry.sdf import f32
 
+from inshade.components.elementwise.torch_twin import LeakyReLU
 from inshade.components.encodings.torch_twin import Frequency
-from inshade.models.activations import LeakyReLU
 from inshade.models.graph import GraphModule
 from inshade.models.registry import TORCH_COMPONENTS
 

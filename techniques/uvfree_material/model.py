@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import math
 
+from inshade.components.elementwise.torch_twin import ReLU
 from inshade.components.mesh_features.torch_twin import MeshFeatures
 from inshade.models import GraphModule
-from inshade.models.activations import ReLU
 
 KIND = "uvfree_material"
 CHANNELS = ("albedo_r", "albedo_g", "albedo_b", "normal_x", "normal_y", "normal_z", "roughness", "metallic", "ao")

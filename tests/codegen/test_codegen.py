@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from inshade.codegen import TARGETS, generate
+from inshade.codegen import GL_TARGETS, generate
 from inshade.codegen.glsl import TextureResource, UniformBlockResource
+from inshade.components.elementwise.torch_twin import Sin
 from inshade.components.encodings.torch_twin import Frequency
 from inshade.models import GraphModule, mlp_graph
-from inshade.models.activations import Sin
 from inshade.shaders import assemble
 
 from parity import assert_parity, glsl_eval, torch_reference, uniform_inputs
@@ -115,7 +115,7 @@ def _assembled(gen, target):
     return vert, frag
 
 
-@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("target", GL_TARGETS)
 @pytest.mark.parametrize("name,build,options", CASES, ids=[c[0] for c in CASES])
 def test_glslang_validates(tmp_path, target, name, build, options):
     validator = glslang()
@@ -128,7 +128,7 @@ def test_glslang_validates(tmp_path, target, name, build, options):
         assert proc.returncode == 0, f"{path.name}:\n{proc.stdout}{proc.stderr}"
 
 
-@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("target", GL_TARGETS)
 @pytest.mark.parametrize("name,build,options", CASES, ids=[c[0] for c in CASES])
 def test_driver_compiles_and_runs(gl, target, name, build, options):
     """Every target through the live driver (Mesa's desktop core context compiles

@@ -1,5 +1,5 @@
 """Runs of identical dense layers in the weight texture become one loop over the layers
-(codegen/layer_loop.py): the GLSL still matches torch, the chunk holds the loop once, the plan
+(components/dense/emit_layer_loop.py): the GLSL still matches torch, the chunk holds the loop once, the plan
 keeps a row per layer, and a driver's loop budget leaves a run unfolded when the loop would not fit."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.codegen import generate
-from inshade.codegen.layer_loop import find_runs, fold_runs
-from inshade.codegen.mlp import loop_chunks
+from inshade.components.dense.emit_layer_loop import find_runs, fold_runs
+from inshade.components.dense.emit_plan import loop_chunks
 
 from parity import (MLPSpec, activation_specs, assert_parity, build_mlp, check_parity, glsl_eval, parity_settings,
                     spec_inputs, torch_reference)

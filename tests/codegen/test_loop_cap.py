@@ -11,9 +11,9 @@ import torch
 import inshade
 from inshade.bundle import load
 from inshade.codegen.limits import LimitError, loop_iteration_cap
-from inshade.codegen import mlp
-from inshade.codegen.mlp import loop_chunks
 from inshade.codegen.network import generate
+from inshade.components.dense import emit_plan
+from inshade.components.dense.emit_plan import loop_chunks
 from inshade.runtime.context import gl_info
 from inshade.runtime.network import NetworkResources
 from inshade.shaders import assemble
@@ -92,7 +92,7 @@ def test_the_budget_unrolls_only_what_it_needs(tmp_path, monkeypatch):
     assert [c for c, _ in loop_chunks(bundle, storage, {"renderer": "NVIDIA H200"}, CALLS).values()] == [1, 1]
     assert [c for c, _ in loop_chunks(bundle, storage, llvmpipe, 1).values()] == [1, 1]
     assert [c for c, _ in loop_chunks(bundle, storage, llvmpipe, CALLS).values()] == [2, 1]
-    monkeypatch.setattr(mlp, "INPUTS_WRITTEN_MAX", 8)   # the last layer's 40 input blocks looped over
+    monkeypatch.setattr(emit_plan, "INPUTS_WRITTEN_MAX", 8)   # the last layer's 40 input blocks looped over
     with pytest.raises(LimitError, match=r"exceed this driver's 65535 .*fewer march steps"):
         loop_chunks(bundle, storage, llvmpipe, 2000)   # 40 inputs a pass is the floor: 2000 x 40 > 65535
 

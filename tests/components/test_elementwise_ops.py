@@ -1,6 +1,6 @@
 """Elementwise ops with special values (components/elementwise/spec.py: log, log2, floor, ceil, trunc, round, frac,
-fmod, remainder, power; the two-branch atan2): torch twin (models/activations.py, components/feature_axis/torch_twin.py)
-against the GLSL (codegen/activations.py, components/feature_axis/emit.py, shaders/lib/activations.glsl) through the
+fmod, remainder, power; the two-branch atan2): torch twin (components/elementwise/torch_twin.py, components/feature_axis/torch_twin.py)
+against the GLSL (components/elementwise/emit.py, components/feature_axis/emit.py, shaders/lib/activations.glsl) through the
 driver, at the points where each is discontinuous or special (probed explicitly, many per program) and
 at random ones, and inside random graphs; their envelope rules (inshade/envelope.py).
 
@@ -19,13 +19,14 @@ import torch
 from hypothesis import given
 from hypothesis import strategies as st
 
-from inshade.codegen import TARGETS, generate
+from inshade.codegen import GL_TARGETS, generate
 from inshade.components import ComponentError, check_node, resolve_params
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import (Ceil, Floor, Fmod, Frac, Log, Log2, Power, Remainder, Round,
+                                                       Tanh, Trunc)
 from inshade.components.feature_axis.torch_twin import Affine, Atan2
 from inshade.envelope import POW_ARG, POW_EXPONENT, analyse
 from inshade.models import GraphModule
-from inshade.models.activations import Ceil, Floor, Fmod, Frac, Log, Log2, Power, Remainder, Round, Tanh, Trunc
-from inshade.models.mlp import Dense
 
 from parity import (TOL, check_parity, glsl_eval, node_values, parity_settings, scaled_error, torch_reference,
                     uniform_inputs)
@@ -403,7 +404,7 @@ def test_params_and_twins():
     assert torch.equal(Remainder(-0.75)(x), torch.remainder(x, -0.75))
 
 
-@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("target", GL_TARGETS)
 def test_helpers_pass_glslang(tmp_path, target):
     """Every new op, both code paths, through the reference compiler for every target."""
     from inshade.shaders import assemble

@@ -11,11 +11,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.components import ComponentError, check_node, resolve_params
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import Tanh
 from inshade.components.encodings.torch_twin import Frequency, SphericalHarmonics, TriangleWave
 from inshade.components.one_blob.torch_twin import OneBlob
 from inshade.models import GraphModule
-from inshade.models.activations import Tanh
-from inshade.models.mlp import Dense
 from inshade.sh import SH_TERMS, sh_basis
 
 from parity import check_parity, parity_settings, uniform_inputs, unit_directions

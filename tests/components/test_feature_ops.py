@@ -1,6 +1,6 @@
 """The feature-axis components an imported network needs (components/feature_axis/spec.py: affine, select,
 sub / mul / div, reduce, layer_norm, where; sqrt, reciprocal): torch twin (components/feature_axis/torch_twin.py,
-models/activations.py) against the GLSL (components/feature_axis/emit.py)
+components/elementwise/torch_twin.py) against the GLSL (components/feature_axis/emit.py)
 through the driver, under the parity rule (tests/parity.py), on random graphs that mix them with
 dense layers; their envelope rules (inshade/envelope.py) bound what the twin computes."""
 from __future__ import annotations
@@ -12,11 +12,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.components import REDUCE_OPS, ComponentError, check_node, resolve_params
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import Reciprocal, Sqrt
 from inshade.components.feature_axis.torch_twin import Affine, Div, LayerNorm, Mul, Reduce, Select, Sub, Where
 from inshade.envelope import analyse
 from inshade.models import GraphModule
-from inshade.models.activations import Reciprocal, Sqrt
-from inshade.models.mlp import Dense
 
 from parity import check_parity, node_values, parity_settings, torch_reference, uniform_inputs
 
@@ -89,7 +89,7 @@ def build(recipe) -> GraphModule:
 
 
 def torch_tanh():
-    from inshade.models.activations import Tanh
+    from inshade.components.elementwise.torch_twin import Tanh
     return Tanh()
 
 
@@ -151,7 +151,7 @@ def test_bad_params_are_one_error():
 
 def test_softplus_without_parameters_keeps_the_stable_form():
     """Bundles written before beta/threshold existed: the same function as before."""
-    from inshade.models.activations import Softplus
+    from inshade.components.elementwise.torch_twin import Softplus
 
     x = torch.linspace(-30, 30, 301)
     assert torch.equal(Softplus()(x), torch.clamp_min(x, 0) + torch.log1p(torch.exp(-x.abs())))

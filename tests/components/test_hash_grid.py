@@ -20,11 +20,12 @@ from inshade.bundle import BundleError, load
 from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.components import ComponentError, check_node, resolve_params
+from inshade.components.elementwise.torch_twin import Tanh
 from inshade.components.grids.torch_twin import DenseGrid, HashGrid
 from inshade.grid_layout import GridLayoutError, grid_levels, table_rows
 from inshade.models import GraphModule
-from inshade.models.activations import Tanh
 
+from fitting import fit_losses
 from parity import assert_parity, glsl_eval, parity_settings, torch_reference
 
 HASHES = ("coherent_prime", "prime", "reversed_prime")
@@ -356,15 +357,8 @@ def test_tiny_fit_reduces_loss(precision):
     uv = torch.rand(1024, 2)
     target = torch.stack([torch.sin(7 * uv[:, 0]) * torch.cos(5 * uv[:, 1]), uv[:, 0] * uv[:, 1],
                           (uv[:, 0] - 0.5).abs()], 1)
-    opt = torch.optim.Adam(g.parameters(), lr=2e-2)
     start = g.nodes["grid"].table.detach().clone()
-    losses = []
-    for _ in range(80):
-        opt.zero_grad()
-        loss = (g(uv) - target).square().mean()
-        loss.backward()
-        opt.step()
-        losses.append(loss.item())
+    losses = fit_losses(g, uv, target, steps=80, lr=2e-2)
     assert losses[-1] < 0.1 * losses[0], losses[::10]
     assert (g.nodes["grid"].table.detach() != start).any(1).float().mean() > 0.5   # most rows moved
 

@@ -32,11 +32,11 @@ from hypothesis import strategies as st
 
 from inshade.bundle import load
 from inshade.codegen import generate
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import ReLU
 from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import GraphModule
-from inshade.models.activations import ReLU
 from inshade.models.lookup_array import dequantize, multilinear, quantize
-from inshade.models.mlp import Dense
 
 from parity import assert_parity, check_parity, glsl_eval, parity_settings, torch_reference, uniform_inputs
 

@@ -15,9 +15,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.codegen import generate
-from inshade.components import ACTIVATIONS
 from inshade.codegen.glsl import blocks, mat4
-from inshade.codegen.mlp import WeightTexture, choose_storage, pack, std140
+from inshade.components import ACTIVATIONS
+from inshade.components.dense.emit_plan import WeightTexture, choose_storage, pack, std140
 from inshade.models import GraphModule, mlp_graph
 
 from parity import (TOL, MLPSpec, activation_specs, assert_parity, build_mlp, check_parity, glsl_eval,

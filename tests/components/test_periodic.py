@@ -11,9 +11,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.codegen import generate
+from inshade.components.elementwise.torch_twin import Cos, Sin
 from inshade.components.encodings.torch_twin import Frequency
 from inshade.models import GraphModule
-from inshade.models.activations import Cos, Sin
 
 from parity import glsl_eval, parity_settings, torch_reference, uniform_inputs
 

@@ -28,9 +28,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.components import PROXY_PARAMS
+from inshade.components.elementwise.torch_twin import Expm1
 from inshade.components.proxy_params.torch_twin import ProxyParams
 from inshade.models import GraphModule
-from inshade.models.activations import Expm1
 from inshade.models.proxy_lobe import proxy_activation, proxy_pdf, proxy_sample, tanh_q
 
 from parity import assert_parity, check_parity, parity_settings, run_sample_pass

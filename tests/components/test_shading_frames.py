@@ -15,11 +15,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from inshade.components import check_node, resolve_params
+from inshade.components.elementwise.torch_twin import Expm1, ReLU
 from inshade.components.latent_pyramid.torch_twin import LatentPyramid
 from inshade.components.proxy_params.torch_twin import ProxyParams
 from inshade.components.shading_frames.torch_twin import ShadingFrames
 from inshade.models import GraphModule
-from inshade.models.activations import Expm1, ReLU
 
 from parity import assert_parity, check_parity, parity_settings, torch_reference, unit_directions
 

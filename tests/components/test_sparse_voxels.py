@@ -17,10 +17,10 @@ from inshade.codegen import generate
 from inshade.codegen.limits import LimitError
 from inshade.codegen.voxel_index import index_grid
 from inshade.components import ComponentError, check_node, check_voxel_tables, resolve_params
+from inshade.components.dense.torch_twin import Dense
 from inshade.components.feature_axis.torch_twin import Add
 from inshade.components.sparse_voxels.torch_twin import SparseVoxels
 from inshade.models import GraphModule
-from inshade.models.mlp import Dense
 
 from parity import assert_parity, glsl_eval, parity_settings, run_sample_pass, torch_reference, uniform_inputs
 

@@ -12,10 +12,10 @@ import torch
 from safetensors.numpy import load_file, save_file
 
 from inshade.bundle import JSON_NAME, WEIGHTS_NAME, Bundle, BundleError, canonical_json, load
+from inshade.components.dense.torch_twin import Dense
+from inshade.components.elementwise.torch_twin import ReLU
 from inshade.components.lookup_array.torch_twin import LookupArray
 from inshade.models import GraphModule
-from inshade.models.activations import ReLU
-from inshade.models.mlp import Dense
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from inshade.models.registry import Component, register
+from inshade.models.registry import WithParams, register
 
 
 @torch.library.custom_op("inshade_toy::toy_softsign", mutates_args=())
@@ -18,15 +18,9 @@ def _(x, scale):
 
 
 @register
-class ToySoftsign(Component):
+class ToySoftsign(WithParams):
     type = "toy_softsign"
-
-    def __init__(self, scale: float = 1.0):
-        super().__init__()
-        self.scale = float(scale)
-
-    def params(self):
-        return {"scale": self.scale}
+    fields = {"scale": (float, 1.0)}
 
     def forward(self, x):
         return softsign(x, self.scale)

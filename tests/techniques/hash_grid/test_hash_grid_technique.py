@@ -31,6 +31,13 @@ def _metrics(folder: Path) -> dict:
     return json.loads((folder / "metrics.json").read_text())
 
 
+def _preset_metrics(folder: Path, preset: str, app: str) -> dict:
+    """The asset's metrics.json, once it is seen to be trained with ``preset``'s settings for ``app``."""
+    m = _metrics(folder)
+    assert m["preset"] == preset and m["settings"] == hg.preset_settings(preset, app)
+    return m
+
+
 def _one_thread(fn, *args):
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
@@ -60,8 +67,7 @@ def test_quick_image_writes_a_drawable_asset(quick_image):
     from inshade.scene.description import load_scene
     from inshade.techniques.hash_grid.image import psnr_of_bundle
 
-    m = _metrics(quick_image)
-    assert m["preset"] == "quick" and m["settings"] == hg.preset_settings("quick", "hash_grid_image")
+    m = _preset_metrics(quick_image, "quick", "hash_grid_image")
     bundle = load(quick_image)
     assert bundle.kind == "hash_grid_image" and [n.type for n in bundle.nodes][:1] == ["hash_grid"]
     assert bundle.converted == {"grid.table": "float16"}          # the fp16 table stored as F16
@@ -81,8 +87,7 @@ def test_quick_image_glsl_matches_torch(gl, quick_image):
 def test_quick_sdf_writes_a_traceable_asset(quick_sdf):
     from inshade.scene.description import load_scene
 
-    m = _metrics(quick_sdf)
-    assert m["preset"] == "quick" and m["settings"] == hg.preset_settings("quick", "hash_grid_sdf")
+    m = _preset_metrics(quick_sdf, "quick", "hash_grid_sdf")
     bundle = load(quick_sdf)
     assert bundle.kind == "hash_grid_sdf"
     module = NetworkSdfModule.from_bundle(bundle)
@@ -104,7 +109,7 @@ def test_sound_bound_is_above_every_measured_slope(dims, levels, log2_table_size
     """Random tables (dense and hashed levels) and a random MLP: no finite difference anywhere, and no
     autograd-free directional slope, exceeds the bound; the bound is not absurdly loose either."""
     from inshade.components.grids.torch_twin import HashGrid
-    from inshade.models import activations
+    from inshade.components.elementwise import torch_twin as activations
     from inshade.techniques.hash_grid.lipschitz import measured_slope, sound_bound
 
     torch.manual_seed(seed)
@@ -130,8 +135,7 @@ def shipped_image():
 
 
 def test_shipped_image_is_the_ship_preset_within_its_budget(shipped_image):
-    m = _metrics(IMAGE)
-    assert m["preset"] == "ship" and m["settings"] == hg.preset_settings("ship", "hash_grid_image")
+    m = _preset_metrics(IMAGE, "ship", "hash_grid_image")
     assert shipped_image.meta["render"]["width"] == shipped_image.meta["render"]["height"] == 2048
     assert m["bytes"] <= 1_000_000 and m["bytes_file"] <= 1_000_000
     base = m["mlp_baseline"]
@@ -178,8 +182,7 @@ def shipped_sdf():
 
 
 def test_shipped_sdf_is_accurate_and_beats_the_mlp_sdfs(shipped_sdf):
-    m = _metrics(SDF)
-    assert m["preset"] == "ship" and m["settings"] == hg.preset_settings("ship", "hash_grid_sdf")
+    m = _preset_metrics(SDF, "ship", "hash_grid_sdf")
     assert m["surface_abs_mean_per_diagonal"] <= 1e-3 and m["zero_set_to_mesh_mean_per_diagonal"] <= 1e-3
     for other in (m["mlp_baseline"], m["neural_sdf_shipped"]):
         assert other["surface_abs_mean_per_diagonal"] > m["surface_abs_mean_per_diagonal"]

@@ -94,7 +94,7 @@ def _fit_torus_1(steps, seed):
                        "root": {"type": "transform", "rotate": {"axis": [1, 0, 0], "angle": 60},
                                 "child": {"type": "torus", "major": 0.8, "minor": 0.3}}})
     target = SdfModule(scene)
-    from inshade.models.activations import Softplus
+    from inshade.components.elementwise.torch_twin import Softplus
     graph = mlp_graph(3, [16, 16], 1, activation=Softplus())
     module = NetworkSdfModule(graph, TRACE, center=(0.1, 0.0, 0.0), radius=1.5, albedo=(0.7, 0.5, 0.3), name="torus")
     opt = torch.optim.Adam(graph.parameters(), lr=1e-2)
@@ -225,7 +225,7 @@ def test_bad_render_metadata_one_clear_error(torus, tmp_path):
 def test_lipschitz_bound_holds(widths, act, freqs, seed):
     """The bound from the weights is >= every observed |grad| (autograd at random points)."""
     from inshade.components.encodings import torch_twin as E
-    from inshade.models import activations as A
+    from inshade.components.elementwise import torch_twin as A
     from inshade.models.mlp_sdf import lipschitz_bound
 
     torch.manual_seed(seed)
@@ -251,7 +251,7 @@ def test_frequency_encoding_constant_is_tight():
 
 
 def test_lipschitz_bound_unbounded_cases():
-    from inshade.models.activations import Exp
+    from inshade.components.elementwise.torch_twin import Exp
     from inshade.models.mlp_sdf import lipschitz_bound
 
     assert lipschitz_bound(mlp_graph(3, [8], 1, activation=Exp())) == math.inf

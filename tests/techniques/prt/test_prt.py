@@ -28,7 +28,7 @@ from inshade.techniques.prt.twin import (PrtShading, compose, image_metrics, lig
 from inshade.techniques.prt.transfer_model import TransferFrame, transfer_graph
 from inshade.sh import (convolve_zonal, lambert_bands, phong_bands, sh_evaluate, sh_product, triple_product_tensor)
 
-from prt_gl import render_with_gbuffer
+from prt_gl import PRT_SETTINGS, render_with_gbuffer
 
 ROOT = Path(__file__).resolve().parents[3]
 SIZE = 48
@@ -43,16 +43,6 @@ SDF_SCENE = {  # a blob on a slab: self-occlusion where they meet, visible from 
          "child": {"type": "round_box", "size": [1.0, 0.12, 0.8], "radius": 0.05, "albedo": [0.6, 0.6, 0.65]}}]},
 }
 CAMERA = {"type": "orbit", "fov_y": 40.0, "target": [0.0, -0.1, 0.0], "distance": 3.6, "yaw": -25.0, "pitch": -20.0}
-PRT_SETTINGS = {
-    "shading": {"type": "choice", "default": "diffuse", "choices": ["diffuse", "glossy"], "uniform": "u_shading"},
-    "phong_exponent": {"type": "float", "default": 8.0, "min": 0.0, "max": 256.0, "uniform": "u_phong_exponent"},
-    "albedo": {"type": "float", "default": 1.0, "min": 0.0, "max": 2.0, "uniform": "u_albedo"},
-    "kd": {"type": "float", "default": 1.0, "min": 0.0, "max": 1.0, "uniform": "u_kd"},
-    "ks": {"type": "float", "default": 0.5, "min": 0.0, "max": 1.0, "uniform": "u_ks"},
-    "debug": {"type": "int", "default": 0, "min": 0, "max": 6, "uniform": "u_prt_debug"},
-    "sky": {"type": "choice", "default": "noon", "choices": ["noon", "sunset", "studio"], "environment": "sky"},
-    "env_rotation": {"type": "float", "default": 0.0, "min": -180.0, "max": 180.0, "environment": "rotation"},
-}
 
 
 def transfer_bundle(center, radius, seed=0, width=16, scale=1.2):
@@ -321,7 +311,7 @@ def test_unbound_prt_uniforms_take_defaults(gl, program_cache, prt_scene, tmp_pa
 def _fit_blob_sdf(width=48):
     """A network SDF without training: random softplus features, output layer by least squares
     to an ellipsoid's distance bound (instant; smooth; a plausible SDF-like field)."""
-    from inshade.models.activations import Softplus
+    from inshade.components.elementwise.torch_twin import Softplus
     from inshade.models.graph import mlp_graph
     from inshade.models.network_sdf import NetworkSdfModule
 

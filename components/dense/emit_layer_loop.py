@@ -1,4 +1,4 @@
-"""Runs of identical dense layers emitted once, as a loop over the layers.
+"""The dense layer: runs of identical layers emitted once, as a loop over the layers.
 
 A run is two or more dense layers of one shape (in = out width, same bias presence), all stored
 in the weight texture, each followed by the same elementwise activation; each dense feeds only
@@ -21,12 +21,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from .activations import emit_activation
-from .glsl import blocks
-from .limits import loop_iteration_cap
-from .mlp import dense_row, inputs_written_max, loop_budget, loop_iterations, loop_lines, loop_spare, pack, texture_exprs
-from .registry import EMITTERS
-from .values import Value, declare
+from inshade.codegen import ir
+from inshade.codegen.glsl import blocks
+from inshade.codegen.limits import loop_iteration_cap
+from inshade.codegen.registry import EMITTERS
+from inshade.codegen.values import Value, declare
+from inshade.components.elementwise.spec import ELEMENTWISE
+
+# as modules: any module of this folder may be the first to import inshade.codegen, which loads emit.py
+# (and so this folder's modules) while that one is still loading
+from . import emit_plan, emit_products
 
 MIN_RUN = 2   # layers; a single layer gains nothing from a loop
 
@@ -70,7 +74,7 @@ def _layer(dense, nodes, consumers, storage):
         return None
     users = consumers.get(dense.id, [])
     act = nodes.get(users[0]) if len(users) == 1 else None
-    if act is None or EMITTERS.get(act.type) is not emit_activation:
+    if act is None or act.type not in ELEMENTWISE:
         return None
     key = (dense.in_dim, bool(dense.params["bias"]), act.type, act.params)
     return dense, act, key
@@ -101,16 +105,17 @@ def find_runs(bundle, storage: dict) -> list[Run]:
 
 def fold_runs(bundle, storage: dict, chunks: dict, limits: dict, calls: int = 1) -> dict[str, Run]:
     """The runs to emit as layer loops, by their first dense's id: every run whose layers share
-    one chunk (``mlp.loop_chunks``), while the loops' iterations stay within a capped driver's
+    one chunk (``emit_plan.loop_chunks``), while the loops' iterations stay within a capped driver's
     budget for ``calls`` evaluations (a run that does not fit stays unfolded)."""
     cap = loop_iteration_cap(limits)
     shapes = {n.id: (blocks(n.out_dim), blocks(n.in_dim)) for n in bundle.nodes if n.id in chunks}
-    used = sum(loop_iterations(*shapes[k], c, inputs_written_max(limits)) for k, (c, _) in chunks.items())
+    written = emit_plan.inputs_written_max(limits)
+    used = sum(emit_plan.loop_iterations(*shapes[k], c, written) for k, (c, _) in chunks.items())
     out = {}
     for run in find_runs(bundle, storage):
         if len({chunks.get(d.id, (1, ''))[0] for d, _ in run.layers}) != 1:
             continue
-        if cap is not None and used + len(run) > loop_budget(cap, calls):
+        if cap is not None and used + len(run) > emit_plan.loop_budget(cap, calls):
             continue
         used += len(run)
         out[run.first.id] = run
@@ -130,10 +135,6 @@ def _weights(bundle, dense):
     return bundle.tensor(dense, "weight"), bundle.tensor(dense, "bias") if dense.params["bias"] else None
 
 
-def _indented(lines: list[str]) -> list[str]:
-    return ["    " + line for text in lines for line in text.split("\n")]
-
-
 def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     """The run as one loop over its layers, reading h and writing it back; the plan keeps a row
     per node, saying which loop it is in."""
@@ -141,24 +142,25 @@ def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     ob, ib = blocks(first.out_dim), blocks(first.in_dim)
     chunk, unrolled = ctx.loop_chunks.get(first.id, (1, ""))
     tex = ctx.weight_texture
-    row0 = [tex.add(*pack(*_weights(bundle, d)), d.id) for d, _ in run.layers][0]   # consecutive rows
+    row0 = [tex.add(*emit_plan.pack(*_weights(bundle, d)), d.id) for d, _ in run.layers][0]   # consecutive rows
     h = f"h_{first.id}"
-    y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=loop_spare(ob, ib, chunk)))
-    body += loop_lines(y.array, ob, ib, chunk, *texture_exprs(tex.name, f"{row0} + {ob} * l"), h,
-                       inputs_written_max(ctx.limits))
+    spare = emit_products.loop_spare(ob, ib, chunk)
+    y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=spare))
+    exprs = emit_products.texture_exprs(tex.name, f"{row0} + {ob} * l")
+    body.append(emit_products.loop_statement(y.array, ob, ib, chunk, *exprs, h, emit_plan.inputs_written_max(ctx.limits)))
     out, act_body, act_rows = _captured(ctx, lambda: EMITTERS[act0.type](ctx, act0, y, bundle))
-    body += act_body + [f"{h}[{b}] = {out.array}[{b}];" for b in range(ib)]
+    body += act_body + [ir.Assign(ir.Index(ir.Var(h), b), out.block_ir(b)) for b in range(ib)]
 
     dense_ids = [d.id for d, _ in run.layers]
-    ctx.body.append(f"// {', '.join(dense_ids)}: {len(run)} dense {first.in_dim} -> {first.out_dim} layers "
-                    f"({ob}x{ib} mat4 blocks, texture rows {row0} + {ob} * l) with {act0.type}, one loop")
-    ctx.body.append(f"vec4 {h}[{ib}];")
-    ctx.body += [f"{h}[{b}] = {src.array}[{b}];" for b in range(ib)]
-    ctx.body.append("\n".join([f"for (int l = 0; l < {len(run)}; ++l) {{", *_indented(body), "}"]))
+    ctx.body.append(ir.Comment(f"{', '.join(dense_ids)}: {len(run)} dense {first.in_dim} -> {first.out_dim} layers "
+                               f"({ob}x{ib} mat4 blocks, texture rows {row0} + {ob} * l) with {act0.type}, one loop"))
+    ctx.body.append(ir.Declare("vec4", h, ib))
+    ctx.body += [ir.Assign(ir.Index(ir.Var(h), b), src.block_ir(b)) for b in range(ib)]
+    ctx.body.append(ir.For("l", 0, len(run), None, tuple(body)))
     for d, act in run.layers:
         others = ", ".join(i for i in dense_ids if i != d.id)
         mode, why = ctx.storage[d.id]
-        ctx.plan.append(dense_row(ctx, d, *_weights(bundle, d), mode, why + unrolled + (
+        ctx.plan.append(emit_products.dense_row(ctx, d, *_weights(bundle, d), mode, why + unrolled + (
             f"; folded into one loop over layers with {others} (same shape and activation: its code is emitted once)")))
         ctx.plan += [replace(r, node=act.id, why=f"in the loop over layers {', '.join(dense_ids)}") for r in act_rows]
     return Value(h, 0, first.out_dim)

@@ -1,43 +1,14 @@
-"""Dense layers as mat4 blocks; torch twin in models/mlp.py.
-
-A layer [out, in] is zero-padded to multiples of 4 and cut into 4x4 blocks; block (o, i)
-multiplies input block i into output block o. Weight placement is a per-layer choice:
-
-- inline:  literals written straight into the expressions (fastest to run on every driver
-           measured, slowest to compile when big)
-- ubo:     one std140 uniform block per layer (weights swap without recompiling)
-- texture: rows of an RGBA32F/RGBA16F texture read with texelFetch (any width)
-All three give the same function signature and the same numbers (fp32 storage).
-
-How the code is shaped, and why (measured with `inshade bench mlp` on Mesa 22.3 llvmpipe,
-LLVM 15, 256-bit, 2 cores; see the bench report for numbers):
-
-- llvmpipe runs a fragment shader SoA, 8 pixels per AVX register: every GLSL float is one ymm
-  register, so a 64-wide layer holds 64 live inputs (16 registers exist) and spills whatever
-  form the source takes. What helps is short dependency chains (floats are not reassociated):
-  each output block sums into SPLIT partial accumulators, and each term is
-  `x[i].k * vec4(column)` with padding columns left out.
-- inline literals are constant-pool operands; `const mat4 W[]` arrays cost ~3x the GLSL
-  compile+link time for no runtime gain, so literals go straight into the expressions.
-- In llvmpipe fragment shaders every UBO load and texelFetch is a per-lane gather (lane 0 may
-  be inactive, so the scalar fast path is off): ubo and texture run 10-20x slower than inline
-  there, and unrolled UBO code takes minutes to JIT. Hence big layers loop (small code), and
-  on software renderers `auto` keeps literals up to a much larger size.
-- Runs of identical texture layers loop over the layers too (layer_loop.py): code emitted once
-  is JIT-compiled once.
+"""The dense layer: the plan of a network's dense layers -- where each layer's weights live (storage),
+which layers loop and how many output blocks a pass of a loop does, the weights packed as mat4 blocks,
+std140 blocks and the weight texture. Why the numbers below: emit.py.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .glsl import PlanRow, TextureResource, UniformBlockResource, blocks, mat4, vec4
-from .limits import LimitError, limit, loop_iteration_cap, source
-from .registry import emitter
-from .values import declare
+from inshade.codegen.glsl import TextureResource, blocks
+from inshade.codegen.limits import LimitError, limit, loop_iteration_cap, source
 
-STORAGE_MODES = ("inline", "ubo", "texture", "auto")
-TEXTURE_FORMATS = ("f4", "f2")   # weight-texture texels: float32 or float16
-SPLIT = 4                    # partial sums per output block (breaks the add dependency chain)
 UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
                              # on unrolled UBO gathers: 32x3 took minutes); GPUs don't mind loops
 LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (measured best)
@@ -47,9 +18,6 @@ LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (m
 # unroll such loops as they see fit, and Chromium's SwiftShader WebGL2 loses its context on the
 # written-out form of a 91 -> 32 x 7 UBO network that it runs looped.
 INPUTS_WRITTEN_MAX = 256
-# Looped layers of more mat4 blocks keep their loop over outputs (loop_spare): 64 x 64 (256 blocks)
-# and smaller unroll, as a network of many small layers compiles fastest unrolled
-KEEP_LOOP_MIN_BLOCKS = 256
 UNROLL_MAX_BLOCKS = 4096     # inline layers beyond this loop over a const array instead
 # auto: whole networks at most this many floats become literals. On GPUs (4096, ~ 32 wide x 3)
 # UBOs are as fast as literals and compile in a fraction of the time. On software renderers
@@ -64,6 +32,7 @@ INLINE_MAX_FLOATS = 4096
 INLINE_MAX_FLOATS_SOFTWARE = 20000
 SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")
 UBO_RESERVED_BLOCKS = 2      # auto: blocks left for the host program's own uniforms
+
 
 
 def pack(weight: np.ndarray, bias: np.ndarray | None):
@@ -94,6 +63,12 @@ def is_software(limits: dict) -> bool:
 def inputs_written_max(limits: dict) -> int:
     """Input blocks a looped layer writes out rather than loops over (INPUTS_WRITTEN_MAX)."""
     return INPUTS_WRITTEN_MAX if is_software(limits) else 0
+
+
+def looped(mode: str, ob: int, ib: int) -> bool:
+    """Whether a layer of ob x ib mat4 blocks stored as ``mode`` loops rather than unrolls."""
+    return (mode == "texture" or (mode == "ubo" and ob * ib > UBO_UNROLL_MAX_BLOCKS)
+            or (mode == "inline" and ob * ib > UNROLL_MAX_BLOCKS))
 
 
 def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str, str]]:
@@ -133,7 +108,7 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
     pixel's loop iterations (limits.loop_iteration_cap) must fit ``calls`` evaluations (a march's
     steps, each one iteration of the caller's loop) of every loop here: the layers with the most
     iterations unroll more (chunk x2, up to no loop over outputs) until they fit, else LimitError.
-    Runs folded into a loop over layers add an iteration a layer: layer_loop.fold_runs folds
+    Runs folded into a loop over layers add an iteration a layer: emit_layer_loop.fold_runs folds
     only while those fit the same budget."""
     chunks, shapes = {}, {}
     for n in bundle.nodes:
@@ -141,8 +116,7 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
             continue
         mode = storage[n.id][0]
         ob, ib = blocks(n.out_dim), blocks(n.in_dim)
-        if (mode == "texture" or (mode == "ubo" and ob * ib > UBO_UNROLL_MAX_BLOCKS)
-                or (mode == "inline" and ob * ib > UNROLL_MAX_BLOCKS)):
+        if looped(mode, ob, ib):
             chunk = LOOP_CHUNK.get(mode, 1)
             chunks[n.id], shapes[n.id] = (chunk if ob % chunk == 0 else 1), (ob, ib)
     cap = loop_iteration_cap(limits)
@@ -168,7 +142,7 @@ def loop_chunks(bundle, storage: dict, limits: dict, calls: int = 1) -> dict[str
 
 def loop_iterations(ob: int, ib: int, chunk: int, written: int) -> int:
     """A looped layer's iterations per evaluation: the loop over outputs (unless one pass does
-    them all), and per pass the loop over inputs unless they are ``written`` out (loop_lines)."""
+    them all), and per pass the loop over inputs unless they are ``written`` out (emit_products.loop_statement)."""
     passes = max(1, ob // chunk)
     return (passes if ob > chunk else 0) + passes * (ib if ib > written else 0)
 
@@ -236,135 +210,3 @@ class WeightTexture:
         if fmt == "f2":
             data = data.astype(np.float16)
         return TextureResource(self.name, data, fmt, "nearest")
-
-
-def _column_terms(i: int, in_dim: int, x: str, column) -> list[str]:
-    """`x.k * column(k)` for the columns k of input block i that are not padding. Structural,
-    not value-based: a UBO's weights may change later, and 0 * inf must stay NaN as in torch."""
-    return [f"{x}.{'xyzw'[k]} * {column(k)}" for k in range(4) if 4 * i + k < in_dim]
-
-
-def _emit_unrolled(ctx, out, wb, bias_expr, terms):
-    """out[o] = bias + sum_i W(o, i) x[i], summed into SPLIT partial accumulators per output
-    block (input block i goes to partial i % SPLIT), one output block at a time so only the
-    block's accumulators and one input block need registers."""
-    ob, ib = wb.shape[:2]
-    for o in range(ob):
-        accs, lines = {}, []
-        for i in range(ib):
-            ts = terms(o, i)
-            if not ts:
-                continue
-            p = i % SPLIT
-            acc = f"{out.array}_{o}_{p}"
-            if p not in accs:
-                init = [bias_expr(o)] if p == 0 else []
-                lines.append(f"vec4 {acc} = " + " + ".join(init + ts[:1]) + ";")
-                accs[p], ts = acc, ts[1:]
-            lines += [f"{acc} += {t};" for t in ts]
-        total = ([] if 0 in accs else [bias_expr(o)]) + [accs[p] for p in sorted(accs)]
-        lines.append(f"{out.array}[{o}] = " + " + ".join(total) + ";")
-        ctx.body.append("\n".join(lines))
-
-
-def loop_lines(out: str, ob, ib, chunk, bias_expr, w_expr, src: str, written: int) -> list[str]:
-    """for o in chunks of output blocks: acc = bias; acc += W(o, i) * x[i] over the inputs, written
-    out up to ``written`` blocks (inputs_written_max), a loop beyond. The output array needs a spare block (``declare(spare=1)``) when the loop over
-    outputs runs one block per pass, so that the compiler keeps that loop a loop."""
-    obase = "o" if ob > chunk else "0"
-    lines = [f"for (int o = 0; o < {ob}; o += {chunk}) {{" if ob > chunk else "{"]
-    lines += [f"    vec4 acc{c} = {bias_expr(f'{obase} + {c}')};" for c in range(chunk)]
-    if ib > written:
-        lines.append(f"    for (int i = 0; i < {ib}; ++i) {{")
-        lines.append(f"        vec4 xi = {src}[i];")
-        lines += [f"        acc{c} += {w_expr(f'{obase} + {c}', 'i')} * xi;" for c in range(chunk)]
-        lines.append("    }")
-    else:
-        lines += [f"    acc{c} += {w_expr(f'{obase} + {c}', str(i))} * {src}[{i}];" for i in range(ib) for c in range(chunk)]
-    lines += [f"    {out}[{obase} + {c}] = acc{c};" for c in range(chunk)]
-    lines.append("}")
-    return lines
-
-
-def loop_spare(ob: int, ib: int, chunk: int) -> int:
-    """Spare output blocks a looped layer declares (see loop_lines): one where the loop over outputs
-    runs a block per pass and the layer is big (KEEP_LOOP_MIN_BLOCKS); a small layer's loop is left for
-    the compiler to unroll, since llvmpipe's compile time doubles with each loop that follows another."""
-    return 1 if ob > chunk and chunk == 1 and ob * ib > KEEP_LOOP_MIN_BLOCKS else 0
-
-
-def _emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
-    lines = loop_lines(out.array, ob, ib, chunk, bias_expr, w_expr, src.array, inputs_written_max(ctx.limits))
-    ctx.body.append("\n".join(lines))
-
-
-def texture_exprs(t: str, row: str):
-    """Bias and weight-block expressions of a layer whose rows start at ``row`` in texture t."""
-    def bias(o):
-        return f"texelFetch({t}, ivec2(0, {row} + {o}), 0)"
-
-    def weight(o, i):
-        r, c = f"{row} + {o}", f"1 + 4 * {i}"
-        return "mat4(" + ", ".join(f"texelFetch({t}, ivec2({c} + {k}, {r}), 0)" for k in range(4)) + ")"
-    return bias, weight
-
-
-def dense_row(ctx, node, weight, bias, mode: str, why: str) -> PlanRow:
-    """A dense layer's plan row; a texture layer's fetches and bytes filled in."""
-    row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
-                  params=weight.size + (0 if bias is None else bias.size),
-                  flops=2 * node.in_dim * node.out_dim + (node.out_dim if bias is not None else 0))
-    if mode == "texture":
-        ob, ib = blocks(node.out_dim), blocks(node.in_dim)
-        row.fetches = ob * (1 + 4 * ib)
-        row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.option("dense", "texture_format") == "f2" else 1)
-    return row
-
-
-@emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4")})
-def emit_dense(ctx, node, src, bundle):
-    weight = bundle.tensor(node, "weight")
-    bias = bundle.tensor(node, "bias") if node.params["bias"] else None
-    wb, bb = pack(weight, bias)
-    ob, ib = wb.shape[:2]
-    mode, why = ctx.storage[node.id]
-    chunk, unrolled = ctx.loop_chunks.get(node.id, (1, ""))
-    why += unrolled
-    looped = (mode == "texture" or mode == "inline" and ob * ib > UNROLL_MAX_BLOCKS
-              or mode == "ubo" and ob * ib > UBO_UNROLL_MAX_BLOCKS)
-    out = declare(ctx, f"v_{node.id}", node.out_dim, spare=loop_spare(ob, ib, chunk) if looped else 0)
-    ctx.body.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim} ({ob}x{ib} mat4 blocks, {mode})")
-    row = dense_row(ctx, node, weight, bias, mode, why)
-    name = ctx.name(node.id)
-    x = src.array
-    if mode == "inline":
-        if ob * ib <= UNROLL_MAX_BLOCKS:
-            _emit_unrolled(ctx, out, wb, lambda o: vec4(bb[o]),
-                           lambda o, i: _column_terms(i, node.in_dim, f"{x}[{i}]", lambda k: vec4(wb[o, i][:, k])))
-        else:
-            ctx.globals.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim}, weights as literals")
-            ctx.globals.append(f"const mat4 {name}_W[{ob * ib}] = mat4[](\n    "
-                               + ",\n    ".join(mat4(wb[o, i]) for o in range(ob) for i in range(ib)) + ");")
-            ctx.globals.append(f"const vec4 {name}_b[{ob}] = vec4[](" + ", ".join(vec4(b) for b in bb) + ");")
-            _emit_loop(ctx, out, ob, ib, chunk, lambda o: f"{name}_b[{o}]", lambda o, i: f"{name}_W[({o}) * {ib} + {i}]", src)
-    elif mode == "ubo":
-        data = std140(wb, bb)
-        ctx.globals.append(f"// {node.id}: dense {node.in_dim} -> {node.out_dim}, std140 block of {len(data)} B")
-        ctx.globals.append(f"layout(std140) uniform {name}_block {{\n    mat4 W[{ob * ib}];\n"
-                           f"    vec4 b[{ob}];\n}} {name};")
-        ctx.resources.append(UniformBlockResource(f"{name}_block", data))
-        row.uniform_bytes = len(data)
-        if ob * ib <= UBO_UNROLL_MAX_BLOCKS:
-            _emit_unrolled(ctx, out, wb, lambda o: f"{name}.b[{o}]",
-                           lambda o, i: _column_terms(i, node.in_dim, f"{x}[{i}]",
-                                                      lambda k: f"{name}.W[{o * ib + i}][{k}]"))
-        else:
-            _emit_loop(ctx, out, ob, ib, chunk, lambda o: f"{name}.b[{o}]",
-                       lambda o, i: f"{name}.W[({o}) * {ib} + {i}]", src)
-    elif mode == "texture":
-        row0 = ctx.weight_texture.add(wb, bb, node.id)
-        _emit_loop(ctx, out, ob, ib, chunk, *texture_exprs(ctx.weight_texture.name, str(row0)), src)
-    else:
-        raise ValueError(f"unknown weight storage {mode!r} (choose from {', '.join(STORAGE_MODES)})")
-    ctx.plan.append(row)
-    return out

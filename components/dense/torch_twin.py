@@ -1,10 +1,10 @@
-"""Dense layers; codegen/mlp.py packs them into mat4 blocks."""
+"""The dense layer: the torch twin (emit.py packs its weights into mat4 blocks)."""
 from __future__ import annotations
 
 import numpy as np
 import torch
 
-from .registry import Component, register
+from inshade.models.registry import Component, register
 
 
 @register

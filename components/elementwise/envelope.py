@@ -1,46 +1,15 @@
-"""The parity envelope's rules for dense layers and elementwise ops: each one bounds its node's output
-from its input interval and reports what leaves the envelope (the limits and their measurements:
-inshade/envelope.py). The feature axis's rules (binary, reducing, gathering ops) are in
-components/feature_axis/envelope.py."""
+"""Elementwise functions: the parity envelope's rules. Each bounds its node's output from its input
+interval and reports what leaves the envelope (the limits and their measurements: inshade/envelope.py)."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from .components import STEPPED_ELEMENTWISE
-from .envelope_base import (DENSE_MAGNITUDE, DENSE_MAGNITUDE_WARN, EXP_ARG, NOTE, POW_ARG, POW_EXPONENT,
-                            POW_SQUARING, Site, mag, min_abs, rule)
+from inshade.components.elementwise.spec import STEPPED_ELEMENTWISE
+from inshade.envelope_base import (EXP_ARG, NOTE, POW_ARG, POW_EXPONENT, POW_SQUARING, Site, mag, min_abs, rule,
+                                   sin_range)
 
-
-@rule("dense")
-def _dense(s: Site):
-    n, lo, hi = s.node, s.lo, s.hi
-    w = s.tensor("weight")
-    b = s.tensor("bias") if s.params["bias"] else np.zeros(n.out_dim)
-    if np.isfinite(lo).all() and np.isfinite(hi).all():
-        c, r = (lo + hi) / 2, (hi - lo) / 2
-        yc, yr = w @ c + b, np.abs(w) @ r
-        olo, ohi = yc - yr, yc + yr
-    else:   # an unbounded input: term by term, a zero weight contributes nothing
-        wp, wn = np.maximum(w, 0), np.minimum(w, 0)
-        term = lambda m, v: np.where(m != 0, m * v, 0.0).sum(1)  # noqa: E731
-        olo, ohi = term(wp, lo) + term(wn, hi) + b, term(wp, hi) + term(wn, lo) + b
-    total = np.abs(w) @ mag(lo, hi) + np.abs(b)
-    ratio = total / np.maximum(1.0, min_abs(olo, ohi))
-    i = int(np.nanargmax(np.where(np.isnan(ratio), np.inf, ratio)))
-    if not np.isfinite(ratio[i]) or ratio[i] > DENSE_MAGNITUDE_WARN:
-        s.warn(f"accumulation magnitude sum|W||x|+|b| (row {i})", total[i], DENSE_MAGNITUDE_WARN,
-               "one ulp of the sum is >= 1/16: fp32 cannot hold the result to the rule's scale, "
-               "and summation order alone (GEMM vs mat4 blocks) breaks parity")
-    elif ratio[i] > DENSE_MAGNITUDE:
-        s.warn(f"accumulation magnitude sum|W||x|+|b| (row {i})", total[i], DENSE_MAGNITUDE,
-               "measured summation-order discrepancy ~5.7e-8 * magnitude; if the output can "
-               "cancel to |y| <= 1 that exceeds 1e-5 (interval bound, may be loose)", NOTE)
-    return olo, ohi
-
-
-# --- elementwise ----------------------------------------------------------------------------
 
 @rule("identity", keeps_exact=True)
 def _identity(s: Site):
@@ -259,3 +228,14 @@ def _power(s: Site):
                "log2's absolute error near x = 1 is multiplied by p: measured ~1.1e-7 |p| scaled error "
                "(1.1e-5 at p = 100.5)")
     return olo, ohi
+
+
+@rule("sin", "cos")
+def _sin(s: Site):   # cos(t) = sin(t + pi/2)
+    t, lo, hi = s.node.type, s.lo, s.hi
+    w0 = s.params["omega0"]
+    alo, ahi = np.minimum(w0 * lo, w0 * hi), np.maximum(w0 * lo, w0 * hi)
+    s.walk.periodic_args[s.node.id] = [float(np.max(mag(alo, ahi)))]
+    s.periodic(f"{t} argument |omega0 * x| (omega0 {w0:g})", s.walk.periodic_args[s.node.id][0])
+    shift = math.pi / 2 if t == "cos" else 0.0
+    return sin_range(alo + shift, ahi + shift)

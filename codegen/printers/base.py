@@ -1,0 +1,144 @@
+"""What every printer shares: walking the lowered statements and expressions (codegen/ir.py).
+
+A language's printer says how it spells types, literals, vectors, matrices, texel reads, calls,
+declarations and loops; the walk, the indentation and the sums are the same everywhere.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from inshade.shaders import find_chunk
+
+from .. import ir
+from ..glsl import flt
+
+INDENT = "    "
+
+
+class Unprintable(ValueError):
+    """Code a target's printer cannot spell (a GLSL-only statement from a component without a lowering)."""
+
+
+def library_chunk(name: str, language: str) -> str:
+    """The text of a library chunk's version in ``language`` (``shaders/lib/<name>.<language>``),
+    pasted into a standalone module."""
+    path = find_chunk(name, suffix=f".{language}")
+    if path is None:
+        raise Unprintable(f"{language}: the library chunk <{name}> has no {language} version ({name}.{language})")
+    return path.read_text().rstrip("\n")
+
+
+@dataclass
+class Module:
+    """What a printer turns into one source: the network's header lines, its defines, its
+    module-level declarations, the library chunks it includes and its eval function."""
+    prefix: str
+    comments: list[str]
+    defines: list[tuple[str, int]]
+    includes: list[str]
+    globals: list
+    body: list
+    in_blocks: int
+    out_blocks: int
+    uint_blocks: int          # 0: the function takes no uint input array
+    result: str               # the array holding the outputs
+    bindings: dict = field(default_factory=dict)   # resource name -> binding index
+
+
+class Printer:
+    """The shared walk; subclasses spell each node."""
+    language = ""
+    types: dict[str, str] = {}
+    # built-ins whose name differs from GLSL's
+    builtins: dict[str, str] = {}
+
+    # --- expressions ---
+    def expr(self, e) -> str:
+        return getattr(self, f"_{type(e).__name__.lower()}")(e)
+
+    def _lit(self, e: ir.Lit) -> str:
+        return flt(e.value)
+
+    def _int(self, e: ir.Int) -> str:
+        return e.text
+
+    def _var(self, e: ir.Var) -> str:
+        return e.name
+
+    def _index(self, e: ir.Index) -> str:
+        index = e.index if isinstance(e.index, int) else self.expr(e.index)
+        return f"{self.expr(e.base)}[{index}]"
+
+    def _lane(self, e: ir.Lane) -> str:
+        return f"{self.expr(e.base)}.{'xyzw'[e.lane]}"
+
+    def _member(self, e: ir.Member) -> str:
+        return f"{self.expr(e.base)}.{e.name}"
+
+    def _sum(self, e: ir.Sum) -> str:
+        return " + ".join(self.expr(t) for t in e.terms)
+
+    def _paren(self, e: ir.Paren) -> str:
+        return f"({self.expr(e.e)})"
+
+    def _matvec(self, e: ir.MatVec) -> str:
+        return f"{self.expr(e.m)} * {self.expr(e.v)}"
+
+    def _bin(self, e: ir.Bin) -> str:
+        return f"{self.expr(e.a)} {e.op} {self.expr(e.b)}"
+
+    def _call(self, e: ir.Call) -> str:
+        return f"{self.builtins.get(e.fn, e.fn)}({', '.join(self.expr(a) for a in e.args)})"
+
+    def _convert(self, e: ir.Convert) -> str:
+        return f"{self.types[e.type]}({self.expr(e.e)})"
+
+    def _vec4(self, e: ir.Vec4) -> str:
+        return f"{self.types['vec4']}({', '.join(self.expr(i) for i in e.items)})"
+
+    def _mat4(self, e: ir.Mat4) -> str:
+        return f"{self.types['mat4']}({', '.join(self.expr(i) for i in e.items)})"
+
+    # --- statements ---
+    def lines(self, stmts, depth: int = 0) -> list[str]:
+        out = []
+        for s in stmts:
+            if isinstance(s, str):
+                out += self.legacy(s, depth)
+            else:
+                out += getattr(self, f"_s_{type(s).__name__.lower()}")(s, depth)
+        return out
+
+    def legacy(self, text: str, depth: int) -> list[str]:
+        raise Unprintable(f"{self.language}: GLSL text has no {self.language} spelling: {text.splitlines()[0]}")
+
+    def _s_group(self, s: ir.Group, depth: int) -> list[str]:
+        return self.lines(s.body, depth)
+
+    def _s_comment(self, s: ir.Comment, depth: int) -> list[str]:
+        return [INDENT * depth + f"// {s.text}"]
+
+    def _s_assign(self, s: ir.Assign, depth: int) -> list[str]:
+        return [INDENT * depth + f"{self.expr(s.target)} {s.op} {self.expr(s.value)};"]
+
+    def _s_scope(self, s: ir.Scope, depth: int) -> list[str]:
+        return [INDENT * depth + "{", *self.lines(s.body, depth + 1), INDENT * depth + "}"]
+
+    def _s_for(self, s: ir.For, depth: int) -> list[str]:
+        return [INDENT * depth + self.loop_head(s), *self.lines(s.body, depth + 1), INDENT * depth + "}"]
+
+    def _s_declare(self, s: ir.Declare, depth: int) -> list[str]:
+        return [INDENT * depth + self.declaration(s)]
+
+    # --- what each language spells (the C family's spelling by default) ---
+    def loop_head(self, s: ir.For) -> str:
+        step = f"++{s.var}" if s.step is None else f"{s.var} += {s.step}"
+        return f"for (int {s.var} = {s.start}; {s.var} < {s.stop}; {step}) {{"
+
+    def declaration(self, s: ir.Declare) -> str:
+        size = "" if s.count is None else f"[{s.count}]"
+        init = "" if s.init is None else f" = {self.expr(s.init)}"
+        return f"{self.types[s.type]} {s.name}{size}{init};"
+
+    def module(self, m: Module) -> str:
+        raise NotImplementedError

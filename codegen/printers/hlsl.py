@@ -1,0 +1,90 @@
+"""HLSL (Shader Model 5.0 and 6.x: D3D11/12, Unity, Unreal) and Slang.
+
+Matrices are made row by row in HLSL, so a mat4 built from the network's columns is the transpose
+of GLSL's: the product is written ``mul(v, M)``, and uniform-block matrices are declared
+``row_major`` so the same std140 bytes read the same way. Resources carry both a D3D register
+(t# for textures, b# for constant buffers, in plan order) and a Vulkan binding
+(``[[vk::binding(n, 0)]]``) so one source serves D3D and SPIR-V compilers alike. Textures are read
+with ``Load`` (no sampler)."""
+from __future__ import annotations
+
+from .. import ir
+from .base import INDENT, Module, Printer, Unprintable, library_chunk
+
+SPACE = 0   # the Vulkan set / D3D space of the network's resources
+
+
+class HLSLPrinter(Printer):
+    language = "hlsl"
+    types = {"float": "float", "vec4": "float4", "mat4": "float4x4", "int": "int", "uint": "uint", "uvec4": "uint4"}
+    builtins = {"roundEven": "round", "inversesqrt": "rsqrt", "fract": "frac", "mix": "lerp"}
+
+    def _vec4(self, e: ir.Vec4) -> str:
+        if len(e.items) == 1:   # HLSL constructors take every lane; a cast repeats one
+            return f"((float4){self.expr(e.items[0])})"
+        return f"float4({', '.join(self.expr(i) for i in e.items)})"
+
+    def _matvec(self, e: ir.MatVec) -> str:
+        return f"mul({self.expr(e.v)}, {self.expr(e.m)})"
+
+    def _convert(self, e: ir.Convert) -> str:
+        return f"(({self.types[e.type]}){self.expr(e.e)})"
+
+    def _fetch(self, e: ir.Fetch) -> str:
+        return f"{e.texture}.Load(int3({e.x.text}, {e.y.text}, 0))"
+
+    def global_(self, g, bindings: dict, registers: dict) -> str:
+        if isinstance(g, str):
+            raise Unprintable(f"{self.language}: GLSL text has no {self.language} spelling: {g.splitlines()[0]}")
+        if isinstance(g, ir.Comment):
+            return f"// {g.text}"
+        if isinstance(g, ir.UniformBlock):
+            members = "".join(f"    {'row_major ' if t == 'mat4' else ''}{self.types[t]} {n}[{c}];\n"
+                              for t, n, c in g.members)
+            return (f"struct {g.block}_data {{\n{members}}};\n[[vk::binding({bindings[g.block]}, {SPACE})]]\n"
+                    + self.constant_buffer(g, f"register(b{registers[g.block]}, space{SPACE})"))
+        if isinstance(g, ir.Texture2D):
+            comment = f"  // {g.comment}" if g.comment else ""
+            return (f"[[vk::binding({bindings[g.name]}, {SPACE})]] "
+                    f"Texture2D<float4> {g.name} : register(t{registers[g.name]}, space{SPACE});{comment}")
+        if isinstance(g, ir.ConstArray):
+            items = ",\n    ".join(self.expr(i) for i in g.items)
+            return f"static const {self.types[g.type]} {g.name}[{len(g.items)}] = {{\n    {items}}};"
+        raise TypeError(f"unknown module-level declaration {g!r}")
+
+    visibility = ""   # Slang: "public " (what an importing module may call)
+
+    def constant_buffer(self, g: ir.UniformBlock, register: str) -> str:
+        """The block's declaration: a cbuffer holding one struct (Shader Model 5.0 has no ConstantBuffer<>)."""
+        return f"cbuffer {g.block} : {register} {{ {g.block}_data {g.instance}; }};"
+
+    def module(self, m: Module) -> str:
+        up = m.prefix.upper()
+        # D3D registers count per kind: textures t0.., constant buffers b0.., in plan order
+        kinds = {g.block if isinstance(g, ir.UniformBlock) else g.name: type(g)
+                 for g in m.globals if isinstance(g, (ir.UniformBlock, ir.Texture2D))}
+        registers = {}
+        for kind in (ir.UniformBlock, ir.Texture2D):
+            names = sorted((n for n, k in kinds.items() if k is kind), key=m.bindings.__getitem__)
+            registers.update({n: i for i, n in enumerate(names)})
+        uint_arg = f"in uint4 xu[{up}_IN_UINT_BLOCKS], " if m.uint_blocks else ""
+        lines = [
+            *m.comments,
+            *(f"#define {name} {value}" for name, value in m.defines),
+            *(library_chunk(c, "hlsl") for c in m.includes),
+            *(self.global_(g, m.bindings, registers) for g in m.globals),
+            f"{self.visibility}void {m.prefix}_eval({uint_arg}in float4 x[{up}_IN_BLOCKS], out float4 y[{up}_OUT_BLOCKS]) {{",
+            *self.lines(m.body, 1),
+            *(INDENT + f"y[{b}] = {m.result}[{b}];" for b in range(m.out_blocks)),
+            "}",
+        ]
+        return "\n".join(lines) + "\n"
+
+
+class SlangPrinter(HLSLPrinter):
+    """Slang reads HLSL; the module is what a Slang program imports (``import net;``)."""
+    language = "slang"
+    visibility = "public "
+
+    def constant_buffer(self, g: ir.UniformBlock, register: str) -> str:
+        return f"ConstantBuffer<{g.block}_data> {g.instance} : {register};"

@@ -1,0 +1,136 @@
+"""The dense layer: the GLSL emitter, mat4 blocks (torch twin: torch_twin.py).
+
+A layer [out, in] is zero-padded to multiples of 4 and cut into 4x4 blocks; block (o, i)
+multiplies input block i into output block o. Weight placement is a per-layer choice:
+
+- inline:  literals written straight into the expressions (fastest to run on every driver
+           measured, slowest to compile when big)
+- ubo:     one std140 uniform block per layer (weights swap without recompiling)
+- texture: rows of an RGBA32F/RGBA16F texture read with texelFetch (any width)
+All three give the same function signature and the same numbers (fp32 storage).
+
+How the code is shaped, and why (measured with `inshade bench mlp` on Mesa 22.3 llvmpipe,
+LLVM 15, 256-bit, 2 cores; see the bench report for numbers):
+
+- llvmpipe runs a fragment shader SoA, 8 pixels per AVX register: every GLSL float is one ymm
+  register, so a 64-wide layer holds 64 live inputs (16 registers exist) and spills whatever
+  form the source takes. What helps is short dependency chains (floats are not reassociated):
+  each output block sums into SPLIT partial accumulators, and each term is
+  `x[i].k * vec4(column)` with padding columns left out.
+- inline literals are constant-pool operands; `const mat4 W[]` arrays cost ~3x the GLSL
+  compile+link time for no runtime gain, so literals go straight into the expressions.
+- In llvmpipe fragment shaders every UBO load and texelFetch is a per-lane gather (lane 0 may
+  be inactive, so the scalar fast path is off): ubo and texture run 10-20x slower than inline
+  there, and unrolled UBO code takes minutes to JIT. Hence big layers loop (small code), and
+  on software renderers `auto` keeps literals up to a much larger size.
+- Runs of identical texture layers loop over the layers too (emit_layer_loop.py): code emitted
+  once is JIT-compiled once.
+
+The plan (storage per layer, loop sizes, packing, the weight texture) is emit_plan.py, the code of a
+layer's products emit_products.py, the loops over layers emit_layer_loop.py.
+"""
+from __future__ import annotations
+
+from inshade.codegen import ir
+from inshade.codegen.glsl import UniformBlockResource
+from inshade.codegen.registry import Fused, emitter, network_step
+from inshade.codegen.values import declare
+from inshade.components.dense.spec import STORAGE_MODES, TEXTURE_FORMATS
+
+# as modules: any module of this folder may be the first to import inshade.codegen, which loads this
+# module (and so the others) while that one is still loading
+from . import emit_layer_loop, emit_plan, emit_products
+
+
+@network_step("dense")
+class DenseNetwork:
+    """What a network's dense layers share: the storage of each (chosen over the whole network: ``auto``
+    counts every layer's floats), the loop sizes, one weight texture, and runs of identical layers
+    emitted as one loop over the layers."""
+
+    @staticmethod
+    def begin(ctx, bundle, calls: int) -> dict:
+        ctx.storage = emit_plan.choose_storage(bundle, ctx.option("dense", "storage"), ctx.limits)
+        ctx.loop_chunks = emit_plan.loop_chunks(bundle, ctx.storage, ctx.limits, calls)
+        ctx.weight_texture = emit_plan.WeightTexture(ctx)
+        runs = emit_layer_loop.fold_runs(bundle, ctx.storage, ctx.loop_chunks, ctx.limits, calls)
+        return {first: Fused(tuple(run.ids), run.output.id,
+                             lambda ctx, src, bundle, run=run: emit_layer_loop.emit_run(ctx, run, src, bundle))
+                for first, run in runs.items()}
+
+    @staticmethod
+    def end(ctx) -> None:
+        texture = ctx.weight_texture.resource()
+        if texture is not None:
+            ctx.globals.insert(0, ir.Texture2D(texture.name, "dense layers stored as texture rows"))
+            ctx.resources.insert(0, texture)
+
+
+def _inline(ctx, node, out, wb, bb, chunk, row, src):
+    """Weights as literals: in the expressions, or a const array a big layer loops over."""
+    ob, ib = wb.shape[:2]
+    name = ctx.name(node.id)
+    if ob * ib <= emit_plan.UNROLL_MAX_BLOCKS:
+        emit_products.emit_unrolled(ctx, out, wb, lambda o: ir.Vec4.of(bb[o]), lambda o, i: emit_products.column_terms(
+            i, node.in_dim, src.block_ir(i), lambda k: ir.Vec4.of(wb[o, i][:, k])))
+        return
+    ctx.globals += [
+        ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, weights as literals"),
+        ir.ConstArray("mat4", f"{name}_W", tuple(ir.Mat4(tuple(ir.Lit(v) for v in wb[o, i].T.reshape(-1)))
+                                                  for o in range(ob) for i in range(ib))),
+        ir.ConstArray("vec4", f"{name}_b", tuple(ir.Vec4.of(b) for b in bb))]
+    emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Var(f"{name}_b"), o),
+                            lambda o, i: ir.Index(ir.Var(f"{name}_W"), ir.Int(f"({o.text}) * {ib} + {i.text}")), src)
+
+
+def _ubo(ctx, node, out, wb, bb, chunk, row, src):
+    """Weights in a std140 uniform block of their own."""
+    ob, ib = wb.shape[:2]
+    name = ctx.name(node.id)
+    data = emit_plan.std140(wb, bb)
+    members = (("mat4", "W", ob * ib), ("vec4", "b", ob))
+    ctx.globals += [ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, std140 block of {len(data)} B"),
+                    ir.UniformBlock(f"{name}_block", name, members)]
+    ctx.resources.append(UniformBlockResource(f"{name}_block", data, name, members))
+    row.uniform_bytes = len(data)
+    block = ir.Var(name)
+    if ob * ib <= emit_plan.UBO_UNROLL_MAX_BLOCKS:
+        emit_products.emit_unrolled(
+            ctx, out, wb, lambda o: ir.Index(ir.Member(block, "b"), o), lambda o, i: emit_products.column_terms(
+                i, node.in_dim, src.block_ir(i), lambda k: ir.Index(ir.Index(ir.Member(block, "W"), o * ib + i), k)))
+    else:
+        emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Member(block, "b"), o),
+                                lambda o, i: ir.Index(ir.Member(block, "W"), ir.Int(f"({o.text}) * {ib} + {i.text}")),
+                                src)
+
+
+def _texture(ctx, node, out, wb, bb, chunk, row, src):
+    """Weights as rows of the network's weight texture."""
+    ob, ib = wb.shape[:2]
+    row0 = ctx.weight_texture.add(wb, bb, node.id)
+    emit_products.emit_loop(ctx, out, ob, ib, chunk, *emit_products.texture_exprs(ctx.weight_texture.name, str(row0)),
+                            src)
+
+
+# storage -> how a layer stored so is written
+_STORED = {"inline": _inline, "ubo": _ubo, "texture": _texture}
+
+
+@emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4")}, lowered=True)
+def emit_dense(ctx, node, src, bundle):
+    weight = bundle.tensor(node, "weight")
+    bias = bundle.tensor(node, "bias") if node.params["bias"] else None
+    wb, bb = emit_plan.pack(weight, bias)
+    ob, ib = wb.shape[:2]
+    mode, why = ctx.storage[node.id]
+    chunk, unrolled = ctx.loop_chunks.get(node.id, (1, ""))
+    why += unrolled
+    spare = emit_products.loop_spare(ob, ib, chunk) if emit_plan.looped(mode, ob, ib) else 0
+    out = declare(ctx, f"v_{node.id}", node.out_dim, spare=spare)
+    ctx.body.append(ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim} ({ob}x{ib} mat4 blocks, {mode})"))
+    row = emit_products.dense_row(ctx, node, weight, bias, mode, why)
+    if mode not in _STORED:
+        raise ValueError(f"unknown weight storage {mode!r} (choose from {', '.join(STORAGE_MODES)})")
+    _STORED[mode](ctx, node, out, wb, bb, chunk, row, src)
+    ctx.plan.append(row)
+    return out

@@ -1,0 +1,103 @@
+"""The dense layer: the lowered code of one layer's mat4 block products -- unrolled into partial sums, or a loop
+over output blocks (and over input blocks beyond what is written out) -- and its plan row. emit.py says
+why the code has this shape.
+"""
+from __future__ import annotations
+
+from inshade.codegen import ir
+from inshade.codegen.glsl import PlanRow, blocks
+
+# as a module: any module of this folder may be the first to import inshade.codegen, which loads emit.py
+# (and so this folder's modules) while that one is still loading
+from . import emit_plan
+
+SPLIT = 4                    # partial sums per output block (breaks the add dependency chain)
+# Looped layers of more mat4 blocks keep their loop over outputs (loop_spare): 64 x 64 (256 blocks)
+# and smaller unroll, as a network of many small layers compiles fastest unrolled
+KEEP_LOOP_MIN_BLOCKS = 256
+
+
+def column_terms(i: int, in_dim: int, x: ir.Expr, column) -> list:
+    """`x.k * column(k)` for the columns k of input block i that are not padding. Structural,
+    not value-based: a UBO's weights may change later, and 0 * inf must stay NaN as in torch."""
+    return [ir.Bin("*", ir.Lane(x, k), column(k)) for k in range(4) if 4 * i + k < in_dim]
+
+
+def emit_unrolled(ctx, out, wb, bias_expr, terms):
+    """out[o] = bias + sum_i W(o, i) x[i], summed into SPLIT partial accumulators per output
+    block (input block i goes to partial i % SPLIT), one output block at a time so only the
+    block's accumulators and one input block need registers."""
+    ob, ib = wb.shape[:2]
+    for o in range(ob):
+        accs, stmts = {}, []
+        for i in range(ib):
+            ts = terms(o, i)
+            if not ts:
+                continue
+            p = i % SPLIT
+            acc = f"{out.array}_{o}_{p}"
+            if p not in accs:
+                init = [bias_expr(o)] if p == 0 else []
+                stmts.append(ir.Declare("vec4", acc, init=ir.Sum(tuple(init + ts[:1]))))
+                accs[p], ts = acc, ts[1:]
+            stmts += [ir.Assign(ir.Var(acc), t, "+=") for t in ts]
+        total = ([] if 0 in accs else [bias_expr(o)]) + [ir.Var(accs[p]) for p in sorted(accs)]
+        stmts.append(ir.Assign(out.block_ir(o), ir.Sum(tuple(total))))
+        ctx.body.append(ir.Group(tuple(stmts)))
+
+
+def loop_statement(out: str, ob, ib, chunk, bias_expr, w_expr, src: str, written: int):
+    """for o in chunks of output blocks: acc = bias; acc += W(o, i) * x[i] over the inputs, written
+    out up to ``written`` blocks (emit_plan.inputs_written_max), a loop beyond. The output array needs a
+    spare block (``declare(spare=1)``) when the loop over outputs runs one block per pass, so that the
+    compiler keeps that loop a loop."""
+    base = "o" if ob > chunk else "0"
+
+    def at(c):
+        return ir.Int(f"{base} + {c}")
+    body = [ir.Declare("vec4", f"acc{c}", init=bias_expr(at(c))) for c in range(chunk)]
+    if ib > written:
+        body.append(ir.For("i", 0, ib, None, (
+            ir.Declare("vec4", "xi", init=ir.Index(ir.Var(src), ir.Int("i"))),
+            *(ir.Assign(ir.Var(f"acc{c}"), ir.MatVec(w_expr(at(c), ir.Int("i")), ir.Var("xi")), "+=")
+              for c in range(chunk)))))
+    else:
+        body += [ir.Assign(ir.Var(f"acc{c}"), ir.MatVec(w_expr(at(c), ir.Int(str(i))), ir.Index(ir.Var(src), i)), "+=")
+                 for i in range(ib) for c in range(chunk)]
+    body += [ir.Assign(ir.Index(ir.Var(out), at(c)), ir.Var(f"acc{c}")) for c in range(chunk)]
+    return ir.For("o", 0, ob, chunk, tuple(body)) if ob > chunk else ir.Scope(tuple(body))
+
+
+def loop_spare(ob: int, ib: int, chunk: int) -> int:
+    """Spare output blocks a looped layer declares (see loop_statement): one where the loop over outputs
+    runs a block per pass and the layer is big (KEEP_LOOP_MIN_BLOCKS); a small layer's loop is left for
+    the compiler to unroll, since llvmpipe's compile time doubles with each loop that follows another."""
+    return 1 if ob > chunk and chunk == 1 and ob * ib > KEEP_LOOP_MIN_BLOCKS else 0
+
+
+def emit_loop(ctx, out, ob, ib, chunk, bias_expr, w_expr, src):
+    written = emit_plan.inputs_written_max(ctx.limits)
+    ctx.body.append(loop_statement(out.array, ob, ib, chunk, bias_expr, w_expr, src.array, written))
+
+
+def texture_exprs(t: str, row: str):
+    """Bias and weight-block expressions of a layer whose rows start at ``row`` in texture t."""
+    def bias(o: ir.Int):
+        return ir.Fetch(t, ir.Int("0"), ir.Int(f"{row} + {o.text}"))
+
+    def weight(o: ir.Int, i: ir.Int):
+        r, c = f"{row} + {o.text}", f"1 + 4 * {i.text}"
+        return ir.Mat4(tuple(ir.Fetch(t, ir.Int(f"{c} + {k}"), ir.Int(r)) for k in range(4)))
+    return bias, weight
+
+
+def dense_row(ctx, node, weight, bias, mode: str, why: str) -> PlanRow:
+    """A dense layer's plan row; a texture layer's fetches and bytes filled in."""
+    row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
+                  params=weight.size + (0 if bias is None else bias.size),
+                  flops=2 * node.in_dim * node.out_dim + (node.out_dim if bias is not None else 0))
+    if mode == "texture":
+        ob, ib = blocks(node.out_dim), blocks(node.in_dim)
+        row.fetches = ob * (1 + 4 * ib)
+        row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.option("dense", "texture_format") == "f2" else 1)
+    return row

@@ -1,0 +1,31 @@
+"""Networks generated for WebGPU, Vulkan and Direct3D, evaluated on a real driver: one compute
+invocation per element of a batch calls the generated eval function, through wgpu-native (PyPI
+``wgpu``) on whatever Vulkan device the machine has (Mesa's lavapipe on a CPU).
+
+- ``wgsl``: the module as WebGPU takes it.
+- ``vulkan``: GLSL 4.50 compiled to SPIR-V by glslangValidator (``-V``).
+- ``hlsl``: compiled to SPIR-V by glslang's HLSL front end (``-D``).
+- ``slang``: compiled by the Slang compiler slangpy ships, run by slangpy (runtime/compute/slang.py).
+
+The batch harness of each language (``eval.*`` beside this file) binds the inputs and outputs in
+group / set / space 1; the network's own resources stay where the plan put them (0). Optional:
+``pip install 'inshade[compute]'``.
+"""
+from __future__ import annotations
+
+from .device import ComputeDevice, ComputeUnavailable, compute_device
+from .run import SOURCES, evaluate
+from .slang import device_name as slang_device_name
+from .slang import evaluate_slang
+
+TARGETS = (*SOURCES, "slang")
+
+
+def run_target(generated, x, target: str):
+    """(outputs [N, out_dim], the device that computed them) of a network generated for ``target``."""
+    if target == "slang":
+        return evaluate_slang(generated, x), slang_device_name()
+    return evaluate(generated, x, target), compute_device().description
+
+
+__all__ = ["ComputeDevice", "ComputeUnavailable", "compute_device", "evaluate", "run_target", "TARGETS"]

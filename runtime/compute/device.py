@@ -1,0 +1,59 @@
+"""The wgpu device the compute targets run on, opened once per process."""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from functools import lru_cache
+
+INSTALL_HINT = "pip install 'inshade[compute]' (wgpu) and a Vulkan driver (Debian: mesa-vulkan-drivers)"
+
+# the device's limits under the GL names codegen plans with (codegen/targets.py)
+PLANNING_LIMITS = {
+    "GL_MAX_TEXTURE_SIZE": "max_texture_dimension_2d",
+    "GL_MAX_3D_TEXTURE_SIZE": "max_texture_dimension_3d",
+    "GL_MAX_ARRAY_TEXTURE_LAYERS": "max_texture_array_layers",
+    "GL_MAX_UNIFORM_BLOCK_SIZE": "max_uniform_buffer_binding_size",
+    "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": "max_uniform_buffers_per_shader_stage",
+    "GL_MAX_TEXTURE_IMAGE_UNITS": "max_sampled_textures_per_shader_stage",
+    "GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS": "max_sampled_textures_per_shader_stage",
+    "GL_MAX_DRAW_BUFFERS": "max_color_attachments",
+}
+
+
+class ComputeUnavailable(RuntimeError):
+    """No wgpu, or no device it can open."""
+
+
+@dataclass
+class ComputeDevice:
+    wgpu: object
+    device: object
+    name: str           # e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
+    backend: str        # e.g. "Vulkan"
+    limits: dict        # the device's limits, wgpu's names (snake_case)
+
+    @property
+    def description(self) -> str:
+        return f"{self.name} ({self.backend})"
+
+    def planning_limits(self) -> dict:
+        """This device's limits as codegen plans with them, with its name (software renderers plan
+        their own way, codegen/mlp.py)."""
+        out = {gl: int(self.limits[key]) for gl, key in PLANNING_LIMITS.items() if key in self.limits}
+        return {**out, "renderer": self.name}
+
+
+@lru_cache(maxsize=1)
+def compute_device() -> ComputeDevice:
+    """The process's device: the adapter wgpu prefers, opened with every limit it offers."""
+    try:
+        wgpu = importlib.import_module("wgpu")
+    except ImportError as e:
+        raise ComputeUnavailable(f"the WebGPU/Vulkan/HLSL targets run through wgpu: {INSTALL_HINT}") from e
+    adapter = wgpu.gpu.request_adapter_sync(power_preference="high-performance")
+    if adapter is None:
+        raise ComputeUnavailable(f"wgpu found no device: {INSTALL_HINT}")
+    limits = {k.replace("-", "_"): v for k, v in adapter.limits.items()}
+    device = adapter.request_device_sync(required_limits=dict(adapter.limits))
+    info = adapter.info
+    return ComputeDevice(wgpu, device, str(info.get("device", "?")), str(info.get("backend_type", "?")), limits)

@@ -1,0 +1,84 @@
+"""Slang: the module compiled by the Slang compiler slangpy ships and run by slangpy.
+
+slangpy 0.43 opens no Vulkan or WebGPU device on Mesa's lavapipe ("Failed to create device"), so
+on a machine without a GPU the module runs on slangpy's CPU device (Slang compiled to host code);
+with a GPU, slangpy's default device runs it. Either way the Slang compiler reads the very module
+``inshade codegen --target slang`` writes."""
+from __future__ import annotations
+
+import hashlib
+import importlib
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from inshade.codegen.glsl import UniformBlockResource, blocks
+
+from .device import ComputeUnavailable
+
+HARNESS = Path(__file__).resolve().parent / "eval.slang"
+INSTALL_HINT = "pip install slangpy"
+ENTRY = "inshade_eval"
+
+
+@lru_cache(maxsize=1)
+def slang_device():
+    """slangpy's device: the default one where it opens, else its CPU device."""
+    try:
+        spy = importlib.import_module("slangpy")
+    except ImportError as e:
+        raise ComputeUnavailable(f"the slang target runs through slangpy: {INSTALL_HINT}") from e
+    try:
+        return spy, spy.Device(type=spy.DeviceType.automatic)
+    except RuntimeError:
+        logger = spy.Logger.get()
+        level, logger.level = logger.level, spy.LogLevel.error   # its "no shader model" warning: noise here
+        try:
+            return spy, spy.Device(type=spy.DeviceType.cpu)
+        finally:
+            logger.level = level
+
+
+def device_name() -> str:
+    spy, device = slang_device()
+    return f"{device.info.adapter_name} (slangpy {device.info.type.name})"
+
+
+def _uniform_vars(resource: UniformBlockResource) -> dict:
+    """A std140 block's arrays as the values slangpy writes into the module's constant buffer (a
+    mat4 as its 4 columns, which the module reads as rows: it declares the matrix row_major)."""
+    data, at, members = np.frombuffer(resource.data, np.float32), 0, {}
+    for type_, name, count in resource.members:
+        shape = {"mat4": (4, 4), "vec4": (4,)}[type_]
+        size = int(np.prod(shape))
+        members[name] = [np.array(a) for a in data[at: at + count * size].reshape(count, *shape)]
+        at += count * size
+    return {resource.instance: members}
+
+
+def evaluate_slang(generated, x: np.ndarray) -> np.ndarray:
+    """Outputs [N, out_dim] of a network generated for the slang target, for inputs x [N, in_dim]."""
+    spy, device = slang_device()
+    for r in generated.resources:
+        # slangpy 0.43's CPU device reads back garbage from every texture it makes (its own to_numpy too)
+        if not isinstance(r, UniformBlockResource) and device.info.type.name == "cpu":
+            raise ValueError(f"resource {r.name}: slangpy's CPU device cannot upload textures; run the slang target "
+                             "with storage 'inline' or 'ubo' here")
+    x = np.asarray(x, np.float32).reshape(len(x), -1)
+    n, out_blocks = len(x), blocks(generated.out_dim)
+    padded = np.zeros((n, generated.in_blocks * 4), np.float32)
+    padded[:, :x.shape[1]] = x
+    source = generated.chunk + "\n" + HARNESS.read_text()
+    # a session keeps each module by name: one name per source
+    name = "inshade_" + hashlib.sha256(source.encode()).hexdigest()[:16]
+    module = device.load_module_from_source(name, source)
+    kernel = device.create_compute_kernel(device.link_program([module], [module.entry_point(ENTRY)]))
+    xin = device.create_buffer(data=padded, struct_size=16, usage=spy.BufferUsage.shader_resource)
+    yout = device.create_buffer(element_count=n * out_blocks, struct_size=16, usage=spy.BufferUsage.unordered_access)
+    values = {"inshade_x": xin, "inshade_y": yout}
+    for r in generated.resources:
+        values.update(_uniform_vars(r))
+    kernel.dispatch(thread_count=[n, 1, 1], vars=values)
+    y = yout.to_numpy().view(np.float32).reshape(n, out_blocks * 4)
+    return y[:, :generated.out_dim].copy()

@@ -1,0 +1,128 @@
+"""Every shading language codegen writes beside OpenGL's GLSL -- WGSL, Vulkan GLSL, HLSL -- run on a
+real driver (runtime.compute: wgpu-native on this machine's Vulkan device, SPIR-V by glslang) and
+held to the same rule as GLSL (tests/parity.py). The lowered components go to every target; the
+others are refused in one line."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from inshade.bundle import load
+from inshade.codegen import generate
+from inshade.codegen.limits import LimitError
+from inshade.codegen.registry import LOWERED
+from inshade.codegen.targets import TargetError
+from inshade.runtime.compute import TARGETS, compute_device, run_target
+from inshade.runtime.compute.run import shader_code
+from inshade.runtime.compute.slang import slang_device
+from parity import (MLPSpec, activation_specs, assert_parity, build_mlp, mlp_specs, parity_settings, spec_inputs,
+                    torch_reference)
+
+REPO = Path(__file__).resolve().parents[2]
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+STORAGES = ("inline", "ubo", "texture")
+# slangpy's CPU device (where it opens no GPU device, as on this project's machines) cannot upload textures
+CASES = [(t, s) for t in TARGETS for s in STORAGES if (t, s) != ("slang", "texture")]
+
+
+def evaluate(gen, x, target):
+    return run_target(gen, x, target)[0]
+
+
+def test_the_compute_device_is_this_machines_vulkan_driver():
+    dev = compute_device()
+    assert dev.backend == "Vulkan" and dev.name, dev.description
+
+
+@pytest.mark.parametrize("target, storage", CASES)
+@parity_settings(max_examples=5)
+@given(data=st.data())
+def test_random_mlp_parity(target, storage, data):
+    spec = data.draw(mlp_specs(max_width=48, block_budget=160), label="spec")
+    bundle = build_mlp(spec).export("mlp")
+    x = spec_inputs(spec, 200)
+    out = evaluate(generate(bundle, target=target, storage=storage), x, target)
+    assert_parity(out, torch_reference(bundle, x), what=f"{target} {storage} {spec}")
+
+
+@pytest.mark.parametrize("target", TARGETS)
+@parity_settings(max_examples=12)
+@given(act=activation_specs())
+def test_every_activation_on_every_target(target, act):
+    """Each activation through hidden layers of odd widths (padding lanes, partial blocks, a lane path
+    through the output tap), on inputs 40x past the unit range where the activation promises it."""
+    spec = MLPSpec([3, 2], [13, 7], [act] * 2, 6, None, 0, [True] * 3, seed=7)
+    bundle = build_mlp(spec).export("mlp")
+    x = spec_inputs(spec, 128)
+    if act[0] not in ("exp", "expm1", "sin", "cos"):
+        x = np.concatenate([x, 40.0 * x])
+    out = evaluate(generate(bundle, target=target, storage="inline"), x, target)
+    assert_parity(out, torch_reference(bundle, x), what=f"{target} {act}")
+
+
+def _mlp(widths, inputs=(4,)):
+    spec = MLPSpec(list(inputs), list(widths), [("relu", {})] * len(widths), 4, None, None, [True] * (len(widths) + 1))
+    return build_mlp(spec).export("mlp")
+
+
+@pytest.mark.parametrize("target, storage, limit", [
+    ("wgsl", "ubo", "WebGPU default maxUniformBufferBindingSize"),
+    ("hlsl", "ubo", "D3D11 feature level 11_0 D3D11_REQ_CONSTANT_BUFFER_ELEMENT_COUNT x 16 B"),
+    ("vulkan", "ubo", "Vulkan minimum maxUniformBufferRange"),
+])
+def test_a_uniform_block_past_the_targets_limit_is_refused_naming_it(target, storage, limit):
+    bundle = _mlp([256, 256])      # 256 x 256: a 262,144-byte block
+    with pytest.raises(LimitError) as e:
+        generate(bundle, target=target, storage=storage)
+    assert limit in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_weight_texture_past_the_targets_side_is_refused_naming_its_limit():
+    bundle = _mlp([4096], inputs=(64,))     # 4096 -> 4: 1 + 4 x 1024 texels wide, past Vulkan's 4096, within WebGPU's 8192
+    with pytest.raises(LimitError, match="Vulkan minimum maxImageDimension2D"):
+        generate(bundle, target="vulkan", storage="texture")
+    assert generate(bundle, target="wgsl", storage="texture").resources[0].data.shape[1] == 4097
+
+
+def test_too_many_uniform_blocks_are_refused_and_auto_plans_around_them():
+    bundle = _mlp([32] * 13)       # 14 layers: a block each would pass WebGPU's 12 per stage
+    with pytest.raises(LimitError, match="maxUniformBuffersPerShaderStage"):
+        generate(bundle, target="wgsl", storage="ubo")
+    gen = generate(bundle, target="wgsl", storage="auto")
+    assert {r.storage for r in gen.plan.rows if r.type == "dense"} <= {"inline", "ubo", "texture"}
+    x = np.random.default_rng(0).uniform(-1, 1, (64, 4)).astype(np.float32)
+    assert_parity(evaluate(gen, x, "wgsl"), torch_reference(bundle, x), what="wgsl auto, 14 layers")
+
+
+def test_a_component_without_a_lowering_is_refused_in_one_line():
+    unlowered = next(p for p in sorted((REPO / "trained").rglob("bundle.json"))
+                     if any(n.type not in LOWERED for n in load(p).nodes))
+    with pytest.raises(TargetError) as e:
+        generate(load(unlowered), target="wgsl")
+    assert "no wgsl lowering" in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("target", ["vulkan", "hlsl"])
+def test_the_sources_compile_with_their_languages_compiler(target):
+    """Vulkan GLSL through glslangValidator -V, HLSL through glslang's HLSL front end (-D): both to
+    SPIR-V, which wgpu's validation then takes (shader_code)."""
+    bundle = _mlp([13, 9])
+    for storage in STORAGES:
+        code = shader_code(generate(bundle, target=target, storage=storage), target)
+        assert code[:4] == b"\x03\x02\x23\x07", f"{target} {storage}: not SPIR-V"
+
+
+def test_the_slang_driver_runs_textures_or_says_why_not():
+    bundle = _mlp([13])
+    gen = generate(bundle, target="slang", storage="texture")
+    x = np.random.default_rng(1).uniform(-1, 1, (32, 4)).astype(np.float32)
+    if slang_device()[1].info.type.name == "cpu":
+        with pytest.raises(ValueError, match="slangpy's CPU device cannot upload textures"):
+            run_target(gen, x, "slang")
+    else:
+        assert_parity(run_target(gen, x, "slang")[0], torch_reference(bundle, x), what="slang texture")
