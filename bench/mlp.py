@@ -1,4 +1,5 @@
-"""`inshade bench mlp`: generated GLSL vs torch CPU on the same MLPs and the same batch.
+"""`inshade bench mlp`: generated GLSL (and WGSL, Vulkan GLSL, HLSL, Slang) vs torch and onnxruntime on the CPU,
+on the same MLPs and the same batch.
 
 For each network (uv -> [frequency encoding] -> (dense -> relu) * depth -> dense -> rgb) and a
 size x size batch of pixel-centre uvs, in one run:
@@ -8,7 +9,9 @@ size x size batch of pixel-centre uvs, in one run:
   shader there), the median of ``draw(); ctx.finish()`` wall time after that warm-up (``--clock``;
   read-back excluded, timed separately), achieved GFLOP/s of the dense layers, and the max error against torch
   (a benchmark that measures wrong code is worthless: errors >= 1e-4 fail the run);
-- the machine's numpy float32 sgemm GFLOP/s as the practical peak.
+- the machine's numpy float32 sgemm GFLOP/s as the practical peak;
+- onnxruntime's CPU time on the same batch, and the code of each ``--targets`` language through its
+  compute driver (bench/mlp_targets.py), checked against torch the same way.
 
 Writes ``mlp.json``, ``mlp.md`` and ``mlp.png`` into ``--out`` (``inshade.bench.harness``: every
 timing keeps its min, max and quartiles and the clock it used). Timings are wall-clock on a
@@ -30,6 +33,8 @@ from inshade.bench.contract import Bench, clock_option, option, sized
 from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import (BenchError, clock_for, clock_record, machine,
                                    machine_markdown, matplotlib_pyplot, measure, write_report)
+from inshade.bench.mlp_targets import (DEFAULT_TARGETS, bench_onnxruntime, bench_target, markdown_rows, plot_series,
+                                       target_list)
 
 DEFAULT_OUT = "bench-out/mlp"
 MODES = ("inline", "ubo", "texture")
@@ -68,6 +73,8 @@ class Settings:
     widths: list[int] = option((16, 32, 64), "hidden widths, e.g. 16,32,64", parse=_int_list)
     depths: list[int] = option((3, 4), "hidden layer counts, e.g. 3,4", parse=_int_list)
     storage: list[str] = option(MODES, "weight storage modes to time (inline,ubo,texture,auto)", parse=_mode_list)
+    targets: list[str] = option(DEFAULT_TARGETS, "shading languages beyond OpenGL to time through their compute "
+                                "drivers, in every storage (wgsl,vulkan,hlsl,slang; '' for none)", parse=target_list)
     encoding: str = option("frequency", "uv input encoding (frequency: NeRF encoding with --freqs octaves)",
                            choices=("frequency", "raw"))
     freqs: int = option(4, "octaves of the frequency encoding")
@@ -182,7 +189,7 @@ def run(args) -> int:
 
     specs = [(w, d) for d in args.depths for w in args.widths]
     networks = []
-    with tqdm(total=len(specs) * (1 + len(args.storage)), desc="bench mlp", disable=quiet) as bar:
+    with tqdm(total=len(specs) * (1 + len(args.storage)), desc="bench mlp", disable=quiet) as bar:   # GL steps
         for width, depth in specs:
             name = f"{width}x{depth}"
             bar.set_postfix_str(f"{name} torch")
@@ -210,6 +217,16 @@ def run(args) -> int:
                 r["parity_ok"] = r["finite"] and r["max_error"] < PARITY_TOL
                 entry["modes"][mode] = r
                 bar.update()
+            bar.set_postfix_str(f"{name} onnxruntime")
+            entry["onnxruntime"] = bench_onnxruntime(net, x, ref, args.repeats)
+            entry["targets"] = []
+            for target in args.targets:
+                for mode in args.storage:
+                    bar.set_postfix_str(f"{name} {target} {mode}")
+                    r = bench_target(bundle, target, mode, x, ref, args.repeats)
+                    if "seconds" in r:
+                        r["parity_ok"] = r["finite"] and r["max_error"] < PARITY_TOL
+                    entry["targets"].append(r)
             networks.append(entry)
 
     targets = evaluate_targets(networks, peak)
@@ -221,7 +238,7 @@ def run(args) -> int:
               "max_error": max((m["max_error"] for n in networks for m in n["modes"].values()), default=0.0)}
     write_report(out_dir, "mlp", result, markdown, plot)
     print(f"wrote {out_dir / 'mlp.json'}, {out_dir / 'mlp.md'}, {out_dir / 'mlp.png'}", file=sys.stderr)
-    if not all(m["parity_ok"] for n in networks for m in n["modes"].values()):
+    if not all(m["parity_ok"] for n in networks for m in [*n["modes"].values(), *n["targets"]] if "parity_ok" in m):
         print(f"error: some generated code differs from torch by >= {PARITY_TOL}", file=sys.stderr)
         return 1
     if args.strict and not all(t["met"] for t in targets if t["met"] is not None):
@@ -316,6 +333,7 @@ def markdown(result: dict) -> str:
                          f"| {r['first_draw_s']:.2f} | {r['read_s'] * 1e3:.1f} "
                          f"| {r['max_error']:.1e}{'' if r['parity_ok'] else ' ❌'} |")
             first = False
+    lines += markdown_rows(result)
     lines += ["", "## Targets", "", "| target | met | detail |", "|---|:---:|---|"]
     lines += [f"| {t['target']} | {_mark(t['met'])} | {t['detail']} |" for t in result["targets"]]
     return "\n".join(lines) + "\n"
@@ -329,6 +347,7 @@ def plot(result: dict, path: Path) -> None:
     series = [("torch CPU", [n["pixels"] / n["torch_s"] / 1e6 for n in nets])]
     series += [(f"GLSL {k}", [n["pixels"] / n["modes"][k]["seconds"] / 1e6 if k in n["modes"] else 0
                               for n in nets]) for k in modes]
+    series += plot_series(nets)
     fig, ax = plt.subplots(figsize=(max(6, 1.4 * len(nets) + 2), 4.5))
     width = 0.8 / len(series)
     xs = np.arange(len(nets))

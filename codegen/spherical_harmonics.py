@@ -7,9 +7,13 @@ constant. Programs pass it through `chunks=sh_chunks(degree)`. numpy only (no to
 """
 from __future__ import annotations
 
+import functools
+
 from inshade.sh import SH_TERMS, _check_degree, background_bands, band_of, lambert_bands, monomials
 
+from . import ir
 from .glsl import flt
+from .printers.glsl import GLSLPrinter
 
 SH_CHUNK = "sh_basis"
 
@@ -32,14 +36,16 @@ def sh_chunk(degree: int = 4) -> str:
         "",
         "void sh_basis(vec3 d, out float y[SH_COEFFS]) {",
     ]
-    lines += ["    " + s for s in basis_statements(degree, ("d.x", "d.y", "d.z"), lambda i: f"y[{i}]", "m")]
+    d = ir.Var("d")
+    lines += GLSLPrinter().lines(basis_statements(degree, [ir.Lane(d, k) for k in range(3)],
+                                                  lambda i: ir.Index(ir.Var("y"), i), "m"), 1)
     lines.append("}")
     return "\n".join(lines) + "\n"
 
 
-def basis_statements(degree: int, xyz, lane, prefix: str) -> list[str]:
-    """GLSL statements assigning the SH basis of the unit direction ``xyz`` (three GLSL
-    expressions) to ``lane(i)`` for i < degree**2: the monomials once, as ``float {prefix}ABC``,
+def basis_statements(degree: int, xyz, lane, prefix: str) -> list:
+    """Lowered statements (codegen/ir.py) assigning the SH basis of the unit direction ``xyz`` (three
+    float expressions) to ``lane(i)`` for i < degree**2: the monomials once, as ``float {prefix}ABC``,
     then each basis function as the table's polynomial. The one emitter of the basis, shared by
     the toolkit chunk and the ``spherical_harmonics`` encoding component."""
     names, out = {}, []
@@ -47,10 +53,11 @@ def basis_statements(degree: int, xyz, lane, prefix: str) -> list[str]:
         if (a, b, e) == (0, 0, 0):
             continue
         names[(a, b, e)] = nm = f"{prefix}{a}{b}{e}"
-        out.append(f"float {nm} = {' * '.join([xyz[0]] * a + [xyz[1]] * b + [xyz[2]] * e)};")
+        factors = [xyz[0]] * a + [xyz[1]] * b + [xyz[2]] * e
+        out.append(ir.Declare("float", nm, init=functools.reduce(lambda x, y: ir.Bin("*", x, y), factors)))
     for idx, terms in enumerate(SH_TERMS[: degree * degree]):
-        expr = " + ".join(flt(c) if pw == (0, 0, 0) else f"{flt(c)} * {names[pw]}" for c, pw in terms)
-        out.append(f"{lane(idx)} = {expr};")
+        parts = [ir.Lit(c) if pw == (0, 0, 0) else ir.Bin("*", ir.Lit(c), ir.Var(names[pw])) for c, pw in terms]
+        out.append(ir.Assign(lane(idx), ir.Sum(tuple(parts))))
     return out
 
 

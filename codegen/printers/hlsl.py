@@ -73,7 +73,8 @@ class HLSLPrinter(Printer):
             *(f"#define {name} {value}" for name, value in m.defines),
             *(library_chunk(c, "hlsl") for c in m.includes),
             *(self.global_(g, m.bindings, registers) for g in m.globals),
-            f"{self.visibility}void {m.prefix}_eval({uint_arg}in float4 x[{up}_IN_BLOCKS], out float4 y[{up}_OUT_BLOCKS]) {{",
+            f"{self.visibility}void {m.prefix}_eval({uint_arg}in float4 x[{up}_IN_BLOCKS], "
+            f"out float4 y[{up}_OUT_BLOCKS]) {{",
             *self.lines(m.body, 1),
             *(INDENT + f"y[{b}] = {m.result}[{b}];" for b in range(m.out_blocks)),
             "}",

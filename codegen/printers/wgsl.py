@@ -29,7 +29,8 @@ class WGSLPrinter(Printer):
             # WGSL has no overloads: the library's functions take vec4s, a lane is one of them
             first, *rest = (self.expr(a) for a in e.args)
             return f"{name}({', '.join([f'vec4<f32>({first})', *rest])}).x"
-        if e.type == "vec4" and not e.fn.startswith("inshade_"):   # built-ins take matching types: a float goes to every lane
+        # built-ins take arguments of one type: a float goes to every lane
+        if e.type == "vec4" and not e.fn.startswith("inshade_"):
             args = [f"vec4<f32>({self.expr(a)})" if isinstance(a, ir.Lit) else self.expr(a) for a in e.args]
             return f"{name}({', '.join(args)})"
         return f"{name}({', '.join(self.expr(a) for a in e.args)})"

@@ -14,18 +14,30 @@ group / set / space 1; the network's own resources stay where the plan put them 
 from __future__ import annotations
 
 from .device import ComputeDevice, ComputeUnavailable, compute_device
-from .run import SOURCES, evaluate
+from .run import SOURCES, Dispatch, evaluate
+from .slang import SlangDispatch
 from .slang import device_name as slang_device_name
-from .slang import evaluate_slang
 
 TARGETS = (*SOURCES, "slang")
 
 
+def prepare(generated, x, target: str):
+    """A network generated for ``target`` compiled, with the batch x bound: ``.run()``, ``.read()``,
+    ``.compile_s``."""
+    return SlangDispatch(generated, x) if target == "slang" else Dispatch(generated, x, target)
+
+
+def device_name(target: str) -> str:
+    """The device that runs ``target``'s code here."""
+    return slang_device_name() if target == "slang" else compute_device().description
+
+
 def run_target(generated, x, target: str):
     """(outputs [N, out_dim], the device that computed them) of a network generated for ``target``."""
-    if target == "slang":
-        return evaluate_slang(generated, x), slang_device_name()
-    return evaluate(generated, x, target), compute_device().description
+    run = prepare(generated, x, target)
+    run.run()
+    return run.read(), device_name(target)
 
 
-__all__ = ["ComputeDevice", "ComputeUnavailable", "compute_device", "evaluate", "run_target", "TARGETS"]
+__all__ = ["ComputeDevice", "ComputeUnavailable", "compute_device", "device_name", "evaluate", "prepare", "run_target",
+           "TARGETS"]

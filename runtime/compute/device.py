@@ -2,9 +2,12 @@
 from __future__ import annotations
 
 import importlib
+import os
+import tempfile
 from dataclasses import dataclass
 from functools import lru_cache
 
+WGPU_BACKENDS = ["Vulkan", "Metal", "DX12"]
 INSTALL_HINT = "pip install 'inshade[compute]' (wgpu) and a Vulkan driver (Debian: mesa-vulkan-drivers)"
 
 # the device's limits under the GL names codegen plans with (codegen/targets.py)
@@ -46,10 +49,17 @@ class ComputeDevice:
 @lru_cache(maxsize=1)
 def compute_device() -> ComputeDevice:
     """The process's device: the adapter wgpu prefers, opened with every limit it offers."""
+    if not os.environ.get("XDG_RUNTIME_DIR"):
+        # Mesa's Vulkan drivers print "XDG_RUNTIME_DIR is invalid" on every device a process opens without one
+        os.environ["XDG_RUNTIME_DIR"] = tempfile.mkdtemp(prefix="inshade-runtime-")
     try:
         wgpu = importlib.import_module("wgpu")
     except ImportError as e:
         raise ComputeUnavailable(f"the WebGPU/Vulkan/HLSL targets run through wgpu: {INSTALL_HINT}") from e
+    # every backend but OpenGL: wgpu's GL backend makes its own EGL context current, which takes the
+    # GL runtime's context away from it in the same process
+    extras = importlib.import_module("wgpu.backends.wgpu_native.extras")
+    extras.set_instance_extras(backends=WGPU_BACKENDS)
     adapter = wgpu.gpu.request_adapter_sync(power_preference="high-performance")
     if adapter is None:
         raise ComputeUnavailable(f"wgpu found no device: {INSTALL_HINT}")

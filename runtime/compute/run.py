@@ -4,6 +4,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -80,32 +81,55 @@ def _resource_entries(dev, generated) -> list[dict]:
     return entries
 
 
+class Dispatch:
+    """A network's pipeline and a batch bound to it: ``run()`` computes (and waits), ``read()`` reads back;
+    ``compile_s`` is what making the shader module and the pipeline took."""
+
+    def __init__(self, generated, x: np.ndarray, target: str):
+        dev = compute_device()
+        wgpu, device = dev.wgpu, dev.device
+        x = np.asarray(x, np.float32).reshape(len(x), -1)
+        self.n, self.out_dim, self.out_blocks = len(x), generated.out_dim, blocks(generated.out_dim)
+        padded = np.zeros((self.n, generated.in_blocks * 4), np.float32)
+        padded[:, :x.shape[1]] = x
+        code = shader_code(generated, target)
+        start = time.perf_counter()
+        module = device.create_shader_module(code=code)
+        self.pipeline = device.create_compute_pipeline(layout="auto", compute={"module": module, "entry_point": "main"})
+        self.compile_s = time.perf_counter() - start
+        xin = device.create_buffer_with_data(data=padded.tobytes(), usage=wgpu.BufferUsage.STORAGE)
+        self.yout = device.create_buffer(size=max(16, self.n * self.out_blocks * 16),
+                                         usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+        self.groups = [
+            device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
+                                     entries=_resource_entries(dev, generated)),
+            device.create_bind_group(layout=self.pipeline.get_bind_group_layout(1), entries=[
+                {"binding": 0, "resource": {"buffer": xin}}, {"binding": 1, "resource": {"buffer": self.yout}}])]
+        self.fence = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_SRC)
+        self.device = device
+
+    def run(self) -> None:
+        encoder = self.device.create_command_encoder()
+        compute = encoder.begin_compute_pass()
+        compute.set_pipeline(self.pipeline)
+        for i, group in enumerate(self.groups):
+            compute.set_bind_group(i, group)
+        total = -(-self.n // WORKGROUP)
+        compute.dispatch_workgroups(min(total, MAX_GROUPS), -(-total // MAX_GROUPS), 1)
+        compute.end()
+        self.device.queue.submit([encoder.finish()])
+        # reading a 16-byte buffer queued after the dispatch waits for it (wgpu-py 0.32's
+        # on_submitted_work_done_sync fails on wgpu-native's callback signature)
+        self.device.queue.read_buffer(self.fence)
+
+    def read(self) -> np.ndarray:
+        y = np.frombuffer(self.device.queue.read_buffer(self.yout), np.float32)[: self.n * self.out_blocks * 4]
+        return y.reshape(self.n, self.out_blocks * 4)[:, :self.out_dim].copy()
+
+
 def evaluate(generated, x: np.ndarray, target: str) -> np.ndarray:
     """The network's outputs [N, out_dim] for inputs x [N, in_dim], computed by ``generated`` (made
     for ``target``) on the compute device."""
-    dev = compute_device()
-    wgpu, device = dev.wgpu, dev.device
-    x = np.asarray(x, np.float32).reshape(len(x), -1)
-    n, in_blocks, out_blocks = len(x), generated.in_blocks, blocks(generated.out_dim)
-    padded = np.zeros((n, in_blocks * 4), np.float32)
-    padded[:, :x.shape[1]] = x
-    module = device.create_shader_module(code=shader_code(generated, target))
-    pipeline = device.create_compute_pipeline(layout="auto", compute={"module": module, "entry_point": "main"})
-    xin = device.create_buffer_with_data(data=padded.tobytes(), usage=wgpu.BufferUsage.STORAGE)
-    yout = device.create_buffer(size=max(16, n * out_blocks * 16),
-                                usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
-    groups = [device.create_bind_group(layout=pipeline.get_bind_group_layout(0),
-                                       entries=_resource_entries(dev, generated)),
-              device.create_bind_group(layout=pipeline.get_bind_group_layout(1), entries=[
-                  {"binding": 0, "resource": {"buffer": xin}}, {"binding": 1, "resource": {"buffer": yout}}])]
-    encoder = device.create_command_encoder()
-    compute = encoder.begin_compute_pass()
-    compute.set_pipeline(pipeline)
-    for i, group in enumerate(groups):
-        compute.set_bind_group(i, group)
-    total = -(-n // WORKGROUP)
-    compute.dispatch_workgroups(min(total, MAX_GROUPS), -(-total // MAX_GROUPS), 1)
-    compute.end()
-    device.queue.submit([encoder.finish()])
-    y = np.frombuffer(device.queue.read_buffer(yout), np.float32)[: n * out_blocks * 4]
-    return y.reshape(n, out_blocks * 4)[:, :generated.out_dim].copy()
+    run = Dispatch(generated, x, target)
+    run.run()
+    return run.read()

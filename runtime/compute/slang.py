@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import time
 from functools import lru_cache
 from pathlib import Path
 
@@ -57,28 +58,47 @@ def _uniform_vars(resource: UniformBlockResource) -> dict:
     return {resource.instance: members}
 
 
+class SlangDispatch:
+    """The module compiled and a batch bound to it (``run()``, ``read()``, ``compile_s``: as
+    runtime.compute.run.Dispatch)."""
+
+    def __init__(self, generated, x: np.ndarray):
+        spy, device = slang_device()
+        for r in generated.resources:
+            # slangpy 0.43's CPU device reads back garbage from every texture it makes (its own to_numpy too)
+            if not isinstance(r, UniformBlockResource) and device.info.type.name == "cpu":
+                raise ValueError(f"resource {r.name}: slangpy's CPU device cannot upload textures; run the slang "
+                                 "target with storage 'inline' or 'ubo' here")
+        x = np.asarray(x, np.float32).reshape(len(x), -1)
+        self.n, self.out_dim, self.out_blocks = len(x), generated.out_dim, blocks(generated.out_dim)
+        padded = np.zeros((self.n, generated.in_blocks * 4), np.float32)
+        padded[:, :x.shape[1]] = x
+        source = generated.chunk + "\n" + HARNESS.read_text()
+        # a session keeps each module by name: one name per source
+        name = "inshade_" + hashlib.sha256(source.encode()).hexdigest()[:16]
+        start = time.perf_counter()
+        module = device.load_module_from_source(name, source)
+        self.kernel = device.create_compute_kernel(device.link_program([module], [module.entry_point(ENTRY)]))
+        self.compile_s = time.perf_counter() - start
+        xin = device.create_buffer(data=padded, struct_size=16, usage=spy.BufferUsage.shader_resource)
+        self.yout = device.create_buffer(element_count=self.n * self.out_blocks, struct_size=16,
+                                         usage=spy.BufferUsage.unordered_access)
+        self.values = {"inshade_x": xin, "inshade_y": self.yout}
+        for r in generated.resources:
+            self.values.update(_uniform_vars(r))
+        self.device = device
+
+    def run(self) -> None:
+        self.kernel.dispatch(thread_count=[self.n, 1, 1], vars=self.values)
+        self.device.wait()
+
+    def read(self) -> np.ndarray:
+        y = self.yout.to_numpy().view(np.float32).reshape(self.n, self.out_blocks * 4)
+        return y[:, :self.out_dim].copy()
+
+
 def evaluate_slang(generated, x: np.ndarray) -> np.ndarray:
     """Outputs [N, out_dim] of a network generated for the slang target, for inputs x [N, in_dim]."""
-    spy, device = slang_device()
-    for r in generated.resources:
-        # slangpy 0.43's CPU device reads back garbage from every texture it makes (its own to_numpy too)
-        if not isinstance(r, UniformBlockResource) and device.info.type.name == "cpu":
-            raise ValueError(f"resource {r.name}: slangpy's CPU device cannot upload textures; run the slang target "
-                             "with storage 'inline' or 'ubo' here")
-    x = np.asarray(x, np.float32).reshape(len(x), -1)
-    n, out_blocks = len(x), blocks(generated.out_dim)
-    padded = np.zeros((n, generated.in_blocks * 4), np.float32)
-    padded[:, :x.shape[1]] = x
-    source = generated.chunk + "\n" + HARNESS.read_text()
-    # a session keeps each module by name: one name per source
-    name = "inshade_" + hashlib.sha256(source.encode()).hexdigest()[:16]
-    module = device.load_module_from_source(name, source)
-    kernel = device.create_compute_kernel(device.link_program([module], [module.entry_point(ENTRY)]))
-    xin = device.create_buffer(data=padded, struct_size=16, usage=spy.BufferUsage.shader_resource)
-    yout = device.create_buffer(element_count=n * out_blocks, struct_size=16, usage=spy.BufferUsage.unordered_access)
-    values = {"inshade_x": xin, "inshade_y": yout}
-    for r in generated.resources:
-        values.update(_uniform_vars(r))
-    kernel.dispatch(thread_count=[n, 1, 1], vars=values)
-    y = yout.to_numpy().view(np.float32).reshape(n, out_blocks * 4)
-    return y[:, :generated.out_dim].copy()
+    run = SlangDispatch(generated, x)
+    run.run()
+    return run.read()

@@ -66,3 +66,8 @@ float inshade_gelu_tanh(float x) { return 0.5 * x * (1.0 + inshade_tanh(0.797884
 // ELU: x above 0, alpha (exp(x) - 1) below (exp of min(x, 0): no overflow on the unused side).
 float4 inshade_elu(float4 x, float alpha) { return INSHADE_SELECT(x > 0.0, x, alpha * (exp(min(x, 0.0)) - 1.0)); }
 float inshade_elu(float x, float alpha) { return x > 0.0 ? x : alpha * (exp(x) - 1.0); }
+
+// Non-negative triangle wave, period 2, identity on [0, 1] (Differentiable Indirection's F); GLSL's
+// mod(t, 2) is t - 2 floor(t / 2) (HLSL's fmod truncates).
+float4 inshade_triangle(float4 t) { return 1.0 - abs((t - 2.0 * floor(t / 2.0)) - 1.0); }
+float inshade_triangle(float t) { return 1.0 - abs((t - 2.0 * floor(t / 2.0)) - 1.0); }

@@ -44,3 +44,7 @@ fn inshade_gelu_tanh(x: vec4<f32>) -> vec4<f32> {
 fn inshade_elu(x: vec4<f32>, alpha: f32) -> vec4<f32> {
     return select(alpha * (exp(min(x, vec4<f32>(0.0))) - 1.0), x, x > vec4<f32>(0.0));
 }
+
+// Non-negative triangle wave, period 2, identity on [0, 1] (Differentiable Indirection's F); GLSL's
+// mod(t, 2) is t - 2 floor(t / 2).
+fn inshade_triangle(t: vec4<f32>) -> vec4<f32> { return 1.0 - abs((t - 2.0 * floor(t / 2.0)) - 1.0); }

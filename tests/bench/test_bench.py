@@ -27,10 +27,21 @@ def test_bench_mlp_quick(tmp_path, gl):
             assert r["max_error"] < 1e-4, (net["name"], mode, r["max_error"])
             assert r["seconds"] > 0 and r["compile_link_s"] >= 0 and r["first_draw_s"] > 0
     assert result["max_error"] < 1e-4
+    for net in result["networks"]:   # onnxruntime and every language beyond OpenGL, on the same batch
+        assert net["onnxruntime"]["seconds"] > 0 and net["onnxruntime"]["max_error"] < 1e-4
+        timed = {(r["target"], r["storage"]) for r in net["targets"] if "seconds" in r}
+        skipped = {(r["target"], r["storage"]): r["skipped"] for r in net["targets"] if "skipped" in r}
+        assert timed | set(skipped) == {(t, s) for t in ("wgsl", "vulkan", "hlsl", "slang")
+                                        for s in ("inline", "ubo", "texture")}
+        assert set(skipped) <= {("slang", "texture")}, skipped   # slangpy's CPU device: no textures
+        for r in net["targets"]:
+            if "seconds" in r:
+                assert r["parity_ok"] and r["device"] and r["seconds"] > 0, r
 
     md = (out / "mlp.md").read_text()
     assert result["machine"]["gl_renderer"] in md
     assert "## Targets" in md and "| inline |" in md
+    assert "## Beyond OpenGL, and onnxruntime" in md and "| wgsl | texture |" in md
 
 
 def test_bench_mlp_arguments():
@@ -41,3 +52,7 @@ def test_bench_mlp_arguments():
     assert args.widths == [16, 64] and args.storage == ["inline", "auto"] and args.size == 512
     with pytest.raises(SystemExit):
         parser.parse_args(["--storage", "nope"])
+    assert parser.parse_args(["--targets", "wgsl,hlsl"]).targets == ["wgsl", "hlsl"]
+    assert parser.parse_args(["--targets", ""]).targets == []
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--targets", "330"])     # OpenGL's GLSL is what the bench always times

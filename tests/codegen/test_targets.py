@@ -126,3 +126,38 @@ def test_the_slang_driver_runs_textures_or_says_why_not():
             run_target(gen, x, "slang")
     else:
         assert_parity(run_target(gen, x, "slang")[0], torch_reference(bundle, x), what="slang texture")
+
+
+@pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("encoding", ["frequency", "frequency_with_input", "triangle_wave", "one_blob",
+                                      "spherical_harmonics"])
+def test_encodings_on_every_target(target, encoding):
+    """NeRF's frequencies (2^7 pi x: the range-reduced sin / cos), triangle waves (a modulo), tiny-cuda-nn's
+    OneBlob and the SH basis up to degree 4 (on unit directions) feeding an MLP."""
+    import torch
+
+    from inshade.components.encodings.torch_twin import Frequency, SphericalHarmonics, TriangleWave
+    from inshade.components.one_blob.torch_twin import OneBlob
+    from inshade.models.graph import mlp_graph
+
+    torch.manual_seed(3)
+    enc = {"frequency": lambda: Frequency(8), "frequency_with_input": lambda: Frequency(3, include_input=True),
+           "triangle_wave": lambda: TriangleWave(5), "one_blob": lambda: OneBlob(8),
+           "spherical_harmonics": lambda: SphericalHarmonics(4)}[encoding]()
+    bundle = mlp_graph(3, [16, 16], 4, "relu", enc).export("enc")
+    x = np.random.default_rng(4).uniform(-1, 1, (256, 3)).astype(np.float32)
+    if encoding == "spherical_harmonics":
+        x /= np.linalg.norm(x, axis=1, keepdims=True)
+    out = evaluate(generate(bundle, target=target, storage="inline"), x, target)
+    assert_parity(out, torch_reference(bundle, x), what=f"{target} {encoding}")
+
+
+def test_the_gl_runtime_keeps_its_context_beside_the_compute_driver(gl):
+    """wgpu opens no GL backend of its own: the GL runtime draws before and after a compute target runs."""
+    from parity import glsl_eval
+
+    bundle = _mlp([8])
+    x = np.random.default_rng(2).uniform(-1, 1, (16, 4)).astype(np.float32)
+    before = glsl_eval(gl, bundle, x)
+    run_target(generate(bundle, target="wgsl"), x, "wgsl")
+    assert np.array_equal(glsl_eval(gl, bundle, x), before)
