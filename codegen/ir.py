@@ -102,6 +102,16 @@ class Paren:
 
 
 @dataclass(frozen=True)
+class Choose:
+    """``then`` where ``a op b`` (op: < <= > >=) holds, else ``otherwise``: floats."""
+    op: str
+    a: "Expr"
+    b: "Expr"
+    then: "Expr"
+    otherwise: "Expr"
+
+
+@dataclass(frozen=True)
 class Call:
     """A built-in (by its GLSL name: max, min, clamp, exp, abs, sqrt, sin, cos, trunc, ...) or a
     library function (``inshade_*``); ``type`` is the result's, for printers that name overloads."""
@@ -125,7 +135,7 @@ class Fetch:
     y: Int
 
 
-Expr = Union[Lit, Int, Var, Index, Lane, Member, Vec4, Mat4, MatVec, Bin, Sum, Paren, Call, Convert, Fetch]
+Expr = Union[Lit, Int, Var, Index, Lane, Member, Vec4, Mat4, MatVec, Bin, Sum, Paren, Choose, Call, Convert, Fetch]
 
 
 # --- statements ------------------------------------------------------------------------------------

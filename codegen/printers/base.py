@@ -87,6 +87,9 @@ class Printer:
     def _bin(self, e: ir.Bin) -> str:
         return f"{self.expr(e.a)} {e.op} {self.expr(e.b)}"
 
+    def _choose(self, e: ir.Choose) -> str:
+        return f"{self.expr(e.a)} {e.op} {self.expr(e.b)} ? {self.expr(e.then)} : {self.expr(e.otherwise)}"
+
     def _call(self, e: ir.Call) -> str:
         return f"{self.builtins.get(e.fn, e.fn)}({', '.join(self.expr(a) for a in e.args)})"
 

@@ -20,6 +20,9 @@ class WGSLPrinter(Printer):
     def _vec4(self, e: ir.Vec4) -> str:
         return f"vec4<f32>({', '.join(self.expr(i) for i in e.items)})"
 
+    def _choose(self, e: ir.Choose) -> str:
+        return f"select({self.expr(e.otherwise)}, {self.expr(e.then)}, {self.expr(e.a)} {e.op} {self.expr(e.b)})"
+
     def _fetch(self, e: ir.Fetch) -> str:
         return f"textureLoad({e.texture}, vec2<i32>({e.x.text}, {e.y.text}), 0)"
 

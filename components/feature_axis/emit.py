@@ -1,4 +1,5 @@
-"""The feature axis of an imported network: the GLSL emitters (torch twins in torch_twin.py).
+"""The feature axis of an imported network: the emitters (torch twins in torch_twin.py); all but atan2
+and int_gather write lowered code (every target), those two GLSL for OpenGL.
 
 Per-lane maps (affine, select, reduce, layer_norm, where): constants are literals, since they are
 per-lane vectors, not weight matrices.
@@ -19,7 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from inshade.codegen.glsl import PlanRow, blocks, flt, vec4
+from inshade.codegen import ir
+from inshade.codegen.glsl import PlanRow, blocks
 from inshade.codegen.registry import emitter
 from inshade.codegen.texture_rows import feature_textures, row_layout, texture_formats
 from inshade.codegen.values import Value, declare
@@ -37,12 +39,12 @@ def _padded(a: np.ndarray, n: int, fill: float) -> np.ndarray:
     return out
 
 
-def _as_float(value, i: int) -> str:
-    """Lane i of a value as a float (a uint lane converted)."""
-    return value.lane(i) if value.kind == "float" else f"float({value.lane(i)})"
+def _float_lane(value, i: int):
+    """Lane i of a value as a float (a uint lane converted), lowered."""
+    return value.lane_ir(i) if value.kind == "float" else ir.Convert("float", value.lane_ir(i))
 
 
-@emitter("affine")
+@emitter("affine", lowered=True)
 def emit_affine(ctx, node, src, bundle):
     n = node.out_dim
     scale = _padded(bundle.tensor(node, "scale"), n, 0.0)
@@ -50,12 +52,12 @@ def emit_affine(ctx, node, src, bundle):
     ctx.plan.append(PlanRow(node.id, "affine", f"{n}", flops=2 * n))
     out = declare(ctx, f"v_{node.id}", n)
     for b in range(blocks(n)):   # src is lane-0 aligned (gathered); padding lanes become 0 * x + 0
-        ctx.body.append(f"{out.array}[{b}] = {src.array}[{b}] * {vec4(scale[4 * b:4 * b + 4])} + "
-                        f"{vec4(offset[4 * b:4 * b + 4])};")
+        scaled = ir.Bin("*", src.block_ir(b), ir.Vec4.of(scale[4 * b:4 * b + 4]))
+        ctx.body.append(ir.Assign(out.block_ir(b), ir.Sum((scaled, ir.Vec4.of(offset[4 * b:4 * b + 4])))))
     return out
 
 
-@emitter("select", separate_inputs=True)
+@emitter("select", separate_inputs=True, lowered=True)
 def emit_select(ctx, node, srcs, bundle):
     lanes = node.params["lanes"]
     ctx.plan.append(PlanRow(node.id, "select", f"{node.in_dim}->{len(lanes)}"))
@@ -67,18 +69,17 @@ def emit_select(ctx, node, srcs, bundle):
         return Value(owner.array, owner.offset + start, len(lanes))    # a contiguous slice: no copy
     out = declare(ctx, f"v_{node.id}", len(lanes))
     for k, i in enumerate(lanes):
-        v, j = flat[i]
-        ctx.body.append(f"{out.lane(k)} = {v.lane(j) if v.kind == 'float' else f'float({v.lane(j)})'};")
+        ctx.body.append(ir.Assign(out.lane_ir(k), _float_lane(*flat[i])))
     return out
 
 
-def _fold(terms: list[str], op: str) -> str:
+def _fold(terms: list, op: str):
     if op in ("max", "min"):
         expr = terms[0]
         for t in terms[1:]:
-            expr = f"{op}({expr}, {t})"
+            expr = ir.Call(op, (expr, t), "float")
         return expr
-    return " + ".join(terms)
+    return ir.Sum(tuple(terms))
 
 
 def _runs(src, groups: int, size: int):
@@ -89,15 +90,19 @@ def _runs(src, groups: int, size: int):
     out = []
     for g in range(groups):
         first = g * size // 4
-        out.append([(f"{src.array}[{first + k}]", min(4, size - 4 * k)) for k in range(blocks(size))])
+        out.append([(src.block_ir(first + k), min(4, size - 4 * k)) for k in range(blocks(size))])
     return out
 
 
-def _mask(used: int) -> str:
-    return "vec4(1.0)" if used == 4 else vec4([1.0] * used + [0.0] * (4 - used))
+def _mask(used: int):
+    return ir.Vec4.splat(1.0) if used == 4 else ir.Vec4.of([1.0] * used + [0.0] * (4 - used))
 
 
-@emitter("reduce")
+def _dot(a, b):
+    return ir.Call("dot", (a, b), "float")
+
+
+@emitter("reduce", lowered=True)
 def emit_reduce(ctx, node, src, bundle):
     op, groups = node.params["op"], node.params["groups"]
     size = node.in_dim // groups
@@ -106,17 +111,31 @@ def emit_reduce(ctx, node, src, bundle):
     runs = _runs(src, groups, size) if op in ("sum", "mean", "norm") else None
     for g in range(groups):
         if runs is not None:   # dot products of whole blocks (padding lanes masked out)
-            terms = [f"dot({b}, {_mask(u)})" if op != "norm" else f"dot({b} * {_mask(u)}, {b})" for b, u in runs[g]]
+            terms = [_dot(b, _mask(u)) if op != "norm" else _dot(ir.Bin("*", b, _mask(u)), b) for b, u in runs[g]]
         else:
-            lanes = [src.lane(g * size + i) for i in range(size)]
-            terms = [f"{x} * {x}" for x in lanes] if op == "norm" else lanes
+            lanes = [src.lane_ir(g * size + i) for i in range(size)]
+            terms = [ir.Bin("*", x, x) for x in lanes] if op == "norm" else lanes
         expr = _fold(terms, "sum" if op in ("norm", "mean") else op)
-        expr = f"sqrt({expr})" if op == "norm" else f"({expr}) / {flt(size)}" if op == "mean" else expr
-        ctx.body.append(f"{out.lane(g)} = {expr};")
+        if op == "norm":
+            expr = ir.Call("sqrt", (expr,), "float")
+        elif op == "mean":
+            expr = ir.Bin("/", ir.Paren(expr), ir.Lit(size))
+        ctx.body.append(ir.Assign(out.lane_ir(g), expr))
     return out
 
 
-@emitter("layer_norm")
+def _inverse_deviation(r: str, squares: list, size: int, eps: float):
+    """float r = 1 / sqrt(mean of the squares + eps) (inversesqrt may be an approximation: the GLSL spec
+    allows 2 ulp)."""
+    variance = ir.Sum((ir.Bin("/", ir.Paren(ir.Sum(tuple(squares))), ir.Lit(size)), ir.Lit(eps)))
+    return ir.Declare("float", r, init=ir.Bin("/", ir.Lit(1.0), ir.Call("sqrt", (variance,), "float")))
+
+
+def _mean(m: str, terms: list, size: int):
+    return ir.Declare("float", m, init=ir.Bin("/", ir.Paren(ir.Sum(tuple(terms))), ir.Lit(size)))
+
+
+@emitter("layer_norm", lowered=True)
 def emit_layer_norm(ctx, node, src, bundle):
     p = node.params
     groups, n = p["groups"], node.out_dim
@@ -128,59 +147,60 @@ def emit_layer_norm(ctx, node, src, bundle):
     m, r, d = f"m_{node.id}", f"r_{node.id}", f"d_{node.id}"
     runs = _runs(src, groups, size)
     for g in range(groups):
+        mean, scale = ir.Var(f"{m}_{g}"), ir.Var(f"{r}_{g}")
         if runs is not None:   # whole blocks: the deviations d = (x - mean) * mask, one vec4 each
             parts = runs[g]
-            ctx.body.append(f"float {m}_{g} = ({' + '.join(f'dot({x}, {_mask(u)})' for x, u in parts)}) / {flt(size)};")
-            ctx.body += [f"vec4 {d}_{g}_{k} = ({x} - {m}_{g}) * {_mask(u)};" for k, (x, u) in enumerate(parts)]
-            squares = " + ".join(f"dot({d}_{g}_{k}, {d}_{g}_{k})" for k in range(len(parts)))
-            ctx.body.append(f"float {r}_{g} = 1.0 / sqrt(({squares}) / {flt(size)} + {flt(p['eps'])});")
-            for k in range(len(parts)):
-                expr = f"{d}_{g}_{k} * {r}_{g}"
+            devs = [ir.Var(f"{d}_{g}_{k}") for k in range(len(parts))]
+            ctx.body.append(_mean(mean.name, [_dot(x, _mask(u)) for x, u in parts], size))
+            ctx.body += [ir.Declare("vec4", dev.name, init=ir.Bin("*", ir.Paren(ir.Bin("-", x, mean)), _mask(u)))
+                         for dev, (x, u) in zip(devs, parts)]
+            ctx.body.append(_inverse_deviation(scale.name, [_dot(dev, dev) for dev in devs], size, p["eps"]))
+            for k, dev in enumerate(devs):
+                expr = ir.Bin("*", dev, scale)
                 if w is not None:
-                    expr += f" * {vec4(_block(w, k))} + {vec4(_block(b, k))}"
-                ctx.body.append(f"{out.array}[{g * size // 4 + k}] = {expr};")
+                    expr = ir.Sum((ir.Bin("*", expr, ir.Vec4.of(_block(w, k))), ir.Vec4.of(_block(b, k))))
+                ctx.body.append(ir.Assign(out.block_ir(g * size // 4 + k), expr))
             continue
-        lanes = [src.lane(g * size + i) for i in range(size)]
-        ctx.body.append(f"float {m}_{g} = ({' + '.join(lanes)}) / {flt(size)};")
-        squares = " + ".join(f"({x} - {m}_{g}) * ({x} - {m}_{g})" for x in lanes)
-        # 1 / sqrt: inversesqrt may be an approximation (the GLSL spec allows 2 ulp)
-        ctx.body.append(f"float {r}_{g} = 1.0 / sqrt(({squares}) / {flt(size)} + {flt(p['eps'])});")
-        for i, x in enumerate(lanes):
-            expr = f"({x} - {m}_{g}) * {r}_{g}"
+        lanes = [src.lane_ir(g * size + i) for i in range(size)]
+        ctx.body.append(_mean(mean.name, lanes, size))
+        devs = [ir.Paren(ir.Bin("-", x, mean)) for x in lanes]
+        ctx.body.append(_inverse_deviation(scale.name, [ir.Bin("*", dev, dev) for dev in devs], size, p["eps"]))
+        for i, dev in enumerate(devs):
+            expr = ir.Bin("*", dev, scale)
             if w is not None:
-                expr = f"{expr} * {flt(w[i])} + {flt(b[i])}"
-            ctx.body.append(f"{out.lane(g * size + i)} = {expr};")
+                expr = ir.Sum((ir.Bin("*", expr, ir.Lit(w[i])), ir.Lit(b[i])))
+            ctx.body.append(ir.Assign(out.lane_ir(g * size + i), expr))
     return out
 
 
 _COMPARE = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
 
 
-@emitter("where", separate_inputs=True)
+@emitter("where", separate_inputs=True, lowered=True)
 def emit_where(ctx, node, srcs, bundle):
     n, op = node.out_dim, _COMPARE[node.params["op"]]
     ctx.plan.append(PlanRow(node.id, "where", f"{4 * n}->{n}", flops=2 * n))
     flat = [(v, i) for v in srcs for i in range(v.dim)]
-    lane = lambda k: _as_float(*flat[k])  # noqa: E731
+    lane = lambda k: _float_lane(*flat[k])  # noqa: E731
     out = declare(ctx, f"v_{node.id}", n)
     for i in range(n):
-        ctx.body.append(f"{out.lane(i)} = {lane(i)} {op} {lane(n + i)} ? {lane(2 * n + i)} : {lane(3 * n + i)};")
+        choice = ir.Choose(op, lane(i), lane(n + i), lane(2 * n + i), lane(3 * n + i))
+        ctx.body.append(ir.Assign(out.lane_ir(i), choice))
     return out
 
 
 # --- two branches ---------------------------------------------------------------------------
 
-BINARY_EXPRESSIONS = {  # for floats and vec4s alike
-    "add": lambda a, b: f"{a} + {b}",
-    "sub": lambda a, b: f"{a} - {b}",
-    "mul": lambda a, b: f"{a} * {b}",
-    "div": lambda a, b: f"{a} / {b}",
-    "atan2": lambda a, b: f"inshade_atan2({a}, {b})",
+BINARY_EXPRESSIONS = {  # for floats and vec4s alike (t: which)
+    "add": lambda a, b, t: ir.Bin("+", a, b),
+    "sub": lambda a, b, t: ir.Bin("-", a, b),
+    "mul": lambda a, b, t: ir.Bin("*", a, b),
+    "div": lambda a, b, t: ir.Bin("/", a, b),
+    "atan2": lambda a, b, t: ir.Call("inshade_atan2", (a, b), t),
 }
 BINARY_FLOPS = {"add": 1, "sub": 1, "mul": 1, "div": 1, "atan2": 20}
 
 
-@emitter(*BINARY_EXPRESSIONS, separate_inputs=True)
 def emit_binary(ctx, node, srcs, bundle):
     n, op = node.out_dim, BINARY_EXPRESSIONS[node.type]
     ctx.plan.append(PlanRow(node.id, node.type, f"{2 * n}->{n}", flops=BINARY_FLOPS[node.type] * n))
@@ -190,14 +210,20 @@ def emit_binary(ctx, node, srcs, bundle):
     if len(srcs) == 2 and all(s.dim == n and s.offset % 4 == 0 and s.kind == "float" for s in srcs):
         a, b = srcs
         ka, kb = a.offset // 4, b.offset // 4
-        ctx.body += [f"{out.array}[{k}] = {op(f'{a.array}[{ka + k}]', f'{b.array}[{kb + k}]')};" for k in range(n // 4)]
+        ctx.body += [ir.Assign(out.block_ir(k), op(a.block_ir(ka + k), b.block_ir(kb + k), "vec4"))
+                     for k in range(n // 4)]
         first = 4 * (n // 4)
     else:
         first = 0
     lanes = [(v, i) for v in srcs for i in range(v.dim)]
     for i in range(first, n):
-        ctx.body.append(f"{out.lane(i)} = {op(_as_float(*lanes[i]), _as_float(*lanes[n + i]))};")
+        ctx.body.append(ir.Assign(out.lane_ir(i), op(_float_lane(*lanes[i]), _float_lane(*lanes[n + i]), "float")))
     return out
+
+
+# atan2's helper works on a float's bits (torch's values at zeros and infinities): GLSL only so far
+emitter("add", "sub", "mul", "div", separate_inputs=True, lowered=True)(emit_binary)
+emitter("atan2", separate_inputs=True)(emit_binary)
 
 
 # --- int_gather -----------------------------------------------------------------------------
