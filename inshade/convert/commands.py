@@ -62,6 +62,9 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     p.add_argument("--example", metavar="INPUTS.npy",
                    help="[N, inputs] float32 rows for the check (default: 64 uniform rows in [-1, 1] for ONNX, "
                         "[0, 1] for tiny-cuda-nn); random rows in their range are added")
+    p.add_argument("--target", action="append", choices=compute_targets, default=[], dest="targets",
+                   help="also check the code in this shading language on its driver (wgpu on this machine's Vulkan "
+                        "device; slang through slangpy), against the source; repeatable")
     p.add_argument("--no-check", action="store_true", help="write without running the GLSL against the source")
     p.add_argument("--force", action="store_true", help="write into a folder that already holds files")
     p.add_argument("--ops", action="store_true", help="list the operations each source lowers, and exit")
@@ -110,7 +113,7 @@ def cmd_convert(args) -> int:
             raise ConvertError(f"--semantic {item!r}: expected PORT=SEMANTIC, e.g. rgb=srgb")
         semantics[port] = semantic
     common = dict(name=args.name, as_=args.as_, check=not args.no_check, force=args.force, quiet=args.quiet,
-                  example=example, semantics=semantics, colour=args.colour)
+                  example=example, semantics=semantics, colour=args.colour, targets=args.targets)
     if kind == "tiny-cuda-nn":
         if args.params is None:
             raise ConvertError(f"{source}: a tiny-cuda-nn config needs its PARAMS file too: "

@@ -26,7 +26,7 @@ KIND = "imported"   # the kind of a user's own network (techniques/imported draw
 def export(module, example_input, folder, *, name: str | None = None, input_names=None, output_names=None,
            check: bool = True, as_: str | None = None, force: bool = False, quiet: bool = False,
            limits: dict | None = None, check_storage: str = "auto", semantics: dict | None = None,
-           colour: str | None = None):
+           colour: str | None = None, targets=()):
     """Capture ``module`` on ``example_input`` (a [batch, features] tensor, or a tuple of them, one
     per input; an input of higher rank, e.g. [1, N, F] or [H, W, F], takes its leading axes as the
     batch, and `inshade eval` then takes and gives arrays of that rank), lower it onto bundle components, check its GLSL against the module through the GL
@@ -38,7 +38,9 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     ``semantics``: {port name: semantic}, e.g. ``{"y": "srgb"}`` for colour fitted to sRGB pixels
     (the display decodes it to linear). ``colour`` ("srgb" | "linear", with ``as_="image"``): what the
     shown colour is; a network fitted to image pixels (PNG, PIL, skimage.data: sRGB-encoded) is "srgb".
-    Not given, it is taken as linear, with a warning.
+    Not given, it is taken as linear, with a warning. ``targets``: shading languages beside OpenGL's
+    GLSL whose code is checked too, each on its own driver (``"wgsl"``, ``"vulkan"``, ``"hlsl"``,
+    ``"slang"``: codegen.targets); the bundle is written only if every check holds.
     Returns the saved ``Bundle``. Raises ``ConvertError`` (one line) for what cannot be lowered."""
     import torch
 
@@ -92,14 +94,15 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
     source = module if lead == 1 else LeadingAxes(module, lead)
     return finish(bundle, source, [r.numpy() for r in rows], folder, check=check, quiet=quiet, limits=limits, as_=as_,
-                  check_storage=check_storage, semantics=semantics, colour=colour)
+                  check_storage=check_storage, semantics=semantics, colour=colour, targets=targets)
 
 
 def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, limits=None,
            as_: str | None = None, check_storage: str = "auto", semantics: dict | None = None,
-           colour: str | None = None):
+           colour: str | None = None, targets=()):
     """Plan the GLSL once against ``limits`` (default: the driver's), check it (through the GL driver,
-    against ``source``), record the check, make the bundle what ``as_`` (and ``colour``, for an image)
+    against ``source``) and the code of each of ``targets`` (on its driver, planned against its API's
+    limits), record the checks, make the bundle what ``as_`` (and ``colour``, for an image)
     says, write it (and its scene.json for 3D) into ``folder``, which the caller claimed before any
     work. Returns the written bundle."""
     import json
@@ -144,6 +147,8 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, 
         if not result.ok:
             raise ConvertError(f"{result.line()}; nothing written (check=False / --no-check writes it anyway)")
         bundle.meta["provenance"]["check"] = {**result.record(), "example_rows_left_out": left_out}
+        if targets:
+            bundle.meta["provenance"]["check"]["targets"] = _check_targets(source, bundle, x, shapes, targets, quiet)
     scene = None
     if as_ is not None:
         bundle, scene = apply_shown_as(bundle, as_, flat, colour)
@@ -160,10 +165,10 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, 
 
 def convert_onnx(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
             force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None,
-            colour: str | None = None):
-    """An ONNX file (or ModelProto) -> a bundle folder, its GLSL checked against onnxruntime on
-    ``example`` ([N, in_dim] rows, or one input's whole tensor; default uniform [-1, 1]) plus
-    random rows in its range."""
+            colour: str | None = None, targets=()):
+    """An ONNX file (or ModelProto) -> a bundle folder, its GLSL (and the code of each of ``targets``, as
+    ``export``) checked against onnxruntime on ``example`` ([N, in_dim] rows, or one input's whole
+    tensor; default uniform [-1, 1]) plus random rows in its range."""
     from inshade import asset_folder
     from inshade.port_layout import LayoutError, port_shape, to_rows
 
@@ -186,7 +191,31 @@ def convert_onnx(source, folder, *, name: str | None = None, as_: str | None = N
     bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
     parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
     return finish(bundle, model, parts, folder, check=check, quiet=quiet, as_=as_, semantics=semantics,
-                  colour=colour)
+                  colour=colour, targets=targets)
+
+
+def _check_targets(source, bundle, x, shapes, targets, quiet: bool) -> dict:
+    """Each target's code on its driver against ``source`` (planned against the target API's limits): the
+    records, or ConvertError naming the first target past the rule or unable to run."""
+    from inshade.codegen.targets import TargetError, target as find_target
+
+    from .check import check as run_check
+
+    records = {}
+    for name in dict.fromkeys(targets):
+        try:
+            if find_target(name).opengl:
+                raise ValueError(f"{name} is OpenGL's GLSL, which is always checked; targets are the other "
+                                 "shading languages")
+            result = run_check(source, bundle, x, shapes=shapes, target=name)
+        except (TargetError, ValueError, RuntimeError) as exc:
+            raise ConvertError(f"target {name}: {exc}") from None
+        if not quiet:
+            print(result.line(), file=sys.stderr)
+        if not result.ok:
+            raise ConvertError(f"{result.line()}; nothing written")
+        records[name] = result.record()
+    return records
 
 
 def _flat(outputs) -> list:
