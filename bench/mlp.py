@@ -55,14 +55,21 @@ def _int_list(text: str) -> list[int]:
 
 
 def _mode_list(text: str) -> list[str]:
-    from inshade.codegen import STORAGE_MODES
+    from inshade.codegen import OPENGL_STORAGE_MODES
 
     modes = [v.strip() for v in text.split(",") if v.strip()]
-    bad = [m for m in modes if m not in STORAGE_MODES]
+    bad = [m for m in modes if m not in OPENGL_STORAGE_MODES]
     if bad or not modes:
         raise argparse.ArgumentTypeError(f"unknown storage {', '.join(bad) or text!r} "
-                                         f"(choose from {', '.join(STORAGE_MODES)})")
+                                         f"(choose from {', '.join(OPENGL_STORAGE_MODES)})")
     return modes
+
+
+def _beyond_opengl_storages() -> tuple[str, ...]:
+    """Weight storages only the other shading languages have (storage buffers): timed on each target too."""
+    from inshade.codegen import OPENGL_STORAGE_MODES, STORAGE_MODES
+
+    return tuple(m for m in STORAGE_MODES if m not in OPENGL_STORAGE_MODES)
 
 
 @dataclass
@@ -221,7 +228,7 @@ def run(args) -> int:
             entry["onnxruntime"] = bench_onnxruntime(net, x, ref, args.repeats)
             entry["targets"] = []
             for target in args.targets:
-                for mode in args.storage:
+                for mode in (*args.storage, *_beyond_opengl_storages()):
                     bar.set_postfix_str(f"{name} {target} {mode}")
                     r = bench_target(bundle, target, mode, x, ref, args.repeats)
                     if "seconds" in r:

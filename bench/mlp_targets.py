@@ -38,10 +38,10 @@ def bench_target(bundle, target: str, storage: str, x: np.ndarray, ref: np.ndarr
     from inshade.runtime.compute import compute_device, device_name, prepare
 
     limits = None if target == "slang" else compute_device().planning_limits()
-    gen = generate(bundle, target=target, storage=storage, limits=limits)
     try:
+        gen = generate(bundle, target=target, storage=storage, limits=limits)
         run = prepare(gen, x, target)
-    except ValueError as exc:   # a driver that cannot bind this storage here says why
+    except ValueError as exc:   # a storage past the limits, or a driver that cannot bind it here, says why
         return {"target": target, "storage": storage, "skipped": str(exc)}
     start = time.perf_counter()
     run.run()

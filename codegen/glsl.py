@@ -102,6 +102,35 @@ class UniformBlockResource:
 
 
 @dataclass
+class StorageBufferResource:
+    """A read-only storage buffer (std430; for the vec4 / mat4 arrays it holds, the same bytes as
+    std140): what a uniform block holds, past a uniform block's size cap, where the language has
+    storage buffers (Vulkan, WebGPU, D3D's StructuredBuffer)."""
+
+    name: str
+    data: bytes
+    instance: str = ""
+    members: tuple = ()
+
+    @property
+    def nbytes(self) -> int:
+        return len(self.data)
+
+
+SAMPLER_SUFFIX = "_sampler"   # a filtered texture's sampler, where a language keeps samplers apart
+
+
+def resource_bindings(resources: list) -> dict:
+    """Where each resource is bound in a language with explicit bindings (Vulkan, WebGPU, D3D): the
+    resources in order, then a sampler for each linearly filtered texture (``<texture>_sampler``:
+    its filter and wrap), in the same order."""
+    out = {r.name: i for i, r in enumerate(resources)}
+    filtered = [r.name for r in resources if isinstance(r, TextureResource) and r.filter == "linear"]
+    out.update({name + SAMPLER_SUFFIX: len(resources) + i for i, name in enumerate(filtered)})
+    return out
+
+
+@dataclass
 class PlanRow:
     node: str
     type: str

@@ -20,8 +20,10 @@ from typing import Union
 
 @dataclass(frozen=True)
 class Lit:
-    """A float32 literal."""
+    """A float32 literal; ``text``: its decimal spelling where a formula writes one (``0.99``), which
+    every target reads as the same float32, instead of the round-trip spelling (``%.9g``)."""
     value: float
+    text: str = ""
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,34 @@ class Member:
 
 
 @dataclass(frozen=True)
+class Swizzle:
+    """Some lanes of a vector, in order (``lanes`` "xy", "xyz"): spelled the same in every target."""
+    base: "Expr"
+    lanes: str
+
+
+@dataclass(frozen=True)
+class Vector:
+    """A vector of another type than vec4 (``vec2``, ``vec3``, ``ivec2``..``ivec4``, ``uvec3``) from
+    one item per lane."""
+    type: str
+    items: tuple
+
+
+@dataclass(frozen=True)
+class Bool:
+    value: bool
+
+
+@dataclass(frozen=True)
+class TextureArg:
+    """A texture handed to a library function; a filtered one comes with its sampler in languages
+    that keep samplers apart from textures (``t, t_sampler``)."""
+    name: str
+    filtered: bool = False
+
+
+@dataclass(frozen=True)
 class Vec4:
     """A vec4 from four float expressions, or one repeated (``splat``)."""
     items: tuple
@@ -77,7 +107,8 @@ class Mat4:
 
 @dataclass(frozen=True)
 class Bin:
-    """``a op b`` for + - * / of floats and vec4s (a float with a vec4 applies to every lane)."""
+    """``a op b`` for + - * / of floats and vec4s (a float with a vec4 applies to every lane), and
+    + - * ^ & | << of uints (wrapping modulo 2^32)."""
     op: str
     a: "Expr"
     b: "Expr"
@@ -128,6 +159,12 @@ class Convert:
 
 
 @dataclass(frozen=True)
+class Out:
+    """A variable handed to a function that writes it (an ``out`` parameter; WGSL passes ``&name``)."""
+    var: Var
+
+
+@dataclass(frozen=True)
 class Fetch:
     """The texel at integer (x, y) of level 0 of a 2D float texture, exactly (no filtering)."""
     texture: str
@@ -135,7 +172,7 @@ class Fetch:
     y: Int
 
 
-Expr = Union[Lit, Int, Var, Index, Lane, Member, Vec4, Mat4, MatVec, Bin, Sum, Paren, Choose, Call, Convert, Fetch]
+Expr = Union[Lit, Int, Var, Index, Lane, Member, Swizzle, Vector, Bool, TextureArg, Vec4, Mat4, MatVec, Bin, Sum, Paren, Choose, Call, Convert, Fetch, Out]
 
 
 # --- statements ------------------------------------------------------------------------------------
@@ -181,11 +218,19 @@ class Comment:
 
 @dataclass(frozen=True)
 class Group:
-    """Statements that belong together (one layer's output block): printed as consecutive lines."""
+    """Statements that belong together (one layer's output block): printed as consecutive lines, or
+    on one line (``one_line``: declarations that read as one, ``uvec3 c; uvec3 e;``)."""
     body: tuple
+    one_line: bool = False
 
 
-Stmt = Union[Declare, Assign, For, Scope, Comment, Group]
+@dataclass(frozen=True)
+class Do:
+    """A call made for what it writes to its ``Out`` arguments (``f(x, y);``)."""
+    call: Call
+
+
+Stmt = Union[Declare, Assign, For, Scope, Comment, Group, Do]
 
 
 # --- module-level declarations -----------------------------------------------------------------------
@@ -198,13 +243,20 @@ class UniformBlock:
     instance: str
     members: tuple
     comment: str = ""
+    storage: bool = False     # a read-only storage buffer (std430) rather than a uniform block
 
 
 @dataclass(frozen=True)
-class Texture2D:
-    """A 2D float texture read texel by texel (``Fetch``)."""
+class Texture:
+    """A float texture of ``dims`` 2 or 3, read texel by texel (``Fetch``, or a library function);
+    ``filtered``: also read with hardware filtering, through a sampler of its own
+    (``<name>_sampler``) in languages that keep samplers apart; ``integer``: its texels are uints
+    (read texel by texel only)."""
     name: str
     comment: str = ""
+    dims: int = 2
+    filtered: bool = False
+    integer: bool = False
 
 
 @dataclass(frozen=True)
@@ -216,4 +268,4 @@ class ConstArray:
     comment: str = ""
 
 
-Global = Union[UniformBlock, Texture2D, ConstArray, Comment]
+Global = Union[UniformBlock, Texture, ConstArray, Comment]

@@ -28,8 +28,15 @@ GL33_MINIMUMS = {
     "GL_MAX_TEXTURE_IMAGE_UNITS": 16,
     "GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS": 48,
     "GL_MAX_DRAW_BUFFERS": 8,
+    # GLSL 3.30 and ES 3.00 have no storage buffers
+    "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 0,
+    "GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS": 0,
 }
 
+
+# storage buffers a stage keeps for the caller (a compute pass's inputs and outputs): a network's own
+# storage buffers plan around them
+STORAGE_BUFFERS_RESERVED = 2
 
 # Mesa's llvmpipe ends every loop of a pixel once its loops, all together, have iterated 65535
 # times (LP_MAX_TGSI_LOOP_ITERATIONS, shared by every loop in a shader): the work past it is lost

@@ -41,6 +41,8 @@ WEBGPU = _limits(
     MAX_FRAGMENT_UNIFORM_BLOCKS=(12, "maxUniformBuffersPerShaderStage"),
     MAX_TEXTURE_IMAGE_UNITS=(16, "maxSampledTexturesPerShaderStage"),
     MAX_COMBINED_TEXTURE_IMAGE_UNITS=(16, "maxSampledTexturesPerShaderStage"),
+    MAX_SHADER_STORAGE_BLOCK_SIZE=(134217728, "maxStorageBufferBindingSize"),
+    MAX_FRAGMENT_SHADER_STORAGE_BLOCKS=(8, "maxStorageBuffersPerShaderStage"),
     MAX_DRAW_BUFFERS=(8, "maxColorAttachments"))
 # Direct3D 11 at feature level 11_0 (the floor Unity and Unreal ship for D3D11 and D3D12)
 D3D11 = _limits(
@@ -51,6 +53,8 @@ D3D11 = _limits(
     MAX_FRAGMENT_UNIFORM_BLOCKS=(14, "D3D11_COMMONSHADER_CONSTANT_BUFFER_API_SLOT_COUNT"),
     MAX_TEXTURE_IMAGE_UNITS=(128, "D3D11_COMMONSHADER_INPUT_RESOURCE_SLOT_COUNT"),
     MAX_COMBINED_TEXTURE_IMAGE_UNITS=(128, "D3D11_COMMONSHADER_INPUT_RESOURCE_SLOT_COUNT"),
+    MAX_SHADER_STORAGE_BLOCK_SIZE=(134217728, "D3D11_REQ_RESOURCE_SIZE_IN_MEGABYTES_EXPRESSION_A_TERM (128 MiB)"),
+    MAX_FRAGMENT_SHADER_STORAGE_BLOCKS=(128, "D3D11_COMMONSHADER_INPUT_RESOURCE_SLOT_COUNT"),
     MAX_DRAW_BUFFERS=(8, "D3D11_SIMULTANEOUS_RENDER_TARGET_COUNT"))
 # Vulkan 1.0's required minimums (every conformant driver has at least these)
 VULKAN = _limits(
@@ -60,6 +64,8 @@ VULKAN = _limits(
     MAX_FRAGMENT_UNIFORM_BLOCKS=(12, "maxPerStageDescriptorUniformBuffers"),
     MAX_TEXTURE_IMAGE_UNITS=(16, "maxPerStageDescriptorSampledImages"),
     MAX_COMBINED_TEXTURE_IMAGE_UNITS=(16, "maxPerStageDescriptorSampledImages"),
+    MAX_SHADER_STORAGE_BLOCK_SIZE=(134217728, "maxStorageBufferRange"),
+    MAX_FRAGMENT_SHADER_STORAGE_BLOCKS=(4, "maxPerStageDescriptorStorageBuffers"),
     MAX_DRAW_BUFFERS=(4, "maxColorAttachments"))
 
 _GL = GLSLPrinter()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import ir
 from .glsl import TextureResource
 from .limits import LimitError, limit, source
 
@@ -44,8 +45,7 @@ def feature_textures(ctx, node_id: str, table: np.ndarray, precision: str, log2w
         width = min(4, feats - 4 * g)
         name = ctx.name(node_id, f"table{g}")
         data = np.ascontiguousarray(table[:, 4 * g:4 * g + width], dtype=np_dtype)
-        ctx.globals.append(f"uniform sampler2D {name};  // {node_id}: features {4 * g}..{4 * g + width - 1} "
-                           f"of {what}, {precision}")
+        ctx.globals.append(ir.Texture(name, f"{node_id}: features {4 * g}..{4 * g + width - 1} of {what}, {precision}"))
         ctx.resources.append(TextureResource(name, rows_data(data, log2w, rows), fdtype))
         groups.append((name, width))
     return groups
@@ -56,11 +56,11 @@ def texture_formats(groups, precision: str) -> str:
     return " + ".join(f"{CHANNELS[w]}{FLOAT_FORMATS[precision][2]}" for _, w in groups)
 
 
-def store_group(ctx, out, first: int, width: int, fetch: str, scratch: str) -> None:
+def store_group(ctx, out, first: int, width: int, fetch: ir.Expr, scratch: str) -> None:
     """Lanes ``first``.. of ``out`` from one texture's ``fetch`` (a vec4 expression): a whole block
     where the texture is RGBA (``first`` is then a multiple of 4), else through the vec4 ``scratch``."""
     if width == 4:
-        ctx.body.append(f"{out.array}[{first // 4}] = {fetch};")
+        ctx.body.append(ir.Assign(out.block_ir(first // 4), fetch))
         return
-    ctx.body.append(f"{scratch} = {fetch};")
-    ctx.body += [f"{out.lane(first + ch)} = {scratch}.{'xyzw'[ch]};" for ch in range(width)]
+    ctx.body.append(ir.Assign(ir.Var(scratch), fetch))
+    ctx.body += [ir.Assign(out.lane_ir(first + ch), ir.Lane(ir.Var(scratch), ch)) for ch in range(width)]

@@ -70,10 +70,10 @@ def declare(ctx: EmitContext, name: str, dim: int, spare: int = 0) -> Value:
     return Value(name, 0, dim)
 
 
-def swizzle_vec(v: Value, n: int) -> str:
-    """The first n lanes of v as a float/vecN expression (n <= 4)."""
+def swizzle(v: Value, n: int) -> ir.Expr:
+    """The first n lanes of v as one float / vecN expression (n <= 4)."""
     if v.offset % 4 == 0:
-        b = v.offset // 4
-        return f"{v.array}[{b}]" if n == 4 else f"{v.array}[{b}].{'xyzw'[:n]}"
-    parts = ", ".join(v.lane(i) for i in range(n))
-    return parts if n == 1 else f"vec{n}({parts})"
+        block = v.block_ir(v.offset // 4)
+        return block if n == 4 else ir.Swizzle(block, "xyzw"[:n])
+    lanes = tuple(v.lane_ir(i) for i in range(n))
+    return lanes[0] if n == 1 else ir.Vector(f"vec{n}", lanes)

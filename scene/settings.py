@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 
 from inshade import technique
-from inshade.codegen import FILTERS, OPTIONS, SHORTHANDS, STORAGE_MODES
+from inshade.codegen import FILTERS, OPENGL_STORAGE_MODES, OPTIONS, SHORTHANDS
 
 from .common import SceneError
 from .tonemap import TONEMAPS
@@ -35,7 +35,7 @@ def codegen_option_path(target: str) -> tuple[str, str]:
 
 # Codegen options every scene has, even when its file does not expose them in the UI.
 BUILTIN_SETTINGS = {
-    "storage": {"type": "choice", "default": "auto", "choices": list(STORAGE_MODES), "codegen": "storage",
+    "storage": {"type": "choice", "default": "auto", "choices": list(OPENGL_STORAGE_MODES), "codegen": "storage",
                 "label": "weight storage"},
     "lut_filter": {"type": "choice", "default": "exact", "choices": list(FILTERS), "codegen": "lut_filter",
                    "label": "LUT filtering"},

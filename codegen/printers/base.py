@@ -5,27 +5,48 @@ declarations and loops; the walk, the indentation and the sums are the same ever
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 from inshade.shaders import find_chunk
 
 from .. import ir
-from ..glsl import flt
+from ..glsl import SAMPLER_SUFFIX, flt
 
 INDENT = "    "
+_INCLUDE = re.compile(r"^\s*#include\s+<([^>]+)>\s*$")
 
 
 class Unprintable(ValueError):
     """Code a target's printer cannot spell (a GLSL-only statement from a component without a lowering)."""
 
 
-def library_chunk(name: str, language: str) -> str:
-    """The text of a library chunk's version in ``language`` (``shaders/lib/<name>.<language>``),
-    pasted into a standalone module."""
-    path = find_chunk(name, suffix=f".{language}")
-    if path is None:
-        raise Unprintable(f"{language}: the library chunk <{name}> has no {language} version ({name}.{language})")
-    return path.read_text().rstrip("\n")
+def library_source(names, suffixes: tuple[str, ...]) -> list[str]:
+    """The library chunks ``names`` in another shading language, pasted into a standalone module:
+    each chunk's version with the first of ``suffixes`` it has (``.wgsl``; ``.vulkan.glsl`` before
+    ``.glsl``), its ``#include <dep>`` lines replaced by the dependencies (each pasted once, first)."""
+    done, out = set(), []
+
+    def paste(name: str) -> None:
+        if name in done:
+            return
+        done.add(name)
+        path = next((p for p in (find_chunk(name, suffix=s) for s in suffixes) if p is not None), None)
+        if path is None:
+            raise Unprintable(f"{suffixes[0][1:]}: the library chunk <{name}> has no version in that language "
+                              f"({name}{suffixes[0]})")
+        lines = []
+        for line in path.read_text().rstrip("\n").split("\n"):
+            match = _INCLUDE.match(line)
+            if match:
+                paste(match.group(1))
+            else:
+                lines.append(line)
+        out.append("\n".join(lines))
+
+    for name in names:
+        paste(name)
+    return out
 
 
 @dataclass
@@ -57,7 +78,7 @@ class Printer:
         return getattr(self, f"_{type(e).__name__.lower()}")(e)
 
     def _lit(self, e: ir.Lit) -> str:
-        return flt(e.value)
+        return e.text or flt(e.value)
 
     def _int(self, e: ir.Int) -> str:
         return e.text
@@ -74,6 +95,18 @@ class Printer:
 
     def _member(self, e: ir.Member) -> str:
         return f"{self.expr(e.base)}.{e.name}"
+
+    def _swizzle(self, e: ir.Swizzle) -> str:
+        return f"{self.expr(e.base)}.{e.lanes}"
+
+    def _vector(self, e: ir.Vector) -> str:
+        return f"{self.types[e.type]}({', '.join(self.expr(i) for i in e.items)})"
+
+    def _bool(self, e: ir.Bool) -> str:
+        return "true" if e.value else "false"
+
+    def _texturearg(self, e: ir.TextureArg) -> str:
+        return f"{e.name}, {e.name}{SAMPLER_SUFFIX}" if e.filtered else e.name
 
     def _sum(self, e: ir.Sum) -> str:
         return " + ".join(self.expr(t) for t in e.terms)
@@ -102,6 +135,9 @@ class Printer:
     def _mat4(self, e: ir.Mat4) -> str:
         return f"{self.types['mat4']}({', '.join(self.expr(i) for i in e.items)})"
 
+    def _out(self, e: ir.Out) -> str:
+        return self.expr(e.var)
+
     # --- statements ---
     def lines(self, stmts, depth: int = 0) -> list[str]:
         out = []
@@ -116,7 +152,12 @@ class Printer:
         raise Unprintable(f"{self.language}: GLSL text has no {self.language} spelling: {text.splitlines()[0]}")
 
     def _s_group(self, s: ir.Group, depth: int) -> list[str]:
+        if s.one_line:
+            return [INDENT * depth + " ".join(line.strip() for line in self.lines(s.body))]
         return self.lines(s.body, depth)
+
+    def _s_do(self, s: ir.Do, depth: int) -> list[str]:
+        return [INDENT * depth + f"{self.expr(s.call)};"]
 
     def _s_comment(self, s: ir.Comment, depth: int) -> list[str]:
         return [INDENT * depth + f"// {s.text}"]

@@ -1,12 +1,11 @@
 """GLSL: 3.30, 4.50 and ES 3.00 for OpenGL (a chunk the runtime's resolver assembles, library
 chunks by ``#include``) and 4.50 for Vulkan (a standalone chunk: library chunks pasted in,
-explicit set/binding layout, textures read without a sampler: GL_EXT_samplerless_texture_functions)."""
+explicit set/binding layout, textures read without a sampler (GL_EXT_samplerless_texture_functions)
+or, filtered, through a sampler of their own)."""
 from __future__ import annotations
 
-from inshade.shaders import flatten
-
 from .. import ir
-from .base import INDENT, Module, Printer
+from .base import INDENT, SAMPLER_SUFFIX, Module, Printer, library_source
 
 # the set the network's resources are bound in (an evaluation or host shader uses others)
 VULKAN_SET = 0
@@ -15,10 +14,14 @@ SAMPLERLESS = "#extension GL_EXT_samplerless_texture_functions : require"
 
 class GLSLPrinter(Printer):
     language = "glsl"
-    types = {"float": "float", "vec4": "vec4", "mat4": "mat4", "int": "int", "uint": "uint", "uvec4": "uvec4"}
+    types = {t: t for t in ("float", "vec2", "vec3", "vec4", "mat4", "int", "ivec2", "ivec3", "ivec4", "uint",
+                            "uvec3", "uvec4", "bool")}
 
     def legacy(self, text: str, depth: int) -> list[str]:
         return [INDENT * depth + line for line in text.split("\n")]
+
+    def _texturearg(self, e: ir.TextureArg) -> str:
+        return e.name   # a sampler2D/sampler3D: the texture with its filtering
 
     def _fetch(self, e: ir.Fetch) -> str:
         return f"texelFetch({e.texture}, ivec2({e.x.text}, {e.y.text}), 0)"
@@ -31,9 +34,10 @@ class GLSLPrinter(Printer):
             return f"// {g.text}"
         if isinstance(g, ir.UniformBlock):
             members = "".join(f"    {self.types[t]} {n}[{c}];\n" for t, n, c in g.members)
-            return f"{self.block_layout(g.block, bindings)} uniform {g.block} {{\n{members}}} {g.instance};"
-        if isinstance(g, ir.Texture2D):
-            return self.texture(g, bindings) + (f"  // {g.comment}" if g.comment else "")
+            kind = "readonly buffer" if g.storage else "uniform"
+            return f"{self.block_layout(g, bindings)} {kind} {g.block} {{\n{members}}} {g.instance};"
+        if isinstance(g, ir.Texture):
+            return self.texture(g, bindings) + (f"  // {g.comment}" if g.comment else "") + self.sampler(g, bindings)
         if isinstance(g, ir.ConstArray):
             t = self.types[g.type]
             items = [self.expr(i) for i in g.items]
@@ -41,11 +45,15 @@ class GLSLPrinter(Printer):
             return f"const {t} {g.name}[{len(items)}] = {t}[]{joined};"
         raise TypeError(f"unknown module-level declaration {g!r}")
 
-    def block_layout(self, block: str, bindings: dict) -> str:
-        return "layout(std140)"
+    def block_layout(self, g: ir.UniformBlock, bindings: dict) -> str:
+        return f"layout({'std430' if g.storage else 'std140'})"
 
-    def texture(self, g: ir.Texture2D, bindings: dict) -> str:
-        return f"uniform sampler2D {g.name};"
+    def texture(self, g: ir.Texture, bindings: dict) -> str:
+        return f"uniform {'u' * g.integer}sampler{g.dims}D {g.name};"
+
+    def sampler(self, g: ir.Texture, bindings: dict) -> str:
+        """A filtered texture's sampler, on a line of its own ("" where the sampler is the texture's)."""
+        return ""
 
     def include_lines(self, m: Module) -> list[str]:
         return [f"#include <{c}>" for c in m.includes]
@@ -75,11 +83,18 @@ class VulkanGLSLPrinter(GLSLPrinter):
     def legacy(self, text: str, depth: int) -> list[str]:
         return Printer.legacy(self, text, depth)
 
-    def block_layout(self, block: str, bindings: dict) -> str:
-        return f"layout(std140, set = {VULKAN_SET}, binding = {bindings[block]})"
+    def block_layout(self, g: ir.UniformBlock, bindings: dict) -> str:
+        return f"layout({'std430' if g.storage else 'std140'}, set = {VULKAN_SET}, binding = {bindings[g.block]})"
 
-    def texture(self, g: ir.Texture2D, bindings: dict) -> str:
-        return f"layout(set = {VULKAN_SET}, binding = {bindings[g.name]}) uniform texture2D {g.name};"
+    def _texturearg(self, e: ir.TextureArg) -> str:
+        return Printer._texturearg(self, e)
+
+    def texture(self, g: ir.Texture, bindings: dict) -> str:
+        return f"layout(set = {VULKAN_SET}, binding = {bindings[g.name]}) uniform {'u' * g.integer}texture{g.dims}D {g.name};"
+
+    def sampler(self, g: ir.Texture, bindings: dict) -> str:
+        name = g.name + SAMPLER_SUFFIX
+        return f"\nlayout(set = {VULKAN_SET}, binding = {bindings[name]}) uniform sampler {name};" if g.filtered else ""
 
     def global_(self, g, bindings: dict) -> str:
         if isinstance(g, str):
@@ -87,8 +102,8 @@ class VulkanGLSLPrinter(GLSLPrinter):
         return super().global_(g, bindings)
 
     def include_lines(self, m: Module) -> list[str]:
-        return [flatten(c).rstrip("\n") for c in m.includes]
+        return library_source(m.includes, (".vulkan.glsl", ".glsl"))
 
     def module(self, m: Module) -> str:
-        textures = any(isinstance(g, ir.Texture2D) for g in m.globals)
+        textures = any(isinstance(g, ir.Texture) for g in m.globals)
         return (SAMPLERLESS + "\n" if textures else "") + super().module(m)

@@ -9,14 +9,16 @@ with ``Load`` (no sampler)."""
 from __future__ import annotations
 
 from .. import ir
-from .base import INDENT, Module, Printer, Unprintable, library_chunk
+from .base import INDENT, SAMPLER_SUFFIX, Module, Printer, Unprintable, library_source
 
 SPACE = 0   # the Vulkan set / D3D space of the network's resources
 
 
 class HLSLPrinter(Printer):
     language = "hlsl"
-    types = {"float": "float", "vec4": "float4", "mat4": "float4x4", "int": "int", "uint": "uint", "uvec4": "uint4"}
+    types = {"float": "float", "vec2": "float2", "vec3": "float3", "vec4": "float4", "mat4": "float4x4", "int": "int",
+             "ivec2": "int2", "ivec3": "int3", "ivec4": "int4", "uint": "uint", "uvec3": "uint3", "uvec4": "uint4",
+             "bool": "bool"}
     builtins = {"roundEven": "round", "inversesqrt": "rsqrt", "fract": "frac", "mix": "lerp"}
 
     def _vec4(self, e: ir.Vec4) -> str:
@@ -41,12 +43,20 @@ class HLSLPrinter(Printer):
         if isinstance(g, ir.UniformBlock):
             members = "".join(f"    {'row_major ' if t == 'mat4' else ''}{self.types[t]} {n}[{c}];\n"
                               for t, n, c in g.members)
-            return (f"struct {g.block}_data {{\n{members}}};\n[[vk::binding({bindings[g.block]}, {SPACE})]]\n"
-                    + self.constant_buffer(g, f"register(b{registers[g.block]}, space{SPACE})"))
-        if isinstance(g, ir.Texture2D):
+            head = f"struct {g.block}_data {{\n{members}}};\n[[vk::binding({bindings[g.block]}, {SPACE})]]\n"
+            if g.storage:   # a structured buffer of one element, which the code names as it would a block
+                return (head + f"StructuredBuffer<{g.block}_data> {g.instance}_buffer : "
+                        f"register(t{registers[g.block]}, space{SPACE});\n#define {g.instance} {g.instance}_buffer[0]")
+            return head + self.constant_buffer(g, f"register(b{registers[g.block]}, space{SPACE})")
+        if isinstance(g, ir.Texture):
             comment = f"  // {g.comment}" if g.comment else ""
-            return (f"[[vk::binding({bindings[g.name]}, {SPACE})]] "
-                    f"Texture2D<float4> {g.name} : register(t{registers[g.name]}, space{SPACE});{comment}")
+            text = (f"[[vk::binding({bindings[g.name]}, {SPACE})]] "
+                    f"Texture{g.dims}D<{'uint4' if g.integer else 'float4'}> {g.name} : register(t{registers[g.name]}, space{SPACE});{comment}")
+            if g.filtered:
+                name = g.name + SAMPLER_SUFFIX
+                text += (f"\n[[vk::binding({bindings[name]}, {SPACE})]] "
+                         f"SamplerState {name} : register(s{registers[name]}, space{SPACE});")
+            return text
         if isinstance(g, ir.ConstArray):
             items = ",\n    ".join(self.expr(i) for i in g.items)
             return f"static const {self.types[g.type]} {g.name}[{len(g.items)}] = {{\n    {items}}};"
@@ -60,18 +70,21 @@ class HLSLPrinter(Printer):
 
     def module(self, m: Module) -> str:
         up = m.prefix.upper()
-        # D3D registers count per kind: textures t0.., constant buffers b0.., in plan order
-        kinds = {g.block if isinstance(g, ir.UniformBlock) else g.name: type(g)
-                 for g in m.globals if isinstance(g, (ir.UniformBlock, ir.Texture2D))}
-        registers = {}
-        for kind in (ir.UniformBlock, ir.Texture2D):
-            names = sorted((n for n, k in kinds.items() if k is kind), key=m.bindings.__getitem__)
-            registers.update({n: i for i, n in enumerate(names)})
+        # D3D registers count per class, in plan order: constant buffers b0.., textures and structured
+        # buffers t0.., samplers s0..
+        classes = {"b": [], "t": [], "s": []}
+        for g in m.globals:
+            if isinstance(g, ir.UniformBlock):
+                classes["t" if g.storage else "b"].append(g.block)
+            elif isinstance(g, ir.Texture):
+                classes["t"].append(g.name)
+                classes["s"] += [g.name + SAMPLER_SUFFIX] if g.filtered else []
+        registers = {n: i for names in classes.values() for i, n in enumerate(sorted(names, key=m.bindings.__getitem__))}
         uint_arg = f"in uint4 xu[{up}_IN_UINT_BLOCKS], " if m.uint_blocks else ""
         lines = [
             *m.comments,
             *(f"#define {name} {value}" for name, value in m.defines),
-            *(library_chunk(c, "hlsl") for c in m.includes),
+            *library_source(m.includes, (".hlsl",)),
             *(self.global_(g, m.bindings, registers) for g in m.globals),
             f"{self.visibility}void {m.prefix}_eval({uint_arg}in float4 x[{up}_IN_BLOCKS], "
             f"out float4 y[{up}_OUT_BLOCKS]) {{",

@@ -4,18 +4,21 @@ returning arrays of vec4<f32> (WGSL has no out parameters)."""
 from __future__ import annotations
 
 from .. import ir
-from .base import INDENT, Module, Printer, Unprintable, library_chunk
+from .base import INDENT, SAMPLER_SUFFIX, Module, Printer, Unprintable, library_source
 
 GROUP = 0   # the group the network's resources are bound in (an evaluation or host shader uses others)
 
 
 class WGSLPrinter(Printer):
     language = "wgsl"
-    types = {"float": "f32", "vec4": "vec4<f32>", "mat4": "mat4x4<f32>", "int": "i32", "uint": "u32",
-             "uvec4": "vec4<u32>"}
+    types = {"float": "f32", "vec2": "vec2<f32>", "vec3": "vec3<f32>", "vec4": "vec4<f32>", "mat4": "mat4x4<f32>",
+             "int": "i32", "ivec2": "vec2<i32>", "ivec3": "vec3<i32>", "ivec4": "vec4<i32>", "uint": "u32",
+             "uvec3": "vec3<u32>", "uvec4": "vec4<u32>", "bool": "bool"}
     builtins = {"roundEven": "round", "inversesqrt": "inverseSqrt"}
     # the library's overloads by argument count (WGSL functions have one signature each)
     overloads = {("inshade_softplus", 3): "inshade_softplus_bt"}
+    # library functions of more than one lane (a float call passes each as a vec4)
+    lane_args = {"inshade_atan2": 2}
 
     def _vec4(self, e: ir.Vec4) -> str:
         return f"vec4<f32>({', '.join(self.expr(i) for i in e.items)})"
@@ -26,14 +29,20 @@ class WGSLPrinter(Printer):
     def _fetch(self, e: ir.Fetch) -> str:
         return f"textureLoad({e.texture}, vec2<i32>({e.x.text}, {e.y.text}), 0)"
 
+    def _out(self, e: ir.Out) -> str:
+        return f"&{self.expr(e.var)}"     # WGSL passes what a function writes as a pointer
+
     def _call(self, e: ir.Call) -> str:
         name = self.overloads.get((e.fn, len(e.args)), self.builtins.get(e.fn, e.fn))
         if e.fn.startswith("inshade_") and e.type == "float":
-            # WGSL has no overloads: the library's functions take vec4s, a lane is one of them
-            first, *rest = (self.expr(a) for a in e.args)
-            return f"{name}({', '.join([f'vec4<f32>({first})', *rest])}).x"
-        # built-ins take arguments of one type: a float goes to every lane
-        if e.type == "vec4" and not e.fn.startswith("inshade_"):
+            # WGSL has no overloads: the library's functions take vec4s, a lane is one of them (the
+            # first argument, or the first lane_args[fn]; the others are parameters)
+            lanes = self.lane_args.get(e.fn, 1)
+            args = [f"vec4<f32>({a})" if i < lanes else a for i, a in enumerate(self.expr(a) for a in e.args)]
+            return f"{name}({', '.join(args)}).x"
+        # built-ins take arguments of one type: a float goes to every lane (GLSL's built-in names have
+        # no underscore; a library function's name has one)
+        if e.type == "vec4" and "_" not in e.fn:
             args = [f"vec4<f32>({self.expr(a)})" if isinstance(a, ir.Lit) else self.expr(a) for a in e.args]
             return f"{name}({', '.join(args)})"
         return f"{name}({', '.join(self.expr(a) for a in e.args)})"
@@ -55,10 +64,15 @@ class WGSLPrinter(Printer):
         if isinstance(g, ir.UniformBlock):
             members = "".join(f"    {n}: array<{self.types[t]}, {c}>,\n" for t, n, c in g.members)
             return (f"struct {g.block} {{\n{members}}}\n"
-                    f"@group({GROUP}) @binding({bindings[g.block]}) var<uniform> {g.instance}: {g.block};")
-        if isinstance(g, ir.Texture2D):
+                    f"@group({GROUP}) @binding({bindings[g.block]}) var<{'storage, read' if g.storage else 'uniform'}> "
+                    f"{g.instance}: {g.block};")
+        if isinstance(g, ir.Texture):
             comment = f"  // {g.comment}" if g.comment else ""
-            return f"@group({GROUP}) @binding({bindings[g.name]}) var {g.name}: texture_2d<f32>;{comment}"
+            text = f"@group({GROUP}) @binding({bindings[g.name]}) var {g.name}: texture_{g.dims}d<{'u32' if g.integer else 'f32'}>;{comment}"
+            if g.filtered:
+                name = g.name + SAMPLER_SUFFIX
+                text += f"\n@group({GROUP}) @binding({bindings[name]}) var {name}: sampler;"
+            return text
         if isinstance(g, ir.ConstArray):
             t = f"array<{self.types[g.type]}, {len(g.items)}>"
             items = ",\n    ".join(self.expr(i) for i in g.items)
@@ -72,7 +86,7 @@ class WGSLPrinter(Printer):
         lines = [
             *m.comments,
             *(f"const {name}: i32 = {value};" for name, value in m.defines),
-            *(library_chunk(c, "wgsl") for c in m.includes),
+            *library_source(m.includes, (".wgsl",)),
             *(self.global_(g, m.bindings) for g in m.globals),
             f"fn {m.prefix}_eval({', '.join(args)}) -> array<vec4<f32>, {up}_OUT_BLOCKS> {{",
             *([INDENT + "var xu = xu_in;"] if m.uint_blocks else []),

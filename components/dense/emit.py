@@ -6,8 +6,10 @@ multiplies input block i into output block o. Weight placement is a per-layer ch
 - inline:  literals written straight into the expressions (fastest to run on every driver
            measured, slowest to compile when big)
 - ubo:     one std140 uniform block per layer (weights swap without recompiling)
+- ssbo:    one read-only storage buffer per layer, the same bytes (no uniform block size cap; Vulkan,
+           WebGPU and D3D only: OpenGL's GLSL 3.30 and ES 3.00 have none)
 - texture: rows of an RGBA32F/RGBA16F texture read with texelFetch (any width)
-All three give the same function signature and the same numbers (fp32 storage).
+All give the same function signature and the same numbers (fp32 storage).
 
 How the code is shaped, and why (measured with `inshade bench mlp` on Mesa 22.3 llvmpipe,
 LLVM 15, 256-bit, 2 cores; see the bench report for numbers):
@@ -32,10 +34,12 @@ layer's products emit_products.py, the loops over layers emit_layer_loop.py.
 from __future__ import annotations
 
 from inshade.codegen import ir
-from inshade.codegen.glsl import UniformBlockResource
+from inshade.codegen.glsl import StorageBufferResource, UniformBlockResource
 from inshade.codegen.registry import Fused, emitter, network_step
 from inshade.codegen.values import declare
-from inshade.components.dense.spec import STORAGE_MODES, TEXTURE_FORMATS
+from inshade.codegen.targets import TargetError
+from inshade.codegen.targets import target as find_target
+from inshade.components.dense.spec import OPENGL_STORAGE_MODES, STORAGE_MODES, TEXTURE_FORMATS
 
 # as modules: any module of this folder may be the first to import inshade.codegen, which loads this
 # module (and so the others) while that one is still loading
@@ -50,7 +54,12 @@ class DenseNetwork:
 
     @staticmethod
     def begin(ctx, bundle, calls: int) -> dict:
-        ctx.storage = emit_plan.choose_storage(bundle, ctx.option("dense", "storage"), ctx.limits)
+        requested = ctx.option("dense", "storage")
+        if find_target(ctx.target).opengl and requested not in OPENGL_STORAGE_MODES:
+            raise TargetError(f"storage {requested!r}: OpenGL's GLSL ({ctx.target}) has no storage buffers here "
+                              f"(GLSL 3.30 and ES 3.00 have none); choose from {', '.join(OPENGL_STORAGE_MODES)}, "
+                              "or a target that has them (vulkan, wgsl, hlsl, slang)")
+        ctx.storage = emit_plan.choose_storage(bundle, requested, ctx.limits)
         ctx.loop_chunks = emit_plan.loop_chunks(bundle, ctx.storage, ctx.limits, calls)
         ctx.weight_texture = emit_plan.WeightTexture(ctx)
         runs = emit_layer_loop.fold_runs(bundle, ctx.storage, ctx.loop_chunks, ctx.limits, calls)
@@ -62,7 +71,7 @@ class DenseNetwork:
     def end(ctx) -> None:
         texture = ctx.weight_texture.resource()
         if texture is not None:
-            ctx.globals.insert(0, ir.Texture2D(texture.name, "dense layers stored as texture rows"))
+            ctx.globals.insert(0, ir.Texture(texture.name, "dense layers stored as texture rows"))
             ctx.resources.insert(0, texture)
 
 
@@ -83,15 +92,18 @@ def _inline(ctx, node, out, wb, bb, chunk, row, src):
                             lambda o, i: ir.Index(ir.Var(f"{name}_W"), ir.Int(f"({o.text}) * {ib} + {i.text}")), src)
 
 
-def _ubo(ctx, node, out, wb, bb, chunk, row, src):
-    """Weights in a std140 uniform block of their own."""
+def _block(ctx, node, out, wb, bb, chunk, row, src, storage: bool = False):
+    """Weights in a std140 uniform block of their own (or, ``storage``, a read-only storage buffer: the
+    same bytes in std430)."""
     ob, ib = wb.shape[:2]
     name = ctx.name(node.id)
     data = emit_plan.std140(wb, bb)
     members = (("mat4", "W", ob * ib), ("vec4", "b", ob))
-    ctx.globals += [ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, std140 block of {len(data)} B"),
-                    ir.UniformBlock(f"{name}_block", name, members)]
-    ctx.resources.append(UniformBlockResource(f"{name}_block", data, name, members))
+    what = "std430 storage buffer" if storage else "std140 block"
+    ctx.globals += [ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, {what} of {len(data)} B"),
+                    ir.UniformBlock(f"{name}_block", name, members, storage=storage)]
+    ctx.resources.append((StorageBufferResource if storage else UniformBlockResource)(f"{name}_block", data, name,
+                                                                                    members))
     row.uniform_bytes = len(data)
     block = ir.Var(name)
     if ob * ib <= emit_plan.UBO_UNROLL_MAX_BLOCKS:
@@ -113,7 +125,8 @@ def _texture(ctx, node, out, wb, bb, chunk, row, src):
 
 
 # storage -> how a layer stored so is written
-_STORED = {"inline": _inline, "ubo": _ubo, "texture": _texture}
+_STORED = {"inline": _inline, "ubo": _block, "texture": _texture,
+           "ssbo": lambda *args: _block(*args, storage=True)}
 
 
 @emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4")}, lowered=True)

@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 
 from inshade.codegen.glsl import TextureResource, blocks
-from inshade.codegen.limits import LimitError, limit, loop_iteration_cap, source
+from inshade.codegen.limits import STORAGE_BUFFERS_RESERVED, LimitError, limit, loop_iteration_cap, source
 
 UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
                              # on unrolled UBO gathers: 32x3 took minutes); GPUs don't mind loops
-LOOP_CHUNK = {"ubo": 2, "texture": 1}  # output blocks unrolled inside a loop (measured best)
+LOOP_CHUNK = {"ubo": 2, "ssbo": 2, "texture": 1}  # output blocks unrolled inside a loop (measured best)
 # On a software renderer a looped layer's inputs are written out up to this many blocks (1024 lanes),
 # not looped over: an array read at a loop index is a per-lane gather on llvmpipe (a 512-wide layer's
 # check took 168 s to compile looping over its inputs, 13 s with them written out). GPU compilers
@@ -67,15 +67,15 @@ def inputs_written_max(limits: dict) -> int:
 
 def looped(mode: str, ob: int, ib: int) -> bool:
     """Whether a layer of ob x ib mat4 blocks stored as ``mode`` loops rather than unrolls."""
-    return (mode == "texture" or (mode == "ubo" and ob * ib > UBO_UNROLL_MAX_BLOCKS)
+    return (mode == "texture" or (mode in BLOCK_LIMITS and ob * ib > UBO_UNROLL_MAX_BLOCKS)
             or (mode == "inline" and ob * ib > UNROLL_MAX_BLOCKS))
 
 
 def choose_storage(bundle, requested: str, limits: dict) -> dict[str, tuple[str, str]]:
     """Storage per dense node, with the reason the plan report prints."""
     dense = [n for n in bundle.nodes if n.type == "dense"]
-    if requested == "ubo":
-        _check_ubo(dense, limits)
+    if requested in BLOCK_LIMITS:
+        _check_blocks(dense, requested, limits)
     if requested != "auto":
         return {n.id: (requested, "requested") for n in dense}
     floats = sum(blocks(n.in_dim) * blocks(n.out_dim) * 16 + blocks(n.out_dim) * 4 for n in dense)
@@ -158,21 +158,30 @@ def ubo_bytes(node) -> int:
     return blocks(node.in_dim) * blocks(node.out_dim) * 64 + blocks(node.out_dim) * 16
 
 
-def _check_ubo(dense, limits: dict) -> None:
-    """Explicit `ubo` storage: every block within GL_MAX_UNIFORM_BLOCK_SIZE, and no more blocks
-    than GL_MAX_FRAGMENT_UNIFORM_BLOCKS (one per layer)."""
-    name = "GL_MAX_UNIFORM_BLOCK_SIZE"
-    max_bytes = limit(limits, name)
+# a layer in a block of its own, by storage: (the block's size limit, the blocks-per-stage limit, what
+# the block is, blocks the stage keeps for the caller)
+BLOCK_LIMITS = {
+    "ubo": ("GL_MAX_UNIFORM_BLOCK_SIZE", "GL_MAX_FRAGMENT_UNIFORM_BLOCKS", "a uniform block", 0),
+    "ssbo": ("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", "GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS", "a storage buffer",
+             STORAGE_BUFFERS_RESERVED),
+}
+
+
+def _check_blocks(dense, mode: str, limits: dict) -> None:
+    """Explicit `ubo` / `ssbo` storage: every block within its size limit, and no more blocks (one per
+    layer, beside those the caller keeps) than a stage binds."""
+    size_name, count_name, what, reserved = BLOCK_LIMITS[mode]
+    max_bytes = limit(limits, size_name)
     for n in dense:
         size = ubo_bytes(n)
         if size > max_bytes:
-            raise LimitError(f"node {n.id}: dense {n.in_dim} -> {n.out_dim} as a uniform block needs {size} B; "
-                             f"{name} is {max_bytes} ({source(limits, name)}); use storage 'texture' or 'auto'")
-    name = "GL_MAX_FRAGMENT_UNIFORM_BLOCKS"
-    max_blocks = limit(limits, name)
-    if len(dense) > max_blocks:
-        raise LimitError(f"nodes {', '.join(n.id for n in dense)}: {len(dense)} dense layers as uniform blocks "
-                         f"need {len(dense)} blocks; {name} is {max_blocks} ({source(limits, name)}); "
+            raise LimitError(f"node {n.id}: dense {n.in_dim} -> {n.out_dim} as {what} needs {size} B; "
+                             f"{size_name} is {max_bytes} ({source(limits, size_name)}); use storage 'texture' or 'auto'")
+    max_blocks = limit(limits, count_name)
+    if len(dense) + reserved > max_blocks:
+        kept = f" beside the {reserved} the caller keeps" if reserved else ""
+        raise LimitError(f"nodes {', '.join(n.id for n in dense)}: {len(dense)} dense layers as {what} each "
+                         f"need {len(dense)} blocks{kept}; {count_name} is {max_blocks} ({source(limits, count_name)}); "
                          "use storage 'texture' or 'auto'")
 
 

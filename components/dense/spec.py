@@ -15,6 +15,8 @@ register(ComponentSpec(
 ))
 
 # codegen options of a dense layer (its emitter declares them): where the weights live, and the
-# texel format of the weight texture (float32 or float16)
-STORAGE_MODES = ("inline", "ubo", "texture", "auto")
+# texel format of the weight texture (float32 or float16). `ssbo` (a read-only storage buffer per
+# layer) is for the languages that have them (Vulkan, WebGPU, D3D); OpenGL's GLSL 3.30 and ES 3.00 do not.
+STORAGE_MODES = ("inline", "ubo", "texture", "ssbo", "auto")
+OPENGL_STORAGE_MODES = ("inline", "ubo", "texture", "auto")
 TEXTURE_FORMATS = ("f4", "f2")

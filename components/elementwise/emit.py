@@ -81,10 +81,6 @@ def _infinite_at_zero(node_type: str, p: dict) -> bool:
 _LOOPING = ("fmod", "remainder")
 
 
-# ops whose library helpers work on a float's bits (special values, subnormals): GLSL only so far
-_GLSL_ONLY = ("log", "log2", "floor", "ceil", "fmod", "remainder", "power")
-
-
 def emit_activation(ctx, node, src, bundle):
     ctx.plan.append(PlanRow(node.id, node.type, f"{node.in_dim}", flops=_FLOPS[node.type] * node.in_dim))
     if node.type == "identity":
@@ -106,5 +102,4 @@ def emit_activation(ctx, node, src, bundle):
     return out
 
 
-emitter(*(op for op in ELEMENTWISE if op not in _GLSL_ONLY), lowered=True)(emit_activation)
-emitter(*_GLSL_ONLY)(emit_activation)
+emitter(*ELEMENTWISE, lowered=True)(emit_activation)

@@ -1,5 +1,5 @@
-"""The feature axis of an imported network: the emitters (torch twins in torch_twin.py); all but atan2
-and int_gather write lowered code (every target), those two GLSL for OpenGL.
+"""The feature axis of an imported network: the emitters (torch twins in torch_twin.py), writing
+lowered code (every target).
 
 Per-lane maps (affine, select, reduce, layer_norm, where): constants are literals, since they are
 per-lane vectors, not weight matrices.
@@ -14,7 +14,8 @@ never used whole); otherwise lane by lane.
 int_gather: the node's program is straight-line uint32 code (GLSL's uint arithmetic wraps modulo
 2^32, as the twin reduces its int64 results), one `uint` per entry; each index then reads its row
 from the table, stored as 2D textures in rows of 2^n texels (codegen/texture_rows.py), one per 4
-features, float32 (texelFetch returns the stored floats exactly); int_gather.glsl reads a row.
+features, float32 (a texel read returns the stored floats exactly); int_gather.glsl reads a row (and
+its .vulkan.glsl, .wgsl, .hlsl versions).
 """
 from __future__ import annotations
 
@@ -221,28 +222,30 @@ def emit_binary(ctx, node, srcs, bundle):
     return out
 
 
-# atan2's helper works on a float's bits (torch's values at zeros and infinities): GLSL only so far
-emitter("add", "sub", "mul", "div", separate_inputs=True, lowered=True)(emit_binary)
-emitter("atan2", separate_inputs=True)(emit_binary)
+emitter("add", "sub", "mul", "div", "atan2", separate_inputs=True, lowered=True)(emit_binary)
 
 
 # --- int_gather -----------------------------------------------------------------------------
 
-INT_EXPRESSIONS = {
-    "lane": lambda src, a: f"uint(int({src.lane(a)}))",   # toward 0, two's complement bits
-    "const": lambda src, c: f"{c}u",
-    "shl": lambda src, a, s: f"{a} << {s}u",
-    "add": lambda src, a, b: f"{a} + {b}",
-    "sub": lambda src, a, b: f"{a} - {b}",
-    "mul": lambda src, a, b: f"{a} * {b}",
-    "xor": lambda src, a, b: f"{a} ^ {b}",
-    "and": lambda src, a, b: f"{a} & {b}",
-    "or": lambda src, a, b: f"{a} | {b}",
+def _uint_op(sign: str):
+    return lambda src, a, b: ir.Bin(sign, ir.Var(a), ir.Var(b))
+
+
+INT_EXPRESSIONS = {   # uint arithmetic wraps modulo 2^32 in every target
+    "lane": lambda src, a: ir.Convert("uint", ir.Convert("int", src.lane_ir(a))),   # toward 0, two's complement bits
+    "const": lambda src, c: ir.Int(f"{c}u"),
+    "shl": lambda src, a, s: ir.Bin("<<", ir.Var(a), ir.Int(f"{s}u")),
+    "add": _uint_op("+"),
+    "sub": _uint_op("-"),
+    "mul": _uint_op("*"),
+    "xor": _uint_op("^"),
+    "and": _uint_op("&"),
+    "or": _uint_op("|"),
 }
 ENTRY_ARGS = {"shl": (True, False), "lane": (False,), "const": (False,)}   # which arguments name entries
 
 
-@emitter("int_gather")
+@emitter("int_gather", lowered=True)
 def emit_int_gather(ctx, node, src, bundle):
     ctx.include("feature_axis/int_gather")
     p = node.params
@@ -251,25 +254,26 @@ def emit_int_gather(ctx, node, src, bundle):
     for k, (op, *args) in enumerate(p["program"]):
         named = ENTRY_ARGS.get(op, (True, True))
         args = [entry(a) if is_entry else a for a, is_entry in zip(args, named)]
-        ctx.body.append(f"uint {entry(k)} = {INT_EXPRESSIONS[op](src, *args)};")
+        ctx.body.append(ir.Declare("uint", entry(k), init=INT_EXPRESSIONS[op](src, *args)))
     log2w, n_rows = row_layout(node.id, "gathered table", table.shape[0], ctx.limits)
     feats = p["features"]
     if feats % 4 == 3:   # textures hold 1, 2 or 4 channels
         table = np.pad(table, ((0, 0), (0, 1)))
     groups = feature_textures(ctx, node.id, table, "f32", log2w, n_rows, f"{table.shape[0]} rows")
     out = declare(ctx, f"v_{node.id}", node.out_dim)
-    row = ctx.name(node.id, "row")
-    ctx.body.append(f"vec4 {row};")
+    row = ir.Var(ctx.name(node.id, "row"))
+    ctx.body.append(ir.Declare("vec4", row.name))
     for j, k in enumerate(p["indices"]):
         for g, (name, width) in enumerate(groups):
-            fetch = f"int_gather_row({name}, {log2w}, {entry(k)}, {p['rows']}u)"
+            fetch = ir.Call("int_gather_row", (ir.TextureArg(name), ir.Int(str(log2w)), ir.Var(entry(k)),
+                                               ir.Int(f"{p['rows']}u")))
             first = j * feats + 4 * g
             width = min(width, feats - 4 * g)
             if width == 4 and first % 4 == 0:
-                ctx.body.append(f"{out.array}[{first // 4}] = {fetch};")
+                ctx.body.append(ir.Assign(out.block_ir(first // 4), fetch))
                 continue
-            ctx.body.append(f"{row} = {fetch};")
-            ctx.body += [f"{out.lane(first + ch)} = {row}.{'xyzw'[ch]};" for ch in range(width)]
+            ctx.body.append(ir.Assign(row, fetch))
+            ctx.body += [ir.Assign(out.lane_ir(first + ch), ir.Lane(row, ch)) for ch in range(width)]
     ctx.plan.append(PlanRow(node.id, node.type, f"{len(p['program'])} uint ops, {len(p['indices'])} rows of {feats}",
                             "texture/exact", f"{texture_formats(groups, 'f32')} table of {table.shape[0]} rows, "
                             f"rows of {1 << log2w} texels", params=int(table.size), flops=len(p["program"]),

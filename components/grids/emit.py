@@ -1,5 +1,6 @@
-"""Multiresolution grid encodings as texture fetches: the GLSL emitter; torch twin in torch_twin.py (the
-rules in inshade/grid_layout.py), the level lookup in hash_grid.glsl.
+"""Multiresolution grid encodings as texture fetches: the emitter (lowered code calling the level lookup
+of hash_grid.glsl and its .wgsl / .hlsl versions); torch twin in torch_twin.py (the rules in
+inshade/grid_layout.py).
 
 Resources: the [rows, F] table (all levels, level l from row offset_l) as 2D textures in rows of 2^n
 texels (codegen/texture_rows.py: a table longer than GL_MAX_TEXTURE_SIZE wraps into rows), one
@@ -10,14 +11,15 @@ literals; each level reads 2^dims texels per texture.
 """
 from __future__ import annotations
 
-from inshade.codegen.glsl import PlanRow, flt
+from inshade.codegen import ir
+from inshade.codegen.glsl import PlanRow
 from inshade.codegen.registry import emitter
 from inshade.codegen.texture_rows import feature_textures, row_layout, store_group, texture_formats
 from inshade.codegen.values import declare
 from inshade.components import grid_node_levels
 from inshade.grid_layout import HASH_PRIMES
 
-@emitter("hash_grid", "dense_grid")
+@emitter("hash_grid", "dense_grid", lowered=True)
 def emit_grid(ctx, node, src, bundle):
     ctx.include("grids/hash_grid")
     p, dims = node.params, node.in_dim
@@ -28,15 +30,16 @@ def emit_grid(ctx, node, src, bundle):
     groups = feature_textures(ctx, node.id, table, p["precision"], log2w, n_rows,
                               f"{len(levels)} levels, {table.shape[0]} rows")
 
-    primes = HASH_PRIMES[p.get("hash", "coherent_prime")]
+    primes = ir.Vector("uvec3", tuple(ir.Int(f"{q}u") for q in HASH_PRIMES[p.get("hash", "coherent_prime")]))
     x, s = ctx.name(node.id, "x"), ctx.name(node.id, "s")
-    lanes = ", ".join(src.lane(i) for i in range(dims)) + (", 0.0" if dims == 2 else "")
-    ctx.body += [f"vec3 {x} = vec3({lanes});", f"vec4 {s};"]
+    lanes = tuple(src.lane_ir(i) for i in range(dims)) + ((ir.Lit(0.0),) if dims == 2 else ())
+    ctx.body += [ir.Declare("vec3", x, init=ir.Vector("vec3", lanes)), ir.Declare("vec4", s)]
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     for li, lv in enumerate(levels):
         for g, (name, width) in enumerate(groups):
-            call = (f"hg_level({name}, {log2w}, {x}, {dims}, {flt(lv.scale)}, {lv.resolution}u, {lv.rows}u, "
-                    f"{lv.offset}u, {'true' if lv.dense else 'false'}, uvec3({primes[0]}u, {primes[1]}u, {primes[2]}u))")
+            call = ir.Call("hg_level", (ir.TextureArg(name), ir.Int(str(log2w)), ir.Var(x), ir.Int(str(dims)),
+                                        ir.Lit(float(lv.scale)), ir.Int(f"{lv.resolution}u"), ir.Int(f"{lv.rows}u"),
+                                        ir.Int(f"{lv.offset}u"), ir.Bool(bool(lv.dense)), primes))
             store_group(ctx, out, li * feats + 4 * g, width, call, s)
 
     tex_bytes = sum(r.nbytes for r in ctx.resources[-len(groups):])

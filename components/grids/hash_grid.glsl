@@ -1,5 +1,6 @@
 // Multiresolution grid encodings (instant-NGP's hash grid, tiny-cuda-nn's DenseGrid): one level's
-// lookup. inshade/grid_layout.py states the rules, torch_twin.py is the torch twin; integer
+// lookup, for OpenGL and Vulkan GLSL (hash_grid.wgsl, hash_grid.hlsl for the others).
+// inshade/grid_layout.py states the rules, torch_twin.py is the torch twin; integer
 // work is uint32 wrap-around arithmetic, bit-identical to tiny-cuda-nn's.
 #include <lib/texture_rows>
 
@@ -10,6 +11,13 @@
 #define HG_PRECISE precise
 #else
 #define HG_PRECISE
+#endif
+
+// Vulkan GLSL reads the table without a sampler (GL_EXT_samplerless_texture_functions).
+#ifdef VULKAN
+#define HG_TABLE texture2D
+#else
+#define HG_TABLE sampler2D
 #endif
 
 // Row of vertex c within its level: dense index where the level's grid fits its rows, else the
@@ -28,7 +36,7 @@ uint hg_index(uvec3 c, int dims, uint res, uint rows, bool dense, uvec3 primes) 
 
 // One level: the 2^dims corners of x's cell weighted by prod_d (bit d ? f_d : 1 - f_d) and summed
 // in corner order (bit d of the corner number is axis d), as the torch twin does.
-vec4 hg_level(sampler2D table, int log2w, vec3 x, int dims, float scale, uint res, uint rows, uint offset,
+vec4 hg_level(HG_TABLE table, int log2w, vec3 x, int dims, float scale, uint res, uint rows, uint offset,
               bool dense, uvec3 primes) {
     HG_PRECISE vec4 p = vec4(scale) * vec4(x, 0.0) + vec4(0.5);
     vec4 g = floor(p);

@@ -8,11 +8,16 @@ sampler wraps with repeat.
 Option ``latent_pyramid.filter``: "exact" = 4 texelFetch at the chosen level with integer
 repeat wrap + fp32 mix (matches torch to fp32 rounding); "fast" = textureLod at the integer
 level (hardware bilinear within it; see tests/components/test_latent_pyramid.py for the measured bound).
+
+The code is lowered (codegen/ir.py): the lookups live in latent_pyramid.glsl and its .vulkan.glsl,
+.wgsl and .hlsl versions; the fast path hands each texture's sampler beside it where a language keeps
+samplers apart.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from inshade.codegen import ir
 from inshade.codegen.glsl import PlanRow, TextureResource
 from inshade.codegen.registry import emitter
 from inshade.codegen.values import declare
@@ -21,30 +26,32 @@ FILTERS = ("exact", "fast")
 _DTYPE = {"f16": ("f2", np.float16, 2), "f32": ("f4", np.float32, 4)}
 
 
-@emitter("latent_pyramid", options={"filter": (FILTERS, "exact")})
+@emitter("latent_pyramid", options={"filter": (FILTERS, "exact")}, lowered=True)
 def emit_latent_pyramid(ctx, node, src, bundle):
     ctx.include("latent_pyramid/latent_pyramid")
     mode = ctx.option("latent_pyramid", "filter")
+    filtered = mode == "fast"
     p = node.params
     res, levels, channels = p["resolution"], p["levels"], p["channels"]
     dtype, np_dtype, size = _DTYPE[p["precision"]]
     arrays = [bundle.tensor(node, f"level{k}") for k in range(levels)]
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     lvl = ctx.name(node.id, "level")
-    uv = f"vec2({src.lane(0)}, {src.lane(1)})"
-    ctx.body.append(f"int {lvl} = inshade_latent_level({src.lane(2)}, {levels});")
+    uv = ir.Vector("vec2", (src.lane_ir(0), src.lane_ir(1)))
+    ctx.body.append(ir.Declare("int", lvl, init=ir.Call("inshade_latent_level", (src.lane_ir(2), ir.Int(str(levels))),
+                                                        "int")))
     tex_bytes = 0
     for g in range(channels // 4):
         tname = ctx.name(node.id, f"t{g}")
         chain = [np.ascontiguousarray(a[..., 4 * g:4 * g + 4], dtype=np_dtype) for a in arrays]
-        ctx.globals.append(f"uniform sampler2D {tname};  // {node.id}: {res}x{res} latents, {levels} levels, "
-                           f"channels {4 * g}..{4 * g + 3}, {p['precision']}")
-        ctx.resources.append(TextureResource(tname, chain[0], dtype, "linear" if mode == "fast" else "nearest",
+        ctx.globals.append(ir.Texture(tname, f"{node.id}: {res}x{res} latents, {levels} levels, "
+                                      f"channels {4 * g}..{4 * g + 3}, {p['precision']}", 2, filtered))
+        ctx.resources.append(TextureResource(tname, chain[0], dtype, "linear" if filtered else "nearest",
                                              mips=tuple(chain[1:]), wrap="repeat"))
         tex_bytes += sum(c.size for c in chain) * size
-        expr = (f"inshade_latent_exact({tname}, {res}, {uv}, {lvl})" if mode == "exact"
-                else f"inshade_latent_fast({tname}, {uv}, {lvl})")
-        ctx.body.append(f"{out.array}[{g}] = {expr};")
+        texture = ir.TextureArg(tname, filtered)
+        args = (texture, uv, ir.Var(lvl)) if filtered else (texture, ir.Int(str(res)), uv, ir.Var(lvl))
+        ctx.body.append(ir.Assign(out.block_ir(g), ir.Call(f"inshade_latent_{mode}", args)))
     ctx.plan.append(PlanRow(node.id, "latent_pyramid", f"{res}x{res}x{channels}, {levels} levels ({p['precision']})",
                             f"texture/{mode}", f"{channels // 4} RGBA{'16F' if dtype == 'f2' else '32F'} mip chains",
                             params=int(sum(a.size for a in arrays)), flops=3 * 2 * channels,

@@ -1,4 +1,5 @@
-"""Differentiable Indirection arrays as textures: the GLSL emitter; torch twin in torch_twin.py.
+"""Differentiable Indirection arrays as textures: the emitter (lowered code calling the lookups of
+lookup_array.glsl and its .wgsl / .hlsl / .vulkan.glsl versions); torch twin in torch_twin.py.
 
 Each group of 4 channels is one texture: 1D and 2D arrays are 2D textures (a 1D array is
 N x 1, since ES has no sampler1D), 3D arrays are 3D textures, 4D arrays are 3D textures of
@@ -21,10 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from inshade.codegen.glsl import PlanRow, TextureResource, vec4
+from inshade.codegen import ir
+from inshade.codegen.glsl import PlanRow, TextureResource
 from inshade.codegen.limits import LimitError, limit, source
 from inshade.codegen.registry import emitter
-from inshade.codegen.values import declare, swizzle_vec
+from inshade.codegen.values import declare, swizzle
 from inshade.components.lookup_array.spec import FILTERS
 
 _DTYPE = {8: "f1", 16: "nu2", 32: "f4"}
@@ -118,7 +120,13 @@ def layout_groups(cells: np.ndarray, layout: dict):
     return [np.ascontiguousarray(cells[..., g:g + 4]) for g in range(0, c, 4)]
 
 
-@emitter("lookup_array", options={"filter": (FILTERS, "exact")})
+def _ints(values) -> ir.Expr:
+    """An int (one value) or ivecN of integer literals."""
+    items = tuple(ir.Int(str(v)) for v in values)
+    return items[0] if len(items) == 1 else ir.Vector(f"ivec{len(items)}", items)
+
+
+@emitter("lookup_array", options={"filter": (FILTERS, "exact")}, lowered=True)
 def emit_lookup_array(ctx, node, src, bundle):
     ctx.include("lookup_array/lookup_array")
     lut_filter = ctx.option("lookup_array", "filter")
@@ -127,38 +135,38 @@ def emit_lookup_array(ctx, node, src, bundle):
     layout = choose_layout(node.id, res, lut_filter, ctx.limits)
     cells = bundle.tensor(node, "cells")
     out = declare(ctx, f"v_{node.id}", node.out_dim)
-    sampler = "sampler3D" if d >= 3 and layout["kind"] != "wrap" else "sampler2D"
+    dims = 3 if d >= 3 and layout["kind"] != "wrap" else 2
     fn = f"inshade_lut{d}_{lut_filter}"
-    n = ", ".join(str(v) for v in res)
-    size = str(res[0]) if d == 1 else f"ivec{d}({n})"
+    size = [_ints(res)]
     if layout["kind"] == "fold":
         fn += "_fold"
-        size += ", ivec3(" + ", ".join("1" if a == layout["axis"] else "0" for a in range(3)) + ")"
+        size.append(_ints(int(a == layout["axis"]) for a in range(3)))
     elif layout["kind"] == "wrap":
         fn += "_wrapped"
-        size += f", {layout['shape'][0]}"
-    coord = swizzle_vec(src, d)
+        size.append(ir.Int(str(layout["shape"][0])))
+    coord = swizzle(src, d)
     if bits != 32:
         scale, offset = bundle.tensor(node, "scale"), bundle.tensor(node, "offset")
     tex_bytes = 0
     groups = layout_groups(cells, layout)
+    filtered = lut_filter == "fast"
     for g, data in enumerate(groups):
         tname = ctx.name(node.id, f"t{g}")
-        ctx.globals.append(f"uniform {sampler} {tname};  // {node.id}: {'x'.join(map(str, res))} cells, "
-                           f"channels {4 * g}..{4 * g + data.shape[-1] - 1}, {bits}-bit"
-                           + ("" if layout["kind"] == "native"
-                              else f", {layout['kind']} {'x'.join(map(str, layout['shape']))}"))
-        filt = "linear" if lut_filter == "fast" else "nearest"
-        ctx.resources.append(TextureResource(tname, data, _DTYPE[bits], filt))
+        ctx.globals.append(ir.Texture(tname, f"{node.id}: {'x'.join(map(str, res))} cells, "
+                                      f"channels {4 * g}..{4 * g + data.shape[-1] - 1}, {bits}-bit"
+                                      + ("" if layout["kind"] == "native"
+                                         else f", {layout['kind']} {'x'.join(map(str, layout['shape']))}"),
+                                      dims, filtered))
+        ctx.resources.append(TextureResource(tname, data, _DTYPE[bits], "linear" if filtered else "nearest"))
         tex_bytes += data.size * _BYTES[bits]
-        expr = f"{fn}({tname}, {size}, {coord})"
+        expr = ir.Call(fn, (ir.TextureArg(tname, filtered), *size, coord))
         if bits != 32:
             sl = np.zeros(4, np.float32)
             ol = np.zeros(4, np.float32)
             k = data.shape[-1]
             sl[:k], ol[:k] = scale[4 * g:4 * g + k], offset[4 * g:4 * g + k]
-            expr = f"{vec4(ol)} + {vec4(sl)} * {expr}"
-        ctx.body.append(f"{out.array}[{g}] = {expr};")
+            expr = ir.Bin("+", ir.Vec4.of(ol), ir.Bin("*", ir.Vec4.of(sl), expr))
+        ctx.body.append(ir.Assign(out.block_ir(g), expr))
     fetches = {"exact": 1 << d, "fast": 2 if d == 4 else 1}[lut_filter] * len(groups)
     storage = f"texture/{lut_filter}" + ("" if layout["kind"] == "native" else f" ({layout['kind']})")
     ctx.plan.append(PlanRow(node.id, "lookup_array", f"{'x'.join(map(str, res))}x{p['channels']} ({bits}-bit)",

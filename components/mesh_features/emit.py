@@ -1,5 +1,6 @@
-"""The UV-free feature hierarchy as texture fetches: the GLSL emitter; torch twin in torch_twin.py
-(the rules: models/mesh_features.py), shader functions in shaders/lib/mesh_features.glsl.
+"""The UV-free feature hierarchy as texture fetches: the emitter (lowered code calling the functions of
+shaders/lib/mesh_features.glsl and its .wgsl / .hlsl versions); torch twin in torch_twin.py (the rules:
+models/mesh_features.py).
 
 Resources, each a 2D texture whose rows are 2^n texels wide (the largest power of two that fits
 GL_MAX_TEXTURE_SIZE, or less for small data), item `index` at (index & (W-1), index >> n):
@@ -23,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from inshade.codegen.glsl import PlanRow, TextureResource, vec4
+from inshade.codegen import ir
+from inshade.codegen.glsl import PlanRow, TextureResource
 from inshade.codegen.registry import emitter
 from inshade.codegen.texture_rows import (feature_textures, row_layout, rows_data, store_group,
                                           texture_formats)
@@ -65,7 +67,7 @@ def topology_layout(corners, edges) -> str:
     return "owners16" if len(corners) <= OWNERS16_LIMIT else "pack32"
 
 
-@emitter("mesh_features", separate_inputs=True)
+@emitter("mesh_features", separate_inputs=True, lowered=True)
 def emit_mesh_features(ctx, node, srcs, bundle):
     ctx.include("lib/mesh_features")
     p = node.params
@@ -76,14 +78,14 @@ def emit_mesh_features(ctx, node, srcs, bundle):
 
     lanes = [(v, i) for v in srcs for i in range(v.dim)]
     (kv, ki), (t0v, t0i), (t1v, t1i) = lanes
-    as_float = lambda v, i: v.lane(i) if v.kind == "float" else f"float({v.lane(i)})"  # noqa: E731
-    k_expr = kv.lane(ki) if kv.kind == "uint" else f"uint({kv.lane(ki)})"
+    as_float = lambda v, i: v.lane_ir(i) if v.kind == "float" else ir.Convert("float", v.lane_ir(i))  # noqa: E731
+    k_expr = kv.lane_ir(ki) if kv.kind == "uint" else ir.Convert("uint", kv.lane_ir(ki))
 
     texels, face_tables, pack = TOPOLOGY_LAYOUTS[topology_layout(corners, edges)]
     per_face = f"{texels} texel{'s' * (texels > 1)} per face"
     topo_log2w, topo_rows = row_layout(node.id, f"topology texture ({per_face})", texels * faces, ctx.limits)
     topo = ctx.name(node.id, "topology")
-    ctx.globals.append(f"uniform usampler2D {topo};  // {node.id}: corner/edge owners of {faces} faces, {per_face}")
+    ctx.globals.append(ir.Texture(topo, f"{node.id}: corner/edge owners of {faces} faces, {per_face}", integer=True))
     packed = pack(corners, edges)
     ctx.resources.append(TextureResource(topo, rows_data(packed, topo_log2w, topo_rows), "u4"))
 
@@ -98,17 +100,20 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     k, t, c, e = (ctx.name(node.id, s) for s in ("k", "t", "corners", "edges"))
     idx, wt, s = ctx.name(node.id, "index"), ctx.name(node.id, "weight"), ctx.name(node.id, "s")
-    ctx.body += [f"uint {k} = {k_expr};",
-                 f"vec2 {t} = vec2({as_float(t0v, t0i)}, {as_float(t1v, t1i)});",
-                 f"uvec3 {c}; uvec3 {e};",
-                 f"{face_tables}({topo}, {k}, {topo_log2w}, {c}, {e});",
-                 f"uint {idx}[3]; vec3 {wt}; vec4 {s};"]
+    ctx.body += [ir.Declare("uint", k, init=k_expr),
+                 ir.Declare("vec2", t, init=ir.Vector("vec2", (as_float(t0v, t0i), as_float(t1v, t1i)))),
+                 ir.Group((ir.Declare("uvec3", c), ir.Declare("uvec3", e)), one_line=True),
+                 ir.Do(ir.Call(face_tables, (ir.TextureArg(topo), ir.Var(k), ir.Int(str(topo_log2w)),
+                                             ir.Out(ir.Var(c)), ir.Out(ir.Var(e))), "void")),
+                 ir.Group((ir.Declare("uint", idx, 3), ir.Declare("vec3", wt), ir.Declare("vec4", s)), one_line=True)]
     for level in range(levels):
-        ctx.body.append(f"mf_level_taps({k}, {t}, {level}, {size}u, {c}, {e}, {idx}, {wt});")
+        ctx.body.append(ir.Do(ir.Call("mf_level_taps", (
+            ir.Var(k), ir.Var(t), ir.Int(str(level)), ir.Int(f"{size}u"), ir.Var(c), ir.Var(e),
+            ir.Out(ir.Var(idx)), ir.Out(ir.Var(wt))), "void")))
         for g, (name, width) in enumerate(groups):
-            blend = f"mf_blend({name}, {tab_log2w}, {idx}, {wt})"
+            blend = ir.Call("mf_blend", (ir.TextureArg(name), ir.Int(str(tab_log2w)), ir.Var(idx), ir.Var(wt)))
             if u8:
-                blend = f"{vec4(lanes4(offset, g))} + {vec4(lanes4(scale, g))} * {blend}"
+                blend = ir.Bin("+", ir.Vec4.of(lanes4(offset, g)), ir.Bin("*", ir.Vec4.of(lanes4(scale, g)), blend))
             store_group(ctx, out, level * feats + 4 * g, width, blend, s)
 
     tex_bytes = sum(r.nbytes for r in ctx.resources[-1 - len(groups):])

@@ -2,6 +2,7 @@
 -o the GLSL, its manifest and the resources it binds; --program: an asset's whole pass."""
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -46,7 +47,20 @@ def add_parser(sub) -> None:
                                     "the asset's scene.json, else net)")
     p.add_argument("--no-gl", action="store_true", help="plan against GL 3.3's minimum limits instead of this "
                                                           "machine's (no GL context is made)")
+    p.add_argument("--limit", action="append", default=[], metavar="NAME=VALUE", type=_limit,
+                   help="plan with your device's value of a limit, by its GL name (e.g. GL_MAX_TEXTURE_SIZE=16384, "
+                        "GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS=16), over the target's or this machine's; repeatable")
     p.set_defaults(func=cmd_codegen)
+
+
+def _limit(text: str) -> tuple[str, int]:
+    from inshade.codegen import GL33_MINIMUMS
+
+    name, sep, value = text.partition("=")
+    if not sep or name not in GL33_MINIMUMS or not value.strip().isdigit():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE with NAME one of {', '.join(GL33_MINIMUMS)} and an "
+                                         f"integer VALUE, got {text!r}")
+    return name, int(value)
 
 
 def cmd_codegen(args) -> int:
@@ -195,6 +209,7 @@ def _codegen(args, b, prefix, output) -> int:
         from inshade.runtime.context import machine_limits
 
         limits = machine_limits()
+    limits = {**limits, **dict(args.limit)}
     gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
                    lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits, calls=args.calls)
     if output == STDOUT:   # the GLSL alone on stdout; the plan goes to stderr

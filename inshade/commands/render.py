@@ -25,9 +25,9 @@ def add_parsers(sub) -> None:
 def _add_program_overrides(p, shown: bool = True) -> None:
     """--storage and --lut-filter: the program's weight storage and lookup array path in place of
     the scene's (listed in --help where ``shown``; export-gltf and serve take them unlisted)."""
-    from inshade.codegen import FILTERS, STORAGE_MODES
+    from inshade.codegen import FILTERS, OPENGL_STORAGE_MODES
 
-    p.add_argument("--storage", choices=STORAGE_MODES,
+    p.add_argument("--storage", choices=OPENGL_STORAGE_MODES,
                    help="weight storage (default: the scene's, else auto)" if shown else argparse.SUPPRESS)
     p.add_argument("--lut-filter", choices=FILTERS,
                    help="lookup array path (default: the scene's, else exact)" if shown else argparse.SUPPRESS)

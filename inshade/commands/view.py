@@ -7,7 +7,7 @@ from .common import UserError, image_size, resolve
 
 
 def add_parser(sub) -> None:
-    from inshade.codegen import STORAGE_MODES
+    from inshade.codegen import OPENGL_STORAGE_MODES
 
     p = sub.add_parser("view", help="interactive viewer window (glfw + imgui-bundle)",
                        description="Open ASSET (a trained/ folder, scene.json or bundle) in a window, with a "
@@ -17,7 +17,7 @@ def add_parser(sub) -> None:
     p.add_argument("asset", nargs="?", help="asset folder or shipped asset name (default: none: choose one in the scene list)")
     p.add_argument("--width", type=image_size, default=1280)
     p.add_argument("--height", type=image_size, default=800)
-    p.add_argument("--storage", choices=STORAGE_MODES, help="override the scene's weight storage")
+    p.add_argument("--storage", choices=OPENGL_STORAGE_MODES, help="override the scene's weight storage")
     p.add_argument("--trained", help="folder the scene picker lists (default: the shipped trained/)")
     p.add_argument("--frames", type=int, help="run N frames and exit (scripts, smoke tests)")
     p.add_argument("--screenshot", help="with --frames: write this screenshot (PNG + EXR + sidecar) at the end")

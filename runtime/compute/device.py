@@ -2,10 +2,13 @@
 from __future__ import annotations
 
 import importlib
+import logging
 import os
 import tempfile
 from dataclasses import dataclass
 from functools import lru_cache
+
+from .textures import FEATURES as TEXTURE_FEATURES
 
 WGPU_BACKENDS = ["Vulkan", "Metal", "DX12"]
 INSTALL_HINT = "pip install 'inshade[compute]' (wgpu) and a Vulkan driver (Debian: mesa-vulkan-drivers)"
@@ -19,8 +22,18 @@ PLANNING_LIMITS = {
     "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": "max_uniform_buffers_per_shader_stage",
     "GL_MAX_TEXTURE_IMAGE_UNITS": "max_sampled_textures_per_shader_stage",
     "GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS": "max_sampled_textures_per_shader_stage",
+    "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": "max_storage_buffer_binding_size",
+    "GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS": "max_storage_buffers_per_shader_stage",
     "GL_MAX_DRAW_BUFFERS": "max_color_attachments",
 }
+
+
+class _DroppedDecorations(logging.Filter):
+    """wgpu's SPIR-V reader (naga) warns once per use that it drops ``precise`` (the NoContraction
+    decoration): a note about its own reading, not about the code, whose results are checked anyway."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "Unknown decoration NoContraction" not in record.getMessage()
 
 
 class ComputeUnavailable(RuntimeError):
@@ -58,12 +71,14 @@ def compute_device() -> ComputeDevice:
         raise ComputeUnavailable(f"the WebGPU/Vulkan/HLSL targets run through wgpu: {INSTALL_HINT}") from e
     # every backend but OpenGL: wgpu's GL backend makes its own EGL context current, which takes the
     # GL runtime's context away from it in the same process
+    logging.getLogger("wgpu").addFilter(_DroppedDecorations())
     extras = importlib.import_module("wgpu.backends.wgpu_native.extras")
     extras.set_instance_extras(backends=WGPU_BACKENDS)
     adapter = wgpu.gpu.request_adapter_sync(power_preference="high-performance")
     if adapter is None:
         raise ComputeUnavailable(f"wgpu found no device: {INSTALL_HINT}")
     limits = {k.replace("-", "_"): v for k, v in adapter.limits.items()}
-    device = adapter.request_device_sync(required_limits=dict(adapter.limits))
+    features = [f for f in TEXTURE_FEATURES if f in adapter.features]
+    device = adapter.request_device_sync(required_limits=dict(adapter.limits), required_features=features)
     info = adapter.info
     return ComputeDevice(wgpu, device, str(info.get("device", "?")), str(info.get("backend_type", "?")), limits)

@@ -6,7 +6,11 @@
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x + id.y * 65535u * 64u;
-    if (i >= arrayLength(&inshade_y) / u32(NET_OUT_BLOCKS)) { return; }
+    // the batch is as long as both buffers say: the inputs' length keeps their binding in the shader
+    // even for a network that reads none of them (a compiler drops an unread buffer, which the host binds)
+    if (i >= arrayLength(&inshade_y) / u32(NET_OUT_BLOCKS) || i >= arrayLength(&inshade_x) / u32(NET_IN_BLOCKS)) {
+        return;
+    }
     var x: array<vec4<f32>, NET_IN_BLOCKS>;
     for (var b: i32 = 0; b < NET_IN_BLOCKS; b++) { x[b] = inshade_x[i * u32(NET_IN_BLOCKS) + u32(b)]; }
     let y = net_eval(x);

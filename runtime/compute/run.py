@@ -9,22 +9,26 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.codegen.glsl import TextureResource, UniformBlockResource, blocks
+from inshade.bundle import UINT_INPUT_RANGE
+from inshade.codegen.glsl import (StorageBufferResource, TextureResource, UniformBlockResource, blocks,
+                                  resource_bindings)
 
 from .device import compute_device
+from .textures import sampler_entries, texture_view
 
 HERE = Path(__file__).resolve().parent
 WORKGROUP = 64
 MAX_GROUPS = 65535      # per dispatch dimension; the harness reads a second dimension past it
-# texels as wgpu names their formats: (moderngl dtype, channels) -> format
-TEXTURE_FORMATS = {("f4", 4): "rgba32float", ("f2", 4): "rgba16float", ("f4", 1): "r32float",
-                   ("f4", 2): "rg32float", ("f2", 1): "r16float", ("f2", 2): "rg16float"}
 # how each target's source becomes a shader module: (harness, compiler arguments or None for WGSL)
 SOURCES = {
     "wgsl": ("eval.wgsl", None),
     "vulkan": ("eval.vulkan.glsl", ["-V", "-S", "comp"]),
     "hlsl": ("eval.hlsl", ["-D", "-V", "-S", "comp", "-e", "main"]),
 }
+
+
+# the harnesses of the languages with a preprocessor read the uint inputs (xu) under #ifdef NET_IN_UINT_BLOCKS
+UINT_HARNESS = {"wgsl": "eval_uint.wgsl"}
 
 
 class ShaderBuildError(RuntimeError):
@@ -45,6 +49,27 @@ def spirv(source: str, args: list[str]) -> bytes:
         return out.read_bytes()
 
 
+def batch_arrays(generated, x) -> tuple[np.ndarray, np.ndarray | None]:
+    """A batch [N, in_dim] as the harness reads it: the float lanes padded to whole blocks, and the uint
+    lanes (a bundle's uint inputs, given as exact float integers as torch takes them) as uint32 blocks,
+    or None when the network has none."""
+    x = np.asarray(x, np.float32).reshape(len(x), -1)
+    if x.shape[1] != generated.in_dim:
+        raise ValueError(f"inputs must be [N, {generated.in_dim}], got {list(x.shape)}")
+    uint = np.zeros(generated.in_dim, bool)
+    uint[list(generated.uint_lanes)] = True
+    floats = np.zeros((len(x), generated.in_blocks * 4), np.float32)
+    floats[:, :generated.float_in_dim] = x[:, ~uint]
+    if not uint.any():
+        return floats, None
+    ids = x[:, uint]
+    if (ids < 0).any() or (ids >= UINT_INPUT_RANGE).any() or (ids != np.floor(ids)).any():
+        raise ValueError(f"uint inputs must be integers in 0..{UINT_INPUT_RANGE - 1}")
+    uints = np.zeros((len(x), generated.in_uint_blocks * 4), np.uint32)
+    uints[:, :ids.shape[1]] = ids.astype(np.uint32)
+    return floats, uints
+
+
 def shader_code(generated, target: str):
     """The module wgpu takes: WGSL text, or SPIR-V bytes compiled from GLSL / HLSL."""
     if generated.prefix != "net":
@@ -52,6 +77,8 @@ def shader_code(generated, target: str):
     if target not in SOURCES:
         raise ValueError(f"no compute driver for target {target!r} (drivers: {', '.join(SOURCES)})")
     harness, args = SOURCES[target]
+    if generated.uint_lanes:   # WGSL has no preprocessor: a harness of its own reads the uint inputs
+        harness = UINT_HARNESS.get(target, harness)
     source = generated.chunk + "\n" + (HERE / harness).read_text()
     if args is None:
         return source
@@ -60,25 +87,19 @@ def shader_code(generated, target: str):
 
 def _resource_entries(dev, generated) -> list[dict]:
     wgpu, device = dev.wgpu, dev.device
+    bindings = resource_bindings(generated.resources)
     entries = []
-    for binding, r in enumerate(generated.resources):
-        if isinstance(r, UniformBlockResource):
-            buf = device.create_buffer_with_data(data=r.data, usage=wgpu.BufferUsage.UNIFORM)
-            entries.append({"binding": binding, "resource": {"buffer": buf, "offset": 0, "size": len(r.data)}})
-        elif isinstance(r, TextureResource) and r.dims == 2 and not r.array and not r.mips:
-            data = np.ascontiguousarray(r.data)
-            h, w, c = data.shape
-            fmt = TEXTURE_FORMATS.get((r.dtype, c))
-            if fmt is None:
-                raise ValueError(f"texture {r.name}: {r.dtype} x {c} has no compute-driver format yet")
-            tex = device.create_texture(size=(w, h, 1), format=fmt,
-                                        usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
-            device.queue.write_texture({"texture": tex}, data.tobytes(), {"bytes_per_row": w * data.itemsize * c,
-                                                                          "rows_per_image": h}, (w, h, 1))
-            entries.append({"binding": binding, "resource": tex.create_view()})
+    for r in generated.resources:
+        if isinstance(r, (UniformBlockResource, StorageBufferResource)):
+            usage = wgpu.BufferUsage.UNIFORM if isinstance(r, UniformBlockResource) else wgpu.BufferUsage.STORAGE
+            buf = device.create_buffer_with_data(data=r.data, usage=usage)
+            resource = {"buffer": buf, "offset": 0, "size": len(r.data)}
+        elif isinstance(r, TextureResource):
+            resource = texture_view(dev, r)
         else:
-            raise ValueError(f"resource {r.name}: only uniform blocks and plain 2D textures run on the compute driver yet")
-    return entries
+            raise ValueError(f"resource {r.name}: {type(r).__name__} has no compute-driver binding")
+        entries.append({"binding": bindings[r.name], "resource": resource})
+    return entries + sampler_entries(dev, generated.resources, bindings)
 
 
 class Dispatch:
@@ -88,10 +109,8 @@ class Dispatch:
     def __init__(self, generated, x: np.ndarray, target: str):
         dev = compute_device()
         wgpu, device = dev.wgpu, dev.device
-        x = np.asarray(x, np.float32).reshape(len(x), -1)
-        self.n, self.out_dim, self.out_blocks = len(x), generated.out_dim, blocks(generated.out_dim)
-        padded = np.zeros((self.n, generated.in_blocks * 4), np.float32)
-        padded[:, :x.shape[1]] = x
+        padded, uints = batch_arrays(generated, x)
+        self.n, self.out_dim, self.out_blocks = len(padded), generated.out_dim, blocks(generated.out_dim)
         code = shader_code(generated, target)
         start = time.perf_counter()
         module = device.create_shader_module(code=code)
@@ -104,7 +123,9 @@ class Dispatch:
             device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
                                      entries=_resource_entries(dev, generated)),
             device.create_bind_group(layout=self.pipeline.get_bind_group_layout(1), entries=[
-                {"binding": 0, "resource": {"buffer": xin}}, {"binding": 1, "resource": {"buffer": self.yout}}])]
+                {"binding": 0, "resource": {"buffer": xin}}, {"binding": 1, "resource": {"buffer": self.yout}},
+                *([{"binding": 2, "resource": {"buffer": device.create_buffer_with_data(
+                    data=uints.tobytes(), usage=wgpu.BufferUsage.STORAGE)}}] if uints is not None else [])])]
         self.fence = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_SRC)
         self.device = device
 

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from inshade.codegen.glsl import UniformBlockResource, blocks
+from inshade.codegen.glsl import StorageBufferResource, TextureResource, UniformBlockResource, blocks
 
 from .device import ComputeUnavailable
+from .run import batch_arrays
 
 HARNESS = Path(__file__).resolve().parent / "eval.slang"
 INSTALL_HINT = "pip install slangpy"
@@ -64,15 +65,8 @@ class SlangDispatch:
 
     def __init__(self, generated, x: np.ndarray):
         spy, device = slang_device()
-        for r in generated.resources:
-            # slangpy 0.43's CPU device reads back garbage from every texture it makes (its own to_numpy too)
-            if not isinstance(r, UniformBlockResource) and device.info.type.name == "cpu":
-                raise ValueError(f"resource {r.name}: slangpy's CPU device cannot upload textures; run the slang "
-                                 "target with storage 'inline' or 'ubo' here")
-        x = np.asarray(x, np.float32).reshape(len(x), -1)
-        self.n, self.out_dim, self.out_blocks = len(x), generated.out_dim, blocks(generated.out_dim)
-        padded = np.zeros((self.n, generated.in_blocks * 4), np.float32)
-        padded[:, :x.shape[1]] = x
+        padded, uints = batch_arrays(generated, x)
+        self.n, self.out_dim, self.out_blocks = len(padded), generated.out_dim, blocks(generated.out_dim)
         source = generated.chunk + "\n" + HARNESS.read_text()
         # a session keeps each module by name: one name per source
         name = "inshade_" + hashlib.sha256(source.encode()).hexdigest()[:16]
@@ -80,12 +74,25 @@ class SlangDispatch:
         module = device.load_module_from_source(name, source)
         self.kernel = device.create_compute_kernel(device.link_program([module], [module.entry_point(ENTRY)]))
         self.compile_s = time.perf_counter() - start
+        for r in generated.resources:
+            # slangpy 0.43's CPU device reads back garbage from every texture it makes (its own to_numpy
+            # too): the module compiled, it cannot run here
+            if isinstance(r, TextureResource) and device.info.type.name == "cpu":
+                raise ValueError(f"resource {r.name}: slangpy's CPU device cannot upload textures; run the slang "
+                                 "target with storage 'inline', 'ubo' or 'ssbo' here")
         xin = device.create_buffer(data=padded, struct_size=16, usage=spy.BufferUsage.shader_resource)
         self.yout = device.create_buffer(element_count=self.n * self.out_blocks, struct_size=16,
                                          usage=spy.BufferUsage.unordered_access)
         self.values = {"inshade_x": xin, "inshade_y": self.yout}
+        if uints is not None:
+            self.values["inshade_xu"] = device.create_buffer(data=uints, struct_size=16,
+                                                             usage=spy.BufferUsage.shader_resource)
         for r in generated.resources:
-            self.values.update(_uniform_vars(r))
+            if isinstance(r, StorageBufferResource):   # a structured buffer of one element (the block's bytes)
+                self.values[f"{r.instance}_buffer"] = device.create_buffer(
+                    data=np.frombuffer(r.data, np.uint8).copy(), struct_size=len(r.data), usage=spy.BufferUsage.shader_resource)
+            else:
+                self.values.update(_uniform_vars(r))
         self.device = device
 
     def run(self) -> None:

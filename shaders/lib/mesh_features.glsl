@@ -1,8 +1,17 @@
-// UV-free hashed per-triangle feature hierarchy (models/mesh_features.py has the torch twin
-// and the rules, geometry/mesh_topology.py the owner tables). All integer work is uint32
-// wrap-around arithmetic, bit-exact with torch; the float work is the same float32 operations
-// in the same order.
+// UV-free hashed per-triangle feature hierarchy, for OpenGL and Vulkan GLSL (mesh_features.wgsl,
+// mesh_features.hlsl for the others; models/mesh_features.py has the torch twin and the rules,
+// geometry/mesh_topology.py the owner tables). All integer work is uint32 wrap-around arithmetic,
+// bit-exact with torch; the float work is the same float32 operations in the same order.
 #include <lib/texture_rows>
+
+// Vulkan GLSL reads the tables without a sampler (GL_EXT_samplerless_texture_functions).
+#ifdef VULKAN
+#define MF_TOPOLOGY utexture2D
+#define MF_TABLE texture2D
+#else
+#define MF_TOPOLOGY usampler2D
+#define MF_TABLE sampler2D
+#endif
 
 // The level's sub-triangle of a point with barycentrics t = (t0, t1): sub-vertices w[v] =
 // (W0, W1) (W2 = 2^level - W0 - W1) and their weights, in the order the rule lists them.
@@ -71,14 +80,14 @@ void mf_level_taps(uint k, vec2 t, int level, uint table_size, uvec3 corners, uv
 
 // Face k's owner tables from an RGB32UI texture holding 2 texels per face (24 bytes, no padding):
 // texel 2k = corners.xyz, texel 2k + 1 = edges.xyz. (highp: ES 3.00 has no default precision for usampler2D.)
-void mf_face_tables(highp usampler2D topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
+void mf_face_tables(highp MF_TOPOLOGY topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
     corners = texelFetch(topo, rows_texel(2u * k, log2w), 0).xyz;
     edges = texelFetch(topo, rows_texel(2u * k + 1u, log2w), 0).xyz;
 }
 
 // The same from 1 texel per face (12 bytes), every id < 2^16 and two to a channel:
 // (c0 | c1 << 16, c2 | e0 << 16, e1 | e2 << 16).
-void mf_face_tables16(highp usampler2D topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
+void mf_face_tables16(highp MF_TOPOLOGY topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
     uvec3 p = texelFetch(topo, rows_texel(k, log2w), 0).xyz;
     corners = uvec3(p.x & 0xFFFFu, p.x >> 16u, p.y & 0xFFFFu);
     edges = uvec3(p.y >> 16u, p.z & 0xFFFFu, p.z >> 16u);
@@ -86,7 +95,7 @@ void mf_face_tables16(highp usampler2D topo, uint k, int log2w, out uvec3 corner
 
 // The same from 1 RGBA32UI texel per face (16 bytes), every owner face < 2^16: the six owners two
 // to a channel, their slot bits in w (corners 2 bits each from bit 0, edges 4 bits each from bit 6).
-void mf_face_owners16(highp usampler2D topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
+void mf_face_owners16(highp MF_TOPOLOGY topo, uint k, int log2w, out uvec3 corners, out uvec3 edges) {
     uvec4 p = texelFetch(topo, rows_texel(k, log2w), 0);
     corners = uvec3(p.x & 0xFFFFu, p.x >> 16u, p.y & 0xFFFFu) << 2u
               | uvec3(p.w & 3u, (p.w >> 2u) & 3u, (p.w >> 4u) & 3u);
@@ -95,7 +104,7 @@ void mf_face_owners16(highp usampler2D topo, uint k, int log2w, out uvec3 corner
 }
 
 // One table row blended: ((w0 * f0) + w1 * f1) + w2 * f2, as torch sums it.
-vec4 mf_blend(sampler2D table, int log2w, uint index[3], vec3 weight) {
+vec4 mf_blend(MF_TABLE table, int log2w, uint index[3], vec3 weight) {
     return (weight.x * texelFetch(table, rows_texel(index[0], log2w), 0)
             + weight.y * texelFetch(table, rows_texel(index[1], log2w), 0))
            + weight.z * texelFetch(table, rows_texel(index[2], log2w), 0);

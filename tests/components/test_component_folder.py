@@ -52,8 +52,16 @@ def toy_session(folder: str) -> None:
     for storage in STORAGES:
         out, _, _ = evaluate(saved, x, storage=storage)
         errors[storage] = float(np.max(np.abs(np.asarray(out, np.float64) - ref) / np.maximum(1.0, np.abs(ref))))
+    from inshade.codegen import generate
+    from inshade.codegen.targets import TargetError
+
+    try:   # a GLSL-only component: the other shading languages refuse it in one line
+        generate(saved, target="wgsl")
+        refusal = ""
+    except TargetError as exc:
+        refusal = str(exc)
     print(json.dumps({"types": [n.type for n in saved.nodes], "check": log.getvalue().strip().splitlines()[-1],
-                      "errors": errors, "spread": float(np.ptp(ref))}))
+                      "errors": errors, "spread": float(np.ptp(ref)), "refusal": refusal}))
 
 
 def test_a_component_folder_goes_through_export_codegen_and_parity(tmp_path, gl):
@@ -67,6 +75,7 @@ def test_a_component_folder_goes_through_export_codegen_and_parity(tmp_path, gl)
     assert got["check"].endswith("(rule 1e-05): ok"), got["check"]
     assert got["spread"] > 0.1                                    # the outputs vary: the comparison can fail
     assert set(got["errors"]) == set(STORAGES)
+    assert "component 'toy_softsign' has no wgsl lowering" in got["refusal"] and "\n" not in got["refusal"]
     for storage, err in got["errors"].items():
         assert err <= TOL, f"{storage}: {err:.3g} > {TOL}"
 

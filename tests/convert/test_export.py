@@ -212,11 +212,11 @@ def test_export_keeps_the_module_mode_and_weights():
 def test_an_exported_bundle_takes_every_codegen_path_and_info(tmp_path, capsys):
     """codegen in every storage and target, info with the envelope, from the CLI."""
     from inshade.cli import main
-    from inshade.codegen import GL_TARGETS, STORAGE_MODES
+    from inshade.codegen import GL_TARGETS, OPENGL_STORAGE_MODES
 
     module, example = ZOO["grid_texture"]
     inshade.export(module, example, tmp_path / "b", check=False, as_="image")
-    for storage in STORAGE_MODES:
+    for storage in OPENGL_STORAGE_MODES:
         for target in GL_TARGETS:
             out = tmp_path / f"{storage}_{target}.glsl"
             assert main(["codegen", str(tmp_path / "b"), "--storage", storage, "--target", target, "-o", str(out),
