@@ -1,5 +1,5 @@
-"""`inshade bench mlp` beyond OpenGL: the same networks on the same batch as WGSL, Vulkan GLSL and HLSL
-(wgpu on this machine's Vulkan device) and Slang (slangpy), and onnxruntime on the CPU beside torch
+"""`inshade bench mlp` beyond OpenGL: the same networks on the same batch as WGSL, Vulkan GLSL, HLSL and
+Slang (wgpu on this machine's Vulkan device), and onnxruntime on the CPU beside torch
 (the stronger CPU peer). Every result is checked against torch like the GLSL ones."""
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def bench_target(bundle, target: str, storage: str, x: np.ndarray, ref: np.ndarr
     from inshade.codegen import generate
     from inshade.runtime.compute import compute_device, device_name, prepare
 
-    limits = None if target == "slang" else compute_device().planning_limits()
+    limits = compute_device().planning_limits()
     try:
         gen = generate(bundle, target=target, storage=storage, limits=limits)
         run = prepare(gen, x, target)

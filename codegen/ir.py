@@ -230,7 +230,13 @@ class Do:
     call: Call
 
 
-Stmt = Union[Declare, Assign, For, Scope, Comment, Group, Do]
+@dataclass(frozen=True)
+class Return:
+    """``return value;`` (the last statement of a Function)."""
+    value: Expr
+
+
+Stmt = Union[Declare, Assign, For, Scope, Comment, Group, Do, Return]
 
 
 # --- module-level declarations -----------------------------------------------------------------------
@@ -268,4 +274,22 @@ class ConstArray:
     comment: str = ""
 
 
-Global = Union[UniformBlock, Texture, ConstArray, Comment]
+@dataclass(frozen=True)
+class Constant:
+    """A named integer the code and its caller read (``#define NAME value`` in the C family, ``const``
+    in WGSL)."""
+    name: str
+    value: int
+
+
+@dataclass(frozen=True)
+class Function:
+    """A function the caller may call too: ``type name(params) { body }``; ``params`` = ((type,
+    name), ...); the body ends with a Return."""
+    type: str
+    name: str
+    params: tuple
+    body: tuple
+
+
+Global = Union[UniformBlock, Texture, ConstArray, Comment, Constant, Function]

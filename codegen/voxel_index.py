@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import ir
 from .glsl import TextureResource
 from .limits import LimitError, limit, source
 from .texture_rows import row_layout, rows_data
@@ -154,20 +155,15 @@ def index_bytes(cells: np.ndarray, params: dict) -> int:
     return brick_bytes(cells, params["scale_min"], params["scale_max"], params.get("brick", 4))
 
 
-# --- GLSL ---------------------------------------------------------------------------------------
+# --- lowered code (components/sparse_voxels/sparse_voxels.glsl and its other languages) --------------
 
-def _fetch(sampler: str, index: str, log2w: int) -> str:
-    return f"texelFetch({sampler}, ivec2(int({index} & {(1 << log2w) - 1}u), int({index} >> {log2w}u)), 0)"
-
-
-def _slot_head(up: str, slot_fn: str) -> list[str]:
-    return [f"uint {slot_fn}(int scale, ivec3 cell) {{",
-            f"    if (scale < {up}_SCALE_MIN || scale > {up}_SCALE_MAX) return 0u;",
-            "    if (any(lessThan(cell, ivec3(0))) || any(greaterThanEqual(cell, ivec3(1 << scale)))) return 0u;"]
+def _in_range(up: str) -> tuple:
+    """The arguments every index's lookup ends with: the query and the node's scale range."""
+    return ir.Var("scale"), ir.Var("cell"), ir.Var(f"{up}_SCALE_MIN"), ir.Var(f"{up}_SCALE_MAX")
 
 
-def emit_dense(ctx, node, cells, up: str, slot_fn: str):
-    """(resources, declarations, functions, plan text) of the dense grid."""
+def emit_dense(ctx, node, cells, up: str):
+    """(resources, module-level declarations, the lookup P_voxel_slot returns, plan text) of the dense grid."""
     p = node.params
     smin, smax = p["scale_min"], p["scale_max"]
     cap3 = limit(ctx.limits, "GL_MAX_3D_TEXTURE_SIZE")
@@ -176,17 +172,16 @@ def emit_dense(ctx, node, cells, up: str, slot_fn: str):
                          f"GL_MAX_3D_TEXTURE_SIZE is {cap3} ({source(ctx.limits, 'GL_MAX_3D_TEXTURE_SIZE')})")
     grid = ctx.name(node.id, "grid")
     chain = index_grid(cells, smin, smax)
-    decls = ["#ifdef INSHADE_TARGET_ES300", "precision highp usampler3D;", "#endif",
-             f"uniform usampler3D {grid};  // {node.id}: slot + 1 per cell (0 = empty); mip level L = scale {smax} - L"]
-    fns = [*_slot_head(up, slot_fn),
-           f"    return texelFetch({grid}, cell, {up}_SCALE_MAX - scale).r;",
-           "}"]
+    decls = [ir.Texture(grid, f"{node.id}: slot + 1 per cell (0 = empty); mip level L = scale {smax} - L",
+                        dims=3, integer=True)]
+    lookup = ir.Call("sv_slot_dense", (ir.TextureArg(grid), *_in_range(up)), "uint")
     plan = f"R32UI 3D index grid {1 << smax}^3 with {smax - smin + 1} levels"
-    return [TextureResource(grid, chain[0], "u4", mips=tuple(chain[1:]))], decls, fns, plan
+    return [TextureResource(grid, chain[0], "u4", mips=tuple(chain[1:]))], decls, lookup, plan
 
 
-def emit_bricks(ctx, node, cells, up: str, slot_fn: str):
-    """(resources, declarations, functions, plan text) of the two-level brick index."""
+def emit_bricks(ctx, node, cells, up: str):
+    """(resources, module-level declarations, the lookup P_voxel_slot returns, plan text) of the
+    two-level brick index."""
     p = node.params
     index = brick_index(cells, p["scale_min"], p["scale_max"], p["brick"])
     b, lb = index.brick, index.log2b
@@ -198,24 +193,19 @@ def emit_bricks(ctx, node, cells, up: str, slot_fn: str):
     bricks_data = index.bricks if index.bricks.size else np.zeros(1, np.uint32)
     resources = [TextureResource(top, rows_data(index.top[:, None], top_log2w, top_rows), "u4"),
                  TextureResource(bricks, rows_data(bricks_data[:, None], brk_log2w, brk_rows), "u4")]
-    offsets = ", ".join(f"{o}u" for o in index.offsets)
-    decls = ["#ifdef INSHADE_TARGET_ES300", "precision highp usampler2D;", "#endif",
-             f"uniform usampler2D {top};  // {node.id}: brick row + 1 per {b}^3 brick of each scale (0 = none)",
-             f"uniform usampler2D {bricks};  // {node.id}: slot + 1 per cell of each occupied brick (0 = empty)",
-             f"const uint {up}_BRICK_TOP_OFFSET[{len(index.offsets)}] = uint[{len(index.offsets)}]({offsets});"]
-    fns = [*_slot_head(up, slot_fn),
-           f"    int m = max((1 << scale) >> {lb}, 1);",
-           f"    ivec3 c = cell >> {lb};",
-           f"    uint t = {up}_BRICK_TOP_OFFSET[scale - {up}_SCALE_MIN] + uint((c.z * m + c.y) * m + c.x);",
-           f"    uint row = {_fetch(top, 't', top_log2w)}.r;",
-           "    if (row == 0u) return 0u;",
-           f"    ivec3 l = cell & {b - 1};",
-           f"    uint u = ((row - 1u) << {3 * lb}u) + uint((l.z * {b} + l.y) * {b} + l.x);",
-           f"    return {_fetch(bricks, 'u', brk_log2w)}.r;",
-           "}"]
+    offsets = f"{up}_BRICK_TOP_OFFSET"
+    decls = [ir.Texture(top, f"{node.id}: brick row + 1 per {b}^3 brick of each scale (0 = none)", integer=True),
+             ir.Texture(bricks, f"{node.id}: slot + 1 per cell of each occupied brick (0 = empty)", integer=True),
+             ir.ConstArray("uint", offsets, tuple(ir.Int(f"{o}u") for o in index.offsets))]
+    # the scale's first brick in the top table (clamped: a scale outside the range reads none)
+    scale = ir.Call("clamp", (ir.Int(f"scale - {up}_SCALE_MIN"), ir.Int("0"), ir.Int(str(len(index.offsets) - 1))),
+                    "int")
+    lookup = ir.Call("sv_slot_bricks", (ir.TextureArg(top), ir.Int(str(top_log2w)), ir.TextureArg(bricks),
+                                        ir.Int(str(brk_log2w)), ir.Int(str(lb)), ir.Index(ir.Var(offsets), scale),
+                                        *_in_range(up)), "uint")
     plan = (f"R32UI brick index: top {index.top.size} texels + {index.bricks.size // b ** 3} bricks of {b}^3 "
             f"(rows of {1 << top_log2w} / {1 << brk_log2w})")
-    return resources, decls, fns, plan
+    return resources, decls, lookup, plan
 
 
 EMIT = {"dense": emit_dense, "bricks": emit_bricks}

@@ -174,6 +174,22 @@ class Printer:
     def _s_declare(self, s: ir.Declare, depth: int) -> list[str]:
         return [INDENT * depth + self.declaration(s)]
 
+    def _s_return(self, s: ir.Return, depth: int) -> list[str]:
+        return [INDENT * depth + f"return {self.expr(s.value)};"]
+
+    # --- module-level definitions the caller reads too ---
+    def definition(self, g: ir.Constant | ir.Function) -> str:
+        if isinstance(g, ir.Constant):
+            return self.constant(g)
+        return "\n".join([self.function_head(g), *self.lines(g.body, 1), "}"])
+
+    def constant(self, g: ir.Constant) -> str:
+        return f"#define {g.name} {g.value}"
+
+    def function_head(self, g: ir.Function) -> str:
+        params = ", ".join(f"{self.types[t]} {n}" for t, n in g.params)
+        return f"{self.types[g.type]} {g.name}({params}) {{"
+
     # --- what each language spells (the C family's spelling by default) ---
     def loop_head(self, s: ir.For) -> str:
         step = f"++{s.var}" if s.step is None else f"{s.var} += {s.step}"

@@ -38,6 +38,8 @@ class GLSLPrinter(Printer):
             return f"{self.block_layout(g, bindings)} {kind} {g.block} {{\n{members}}} {g.instance};"
         if isinstance(g, ir.Texture):
             return self.texture(g, bindings) + (f"  // {g.comment}" if g.comment else "") + self.sampler(g, bindings)
+        if isinstance(g, (ir.Constant, ir.Function)):
+            return self.definition(g)
         if isinstance(g, ir.ConstArray):
             t = self.types[g.type]
             items = [self.expr(i) for i in g.items]

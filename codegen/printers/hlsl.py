@@ -57,12 +57,17 @@ class HLSLPrinter(Printer):
                 text += (f"\n[[vk::binding({bindings[name]}, {SPACE})]] "
                          f"SamplerState {name} : register(s{registers[name]}, space{SPACE});")
             return text
+        if isinstance(g, (ir.Constant, ir.Function)):
+            return self.definition(g)
         if isinstance(g, ir.ConstArray):
             items = ",\n    ".join(self.expr(i) for i in g.items)
             return f"static const {self.types[g.type]} {g.name}[{len(g.items)}] = {{\n    {items}}};"
         raise TypeError(f"unknown module-level declaration {g!r}")
 
     visibility = ""   # Slang: "public " (what an importing module may call)
+
+    def function_head(self, g: ir.Function) -> str:
+        return self.visibility + super().function_head(g)
 
     def constant_buffer(self, g: ir.UniformBlock, register: str) -> str:
         """The block's declaration: a cbuffer holding one struct (Shader Model 5.0 has no ConstantBuffer<>)."""

@@ -56,6 +56,13 @@ class WGSLPrinter(Printer):
         init = "" if s.init is None else f" = {self.expr(s.init)}"
         return f"var {s.name}: {t}{init};"
 
+    def constant(self, g: ir.Constant) -> str:
+        return f"const {g.name}: i32 = {g.value};"
+
+    def function_head(self, g: ir.Function) -> str:
+        params = ", ".join(f"{n}: {self.types[t]}" for t, n in g.params)
+        return f"fn {g.name}({params}) -> {self.types[g.type]} {{"
+
     def global_(self, g, bindings: dict) -> str:
         if isinstance(g, str):
             raise Unprintable(f"wgsl: GLSL text has no wgsl spelling: {g.splitlines()[0]}")
@@ -73,6 +80,8 @@ class WGSLPrinter(Printer):
                 name = g.name + SAMPLER_SUFFIX
                 text += f"\n@group({GROUP}) @binding({bindings[name]}) var {name}: sampler;"
             return text
+        if isinstance(g, (ir.Constant, ir.Function)):
+            return self.definition(g)
         if isinstance(g, ir.ConstArray):
             t = f"array<{self.types[g.type]}, {len(g.items)}>"
             items = ",\n    ".join(self.expr(i) for i in g.items)

@@ -1,4 +1,5 @@
-"""Sparse multi-scale voxel latents as texture fetches: the GLSL emitter; torch twin in torch_twin.py.
+"""Sparse multi-scale voxel latents as texture fetches: the emitter (lowered code calling the functions
+of sparse_voxels.glsl and its .wgsl / .hlsl versions); torch twin in torch_twin.py.
 
 Resources (P = the network prefix, e.g. "dap"; node id v):
 - ``P_v_latents``: the latent table, Z/4 RGBA texels per voxel (texel t = slot * Z/4 + g holds
@@ -12,7 +13,8 @@ Resources (P = the network prefix, e.g. "dap"; node id v):
   scale and R32UI bricks where voxels exist). It is built here from `cells`, so every non-zero
   entry is slot + 1 with slot < N: it cannot point past the latent table.
 
-Globals with fixed names (the march pass calls them; defines upper-case):
+Globals with fixed names, in every shading language (the march pass calls them; constants upper-case,
+``#define`` in GLSL and HLSL, ``const`` in WGSL):
 
     #define P_SCALE_MIN / P_SCALE_MAX / P_VOXELS
     uint P_voxel_slot(int scale, ivec3 cell)   // 0 = empty, outside the grid or the scale range, else slot + 1
@@ -20,13 +22,14 @@ Globals with fixed names (the march pass calls them; defines upper-case):
 
 A network holds at most one sparse_voxels node (the names are fixed). The node's own input is the
 slot (a uint lane, or a float holding an exact integer); out-of-range slots are clamped to
-0..N-1 in GLSL (a shader cannot raise; torch raises ValueError). P_voxel_sphere clamps alike.
+0..N-1 in the shader (a shader cannot raise; torch raises ValueError). P_voxel_sphere clamps alike.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from inshade.codegen.glsl import PlanRow, TextureResource, flt
+from inshade.codegen import ir
+from inshade.codegen.glsl import PlanRow, TextureResource
 from inshade.codegen.registry import emitter
 from inshade.codegen.texture_rows import row_layout, rows_data
 from inshade.codegen.values import declare
@@ -36,16 +39,24 @@ from inshade.components import check_voxel_tables
 _FLOAT = {"f16": ("f2", np.float16, "RGBA16F"), "f32": ("f4", np.float32, "RGBA32F")}
 
 
-def _fetch(sampler: str, index: str, log2w: int) -> str:
-    return f"texelFetch({sampler}, ivec2(int({index} & {(1 << log2w) - 1}u), int({index} >> {log2w}u)), 0)"
+def _row(table: str, index: ir.Expr, log2w: int) -> ir.Call:
+    return ir.Call("sv_row", (ir.TextureArg(table), index, ir.Int(str(log2w))))
 
 
-@emitter("sparse_voxels", separate_inputs=True)
+def _slot(v, i: int, n: int) -> ir.Expr:
+    """The node's input lane as a slot clamped to 0..n-1 (a float holds an exact integer)."""
+    if v.kind == "uint":
+        return ir.Call("min", (v.lane_ir(i), ir.Int(f"{n - 1}u")), "uint")
+    return ir.Convert("uint", ir.Call("clamp", (v.lane_ir(i), ir.Lit(0.0), ir.Lit(float(n - 1))), "float"))
+
+
+@emitter("sparse_voxels", separate_inputs=True, lowered=True)
 def emit_sparse_voxels(ctx, node, srcs, bundle):
+    ctx.include("sparse_voxels/sparse_voxels")
     p = node.params
     n, z, smin, smax = p["voxels"], p["channels"], p["scale_min"], p["scale_max"]
     up, slot_fn, sphere_fn = ctx.prefix.upper(), f"{ctx.prefix}_voxel_slot", f"{ctx.prefix}_voxel_sphere"
-    if any(f" {slot_fn}(" in line for line in ctx.globals):
+    if any(isinstance(g, ir.Function) and g.name == slot_fn for g in ctx.globals):
         raise ValueError(f"node {node.id}: a network holds at most one sparse_voxels node "
                          f"({slot_fn} and {sphere_fn} have fixed names)")
     cells, spheres = bundle.tensor(node, "cells"), bundle.tensor(node, "spheres")
@@ -57,7 +68,7 @@ def emit_sparse_voxels(ctx, node, srcs, bundle):
     lat_log2w, lat_rows = row_layout(node.id, f"latent table ({texels} texels per voxel)", n * texels, ctx.limits)
     sph_log2w, sph_rows = row_layout(node.id, "sphere table", n, ctx.limits)
     lat, sph = (ctx.name(node.id, s) for s in ("latents", "spheres"))
-    index_resources, index_decls, index_fns, index_plan = INDEX_EMIT[p["index"]](ctx, node, cells, up, slot_fn)
+    index_resources, index_decls, lookup, index_plan = INDEX_EMIT[p["index"]](ctx, node, cells, up)
     resources = [
         TextureResource(lat, rows_data(np.ascontiguousarray(latents.reshape(n * texels, 4), dtype=np_dtype),
                                    lat_log2w, lat_rows), fdtype),
@@ -65,31 +76,22 @@ def emit_sparse_voxels(ctx, node, srcs, bundle):
         *index_resources,
     ]
     ctx.resources += resources
-    latent_fn = ctx.name(node.id, "latent")
     ctx.globals += [
-        f"uniform sampler2D {lat};  // {node.id}: {n} voxels x {z} latents, {texels} texels each, {p['precision']}",
-        f"uniform sampler2D {sph};  // {node.id}: bounding sphere (centre, radius) per voxel",
+        ir.Texture(lat, f"{node.id}: {n} voxels x {z} latents, {texels} texels each, {p['precision']}"),
+        ir.Texture(sph, f"{node.id}: bounding sphere (centre, radius) per voxel"),
         *index_decls,
-        f"#define {up}_SCALE_MIN {smin}",
-        f"#define {up}_SCALE_MAX {smax}",
-        f"#define {up}_VOXELS {n}",
-        *index_fns,
-        f"vec4 {sphere_fn}(uint slot) {{",
-        f"    uint s = min(slot, {n - 1}u);",
-        f"    return {_fetch(sph, 's', sph_log2w)};",
-        "}",
-        f"vec4 {latent_fn}(uint slot, uint g) {{   // channels 4g..4g+3 of row slot (already clamped)",
-        f"    uint t = slot * {texels}u + g;",
-        f"    return {_fetch(lat, 't', lat_log2w)};",
-        "}",
+        ir.Constant(f"{up}_SCALE_MIN", smin), ir.Constant(f"{up}_SCALE_MAX", smax), ir.Constant(f"{up}_VOXELS", n),
+        ir.Function("uint", slot_fn, (("int", "scale"), ("ivec3", "cell")), (ir.Return(lookup),)),
+        ir.Function("vec4", sphere_fn, (("uint", "slot"),), (ir.Return(
+            _row(sph, ir.Call("min", (ir.Var("slot"), ir.Int(f"{n - 1}u")), "uint"), sph_log2w)),)),
     ]
     (v, i), = [(v, i) for v in srcs for i in range(v.dim)]
-    slot = (f"min({v.lane(i)}, {n - 1}u)" if v.kind == "uint"
-            else f"uint(clamp({v.lane(i)}, 0.0, {flt(n - 1)}))")
     s = ctx.name(node.id, "slot")
     out = declare(ctx, f"v_{node.id}", z)
-    ctx.body.append(f"uint {s} = {slot};")
-    ctx.body += [f"{out.array}[{g}] = {latent_fn}({s}, {g}u);" for g in range(texels)]
+    ctx.body.append(ir.Declare("uint", s, init=_slot(v, i, n)))
+    # channels 4g..4g+3 of the row: texel slot * Z/4 + g of the latent table
+    ctx.body += [ir.Assign(out.block_ir(g), _row(lat, ir.Int(f"{s} * {texels}u + {g}u"), lat_log2w))
+                 for g in range(texels)]
     ctx.plan.append(PlanRow(node.id, "sparse_voxels",
                             f"{n} voxels x {z} ({p['precision']}), scales {smin}..{smax}", "texture/exact",
                             f"{fmt} latents ({texels} texels/voxel, rows of {1 << lat_log2w}) + RGBA32F spheres + "

@@ -36,7 +36,7 @@ def add_parser(sub) -> None:
                         "guaranteed limits")
     p.add_argument("--check", action="store_true",
                    help="run the generated code on this machine's driver for the target (OpenGL; wgpu on Vulkan for "
-                        "wgsl / vulkan / hlsl; slangpy for slang) against the bundle's torch twin and print "
+                        "wgsl / vulkan / hlsl / slang) against the bundle's torch twin and print "
                         "max |code - source| under the 1e-5 rule (exit 1 when it fails)")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")

@@ -64,7 +64,7 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
                         "[0, 1] for tiny-cuda-nn); random rows in their range are added")
     p.add_argument("--target", action="append", choices=compute_targets, default=[], dest="targets",
                    help="also check the code in this shading language on its driver (wgpu on this machine's Vulkan "
-                        "device; slang through slangpy), against the source; repeatable")
+                        "device), against the source; repeatable")
     p.add_argument("--no-check", action="store_true", help="write without running the GLSL against the source")
     p.add_argument("--force", action="store_true", help="write into a folder that already holds files")
     p.add_argument("--ops", action="store_true", help="list the operations each source lowers, and exit")
@@ -83,8 +83,8 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.add_argument("--target", choices=("330", *compute_targets), default="330",
-                   help="the code run: OpenGL's GLSL (330) through the GL driver, or wgsl / vulkan / hlsl through wgpu "
-                        "on this machine's Vulkan device, slang through slangpy")
+                   help="the code run: OpenGL's GLSL (330) through the GL driver, or wgsl / vulkan / hlsl / slang through "
+                        "wgpu on this machine's Vulkan device")
     p.set_defaults(func=cmd_eval)
 
 

@@ -1,35 +1,33 @@
-"""Networks generated for WebGPU, Vulkan and Direct3D, evaluated on a real driver: one compute
+"""Networks generated for WebGPU, Vulkan, Direct3D and Slang, evaluated on a real driver: one compute
 invocation per element of a batch calls the generated eval function, through wgpu-native (PyPI
 ``wgpu``) on whatever Vulkan device the machine has (Mesa's lavapipe on a CPU).
 
 - ``wgsl``: the module as WebGPU takes it.
 - ``vulkan``: GLSL 4.50 compiled to SPIR-V by glslangValidator (``-V``).
 - ``hlsl``: compiled to SPIR-V by glslang's HLSL front end (``-D``).
-- ``slang``: compiled by the Slang compiler slangpy ships, run by slangpy (runtime/compute/slang.py).
+- ``slang``: compiled to SPIR-V by the Slang compiler slangpy ships (runtime/compute/slangc.py).
 
-The batch harness of each language (``eval.*`` beside this file) binds the inputs and outputs in
-group / set / space 1; the network's own resources stay where the plan put them (0). Optional:
-``pip install 'inshade[compute]'``.
+The batch harness of each language (``eval.*`` beside this file; Slang reads the HLSL one) binds the
+inputs and outputs in group / set / space 1; the network's own resources stay where the plan put them
+(0). Optional: ``pip install 'inshade[compute]'``.
 """
 from __future__ import annotations
 
-from .device import ComputeDevice, ComputeUnavailable, compute_device
+from .device import ComputeDevice, ComputeUnavailable, ShaderBuildError, compute_device
 from .run import SOURCES, Dispatch, evaluate
-from .slang import SlangDispatch
-from .slang import device_name as slang_device_name
 
-TARGETS = (*SOURCES, "slang")
+TARGETS = tuple(SOURCES)
 
 
 def prepare(generated, x, target: str):
     """A network generated for ``target`` compiled, with the batch x bound: ``.run()``, ``.read()``,
     ``.compile_s``."""
-    return SlangDispatch(generated, x) if target == "slang" else Dispatch(generated, x, target)
+    return Dispatch(generated, x, target)
 
 
 def device_name(target: str) -> str:
     """The device that runs ``target``'s code here."""
-    return slang_device_name() if target == "slang" else compute_device().description
+    return compute_device().description
 
 
 def run_target(generated, x, target: str):
@@ -39,5 +37,5 @@ def run_target(generated, x, target: str):
     return run.read(), device_name(target)
 
 
-__all__ = ["ComputeDevice", "ComputeUnavailable", "compute_device", "device_name", "evaluate", "prepare", "run_target",
-           "TARGETS"]
+__all__ = ["TARGETS", "SOURCES", "ComputeDevice", "ComputeUnavailable", "ShaderBuildError", "Dispatch", "compute_device",
+           "device_name", "evaluate", "prepare", "run_target"]

@@ -36,6 +36,10 @@ class _DroppedDecorations(logging.Filter):
         return "Unknown decoration NoContraction" not in record.getMessage()
 
 
+class ShaderBuildError(RuntimeError):
+    """A generated source its language's compiler refused (the compiler's log attached)."""
+
+
 class ComputeUnavailable(RuntimeError):
     """No wgpu, or no device it can open."""
 

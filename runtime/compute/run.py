@@ -13,26 +13,15 @@ from inshade.bundle import UINT_INPUT_RANGE
 from inshade.codegen.glsl import (StorageBufferResource, TextureResource, UniformBlockResource, blocks,
                                   resource_bindings)
 
-from .device import compute_device
-from .textures import sampler_entries, texture_view
+from .device import ShaderBuildError, compute_device
+from .slangc import compile_spirv
+from .textures import sampler_entries, texture_layout, texture_view
 
 HERE = Path(__file__).resolve().parent
 WORKGROUP = 64
 MAX_GROUPS = 65535      # per dispatch dimension; the harness reads a second dimension past it
-# how each target's source becomes a shader module: (harness, compiler arguments or None for WGSL)
-SOURCES = {
-    "wgsl": ("eval.wgsl", None),
-    "vulkan": ("eval.vulkan.glsl", ["-V", "-S", "comp"]),
-    "hlsl": ("eval.hlsl", ["-D", "-V", "-S", "comp", "-e", "main"]),
-}
-
-
 # the harnesses of the languages with a preprocessor read the uint inputs (xu) under #ifdef NET_IN_UINT_BLOCKS
 UINT_HARNESS = {"wgsl": "eval_uint.wgsl"}
-
-
-class ShaderBuildError(RuntimeError):
-    """A generated source its language's compiler refused (the compiler's log attached)."""
 
 
 def spirv(source: str, args: list[str]) -> bytes:
@@ -70,36 +59,63 @@ def batch_arrays(generated, x) -> tuple[np.ndarray, np.ndarray | None]:
     return floats, uints
 
 
+def slang_spirv(source: str) -> bytes:
+    """SPIR-V of a Slang compute shader, by the Slang compiler slangpy ships."""
+    try:
+        return compile_spirv(source)
+    except RuntimeError as exc:
+        raise ShaderBuildError(str(exc)) from None
+
+
+# how each target's source becomes a shader module: (harness, compiler, or None for WGSL, which wgpu
+# takes as it is). Slang reads the HLSL harness.
+SOURCES = {
+    "wgsl": ("eval.wgsl", None),
+    "vulkan": ("eval.vulkan.glsl", lambda source: spirv("#version 450\n" + source, ["-V", "-S", "comp"])),
+    "hlsl": ("eval.hlsl", lambda source: spirv(source, ["-D", "-V", "-S", "comp", "-e", "main"])),
+    "slang": ("eval.hlsl", slang_spirv),
+}
+
+
 def shader_code(generated, target: str):
-    """The module wgpu takes: WGSL text, or SPIR-V bytes compiled from GLSL / HLSL."""
+    """The module wgpu takes: WGSL text, or SPIR-V bytes compiled from GLSL / HLSL / Slang."""
     if generated.prefix != "net":
         raise ValueError(f"the batch harness calls net_eval: generate with prefix 'net' (got {generated.prefix!r})")
     if target not in SOURCES:
         raise ValueError(f"no compute driver for target {target!r} (drivers: {', '.join(SOURCES)})")
-    harness, args = SOURCES[target]
+    harness, compiler = SOURCES[target]
     if generated.uint_lanes:   # WGSL has no preprocessor: a harness of its own reads the uint inputs
         harness = UINT_HARNESS.get(target, harness)
     source = generated.chunk + "\n" + (HERE / harness).read_text()
-    if args is None:
-        return source
-    return spirv(("#version 450\n" if target == "vulkan" else "") + source, args)
+    return source if compiler is None else compiler(source)
 
 
-def _resource_entries(dev, generated) -> list[dict]:
+def _resource_entries(dev, generated) -> list[tuple[dict, dict]]:
+    """(layout entry, bind-group entry) of each resource and sampler of the network, at the plan's bindings."""
     wgpu, device = dev.wgpu, dev.device
     bindings = resource_bindings(generated.resources)
     entries = []
     for r in generated.resources:
         if isinstance(r, (UniformBlockResource, StorageBufferResource)):
-            usage = wgpu.BufferUsage.UNIFORM if isinstance(r, UniformBlockResource) else wgpu.BufferUsage.STORAGE
-            buf = device.create_buffer_with_data(data=r.data, usage=usage)
+            uniform = isinstance(r, UniformBlockResource)
+            buf = device.create_buffer_with_data(data=r.data, usage=wgpu.BufferUsage.UNIFORM if uniform
+                                                 else wgpu.BufferUsage.STORAGE)
+            layout = {"buffer": {"type": "uniform" if uniform else "read-only-storage"}}
             resource = {"buffer": buf, "offset": 0, "size": len(r.data)}
         elif isinstance(r, TextureResource):
-            resource = texture_view(dev, r)
+            layout, resource = texture_layout(r), texture_view(dev, r)
         else:
             raise ValueError(f"resource {r.name}: {type(r).__name__} has no compute-driver binding")
-        entries.append({"binding": bindings[r.name], "resource": resource})
+        entries.append(({"binding": bindings[r.name], **layout}, {"binding": bindings[r.name], "resource": resource}))
     return entries + sampler_entries(dev, generated.resources, bindings)
+
+
+def _bind_group(device, wgpu, entries: list[tuple[dict, dict]]):
+    """A bind group and its layout declaring every entry, read by the code or not (a compiler drops what
+    the code never reads, so a layout taken from the code would not match what the host binds)."""
+    layout = device.create_bind_group_layout(entries=[{**e, "visibility": wgpu.ShaderStage.COMPUTE}
+                                                      for e, _ in entries])
+    return layout, device.create_bind_group(layout=layout, entries=[b for _, b in entries])
 
 
 class Dispatch:
@@ -112,20 +128,23 @@ class Dispatch:
         padded, uints = batch_arrays(generated, x)
         self.n, self.out_dim, self.out_blocks = len(padded), generated.out_dim, blocks(generated.out_dim)
         code = shader_code(generated, target)
-        start = time.perf_counter()
-        module = device.create_shader_module(code=code)
-        self.pipeline = device.create_compute_pipeline(layout="auto", compute={"module": module, "entry_point": "main"})
-        self.compile_s = time.perf_counter() - start
         xin = device.create_buffer_with_data(data=padded.tobytes(), usage=wgpu.BufferUsage.STORAGE)
         self.yout = device.create_buffer(size=max(16, self.n * self.out_blocks * 16),
                                          usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
-        self.groups = [
-            device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
-                                     entries=_resource_entries(dev, generated)),
-            device.create_bind_group(layout=self.pipeline.get_bind_group_layout(1), entries=[
-                {"binding": 0, "resource": {"buffer": xin}}, {"binding": 1, "resource": {"buffer": self.yout}},
-                *([{"binding": 2, "resource": {"buffer": device.create_buffer_with_data(
-                    data=uints.tobytes(), usage=wgpu.BufferUsage.STORAGE)}}] if uints is not None else [])])]
+        batch = [(0, "read-only-storage", xin), (1, "storage", self.yout)]
+        if uints is not None:
+            batch.append((2, "read-only-storage", device.create_buffer_with_data(data=uints.tobytes(),
+                                                                                 usage=wgpu.BufferUsage.STORAGE)))
+        layouts, self.groups = zip(
+            _bind_group(device, wgpu, _resource_entries(dev, generated)),
+            _bind_group(device, wgpu, [({"binding": b, "buffer": {"type": kind}}, {"binding": b, "resource": {"buffer": buf}})
+                                       for b, kind, buf in batch]))
+        start = time.perf_counter()
+        module = device.create_shader_module(code=code)
+        self.pipeline = device.create_compute_pipeline(
+            layout=device.create_pipeline_layout(bind_group_layouts=list(layouts)),
+            compute={"module": module, "entry_point": "main"})
+        self.compile_s = time.perf_counter() - start
         self.fence = device.create_buffer(size=16, usage=wgpu.BufferUsage.COPY_SRC)
         self.device = device
 

@@ -49,7 +49,18 @@ def texture_view(dev, r: TextureResource):
         d = lv.shape[0] if lv.ndim == 4 else 1
         device.queue.write_texture({"texture": tex, "mip_level": k}, lv.tobytes(),
                                    {"bytes_per_row": w * c * lv.itemsize, "rows_per_image": h}, (w, h, d))
-    return tex.create_view(dimension="2d-array" if r.array else ("3d" if r.dims == 3 else "2d"))
+    return tex.create_view(dimension=view_dimension(r))
+
+
+def view_dimension(r: TextureResource) -> str:
+    return "2d-array" if r.array else ("3d" if r.dims == 3 else "2d")
+
+
+def texture_layout(r: TextureResource) -> dict:
+    """How a bind-group layout declares the texture: uint texels, float ones a sampler filters, or float
+    ones read texel by texel (any float format)."""
+    kind = "uint" if r.dtype == "u4" else ("float" if r.filter == "linear" else "unfilterable-float")
+    return {"texture": {"sample_type": kind, "view_dimension": view_dimension(r)}}
 
 
 def sampler(dev, r: TextureResource):
@@ -59,7 +70,8 @@ def sampler(dev, r: TextureResource):
                                      mag_filter="linear", min_filter="linear", mipmap_filter="nearest")
 
 
-def sampler_entries(dev, resources: list, bindings: dict) -> list[dict]:
-    """A bind-group entry for each linearly filtered texture's sampler."""
-    return [{"binding": bindings[r.name + SAMPLER_SUFFIX], "resource": sampler(dev, r)}
+def sampler_entries(dev, resources: list, bindings: dict) -> list[tuple[dict, dict]]:
+    """(layout entry, bind-group entry) of each linearly filtered texture's sampler."""
+    return [({"binding": bindings[r.name + SAMPLER_SUFFIX], "sampler": {"type": "filtering"}},
+             {"binding": bindings[r.name + SAMPLER_SUFFIX], "resource": sampler(dev, r)})
             for r in resources if isinstance(r, TextureResource) and r.filter == "linear"]

@@ -1,9 +1,13 @@
 """Every shading language codegen writes beside OpenGL's GLSL -- WGSL, Vulkan GLSL, HLSL, Slang -- run on
-a real driver (runtime.compute: wgpu-native on this machine's Vulkan device, SPIR-V by glslang; slangpy)
-and held to the same rule as GLSL (tests/parity.py): dense layers in every weight storage, activations,
-encodings, the zoo, the limits each API guarantees. Other components: tests/codegen/test_targets_*.py;
+a real driver (runtime.compute: wgpu-native on this machine's Vulkan device; SPIR-V by glslang, and by
+the Slang compiler slangpy ships) and held to the same rule as GLSL (tests/parity.py): dense layers in
+every weight storage, activations, encodings, the zoo, the limits each API guarantees. Other components: tests/codegen/test_targets_*.py;
 a component without a lowering is refused in one line (tests/components/test_component_folder.py)."""
 from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,20 +16,18 @@ from hypothesis import strategies as st
 
 from inshade.bundle import load
 from inshade.codegen import generate
-from inshade.codegen.glsl import TextureResource
 from inshade.codegen.limits import LimitError
 from inshade.codegen.targets import TargetError
 from inshade.runtime.compute import TARGETS, compute_device, run_target
 from inshade.runtime.compute.run import shader_code
-from inshade.runtime.compute.slang import slang_device
-from parity import (MLPSpec, activation_specs, assert_parity, build_mlp, mlp_specs, parity_settings, spec_inputs,
-                    torch_reference)
+from parity import (MLPSpec, activation_specs, assert_conditioned, assert_parity, build_mlp, mlp_specs,
+                    parity_settings, spec_inputs, torch_reference, uniform_inputs)
 
 
+REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 STORAGES = ("inline", "ubo", "texture")
-# slangpy's CPU device (where it opens no GPU device, as on this project's machines) cannot upload textures
-CASES = [(t, s) for t in TARGETS for s in STORAGES if (t, s) != ("slang", "texture")]
+CASES = [(t, s) for t in TARGETS for s in STORAGES]
 
 
 def evaluate(gen, x, target):
@@ -125,25 +127,23 @@ def test_too_many_uniform_blocks_are_refused_and_auto_plans_around_them():
     assert_parity(evaluate(gen, x, "wgsl"), torch_reference(bundle, x), what="wgsl auto, 14 layers")
 
 
-@pytest.mark.parametrize("target", ["vulkan", "hlsl"])
+@pytest.mark.parametrize("target", ["vulkan", "hlsl", "slang"])
 def test_the_sources_compile_with_their_languages_compiler(target):
-    """Vulkan GLSL through glslangValidator -V, HLSL through glslang's HLSL front end (-D): both to
-    SPIR-V, which wgpu's validation then takes (shader_code)."""
+    """Vulkan GLSL through glslangValidator -V, HLSL through glslang's HLSL front end (-D), Slang through the
+    Slang compiler: each to SPIR-V, which wgpu's validation then takes (shader_code)."""
     bundle = _mlp([13, 9])
     for storage in STORAGES:
         code = shader_code(generate(bundle, target=target, storage=storage), target)
         assert code[:4] == b"\x03\x02\x23\x07", f"{target} {storage}: not SPIR-V"
 
 
-def test_the_slang_driver_runs_textures_or_says_why_not():
-    bundle = _mlp([13])
-    gen = generate(bundle, target="slang", storage="texture")
-    x = np.random.default_rng(1).uniform(-1, 1, (32, 4)).astype(np.float32)
-    if slang_device()[1].info.type.name == "cpu":
-        with pytest.raises(ValueError, match="slangpy's CPU device cannot upload textures"):
-            run_target(gen, x, "slang")
-    else:
-        assert_parity(run_target(gen, x, "slang")[0], torch_reference(bundle, x), what="slang texture")
+def test_a_source_its_compiler_refuses_names_the_compiler_and_the_error():
+    from inshade.runtime.compute import ShaderBuildError
+
+    gen = generate(_mlp([13]), target="slang")
+    broken = dataclasses.replace(gen, chunk=gen.chunk.replace("void net_eval(", "void net_evil(", 1))
+    with pytest.raises(ShaderBuildError, match="slang -target spirv: .*undefined identifier"):
+        run_target(broken, np.zeros((4, 4), np.float32), "slang")
 
 
 @pytest.mark.parametrize("target", TARGETS)
@@ -181,6 +181,34 @@ def test_the_gl_runtime_keeps_its_context_beside_the_compute_driver(gl):
     assert np.array_equal(glsl_eval(gl, bundle, x), before)
 
 
+# the components whose shipped networks their own target tests run (tests/codegen/test_targets_*.py)
+COVERED = {"lookup_array", "hash_grid", "dense_grid", "latent_pyramid", "shading_frames", "proxy_params",
+           "mesh_features", "sparse_voxels"}
+OTHERS = [p.parent for p in sorted((REPO / "trained").rglob("bundle.json"))
+          if not COVERED & {n.type for n in load(p).nodes}]
+# one network per asset (prt_atrium's 21 region networks share one shape); INSHADE_SLOW=1 runs every one
+SHIPPED = OTHERS if os.environ.get("INSHADE_SLOW") else list(
+    {p.relative_to(REPO / "trained").parts[0]: p for p in reversed(OTHERS)}.values())
+
+
+def test_the_other_shipped_networks_are_found():
+    names = {str(p.relative_to(REPO / "trained")) for p in OTHERS}
+    assert {"prt_mechanical/transfer", "prt_neural_bunny/sdf", "prt_atrium/region_0"} <= names, names
+
+
+@pytest.mark.parametrize("folder", SHIPPED, ids=lambda p: str(p.relative_to(REPO / "trained")))
+def test_the_other_shipped_networks_on_every_target(folder):
+    """Every shipped network the component tests do not run (PRT transfers and SDFs, plain MLPs): 64 points in
+    [0, 1] on every target, under the rule or, where torch's own fp32 answer is past it, the conditioning rule
+    (the frequency-encoded PRT transfers at positions and normals outside their training domain)."""
+    bundle = load(folder)
+    x = uniform_inputs(5, 64, bundle.in_dim, 0.0, 1.0)
+    ref = torch_reference(bundle, x)
+    for target in TARGETS:
+        assert_conditioned(evaluate(generate(bundle, target=target), x, target), ref, bundle, x,
+                           what=f"{target} {folder.name}")
+
+
 @pytest.fixture(scope="module")
 def zoo_bundles(tmp_path_factory):
     """The zoo's plain-torch networks exported (tests/zoo.py), with the inputs they were made for."""
@@ -195,20 +223,9 @@ def zoo_bundles(tmp_path_factory):
     return out
 
 
-def slang_cannot_run(gen, target) -> bool:
-    """slangpy's CPU device (where it opens no GPU device) compiles a module with textures but cannot run it."""
-    return (target == "slang" and slang_device()[1].info.type.name == "cpu"
-            and any(isinstance(r, TextureResource) for r in gen.resources))
-
-
 @pytest.mark.parametrize("target", TARGETS)
 def test_the_zoo_on_every_target(zoo_bundles, target):
-    """Every zoo network matches torch on the target (on slangpy's CPU device, those reading textures compile
-    and are refused in one line)."""
+    """Every zoo network matches torch on the target."""
     for name, (bundle, x) in zoo_bundles.items():
         gen = generate(bundle, target=target, storage="inline")
-        if slang_cannot_run(gen, target):
-            with pytest.raises(ValueError, match="slangpy's CPU device cannot upload textures"):
-                evaluate(gen, x, target)
-            continue
         assert_parity(evaluate(gen, x, target), torch_reference(bundle, x), what=f"{target} zoo {name}")

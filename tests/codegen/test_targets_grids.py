@@ -1,11 +1,8 @@
 """The multiresolution grid encodings -- hash_grid, dense_grid -- on every shading language beside OpenGL's
-GLSL (WGSL, Vulkan GLSL, HLSL on wgpu over this machine's Vulkan device; Slang through slangpy), held to
+GLSL (WGSL, Vulkan GLSL, HLSL, Slang: SPIR-V on wgpu over this machine's Vulkan device), held to
 the rules of their GL test (tests/components/test_hash_grid.py: the parity rule of tests/parity.py, and
 the rows read bit-identical to tiny-cuda-nn's, uint32 wrap-around included), and the shipped grid
-bundles on every target.
-
-slangpy's CPU device cannot upload textures: there a grid's Slang module is compiled and linked (the
-driver refuses only at the upload), not run."""
+bundles on every target."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -21,7 +18,6 @@ from inshade.codegen import generate
 from inshade.components.elementwise.torch_twin import Tanh
 from inshade.models import GraphModule
 from inshade.runtime.compute import TARGETS, run_target
-from inshade.runtime.compute.slang import slang_device
 from parity import assert_parity, parity_settings, torch_reference, unit_directions
 from test_hash_grid import (MIXED, build_grid, grid_cases, grid_inputs, row_reveal_graph, tcnn_grid_index,
                             tcnn_params_in_level, tcnn_resolution, vertex_inputs)
@@ -29,19 +25,11 @@ from test_hash_grid import (MIXED, build_grid, grid_cases, grid_inputs, row_reve
 REPO = Path(__file__).resolve().parents[2]
 SHIPPED = sorted(p for p in (REPO / "trained").glob("*/bundle.json")
                  if any(n.type in ("hash_grid", "dense_grid") for n in load(p).nodes))
-# the targets whose driver reads textures on this machine
-RUNNING = tuple(t for t in TARGETS if t != "slang")
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def outputs(gen, x, target):
-    """The target's outputs; None where slangpy's CPU device compiled the module but cannot upload the
-    grid's table."""
-    if target == "slang" and slang_device()[1].info.type.name == "cpu":
-        with pytest.raises(ValueError, match="slangpy's CPU device cannot upload textures"):
-            run_target(gen, x, target)
-        return None
     return run_target(gen, x, target)[0]
 
 
@@ -76,7 +64,7 @@ ROW_CASES = [(2, "hash", 4097, 20, "coherent_prime"), (3, "hash", 4097, 13, "pri
              (3, "hash", 65, 16, "reversed_prime"), (2, "dense", 1025, 24, None), (3, "dense", 129, 24, None)]
 
 
-@pytest.mark.parametrize("target", RUNNING)
+@pytest.mark.parametrize("target", TARGETS)
 @pytest.mark.parametrize("dims,grid,base,log2,hash", ROW_CASES)
 def test_rows_read_match_tiny_cuda_nn(target, dims, grid, base, log2, hash):
     """The row each vertex reads against grid_index written from tiny-cuda-nn's source, for coordinates up
@@ -98,7 +86,7 @@ def test_grid_into_dense(target, case):
     check(bundle, grid_inputs(case, case["seed"]), target, f"{case} into dense")
 
 
-@pytest.mark.parametrize("target", RUNNING)
+@pytest.mark.parametrize("target", TARGETS)
 def test_table_wraps_into_texture_rows(target):
     """Rows of 64 texels: level boundaries inside texture rows."""
     case = dict(kind="hash", dims=2, levels=4, features=8, base_resolution=8, per_level_scale=2.0, precision="f32",

@@ -14,13 +14,12 @@ from hypothesis import given
 from inshade.bundle import load
 from inshade.codegen import generate
 from inshade.codegen.registry import LOWERED
-from inshade.runtime.compute import run_target
+from inshade.runtime.compute import TARGETS, run_target
 from parity import assert_parity, parity_settings, torch_reference, uniform_inputs
 from test_lookup_array import fast_path_bound, lut_cases, lut_graph, lut_inputs
 
 REPO = Path(__file__).resolve().parents[2]
-# slangpy's CPU device cannot upload textures (tests/codegen/test_targets.py): the others run them
-DRIVEN = ("wgsl", "vulkan", "hlsl")
+DRIVEN = TARGETS
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 

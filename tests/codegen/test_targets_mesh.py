@@ -1,12 +1,10 @@
-"""The geometry-associated lookups -- mesh_features (the UV-free feature hierarchy) and sparse_voxels
-(deep appearance prefiltering's voxel latents) -- on every shading language beside OpenGL's GLSL
-(WGSL, Vulkan GLSL, HLSL on wgpu over this machine's Vulkan device; Slang through slangpy), held to
-the rules of their GL tests (tests/components/test_mesh_features.py, test_sparse_voxels.py), and the
-shipped bundles using them on every target.
+"""mesh_features (the UV-free feature hierarchy) on every shading language beside OpenGL's GLSL (WGSL,
+Vulkan GLSL, HLSL, Slang: SPIR-V on wgpu over this machine's Vulkan device), held to the rules of its GL
+test (tests/components/test_mesh_features.py), and the shipped materials using it on every target
+(sparse_voxels: test_targets_voxels.py).
 
 The shipped materials take their triangle ids as uint inputs (the compute harness's `xu`); the random
-graphs take them as the exact float integers the component also accepts. slangpy's CPU device cannot
-upload textures: there the Slang module is compiled and linked, not run."""
+graphs take them as the exact float integers the component also accepts."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -6,12 +6,11 @@ same inf, NaN where torch gives NaN), floor / ceil / fmod / remainder equal to t
 where either side is subnormal: a driver flushes), log / log2 / power under tests/parity.py's rule,
 atan2 within 5e-7 with +-pi to the bit, int_gather's rows equal.
 
-Measured on this machine (lavapipe for WGSL, Vulkan GLSL and HLSL; slangpy's CPU device for Slang):
-every target meets the GL rule on every probe, subnormals and signed zeros included (the helpers read
-a float's bits, so a flushing driver does not change them); no derived rule was needed. The worst
-errors (scaled, as tests/parity.py's rule): log 1.2e-7, log2 1.1e-7 (Slang 1.2e-10), power 3.7e-6
-(the exp2 path at |p log2|x|| near the envelope's POW_ARG; Slang 3.2e-6), atan2 1.2e-7; floor, ceil,
-fmod, remainder and int_gather exact."""
+Measured on this machine (lavapipe, every target): every target meets the GL rule on every probe,
+subnormals and signed zeros included (the helpers read a float's bits, so a flushing driver does not
+change them); no derived rule was needed. The worst errors (scaled, as tests/parity.py's rule): log
+1.2e-7, log2 1.1e-7, power 3.7e-6 (the exp2 path at |p log2|x|| near the envelope's POW_ARG), atan2
+1.2e-7; floor, ceil, fmod, remainder and int_gather exact."""
 from __future__ import annotations
 
 import math
@@ -30,7 +29,6 @@ from inshade.components.elementwise.torch_twin import Ceil, Floor, Fmod, Log, Lo
 from inshade.components.feature_axis.torch_twin import Atan2, IntGather
 from inshade.models import GraphModule
 from inshade.runtime.compute import TARGETS, run_target
-from inshade.runtime.compute.slang import slang_device
 from parity import assert_parity, parity_settings, torch_reference, uniform_inputs
 from test_elementwise_ops import (POW_SPECIAL, as_rows, assert_matches, atan2_probes, build_op_graph, divisor_probes,
                                   f32, log_probes, op_graphs, per_op, power_probes, rounding_probes)
@@ -38,8 +36,6 @@ from test_int_lanes import Lookup, PlainHashEncoding, programs
 from test_outside_networks import PeriodicOps
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
-# targets that upload textures here (slangpy's CPU device cannot: see test_int_gather_in_slang)
-TEXTURE_TARGETS = tuple(t for t in TARGETS if t != "slang")
 
 
 def run_ops(bundle, inputs: dict, width: int, target: str) -> dict:
@@ -136,8 +132,7 @@ def test_atan2_at_zeros_axes_and_infinities(target):
     assert exact_pi.sum() >= 4 and np.array_equal(out[exact_pi], ref[exact_pi])
 
 
-@pytest.mark.parametrize("target, storage", [(t, s) for t in TARGETS for s in ("ubo", "texture")
-                                             if (t, s) != ("slang", "texture")])
+@pytest.mark.parametrize("target, storage", [(t, s) for t in TARGETS for s in ("ubo", "texture")])
 def test_padding_lanes_stay_finite_before_a_looping_dense(target, storage):
     """log / log2 / power(p < 0) of a partial block feeding a dense that multiplies whole blocks: the
     padding lanes (0) stay finite, or 0 * inf would turn the sums into NaN."""
@@ -189,7 +184,7 @@ def _gather_bundle(case, features: int, seed: int):
     return g, g.export("imported", "int_gather_probe"), x
 
 
-@pytest.mark.parametrize("target", TEXTURE_TARGETS)
+@pytest.mark.parametrize("target", TARGETS)
 @parity_settings(max_examples=4)
 @given(case=programs(), features=st.sampled_from([1, 3, 5, 8]), seed=st.integers(0, 2 ** 16))
 def test_int_gather_matches_torch_exactly(target, case, features, seed):
@@ -201,20 +196,8 @@ def test_int_gather_matches_torch_exactly(target, case, features, seed):
     np.testing.assert_array_equal(run_target(generate(bundle, target=target), x, target)[0], ref)
 
 
-def test_int_gather_in_slang():
-    """The Slang module compiles; slangpy's CPU device (no GPU here) cannot upload its table, a GPU device runs it."""
-    g, bundle, x = _gather_bundle(([["lane", 0], ["lane", 1], ["xor", 0, 1], ["const", 15], ["and", 2, 3]], [4], 16),
-                                  3, 0)
-    gen = generate(bundle, target="slang")
-    if slang_device()[1].info.type.name == "cpu":
-        with pytest.raises(ValueError, match="slangpy's CPU device cannot upload textures"):
-            run_target(gen, x, "slang")
-    else:
-        with torch.no_grad():
-            np.testing.assert_array_equal(run_target(gen, x, "slang")[0], g(torch.from_numpy(x)).numpy())
 
-
-@pytest.mark.parametrize("target", TEXTURE_TARGETS)
+@pytest.mark.parametrize("target", TARGETS)
 def test_computed_index_networks_on_every_target(target, tmp_path):
     """An Embedding indexed by a computed integer, and nerfstudio's plain-torch hash encoding, exported
     from torch: int_gather on the target within the rule of the torch module."""
