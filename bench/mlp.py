@@ -55,21 +55,21 @@ def _int_list(text: str) -> list[int]:
 
 
 def _mode_list(text: str) -> list[str]:
-    from inshade.codegen import OPENGL_STORAGE_MODES
+    from inshade.codegen import STORAGE_MODES
 
     modes = [v.strip() for v in text.split(",") if v.strip()]
-    bad = [m for m in modes if m not in OPENGL_STORAGE_MODES]
+    bad = [m for m in modes if m not in STORAGE_MODES]
     if bad or not modes:
         raise argparse.ArgumentTypeError(f"unknown storage {', '.join(bad) or text!r} "
-                                         f"(choose from {', '.join(OPENGL_STORAGE_MODES)})")
+                                         f"(choose from {', '.join(STORAGE_MODES)})")
     return modes
 
 
-def _beyond_opengl_storages() -> tuple[str, ...]:
-    """Weight storages only the other shading languages have (storage buffers): timed on each target too."""
-    from inshade.codegen import OPENGL_STORAGE_MODES, STORAGE_MODES
+def _opengl_modes(modes: list[str]) -> list[str]:
+    """The storages OpenGL's GLSL has, of those asked for (the others are timed on the other targets only)."""
+    from inshade.codegen import OPENGL_STORAGE_MODES
 
-    return tuple(m for m in STORAGE_MODES if m not in OPENGL_STORAGE_MODES)
+    return [m for m in modes if m in OPENGL_STORAGE_MODES]
 
 
 @dataclass
@@ -79,7 +79,8 @@ class Settings:
     repeats: int = option(5, "timed repeats per measurement (median)")
     widths: list[int] = option((16, 32, 64), "hidden widths, e.g. 16,32,64", parse=_int_list)
     depths: list[int] = option((3, 4), "hidden layer counts, e.g. 3,4", parse=_int_list)
-    storage: list[str] = option(MODES, "weight storage modes to time (inline,ubo,texture,auto)", parse=_mode_list)
+    storage: list[str] = option(MODES, "weight storage modes to time (inline,ubo,texture,auto; ssbo: storage "
+                                "buffers, on the targets beyond OpenGL only)", parse=_mode_list)
     targets: list[str] = option(DEFAULT_TARGETS, "shading languages beyond OpenGL to time through their compute "
                                 "drivers, in every storage (wgsl,vulkan,hlsl,slang; '' for none)", parse=target_list)
     encoding: str = option("frequency", "uv input encoding (frequency: NeRF encoding with --freqs octaves)",
@@ -196,7 +197,8 @@ def run(args) -> int:
 
     specs = [(w, d) for d in args.depths for w in args.widths]
     networks = []
-    with tqdm(total=len(specs) * (1 + len(args.storage)), desc="bench mlp", disable=quiet) as bar:   # GL steps
+    gl_modes = _opengl_modes(args.storage)
+    with tqdm(total=len(specs) * (1 + len(gl_modes)), desc="bench mlp", disable=quiet) as bar:   # GL steps
         for width, depth in specs:
             name = f"{width}x{depth}"
             bar.set_postfix_str(f"{name} torch")
@@ -215,7 +217,7 @@ def run(args) -> int:
                      "pixels": int(x.shape[0]), "torch_s": torch_s,
                      "torch_gflops": flops_px * x.shape[0] / torch_s / 1e9, "torch_timing": torch_timing.to_dict(),
                      "modes": {}}
-            for mode in args.storage:
+            for mode in gl_modes:
                 bar.set_postfix_str(f"{name} {mode}")
                 r = _bench_glsl(ctx, bundle, mode, x, ref, args.size, args.repeats, info, clock)
                 r["gflops"] = flops_px * x.shape[0] / r["seconds"] / 1e9
@@ -228,7 +230,7 @@ def run(args) -> int:
             entry["onnxruntime"] = bench_onnxruntime(net, x, ref, args.repeats)
             entry["targets"] = []
             for target in args.targets:
-                for mode in (*args.storage, *_beyond_opengl_storages()):
+                for mode in args.storage:
                     bar.set_postfix_str(f"{name} {target} {mode}")
                     r = bench_target(bundle, target, mode, x, ref, args.repeats)
                     if "seconds" in r:
