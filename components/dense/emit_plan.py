@@ -159,28 +159,28 @@ def ubo_bytes(node) -> int:
 
 
 # a layer in a block of its own, by storage: (the block's size limit, the blocks-per-stage limit, what
-# the block is, blocks the stage keeps for the caller)
+# the block is (one, several), blocks the stage keeps for the caller)
 BLOCK_LIMITS = {
-    "ubo": ("GL_MAX_UNIFORM_BLOCK_SIZE", "GL_MAX_FRAGMENT_UNIFORM_BLOCKS", "a uniform block", 0),
-    "ssbo": ("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", "GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS", "a storage buffer",
-             STORAGE_BUFFERS_RESERVED),
+    "ubo": ("GL_MAX_UNIFORM_BLOCK_SIZE", "GL_MAX_FRAGMENT_UNIFORM_BLOCKS", ("a uniform block", "uniform blocks"), 0),
+    "ssbo": ("GL_MAX_SHADER_STORAGE_BLOCK_SIZE", "GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS",
+             ("a storage buffer", "storage buffers"), STORAGE_BUFFERS_RESERVED),
 }
 
 
 def _check_blocks(dense, mode: str, limits: dict) -> None:
     """Explicit `ubo` / `ssbo` storage: every block within its size limit, and no more blocks (one per
     layer, beside those the caller keeps) than a stage binds."""
-    size_name, count_name, what, reserved = BLOCK_LIMITS[mode]
+    size_name, count_name, (one, several), reserved = BLOCK_LIMITS[mode]
     max_bytes = limit(limits, size_name)
     for n in dense:
         size = ubo_bytes(n)
         if size > max_bytes:
-            raise LimitError(f"node {n.id}: dense {n.in_dim} -> {n.out_dim} as {what} needs {size} B; "
+            raise LimitError(f"node {n.id}: dense {n.in_dim} -> {n.out_dim} as {one} needs {size} B; "
                              f"{size_name} is {max_bytes} ({source(limits, size_name)}); use storage 'texture' or 'auto'")
     max_blocks = limit(limits, count_name)
     if len(dense) + reserved > max_blocks:
         kept = f" beside the {reserved} the caller keeps" if reserved else ""
-        raise LimitError(f"nodes {', '.join(n.id for n in dense)}: {len(dense)} dense layers as {what} each "
+        raise LimitError(f"nodes {', '.join(n.id for n in dense)}: {len(dense)} dense layers as {several} "
                          f"need {len(dense)} blocks{kept}; {count_name} is {max_blocks} ({source(limits, count_name)}); "
                          "use storage 'texture' or 'auto'")
 

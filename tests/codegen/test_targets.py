@@ -84,7 +84,8 @@ def test_storage_buffer_weights_on_every_target(target, data):
 
 def test_storage_buffers_are_planned_against_each_api_and_refused_by_opengl():
     bundle = _mlp([8, 8, 8])   # 4 layers: 4 buffers beside the caller's 2
-    with pytest.raises(LimitError, match=r"GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS is 4 \(Vulkan minimum "
+    with pytest.raises(LimitError, match=r"4 dense layers as storage buffers need 4 blocks beside the 2 the caller "
+                                         r"keeps; GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS is 4 \(Vulkan minimum "
                                          r"maxPerStageDescriptorStorageBuffers\)"):
         generate(bundle, target="vulkan", storage="ssbo")
     assert len(generate(bundle, target="wgsl", storage="ssbo").resources) == 4   # WebGPU: 8 per stage
