@@ -217,10 +217,13 @@ def find_chunk(name: str, suffix: str = ".glsl") -> Path | None:
     return found[0] if found else None
 
 
-def flatten(entry: str, *, chunks: dict[str, str] | None = None) -> str:
+def flatten(entry: str, *, chunks: dict[str, str] | None = None,
+            defines: dict[str, str | int | float | bool] | None = None) -> str:
     """Chunk ``entry`` with its includes expanded, without a header or ``#line`` markers:
-    for pasting generated code into another engine's shader."""
-    return "\n".join(_Resolver(dict(chunks or {}), line_markers=False).emit(entry, parent=None)) + "\n"
+    for pasting generated code into another engine's shader. ``defines`` become ``#define`` lines
+    before it, as in ``assemble``."""
+    lines = [f"#define {name} {_define_value(name, value)}" for name, value in sorted((defines or {}).items())]
+    return "\n".join(lines + _Resolver(dict(chunks or {}), line_markers=False).emit(entry, parent=None)) + "\n"
 
 
 def explain_compile_error(assembled: Assembled, driver_log: str, *,

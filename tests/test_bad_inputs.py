@@ -475,8 +475,17 @@ def _(tmp):
     out.parent.mkdir()
     for p in (out, Path(str(out) + ".json"), out.with_suffix(".resources.safetensors")):
         p.write_bytes(SENTINEL)
-    return (["codegen", str(b), "--no-gl", "-o", str(out)], "weights.safetensors", [],
+    return (["codegen", str(b), "--no-gl", "-o", str(out), "--force"], "weights.safetensors", [],
             [out, Path(str(out) + ".json"), out.with_suffix(".resources.safetensors")])
+
+
+@case("outputs", "existing_codegen_output_kept_without_force")
+def _(tmp):
+    b = _bundle(tmp)
+    out = tmp / "out" / "net.glsl"
+    out.parent.mkdir()
+    out.write_bytes(SENTINEL)
+    return ["codegen", str(b), "--no-gl", "-o", str(out)], "exists; add --force", [], [out]
 
 
 @case("outputs", "existing_render_untouched_bad_scene")

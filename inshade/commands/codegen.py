@@ -29,11 +29,13 @@ def add_parser(sub) -> None:
                         "(-o PASS.frag), the vertex stage beside it, and a .json of the uniforms and resources to bind")
     p.add_argument("-o", "--output", help="GLSL file to write (- : the GLSL alone on standard output, the plan on "
                                           "stderr; only for code that binds no resources)")
+    p.add_argument("--force", action="store_true", help="replace the files -o would write if they exist")
     p.add_argument("--storage", choices=STORAGE_MODES, default="auto", help="dense weight placement")
-    p.add_argument("--target", choices=TARGETS, default="330",
+    p.add_argument("--target", choices=(*TARGETS, "shadertoy"), default="330",
                    help="shading language: GLSL 330 / 450 / es300 (OpenGL), vulkan (GLSL 4.50 for Vulkan), wgsl "
                         "(WebGPU), hlsl (D3D11/12, Unity, Unreal), slang; beyond OpenGL, planned against that API's "
-                        "guaranteed limits")
+                        "guaranteed limits. shadertoy: a uv -> colour network as one Shadertoy Image pass to paste "
+                        "(mainImage, the weights as literals)")
     p.add_argument("--check", action="store_true",
                    help="run the generated code on this machine's driver for the target (OpenGL; wgpu on Vulkan for "
                         "wgsl / vulkan / hlsl / slang) against the bundle's torch twin and print "
@@ -55,10 +57,12 @@ def add_parser(sub) -> None:
 
 def _limit(text: str) -> tuple[str, int]:
     from inshade.codegen import GL33_MINIMUMS
+    from inshade.web.shadertoy import PASS_CHARS_LIMIT
 
+    names = (*GL33_MINIMUMS, PASS_CHARS_LIMIT)
     name, sep, value = text.partition("=")
-    if not sep or name not in GL33_MINIMUMS or not value.strip().isdigit():
-        raise argparse.ArgumentTypeError(f"expected NAME=VALUE with NAME one of {', '.join(GL33_MINIMUMS)} and an "
+    if not sep or name not in names or not value.strip().isdigit():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE with NAME one of {', '.join(names)} and an "
                                          f"integer VALUE, got {text!r}")
     return name, int(value)
 
@@ -68,6 +72,8 @@ def cmd_codegen(args) -> int:
 
     if args.output not in (None, STDOUT):
         check_output(args.output)
+        if args.network != "all":
+            _refuse_existing(args.output, args.force)
     if Path(args.bundle).suffix.lower() == ".onnx":   # converted in memory (inshade convert writes it)
         from inshade.convert.onnx_model import to_bundle
 
@@ -86,10 +92,13 @@ def cmd_codegen(args) -> int:
         if args.output == STDOUT and len(nets) > 1:
             raise UserError(f"-o -: {len(nets)} networks would share standard output; write to a file (-o net.glsl "
                             "becomes net.PREFIX.glsl per network)")
-        for role, net_prefix, bpath in nets:
+        outs = [args.output if args.output in (None, STDOUT) else str(
+            Path(args.output).with_name(f"{Path(args.output).stem}.{net_prefix}{Path(args.output).suffix}"))
+            for _, net_prefix, _ in nets]
+        for out in outs:   # all refused before any is written
+            _refuse_existing(out, args.force)
+        for (role, net_prefix, bpath), out in zip(nets, outs):
             print(f"== network {net_prefix} ({role}, {Path(bpath).name})")
-            out = args.output if args.output in (None, STDOUT) else str(
-                Path(args.output).with_name(f"{Path(args.output).stem}.{net_prefix}{Path(args.output).suffix}"))
             _codegen(args, bundle_mod.load(bpath), net_prefix, out)
         return 0
     if scene is None:
@@ -102,6 +111,11 @@ def cmd_codegen(args) -> int:
         bpath = chosen[2]
         prefix = prefix or chosen[1]
     return _codegen(args, bundle_mod.load(bpath), prefix, args.output)
+
+
+def _refuse_existing(output, force: bool) -> None:
+    if output not in (None, STDOUT) and Path(output).is_file() and not force:
+        raise UserError(f"{output}: -o: exists; add --force to replace it")
 
 
 def _pick_network(src, scene, nets, prefix):
@@ -202,6 +216,8 @@ def _codegen(args, b, prefix, output) -> int:
     from inshade.codegen.targets import target as find_target
     from inshade.shaders import flatten
 
+    if args.target == "shadertoy":
+        return _shadertoy(args, b, output)
     opengl = find_target(args.target).opengl
     if args.no_gl or not opengl:   # beyond OpenGL: the target API's own limits (codegen/targets.py)
         limits = {}
@@ -247,3 +263,33 @@ def _check(b, gen, target: str) -> bool:
     result = check(GraphModule.from_bundle(b), b, check_inputs(span), generated=gen, target=target)
     print(f"{result.line()} ({result.rows} rows, {result.gl_renderer})")
     return result.ok
+
+
+def _shadertoy(args, b, output) -> int:
+    """--target shadertoy: the pass to paste, its report, --check run as Shadertoy runs it."""
+    from inshade.models import GraphModule
+    from inshade.web.shadertoy import check_pass, image_pass
+
+    if args.storage not in ("auto", "inline"):
+        raise UserError(f"--target shadertoy: a pasted pass holds its weights as literals; --storage {args.storage} "
+                        "needs resources Shadertoy cannot bind (use --target es300)")
+    shader_pass = image_pass(b, limits=dict(args.limit))
+    if output == STDOUT:
+        print(shader_pass.report(), file=sys.stderr)
+        sys.stdout.write(shader_pass.text)
+        return 0
+    print(shader_pass.report())
+    if args.check:
+        result = check_pass(shader_pass, GraphModule.from_bundle(b), b)
+        print("\n".join(result.lines()))
+        if not result.ok:
+            return 1
+    if output is None:
+        return 0
+    out = Path(output)
+    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(),
+                "target": "shadertoy", "output": shader_pass.output, "lanes": list(shader_pass.lanes),
+                "srgb": shader_pass.srgb, "characters": len(shader_pass.text), "weights": shader_pass.weights}
+    _write_group(out, shader_pass.text, manifest, {})
+    print(f"wrote {out}", file=sys.stderr)
+    return 0
