@@ -6,7 +6,7 @@ from pathlib import Path
 from setuptools import setup
 
 HERE = Path(__file__).resolve().parent
-FIXED = ["inshade", "inshade.commands", "inshade.bench", "inshade.convert", "inshade.convert.ops",
+FIXED = ["inshade", "inshade.commands", "inshade.engines", "inshade.bench", "inshade.convert", "inshade.convert.ops",
          "inshade.convert.tcnn_encodings", "inshade.codegen", "inshade.codegen.printers",
          "inshade.components", "inshade.runtime.compute",
          "inshade.models",

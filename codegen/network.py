@@ -53,6 +53,7 @@ class Generated:
     resources: list       # TextureResource | UniformBlockResource, in binding order
     plan: Plan
     uint_lanes: tuple = ()   # lanes of the concatenated input that are uint inputs (argument xu)
+    library: tuple = ()      # the library chunks the code includes (beyond OpenGL: pastes)
 
     @property
     def float_in_dim(self) -> int:
@@ -143,7 +144,7 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
     plan = Plan(bundle.name, target, ctx.plan, ctx.resources, check_limits(ctx.resources, text.splitlines(), limits,
                                                                            textures), calls)
     return Generated(text, f"{prefix}_eval", prefix, bundle.in_dim, bundle.out_dim, ctx.resources, plan,
-                     tuple(uint_lanes))
+                     tuple(uint_lanes), tuple(ctx.includes))
 
 
 def refuse_unlowered(bundle: Bundle, target: str) -> None:

@@ -52,7 +52,9 @@ class GraphModule(torch.nn.Module):
         from inshade.components import check_node, resolve_params
         return check_node(component.type, resolve_params(component.type, component.params()), in_dim)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, *xs: torch.Tensor) -> torch.Tensor:
+        """The inputs concatenated on the last axis, or one tensor per input in declaration order."""
+        x = xs[0] if len(xs) == 1 else torch.cat(xs, -1)
         values, off = {}, 0
         for name, dim, _ in self.inputs:
             values[name] = x[..., off:off + dim]

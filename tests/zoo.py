@@ -278,3 +278,17 @@ def zoo() -> dict:
     for module, _ in entries.values():
         module.eval()
     return entries
+
+
+def exported(folder_for) -> dict:
+    """name -> (module, bundle, inputs [N, in_dim]) of every zoo network exported (unchecked) into the
+    folder ``folder_for(name)`` gives."""
+    import inshade
+    from inshade.bundle import load
+
+    out = {}
+    for name, (module, example) in zoo().items():
+        folder = folder_for(name)
+        inshade.export(module, example, folder, check=False)
+        out[name] = (module, load(folder), example.numpy().reshape(len(example), -1))
+    return out

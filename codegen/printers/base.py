@@ -21,10 +21,23 @@ class Unprintable(ValueError):
     """Code a target's printer cannot spell (a GLSL-only statement from a component without a lowering)."""
 
 
-def library_source(names, suffixes: tuple[str, ...]) -> list[str]:
+def library_guard(name: str) -> str:
+    """The include guard of library chunk ``name`` where a language has a preprocessor: two networks in
+    one shader (two Unity Custom Function files, two pasted HLSL functions) share its functions
+    instead of defining them twice."""
+    return "INSHADE_LIB_" + re.sub(r"\W", "_", name).upper()
+
+
+def library_source(names, suffixes: tuple[str, ...], guard: bool = False) -> list[str]:
     """The library chunks ``names`` in another shading language, pasted into a standalone module:
     each chunk's version with the first of ``suffixes`` it has (``.wgsl``; ``.vulkan.glsl`` before
-    ``.glsl``), its ``#include <dep>`` lines replaced by the dependencies (each pasted once, first)."""
+    ``.glsl``), its ``#include <dep>`` lines replaced by the dependencies (each pasted once, first);
+    ``guard``: each within its ``library_guard``."""
+    return [text for _, text in library_chunks(names, suffixes, guard)]
+
+
+def library_chunks(names, suffixes: tuple[str, ...], guard: bool = False) -> list[tuple[str, str]]:
+    """(name, text) of each chunk ``library_source`` pastes, in its order."""
     done, out = set(), []
 
     def paste(name: str) -> None:
@@ -42,7 +55,9 @@ def library_source(names, suffixes: tuple[str, ...]) -> list[str]:
                 paste(match.group(1))
             else:
                 lines.append(line)
-        out.append("\n".join(lines))
+        if guard:
+            lines = [f"#ifndef {library_guard(name)}", f"#define {library_guard(name)}", *lines, "#endif"]
+        out.append((name, "\n".join(lines)))
 
     for name in names:
         paste(name)

@@ -104,7 +104,7 @@ class VulkanGLSLPrinter(GLSLPrinter):
         return super().global_(g, bindings)
 
     def include_lines(self, m: Module) -> list[str]:
-        return library_source(m.includes, (".vulkan.glsl", ".glsl"))
+        return library_source(m.includes, (".vulkan.glsl", ".glsl"), guard=True)
 
     def module(self, m: Module) -> str:
         textures = any(isinstance(g, ir.Texture) for g in m.globals)

@@ -89,7 +89,7 @@ class HLSLPrinter(Printer):
         lines = [
             *m.comments,
             *(f"#define {name} {value}" for name, value in m.defines),
-            *library_source(m.includes, (".hlsl",)),
+            *library_source(m.includes, (".hlsl",), guard=True),
             *(self.global_(g, m.bindings, registers) for g in m.globals),
             f"{self.visibility}void {m.prefix}_eval({uint_arg}in float4 x[{up}_IN_BLOCKS], "
             f"out float4 y[{up}_OUT_BLOCKS]) {{",

@@ -12,6 +12,7 @@ from .common import STDOUT, UserError, asset_networks, check_output, count, reso
 
 def add_parser(sub) -> None:
     from inshade.codegen import FILTERS, STORAGE_MODES, TARGETS
+    from inshade.engines import ENGINES
 
     p = sub.add_parser("codegen", help="bundle -> GLSL (prints the plan report)",
                        description="Generate the GLSL function of a bundle; prints the plan report. With -o, "
@@ -36,6 +37,9 @@ def add_parser(sub) -> None:
                         "(WebGPU), hlsl (D3D11/12, Unity, Unreal), slang; beyond OpenGL, planned against that API's "
                         "guaranteed limits. shadertoy: a uv -> colour network as one Shadertoy Image pass to paste "
                         "(mainImage, the weights as literals)")
+    p.add_argument("--engine", choices=ENGINES,
+                   help="with --target hlsl: the network as a game engine's node takes it: unity (a Shader Graph "
+                        "Custom Function file, File mode) or unreal (a Custom node's Code); the weights as literals")
     p.add_argument("--check", action="store_true",
                    help="run the generated code on this machine's driver for the target (OpenGL; wgpu on Vulkan for "
                         "wgsl / vulkan / hlsl / slang) against the bundle's torch twin and print "
@@ -218,6 +222,8 @@ def _codegen(args, b, prefix, output) -> int:
 
     if args.target == "shadertoy":
         return _shadertoy(args, b, output)
+    if args.engine is not None:
+        return _engine(args, b, output)
     opengl = find_target(args.target).opengl
     if args.no_gl or not opengl:   # beyond OpenGL: the target API's own limits (codegen/targets.py)
         limits = {}
@@ -252,17 +258,42 @@ def _codegen(args, b, prefix, output) -> int:
     return 0
 
 
-def _check(b, gen, target: str) -> bool:
-    """--check: the generated code on its target's driver against the bundle's torch twin."""
+def _span(b):
+    """The box --check draws its rows from: [-1, 1] on every input lane."""
     import numpy as np
 
+    return np.stack([np.full(b.in_dim, -1.0), np.full(b.in_dim, 1.0)]).astype(np.float32)
+
+
+def _check(b, gen, target: str) -> bool:
+    """--check: the generated code on its target's driver against the bundle's torch twin."""
     from inshade.convert.check import check, check_inputs
     from inshade.models import GraphModule
 
-    span = np.stack([np.full(gen.in_dim, -1.0), np.full(gen.in_dim, 1.0)]).astype(np.float32)
-    result = check(GraphModule.from_bundle(b), b, check_inputs(span), generated=gen, target=target)
+    result = check(GraphModule.from_bundle(b), b, check_inputs(_span(b)), generated=gen, target=target)
     print(f"{result.line()} ({result.rows} rows, {result.gl_renderer})")
     return result.ok
+
+
+def _pasted(args, b, output, report: str, text: str, check, manifest: dict) -> int:
+    """Code to paste into another tool: its report, --check (``check()`` gives (lines, ok)), and with -o
+    the text and its manifest (-o -: the text alone on standard output)."""
+    if output == STDOUT:
+        print(report, file=sys.stderr)
+        sys.stdout.write(text)
+        return 0
+    print(report)
+    if args.check:
+        lines, ok = check()
+        print("\n".join(lines))
+        if not ok:
+            return 1
+    if output is None:
+        return 0
+    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(), **manifest}
+    _write_group(Path(output), text, manifest, {})
+    print(f"wrote {output}", file=sys.stderr)
+    return 0
 
 
 def _shadertoy(args, b, output) -> int:
@@ -273,23 +304,35 @@ def _shadertoy(args, b, output) -> int:
     if args.storage not in ("auto", "inline"):
         raise UserError(f"--target shadertoy: a pasted pass holds its weights as literals; --storage {args.storage} "
                         "needs resources Shadertoy cannot bind (use --target es300)")
-    shader_pass = image_pass(b, limits=dict(args.limit))
-    if output == STDOUT:
-        print(shader_pass.report(), file=sys.stderr)
-        sys.stdout.write(shader_pass.text)
-        return 0
-    print(shader_pass.report())
-    if args.check:
-        result = check_pass(shader_pass, GraphModule.from_bundle(b), b)
-        print("\n".join(result.lines()))
-        if not result.ok:
-            return 1
-    if output is None:
-        return 0
-    out = Path(output)
-    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(),
-                "target": "shadertoy", "output": shader_pass.output, "lanes": list(shader_pass.lanes),
-                "srgb": shader_pass.srgb, "characters": len(shader_pass.text), "weights": shader_pass.weights}
-    _write_group(out, shader_pass.text, manifest, {})
-    print(f"wrote {out}", file=sys.stderr)
-    return 0
+    p = image_pass(b, limits=dict(args.limit))
+
+    def check():
+        result = check_pass(p, GraphModule.from_bundle(b), b)
+        return result.lines(), result.ok
+
+    return _pasted(args, b, output, p.report(), p.text, check,
+                   {"target": "shadertoy", "output": p.output, "lanes": list(p.lanes), "srgb": p.srgb,
+                    "characters": len(p.text), "weights": p.weights})
+
+
+def _engine(args, b, output) -> int:
+    """--engine: the network as the engine's node takes it, its setup, --check through the HLSL driver."""
+    from inshade.convert.check import check_inputs
+    from inshade.engines import check_drop_in, drop_in
+    from inshade.models import GraphModule
+
+    if args.target != "hlsl":
+        raise UserError(f"--engine {args.engine}: takes --target hlsl (the engines' shading language), "
+                        f"not --target {args.target}")
+    if args.storage not in ("auto", "inline"):
+        raise UserError(f"--engine {args.engine}: the drop-in holds its weights as literals; --storage {args.storage} "
+                        "needs resources bound by your own code (use --target hlsl without --engine)")
+    d = drop_in(b, args.engine, args.prefix)   # by default named after the bundle: several share a material
+
+    def check():
+        result = check_drop_in(d, GraphModule.from_bundle(b), b, check_inputs(_span(b)))
+        return [f"{result.line()} ({result.rows} rows, {result.gl_renderer})"], result.ok
+
+    return _pasted(args, b, output, d.report(), d.text, check,
+                   {"target": "hlsl", "engine": args.engine, "function": d.generated.prefix, "node": d.node,
+                    "inputs": [[p.name, p.dim] for p in d.inputs], "outputs": [[p.name, p.dim] for p in d.outputs]})

@@ -151,8 +151,7 @@ def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=Non
         bundle = load(bundle)
     parts = [np.asarray(a, np.float32) for a in (inputs if isinstance(inputs, (tuple, list)) else [inputs])]
     if len(parts) == 1 and len(bundle.inputs) > 1:
-        bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
-        parts = [parts[0][:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        parts = per_input(bundle, parts[0])
     x = np.concatenate([p.reshape(len(p), -1) for p in parts], 1)
     if shapes is not None:
         parts = [p.reshape(len(p), *shape) for p, shape in zip(parts, shapes)]
@@ -163,6 +162,12 @@ def check(source, bundle, inputs, *, storage: str = "auto", ctx=None, shapes=Non
     result = compare(glsl, ref, renderer, storage, time.perf_counter() - start)
     return judge(dataclasses.replace(result, language=find_target(target).printer.language), source, parts,
                  bundle, glsl, ref)
+
+
+def per_input(bundle, x: np.ndarray) -> list[np.ndarray]:
+    """Concatenated inputs [N, in_dim] split into one array per bundle input."""
+    bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
+    return [x[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def judge(result: CheckResult, source, parts, bundle, glsl: np.ndarray, ref: np.ndarray,

@@ -122,12 +122,12 @@ class Dispatch:
     """A network's pipeline and a batch bound to it: ``run()`` computes (and waits), ``read()`` reads back;
     ``compile_s`` is what making the shader module and the pipeline took."""
 
-    def __init__(self, generated, x: np.ndarray, target: str):
+    def __init__(self, generated, x: np.ndarray, target: str, code=None):
         dev = compute_device()
         wgpu, device = dev.wgpu, dev.device
         padded, uints = batch_arrays(generated, x)
         self.n, self.out_dim, self.out_blocks = len(padded), generated.out_dim, blocks(generated.out_dim)
-        code = shader_code(generated, target)
+        code = shader_code(generated, target) if code is None else code
         xin = device.create_buffer_with_data(data=padded.tobytes(), usage=wgpu.BufferUsage.STORAGE)
         self.yout = device.create_buffer(size=max(16, self.n * self.out_blocks * 16),
                                          usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
@@ -167,9 +167,10 @@ class Dispatch:
         return y.reshape(self.n, self.out_blocks * 4)[:, :self.out_dim].copy()
 
 
-def evaluate(generated, x: np.ndarray, target: str) -> np.ndarray:
+def evaluate(generated, x: np.ndarray, target: str, code=None) -> np.ndarray:
     """The network's outputs [N, out_dim] for inputs x [N, in_dim], computed by ``generated`` (made
-    for ``target``) on the compute device."""
-    run = Dispatch(generated, x, target)
+    for ``target``) on the compute device; ``code``: a shader module of the caller's around the same
+    network and harness (an engine drop-in's), instead of the target's own."""
+    run = Dispatch(generated, x, target, code)
     run.run()
     return run.read()

@@ -77,9 +77,17 @@ float inshade_triangle(float t) { return 1.0 - abs((t - 2.0 * floor(t / 2.0)) - 
 // subnormals in float arithmetic and compares, and a compiler may fold compares as if NaN did not exist.
 
 // NaN and inf from bits held in variables: a compiler folds asfloat of a constant into a literal, and
-// SPIR-V readers (naga) refuse an infinite or NaN literal.
-static uint inshade_nan_bits = 0x7fc00000u;
-static uint inshade_inf_bits = 0x7f800000u;
+// SPIR-V readers (naga) refuse an infinite or NaN literal. INSHADE_MEMBERS: these functions are
+// members of a struct (an Unreal Custom node's), whose user sets the two members to the bits below.
+#define INSHADE_NAN_BITS 0x7fc00000u
+#define INSHADE_INF_BITS 0x7f800000u
+#ifdef INSHADE_MEMBERS
+uint inshade_nan_bits;
+uint inshade_inf_bits;
+#else
+static uint inshade_nan_bits = INSHADE_NAN_BITS;
+static uint inshade_inf_bits = INSHADE_INF_BITS;
+#endif
 #define INSHADE_NAN asfloat(inshade_nan_bits)
 #define INSHADE_INF asfloat(inshade_inf_bits)
 

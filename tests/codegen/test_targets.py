@@ -213,15 +213,10 @@ def test_the_other_shipped_networks_on_every_target(folder):
 @pytest.fixture(scope="module")
 def zoo_bundles(tmp_path_factory):
     """The zoo's plain-torch networks exported (tests/zoo.py), with the inputs they were made for."""
-    import inshade
-    from zoo import zoo
+    from zoo import exported
 
-    out = {}
-    for name, (module, example) in zoo().items():
-        folder = tmp_path_factory.mktemp(name) / "b"
-        inshade.export(module, example, folder, check=False)
-        out[name] = (load(folder), example.numpy().reshape(len(example), -1))
-    return out
+    return {name: (bundle, x) for name, (_, bundle, x) in
+            exported(lambda name: tmp_path_factory.mktemp(name) / "b").items()}
 
 
 @pytest.mark.parametrize("target", TARGETS)
