@@ -225,3 +225,18 @@ def test_the_zoo_on_every_target(zoo_bundles, target):
     for name, (bundle, x) in zoo_bundles.items():
         gen = generate(bundle, target=target, storage="inline")
         assert_parity(evaluate(gen, x, target), torch_reference(bundle, x), what=f"{target} zoo {name}")
+
+
+@pytest.mark.parametrize("target", ["330", "wgsl"])
+def test_codegen_check_prints_the_measure_for_a_network_of_several_inputs(tmp_path, capsys, target):
+    """`inshade codegen --check` on a bundle with two inputs (the torch twin takes them concatenated
+    or one by one)."""
+    from inshade.cli import main
+    from inshade.models import GraphModule
+
+    g = GraphModule([("p", 3, "position"), ("d", 3, "direction")])
+    g.output("rgb", g.dense("l1", g.dense("l0", ["p", "d"], 8), 3))
+    g.export("two", "two").save(tmp_path / "two")
+    assert main(["-q", "codegen", str(tmp_path / "two"), "--target", target, "--check"]) == 0
+    out = capsys.readouterr().out
+    assert f"max |{'glsl' if target == '330' else target} - source| = " in out and "(rule 1e-05): ok (1026 rows" in out
