@@ -94,6 +94,10 @@ def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, tmp_pa
         assert state["error"] is None, f"{asset}: the page says: {state['error']}"
         assert not _errors(state["console"]), f"{asset}: console errors: {state['console']}"
         page = browser.canvas()
+        progress = browser.driver.execute_script("return window.inshade.progress;")
+    # the page says what it is doing before its first frame: the compile, then the draw
+    assert progress and progress[-1]["text"].startswith("compiled "), progress
+    assert all(p["ms"] <= state["first_frame_ms"] for p in progress), (progress, state["first_frame_ms"])
     assert page.shape == (h, w, 3)
     db = psnr8(page, inshade_render(asset, record))
     assert db >= MIN_PSNR_DB, f"{asset}: the page's first frame is {db:.2f} dB from inshade render's"

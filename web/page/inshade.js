@@ -89,19 +89,30 @@ export function createContext(canvas, manifest) {
 
 // --- GL objects --------------------------------------------------------------------------------
 
-function compile(gl, name, sources) {
+// Compiling is started for every program first and its status read only at the end: with
+// KHR_parallel_shader_compile the browser compiles meanwhile and the page can say how far it is
+// (a big network's program takes seconds to minutes on a software rasteriser).
+function startCompile(gl, name, sources) {
   const program = gl.createProgram();
+  const shaders = [];
   for (const [stage, type] of [["vertex", gl.VERTEX_SHADER], ["fragment", gl.FRAGMENT_SHADER]]) {
     const shader = gl.createShader(type);
     gl.shaderSource(shader, sources[stage]);
     gl.compileShader(shader);
-    if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) {
-      throw new WebGLError(`programs/${name}.${stage === "vertex" ? "vert" : "frag"}.glsl: ${gl.getShaderInfoLog(shader)}`);
-    }
     gl.attachShader(program, shader);
+    shaders.push([stage, shader]);
   }
   gl.linkProgram(program);
+  return {name, program, shaders};
+}
+
+function finishCompile(gl, {name, program, shaders}) {
   if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
+    for (const [stage, shader] of shaders) {
+      if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) {
+        throw new WebGLError(`programs/${name}.${stage === "vertex" ? "vert" : "frag"}.glsl: ${gl.getShaderInfoLog(shader)}`);
+      }
+    }
     throw new WebGLError(`programs/${name}: link: ${gl.getProgramInfoLog(program)}`);
   }
   const uniforms = {};
@@ -112,6 +123,35 @@ function compile(gl, name, sources) {
     uniforms[base] = {location: gl.getUniformLocation(program, info.name), type: info.type, size: info.size};
   }
   return {name, program, uniforms};
+}
+
+function compile(gl, name, sources) {
+  return finishCompile(gl, startCompile(gl, name, sources));
+}
+
+const nextFrame = () => new Promise((resolve) => requestAnimationFrame(resolve));
+
+// Every program of ``sources`` compiled, reporting progress (a line of text) as it goes.
+export async function compileAll(gl, sources, progress = () => {}) {
+  const t0 = performance.now();
+  const pending = Object.entries(sources).map(([name, src]) => startCompile(gl, name, src));
+  const parallel = gl.getExtension("KHR_parallel_shader_compile");
+  const seconds = () => ((performance.now() - t0) / 1000).toFixed(0);
+  if (parallel) {
+    for (;;) {
+      const done = pending.filter((p) => gl.getProgramParameter(p.program, parallel.COMPLETION_STATUS_KHR)).length;
+      if (done === pending.length) break;
+      progress(`compiling shaders: ${done} of ${pending.length} programs ready (${seconds()} s)`);
+      await new Promise((resolve) => setTimeout(resolve, 100));
+    }
+  } else {   // the first status read waits for the whole compile: say so, and let the page paint it first
+    progress(`compiling ${pending.length} shader programs (this browser reports no progress)`);
+    await nextFrame();
+  }
+  const programs = Object.fromEntries(pending.map((p) => [p.name, finishCompile(gl, p)]));
+  progress(`compiled ${pending.length} shader programs in ${seconds()} s; drawing the first frame`);
+  await nextFrame();
+  return programs;
 }
 
 function setUniform(gl, prog, name, value) {
@@ -362,15 +402,16 @@ export class Camera {
 // --- the viewer ----------------------------------------------------------------------------------
 
 export class Viewer {
-  constructor(canvas, {manifest, data, sources, images}, {width, height} = {}) {
+  // ``compiled``: {gl, programs} made beforehand (main compiles with progress), else made here.
+  constructor(canvas, {manifest, data, sources, images}, {width, height} = {}, compiled = null) {
     this.manifest = manifest;
     this.width = width || manifest.size[0];
     this.height = height || manifest.size[1];
     canvas.width = this.width;
     canvas.height = this.height;
-    const gl = this.gl = createContext(canvas, manifest);
-    this.programs = {};
-    for (const [name, src] of Object.entries(sources)) this.programs[name] = compile(gl, name, src);
+    const gl = this.gl = compiled ? compiled.gl : createContext(canvas, manifest);
+    this.programs = compiled ? compiled.programs
+      : Object.fromEntries(Object.entries(sources).map(([name, src]) => [name, compile(gl, name, src)]));
     this.textures = manifest.textures.map((t) => texture(gl, t, data));
     this.blocks = uniformBlocks(gl, manifest.blocks, data);
     const display = manifest.display;
@@ -683,11 +724,17 @@ function control(setting, value, onChange) {
 // index.html: the viewer with its controls, orbit / zoom / pan and a frame-time readout
 export async function main({base = "./", canvas, panel, status} = {}) {
   const t0 = performance.now();
-  const page = window.inshade = {ready: false, error: null};
+  const page = window.inshade = {ready: false, error: null, progress: []};
   try {
     const params = new URLSearchParams(location.search);
     const loaded = await loadExport(base);
-    const viewer = new Viewer(canvas, loaded, {width: +params.get("width") || 0, height: +params.get("height") || 0});
+    const gl = createContext(canvas, loaded.manifest);
+    const programs = await compileAll(gl, loaded.sources, (text) => {
+      status.textContent = text;
+      page.progress.push({ms: performance.now() - t0, text});
+    });
+    const viewer = new Viewer(canvas, loaded, {width: +params.get("width") || 0, height: +params.get("height") || 0},
+                              {gl, programs});
     page.viewer = viewer;
     document.title = `${loaded.manifest.title} · inshade`;
     let dirty = true;
