@@ -23,6 +23,8 @@ DRIVER = ("chromedriver",)
 FLAGS = ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--use-angle=swiftshader",
          "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist", "--disable-gpu-watchdog",
          "--disable-gpu-process-crash-limit",
+         # WebGPU on SwiftShader's Vulkan (no GPU needed): the pages' WebGPU evaluation
+         "--enable-unsafe-webgpu", "--use-webgpu-adapter=swiftshader",
          "--window-size=1400,1200")
 
 

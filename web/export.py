@@ -35,6 +35,7 @@ from PIL import Image
 from inshade.codegen import generate
 from inshade.codegen.glsl import TextureResource, UniformBlockResource
 from inshade.codegen.limits import LimitError
+from inshade.codegen.targets import TargetError
 from inshade.runtime.context import shared_context
 from inshade.runtime.environment import ENV_UNIFORMS
 from inshade.runtime.geometry import FRAGMENT as GBUFFER_FRAGMENT, VERTEX as MESH_VERTEX, cutout_chunks, \
@@ -56,7 +57,7 @@ log = logging.getLogger("inshade")
 FORMAT = "inshade-web 1"
 TARGET = "es300"
 PAGE = Path(__file__).resolve().parent / "page"
-PAGE_FILES = ("index.html", "evaluate.html", "inshade.js")
+PAGE_FILES = ("index.html", "evaluate.html", "inshade.js", "evaluate_webgpu.html", "webgpu.js")
 MANIFEST, DATA, REFERENCE_PNG = "manifest.json", "data.bin", "reference.png"
 EVAL_BATCH = 1024          # samples in the evaluation page's batch
 EVAL_UINT_RANGE = 256      # uint lanes of the batch are ids 0..255 (tables hold at least that many rows)
@@ -332,6 +333,39 @@ class WebExport:
                 "in_blocks": g.in_blocks, "in_uint_blocks": g.in_uint_blocks, "out_dim": g.out_dim,
                 "out_blocks": g.out_blocks, "textures": textures, "blocks": blocks}
 
+    def _evaluation_webgpu(self) -> dict | None:
+        """The same network and batch as WGSL, for evaluate_webgpu.html (runtime/compute's harness, planned
+        against WebGPU's default limits): the code, then each resource at its binding of group 0."""
+        from inshade.codegen.glsl import SAMPLER_SUFFIX, StorageBufferResource, resource_bindings
+        from inshade.runtime.compute.run import HERE, SOURCES, UINT_HARNESS
+        from inshade.runtime.compute.textures import texture_layout, view_dimension
+
+        r = self.renderer
+        bundle = r.bundles[0] if r.bundles else r.sdf_bundle
+        if bundle is None:
+            return None
+        options = {k: v for k, v in r._codegen_options().items() if k != "limits"}
+        try:
+            g = generate(bundle, prefix="net", target="wgsl", **options)
+        except (TargetError, LimitError) as exc:   # the WebGL2 page still evaluates it
+            return {"unavailable": str(exc)}
+        harness = UINT_HARNESS["wgsl"] if g.uint_lanes else SOURCES["wgsl"][0]
+        bindings = resource_bindings(g.resources)
+        resources = []
+        for res in g.resources:
+            at = {"binding": bindings[res.name]}
+            if isinstance(res, TextureResource):
+                resources.append({**_texture(self.blob, res.name, res), **at, "view": view_dimension(res),
+                                  "sample_type": texture_layout(res)["texture"]["sample_type"],
+                                  "sampler": bindings.get(res.name + SAMPLER_SUFFIX)})
+            else:
+                kind = "read-only-storage" if isinstance(res, StorageBufferResource) else "uniform"
+                resources.append({**at, "name": res.name, "buffer": kind, "data": self.blob.add(bytes(res.data))})
+        return {"bundle": bundle.name, "wgsl": g.chunk + "\n" + (HERE / harness).read_text(),
+                "inputs": self.blob.add(_batch(bundle, g)), "count": EVAL_BATCH, "in_dim": g.in_dim,
+                "uint_lanes": list(g.uint_lanes), "in_blocks": g.in_blocks, "in_uint_blocks": g.in_uint_blocks,
+                "out_dim": g.out_dim, "out_blocks": g.out_blocks, "resources": resources}
+
     def _manifest(self) -> dict:
         r, scene, spec = self.renderer, self.scene, self.scene.spec
         settings, live = self._settings()
@@ -371,6 +405,7 @@ class WebExport:
                         "exposure": 1.0, "error_scale": 4.0,
                         "tonemapped_modes": [int(parse_mode(m)) for m in TONEMAPPED_MODES]},
             "evaluate": evaluation,
+            "evaluate_webgpu": self._evaluation_webgpu(),
         }
         if mesh is not None and mesh["peel"]:
             manifest["programs"].update(blend_layer="blend_layer", blend_resolve="blend_resolve")

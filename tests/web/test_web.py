@@ -130,24 +130,30 @@ def _network_of(asset: str, name: str):
     return next(b for b in bundles if b.name == name)
 
 
+# the evaluation pages: WebGL2 (passes/evaluate.frag) and WebGPU (the WGSL compute harness)
+EVALUATION_PAGES = {"webgl2": ("evaluate.html", "evaluate"), "webgpu": ("evaluate_webgpu.html", "evaluate_webgpu")}
+
+
+@pytest.mark.parametrize("api", EVALUATION_PAGES)
 @pytest.mark.parametrize("asset", ASSETS)
-def test_evaluation_page_matches_torch(gl, browser, asset, tmp_path):
+def test_evaluation_page_matches_torch(gl, browser, asset, api, tmp_path):
+    page, key = EVALUATION_PAGES[api]
     folder, _ = _exported(asset, tmp_path)
     manifest = json.loads((folder / "manifest.json").read_text())
-    e = manifest["evaluate"]
+    e = manifest[key]
     if e is None:   # an analytic scene: there is no network to run
         assert load_scene(resolve_asset(asset)).networks == [] and not isinstance(
             load_scene(resolve_asset(asset)).sdf, NetworkSdfRef)
         return
     with serve(folder) as url:
-        state = browser.open(url + "evaluate.html")
+        state = browser.open(url + page)
         assert state["error"] is None and not _errors(state["console"]), f"{asset}: {state}"
         out = browser.evaluation()
     x = np.fromfile(folder / "data.bin", np.float32, e["count"] * e["in_dim"], offset=e["inputs"][0])
     bundle = _network_of(asset, e["bundle"])
     x = x.reshape(e["count"], e["in_dim"])
     ref = torch_reference(bundle, x)
-    tol, what = TOL, f"{asset}: {e['bundle']} in Chromium"
+    tol, what = TOL, f"{asset}: {e['bundle']} in Chromium ({api})"
     if any(n.type == "frequency" for n in bundle.nodes):
         tol = BROWSER_SIN_TOL
     elif float(np.nanmax(scaled_error(out, ref))) > TOL:
