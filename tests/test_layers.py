@@ -17,10 +17,10 @@ from test_architecture import ROOT, _module_files
 
 TECHNIQUES = "inshade.techniques"
 # Layer -> the layers it must not import. The CLI (inshade.cli), the conversion front end
-# (inshade.convert), the benches (inshade.bench) and the techniques sit on top and may import
-# any shared layer.
+# (inshade.convert), the engines' drop-ins (inshade.engines), the benches (inshade.bench) and the
+# techniques sit on top and may import any shared layer.
 ABOVE_SHARED = ("inshade.techniques", "inshade.viewer", "inshade.bench", "inshade.convert", "inshade.cli",
-                "inshade.commands")
+                "inshade.commands", "inshade.engines")
 LAYER_RULES = {
     "inshade.shaders": ("inshade.codegen", "inshade.models", "inshade.runtime", "inshade.scene", "inshade.geometry",
                         "inshade.technique", *ABOVE_SHARED),
@@ -177,6 +177,6 @@ def test_every_core_module_has_a_layer():
     """A new module of inshade/ itself is placed in the core, the registry or the apps, so its imports
     are checked."""
     top = {m for m in _module_files() if m.count(".") == 1 and m.startswith("inshade.")}
-    folders = {"inshade." + f for f in ("bench", "codegen", "convert", "geometry", "models", "runtime", "scene",
-                                        "shaders", "techniques", "viewer", "web")}
+    folders = {"inshade." + f for f in ("bench", "codegen", "convert", "engines", "geometry", "models", "runtime",
+                                        "scene", "shaders", "techniques", "viewer", "web")}
     assert top - folders == set(CORE) | set(REGISTRY) | set(APPS)
