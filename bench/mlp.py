@@ -47,7 +47,7 @@ TARGET_PEAK_FRACTION = 0.20   # >= 20% of the measured sgemm GFLOP/s
 TARGET_COMPILE_S = 0.5        # ubo and texture compile+link of a 64x4 network
 
 
-def _int_list(text: str) -> list[int]:
+def int_list(text: str) -> list[int]:
     try:
         return [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
@@ -77,8 +77,8 @@ class Settings:
     out: str = option(DEFAULT_OUT, "output folder")
     size: int = option(512, "batch is size x size pixels")
     repeats: int = option(5, "timed repeats per measurement (median)")
-    widths: list[int] = option((16, 32, 64), "hidden widths, e.g. 16,32,64", parse=_int_list)
-    depths: list[int] = option((3, 4), "hidden layer counts, e.g. 3,4", parse=_int_list)
+    widths: list[int] = option((16, 32, 64), "hidden widths, e.g. 16,32,64", parse=int_list)
+    depths: list[int] = option((3, 4), "hidden layer counts, e.g. 3,4", parse=int_list)
     storage: list[str] = option(MODES, "weight storage modes to time (inline,ubo,texture,auto; ssbo: storage "
                                 "buffers, on the targets beyond OpenGL only)", parse=_mode_list)
     targets: list[str] = option(DEFAULT_TARGETS, "shading languages beyond OpenGL to time through their compute "
@@ -118,7 +118,7 @@ def uv_grid(size: int) -> np.ndarray:
     return np.stack([u.ravel(), v.ravel()], 1).astype(np.float32)
 
 
-def _network(width: int, depth: int, encoding: str, freqs: int, seed: int):
+def mlp_network(width: int, depth: int, encoding: str, freqs: int, seed: int):
     import torch
 
     from inshade.components.encodings.torch_twin import Frequency
@@ -202,7 +202,7 @@ def run(args) -> int:
         for width, depth in specs:
             name = f"{width}x{depth}"
             bar.set_postfix_str(f"{name} torch")
-            net = _network(width, depth, args.encoding, args.freqs, args.seed)
+            net = mlp_network(width, depth, args.encoding, args.freqs, args.seed)
             torch_timing, ref = _bench_torch(net, x, args.repeats)
             torch_s = torch_timing.median
             bar.update()

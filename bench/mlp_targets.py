@@ -54,12 +54,8 @@ def bench_target(bundle, target: str, storage: str, x: np.ndarray, ref: np.ndarr
             "max_error": _max_error(y, ref), "finite": bool(np.all(np.isfinite(y))), "timing": timing.to_dict()}
 
 
-def bench_onnxruntime(net, x: np.ndarray, ref: np.ndarray, repeats: int) -> dict:
-    """The torch network exported to ONNX and run by onnxruntime's CPU provider on the same batch."""
-    try:
-        import onnxruntime as ort
-    except ImportError:
-        return {"skipped": "onnxruntime is not installed (pip install 'inshade[onnx]')"}
+def onnx_model(net, x: np.ndarray) -> bytes:
+    """The torch network as an ONNX model of input ``x`` and output ``y``, any batch size."""
     import torch
 
     buffer = io.BytesIO()
@@ -67,7 +63,16 @@ def bench_onnxruntime(net, x: np.ndarray, ref: np.ndarray, repeats: int) -> dict
         warnings.simplefilter("ignore")
         torch.onnx.export(net, (torch.from_numpy(x[:2]),), buffer, dynamo=False, input_names=["x"],
                           output_names=["y"], dynamic_axes={"x": {0: "n"}, "y": {0: "n"}})
-    session = ort.InferenceSession(buffer.getvalue(), providers=["CPUExecutionProvider"])
+    return buffer.getvalue()
+
+
+def bench_onnxruntime(net, x: np.ndarray, ref: np.ndarray, repeats: int) -> dict:
+    """The torch network exported to ONNX and run by onnxruntime's CPU provider on the same batch."""
+    try:
+        import onnxruntime as ort
+    except ImportError:
+        return {"skipped": "onnxruntime is not installed (pip install 'inshade[onnx]')"}
+    session = ort.InferenceSession(onnx_model(net, x), providers=["CPUExecutionProvider"])
 
     def infer():
         return session.run(None, {"x": x})[0]

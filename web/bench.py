@@ -21,6 +21,7 @@ import numpy as np
 from inshade.bench.contract import Bench, option, sized
 from inshade.bench.entry import Claim, claim_row
 from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
+from inshade.bench.mlp import int_list
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = "bench-out/web"
@@ -84,10 +85,29 @@ def _evaluation_error(folder: Path, scene, out: np.ndarray) -> float | None:
     return float((np.abs(out.astype(np.float64) - ref) / np.maximum(1.0, np.abs(ref))).max())
 
 
+def _peer_network(width: int, depth: int, encoding: str):
+    """The MLP bench's network of that size and encoding (its seed; 4 octaves)."""
+    from inshade.bench.mlp import mlp_network
+
+    if encoding not in ("frequency", "raw"):
+        raise BenchError(f"--peer-encodings: {encoding!r} is not frequency or raw")
+    return mlp_network(width, depth, encoding, 4, 0)
+
+
 def markdown(report: dict) -> str:
     lines = [f"# Exported pages in headless Chromium ({report['browser_renderer']})", "",
-             machine_markdown(report["machine"]), "",
-             "Exported on this renderer; `inshade render` on it is the reference. Page bytes and timings "
+             machine_markdown(report["machine"])]
+    if report["assets"]:
+        lines += _asset_rows(report)
+    if report.get("peers"):
+        from .bench_peers import markdown as peers_markdown
+
+        lines += peers_markdown(report["peers"], report["peers_count"])
+    return "\n".join(lines) + "\n"
+
+
+def _asset_rows(report: dict) -> list[str]:
+    lines = ["", "Exported on this renderer; `inshade render` on it is the reference. Page bytes and timings "
              "at the scene's own size; PSNR (8-bit sRGB) at a quarter of it; the evaluation error is "
              "max |browser - torch| / max(1, |torch|) on the exported batch (the parity rule is 1e-5).", "",
              "| asset | page bytes | load → first frame (ms) | frame (ms) | PSNR vs render (dB) | eval error |",
@@ -99,17 +119,30 @@ def markdown(report: dict) -> str:
         err = r.get("evaluate_max_scaled_error")
         lines.append(f"| {r['asset']} | {r['page_bytes']:,} | {r['load_to_first_frame_ms']:.0f} | {r['frame_ms']:.1f} | "
                      f"{r['psnr_db_vs_render']:.2f} | {'-' if err is None else f'{err:.2g}'} |")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def plot(report: dict, path: Path) -> None:
     plt = matplotlib_pyplot()
     rows = [r for r in report["assets"] if "frame_ms" in r]
-    fig, ax = plt.subplots(figsize=(8, 0.28 * len(rows) + 1.2))
-    ax.barh([r["asset"] for r in rows], [r["frame_ms"] for r in rows])
-    ax.set_xscale("log")
-    ax.set_xlabel(f"frame time (ms), {report['browser_renderer'][:60]}")
-    ax.invert_yaxis()
+    peers = {n: rs for n, rs in (report.get("peers") or {}).items() if "error" not in rs}
+    panels = [p for p in ("assets", "peers") if (rows if p == "assets" else peers)] or ["assets"]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8, 0.28 * max(len(rows), 8) * len(panels) + 1.2), squeeze=False)
+    for ax, panel in zip(axes[:, 0], panels):
+        if panel == "assets":
+            ax.barh([r["asset"] for r in rows], [r["frame_ms"] for r in rows])
+            ax.set_xlabel(f"frame time (ms), {report['browser_renderer'][:60]}")
+        else:
+            runtimes = list(dict.fromkeys(k for rs in peers.values() for k in rs))
+            height = 0.8 / max(1, len(peers))
+            for i, (name, rs) in enumerate(peers.items()):
+                ax.barh([k + height * i for k in range(len(runtimes))],
+                        [rs.get(k, {}).get("ms", 0) for k in runtimes], height, label=name)
+            ax.set_yticks(range(len(runtimes)), runtimes)
+            ax.set_xlabel(f"ms per batch of {report['peers_count']} samples, headless Chromium")
+            ax.legend(fontsize=7)
+        ax.set_xscale("log")
+        ax.invert_yaxis()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -119,12 +152,24 @@ def plot(report: dict, path: Path) -> None:
 class Settings:
     assets: list[str] = option((), "asset folders (default: every shipped asset)", positional="assets", nargs="*")
     out: str = option(DEFAULT_OUT, "output folder")
+    no_assets: bool = option(False, "skip the shipped assets' pages (the peers only)")
+    peer_widths: list[int] = option((16, 64), "hidden widths of the networks the browser runtimes run side by "
+                                    "side ('' for none)", parse=int_list)
+    peer_depths: list[int] = option((4,), "their hidden layer counts", parse=int_list)
+    peer_encodings: list[str] = option(("frequency", "raw"), "their uv encodings: frequency (4 octaves, as the MLP "
+                                       "bench), raw", parse=lambda t: [v for v in t.split(",") if v])
+    peer_size: int = option(256, "their batch is size x size samples", parse=int)
+    repeats: int = option(5, "timed repeats per runtime (median, after a warm-up)", parse=int)
 
 
 def run(settings: Settings) -> int:
     from .browser import Browser, BrowserError
 
-    assets = [Path(a) for a in settings.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir())
+    from .bench_peers import PeersMissing
+    from .bench_peers import measure as measure_peers
+
+    assets = [] if settings.no_assets else (
+        [Path(a) for a in settings.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir()))
     report = {"benchmark": "web", "machine": machine(), "assets": []}
     try:
         with Browser() as browser, tempfile.TemporaryDirectory() as tmp:
@@ -133,7 +178,13 @@ def run(settings: Settings) -> int:
                 row = measure(asset, browser, Path(tmp))
                 print(json.dumps(row), file=sys.stderr, flush=True)
                 report["assets"].append(row)
-    except BrowserError as exc:
+            nets = {f"{w}x{d} {e}": _peer_network(w, d, e) for e in settings.peer_encodings
+                    for w in settings.peer_widths for d in settings.peer_depths}
+            if nets:
+                report["peers"] = measure_peers(browser, nets, Path(tmp) / "peers", settings.peer_size ** 2,
+                                                settings.repeats)
+                report["peers_count"] = settings.peer_size ** 2
+    except (BrowserError, PeersMissing) as exc:
         raise BenchError(str(exc)) from None
     write_report(settings.out, "web", report, markdown, plot)
     return 0
@@ -157,9 +208,11 @@ def headlines(r: dict) -> list[dict]:
 
 BENCH = Bench("web", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
               formatter=argparse.ArgumentDefaultsHelpFormatter, sizes={
-    "cpu": sized(60, assets=("trained/neural_image", "trained/di_texture_astronaut", "trained/sdf_creature")),
+    # the suite times the pages; the browser runtimes side by side run on their own (web/peers' npm packages)
+    "cpu": sized(60, assets=("trained/neural_image", "trained/di_texture_astronaut", "trained/sdf_creature"),
+                 peer_widths=()),
     # the GPU machine needs Debian's chromium + chromium-driver for this one
-    "device": sized(10, assets=("trained/neural_image",)),
+    "device": sized(10, assets=("trained/neural_image",), peer_widths=()),
 })
 add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite
 

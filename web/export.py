@@ -133,8 +133,9 @@ class WebExport:
     """The page of one scene at its settings; ``write(folder)`` puts it on disk."""
 
     def __init__(self, source, *, settings: dict | None = None, width: int | None = None,
-                 height: int | None = None):
+                 height: int | None = None, eval_count: int = EVAL_BATCH):
         self.scene = load_scene(source)
+        self.eval_count = int(eval_count)
         self.source = Path(source)
         scene = self.scene
         ctx = shared_context()
@@ -324,12 +325,12 @@ class WebExport:
                                 defines={"EVAL_OUT_FIRST": first,
                                          "EVAL_OUT_TARGETS": min(per_pass, g.out_blocks - first)})
                   for first in range(0, g.out_blocks, per_pass)]
-        batch = _batch(bundle, g)
+        batch = _batch(bundle, g, self.eval_count)
         textures = [_texture(self.blob, res.name, res) for res in g.resources if isinstance(res, TextureResource)]
         blocks = [{"name": res.name, "data": self.blob.add(bytes(res.data))}
                   for res in g.resources if isinstance(res, UniformBlockResource)]
         return {"bundle": bundle.name, "passes": passes, "blocks_per_pass": per_pass,
-                "inputs": self.blob.add(batch), "count": EVAL_BATCH, "in_dim": g.in_dim, "uint_lanes": list(g.uint_lanes),
+                "inputs": self.blob.add(batch), "count": self.eval_count, "in_dim": g.in_dim, "uint_lanes": list(g.uint_lanes),
                 "in_blocks": g.in_blocks, "in_uint_blocks": g.in_uint_blocks, "out_dim": g.out_dim,
                 "out_blocks": g.out_blocks, "textures": textures, "blocks": blocks}
 
@@ -362,7 +363,8 @@ class WebExport:
                 kind = "read-only-storage" if isinstance(res, StorageBufferResource) else "uniform"
                 resources.append({**at, "name": res.name, "buffer": kind, "data": self.blob.add(bytes(res.data))})
         return {"bundle": bundle.name, "wgsl": g.chunk + "\n" + (HERE / harness).read_text(),
-                "inputs": self.blob.add(_batch(bundle, g)), "count": EVAL_BATCH, "in_dim": g.in_dim,
+                "inputs": self.blob.add(_batch(bundle, g, self.eval_count)), "count": self.eval_count,
+                "in_dim": g.in_dim,
                 "uint_lanes": list(g.uint_lanes), "in_blocks": g.in_blocks, "in_uint_blocks": g.in_uint_blocks,
                 "out_dim": g.out_dim, "out_blocks": g.out_blocks, "resources": resources}
 
@@ -429,26 +431,26 @@ class WebExport:
             shutil.copyfile(PAGE / name, folder / name)
 
 
-def _batch(bundle, g) -> np.ndarray:
-    """The evaluation page's inputs [EVAL_BATCH, in_dim]: each port uniform over the range the parity
+def _batch(bundle, g, count: int = EVAL_BATCH) -> np.ndarray:
+    """The evaluation page's inputs [count, in_dim]: each port uniform over the range the parity
     envelope assumes for its semantic (inshade/envelope.py), directions and normals as unit vectors,
     uint lanes ids 0..EVAL_UINT_RANGE - 1; seeded, so every export of an asset has the same batch."""
     from inshade.envelope import input_ranges
 
     rng = np.random.default_rng(0)
     ranges, _ = input_ranges(bundle)
-    batch = np.zeros((EVAL_BATCH, g.in_dim), np.float32)
+    batch = np.zeros((count, g.in_dim), np.float32)
     lane = 0
     for port in bundle.inputs:
         cols = slice(lane, lane + port.dim)
         lo, hi = ranges[port.name]
         if port.dtype == "uint":
-            batch[:, cols] = rng.integers(0, EVAL_UINT_RANGE, (EVAL_BATCH, port.dim))
+            batch[:, cols] = rng.integers(0, EVAL_UINT_RANGE, (count, port.dim))
         elif port.semantic in UNIT_SEMANTICS:
-            v = rng.normal(size=(EVAL_BATCH, port.dim))
+            v = rng.normal(size=(count, port.dim))
             batch[:, cols] = v / np.linalg.norm(v, axis=1, keepdims=True)
         else:
-            batch[:, cols] = rng.uniform(lo, hi, (EVAL_BATCH, port.dim))
+            batch[:, cols] = rng.uniform(lo, hi, (count, port.dim))
         lane += port.dim
     return batch
 
@@ -463,17 +465,18 @@ def _alternatives(s, value) -> list:
 
 
 def export_web(source, out, *, force: bool = False, settings: dict | None = None, width: int | None = None,
-               height: int | None = None) -> WebExport:
+               height: int | None = None, eval_count: int = EVAL_BATCH) -> WebExport:
     """Write the page of ``source`` (an asset folder, scene.json or bundle) into the folder ``out``,
     atomically: it appears complete or not at all. An ``out`` that holds files is refused unless
-    ``force``; an asset WebGL2 cannot draw raises ``WebLimitError`` naming what it lacks."""
+    ``force``; an asset WebGL2 cannot draw raises ``WebLimitError`` naming what it lacks.
+    ``eval_count``: the evaluation pages' batch (``inshade bench web`` times larger ones)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise PageExistsError(f"{out}: -o: is a file, expected a folder for the page")
     if out.is_dir() and any(out.iterdir()) and not force:
         raise PageExistsError(f"{out}: -o: already holds files; choose another folder, or pass --force to "
                               "replace them")
-    page = WebExport(source, settings=settings, width=width, height=height)
+    page = WebExport(source, settings=settings, width=width, height=height, eval_count=eval_count)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
