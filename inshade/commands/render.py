@@ -18,6 +18,7 @@ log = logging.getLogger("inshade")
 def add_parsers(sub) -> None:
     _add_render(sub)
     _add_export_web(sub)
+    _add_export_three(sub)
     _add_export_gltf(sub)
     _add_serve(sub)
 
@@ -75,6 +76,28 @@ def _add_export_web(sub) -> None:
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
     p.add_argument("--force", action="store_true", help="replace what the folder holds")
     p.set_defaults(func=cmd_export_web)
+
+
+def _add_export_three(sub) -> None:
+    p = sub.add_parser("export-three", help="a network as a three.js material (WebGLRenderer)",
+                       description="Write ASSET's network as a three.js ShaderMaterial for your own app: "
+                                   "inshade-three.js (an ES module importing three: loadNetworkMaterial, "
+                                   "loadNetworkImage), network.json (its GLSL ES 3.00 stages and textures) and "
+                                   "network.bin. Planned against WebGL2's guaranteed limits. Draws an image (a "
+                                   "uv -> colour network) at the mesh's uv.")
+    p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write (new or empty)")
+    p.add_argument("--force", action="store_true", help="replace what the folder holds")
+    p.set_defaults(func=cmd_export_three)
+
+
+def cmd_export_three(args) -> int:
+    from inshade.web.three import MODULE, export_three
+
+    m = export_three(resolve(args.asset), args.output, force=args.force)
+    print(f"wrote {args.output}/{MODULE} ({m['name']}: {len(m['textures'])} textures; "
+          f"import {{ loadNetworkImage }} from \"./{Path(args.output).name}/{MODULE}\")", file=sys.stderr)
+    return 0
 
 
 def _add_export_gltf(sub) -> None:

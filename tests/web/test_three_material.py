@@ -1,0 +1,93 @@
+"""inshade export-three: the network as a three.js ShaderMaterial, drawn by three.js r187 (npm, pinned in
+tests/gltf_tools) in headless Chromium's WebGLRenderer, against inshade render of the same asset."""
+from __future__ import annotations
+
+import base64
+import json
+import os
+
+import numpy as np
+import pytest
+
+from inshade.runtime.headless import render_scene
+from inshade.scene.description import load_scene, resolve_asset
+from inshade.web.browser import Browser, psnr8, serve, srgb8
+from inshade.web.three import ThreeExportError, export_three
+
+from three_peer import TOOLS
+
+MIN_PSNR_DB = 40.0
+SIZE = 64
+
+PAGE = """<!doctype html><meta charset="utf-8"><link rel="icon" href="data:,"><canvas id="c"></canvas>
+<script type="importmap">{"imports": {"three": "./node_modules/three/build/three.module.js"}}</script>
+<script type="module">
+import * as THREE from "three";
+import { loadNetworkImage } from "./material/inshade-three.js";
+try {
+  const canvas = document.getElementById("c");
+  const renderer = new THREE.WebGLRenderer({canvas, antialias: false, preserveDrawingBuffer: true});
+  renderer.setPixelRatio(1);
+  renderer.setSize(%(size)d, %(size)d, false);
+  const scene = new THREE.Scene();
+  scene.add(await loadNetworkImage(new URL("./material/", location.href)));
+  const camera = new THREE.OrthographicCamera(-0.5, 0.5, 0.5, -0.5, 0.1, 10);
+  camera.position.z = 1;
+  renderer.render(scene, camera);
+  const gl = renderer.getContext(), px = new Uint8Array(%(size)d * %(size)d * 4);
+  gl.readPixels(0, 0, %(size)d, %(size)d, gl.RGBA, gl.UNSIGNED_BYTE, px);
+  let bin = ""; for (let i = 0; i < px.length; ++i) bin += String.fromCharCode(px[i]);
+  window.inshade = {ready: true, pixels: btoa(bin)};
+} catch (e) { window.inshade = {error: String(e)}; }
+</script>"""
+# one image asset of each network kind: lookup arrays (textures, exact), a hash grid, a plain MLP of yours
+ASSETS = ["neural_image", "hash_grid_image", "di_texture_chelsea"] if os.environ.get("INSHADE_SLOW") else \
+    ["neural_image", "hash_grid_image"]
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with Browser() as b:
+        yield b
+
+
+def _drawn(browser, folder) -> np.ndarray:
+    os.symlink(TOOLS / "node_modules", folder / "node_modules")
+    (folder / "page.html").write_text(PAGE % {"size": SIZE})
+    with serve(folder) as url:
+        state = browser.open(url + "page.html", timeout=300)
+        assert state.get("ready"), state
+        assert not [c for c in state["console"] if c.startswith("SEVERE")], state["console"]
+        pixels = browser.driver.execute_script("return window.inshade.pixels;")
+    rgba = np.frombuffer(base64.b64decode(pixels), np.uint8).reshape(SIZE, SIZE, 4)
+    return rgba[::-1, :, :3]   # GL rows bottom-up -> image orientation
+
+
+@pytest.mark.parametrize("asset", ASSETS)
+def test_three_draws_what_inshade_render_draws(gl, browser, asset, tmp_path):
+    manifest = export_three(resolve_asset(asset), tmp_path / "material")
+    assert manifest["format"] == "inshade-three 1" and manifest["kind"] == "image"
+    page = _drawn(browser, tmp_path)
+    image, _ = render_scene(load_scene(resolve_asset(asset)), width=SIZE, height=SIZE, settings={"labels": False})
+    db = psnr8(page, srgb8(image))
+    assert db >= MIN_PSNR_DB, f"{asset}: three.js draws it {db:.2f} dB from inshade render"
+
+
+def test_your_own_network_and_the_refusals(gl, browser, tmp_path):
+    import torch
+
+    import inshade
+
+    torch.manual_seed(0)
+    module = torch.nn.Sequential(torch.nn.Linear(2, 32), torch.nn.SiLU(), torch.nn.Linear(32, 3), torch.nn.Sigmoid())
+    inshade.export(module, torch.rand(64, 2), tmp_path / "mine", as_="image", colour="srgb", quiet=True)
+    export_three(tmp_path / "mine", tmp_path / "material")
+    page = _drawn(browser, tmp_path)
+    image, _ = render_scene(load_scene(tmp_path / "mine"), width=SIZE, height=SIZE, settings={"labels": False})
+    assert psnr8(page, srgb8(image)) >= MIN_PSNR_DB
+    with pytest.raises(ThreeExportError, match=r"export-three draws an image .* this scene's program is "
+                                               r"passes/sdf_diffuse.frag"):
+        export_three(resolve_asset("sdf_creature"), tmp_path / "sdf")
+    with pytest.raises(ValueError, match="already holds files"):
+        export_three(tmp_path / "mine", tmp_path / "material")
+    assert json.loads((tmp_path / "material" / "network.json").read_text())["name"]

@@ -1,0 +1,96 @@
+"""``inshade export-three``: a network as a three.js material for a WebGLRenderer app. The folder holds
+``network.json`` (the two GLSL ES 3.00 stages of a ``ShaderMaterial`` and the textures' records),
+``network.bin`` (their texels) and ``inshade-three.js`` (an ES module importing ``three``:
+``loadNetworkMaterial`` and ``loadNetworkImage``). The network is planned against WebGL2's guaranteed
+limits with its weights as literals or in a texture (three.js binds no uniform blocks of ours), and
+evaluated per fragment at the mesh's uv, ending as three's own materials do (tone mapping, output
+colour space).
+
+Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag``), on a plane or any
+mesh with uvs. Other kinds are refused in one line.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from pathlib import Path
+
+from inshade.codegen import generate
+from inshade.codegen.glsl import TextureResource
+from inshade.codegen.limits import LimitError
+from inshade.scene.description import load_scene
+from inshade.shaders import flatten
+
+from .export import PAGE, PageExistsError, _Blob, _texture
+from .limits import WEBGL2, WebLimitError
+
+FORMAT = "inshade-three 1"
+MODULE = "inshade-three.js"
+# three.js binds textures and plain uniforms, not uniform blocks of the shader's own
+LIMITS = {**WEBGL2, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 0}
+SRGB_SEMANTIC = "srgb"
+
+
+class ThreeExportError(ValueError):
+    """A scene the three.js material cannot draw yet; the message says which and why."""
+
+
+def _image_network(scene, source) -> tuple:
+    if scene.program != "passes/field2d.frag" or not scene.networks:
+        raise ThreeExportError(f"{source}: export-three draws an image (a uv -> colour network, program "
+                               f"passes/field2d.frag) for now; this scene's program is {scene.program}")
+    from inshade.bundle import load
+
+    ref = scene.networks[0]
+    bundle = load(ref.bundle)
+    name = ref.output or bundle.outputs[0].name
+    port = next(p for p in bundle.outputs if p.name == name)
+    return bundle, port
+
+
+def material(source) -> tuple[dict, bytes]:
+    """(network.json, network.bin) of the scene or bundle ``source``."""
+    scene = load_scene(source)
+    bundle, port = _image_network(scene, source)
+    try:
+        g = generate(bundle, prefix="net", target="es300", limits=LIMITS)
+    except LimitError as exc:
+        raise WebLimitError(f"WebGL2: {exc}") from None
+    lanes = bundle.output_lanes(port.name)
+    defines = {"FIELD_OUT_OFFSET": lanes[0], "FIELD_OUT_DIM": lanes[1],
+               **({"FIELD_OUT_SRGB": 1} if port.semantic == SRGB_SEMANTIC else {})}
+    blob = _Blob()
+    textures = [_texture(blob, r.name, r) for r in g.resources if isinstance(r, TextureResource)]
+    manifest = {"format": FORMAT, "name": bundle.name, "kind": "image", "bundle_digest": bundle.digest(),
+                "output": port.name, "alpha": lanes[1] == 4,
+                "vertexShader": flatten("passes/three_image_vertex"),
+                "fragmentShader": flatten("passes/three_image", chunks={"network": g.chunk}, defines=defines),
+                "textures": textures}
+    return manifest, blob.bytes()
+
+
+def export_three(source, out, *, force: bool = False) -> dict:
+    """Write the material of ``source`` into the folder ``out`` (atomically; a folder holding files is
+    replaced only with ``force``); returns network.json's content."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise PageExistsError(f"{out}: -o: is a file, expected a folder")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise PageExistsError(f"{out}: -o: already holds files; choose another folder, or pass --force to "
+                              "replace them")
+    manifest, data = material(source)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        folder = staging / "material"
+        folder.mkdir()
+        (folder / "network.json").write_text(json.dumps(manifest, indent=1) + "\n")
+        (folder / "network.bin").write_bytes(data)
+        shutil.copyfile(PAGE / MODULE, folder / MODULE)
+        if out.exists():
+            out.rename(staging / "old")
+        folder.rename(out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return manifest
