@@ -470,22 +470,33 @@ def export_web(source, out, *, force: bool = False, settings: dict | None = None
     atomically: it appears complete or not at all. An ``out`` that holds files is refused unless
     ``force``; an asset WebGL2 cannot draw raises ``WebLimitError`` naming what it lacks.
     ``eval_count``: the evaluation pages' batch (``inshade bench web`` times larger ones)."""
+    claim_folder(out, force)
+    page = WebExport(source, settings=settings, width=width, height=height, eval_count=eval_count)
+    write_folder(out, page.write)
+    return page
+
+
+def claim_folder(out, force: bool) -> None:
+    """Refuse an output folder that is a file, or that holds files unless ``force``: before any work."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise PageExistsError(f"{out}: -o: is a file, expected a folder for the page")
+        raise PageExistsError(f"{out}: -o: is a file, expected a folder")
     if out.is_dir() and any(out.iterdir()) and not force:
         raise PageExistsError(f"{out}: -o: already holds files; choose another folder, or pass --force to "
                               "replace them")
-    page = WebExport(source, settings=settings, width=width, height=height, eval_count=eval_count)
+
+
+def write_folder(out, fill) -> None:
+    """``fill(folder)`` writes a new folder (which it creates) that then replaces ``out``: it appears
+    complete or not at all."""
+    out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        page.write(staging / "page")
+        fill(staging / "new")
         if out.exists():
-            old = staging / "old"
-            out.rename(old)
-        (staging / "page").rename(out)
+            out.rename(staging / "old")
+        (staging / "new").rename(out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-    return page
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import tempfile
 from pathlib import Path
 
 from inshade.codegen import generate
@@ -22,7 +21,7 @@ from inshade.codegen.limits import LimitError
 from inshade.scene.description import load_scene
 from inshade.shaders import flatten
 
-from .export import PAGE, PageExistsError, _Blob, _texture
+from .export import PAGE, _Blob, _texture, claim_folder, write_folder
 from .limits import WEBGL2, WebLimitError
 
 FORMAT = "inshade-three 1"
@@ -73,24 +72,14 @@ def material(source) -> tuple[dict, bytes]:
 def export_three(source, out, *, force: bool = False) -> dict:
     """Write the material of ``source`` into the folder ``out`` (atomically; a folder holding files is
     replaced only with ``force``); returns network.json's content."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise PageExistsError(f"{out}: -o: is a file, expected a folder")
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise PageExistsError(f"{out}: -o: already holds files; choose another folder, or pass --force to "
-                              "replace them")
+    claim_folder(out, force)
     manifest, data = material(source)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        folder = staging / "material"
+
+    def fill(folder: Path) -> None:
         folder.mkdir()
         (folder / "network.json").write_text(json.dumps(manifest, indent=1) + "\n")
         (folder / "network.bin").write_bytes(data)
         shutil.copyfile(PAGE / MODULE, folder / MODULE)
-        if out.exists():
-            out.rename(staging / "old")
-        folder.rename(out)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+
+    write_folder(out, fill)
     return manifest
