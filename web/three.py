@@ -18,14 +18,17 @@ from pathlib import Path
 from inshade.codegen import generate
 from inshade.codegen.glsl import TextureResource
 from inshade.codegen.limits import LimitError
+from inshade.codegen.printers.base import library_source
+from inshade.codegen.targets import TargetError
 from inshade.scene.description import load_scene
-from inshade.shaders import flatten
+from inshade.shaders import find_chunk, flatten
 
 from .export import PAGE, _Blob, _texture, claim_folder, write_folder
 from .limits import WEBGL2, WebLimitError
 
 FORMAT = "inshade-three 1"
-MODULE = "inshade-three.js"
+MODULE = "inshade-three.js"             # WebGLRenderer (imports "three")
+NODE_MODULE = "inshade-three-webgpu.js"  # WebGPURenderer (imports "three/webgpu" and "three/tsl")
 # three.js binds textures and plain uniforms, not uniform blocks of the shader's own
 LIMITS = {**WEBGL2, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 0}
 SRGB_SEMANTIC = "srgb"
@@ -59,14 +62,32 @@ def material(source) -> tuple[dict, bytes]:
     lanes = bundle.output_lanes(port.name)
     defines = {"FIELD_OUT_OFFSET": lanes[0], "FIELD_OUT_DIM": lanes[1],
                **({"FIELD_OUT_SRGB": 1} if port.semantic == SRGB_SEMANTIC else {})}
+    wgsl = _wgsl(bundle, lanes, port.semantic == SRGB_SEMANTIC)
     blob = _Blob()
     textures = [_texture(blob, r.name, r) for r in g.resources if isinstance(r, TextureResource)]
     manifest = {"format": FORMAT, "name": bundle.name, "kind": "image", "bundle_digest": bundle.digest(),
                 "output": port.name, "alpha": lanes[1] == 4,
                 "vertexShader": flatten("passes/three_image_vertex"),
                 "fragmentShader": flatten("passes/three_image", chunks={"network": g.chunk}, defines=defines),
-                "textures": textures}
+                "textures": textures, **wgsl}
     return manifest, blob.bytes()
+
+
+def _wgsl(bundle, lanes, srgb: bool) -> dict:
+    """The WGSL a WebGPURenderer's node material calls (``wgslFn``): {"wgsl": {"include", "function"}},
+    or {"wgsl_unavailable": why}. Weights as literals only: the module's own bindings would not be three's."""
+    try:
+        g = generate(bundle, prefix="net", target="wgsl", storage="inline")
+    except (TargetError, LimitError) as exc:
+        return {"wgsl_unavailable": str(exc)}
+    if g.resources:
+        return {"wgsl_unavailable": f"{bundle.name} reads {len(g.resources)} textures; the WebGPURenderer material "
+                                    "takes networks with their weights as literals only, for now (use "
+                                    "loadNetworkMaterial with a WebGLRenderer)"}
+    consts = [f"const FIELD_OUT_OFFSET: i32 = {lanes[0]};", f"const FIELD_OUT_DIM: i32 = {lanes[1]};",
+              f"const FIELD_OUT_SRGB: bool = {'true' if srgb else 'false'};"]
+    include = "\n".join([g.chunk.rstrip("\n"), *consts, *library_source(["lib/colour"], (".wgsl",))]) + "\n"
+    return {"wgsl": {"include": include, "function": find_chunk("passes/three_image", ".wgsl").read_text()}}
 
 
 def export_three(source, out, *, force: bool = False) -> dict:
@@ -79,7 +100,8 @@ def export_three(source, out, *, force: bool = False) -> dict:
         folder.mkdir()
         (folder / "network.json").write_text(json.dumps(manifest, indent=1) + "\n")
         (folder / "network.bin").write_bytes(data)
-        shutil.copyfile(PAGE / MODULE, folder / MODULE)
+        for module in (MODULE, NODE_MODULE):
+            shutil.copyfile(PAGE / module, folder / module)
 
     write_folder(out, fill)
     return manifest

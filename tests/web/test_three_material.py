@@ -67,10 +67,52 @@ def _drawn(browser, folder) -> np.ndarray:
 def test_three_draws_what_inshade_render_draws(gl, browser, asset, tmp_path):
     manifest = export_three(resolve_asset(asset), tmp_path / "material")
     assert manifest["format"] == "inshade-three 1" and manifest["kind"] == "image"
+    # its textures are not taken by the WebGPURenderer material yet, which says so
+    assert "the WebGPURenderer material takes networks with their weights as literals only" in \
+        manifest["wgsl_unavailable"]
     page = _drawn(browser, tmp_path)
     image, _ = render_scene(load_scene(resolve_asset(asset)), width=SIZE, height=SIZE, settings={"labels": False})
     db = psnr8(page, srgb8(image))
     assert db >= MIN_PSNR_DB, f"{asset}: three.js draws it {db:.2f} dB from inshade render"
+
+
+NODE_PAGE = """<!doctype html><meta charset="utf-8"><link rel="icon" href="data:,"><canvas id="c"></canvas>
+<script type="importmap">{"imports": {"three": "./node_modules/three/build/three.webgpu.js",
+  "three/webgpu": "./node_modules/three/build/three.webgpu.js", "three/tsl": "./node_modules/three/build/three.tsl.js"}}
+</script>
+<script type="module">
+import * as THREE from "three/webgpu";
+import { loadNetworkNodeImage } from "./material/inshade-three-webgpu.js";
+try {
+  const renderer = new THREE.WebGPURenderer({canvas: document.getElementById("c"), antialias: false});
+  await renderer.init();
+  const target = new THREE.RenderTarget(%(size)d, %(size)d, {type: THREE.FloatType});
+  const scene = new THREE.Scene();
+  scene.add(await loadNetworkNodeImage(new URL("./material/", location.href)));
+  const camera = new THREE.OrthographicCamera(-0.5, 0.5, 0.5, -0.5, 0.1, 10);
+  camera.position.z = 1;
+  renderer.setRenderTarget(target);
+  renderer.render(scene, camera);
+  const px = await renderer.readRenderTargetPixelsAsync(target, 0, 0, %(size)d, %(size)d);
+  const bytes = new Uint8Array(px.buffer, px.byteOffset, px.byteLength);
+  let bin = ""; for (let i = 0; i < bytes.length; ++i) bin += String.fromCharCode(bytes[i]);
+  window.inshade = {ready: true, pixels: btoa(bin), backend: renderer.backend.isWebGPUBackend ? "webgpu" : "webgl2"};
+} catch (e) { window.inshade = {error: String(e)}; }
+</script>"""
+
+
+def _drawn_linear(browser, folder) -> tuple[np.ndarray, str]:
+    """WebGPURenderer's linear float render of the material folder's image (image orientation) and the
+    backend three chose."""
+    os.symlink(TOOLS / "node_modules", folder / "node_modules")
+    (folder / "page.html").write_text(NODE_PAGE % {"size": SIZE})
+    with serve(folder) as url:
+        state = browser.open(url + "page.html", timeout=300)
+        assert state.get("ready"), state
+        assert not [c for c in state["console"] if c.startswith("SEVERE")], state["console"]
+        pixels, backend = browser.driver.execute_script("return [window.inshade.pixels, window.inshade.backend];")
+    rgba = np.frombuffer(base64.b64decode(pixels), np.float32).reshape(SIZE, SIZE, 4)
+    return rgba[:, :, :3], backend   # a WebGPU texture's rows run top-down: image orientation already
 
 
 def test_your_own_network_and_the_refusals(gl, browser, tmp_path):
@@ -85,6 +127,13 @@ def test_your_own_network_and_the_refusals(gl, browser, tmp_path):
     page = _drawn(browser, tmp_path)
     image, _ = render_scene(load_scene(tmp_path / "mine"), width=SIZE, height=SIZE, settings={"labels": False})
     assert psnr8(page, srgb8(image)) >= MIN_PSNR_DB
+    # the same material on three's WebGPURenderer, from the network's WGSL
+    (tmp_path / "node").mkdir()
+    export_three(tmp_path / "mine", tmp_path / "node" / "material")
+    linear, backend = _drawn_linear(browser, tmp_path / "node")
+    assert backend == "webgpu"
+    db = psnr8(srgb8(linear), srgb8(image))
+    assert db >= MIN_PSNR_DB, f"WebGPURenderer draws it {db:.2f} dB from inshade render"
     with pytest.raises(ThreeExportError, match=r"export-three draws an image .* this scene's program is "
                                                r"passes/sdf_diffuse.frag"):
         export_three(resolve_asset("sdf_creature"), tmp_path / "sdf")
