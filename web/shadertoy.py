@@ -17,6 +17,7 @@ import numpy as np
 
 from inshade.codegen import LimitError, generate
 from inshade.codegen.targets import TargetError
+from inshade.runtime.scene_program import SRGB_SEMANTIC
 from inshade.shaders import flatten
 from inshade.shaders.compact import compact
 
@@ -26,7 +27,6 @@ from .limits import WEBGL2
 # each time the page opens, and literal-heavy programs are the slow ones to compile
 PASS_CHARS = 65536
 PASS_CHARS_LIMIT = "SHADERTOY_PASS_CHARS"
-SRGB_SEMANTIC = "srgb"
 CHECK_SIZE = 128                 # the square view of the network check
 SHOWN_SIZE = (96, 48)            # the wide view of the picture check
 SHOWN_RULE = 0.5 / 255           # half an 8-bit step

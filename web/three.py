@@ -20,6 +20,7 @@ from inshade.codegen.glsl import TextureResource
 from inshade.codegen.limits import LimitError
 from inshade.codegen.printers.base import library_source
 from inshade.codegen.targets import TargetError
+from inshade.runtime.scene_program import SRGB_SEMANTIC
 from inshade.scene.description import load_scene
 from inshade.shaders import find_chunk, flatten
 
@@ -31,7 +32,6 @@ MODULE = "inshade-three.js"             # WebGLRenderer (imports "three")
 NODE_MODULE = "inshade-three-webgpu.js"  # WebGPURenderer (imports "three/webgpu" and "three/tsl")
 # three.js binds textures and plain uniforms, not uniform blocks of the shader's own
 LIMITS = {**WEBGL2, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 0}
-SRGB_SEMANTIC = "srgb"
 
 
 class ThreeExportError(ValueError):
