@@ -1,13 +1,14 @@
 """``inshade export-three``: a network as a three.js material for a WebGLRenderer app. The folder holds
 ``network.json`` (the two GLSL ES 3.00 stages of a ``ShaderMaterial`` and the textures' records),
 ``network.bin`` (their texels) and ``inshade-three.js`` (an ES module importing ``three``:
-``loadNetworkMaterial`` and ``loadNetworkImage``). The network is planned against WebGL2's guaranteed
+``loadNetworkMaterial`` and ``loadNetworkMesh``). The network is planned against WebGL2's guaranteed
 limits with its weights as literals or in a texture (three.js binds no uniform blocks of ours), and
 evaluated per fragment at the mesh's uv, ending as three's own materials do (tone mapping, output
 colour space).
 
-Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag``), on a plane or any
-mesh with uvs. Other kinds are refused in one line.
+Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag``) on a plane or any
+mesh with uvs, and an SDF (a scene of ``passes/sdf_diffuse.frag``, analytic or a network) sphere traced
+inside a box around its bound. Other kinds are refused in one line.
 """
 from __future__ import annotations
 
@@ -34,27 +35,39 @@ NODE_MODULE = "inshade-three-webgpu.js"  # WebGPURenderer (imports "three/webgpu
 LIMITS = {**WEBGL2, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 0}
 
 
+# what a scene's program draws -> the material that draws it
+KINDS = {"passes/field2d.frag": "image", "passes/sdf_diffuse.frag": "sdf"}
+
+
 class ThreeExportError(ValueError):
     """A scene the three.js material cannot draw yet; the message says which and why."""
 
 
-def _image_network(scene, source) -> tuple:
-    if scene.program != "passes/field2d.frag" or not scene.networks:
+def material(source) -> tuple[dict, bytes]:
+    """(network.json, network.bin) of the scene or bundle ``source``, by what its program draws."""
+    scene = load_scene(source)
+    kind = KINDS.get(scene.program)
+    if kind is None or (kind == "image" and not scene.networks):
         raise ThreeExportError(f"{source}: export-three draws an image (a uv -> colour network, program "
-                               f"passes/field2d.frag) for now; this scene's program is {scene.program}")
+                               f"passes/field2d.frag) or an SDF (passes/sdf_diffuse.frag) for now; this scene's "
+                               f"program is {scene.program}")
+    blob = _Blob()
+    manifest = {"format": FORMAT, "name": scene.name, "kind": kind,
+                **{"image": _image, "sdf": _sdf}[kind](scene, blob)}
+    return manifest, blob.bytes()
+
+
+def _textures(blob, resources) -> list[dict]:
+    return [_texture(blob, r.name, r) for r in resources if isinstance(r, TextureResource)]
+
+
+def _image(scene, blob) -> dict:
+    """An image: the network at the mesh's uv."""
     from inshade.bundle import load
 
     ref = scene.networks[0]
     bundle = load(ref.bundle)
-    name = ref.output or bundle.outputs[0].name
-    port = next(p for p in bundle.outputs if p.name == name)
-    return bundle, port
-
-
-def material(source) -> tuple[dict, bytes]:
-    """(network.json, network.bin) of the scene or bundle ``source``."""
-    scene = load_scene(source)
-    bundle, port = _image_network(scene, source)
+    port = next(p for p in bundle.outputs if p.name == (ref.output or bundle.outputs[0].name))
     try:
         g = generate(bundle, prefix="net", target="es300", limits=LIMITS)
     except LimitError as exc:
@@ -62,15 +75,41 @@ def material(source) -> tuple[dict, bytes]:
     lanes = bundle.output_lanes(port.name)
     defines = {"FIELD_OUT_OFFSET": lanes[0], "FIELD_OUT_DIM": lanes[1],
                **({"FIELD_OUT_SRGB": 1} if port.semantic == SRGB_SEMANTIC else {})}
-    wgsl = _wgsl(bundle, lanes, port.semantic == SRGB_SEMANTIC)
-    blob = _Blob()
-    textures = [_texture(blob, r.name, r) for r in g.resources if isinstance(r, TextureResource)]
-    manifest = {"format": FORMAT, "name": bundle.name, "kind": "image", "bundle_digest": bundle.digest(),
-                "output": port.name, "alpha": lanes[1] == 4,
-                "vertexShader": flatten("passes/three_image_vertex"),
-                "fragmentShader": flatten("passes/three_image", chunks={"network": g.chunk}, defines=defines),
-                "textures": textures, **wgsl}
-    return manifest, blob.bytes()
+    return {"bundle_digest": bundle.digest(), "output": port.name, "alpha": lanes[1] == 4,
+            "vertexShader": flatten("passes/three_image_vertex"),
+            "fragmentShader": flatten("passes/three_image", chunks={"network": g.chunk}, defines=defines),
+            "textures": _textures(blob, g.resources), "uniforms": {},
+            **_wgsl(bundle, lanes, port.semantic == SRGB_SEMANTIC)}
+
+
+def _sdf(scene, blob) -> dict:
+    """An SDF (analytic or a network), sphere traced in a box around its bound sphere under the scene's
+    SH environment (u_sh at the scene's default settings)."""
+    import numpy as np
+
+    from inshade.codegen.network_sdf import NetworkSdfScene
+    from inshade.runtime.context import shared_context
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene_program import geometry_chunks
+    from inshade.scene.description import NetworkSdfRef
+
+    try:
+        r = SceneRenderer(scene, shared_context(), settings={"labels": False}, limits=LIMITS, target="es300")
+    except LimitError as exc:
+        raise WebLimitError(f"WebGL2: {exc}") from None
+    try:
+        chunks, generated = geometry_chunks(scene, r.spec, r.bundles, r.values, LIMITS, "es300", r.sdf_bundle)
+        sh = np.frombuffer(r.uniform_values(scene.make_camera(), *scene.size)["u_sh"], np.float32)
+    finally:
+        r.release()
+    bound = NetworkSdfScene.from_bundle(r.sdf_bundle) if isinstance(scene.sdf, NetworkSdfRef) else scene.sdf
+    return {"bundle_digest": r.sdf_bundle.digest() if r.sdf_bundle is not None else None, "alpha": False,
+            "bound": {"center": [float(c) for c in bound.center], "radius": float(bound.radius)},
+            "vertexShader": flatten("passes/three_sdf_vertex"),
+            "fragmentShader": flatten("passes/three_sdf", chunks=chunks),
+            "textures": _textures(blob, [res for g in generated for res in g.resources]),
+            "uniforms": {"u_sh": sh.reshape(-1, 3).tolist()},
+            "wgsl_unavailable": "the WebGPURenderer material draws images only, for now"}
 
 
 def _wgsl(bundle, lanes, srgb: bool) -> dict:

@@ -82,9 +82,10 @@ def _add_export_three(sub) -> None:
     p = sub.add_parser("export-three", help="a network as a three.js material (WebGLRenderer)",
                        description="Write ASSET's network as a three.js ShaderMaterial for your own app: "
                                    "inshade-three.js (an ES module importing three: loadNetworkMaterial, "
-                                   "loadNetworkImage), network.json (its GLSL ES 3.00 stages and textures) and "
+                                   "loadNetworkMesh), network.json (its GLSL ES 3.00 stages and textures) and "
                                    "network.bin. Planned against WebGL2's guaranteed limits. Draws an image (a "
-                                   "uv -> colour network) at the mesh's uv.")
+                                   "uv -> colour network) at the mesh's uv, or an SDF sphere traced in a box "
+                                   "around its bound.")
     p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write (new or empty)")
     p.add_argument("--force", action="store_true", help="replace what the folder holds")
@@ -96,7 +97,7 @@ def cmd_export_three(args) -> int:
 
     m = export_three(resolve(args.asset), args.output, force=args.force)
     print(f"wrote {args.output}/{MODULE} ({m['name']}: {len(m['textures'])} textures; "
-          f"import {{ loadNetworkImage }} from \"./{Path(args.output).name}/{MODULE}\")", file=sys.stderr)
+          f"import {{ loadNetworkMesh }} from \"./{Path(args.output).name}/{MODULE}\")", file=sys.stderr)
     return 0
 
 

@@ -2,8 +2,8 @@
 // beside network.json). The network's WGSL, the same code `inshade codegen --target wgsl` writes and
 // checks, is the material's colour through TSL's wgslFn:
 //
-//   import { loadNetworkNodeImage } from "./my_net/inshade-three-webgpu.js";
-//   scene.add(await loadNetworkNodeImage(new URL("./my_net/", import.meta.url)));   // a 1 x 1 plane
+//   import { loadNetworkNodeMesh } from "./my_net/inshade-three-webgpu.js";
+//   scene.add(await loadNetworkNodeMesh(new URL("./my_net/", import.meta.url)));   // a 1 x 1 plane
 //
 // Networks with their weights as literals only (network.json says why another is not taken).
 import { Mesh, MeshBasicNodeMaterial, PlaneGeometry } from "three/webgpu";
@@ -24,7 +24,7 @@ export async function loadNetworkNodeMaterial(base) {
 }
 
 // The network's picture on a 1 x 1 plane in the xy plane (uv (0, 0) bottom left), facing +z.
-export async function loadNetworkNodeImage(base) {
+export async function loadNetworkNodeMesh(base) {
   const mesh = new Mesh(new PlaneGeometry(1, 1), await loadNetworkNodeMaterial(base));
   mesh.name = mesh.material.name;
   return mesh;

@@ -1,11 +1,12 @@
 // An inshade network as a three.js material (written by `inshade export-three` beside network.json and
 // network.bin). For a WebGLRenderer:
 //
-//   import { loadNetworkImage } from "./my_net/inshade-three.js";
-//   scene.add(await loadNetworkImage(new URL("./my_net/", import.meta.url)));   // a 1 x 1 plane
+//   import { loadNetworkMesh } from "./my_net/inshade-three.js";
+//   scene.add(await loadNetworkMesh(new URL("./my_net/", import.meta.url)));
 //
-// or `loadNetworkMaterial(base)` for a ShaderMaterial to put on a mesh of your own (its uv is the
-// network's input). Texels are data: no colour space, no flip, no mipmaps generated.
+// An image is a 1 x 1 plane (or `loadNetworkMaterial(base)` on a mesh of your own: its uv is the
+// network's input); an SDF is a box around its bound, drawn from the inside and sphere traced per
+// fragment, in the mesh's frame. Texels are data: no colour space, no flip, no mipmaps generated.
 import * as THREE from "three";
 
 // inshade dtype -> three.js texel type, typed array and internal format by channel count
@@ -83,16 +84,31 @@ export async function loadNetworkMaterial(base) {
   if (manifest.format !== "inshade-three 1") throw new Error(`network.json: format: unknown ${manifest.format}`);
   const data = await fetched(new URL("network.bin", base), "bytes");
   const uniforms = Object.fromEntries(manifest.textures.map((rec) => [rec.uniform, {value: texture(rec, data)}]));
+  for (const [name, value] of Object.entries(manifest.uniforms)) {   // vec3 arrays (an SDF's SH environment)
+    uniforms[name] = {value: value.map((v) => new THREE.Vector3(...v))};
+  }
   const material = new THREE.ShaderMaterial({glslVersion: THREE.GLSL3, vertexShader: manifest.vertexShader,
                                              fragmentShader: manifest.fragmentShader, uniforms,
-                                             transparent: manifest.alpha});
+                                             transparent: manifest.alpha,
+                                             side: manifest.kind === "sdf" ? THREE.BackSide : THREE.FrontSide});
   material.name = manifest.name;
+  material.userData.inshade = {kind: manifest.kind, bound: manifest.bound};
   return material;
 }
 
-// The network's picture on a 1 x 1 plane in the xy plane (uv (0, 0) bottom left), facing +z.
-export async function loadNetworkImage(base) {
-  const mesh = new THREE.Mesh(new THREE.PlaneGeometry(1, 1), await loadNetworkMaterial(base));
-  mesh.name = mesh.material.name;
+// The network as a mesh: an image on a 1 x 1 plane in the xy plane (uv (0, 0) bottom left) facing +z;
+// an SDF in the box around its bound sphere, in the SDF's own frame.
+export async function loadNetworkMesh(base) {
+  const material = await loadNetworkMaterial(base);
+  const {kind, bound} = material.userData.inshade;
+  let geometry;
+  if (kind === "sdf") {
+    const side = 2 * bound.radius;
+    geometry = new THREE.BoxGeometry(side, side, side).translate(...bound.center);
+  } else {
+    geometry = new THREE.PlaneGeometry(1, 1);
+  }
+  const mesh = new THREE.Mesh(geometry, material);
+  mesh.name = material.name;
   return mesh;
 }
