@@ -1,14 +1,16 @@
-"""``inshade export-three``: a network as a three.js material for a WebGLRenderer app. The folder holds
-``network.json`` (the two GLSL ES 3.00 stages of a ``ShaderMaterial`` and the textures' records),
-``network.bin`` (their texels) and ``inshade-three.js`` (an ES module importing ``three``:
-``loadNetworkMaterial`` and ``loadNetworkMesh``). The network is planned against WebGL2's guaranteed
-limits with its weights as literals or in a texture (three.js binds no uniform blocks of ours), and
-evaluated per fragment at the mesh's uv, ending as three's own materials do (tone mapping, output
-colour space).
+"""``inshade export-three``: a network as a three.js material for an app of your own. The folder holds
+``network.json`` (the two GLSL ES 3.00 stages of a ``ShaderMaterial``, the textures' records, the
+uniforms, and for a WebGPURenderer the network's WGSL), ``network.bin`` (the texels),
+``inshade-three.js`` (imports ``three``: ``loadNetworkMaterial``, ``loadNetworkMesh``) and
+``inshade-three-webgpu.js`` (imports ``three/webgpu`` and ``three/tsl``: ``loadNetworkNodeMaterial``,
+``loadNetworkNodeMesh``). The network is planned against WebGL2's guaranteed limits with its weights as
+literals or in a texture (three.js binds no uniform blocks of ours) and ends as three's own materials
+do (tone mapping, output colour space).
 
 Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag``) on a plane or any
 mesh with uvs, and an SDF (a scene of ``passes/sdf_diffuse.frag``, analytic or a network) sphere traced
-inside a box around its bound. Other kinds are refused in one line.
+inside a box around its bound; on a WebGPURenderer, images of networks without textures. Other kinds
+are refused in one line.
 """
 from __future__ import annotations
 

@@ -5,8 +5,8 @@ runs the very text written, wrapped as the engine wraps it, through the HLSL dri
 """
 from __future__ import annotations
 
-from .drop_in import DropIn, check_drop_in, drop_in
+from .drop_in import ENGINE_TEXT, DropIn, check_drop_in, drop_in
 
-ENGINES = ("unity", "unreal")
+ENGINES = tuple(ENGINE_TEXT)
 
 __all__ = ["ENGINES", "DropIn", "check_drop_in", "drop_in"]
