@@ -26,7 +26,6 @@ import io
 import json
 import logging
 import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +49,7 @@ from inshade.scene.tonemap import glsl_chunk as tonemap_chunk
 from inshade.shaders import assemble
 from inshade.technique import FrameInputs
 
+from .folders import claim_folder, write_folder
 from .limits import BASE_EXTENSIONS, TEXTURE_EXTENSIONS, WEBGL2, WebLimitError
 
 log = logging.getLogger("inshade")
@@ -63,10 +63,6 @@ EVAL_BATCH = 1024          # samples in the evaluation page's batch
 EVAL_UINT_RANGE = 256      # uint lanes of the batch are ids 0..255 (tables hold at least that many rows)
 UNIT_SEMANTICS = ("normal", "direction")   # ports whose batch rows are unit vectors (the rest: [0, 1))
 ALIGN = 16
-
-
-class PageExistsError(ValueError):
-    """The output folder already holds files (and --force was not given)."""
 
 
 class _Blob:
@@ -474,29 +470,3 @@ def export_web(source, out, *, force: bool = False, settings: dict | None = None
     page = WebExport(source, settings=settings, width=width, height=height, eval_count=eval_count)
     write_folder(out, page.write)
     return page
-
-
-def claim_folder(out, force: bool) -> None:
-    """Refuse an output folder that is a file, or that holds files unless ``force``: before any work."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise PageExistsError(f"{out}: -o: is a file, expected a folder")
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise PageExistsError(f"{out}: -o: already holds files; choose another folder, or pass --force to "
-                              "replace them")
-
-
-def write_folder(out, fill) -> None:
-    """``fill(folder)`` writes a new folder (which it creates) that then replaces ``out``: it appears
-    complete or not at all."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        fill(staging / "new")
-        if out.exists():
-            out.rename(staging / "old")
-        (staging / "new").rename(out)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-

@@ -27,7 +27,8 @@ from inshade.runtime.scene_program import SRGB_SEMANTIC
 from inshade.scene.description import load_scene
 from inshade.shaders import find_chunk, flatten
 
-from .export import PAGE, _Blob, _texture, claim_folder, write_folder
+from .export import PAGE, _Blob, _texture
+from .folders import claim_folder, write_folder
 from .limits import WEBGL2, WebLimitError
 
 FORMAT = "inshade-three 1"
