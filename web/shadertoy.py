@@ -187,3 +187,115 @@ def check_pass(p: ShadertoyPass, source, bundle, *, ctx=None) -> ShadertoyCheck:
     shown = _run(ctx, p, w, h, network=False)[..., :3]
     expected = shown_colour(source_outputs(source, [wide.reshape(-1, 2)], bundle).reshape(h, w, -1), p, wide)
     return ShadertoyCheck(network, float(np.abs(shown - expected).max()), time.perf_counter() - start)
+
+
+# --- an SDF (a scene of passes/sdf_diffuse.frag) -------------------------------------------------
+SDF_PROGRAM = "passes/sdf_diffuse.frag"
+SDF_CHECK_SIZE = 64
+PSNR_RULE = 40.0   # dB, 8-bit sRGB, on the pixels away from edges (stable_pixels)
+
+
+def sdf_pass(source, *, limits: dict | None = None) -> ShadertoyPass:
+    """The pass of an SDF scene (analytic, or a network without textures): its orbit camera, SH
+    environment and exposure at the scene's default settings written as constants."""
+    from inshade.runtime.context import shared_context
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.runtime.scene_program import geometry_chunks
+    from inshade.scene.camera import OrbitCamera
+    from inshade.scene.description import load_scene
+
+    scene = load_scene(source)
+    if scene.program != SDF_PROGRAM:
+        raise TargetError(f"shadertoy: {source}: a scene's pass is drawn for {SDF_PROGRAM} (an SDF) or a uv -> "
+                          f"colour network; this scene's program is {scene.program}")
+    camera = scene.make_camera()
+    if not isinstance(camera, OrbitCamera):
+        raise TargetError(f"shadertoy: {source}: the pass orbits; this scene's camera is {camera.kind}")
+    limits = dict(limits or {})
+    budget = int(limits.pop(PASS_CHARS_LIMIT, PASS_CHARS))
+    gl = {**WEBGL2, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 0, **limits}
+    r = SceneRenderer(scene, shared_context(), settings={"labels": False}, limits=gl, target="es300")
+    try:
+        chunks, generated = geometry_chunks(scene, r.spec, r.bundles, r.values, gl, "es300", r.sdf_bundle)
+        sh = np.frombuffer(r.uniform_values(camera, *scene.size)["u_sh"], np.float32).reshape(-1, 3)
+        exposure = float(r.values.get("exposure", 1.0))
+    finally:
+        r.release()
+    resources = [res.name for g in generated for res in g.resources]
+    if resources:
+        raise TargetError(f"shadertoy: {scene.name}'s SDF network reads {len(resources)} textures "
+                          f"({', '.join(resources)}) and a pasted pass carries only literals")
+    f32 = lambda v: _define_float(v)  # noqa: E731
+    defines = {"SHADERTOY_TARGET": f"vec3({', '.join(f32(v) for v in camera.target)})",
+               "SHADERTOY_DISTANCE": float(camera.distance), "SHADERTOY_YAW": float(camera.yaw),
+               "SHADERTOY_PITCH": float(camera.pitch), "SHADERTOY_FOV_Y": float(camera.fov_y),
+               "SHADERTOY_EXPOSURE": exposure,
+               "SHADERTOY_SH": "vec3[SH_COEFFS](" + ", ".join(f"vec3({', '.join(f32(v) for v in c)})" for c in sh) + ")"}
+    head = (f"// {scene.name}: an SDF as a Shadertoy Image pass, written by inshade (drag to turn the camera).\n"
+            "// Paste it into the Image tab: it reads no channels.\n")
+    text = head + compact(flatten("passes/shadertoy_sdf", chunks=chunks, defines=defines), roots=("mainImage",))
+    weights = sum(int(np.asarray(t).size) for b in ([r.sdf_bundle] if r.sdf_bundle else []) for t in b.tensors.values())
+    if len(text) > budget:
+        raise LimitError(f"shadertoy: the pass is {len(text)} characters ({weights} weights as literals); "
+                         f"{PASS_CHARS_LIMIT} is {budget} (inshade's budget for a pasted pass); raise it with "
+                         f"--limit {PASS_CHARS_LIMIT}=N")
+    return ShadertoyPass(text, generated[0] if generated else None, "sdf", (0, 3), False, weights)
+
+
+def _define_float(v) -> str:
+    text = "%.9g" % float(np.float32(v))
+    return text if any(c in text for c in ".e") else text + ".0"
+
+
+def stable_pixels(scene, image8: np.ndarray, size: int, tolerance: int = 8, settings: dict | None = None
+                  ) -> np.ndarray:
+    """The pixels of inshade render's 8-bit picture ``image8`` [size, size, 3] (made with ``settings``)
+    that keep their colour (within ``tolerance``) when the scene's orbit camera turns by a tenth of a
+    pixel either way: the rest are edges, where a ray computed another way (another rasteriser, another
+    camera formula) may land on either side."""
+    import dataclasses
+
+    from inshade.runtime.headless import render_scene
+    from inshade.web.browser import srgb8
+
+    cam = scene.make_camera()
+    step = 0.1 * cam.fov_y / size
+    stable = np.ones((size, size), bool)
+    for dyaw, dpitch in ((step, 0), (-step, 0), (0, step), (0, -step)):
+        nudged = dataclasses.replace(cam, yaw=cam.yaw + dyaw, pitch=cam.pitch + dpitch)
+        other, _ = render_scene(scene, width=size, height=size, camera=nudged,
+                                settings={"labels": False, **(settings or {})})
+        stable &= np.abs(image8.astype(int) - srgb8(other).astype(int)).max(-1) <= tolerance
+    return stable
+
+
+@dataclass(frozen=True)
+class SdfCheck:
+    psnr: float           # dB on the stable pixels
+    stable: float         # their share of the picture
+    renderer: str
+
+    @property
+    def ok(self) -> bool:
+        return self.psnr >= PSNR_RULE
+
+    def lines(self) -> list[str]:
+        return [f"as shown: {self.psnr:.1f} dB against inshade render on the {self.stable:.0%} of "
+                f"{SDF_CHECK_SIZE}x{SDF_CHECK_SIZE} pixels away from edges (rule {PSNR_RULE:g} dB, {self.renderer}): "
+                f"{'ok' if self.ok else 'FAILED'}"]
+
+
+def check_sdf_pass(p: ShadertoyPass, source, *, ctx=None) -> SdfCheck:
+    """The pass drawn as Shadertoy draws it at the scene's camera, against inshade render."""
+    from inshade.runtime.context import shared_context
+    from inshade.runtime.headless import render_scene
+    from inshade.scene.description import load_scene
+    from inshade.web.browser import psnr8, srgb8
+
+    ctx = shared_context() if ctx is None else ctx
+    scene = load_scene(source)
+    n = SDF_CHECK_SIZE
+    shown = np.clip(np.rint(_run(ctx, p, n, n, network=False)[::-1, :, :3] * 255), 0, 255).astype(np.uint8)
+    image8 = srgb8(render_scene(scene, width=n, height=n, settings={"labels": False})[0])
+    stable = stable_pixels(scene, image8, n)
+    return SdfCheck(psnr8(shown[stable], image8[stable]), float(stable.mean()), ctx.info["GL_RENDERER"])

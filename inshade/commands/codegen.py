@@ -90,6 +90,8 @@ def cmd_codegen(args) -> int:
     prefix = args.prefix
     if args.program:
         return _codegen_program(args, src)
+    if args.target == "shadertoy" and scene is not None and scene.program == "passes/sdf_diffuse.frag":
+        return _shadertoy_sdf(args, src)
     if args.network == "all":
         if scene is None or not nets:
             raise UserError(f"{src}: --network all: needs an asset with networks (a folder with scene.json)")
@@ -290,7 +292,9 @@ def _pasted(args, b, output, report: str, text: str, check, manifest: dict) -> i
             return 1
     if output is None:
         return 0
-    manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(), **manifest}
+    if b is not None:
+        manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(),
+                    **manifest}
     _write_group(Path(output), text, manifest, {})
     print(f"wrote {output}", file=sys.stderr)
     return 0
@@ -313,6 +317,26 @@ def _shadertoy(args, b, output) -> int:
     return _pasted(args, b, output, p.report(), p.text, check,
                    {"target": "shadertoy", "output": p.output, "lanes": list(p.lanes), "srgb": p.srgb,
                     "characters": len(p.text), "weights": p.weights})
+
+
+def _shadertoy_sdf(args, src) -> int:
+    """--target shadertoy of an SDF scene: the pass sphere tracing it, --check against inshade render."""
+    from inshade.bundle import load
+    from inshade.scene.description import NetworkSdfRef, load_scene
+    from inshade.web.shadertoy import check_sdf_pass, sdf_pass
+
+    p = sdf_pass(src, limits=dict(args.limit))
+
+    def check():
+        result = check_sdf_pass(p, src)
+        return result.lines(), result.ok
+
+    scene = load_scene(src)
+    b = load(scene.sdf.bundle) if isinstance(scene.sdf, NetworkSdfRef) else None
+    report = f"shadertoy image pass: {len(p.text)} characters, {scene.name} sphere traced from its orbit camera"
+    manifest = {"target": "shadertoy", "scene": str(src), "kind": "sdf", "characters": len(p.text),
+                "weights": p.weights}
+    return _pasted(args, b, args.output, report, p.text, check, manifest)
 
 
 def _engine(args, b, output) -> int:

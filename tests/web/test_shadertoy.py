@@ -197,3 +197,32 @@ void mainImage(out vec4 c, in vec2 p) { c = used(vec4(p, 0.0, N)); }
     for kept in ("#define N 2", "const float K = 2.0;", "float used(float x)", "vec4 used(vec4 x) {",
                  "float helper(float x)", "void mainImage"):
         assert kept in out, kept
+
+
+@pytest.mark.parametrize("asset", ["sdf_creature", "sdf_occlusion"])
+def test_an_sdf_pass_draws_what_inshade_render_draws(gl, asset):
+    """An SDF scene as a pass: sphere traced from the scene's orbit camera, as Shadertoy runs it, against
+    inshade render (8-bit sRGB) away from edges; the picture upside down fails the same check."""
+    from inshade.runtime.headless import render_scene
+    from inshade.scene.description import load_scene, resolve_asset
+    from inshade.web.browser import psnr8, srgb8
+    from inshade.web.shadertoy import SDF_CHECK_SIZE, check_sdf_pass, sdf_pass, stable_pixels
+
+    p = sdf_pass(resolve_asset(asset))
+    assert "void mainImage" in p.text and "#include" not in p.text and "#version" not in p.text
+    result = check_sdf_pass(p, resolve_asset(asset), ctx=gl)
+    assert result.ok and result.stable > 0.9, result.lines()
+    n = SDF_CHECK_SIZE
+    scene = load_scene(resolve_asset(asset))
+    image8 = srgb8(render_scene(scene, width=n, height=n, settings={"labels": False})[0])
+    shown = np.clip(np.rint(_run(gl, p, n, n, network=False)[:, :, :3] * 255), 0, 255).astype(np.uint8)
+    stable = stable_pixels(scene, image8, n)
+    assert psnr8(shown[stable], image8[stable]) < 30   # data orientation, not flipped: far off
+
+
+def test_an_sdf_reading_textures_is_refused():
+    from inshade.scene.description import resolve_asset
+    from inshade.web.shadertoy import sdf_pass
+
+    with pytest.raises(TargetError, match=r"^shadertoy: hash_grid_sdf's SDF network reads \d+ textures"):
+        sdf_pass(resolve_asset("hash_grid_sdf"))
