@@ -149,30 +149,50 @@ try {{
 </script>"""
 
 
-def test_pass_runs_in_webgl2_as_on_shadertoy(tmp_path):
-    """The pasted text through a browser's WebGL2 (ANGLE's GLSL ES validator, SwiftShader), as
-    Shadertoy's page compiles it: the picture within one 8-bit step of torch's colour."""
+def _in_chromium(p, w: int, h: int, folder) -> np.ndarray:
+    """The pass drawn by headless Chromium's WebGL2 (ANGLE's GLSL ES validator, SwiftShader) as
+    Shadertoy's page compiles it: 8-bit RGB [h, w, 3] in data orientation (row 0 = bottom)."""
     import base64
 
     from inshade.shaders import assemble
     from inshade.web.browser import Browser, serve
 
-    bundle = image_bundle([16, 16], 3, "linear_rgb", seed=3)
-    p = image_pass(bundle)
-    w, h = 64, 48
     sources = {"vertex": assemble("common/fullscreen.vert", version="es300").source,
                "fragment": assemble("passes/shadertoy.frag", version="es300",
                                     chunks={"shadertoy_pass": p.text}).source}
-    (tmp_path / "pass.html").write_text(PAGE.format(w=w, h=h, sources=json.dumps(sources)))
-    with serve(tmp_path) as url, Browser() as browser:
+    (folder / "pass.html").write_text(PAGE.format(w=w, h=h, sources=json.dumps(sources)))
+    with serve(folder) as url, Browser() as browser:
         state = browser.open(url + "pass.html", timeout=300)
         assert state.get("ready"), state
         pixels = browser.driver.execute_script("return window.inshade.pixels;")
-    shown = np.frombuffer(base64.b64decode(pixels), np.uint8).reshape(h, w, 4)[..., :3] / 255.0
+    return np.frombuffer(base64.b64decode(pixels), np.uint8).reshape(h, w, 4)[..., :3]
+
+
+def test_pass_runs_in_webgl2_as_on_shadertoy(tmp_path):
+    """The pasted text in a browser's WebGL2: the picture within one 8-bit step of torch's colour."""
+    bundle = image_bundle([16, 16], 3, "linear_rgb", seed=3)
+    p = image_pass(bundle)
+    w, h = 64, 48
+    shown = _in_chromium(p, w, h, tmp_path) / 255.0
     uv = _frag_uvs(w, h)
     y = GraphModule.from_bundle(bundle)(torch.from_numpy(uv.reshape(-1, 2)))
     expected = shown_colour(y.detach().numpy().reshape(h, w, -1), p, uv)
     assert np.abs(shown - expected).max() <= 1.0 / 255
+
+
+def test_an_sdf_pass_runs_in_webgl2_as_on_shadertoy(tmp_path):
+    """An SDF pass in a browser's WebGL2, against inshade render away from edges."""
+    from inshade.runtime.headless import render_scene
+    from inshade.scene.description import load_scene, resolve_asset
+    from inshade.web.browser import psnr8, srgb8
+    from inshade.web.shadertoy import PSNR_RULE, SDF_CHECK_SIZE, sdf_pass, stable_pixels
+
+    n = SDF_CHECK_SIZE
+    scene = load_scene(resolve_asset("sdf_occlusion"))
+    shown = _in_chromium(sdf_pass(resolve_asset("sdf_occlusion")), n, n, tmp_path)[::-1]
+    image8 = srgb8(render_scene(scene, width=n, height=n, settings={"labels": False})[0])
+    stable = stable_pixels(scene, image8, n)
+    assert psnr8(shown[stable], image8[stable]) >= PSNR_RULE
 
 
 def test_compact_keeps_what_is_reached_and_drops_the_rest():
