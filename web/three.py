@@ -8,9 +8,10 @@ literals or in a texture (three.js binds no uniform blocks of ours) and ends as 
 do (tone mapping, output colour space).
 
 Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag``) on a plane or any
-mesh with uvs, and an SDF (a scene of ``passes/sdf_diffuse.frag``, analytic or a network) sphere traced
-inside a box around its bound; on a WebGPURenderer, images of networks without textures. Other kinds
-are refused in one line.
+mesh with uvs, an SDF (a scene of ``passes/sdf_diffuse.frag``, analytic or a network) sphere traced
+inside a box around its bound, and a radiance field (``passes/imported_field.frag``) marched inside its
+box and laid over the scene behind it; on a WebGPURenderer, images and fields of networks without
+textures. Other kinds are refused in one line.
 """
 from __future__ import annotations
 
@@ -39,7 +40,7 @@ LIMITS = {**WEBGL2, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 0}
 
 
 # what a scene's program draws -> the material that draws it
-KINDS = {"passes/field2d.frag": "image", "passes/sdf_diffuse.frag": "sdf"}
+KINDS = {"passes/field2d.frag": "image", "passes/sdf_diffuse.frag": "sdf", "passes/imported_field.frag": "field"}
 
 
 class ThreeExportError(ValueError):
@@ -52,11 +53,11 @@ def material(source) -> tuple[dict, bytes]:
     kind = KINDS.get(scene.program)
     if kind is None or (kind == "image" and not scene.networks):
         raise ThreeExportError(f"{source}: export-three draws an image (a uv -> colour network, program "
-                               f"passes/field2d.frag) or an SDF (passes/sdf_diffuse.frag) for now; this scene's "
-                               f"program is {scene.program}")
+                               f"passes/field2d.frag), an SDF (passes/sdf_diffuse.frag) or a radiance field "
+                               f"(passes/imported_field.frag) for now; this scene's program is {scene.program}")
     blob = _Blob()
     manifest = {"format": FORMAT, "name": scene.name, "kind": kind,
-                **{"image": _image, "sdf": _sdf}[kind](scene, blob)}
+                **{"image": _image, "sdf": _sdf, "field": _field}[kind](scene, blob)}
     return manifest, blob.bytes()
 
 
@@ -76,13 +77,16 @@ def _image(scene, blob) -> dict:
     except LimitError as exc:
         raise WebLimitError(f"WebGL2: {exc}") from None
     lanes = bundle.output_lanes(port.name)
+    srgb = port.semantic == SRGB_SEMANTIC
+    consts = "\n".join([f"const FIELD_OUT_OFFSET: i32 = {lanes[0]};", f"const FIELD_OUT_DIM: i32 = {lanes[1]};",
+                        f"const FIELD_OUT_SRGB: bool = {'true' if srgb else 'false'};"])
     defines = {"FIELD_OUT_OFFSET": lanes[0], "FIELD_OUT_DIM": lanes[1],
-               **({"FIELD_OUT_SRGB": 1} if port.semantic == SRGB_SEMANTIC else {})}
+               **({"FIELD_OUT_SRGB": 1} if srgb else {})}
     return {"bundle_digest": bundle.digest(), "output": port.name, "alpha": lanes[1] == 4,
             "vertexShader": flatten("passes/three_image_vertex"),
             "fragmentShader": flatten("passes/three_image", chunks={"network": g.chunk}, defines=defines),
             "textures": _textures(blob, g.resources), "uniforms": {},
-            **_wgsl(bundle, lanes, port.semantic == SRGB_SEMANTIC)}
+            **_wgsl(bundle, consts, ["lib/colour"], "passes/three_image")}
 
 
 def _sdf(scene, blob) -> dict:
@@ -108,16 +112,35 @@ def _sdf(scene, blob) -> dict:
     bound = NetworkSdfScene.from_bundle(r.sdf_bundle) if isinstance(scene.sdf, NetworkSdfRef) else scene.sdf
     return {"bundle_digest": r.sdf_bundle.digest() if r.sdf_bundle is not None else None, "alpha": False,
             "bound": {"center": [float(c) for c in bound.center], "radius": float(bound.radius)},
-            "vertexShader": flatten("passes/three_sdf_vertex"),
+            "vertexShader": flatten("passes/three_box_vertex"),
             "fragmentShader": flatten("passes/three_sdf", chunks=chunks),
             "textures": _textures(blob, [res for g in generated for res in g.resources]),
             "uniforms": {"u_sh": sh.reshape(-1, 3).tolist()},
             "wgsl_unavailable": "the WebGPURenderer material draws images only, for now"}
 
 
-def _wgsl(bundle, lanes, srgb: bool) -> dict:
+def _field(scene, blob) -> dict:
+    """A radiance field, marched in its box as inshade render marches it; premultiplied by its coverage."""
+    from inshade.bundle import load
+    from inshade.codegen.field import field_chunks, field_settings
+
+    bundle = load(scene.networks[0].bundle)
+    try:
+        g = generate(bundle, prefix="net", target="es300", limits=LIMITS)
+    except LimitError as exc:
+        raise WebLimitError(f"WebGL2: {exc}") from None
+    settings = field_settings(bundle)
+    return {"bundle_digest": bundle.digest(), "alpha": True, "box": settings["box"],
+            "vertexShader": flatten("passes/three_box_vertex"),
+            "fragmentShader": flatten("passes/three_field", chunks={"network": g.chunk, **field_chunks(bundle)}),
+            "textures": _textures(blob, g.resources), "uniforms": {},
+            **_wgsl(bundle, field_chunks(bundle, "wgsl")["field_config"], ["lib/field_march"], "passes/three_field")}
+
+
+def _wgsl(bundle, constants: str, libraries: list[str], function: str) -> dict:
     """The WGSL a WebGPURenderer's node material calls (``wgslFn``): {"wgsl": {"include", "function"}},
-    or {"wgsl_unavailable": why}. Weights as literals only: the module's own bindings would not be three's."""
+    or {"wgsl_unavailable": why}. Weights as literals only: the module's own bindings would not be three's.
+    The include: the network, ``constants`` and the ``libraries``; the function: ``function``'s chunk."""
     try:
         g = generate(bundle, prefix="net", target="wgsl", storage="inline")
     except (TargetError, LimitError) as exc:
@@ -126,10 +149,8 @@ def _wgsl(bundle, lanes, srgb: bool) -> dict:
         return {"wgsl_unavailable": f"{bundle.name} reads {len(g.resources)} textures; the WebGPURenderer material "
                                     "takes networks with their weights as literals only, for now (use "
                                     "loadNetworkMaterial with a WebGLRenderer)"}
-    consts = [f"const FIELD_OUT_OFFSET: i32 = {lanes[0]};", f"const FIELD_OUT_DIM: i32 = {lanes[1]};",
-              f"const FIELD_OUT_SRGB: bool = {'true' if srgb else 'false'};"]
-    include = "\n".join([g.chunk.rstrip("\n"), *consts, *library_source(["lib/colour"], (".wgsl",))]) + "\n"
-    return {"wgsl": {"include": include, "function": find_chunk("passes/three_image", ".wgsl").read_text()}}
+    include = "\n".join([g.chunk.rstrip("\n"), constants.rstrip("\n"), *library_source(libraries, (".wgsl",))])
+    return {"wgsl": {"include": include + "\n", "function": find_chunk(function, ".wgsl").read_text()}}
 
 
 def export_three(source, out, *, force: bool = False) -> dict:

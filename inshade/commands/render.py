@@ -79,13 +79,15 @@ def _add_export_web(sub) -> None:
 
 
 def _add_export_three(sub) -> None:
-    p = sub.add_parser("export-three", help="a network as a three.js material (WebGLRenderer)",
-                       description="Write ASSET's network as a three.js ShaderMaterial for your own app: "
+    p = sub.add_parser("export-three", help="a network as a three.js material (WebGLRenderer, WebGPURenderer)",
+                       description="Write ASSET's network as a three.js material for your own app: "
                                    "inshade-three.js (an ES module importing three: loadNetworkMaterial, "
-                                   "loadNetworkMesh), network.json (its GLSL ES 3.00 stages and textures) and "
-                                   "network.bin. Planned against WebGL2's guaranteed limits. Draws an image (a "
-                                   "uv -> colour network) at the mesh's uv, or an SDF sphere traced in a box "
-                                   "around its bound.")
+                                   "loadNetworkMesh), inshade-three-webgpu.js (three/webgpu's node material: "
+                                   "loadNetworkNodeMaterial, loadNetworkNodeMesh), network.json (its GLSL ES 3.00 "
+                                   "stages, WGSL and textures) and network.bin. Planned against WebGL2's "
+                                   "guaranteed limits. Draws an image (a uv -> colour network) at the mesh's uv, "
+                                   "an SDF sphere traced in a box around its bound, or a radiance field marched "
+                                   "in its box.")
     p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write (new or empty)")
     p.add_argument("--force", action="store_true", help="replace what the folder holds")

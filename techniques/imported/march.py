@@ -1,4 +1,4 @@
-"""Torch twin of shaders/lib/imported_field.glsl: the same march, step for step, in float32, with
+"""Torch twin of shaders/lib/field_march.glsl: the same march, step for step, in float32, with
 any torch function of (position, direction) -> (rgb, density) as the field (the user's own module,
 or the bundle's graph)."""
 from __future__ import annotations
@@ -6,9 +6,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from inshade.codegen.field import STOP
 from inshade.models.sdf import camera_rays
-
-from . import STOP
 
 
 def _box(ro, rd, lo, hi):
@@ -24,7 +23,7 @@ def _box(ro, rd, lo, hi):
 def march(field, settings: dict, uniforms: dict, width: int, height: int) -> np.ndarray:
     """[H, W, 4] linear RGBA (row 0 = top) of ``field`` ([N, 6] -> [N, 4] or a tuple of outputs
     concatenated, position then direction in, rgb then density out) marched as the shader does;
-    ``settings``: techniques/imported ``field_settings``; ``uniforms``: the camera's."""
+    ``settings``: codegen/field.py ``field_settings``; ``uniforms``: the camera's."""
     ro, rd = camera_rays(uniforms, width, height)
     lo, hi = (torch.tensor(c, dtype=torch.float32) for c in settings["box"])
     step = torch.tensor(settings["step"], dtype=torch.float32)

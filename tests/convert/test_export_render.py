@@ -132,7 +132,7 @@ def test_sdf(gl, tmp_path):
 
 
 def test_nerf_field(gl, tmp_path):
-    from inshade.techniques.imported import field_settings
+    from inshade.codegen.field import field_settings
     from inshade.techniques.imported.march import march
 
     module, example = zoo()["nerf"]

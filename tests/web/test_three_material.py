@@ -77,43 +77,66 @@ def test_three_draws_what_inshade_render_draws(gl, browser, asset, tmp_path):
     assert db >= MIN_PSNR_DB, f"{asset}: three.js draws it {db:.2f} dB from inshade render"
 
 
-NODE_PAGE = """<!doctype html><meta charset="utf-8"><link rel="icon" href="data:,"><canvas id="c"></canvas>
-<script type="importmap">{"imports": {"three": "./node_modules/three/build/three.webgpu.js",
+FLOAT_PAGE = """<!doctype html><meta charset="utf-8"><link rel="icon" href="data:,"><canvas id="c"></canvas>
+<script type="importmap">{"imports": {"three": "./node_modules/three/build/%(build)s",
   "three/webgpu": "./node_modules/three/build/three.webgpu.js", "three/tsl": "./node_modules/three/build/three.tsl.js"}}
 </script>
 <script type="module">
-import * as THREE from "three/webgpu";
-import { loadNetworkNodeMesh } from "./material/inshade-three-webgpu.js";
+import * as THREE from "three";
+import { %(loader)s } from "./material/%(module)s";
 try {
-  const renderer = new THREE.WebGPURenderer({canvas: document.getElementById("c"), antialias: false});
-  await renderer.init();
-  const target = new THREE.RenderTarget(%(size)d, %(size)d, {type: THREE.FloatType});
+  const renderer = new THREE.%(renderer)s({canvas: document.getElementById("c"), antialias: false});
+  if (renderer.init) await renderer.init();
+  const target = new THREE.%(target)s(%(size)d, %(size)d, {type: THREE.FloatType});
   const scene = new THREE.Scene();
-  scene.add(await loadNetworkNodeMesh(new URL("./material/", location.href)));
-  const camera = new THREE.OrthographicCamera(-0.5, 0.5, 0.5, -0.5, 0.1, 10);
-  camera.position.z = 1;
+  scene.add(await %(loader)s(new URL("./material/", location.href)));
+  const c = %(camera)s;
+  const camera = c ? new THREE.PerspectiveCamera(c.fov_y, 1, c.near, c.far)
+    : new THREE.OrthographicCamera(-0.5, 0.5, 0.5, -0.5, 0.1, 10);
+  camera.position.set(...(c ? c.eye : [0, 0, 1]));
+  if (c) camera.lookAt(new THREE.Vector3(...c.target));
   renderer.setRenderTarget(target);
+  renderer.setClearColor(0x000000, 0);
   renderer.render(scene, camera);
-  const px = await renderer.readRenderTargetPixelsAsync(target, 0, 0, %(size)d, %(size)d);
+  // a WebGLRenderer reads into a buffer of ours, a WebGPURenderer gives one
+  const px = await renderer.readRenderTargetPixelsAsync(target, 0, 0, %(size)d, %(size)d,
+    ...(renderer.isWebGPURenderer ? [] : [new Float32Array(%(size)d * %(size)d * 4)]));
   const bytes = new Uint8Array(px.buffer, px.byteOffset, px.byteLength);
   let bin = ""; for (let i = 0; i < bytes.length; ++i) bin += String.fromCharCode(bytes[i]);
-  window.inshade = {ready: true, pixels: btoa(bin), backend: renderer.backend.isWebGPUBackend ? "webgpu" : "webgl2"};
+  window.inshade = {ready: true, pixels: btoa(bin), backend: renderer.backend?.isWebGPUBackend ? "webgpu" : "webgl2"};
 } catch (e) { window.inshade = {error: String(e)}; }
 </script>"""
+# renderer -> what the page imports and draws with
+RENDERERS = {
+    "webgl": {"build": "three.module.js", "loader": "loadNetworkMesh", "module": "inshade-three.js",
+              "renderer": "WebGLRenderer", "target": "WebGLRenderTarget"},
+    "webgpu": {"build": "three.webgpu.js", "loader": "loadNetworkNodeMesh", "module": "inshade-three-webgpu.js",
+               "renderer": "WebGPURenderer", "target": "RenderTarget"},
+}
 
 
-def _drawn_linear(browser, folder) -> tuple[np.ndarray, str]:
-    """WebGPURenderer's linear float render of the material folder's image (image orientation) and the
-    backend three chose."""
+def _camera(scene) -> dict:
+    """The scene's camera as three's PerspectiveCamera takes it."""
+    cam = scene.make_camera()
+    return {"fov_y": cam.fov_y, "near": cam.near, "far": cam.far, "eye": [float(v) for v in cam.eye()],
+            "target": [float(v) for v in cam.target]}
+
+
+def _drawn_linear(browser, folder, renderer: str = "webgpu", camera: dict | None = None) -> tuple[np.ndarray, str]:
+    """The renderer's linear float render (RGBA, image orientation) of the material folder over a clear
+    black, seen by ``camera`` (by default an orthographic view of the unit plane), and the backend three
+    chose."""
     os.symlink(TOOLS / "node_modules", folder / "node_modules")
-    (folder / "page.html").write_text(NODE_PAGE % {"size": SIZE})
+    (folder / "page.html").write_text(FLOAT_PAGE % {"size": SIZE, "camera": json.dumps(camera),
+                                                    **RENDERERS[renderer]})
     with serve(folder) as url:
         state = browser.open(url + "page.html", timeout=300)
         assert state.get("ready"), state
         assert not [c for c in state["console"] if c.startswith("SEVERE")], state["console"]
         pixels, backend = browser.driver.execute_script("return [window.inshade.pixels, window.inshade.backend];")
     rgba = np.frombuffer(base64.b64decode(pixels), np.float32).reshape(SIZE, SIZE, 4)
-    return rgba[:, :, :3], backend   # a WebGPU texture's rows run top-down: image orientation already
+    # a WebGPU texture's rows run top-down (image orientation already), a WebGL one's bottom-up
+    return (rgba if backend == "webgpu" else rgba[::-1]), backend
 
 
 SDF_PAGE = """<!doctype html><meta charset="utf-8"><link rel="icon" href="data:,"><canvas id="c"></canvas>
@@ -154,11 +177,9 @@ def test_three_sphere_traces_what_inshade_render_draws(gl, browser, asset, tmp_p
     """The SDF in its box, seen by three's camera set as the scene's: where three covers a pixel, the
     same shading as inshade render's (its background, the environment, is inshade's alone)."""
     scene = load_scene(resolve_asset(asset))
-    cam = scene.make_camera()
     manifest = export_three(resolve_asset(asset), tmp_path / "material")
     assert manifest["kind"] == "sdf"
-    camera = {"fov_y": cam.fov_y, "near": cam.near, "far": cam.far, "eye": [float(v) for v in cam.eye()],
-              "target": [float(v) for v in cam.target]}
+    camera = _camera(scene)
     os.symlink(TOOLS / "node_modules", tmp_path / "node_modules")
     (tmp_path / "page.html").write_text(SDF_PAGE % {"size": SIZE, "camera": json.dumps(camera)})
     with serve(tmp_path) as url:
@@ -201,12 +222,35 @@ def test_your_own_network_and_the_refusals(gl, browser, tmp_path):
     (tmp_path / "node").mkdir()
     export_three(tmp_path / "mine", tmp_path / "node" / "material")
     linear, backend = _drawn_linear(browser, tmp_path / "node")
+    linear = linear[..., :3]
     assert backend == "webgpu"
     db = psnr8(srgb8(linear), srgb8(image))
     assert db >= MIN_PSNR_DB, f"WebGPURenderer draws it {db:.2f} dB from inshade render"
-    with pytest.raises(ThreeExportError, match=r"export-three draws an image .* or an SDF .* this scene's program "
-                                               r"is passes/sdf_prt.frag"):
+    with pytest.raises(ThreeExportError, match=r"export-three draws an image .*, an SDF .* or a radiance field "
+                                               r".* this scene's program is passes/sdf_prt.frag"):
         export_three(resolve_asset("prt_neural_bunny"), tmp_path / "prt")
     with pytest.raises(ValueError, match="already holds files"):
         export_three(tmp_path / "mine", tmp_path / "material")
     assert json.loads((tmp_path / "material" / "network.json").read_text())["name"]
+
+
+@pytest.mark.parametrize("renderer", ["webgl", "webgpu"])
+def test_three_marches_a_field_as_inshade_render_does(gl, browser, renderer, tmp_path):
+    """Your own radiance field (position, direction -> rgb, density) in its box, over black: the radiance
+    inshade render marches over the field's black background, in both of three's renderers."""
+    import inshade
+    from zoo import zoo
+
+    module, example = zoo()["nerf"]
+    inshade.export(module, example, tmp_path / "field", as_="field", quiet=True)
+    scene = load_scene(tmp_path / "field")
+    manifest = export_three(tmp_path / "field", tmp_path / "material")
+    assert manifest["kind"] == "field" and manifest["wgsl"]
+    rgba, backend = _drawn_linear(browser, tmp_path, renderer, _camera(scene))
+    assert backend == {"webgl": "webgl2", "webgpu": "webgpu"}[renderer]
+    image, _ = render_scene(scene, width=SIZE, height=SIZE, settings={"labels": False})
+    assert image[..., :3].std() > 0.02, "the field should not be empty"
+    # coverage: what the field hides of what lies behind it, somewhere partial
+    assert 0.05 < ((rgba[..., 3] > 0.01) & (rgba[..., 3] < 0.99)).mean(), "the field should be partly see-through"
+    db = psnr8(srgb8(rgba[..., :3]), srgb8(image[..., :3]))
+    assert db >= MIN_PSNR_DB, f"{renderer}: three.js marches it {db:.2f} dB from inshade render"

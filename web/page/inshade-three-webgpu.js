@@ -3,29 +3,52 @@
 // checks, is the material's colour through TSL's wgslFn:
 //
 //   import { loadNetworkNodeMesh } from "./my_net/inshade-three-webgpu.js";
-//   scene.add(await loadNetworkNodeMesh(new URL("./my_net/", import.meta.url)));   // a 1 x 1 plane
+//   scene.add(await loadNetworkNodeMesh(new URL("./my_net/", import.meta.url)));
 //
-// Networks with their weights as literals only (network.json says why another is not taken).
-import { Mesh, MeshBasicNodeMaterial, PlaneGeometry } from "three/webgpu";
-import { uv, wgsl, wgslFn } from "three/tsl";
+// An image is a 1 x 1 plane (its uv the network's input); a radiance field is its box, drawn from the
+// inside and marched per fragment in the mesh's frame, its radiance laid over what is behind it
+// (premultiplied). Networks with their weights as literals only (network.json says why another is not
+// taken).
+import { BackSide, BoxGeometry, CustomBlending, Mesh, MeshBasicNodeMaterial, OneFactor, OneMinusSrcAlphaFactor,
+  PlaneGeometry } from "three/webgpu";
+import { cameraPosition, modelWorldMatrixInverse, positionLocal, uv, vec4, wgsl, wgslFn } from "three/tsl";
 
-// The network's node material: base is the folder's URL (ending in /); the mesh's uv is its input.
+// kind -> the node material's colour from the network's function, and the material's settings
+const KINDS = {
+  image: {colour: (fn) => fn({uv: uv()}), settings: (manifest) => ({transparent: manifest.alpha})},
+  field: {
+    colour: (fn) => fn({ro: modelWorldMatrixInverse.mul(vec4(cameraPosition, 1.0)).xyz, p: positionLocal}),
+    settings: () => ({transparent: true, side: BackSide, depthWrite: false, blending: CustomBlending,
+                      blendSrc: OneFactor, blendDst: OneMinusSrcAlphaFactor, blendSrcAlpha: OneFactor,
+                      blendDstAlpha: OneMinusSrcAlphaFactor}),
+  },
+};
+
+// The network's node material: base is the folder's URL (ending in /).
 export async function loadNetworkNodeMaterial(base) {
   const response = await fetch(new URL("network.json", base));
   if (!response.ok) throw new Error(`network.json: ${response.status} ${response.statusText}`);
   const manifest = await response.json();
   if (manifest.format !== "inshade-three 1") throw new Error(`network.json: format: unknown ${manifest.format}`);
   if (!manifest.wgsl) throw new Error(`${manifest.name}: ${manifest.wgsl_unavailable}`);
-  const image = wgslFn(manifest.wgsl.function, [wgsl(manifest.wgsl.include)]);
-  const material = new MeshBasicNodeMaterial({transparent: manifest.alpha});
-  material.colorNode = image({uv: uv()});
+  const kind = KINDS[manifest.kind];
+  const material = new MeshBasicNodeMaterial(kind.settings(manifest));
+  material.colorNode = kind.colour(wgslFn(manifest.wgsl.function, [wgsl(manifest.wgsl.include)]));
   material.name = manifest.name;
+  material.userData.inshade = {kind: manifest.kind, box: manifest.box};
   return material;
 }
 
-// The network's picture on a 1 x 1 plane in the xy plane (uv (0, 0) bottom left), facing +z.
+// The network as a mesh: an image on a 1 x 1 plane in the xy plane (uv (0, 0) bottom left) facing +z;
+// a field in its box, in the network's own frame.
 export async function loadNetworkNodeMesh(base) {
-  const mesh = new Mesh(new PlaneGeometry(1, 1), await loadNetworkNodeMaterial(base));
-  mesh.name = mesh.material.name;
+  const material = await loadNetworkNodeMaterial(base);
+  let geometry = new PlaneGeometry(1, 1);
+  if (material.userData.inshade.kind === "field") {
+    const [lo, hi] = material.userData.inshade.box;
+    geometry = new BoxGeometry(...hi.map((h, i) => h - lo[i])).translate(...hi.map((h, i) => (h + lo[i]) / 2));
+  }
+  const mesh = new Mesh(geometry, material);
+  mesh.name = material.name;
   return mesh;
 }

@@ -1,9 +1,9 @@
 // A radiance-field network (position, direction -> rgb, density), ray marched through its box
-// (lib/imported_field). Linear RGB over the constant background, alpha 1.
+// (lib/field_march). Linear RGB over the constant background, alpha 1.
 #include <lib/camera>
 #include <network>
-#include <imported_field_config>
-#include <lib/imported_field>
+#include <field_config>
+#include <lib/field_march>
 
 uniform vec2 u_size;
 layout(location = 0) out vec4 frag_color;
