@@ -8,7 +8,7 @@ the network is marched through), ``step`` (dt, world units), ``max_steps``, ``ba
 """
 from __future__ import annotations
 
-from .glsl import flt
+from .constants import constant_lines
 
 CHUNK = "field_config"
 STOP = 1e-3      # the march stops once transmittance falls below this
@@ -52,22 +52,6 @@ def _values(s: dict) -> list[tuple[str, str, object]]:
             ("FIELD_STOP", "float", STOP), ("FIELD_BACKGROUND", "vec3", s["background"])]
 
 
-WGSL_TYPES = {"vec3": "vec3<f32>", "float": "f32", "int": "i32"}
-
-
-def _literal(kind: str, v, language: str) -> str:
-    if kind == "vec3":
-        return f"{WGSL_TYPES[kind] if language == 'wgsl' else kind}({', '.join(flt(x) for x in v)})"
-    if kind == "int":
-        return f"{v}i" if language == "wgsl" else str(v)
-    return flt(v)
-
-
 def field_chunks(bundle, language: str = "glsl") -> dict:
     """{"field_config": the settings of the field ``bundle``} as GLSL defines or WGSL constants."""
-    values = _values(field_settings(bundle))
-    if language == "wgsl":
-        lines = [f"const {name}: {WGSL_TYPES[kind]} = {_literal(kind, v, language)};" for name, kind, v in values]
-    else:
-        lines = [f"#define {name} {_literal(kind, v, language)}" for name, kind, v in values]
-    return {CHUNK: "\n".join(lines) + "\n"}
+    return {CHUNK: "\n".join(constant_lines(_values(field_settings(bundle)), language)) + "\n"}

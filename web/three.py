@@ -10,8 +10,8 @@ do (tone mapping, output colour space).
 Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag``) on a plane or any
 mesh with uvs, an SDF (a scene of ``passes/sdf_diffuse.frag``, analytic or a network) sphere traced
 inside a box around its bound, and a radiance field (``passes/imported_field.frag``) marched inside its
-box and laid over the scene behind it; on a WebGPURenderer, images and fields of networks without
-textures. Other kinds are refused in one line.
+box and laid over the scene behind it; on a WebGPURenderer, each of the three for networks without
+textures (SDFs: network SDFs only). Other kinds are refused in one line.
 """
 from __future__ import annotations
 
@@ -86,7 +86,8 @@ def _image(scene, blob) -> dict:
             "vertexShader": flatten("passes/three_image_vertex"),
             "fragmentShader": flatten("passes/three_image", chunks={"network": g.chunk}, defines=defines),
             "textures": _textures(blob, g.resources), "uniforms": {},
-            **_wgsl(bundle, consts, ["lib/colour"], "passes/three_image")}
+            **_wgsl(lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"), [consts]),
+                    ["lib/colour"], "passes/three_image")}
 
 
 def _sdf(scene, blob) -> dict:
@@ -115,8 +116,28 @@ def _sdf(scene, blob) -> dict:
             "vertexShader": flatten("passes/three_box_vertex"),
             "fragmentShader": flatten("passes/three_sdf", chunks=chunks),
             "textures": _textures(blob, [res for g in generated for res in g.resources]),
-            "uniforms": {"u_sh": sh.reshape(-1, 3).tolist()},
-            "wgsl_unavailable": "the WebGPURenderer material draws images only, for now"}
+            "uniforms": {"u_sh": sh.reshape(-1, 3).tolist()}, **_sdf_wgsl(scene, r.sdf_bundle, sh.reshape(-1, 3))}
+
+
+def _sdf_wgsl(scene, bundle, sh) -> dict:
+    """A network SDF's WGSL: lib/sdf's trace of the network, shaded under the environment ``sh`` (its
+    radiance coefficients as constants)."""
+    from inshade.codegen.constants import literal
+    from inshade.codegen.network_sdf import network_sdf_chunks
+    from inshade.codegen.sdf import SDF_CHUNK
+    from inshade.codegen.spherical_harmonics import sh_chunk_wgsl
+    from inshade.scene.description import NetworkSdfRef
+
+    if not isinstance(scene.sdf, NetworkSdfRef):
+        return {"wgsl_unavailable": "an analytic SDF has no WGSL yet: the WebGPURenderer material draws network "
+                                    "SDFs (use loadNetworkMaterial with a WebGLRenderer)"}
+    environment = (f"const SH_ENVIRONMENT: array<vec3<f32>, SH_COEFFS> = array<vec3<f32>, SH_COEFFS>("
+                   f"{', '.join(literal('vec3', c, 'wgsl') for c in sh)});")
+
+    def network():
+        chunks, g = network_sdf_chunks(bundle, prefix=scene.sdf.prefix, target="wgsl", storage="inline")
+        return g, [chunks[SDF_CHUNK], sh_chunk_wgsl(int(scene.environment["degree"])), environment]
+    return _wgsl(network, ["lib/sdf", "lib/spherical_harmonics"], "passes/three_sdf")
 
 
 def _field(scene, blob) -> dict:
@@ -134,22 +155,26 @@ def _field(scene, blob) -> dict:
             "vertexShader": flatten("passes/three_box_vertex"),
             "fragmentShader": flatten("passes/three_field", chunks={"network": g.chunk, **field_chunks(bundle)}),
             "textures": _textures(blob, g.resources), "uniforms": {},
-            **_wgsl(bundle, field_chunks(bundle, "wgsl")["field_config"], ["lib/field_march"], "passes/three_field")}
+            **_wgsl(lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"),
+                             [field_chunks(bundle, "wgsl")["field_config"]]),
+                    ["lib/field_march"], "passes/three_field")}
 
 
-def _wgsl(bundle, constants: str, libraries: list[str], function: str) -> dict:
+def _wgsl(network, libraries: list[str], function: str) -> dict:
     """The WGSL a WebGPURenderer's node material calls (``wgslFn``): {"wgsl": {"include", "function"}},
     or {"wgsl_unavailable": why}. Weights as literals only: the module's own bindings would not be three's.
-    The include: the network, ``constants`` and the ``libraries``; the function: ``function``'s chunk."""
+    ``network()`` generates the network for WGSL with its weights inline: (its Generated, the chunks it
+    needs); the include is the network, those chunks and the ``libraries``; the function ``function``'s."""
     try:
-        g = generate(bundle, prefix="net", target="wgsl", storage="inline")
+        g, chunks = network()
     except (TargetError, LimitError) as exc:
         return {"wgsl_unavailable": str(exc)}
     if g.resources:
-        return {"wgsl_unavailable": f"{bundle.name} reads {len(g.resources)} textures; the WebGPURenderer material "
+        return {"wgsl_unavailable": f"{g.plan.network} reads {len(g.resources)} textures; the WebGPURenderer material "
                                     "takes networks with their weights as literals only, for now (use "
                                     "loadNetworkMaterial with a WebGLRenderer)"}
-    include = "\n".join([g.chunk.rstrip("\n"), constants.rstrip("\n"), *library_source(libraries, (".wgsl",))])
+    include = "\n".join([g.chunk.rstrip("\n"), *(c.rstrip("\n") for c in chunks),
+                         *library_source(libraries, (".wgsl",))])
     return {"wgsl": {"include": include + "\n", "function": find_chunk(function, ".wgsl").read_text()}}
 
 

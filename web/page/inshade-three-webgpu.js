@@ -5,19 +5,23 @@
 //   import { loadNetworkNodeMesh } from "./my_net/inshade-three-webgpu.js";
 //   scene.add(await loadNetworkNodeMesh(new URL("./my_net/", import.meta.url)));
 //
-// An image is a 1 x 1 plane (its uv the network's input); a radiance field is its box, drawn from the
-// inside and marched per fragment in the mesh's frame, its radiance laid over what is behind it
-// (premultiplied). Networks with their weights as literals only (network.json says why another is not
-// taken).
+// An image is a 1 x 1 plane (its uv the network's input); an SDF is a box around its bound, drawn from
+// the inside and sphere traced per fragment; a radiance field is its box, drawn from the inside and
+// marched per fragment, its radiance laid over what is behind it (premultiplied); both in the mesh's
+// frame. Networks with their weights as literals only, and network SDFs (network.json says why another
+// is not taken).
 import { BackSide, BoxGeometry, CustomBlending, Mesh, MeshBasicNodeMaterial, OneFactor, OneMinusSrcAlphaFactor,
   PlaneGeometry } from "three/webgpu";
 import { cameraPosition, modelWorldMatrixInverse, positionLocal, uv, vec4, wgsl, wgslFn } from "three/tsl";
 
+// the camera's position and the fragment's, in the mesh's frame: a box's view ray
+const ray = () => ({ro: modelWorldMatrixInverse.mul(vec4(cameraPosition, 1.0)).xyz, p: positionLocal});
 // kind -> the node material's colour from the network's function, and the material's settings
 const KINDS = {
   image: {colour: (fn) => fn({uv: uv()}), settings: (manifest) => ({transparent: manifest.alpha})},
+  sdf: {colour: (fn) => fn(ray()), settings: () => ({side: BackSide, alphaTest: 0.5})},   // a miss: alpha 0
   field: {
-    colour: (fn) => fn({ro: modelWorldMatrixInverse.mul(vec4(cameraPosition, 1.0)).xyz, p: positionLocal}),
+    colour: (fn) => fn(ray()),
     settings: () => ({transparent: true, side: BackSide, depthWrite: false, blending: CustomBlending,
                       blendSrc: OneFactor, blendDst: OneMinusSrcAlphaFactor, blendSrcAlpha: OneFactor,
                       blendDstAlpha: OneMinusSrcAlphaFactor}),
@@ -35,20 +39,29 @@ export async function loadNetworkNodeMaterial(base) {
   const material = new MeshBasicNodeMaterial(kind.settings(manifest));
   material.colorNode = kind.colour(wgslFn(manifest.wgsl.function, [wgsl(manifest.wgsl.include)]));
   material.name = manifest.name;
-  material.userData.inshade = {kind: manifest.kind, box: manifest.box};
+  material.userData.inshade = {kind: manifest.kind, bound: manifest.bound, box: manifest.box};
   return material;
 }
 
+// The mesh a kind is drawn on, in the network's own frame (inshade-three.js's, on three/webgpu).
+function networkGeometry(kind, {bound, box} = {}) {
+  if (kind === "sdf") {
+    const side = 2 * bound.radius;
+    return new BoxGeometry(side, side, side).translate(...bound.center);
+  }
+  if (kind === "field") {
+    const [lo, hi] = box;
+    return new BoxGeometry(...hi.map((h, i) => h - lo[i])).translate(...hi.map((h, i) => (h + lo[i]) / 2));
+  }
+  return new PlaneGeometry(1, 1);
+}
+
 // The network as a mesh: an image on a 1 x 1 plane in the xy plane (uv (0, 0) bottom left) facing +z;
-// a field in its box, in the network's own frame.
+// an SDF in the box around its bound sphere, a field in its box, in the network's own frame.
 export async function loadNetworkNodeMesh(base) {
   const material = await loadNetworkNodeMaterial(base);
-  let geometry = new PlaneGeometry(1, 1);
-  if (material.userData.inshade.kind === "field") {
-    const [lo, hi] = material.userData.inshade.box;
-    geometry = new BoxGeometry(...hi.map((h, i) => h - lo[i])).translate(...hi.map((h, i) => (h + lo[i]) / 2));
-  }
-  const mesh = new Mesh(geometry, material);
+  const {kind, ...where} = material.userData.inshade;
+  const mesh = new Mesh(networkGeometry(kind, where), material);
   mesh.name = material.name;
   return mesh;
 }

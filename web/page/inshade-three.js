@@ -112,8 +112,8 @@ function networkGeometry(kind, {bound, box} = {}) {
     return new THREE.BoxGeometry(side, side, side).translate(...bound.center);
   }
   if (kind === "field") {
-    const [lo, hi] = box, size = hi.map((h, i) => h - lo[i]);
-    return new THREE.BoxGeometry(...size).translate(...hi.map((h, i) => (h + lo[i]) / 2));
+    const [lo, hi] = box;
+    return new THREE.BoxGeometry(...hi.map((h, i) => h - lo[i])).translate(...hi.map((h, i) => (h + lo[i]) / 2));
   }
   return new THREE.PlaneGeometry(1, 1);
 }
