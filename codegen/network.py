@@ -54,6 +54,7 @@ class Generated:
     plan: Plan
     uint_lanes: tuple = ()   # lanes of the concatenated input that are uint inputs (argument xu)
     library: tuple = ()      # the library chunks the code includes (beyond OpenGL: pastes)
+    module: object = None    # what the printer printed (printers/base.py Module), to print it another way
 
     @property
     def float_in_dim(self) -> int:
@@ -144,7 +145,7 @@ def generate(bundle: Bundle, *, options: dict | None = None, target: str = "330"
     plan = Plan(bundle.name, target, ctx.plan, ctx.resources, check_limits(ctx.resources, text.splitlines(), limits,
                                                                            textures), calls)
     return Generated(text, f"{prefix}_eval", prefix, bundle.in_dim, bundle.out_dim, ctx.resources, plan,
-                     tuple(uint_lanes), tuple(ctx.includes))
+                     tuple(uint_lanes), tuple(ctx.includes), module)
 
 
 def refuse_unlowered(bundle: Bundle, target: str) -> None:

@@ -5,7 +5,9 @@ of GLSL's: the product is written ``mul(v, M)``, and uniform-block matrices are 
 ``row_major`` so the same std140 bytes read the same way. Resources carry both a D3D register
 (t# for textures, b# for constant buffers, in plan order) and a Vulkan binding
 (``[[vk::binding(n, 0)]]``) so one source serves D3D and SPIR-V compilers alike. Textures are read
-with ``Load`` (no sampler)."""
+with ``Load`` (no sampler). ``HLSLPrinter(textures_as_arguments=True)`` declares none: the eval function
+takes each texture (and a filtered one's sampler) as an argument, as an engine's node passes what it
+binds."""
 from __future__ import annotations
 
 from .. import ir
@@ -20,6 +22,9 @@ class HLSLPrinter(Printer):
              "ivec2": "int2", "ivec3": "int3", "ivec4": "int4", "uint": "uint", "uvec3": "uint3", "uvec4": "uint4",
              "bool": "bool"}
     builtins = {"roundEven": "round", "inversesqrt": "rsqrt", "fract": "frac", "mix": "lerp"}
+
+    def __init__(self, textures_as_arguments: bool = False):
+        self.textures_as_arguments = textures_as_arguments
 
     def _vec4(self, e: ir.Vec4) -> str:
         if len(e.items) == 1:   # HLSL constructors take every lane; a cast repeats one
@@ -66,6 +71,37 @@ class HLSLPrinter(Printer):
 
     visibility = ""   # Slang: "public " (what an importing module may call)
 
+    def texture_arguments(self, m: Module) -> list[str]:
+        """The eval function's texture parameters (each texture, then a filtered one's sampler), in plan
+        order; a network reading a uniform or storage block cannot take it so."""
+        blocks = [g.block for g in m.globals if isinstance(g, ir.UniformBlock)]
+        if blocks:
+            raise Unprintable(f"{self.language}: {', '.join(blocks)}: a block is not a function argument; "
+                              "store the weights in textures")
+        out = []
+        for g in sorted((g for g in m.globals if isinstance(g, ir.Texture)), key=lambda g: m.bindings[g.name]):
+            out.append(f"Texture{g.dims}D<{'uint4' if g.integer else 'float4'}> {g.name}")
+            out += [f"SamplerState {g.name}{SAMPLER_SUFFIX}"] if g.filtered else []
+        return out
+
+    def texture_declarations(self, m: Module) -> list[str]:
+        """The module-level declarations of the textures (and samplers) ``texture_arguments`` takes."""
+        registers = self.registers(m)
+        return [self.global_(g, m.bindings, registers) for g in m.globals if isinstance(g, ir.Texture)]
+
+    @staticmethod
+    def registers(m: Module) -> dict:
+        """Each resource's D3D register, counted per class in plan order: constant buffers b0..,
+        textures and structured buffers t0.., samplers s0.."""
+        classes = {"b": [], "t": [], "s": []}
+        for g in m.globals:
+            if isinstance(g, ir.UniformBlock):
+                classes["t" if g.storage else "b"].append(g.block)
+            elif isinstance(g, ir.Texture):
+                classes["t"].append(g.name)
+                classes["s"] += [g.name + SAMPLER_SUFFIX] if g.filtered else []
+        return {n: i for names in classes.values() for i, n in enumerate(sorted(names, key=m.bindings.__getitem__))}
+
     def function_head(self, g: ir.Function) -> str:
         return self.visibility + super().function_head(g)
 
@@ -75,24 +111,17 @@ class HLSLPrinter(Printer):
 
     def module(self, m: Module) -> str:
         up = m.prefix.upper()
-        # D3D registers count per class, in plan order: constant buffers b0.., textures and structured
-        # buffers t0.., samplers s0..
-        classes = {"b": [], "t": [], "s": []}
-        for g in m.globals:
-            if isinstance(g, ir.UniformBlock):
-                classes["t" if g.storage else "b"].append(g.block)
-            elif isinstance(g, ir.Texture):
-                classes["t"].append(g.name)
-                classes["s"] += [g.name + SAMPLER_SUFFIX] if g.filtered else []
-        registers = {n: i for names in classes.values() for i, n in enumerate(sorted(names, key=m.bindings.__getitem__))}
+        registers = self.registers(m)
         uint_arg = f"in uint4 xu[{up}_IN_UINT_BLOCKS], " if m.uint_blocks else ""
+        arguments = self.texture_arguments(m) if self.textures_as_arguments else []
+        declared = [g for g in m.globals if not (arguments and isinstance(g, ir.Texture))]
         lines = [
             *m.comments,
             *(f"#define {name} {value}" for name, value in m.defines),
             *library_source(m.includes, (".hlsl",), guard=True),
-            *(self.global_(g, m.bindings, registers) for g in m.globals),
+            *(self.global_(g, m.bindings, registers) for g in declared),
             f"{self.visibility}void {m.prefix}_eval({uint_arg}in float4 x[{up}_IN_BLOCKS], "
-            f"out float4 y[{up}_OUT_BLOCKS]) {{",
+            f"out float4 y[{up}_OUT_BLOCKS]{''.join(', ' + a for a in arguments)}) {{",
             *self.lines(m.body, 1),
             *(INDENT + f"y[{b}] = {m.result}[{b}];" for b in range(m.out_blocks)),
             "}",

@@ -39,7 +39,9 @@ def add_parser(sub) -> None:
                         "(mainImage, the weights as literals)")
     p.add_argument("--engine", choices=ENGINES,
                    help="with --target hlsl: the network as a game engine's node takes it: unity (a Shader Graph "
-                        "Custom Function file, File mode) or unreal (a Custom node's Code); the weights as literals")
+                        "Custom Function file, File mode) or unreal (a Custom node's Code); the weights as literals, "
+                        "or with --storage texture (and any lookup tables) as EXR / PNG images beside -o with a "
+                        "README of their import settings")
     p.add_argument("--check", action="store_true",
                    help="run the generated code on this machine's driver for the target (OpenGL; wgpu on Vulkan for "
                         "wgsl / vulkan / hlsl / slang) against the bundle's torch twin and print "
@@ -160,7 +162,7 @@ def _resource_manifest(resources) -> tuple[list, dict]:
 
 def _write_group(out: Path, text: str, manifest: dict, tensors: dict, extra: dict | None = None) -> list[Path]:
     """out (text), out.json (manifest), out's .resources.safetensors (when there are tensors) and any
-    ``extra`` {path: text}: all together or none."""
+    ``extra`` {path: text or bytes}: all together or none."""
     from safetensors.numpy import save_file
 
     from inshade.files import atomic_files
@@ -175,7 +177,7 @@ def _write_group(out: Path, text: str, manifest: dict, tensors: dict, extra: dic
             temps[0].write_text(text)
             temps[1].write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n")
             for tmp, body in zip(temps[2:], extra.values()):
-                tmp.write_text(body)
+                tmp.write_bytes(body) if isinstance(body, bytes) else tmp.write_text(body)
             if tensors:
                 save_file(tensors, str(temps[-1]))
     except OSError as e:
@@ -277,9 +279,12 @@ def _check(b, gen, target: str) -> bool:
     return result.ok
 
 
-def _pasted(args, b, output, report: str, text: str, check, manifest: dict) -> int:
+def _pasted(args, b, output, report: str, text: str, check, manifest: dict, extra=None) -> int:
     """Code to paste into another tool: its report, --check (``check()`` gives (lines, ok)), and with -o
-    the text and its manifest (-o -: the text alone on standard output)."""
+    the text and its manifest (-o -: the text alone on standard output); ``extra(out)``: the files that go
+    beside it ({path: text or bytes}), which need -o."""
+    if extra is not None and output == STDOUT:
+        raise UserError("-o -: this code comes with files beside it; -o names the file to write")
     if output == STDOUT:
         print(report, file=sys.stderr)
         sys.stdout.write(text)
@@ -295,8 +300,12 @@ def _pasted(args, b, output, report: str, text: str, check, manifest: dict) -> i
     if b is not None:
         manifest = {"bundle": str(b.path if b.path is not None else args.bundle), "bundle_digest": b.digest(),
                     **manifest}
-    _write_group(Path(output), text, manifest, {})
-    print(f"wrote {output}", file=sys.stderr)
+    files = extra(Path(output)) if extra is not None else {}
+    for path in files:
+        _refuse_existing(path, args.force)
+    _write_group(Path(output), text, manifest, {}, files)
+    for path in [output, *files]:
+        print(f"wrote {path}", file=sys.stderr)
     return 0
 
 
@@ -342,21 +351,31 @@ def _shadertoy_sdf(args, src) -> int:
 def _engine(args, b, output) -> int:
     """--engine: the network as the engine's node takes it, its setup, --check through the HLSL driver."""
     from inshade.convert.check import check_inputs
-    from inshade.engines import check_drop_in, drop_in
+    from inshade.engines import check_drop_in, drop_in, readme
+    from inshade.engines.textures import image_bytes
     from inshade.models import GraphModule
 
     if args.target != "hlsl":
         raise UserError(f"--engine {args.engine}: takes --target hlsl (the engines' shading language), "
                         f"not --target {args.target}")
-    if args.storage not in ("auto", "inline"):
-        raise UserError(f"--engine {args.engine}: the drop-in holds its weights as literals; --storage {args.storage} "
-                        "needs resources bound by your own code (use --target hlsl without --engine)")
-    d = drop_in(b, args.engine, args.prefix)   # by default named after the bundle: several share a material
+    if args.storage not in ("auto", "inline", "texture"):
+        raise UserError(f"--engine {args.engine}: the drop-in holds its weights as literals or textures; --storage "
+                        f"{args.storage} needs blocks bound by your own code (use --target hlsl without --engine)")
+    # by default named after the bundle: several share a material
+    d = drop_in(b, args.engine, args.prefix, "texture" if args.storage == "texture" else "inline", args.lut_filter)
 
     def check():
         result = check_drop_in(d, GraphModule.from_bundle(b), b, check_inputs(_span(b)))
         return [f"{result.line()} ({result.rows} rows, {result.gl_renderer})"], result.ok
 
+    def images(out: Path) -> dict:
+        files = {out.with_name(f.file): image_bytes(f, pixels) for f, pixels in d.images}
+        return {**files, out.with_name(out.stem + ".README.md"): readme(d, out.name)}
+
     return _pasted(args, b, output, d.report(), d.text, check,
                    {"target": "hlsl", "engine": args.engine, "function": d.generated.prefix, "node": d.node,
-                    "inputs": [[p.name, p.dim] for p in d.inputs], "outputs": [[p.name, p.dim] for p in d.outputs]})
+                    "inputs": [[p.name, p.dim] for p in d.inputs], "outputs": [[p.name, p.dim] for p in d.outputs],
+                    "textures": [{"name": f.name, "file": f.file, "format": f.format, "size": [f.width, f.height],
+                                  "filter": "linear" if f.filtered else "nearest", "wrap": f.wrap}
+                                 for f, _ in d.images]},
+                   images if d.images else None)

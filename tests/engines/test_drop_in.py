@@ -3,6 +3,7 @@ driver against torch; pins split past 4 lanes; several networks in one shader; r
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -26,18 +27,21 @@ def zoo_bundles(tmp_path_factory):
 
 @pytest.mark.parametrize("engine", ENGINES)
 def test_the_zoo_in_each_engine(zoo_bundles, engine):
-    """Every zoo network without textures, as the engine calls it, against the torch module it came from."""
+    """Every zoo network, as the engine calls it, against the torch module it came from (a lookup table:
+    an image file the engine imports, read back as the engine lays it in memory)."""
     refused = []
     for name, (module, bundle, x) in zoo_bundles.items():
         try:
             d = drop_in(bundle, engine)
         except TargetError as e:
             refused.append(name)
-            assert str(e).startswith(f"{engine}: {bundle.name} reads "), e
+            assert str(e).startswith(f"{engine}: b_lookup_array0_t0: a 3D texture, which this drop-in does not "
+                                     "import as an image file yet"), e
             continue
+        assert bool(d.images) == (name == "grid_texture"), name
         result = check_drop_in(d, module, bundle, x)
         assert result.ok, (name, result.line())
-    assert sorted(refused) == ["grid3d", "grid_texture"]   # lookup arrays: textures
+    assert refused == ["grid3d"]
 
 
 def _wide_bundle():
@@ -84,6 +88,59 @@ def test_two_unity_networks_share_one_shader():
     assert spirv(da.text + db.text + da.text + main, ["-D", "-V", "-S", "comp", "-e", "main"])
 
 
+@pytest.fixture(scope="module")
+def shipped():
+    from inshade.bundle import load
+    from inshade.scene.description import load_scene, resolve_asset
+
+    return {a: load(load_scene(resolve_asset(a)).networks[0].bundle) for a in ("neural_image", "hash_grid_image")}
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_weights_as_image_files(shipped, engine):
+    """Dense weights in a texture (float EXR), lookup arrays (8-bit PNG) and a hash table (half EXR) as the
+    engine imports them: the files written, read back and laid in memory as the engine does, through the
+    HLSL driver against torch."""
+    x = np.random.default_rng(2).random((1024, 2)).astype(np.float32)
+    for name, bundle in shipped.items():
+        d = drop_in(bundle, engine, storage="texture")
+        formats = {f.name[len(d.generated.prefix) + 1:]: f.format for f, _ in d.images}
+        assert formats == ({"weights": "exr float", "grid0_t0": "png 8-bit", "grid1_t0": "png 8-bit",
+                            "grid2_t0": "png 8-bit"} if name == "neural_image" else
+                           {"weights": "exr float", "grid_table0": "exr half"}), formats
+        assert all(f"{f.name} (Texture" in d.node for f, _ in d.images)
+        result = check_drop_in(d, GraphModule.from_bundle(bundle), bundle, x)
+        assert result.ok, (name, result.line())
+
+
+def test_each_engine_lays_the_rows_its_own_way(shipped, monkeypatch):
+    """Unity's files hold the rows bottom-up, Unreal's top-down; read with the other engine's convention,
+    the check fails: it reads what the engine would."""
+    from inshade.engines import textures
+
+    bundle = shipped["neural_image"]
+    unity, unreal = (drop_in(bundle, e, storage="texture") for e in ("unity", "unreal"))
+    for (fa, a), (fb, b) in zip(unity.images, unreal.images):
+        assert fa.file == fb.file and np.array_equal(a, b[::-1]) and not np.array_equal(a, b)
+    read = textures.engine_texture
+    module = sys.modules["inshade.engines.drop_in"]   # the package's drop_in is the function of that name
+    monkeypatch.setattr(module, "engine_texture", lambda record, path, engine, r: read(record, path, "unreal", r))
+    x = np.random.default_rng(3).random((256, 2)).astype(np.float32)
+    assert not check_drop_in(unity, GraphModule.from_bundle(bundle), bundle, x).ok
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_filtered_table_takes_the_engines_sampler(zoo_bundles, engine):
+    """The fast lookup path filters in hardware: the texture's sampler is the node's (Unity's samplerstate,
+    Unreal's <name>Sampler); float cells keep it under the rule."""
+    module, bundle, x = zoo_bundles["grid_texture"]
+    d = drop_in(bundle, engine, storage="texture", lut_filter="fast")
+    assert any(f.filtered for f, _ in d.images)
+    assert ("samplerstate" if engine == "unity" else "Sampler") in d.text
+    result = check_drop_in(d, module, bundle, x)
+    assert result.ok, result.line()
+
+
 def test_refusals_are_one_line():
     g = GraphModule([("tri", 1, "generic", "uint"), ("uv", 2, "uv")])
     g.output("y", g.dense("l0", "uv", 3))
@@ -108,3 +165,23 @@ def test_cli(tmp_path, capsys):
     assert json.loads(out.with_suffix(".hlsl.json").read_text())["engine"] == "unity"
     assert main(["codegen", str(tmp_path / "wide"), "--target", "wgsl", "--engine", "unreal"]) == 2
     assert "--engine unreal: takes --target hlsl" in capsys.readouterr().err
+
+
+def test_cli_writes_the_images_and_their_readme(tmp_path, capsys):
+    from inshade.cli import main
+
+    _wide_bundle().save(tmp_path / "wide")
+    out = tmp_path / "unreal" / "Wide.hlsl"
+    out.parent.mkdir()
+    argv = ["codegen", str(tmp_path / "wide"), "--target", "hlsl", "--engine", "unreal", "--storage", "texture",
+            "--check", "-o", str(out)]
+    assert main(argv) == 0
+    assert "(rule 1e-05): ok" in capsys.readouterr().out
+    manifest = json.loads(out.with_suffix(".hlsl.json").read_text())
+    files = [t["file"] for t in manifest["textures"]]
+    assert files == ["wide_weights.exr"] and (out.parent / files[0]).read_bytes()[:4] == b"v/1\x01"   # EXR magic
+    readme = out.with_name("Wide.README.md").read_text()
+    assert "HDR High Precision (RGBA32F)" in readme and "`wide_weights.exr` (wide_weights)" in readme
+    assert main(argv) == 2   # nothing replaced without --force
+    assert "exists; add --force" in capsys.readouterr().err
+    assert main([*argv, "--force"]) == 0
