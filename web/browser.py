@@ -91,14 +91,14 @@ class Browser:
 
     def open(self, url: str, timeout: float = 600.0) -> dict:
         """Load ``url`` and wait until the page says it is ready or failed; returns
-        {"ready", "error", "console": [SEVERE/WARNING messages], "seconds"}."""
+        {"ready", "error", "first_frame_ms", "full_frame_ms", "console": [SEVERE/WARNING messages], "seconds"}."""
         start = time.perf_counter()
         self.driver.get(url)
         state = {}
         while time.perf_counter() - start < timeout:
             state = self.driver.execute_script(
                 "const p = window.inshade; return p ? {ready: p.ready, error: p.error, "
-                "first_frame_ms: p.firstFrameMs ?? null} : null;") or {}
+                "first_frame_ms: p.firstFrameMs ?? null, full_frame_ms: p.fullFrameMs ?? null} : null;") or {}
             if state.get("ready") or state.get("error"):
                 break
             time.sleep(0.1)

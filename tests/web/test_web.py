@@ -96,12 +96,39 @@ def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, tmp_pa
         assert not _errors(state["console"]), f"{asset}: console errors: {state['console']}"
         page = browser.canvas()
         progress = browser.driver.execute_script("return window.inshade.progress;")
-    # the page says what it is doing before its first frame: the compile, then the draw
-    assert progress and progress[-1]["text"].startswith("compiled "), progress
-    assert all(p["ms"] <= state["first_frame_ms"] for p in progress), (progress, state["first_frame_ms"])
+    # the page says what it is doing before its first frame: the compile, then the draw; then that the
+    # first frame, a quarter of the size, is up while the full one is drawn
+    compiled, first = progress[-2:]
+    assert compiled["text"].startswith("compiled ") and compiled["ms"] <= state["first_frame_ms"], progress
+    assert first["text"].startswith("first frame at 1/4 size") and first["ms"] == state["first_frame_ms"], progress
+    assert state["first_frame_ms"] <= state["full_frame_ms"]
     assert page.shape == (h, w, 3)
     db = psnr8(page, inshade_render(asset, record))
     assert db >= MIN_PSNR_DB, f"{asset}: the page's first frame is {db:.2f} dB from inshade render's"
+
+
+def test_the_first_frame_is_a_quarter_of_the_size_shown_enlarged(gl, browser, tmp_path):
+    """The page's first frame: every pass at 1/4 of the size, each of its pixels shown as a 4 x 4 block, the
+    picture inshade render draws at that size; the full frame after it as if it had been the first."""
+    asset = "sdf_creature"
+    folder, (w, h) = _exported(asset, tmp_path)
+    with serve(folder) as url:
+        state = browser.open(url + "index.html")
+        assert state["ready"], state
+        full = browser.canvas()
+        browser.driver.execute_script("window.inshade.viewer.render({preview: 4});")
+        preview = browser.canvas()
+        browser.driver.execute_script("window.inshade.viewer.render();")
+        again = browser.canvas()
+    assert np.array_equal(again, full)
+    assert w % 4 == 0 and h % 4 == 0, (w, h)
+    small = preview[3::4, ::4]   # rows from the top: the block's bottom-left pixel is its source texel
+    assert np.array_equal(np.repeat(np.repeat(small, 4, 0), 4, 1), preview)
+    from inshade.runtime.headless import render_scene
+
+    image, _ = render_scene(load_scene(resolve_asset(asset)), width=w // 4, height=h // 4)
+    db = psnr8(small, srgb8(image))
+    assert db >= MIN_PSNR_DB, f"the preview is {db:.2f} dB from inshade render at a quarter of the size"
 
 
 @pytest.mark.parametrize("asset,mode", [("di_texture_astronaut", "reference"), ("di_texture_astronaut", "split"),

@@ -25,6 +25,7 @@ const TARGETS = {
   r32f: [gl2.R32F, gl2.RED, gl2.FLOAT], r32ui: [gl2.R32UI, gl2.RED_INTEGER, gl2.UNSIGNED_INT],
 };
 const SAMPLE_CAP = 256;   // a stochastic program stops adding samples here
+const PREVIEW = 4;        // the first frame is drawn at 1 / PREVIEW of the size, then the full one
 
 export class WebGLError extends Error {}
 
@@ -407,6 +408,7 @@ export class Viewer {
     this.manifest = manifest;
     this.width = width || manifest.size[0];
     this.height = height || manifest.size[1];
+    this.canvasSize = [this.width, this.height];   // width, height: what a frame draws (less for a preview)
     canvas.width = this.width;
     canvas.height = this.height;
     const gl = this.gl = compiled ? compiled.gl : createContext(canvas, manifest);
@@ -485,10 +487,10 @@ export class Viewer {
     for (const [name, value] of Object.entries(uniforms)) setUniform(this.gl, prog, name, value);
   }
 
-  _fullscreen(prog, target) {
+  _fullscreen(prog, target, [w, h] = [this.width, this.height]) {
     const gl = this.gl;
     gl.bindFramebuffer(gl.FRAMEBUFFER, target ? target.fb : null);
-    gl.viewport(0, 0, this.width, this.height);
+    gl.viewport(0, 0, w, h);
     gl.disable(gl.DEPTH_TEST); gl.disable(gl.BLEND); gl.disable(gl.CULL_FACE);
     gl.bindVertexArray(this.vao);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
@@ -590,8 +592,22 @@ export class Viewer {
     this.targets.spare = mean;
   }
 
-  // network pass (if stale) + display pass + present to the canvas; returns the frame's milliseconds
-  render() {
+  // network pass (if stale) + display pass + present to the canvas; returns the frame's milliseconds.
+  // ``preview``: every pass draws 1 / preview of the size (the lower-left corner of its targets), shown
+  // enlarged: a first picture at a fraction of a full frame's cost.
+  render({preview = 1} = {}) {
+    const [w, h] = this.canvasSize;
+    this.width = Math.ceil(w / preview);
+    this.height = Math.ceil(h / preview);
+    try {
+      return this._render();
+    } finally {
+      this.width = w;
+      this.height = h;
+    }
+  }
+
+  _render() {
     const gl = this.gl, m = this.manifest, d = m.display;
     const start = performance.now();
     this.renderNetwork();
@@ -608,13 +624,14 @@ export class Viewer {
     const present = this.programs[m.programs.present];
     gl.useProgram(present.program);
     bindResources(gl, present, [{...this.targets.output.textures[0], uniform: "u_source"}]);
+    const [cw, ch] = this.canvasSize;
     setUniform(gl, present, "u_origin", [0, 0]);
-    setUniform(gl, present, "u_scale", [1, 1]);   // the page draws the scene at the canvas size
+    setUniform(gl, present, "u_scale", [this.width / cw, this.height / ch]);   // 1: the frame is the canvas's size
     const pictured = d.tonemapped_modes.includes(this.mode);   // error views and raw lanes: 0, as they are
     for (const s of m.settings) {
       if (s.present) setUniform(gl, present, s.present, pictured ? s.indices[s.choices.indexOf(this.values[s.name])] : 0);
     }
-    this._fullscreen(present, null);
+    this._fullscreen(present, null, this.canvasSize);
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));   // waits for the frame
     this.frameMs = performance.now() - start;
     const error = gl.getError();
@@ -747,8 +764,15 @@ export async function main({base = "./", canvas, panel, status} = {}) {
     const redraw = () => { dirty = true; };
     buildPanel(panel, viewer, redraw);
     attachPointer(canvas, viewer, redraw);
-    viewer.render();
+    // the first picture at a quarter of the size, shown before the full frame is drawn
+    viewer.render({preview: PREVIEW});
     page.firstFrameMs = performance.now() - t0;
+    page.previewScale = PREVIEW;
+    status.textContent = `first frame at 1/${PREVIEW} size after ${page.firstFrameMs.toFixed(0)} ms; drawing the full frame`;
+    page.progress.push({ms: page.firstFrameMs, text: status.textContent});
+    await settled(viewer.gl);
+    viewer.render();
+    page.fullFrameMs = performance.now() - t0;
     await settled(viewer.gl);
     page.ready = true;
     const tick = () => {
@@ -757,7 +781,7 @@ export async function main({base = "./", canvas, panel, status} = {}) {
         viewer.render();
         status.textContent = `${viewer.width}x${viewer.height} · frame ${viewer.frameMs.toFixed(1)} ms` +
           (viewer.manifest.accumulate ? ` · ${viewer.samples} spp` : "") +
-          ` · first frame ${page.firstFrameMs.toFixed(0)} ms after load`;
+          ` · first frame ${page.firstFrameMs.toFixed(0)} ms, full ${page.fullFrameMs.toFixed(0)} ms after load`;
       }
       requestAnimationFrame(tick);
     };
