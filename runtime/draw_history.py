@@ -46,6 +46,12 @@ def lookup(renderer: str, key: str) -> dict:
     return entry if isinstance(entry, dict) else {}
 
 
+def entries(renderer: str) -> list[dict]:
+    """Every record of ``renderer``."""
+    prefix = f"{renderer}|"
+    return [v for k, v in _read().items() if k.startswith(prefix) and isinstance(v, dict)]
+
+
 def record(renderer: str, key: str, **values) -> None:
     from inshade.files import atomic_write
 

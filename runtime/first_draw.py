@@ -11,6 +11,7 @@ from typing import Callable
 from inshade.progress import format_seconds, waiting
 
 from . import draw_history
+from .compile_cost import inline_flops
 
 log = logging.getLogger("inshade")
 _DRAWN: set[str] = set()   # program keys this process has drawn (their first draw is said once)
@@ -99,9 +100,9 @@ def draw_timed(draw: Callable[[], None], ctx, *, scene, gl: dict, program_key: s
             missed = cached and w.seconds > 3.0 * estimate
             log.info("compiled and drawn in %s%s", format_seconds(w.seconds),
                      " (Mesa's shader cache did not have it)" if missed else "")
-        if program_key and gl.get("software"):
+        if program_key and gl.get("software"):   # inline_flops: what the JIT's time is calibrated by
             draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3),
-                                shader_cache=draw_history.shader_cache_on())
+                                shader_cache=draw_history.shader_cache_on(), inline_flops=inline_flops(generated))
     elif w.enabled or w.seconds >= 1.0:   # a slow frame is remembered, to warn next time
         if program_key:
             draw_history.record(renderer, view, frame_s=round(w.seconds, 3), pixels=pixels)

@@ -247,6 +247,8 @@ def _codegen(args, b, prefix, output) -> int:
         sys.stdout.write(flatten("network", chunks={"network": gen.chunk}) if opengl else gen.chunk)
         return 0
     print(gen.plan.report())
+    if opengl:
+        _say_compile_cost(limits, gen)
     if args.check and not _check(b, gen, args.target):
         return 1
     if output is None:
@@ -260,6 +262,24 @@ def _codegen(args, b, prefix, output) -> int:
     _write_group(out, flatten("network", chunks={"network": gen.chunk}) if opengl else gen.chunk, manifest, tensors)
     print(f"wrote {out} ({len(gen.resources)} resources)", file=sys.stderr)
     return 0
+
+
+def _say_compile_cost(limits: dict, gen) -> None:
+    """On a software driver, what the first draw's JIT will take, and a warning past a few seconds."""
+    import logging
+
+    from inshade.progress import format_seconds
+    from inshade.runtime.compile_cost import SLOW_COMPILE_S, first_draw_estimate, inline_flops
+
+    seconds = first_draw_estimate(limits, "", [gen])
+    if seconds is None or not inline_flops([gen]):
+        return
+    what = (f"~{format_seconds(seconds)} at the first draw on {limits.get('renderer', 'this driver')} "
+            f"(JIT of {inline_flops([gen])} inlined FLOPs)")
+    print(f"compile: {what}")
+    if seconds >= SLOW_COMPILE_S:
+        logging.getLogger("inshade").warning("this program compiles %s; --storage texture compiles in seconds "
+                                             "and runs slower", what)
 
 
 def _span(b):
