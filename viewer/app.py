@@ -42,6 +42,7 @@ from inshade.runtime.programs import ProgramCache
 from inshade.runtime.render import FullscreenPass
 from inshade.runtime.renderer import SceneRenderer
 from inshade.scene.description import list_scenes, load_scene
+from .warm_up import QUICK_STORAGE, WarmUp, program_settings, worth_it
 from .watch import FileWatcher
 
 log = logging.getLogger("inshade")
@@ -95,6 +96,7 @@ class ViewerApp:
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else Path.cwd() / "screenshots"
         self.overrides = dict(settings or {})
         self.scene = self.renderer = self.camera = self.watcher = None
+        self.warm_up = None   # the program as set, compiling in another process (viewer/warm_up.py)
         self.mode, self.split, self.psnr = DisplayMode.FINAL, 0.5, None
         self.compiling = False
         self.frames = 0
@@ -139,6 +141,7 @@ class ViewerApp:
             return False
         self._release_scene(keep=(renderer.program, renderer.display_program))
         self.scene, self.renderer = scene, renderer
+        self._start_warm_up(scene.source or source)
         renderer.sample_cap = self.max_spp   # accumulating programs: a still view stops adding samples here
         self.camera = scene.make_camera()
         self.mode, self.split, self.psnr, self._psnr_key = scene.display_mode, scene.split, None, None
@@ -157,7 +160,38 @@ class ViewerApp:
                 return i
         return None
 
+    def _start_warm_up(self, source) -> None:
+        """Draw with a program that compiles quickly while the program as set compiles behind (where that
+        pays: viewer/warm_up.py)."""
+        r = self.renderer
+        if not worth_it(r, source):
+            return
+        wanted = program_settings(self.scene, r.values)
+        r.set_setting("storage", QUICK_STORAGE)
+        self.warm_up = WarmUp(source, wanted)
+        self.flash(f"drawing with storage {QUICK_STORAGE} while storage {wanted['storage']} compiles behind")
+
+    def _check_warm_up(self) -> None:
+        """Once the program as set has compiled behind: switch to it (its first draw finds the shader in
+        Mesa's cache)."""
+        w = self.warm_up
+        if w is None or not w.done():
+            return
+        self.warm_up = None
+        if not w.ok:
+            self.messages.append(f"compiling storage {w.settings['storage']} behind the window failed "
+                                 f"({w.error()}); compiling it here")
+        w.stop()
+        self.set_setting("storage", w.settings["storage"])
+        self.flash(f"storage {w.settings['storage']} ready (compiled behind in {w.seconds:.0f} s)")
+
+    def _stop_warm_up(self) -> None:
+        if self.warm_up is not None:
+            self.warm_up.stop()
+            self.warm_up = None
+
     def _release_scene(self, keep=()) -> None:
+        self._stop_warm_up()
         if self.renderer is not None:
             self.renderer.release(keep=keep)   # programs the next scene shares stay in the cache
         self.renderer = None
@@ -209,11 +243,18 @@ class ViewerApp:
 
     def set_setting(self, name: str, value) -> str:
         self.make_current()
+        if self.warm_up is not None and name == "storage":   # the user's own choice: nothing to switch to
+            self._stop_warm_up()
         try:
             outcome = self.renderer.set_setting(name, value)
         except Exception as exc:
             self.messages.append(f"{name} = {value!r} failed: {exc}")
             return "failed"
+        if self.warm_up is not None and name in program_settings(self.scene, {name: value}):
+            # another program as set: compile that one behind instead
+            wanted = {**self.warm_up.settings, name: self.renderer.values[name]}
+            self._stop_warm_up()
+            self.warm_up = WarmUp(self.scene.source, wanted)
         return outcome
 
     def reset_camera(self) -> None:
@@ -302,6 +343,7 @@ class ViewerApp:
         glfw.poll_events()
         self.impl.process_inputs()
         self.check_reload()
+        self._check_warm_up()
         x, y, w, h = self.scene_rect()
         self.controls.move(dt)
 

@@ -687,3 +687,41 @@ def test_window_after_the_osmesa_backend_is_one_clear_error():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "refused: the window draws through its own GL context" in r.stdout
+
+
+def test_a_slow_program_compiles_behind_a_quick_one(app, tmp_path, monkeypatch):
+    """A program whose first draw would take long on a software driver: the window draws with its weights
+    in a texture while another process compiles the program as set (Mesa's shader cache carries it over),
+    then switches to it; both pictures the same within a step of 8-bit. The user's own storage choice
+    ends the wait."""
+    import time as clock
+
+    from inshade.viewer import warm_up
+
+    monkeypatch.setattr(warm_up, "WARM_UP_MIN_S", 0.0)   # neural_image compiles in a second: call it slow
+    monkeypatch.setenv("MESA_SHADER_CACHE_DIR", str(tmp_path / "mesa"))
+    monkeypatch.setenv("INSHADE_CACHE_DIR", str(tmp_path / "history"))
+    monkeypatch.setattr(app, "overrides", {"storage": "inline"})
+    try:
+        assert app.open(ASSET)
+        assert app.warm_up is not None and app.renderer.values["storage"] == "texture"
+        assert "while storage inline compiles behind" in app.flash_shown
+        app.step(3)
+        quick = _encode(app.renderer.read())   # the scene pass's picture (the viewport also shows the message)
+        deadline = clock.monotonic() + 300
+        while not app.warm_up.done():
+            assert clock.monotonic() < deadline, "the program as set did not compile behind within 300 s"
+            clock.sleep(0.1)
+        app.step(2)
+        assert app.warm_up is None and app.renderer.values["storage"] == "inline", app.messages[-1:]
+        assert app.flash_shown.startswith("storage inline ready (compiled behind in")
+        full = _encode(app.renderer.read())
+        assert np.abs(full - quick).max() <= 1 and full.std() > 5
+        assert app.open(ASSET) and app.warm_up is not None
+        assert app.set_setting("storage", "ubo") != "failed"
+        assert app.warm_up is None and app.renderer.values["storage"] == "ubo"
+    finally:
+        monkeypatch.undo()
+        assert app.open(ASSET)
+        app.step(3)
+    _reset(app)
