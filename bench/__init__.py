@@ -18,6 +18,8 @@ SHARED = {
                                        "export peak memory"),
     "web": ("inshade.web.bench", "every shipped asset as a WebGL2 page in headless Chromium: page bytes, "
                                  "load time, frame time, PSNR vs inshade render"),
+    "startup": ("inshade.bench.startup", "every shipped asset's first picture in a fresh process, cold and warm, "
+                                         "per weight storage"),
     "suite": ("inshade.bench.suite", "every bench, sized by --preset cpu|device, and a one-page summary "
                                      "against the papers (docs/bench/<renderer>/)"),
 }

@@ -56,3 +56,22 @@ def test_bench_mlp_arguments():
     assert parser.parse_args(["--targets", ""]).targets == []
     with pytest.raises(SystemExit):
         parser.parse_args(["--targets", "330"])     # OpenGL's GLSL is what the bench always times
+
+
+def test_bench_startup_quick(tmp_path):
+    """`inshade bench startup --quick`: a shipped asset rendered in fresh processes, cold per storage and
+    warm; its three files, each run's wall time, first draw and plan."""
+    import json
+
+    from inshade.bench import startup
+
+    out = tmp_path / "startup"
+    assert startup.main(["--quick", "--out", str(out)]) == 0
+    report = json.loads((out / "startup.json").read_text())
+    (row,) = report["assets"]
+    assert row["asset"] == "neural_image" and set(row["cold"]) == {"auto", "texture"} and set(row["warm"]) == {"auto"}
+    for run in [*row["cold"].values(), *row["warm"].values()]:
+        assert run["wall_s"] > 0 and run["first_draw_s"] is not None and run["renderer"], run
+    assert "texture" in row["cold"]["texture"]["resolved"] and row["quickest_cold"] in ("auto", "texture")
+    assert "| neural_image |" in (out / "startup.md").read_text() and (out / "startup.png").stat().st_size
+    assert startup.main(["trained/no_such_asset", "--out", str(out)]) == 2
