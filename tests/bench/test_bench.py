@@ -73,5 +73,6 @@ def test_bench_startup_quick(tmp_path):
     for run in [*row["cold"].values(), *row["warm"].values()]:
         assert run["wall_s"] > 0 and run["first_draw_s"] is not None and run["renderer"], run
     assert "texture" in row["cold"]["texture"]["resolved"] and row["quickest_cold"] in ("auto", "texture")
+    assert 0 < row["view"]["first_frame_s"] <= row["view"]["full_frame_s"], row["view"]   # the window, too
     assert "| neural_image |" in (out / "startup.md").read_text() and (out / "startup.png").stat().st_size
     assert startup.main(["trained/no_such_asset", "--out", str(out)]) == 2
