@@ -167,7 +167,11 @@ class ViewerApp:
         if not worth_it(r, source):
             return
         wanted = program_settings(self.scene, r.values)
-        r.set_setting("storage", QUICK_STORAGE)
+        try:
+            r.set_setting("storage", QUICK_STORAGE)
+        except Exception as exc:  # e.g. past a texture limit: the program as set, compiled here
+            log.info("no quick program first (%s)", exc)
+            return
         self.warm_up = WarmUp(source, wanted)
         self.flash(f"drawing with storage {QUICK_STORAGE} while storage {wanted['storage']} compiles behind")
 
@@ -252,9 +256,9 @@ class ViewerApp:
             return "failed"
         if self.warm_up is not None and name in program_settings(self.scene, {name: value}):
             # another program as set: compile that one behind instead
-            wanted = {**self.warm_up.settings, name: self.renderer.values[name]}
+            source, wanted = self.warm_up.source, {**self.warm_up.settings, name: self.renderer.values[name]}
             self._stop_warm_up()
-            self.warm_up = WarmUp(self.scene.source, wanted)
+            self.warm_up = WarmUp(source, wanted)
         return outcome
 
     def reset_camera(self) -> None:

@@ -18,10 +18,11 @@ from inshade.runtime import draw_history
 QUICK_STORAGE = "texture"   # the storage the window draws with while the program as set compiles behind
 PROGRAM_BINDINGS = ("define", "codegen")   # settings that change the program (the others are uniforms)
 SIZE = 8
-# a program expected to take this long at its first draw compiles behind (inshade bench startup: texture
-# storage draws the PRT and UV-free programs' first frame in 2-3 s where their literals take 6-19 s; the
-# hash-grid field, ~6 s with literals and 15 s from a texture, stays below it; the neural appearance
-# programs, 5 s with literals and 6-7 s from a texture, do not, since their FLOPs say no different)
+# a program expected to take this long at its first draw, one network's literals alone that long,
+# compiles behind (inshade bench startup: texture storage draws the PRT and UV-free programs' first
+# frame in 2-3 s where their one big network's literals take 6-19 s; the hash-grid field, ~6 s with
+# literals and 15 s from a texture, and the neural appearance programs, 5 s with their literals spread
+# over five networks and 7 s from textures (15 s in the window beside the compile behind), stay below)
 WARM_UP_MIN_S = 7.0
 
 
@@ -32,11 +33,11 @@ def program_settings(scene, values: dict) -> dict:
 
 def worth_it(renderer, source) -> bool:
     """Whether to draw a quick program first: a software driver whose first draw of this program is
-    still to come and expected to take WARM_UP_MIN_S or more (runtime/compile_cost.py), Mesa's shader
-    cache on (the other process's compile reaches the window through it) and not known to hold the
-    program already, a scene with a storage setting not set to the quick one, and a scene the other
-    process can open (a file, not one made in memory)."""
-    from inshade.runtime.compile_cost import first_draw_estimate
+    still to come and expected to take WARM_UP_MIN_S or more, most of it one network's literals
+    (runtime/compile_cost.py), Mesa's shader cache on (the other process's compile reaches the window
+    through it) and not known to hold the program already, a scene with a storage setting not set to
+    the quick one, and a scene the other process can open (a file, not one made in memory)."""
+    from inshade.runtime.compile_cost import first_draw_estimate, inline_flops, seconds_per_flop
     from inshade.runtime.first_draw import first_draw_note
 
     if not (renderer.gl.get("software") and renderer.first_draw_pending and draw_history.shader_cache_on()):
@@ -45,7 +46,9 @@ def worth_it(renderer, source) -> bool:
         return False
     if first_draw_note(renderer.gl, renderer.program_key, renderer.generated, True)[1]:
         return False
-    return first_draw_estimate(renderer.gl, renderer.program_key, renderer.generated) >= WARM_UP_MIN_S
+    largest = max((inline_flops([g]) for g in renderer.generated), default=0)
+    return (first_draw_estimate(renderer.gl, renderer.program_key, renderer.generated) >= WARM_UP_MIN_S
+            and largest * seconds_per_flop(renderer.gl.get("renderer", "")) >= WARM_UP_MIN_S)
 
 
 class WarmUp:
@@ -53,7 +56,7 @@ class WarmUp:
     options), 8 x 8, in another process; ``done`` once it has exited."""
 
     def __init__(self, source, settings: dict):
-        self.settings = dict(settings)
+        self.source, self.settings = source, dict(settings)
         self._folder = tempfile.TemporaryDirectory(prefix="inshade-warm-up-")
         sets = [a for n, v in sorted(self.settings.items()) for a in ("--set", f"{n}={json.dumps(v)}")]
         cmd = [sys.executable, "-c", "from inshade.cli import entry; entry()", "-q", "render", str(source),
