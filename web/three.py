@@ -156,8 +156,7 @@ def _field(scene, blob) -> dict:
             "fragmentShader": flatten("passes/three_field", chunks={"network": g.chunk, **field_chunks(bundle)}),
             "textures": _textures(blob, g.resources), "uniforms": {},
             **_wgsl(lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"),
-                             [field_chunks(bundle, "wgsl")["field_config"]]),
-                    ["lib/field_march"], "passes/three_field")}
+                             list(field_chunks(bundle, "wgsl").values())), ["lib/field_march"], "passes/three_field")}
 
 
 def _wgsl(network, libraries: list[str], function: str) -> dict:
