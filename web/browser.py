@@ -117,8 +117,8 @@ class Browser:
     def frame_ms(self, frames: int = 5) -> list[float]:
         """Milliseconds of ``frames`` full redraws of the current view (the network pass forced)."""
         return self.driver.execute_script(
-            "const v = window.inshade.viewer; const out = [];"
-            f"for (let i = 0; i < {int(frames)}; ++i) {{ v.key = null; out.push(v.render()); }} return out;")
+            "return (async () => { const v = window.inshade.viewer; const out = [];"
+            f"for (let i = 0; i < {int(frames)}; ++i) {{ v.key = null; out.push(await v.render()); }} return out; }})();")
 
     def evaluation(self) -> np.ndarray:
         """evaluate.html's outputs [N, out_dim] float32."""

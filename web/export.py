@@ -57,7 +57,8 @@ log = logging.getLogger("inshade")
 FORMAT = "inshade-web 1"
 TARGET = "es300"
 PAGE = Path(__file__).resolve().parent / "page"
-PAGE_FILES = ("index.html", "evaluate.html", "inshade.js", "evaluate_webgpu.html", "webgpu.js")
+PAGE_FILES = ("index.html", "evaluate.html", "inshade.js", "evaluate_webgpu.html", "webgpu.js", "webgpu_backend.js")
+APIS = {"webgl2": ["webgl2"], "webgpu": ["webgpu"], "auto": ["webgpu", "webgl2"]}   # the page tries them in order
 MANIFEST, DATA, REFERENCE_PNG = "manifest.json", "data.bin", "reference.png"
 EVAL_BATCH = 1024          # samples in the evaluation page's batch
 EVAL_UINT_RANGE = 256      # uint lanes of the batch are ids 0..255 (tables hold at least that many rows)
@@ -129,7 +130,7 @@ class WebExport:
     """The page of one scene at its settings; ``write(folder)`` puts it on disk."""
 
     def __init__(self, source, *, settings: dict | None = None, width: int | None = None,
-                 height: int | None = None, eval_count: int = EVAL_BATCH):
+                 height: int | None = None, eval_count: int = EVAL_BATCH, api: str = "webgl2"):
         self.scene = load_scene(source)
         self.eval_count = int(eval_count)
         self.source = Path(source)
@@ -151,6 +152,14 @@ class WebExport:
             self.manifest = self._manifest()
         finally:
             self.renderer.release()
+        self.manifest["apis"] = APIS[api]
+        self.wgsl = {}
+        if "webgpu" in APIS[api]:   # every pass but the evaluation's (evaluate_webgpu is its WebGPU twin)
+            from .webgpu import translate
+
+            passes = set((self.manifest["evaluate"] or {}).get("passes", []))
+            self.wgsl, interfaces = translate({k: v for k, v in self.programs.items() if k not in passes})
+            self.manifest["webgpu"] = {"programs": interfaces}
 
     # programs ---------------------------------------------------------------------------------
     def _program(self, name: str, vertex: str, fragment: str, *, defines=None, chunks=None) -> str:
@@ -419,6 +428,9 @@ class WebExport:
         for name, stages in self.programs.items():
             for stage, source in stages.items():
                 (folder / "programs" / f"{name}.{'vert' if stage == 'vertex' else 'frag'}.glsl").write_text(source)
+        for name, stages in self.wgsl.items():
+            for stage, source in stages.items():
+                (folder / "programs" / f"{name}.{'vert' if stage == 'vertex' else 'frag'}.wgsl").write_text(source)
         (folder / DATA).write_bytes(self.blob.bytes())
         for name, data in self.files.items():
             (folder / name).write_bytes(data)
@@ -461,12 +473,16 @@ def _alternatives(s, value) -> list:
 
 
 def export_web(source, out, *, force: bool = False, settings: dict | None = None, width: int | None = None,
-               height: int | None = None, eval_count: int = EVAL_BATCH) -> WebExport:
+               height: int | None = None, eval_count: int = EVAL_BATCH, api: str = "webgl2") -> WebExport:
     """Write the page of ``source`` (an asset folder, scene.json or bundle) into the folder ``out``,
     atomically: it appears complete or not at all. An ``out`` that holds files is refused unless
     ``force``; an asset WebGL2 cannot draw raises ``WebLimitError`` naming what it lacks.
-    ``eval_count``: the evaluation pages' batch (``inshade bench web`` times larger ones)."""
+    ``eval_count``: the evaluation pages' batch (``inshade bench web`` times larger ones); ``api``: the
+    page's programs for WebGL2 (GLSL ES 3.00), WebGPU (WGSL) or both (``auto``: WebGPU where the browser
+    has it)."""
+    if api not in APIS:
+        raise ValueError(f"api: {api!r}: expected one of {', '.join(APIS)}")
     claim_folder(out, force)
-    page = WebExport(source, settings=settings, width=width, height=height, eval_count=eval_count)
+    page = WebExport(source, settings=settings, width=width, height=height, eval_count=eval_count, api=api)
     write_folder(out, page.write)
     return page

@@ -59,7 +59,7 @@ def _add_render(sub) -> None:
 
 
 def _add_export_web(sub) -> None:
-    p = sub.add_parser("export-web", help="an asset as a static WebGL2 page (index.html + inshade.js + data)",
+    p = sub.add_parser("export-web", help="an asset as a static WebGL2 / WebGPU page (index.html + inshade.js + data)",
                        description="Write ASSET as a static folder that any file server shows (python -m http.server): "
                                    "index.html (the viewer: orbit / zoom / pan, the settings, split and error views "
                                    "where the asset has a reference, progressive accumulation, frame time), "
@@ -67,9 +67,12 @@ def _add_export_web(sub) -> None:
                                    "ES 3.00 and the data as data.bin + manifest.json. Planned against WebGL2's "
                                    "guaranteed limits; an asset that cannot fit is refused naming the limit. "
                                    "Settings compiled into the program or feeding per-frame work are fixed in the "
-                                   "page: choose them with --set.")
+                                   "page: choose them with --set. With --api webgpu or auto the same programs are "
+                                   "also written as WGSL (needs glslangValidator, spirv-opt 2025.1+ and Node.js; "
+                                   "docs/web.md).")
     p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write (new or empty)")
+    _add_api(p)
     p.add_argument("--width", type=image_size, help="canvas width (default: the scene's)")
     p.add_argument("--height", type=image_size, help="canvas height (default: the scene's)")
     _add_program_overrides(p)
@@ -126,12 +129,19 @@ def _add_export_gltf(sub) -> None:
     p.set_defaults(func=cmd_export_gltf)
 
 
+def _add_api(p) -> None:
+    p.add_argument("--api", choices=("webgl2", "webgpu", "auto"), default="webgl2",
+                   help="the page's GPU API: webgl2 (GLSL ES 3.00, default), webgpu (WGSL), or auto (both: "
+                        "WebGPU where the browser has it, else WebGL2)")
+
+
 def _add_serve(sub) -> None:
     p = sub.add_parser("serve", help="export ASSET to a temporary page and serve it on localhost",
                        description="Export ASSET as export-web does, into a temporary folder, and serve it on "
                                    "localhost until Ctrl+C; prints the address to open.")
     p.add_argument("asset", metavar="ASSET", help="asset folder, scene.json, bundle, or a shipped asset's name")
     p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0: any free port)")
+    _add_api(p)
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="a scene setting (repeatable)")
     _add_program_overrides(p, shown=False)
     p.set_defaults(func=cmd_serve)
@@ -197,7 +207,7 @@ def cmd_export_web(args) -> int:
     from inshade.web.export import export_web
 
     page = export_web(resolve(args.asset), args.output, force=args.force, settings=scene_settings(args),
-                      width=args.width, height=args.height)
+                      width=args.width, height=args.height, api=args.api)
     m = page.manifest
     fixed = [s["name"] for s in m["settings"] if "fixed" in s]
     log.info("%s: %d programs, %.1f MB of data; needs %s%s", m["name"], len(page.programs), page.blob.size / 1e6,
@@ -228,7 +238,7 @@ def cmd_serve(args) -> int:
 
     with tempfile.TemporaryDirectory(prefix="inshade-web-") as tmp:
         folder = Path(tmp) / "page"
-        export_web(resolve(args.asset), folder, settings=scene_settings(args))
+        export_web(resolve(args.asset), folder, settings=scene_settings(args), api=args.api)
         try:
             with serve(folder, port=args.port) as url:
                 print(f"serving {args.asset} at {url}index.html (Ctrl+C to stop)", flush=True)

@@ -1,6 +1,7 @@
-"""inshade export-web: the exported page in headless Chromium (SwiftShader's WebGL2 without a GPU)
-against ``inshade render`` (8-bit sRGB, >= 40 dB: different rasterisers) and its network evaluation
-page against torch (the 1e-5 rule, tests/parity.py); the folder, the CLI and the WebGL2 limits.
+"""inshade export-web: the exported page in headless Chromium (SwiftShader's WebGL2 and WebGPU without a
+GPU) against ``inshade render`` (8-bit sRGB, >= 40 dB: different rasterisers), on each API, and its
+network evaluation pages against torch (the 1e-5 rule, tests/parity.py); the folder, the CLI and the
+WebGL2 limits.
 
 One asset per technique runs here; INSHADE_SLOW=1 runs every shipped asset. The render each page is
 compared with is the shipped-render record (tests/shipped_renders.py: ``inshade render`` at a quarter
@@ -75,11 +76,14 @@ def inshade_render(asset: str, record) -> np.ndarray:
     return srgb8(image)
 
 
-def _exported(asset, tmp_path) -> tuple[Path, tuple[int, int]]:
+APIS = ("webgl2", "webgpu")
+
+
+def _exported(asset, tmp_path, api: str = "webgl2") -> tuple[Path, tuple[int, int]]:
     scene = load_scene(resolve_asset(asset))
     w, h = scene.size if asset in AT_OWN_SIZE else size(scene.size)
     folder = tmp_path / "page"
-    export_web(resolve_asset(asset), folder, width=w, height=h)
+    export_web(resolve_asset(asset), folder, width=w, height=h, api=api)
     return folder, (w, h)
 
 
@@ -87,13 +91,15 @@ def _errors(console: list[str]) -> list[str]:
     return [line for line in console if line.startswith("SEVERE")]
 
 
+@pytest.mark.parametrize("api", APIS)
 @pytest.mark.parametrize("asset", ASSETS)
-def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, tmp_path):
-    folder, (w, h) = _exported(asset, tmp_path)
+def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, api, tmp_path):
+    folder, (w, h) = _exported(asset, tmp_path, api)
     with serve(folder) as url:
         state = browser.open(url + "index.html")
-        assert state["error"] is None, f"{asset}: the page says: {state['error']}"
-        assert not _errors(state["console"]), f"{asset}: console errors: {state['console']}"
+        assert state["error"] is None, f"{asset} ({api}): the page says: {state['error']}"
+        assert not _errors(state["console"]), f"{asset} ({api}): console errors: {state['console']}"
+        assert browser.driver.execute_script("return window.inshade.api;") == api
         page = browser.canvas()
         progress = browser.driver.execute_script("return window.inshade.progress;")
     # the page says what it is doing before its first frame: the compile, then the draw; then that the
@@ -104,21 +110,22 @@ def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, tmp_pa
     assert state["first_frame_ms"] <= state["full_frame_ms"]
     assert page.shape == (h, w, 3)
     db = psnr8(page, inshade_render(asset, record))
-    assert db >= MIN_PSNR_DB, f"{asset}: the page's first frame is {db:.2f} dB from inshade render's"
+    assert db >= MIN_PSNR_DB, f"{asset} ({api}): the page's first frame is {db:.2f} dB from inshade render's"
 
 
-def test_the_first_frame_is_a_quarter_of_the_size_shown_enlarged(gl, browser, tmp_path):
+@pytest.mark.parametrize("api", APIS)
+def test_the_first_frame_is_a_quarter_of_the_size_shown_enlarged(gl, browser, api, tmp_path):
     """The page's first frame: every pass at 1/4 of the size, each of its pixels shown as a 4 x 4 block, the
     picture inshade render draws at that size; the full frame after it as if it had been the first."""
     asset = "sdf_creature"
-    folder, (w, h) = _exported(asset, tmp_path)
+    folder, (w, h) = _exported(asset, tmp_path, api)
     with serve(folder) as url:
         state = browser.open(url + "index.html")
         assert state["ready"], state
         full = browser.canvas()
-        browser.driver.execute_script("window.inshade.viewer.render({preview: 4});")
+        browser.driver.execute_script("return window.inshade.viewer.render({preview: 4});")
         preview = browser.canvas()
-        browser.driver.execute_script("window.inshade.viewer.render();")
+        browser.driver.execute_script("return window.inshade.viewer.render();")
         again = browser.canvas()
     assert np.array_equal(again, full)
     assert w % 4 == 0 and h % 4 == 0, (w, h)
@@ -131,23 +138,24 @@ def test_the_first_frame_is_a_quarter_of_the_size_shown_enlarged(gl, browser, tm
     assert db >= MIN_PSNR_DB, f"the preview is {db:.2f} dB from inshade render at a quarter of the size"
 
 
+@pytest.mark.parametrize("api", APIS)
 @pytest.mark.parametrize("asset,mode", [("di_texture_astronaut", "reference"), ("di_texture_astronaut", "split"),
                                         ("hash_grid_radiance_field", "reference"), ("neural_image", "error")])
-def test_reference_views_match_inshade_render(gl, browser, asset, mode, tmp_path):
+def test_reference_views_match_inshade_render(gl, browser, asset, mode, api, tmp_path):
     """The display modes that show the reference (an sRGB PNG decoded by the browser's texture unit,
     or linear half floats), against ``inshade render --mode`` of the same view."""
     from inshade.runtime.headless import render_scene
     from inshade.scene.display import parse_mode
 
-    folder, (w, h) = _exported(asset, tmp_path)
+    folder, (w, h) = _exported(asset, tmp_path, api)
     with serve(folder) as url:
         state = browser.open(url + "index.html")
         assert state["error"] is None, state
-        browser.driver.execute_script(f"const v = window.inshade.viewer; v.mode = {int(parse_mode(mode))}; v.render();")
+        browser.driver.execute_script(f"const v = window.inshade.viewer; v.mode = {int(parse_mode(mode))}; return v.render();")
         page = browser.canvas()
     image, _ = render_scene(load_scene(resolve_asset(asset)), width=w, height=h, mode=mode)
     db = psnr8(page, srgb8(image))
-    assert db >= MIN_PSNR_DB, f"{asset} {mode}: {db:.2f} dB"
+    assert db >= MIN_PSNR_DB, f"{asset} {mode} ({api}): {db:.2f} dB"
 
 
 def _network_of(asset: str, name: str):

@@ -35,14 +35,30 @@ async function fetchChecked(url, how) {
   return how === "json" ? response.json() : how === "text" ? response.text() : response.arrayBuffer();
 }
 
-// Everything an exported folder holds: the manifest, the bytes and every program's sources.
-export async function loadExport(base = "./") {
+// The API a page draws with: ``api`` if given, else the first of the export's that this browser has
+// (WebGPU needs an adapter, not only navigator.gpu).
+async function chooseApi(manifest, api) {
+  const apis = manifest.apis || ["webgl2"];
+  if (api !== "auto") {
+    if (!apis.includes(api)) throw new WebGLError(`this page was exported without ${api} programs (export-web --api ${api} or auto)`);
+    return api;
+  }
+  for (const a of apis) {
+    if (a === "webgl2" || (navigator.gpu && await navigator.gpu.requestAdapter())) return a;
+  }
+  throw new WebGLError("this browser has no WebGPU, and the page was exported for WebGPU only (export-web --api auto)");
+}
+
+// Everything an exported folder holds: the manifest, the bytes and every program's sources for
+// ``api`` ("auto": chosen by chooseApi).
+export async function loadExport(base = "./", api = "webgl2") {
   const manifest = await fetchChecked(base + "manifest.json", "json");
   if (manifest.format !== "inshade-web 1") throw new WebGLError(`manifest.json: format: unknown ${manifest.format}`);
+  api = await chooseApi(manifest, api);
   const data = await fetchChecked(base + "data.bin", "bytes");
   const names = new Set(Object.values(manifest.programs));
   if (manifest.mesh) names.add(manifest.mesh.program);
-  for (const name of (manifest.evaluate && manifest.evaluate.passes) || []) names.add(name);
+  if (api === "webgl2") for (const name of (manifest.evaluate && manifest.evaluate.passes) || []) names.add(name);
   const reference = manifest.display.reference;
   const images = {};
   if (reference && reference.image) {   // decoded as stored: no colour conversion, no premultiplication
@@ -50,13 +66,13 @@ export async function loadExport(base = "./") {
     images[reference.image] = await createImageBitmap(blob, {colorSpaceConversion: "none", premultiplyAlpha: "none",
                                                              imageOrientation: "flipY"});   // uv (0, 0) = bottom-left
   }
-  const sources = {};
+  const sources = {}, ext = api === "webgpu" ? "wgsl" : "glsl";
   await Promise.all([...names].map(async (name) => {
     const [vertex, fragment] = await Promise.all([
-      fetchChecked(`${base}programs/${name}.vert.glsl`, "text"), fetchChecked(`${base}programs/${name}.frag.glsl`, "text")]);
+      fetchChecked(`${base}programs/${name}.vert.${ext}`, "text"), fetchChecked(`${base}programs/${name}.frag.${ext}`, "text")]);
     sources[name] = {vertex, fragment};
   }));
-  return {manifest, data, sources, images};
+  return {manifest, data, sources, images, api};
 }
 
 const CONTEXT_LOST = "the WebGL context was lost (the browser reset its GPU process or gave up on a draw)";
@@ -264,7 +280,7 @@ function renderTarget(gl, width, height, formats, depth = false) {
   if (status !== gl.FRAMEBUFFER_COMPLETE) {
     throw new WebGLError(`render target ${width}x${height} (${formats.join(", ")}): incomplete (0x${status.toString(16)})`);
   }
-  return {fb, textures, width, height};
+  return {fb, textures, width, height, depth};
 }
 
 // Binds samplers (by uniform name, consecutive units) and uniform blocks (by block name) a program uses.
@@ -402,45 +418,27 @@ export class Camera {
 
 // --- the viewer ----------------------------------------------------------------------------------
 
-export class Viewer {
-  // ``compiled``: {gl, programs} made beforehand (main compiles with progress), else made here.
-  constructor(canvas, {manifest, data, sources, images}, {width, height} = {}, compiled = null) {
-    this.manifest = manifest;
-    this.width = width || manifest.size[0];
-    this.height = height || manifest.size[1];
-    this.canvasSize = [this.width, this.height];   // width, height: what a frame draws (less for a preview)
-    canvas.width = this.width;
-    canvas.height = this.height;
+// The WebGL2 side of the viewer's passes: what Viewer asks of a GPU (webgpu_backend.js is the other).
+// A pass draws ``program`` into ``target`` (null: the canvas) over ``size`` (its lower-left corner), with
+// textures bound by uniform name, uniform blocks by block name, the uniforms by name, and either the
+// full-screen triangle or a mesh (``geometry``, depth-tested).
+export class GLBackend {
+  constructor(canvas, manifest, compiled, sources) {
     const gl = this.gl = compiled ? compiled.gl : createContext(canvas, manifest);
     this.programs = compiled ? compiled.programs
       : Object.fromEntries(Object.entries(sources).map(([name, src]) => [name, compile(gl, name, src)]));
-    this.textures = manifest.textures.map((t) => texture(gl, t, data));
-    this.blocks = uniformBlocks(gl, manifest.blocks, data);
-    const display = manifest.display;
-    const ref = display.reference;
-    this.reference = !ref ? null : ref.image ? imageTexture(gl, ref, images[ref.image]) : texture(gl, ref, data);
-    this.camera = new Camera(manifest.camera);
-    this.values = Object.fromEntries(manifest.settings.map((s) => [s.name, s.value]));
-    this.mode = display.modes[display.mode] ?? 0;
-    this.split = display.split;
     this.vao = gl.createVertexArray();   // the full-screen triangle needs no attributes
-    if (manifest.mesh) this.mesh = this._meshPass(manifest.mesh, data);
-    const n = manifest.attachments, formats = Array(n).fill("rgba32f");
-    this.targets = {network: renderTarget(gl, this.width, this.height, formats),
-                    output: renderTarget(gl, this.width, this.height, ["rgba32f"])};
-    if (manifest.accumulate) {
-      this.targets.sample = renderTarget(gl, this.width, this.height, formats);
-      this.targets.spare = renderTarget(gl, this.width, this.height, formats);
-    }
-    this.samples = 0;
-    this.key = null;
-    this.frameMs = null;
-    const error = gl.getError();
-    if (error !== gl.NO_ERROR) throw new WebGLError(`creating the page's GL objects: GL error 0x${error.toString(16)}`);
+    this.api = "webgl2";
+    this.yDown = false;                  // the canvas's row 0 is its bottom one
   }
 
-  _meshPass(mesh, data) {
-    const gl = this.gl, prog = this.programs[mesh.program];
+  texture(rec, data) { return texture(this.gl, rec, data); }
+  imageTexture(rec, bitmap) { return imageTexture(this.gl, rec, bitmap); }
+  blocks(blocks, data) { return uniformBlocks(this.gl, blocks, data); }
+  target(width, height, formats, depth = false) { return renderTarget(this.gl, width, height, formats, depth); }
+
+  geometry(program, mesh, data) {
+    const gl = this.gl, prog = this.programs[program];
     const vao = gl.createVertexArray();
     gl.bindVertexArray(vao);
     for (const [name, a] of Object.entries(mesh.attributes)) {
@@ -458,18 +456,108 @@ export class Viewer {
       gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, new Uint32Array(data, mesh.indices[0], mesh.indices[1] / 4), gl.STATIC_DRAW);
     }
     gl.bindVertexArray(null);
+    return {vao, count: mesh.count, indexed: !!mesh.indices};
+  }
+
+  // every colour attachment of ``target`` to ``colour`` (integer ones to 0), its depth to 1
+  clear(target, colour = [0, 0, 0, 0]) {
+    const gl = this.gl;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, target.fb);
+    target.textures.forEach((t, k) => {
+      if (t.format === gl.RED_INTEGER) gl.clearBufferuiv(gl.COLOR, k, new Uint32Array(4));
+      else gl.clearBufferfv(gl.COLOR, k, new Float32Array(colour));
+    });
+    if (target.depth) gl.clearBufferfi(gl.DEPTH_STENCIL, 0, 1.0, 0);
+  }
+
+  draw(program, target, {textures = [], blocks = [], uniforms = {}, size, geometry = null}) {
+    const gl = this.gl, prog = this.programs[program];
+    gl.useProgram(prog.program);
+    bindResources(gl, prog, textures, blocks);
+    for (const [name, value] of Object.entries(uniforms)) setUniform(gl, prog, name, value);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, target ? target.fb : null);
+    gl.viewport(0, 0, size[0], size[1]);
+    gl.disable(gl.BLEND); gl.disable(gl.CULL_FACE);
+    if (geometry) {
+      gl.enable(gl.DEPTH_TEST); gl.depthFunc(gl.LESS);
+      gl.bindVertexArray(geometry.vao);
+      if (geometry.indexed) gl.drawElements(gl.TRIANGLES, geometry.count, gl.UNSIGNED_INT, 0);
+      else gl.drawArrays(gl.TRIANGLES, 0, geometry.count);
+    } else {
+      gl.disable(gl.DEPTH_TEST);
+      gl.bindVertexArray(this.vao);
+      gl.drawArrays(gl.TRIANGLES, 0, 3);
+    }
+  }
+
+  finish() {   // waits for the frame
+    const gl = this.gl;
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));
+    const error = gl.getError();
+    if (error !== gl.NO_ERROR) throw new WebGLError(`drawing: GL error 0x${error.toString(16)}`);
+  }
+
+  settled() { return settled(this.gl); }
+
+  // the canvas's lower-left w x h as 8-bit RGBA, rows top to bottom
+  pixels(w, h) {
+    const gl = this.gl, raw = new Uint8Array(w * h * 4);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, raw);
+    const flipped = new Uint8Array(raw.length);
+    for (let y = 0; y < h; ++y) flipped.set(raw.subarray((h - 1 - y) * w * 4, (h - y) * w * 4), y * w * 4);
+    return flipped;
+  }
+}
+
+export class Viewer {
+  // ``gpu``: a backend made beforehand (main compiles with progress), else a WebGL2 one made here.
+  constructor(canvas, {manifest, data, sources, images}, {width, height} = {}, gpu = null) {
+    this.manifest = manifest;
+    this.width = width || manifest.size[0];
+    this.height = height || manifest.size[1];
+    this.canvasSize = [this.width, this.height];   // width, height: what a frame draws (less for a preview)
+    canvas.width = this.width;
+    canvas.height = this.height;
+    this.gpu = gpu || new GLBackend(canvas, manifest, null, sources);
+    this.gpu.canvasSize = this.canvasSize;
+    this.textures = manifest.textures.map((t) => this.gpu.texture(t, data));
+    this.blocks = this.gpu.blocks(manifest.blocks, data);
+    const display = manifest.display;
+    const ref = display.reference;
+    this.reference = !ref ? null : ref.image ? this.gpu.imageTexture(ref, images[ref.image]) : this.gpu.texture(ref, data);
+    this.camera = new Camera(manifest.camera);
+    this.values = Object.fromEntries(manifest.settings.map((s) => [s.name, s.value]));
+    this.mode = display.modes[display.mode] ?? 0;
+    this.split = display.split;
+    if (manifest.mesh) this.mesh = this._meshPass(manifest.mesh, data);
+    const n = manifest.attachments, formats = Array(n).fill("rgba32f");
+    const target = (f, depth = false) => this.gpu.target(this.width, this.height, f, depth);
+    this.targets = {network: target(formats), output: target(["rgba32f"])};
+    if (manifest.accumulate) {
+      this.targets.sample = target(formats);
+      this.targets.spare = target(formats);
+    }
+    this.samples = 0;
+    this.key = null;
+    this.frameMs = null;
+  }
+
+  get gl() { return this.gpu.gl; }
+
+  _meshPass(mesh, data) {
+    const geometry = this.gpu.geometry(mesh.program, mesh, data);
     const formats = mesh.targets.map((t) => t.format);
     const named = (target) => { target.textures.forEach((t, k) => { t.uniform = mesh.targets[k].uniform; }); return target; };
-    const target = named(renderTarget(gl, this.width, this.height, formats, true));
+    const target = (f, depth = false) => this.gpu.target(this.width, this.height, f, depth);
     // BLEND surfaces peeled front to back (runtime/geometry.py draw_layer): two G-buffers in turn, the
     // scene pass over each into `shaded`, laid under the ones in front in `accum`, then over the opaque
     if (mesh.peel) {
-      this.peel = {layers: mesh.peel, gbuffers: [0, 1].map(() => named(renderTarget(gl, this.width, this.height, formats, true))),
-                   shaded: renderTarget(gl, this.width, this.height, ["rgba32f"]),
-                   opaque: renderTarget(gl, this.width, this.height, ["rgba32f"]),
-                   accum: [0, 1].map(() => renderTarget(gl, this.width, this.height, ["rgba32f"]))};
+      this.peel = {layers: mesh.peel, gbuffers: [0, 1].map(() => named(target(formats, true))),
+                   shaded: target(["rgba32f"]), opaque: target(["rgba32f"]),
+                   accum: [0, 1].map(() => target(["rgba32f"]))};
     }
-    return {prog, vao, target, count: mesh.count, indexed: !!mesh.indices};
+    return {program: mesh.program, geometry, target: named(target(formats, true))};
   }
 
   // uniforms every pass may read: the manifest's, the camera's, the live settings'
@@ -483,23 +571,14 @@ export class Viewer {
     return out;
   }
 
-  _apply(prog, uniforms) {
-    for (const [name, value] of Object.entries(uniforms)) setUniform(this.gl, prog, name, value);
-  }
-
-  _fullscreen(prog, target, [w, h] = [this.width, this.height]) {
-    const gl = this.gl;
-    gl.bindFramebuffer(gl.FRAMEBUFFER, target ? target.fb : null);
-    gl.viewport(0, 0, w, h);
-    gl.disable(gl.DEPTH_TEST); gl.disable(gl.BLEND); gl.disable(gl.CULL_FACE);
-    gl.bindVertexArray(this.vao);
-    gl.drawArrays(gl.TRIANGLES, 0, 3);
+  _pass(program, target, resources) {
+    this.gpu.draw(program, target, {size: [this.width, this.height], ...resources});
   }
 
   // the scene pass (and the G-buffer before it), redrawn when its inputs change; a stochastic
   // program adds one sample per call to the running mean instead (runtime/renderer.py render_network)
   renderNetwork() {
-    const gl = this.gl, m = this.manifest, uniforms = this._uniforms();
+    const m = this.manifest, uniforms = this._uniforms();
     const key = JSON.stringify([uniforms, this.width, this.height]);
     if (m.accumulate) {
       if (key !== this.key) this.samples = 0;
@@ -524,129 +603,96 @@ export class Viewer {
   // the mesh's G-buffer into `target`: layer 0 the opaque surfaces (BLEND ones left to peel), -1 with
   // BLEND ones drawn opaque, k > 0 the k-th nearest BLEND surface (lib/gltf_cutout)
   _gbuffer(target, layer, uniforms, front = null) {
-    const gl = this.gl, {prog, vao, count, indexed} = this.mesh;
-    gl.bindFramebuffer(gl.FRAMEBUFFER, target.fb);
-    gl.viewport(0, 0, this.width, this.height);
-    target.textures.forEach((t, k) => {
-      if (t.format === gl.RED_INTEGER) gl.clearBufferuiv(gl.COLOR, k, new Uint32Array(4));
-      else gl.clearBufferfv(gl.COLOR, k, new Float32Array(4));
-    });
-    gl.clearBufferfi(gl.DEPTH_STENCIL, 0, 1.0, 0);
-    gl.disable(gl.BLEND); gl.disable(gl.CULL_FACE); gl.enable(gl.DEPTH_TEST); gl.depthFunc(gl.LESS);
-    gl.useProgram(prog.program);
+    this.gpu.clear(target);
     const peel = layer > 0 ? [{...this.mesh.target.textures[0], uniform: "u_peel_back"},
                               {...(front || this.mesh.target).textures[0], uniform: "u_peel_front"}] : [];
-    bindResources(gl, prog, [...this.textures, ...peel]);   // the material textures: MASK cut-outs, BLEND layers
-    this._apply(prog, {u_view: uniforms.u_view_matrix, u_proj: uniforms.u_proj, u_gbuffer_layer: layer,
-                       u_model: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]});
-    gl.bindVertexArray(vao);
-    if (indexed) gl.drawElements(gl.TRIANGLES, count, gl.UNSIGNED_INT, 0);
-    else gl.drawArrays(gl.TRIANGLES, 0, count);
+    // the material textures: MASK cut-outs, BLEND layers
+    this._pass(this.mesh.program, target, {textures: [...this.textures, ...peel], geometry: this.mesh.geometry,
+      uniforms: {u_view: uniforms.u_view_matrix, u_proj: uniforms.u_proj, u_gbuffer_layer: layer,
+                 u_model: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]}});
   }
 
   _scenePass(gbuffer, uniforms, target) {
-    const scene = this.programs[this.manifest.programs.scene];
-    this.gl.useProgram(scene.program);
-    bindResources(this.gl, scene, [...this.textures, ...gbuffer], this.blocks);
-    this._apply(scene, uniforms);
-    this._fullscreen(scene, target);
+    this._pass(this.manifest.programs.scene, target, {textures: [...this.textures, ...gbuffer], blocks: this.blocks,
+                                                      uniforms});
   }
 
   _peelLayers(uniforms, into) {
-    const gl = this.gl, p = this.peel, m = this.manifest;
-    gl.bindFramebuffer(gl.FRAMEBUFFER, p.accum[0].fb);
-    gl.clearBufferfv(gl.COLOR, 0, new Float32Array([0, 0, 0, 1]));
-    const layerPass = this.programs[m.programs.blend_layer], resolve = this.programs[m.programs.blend_resolve];
+    const p = this.peel, m = this.manifest;
+    this.gpu.clear(p.accum[0], [0, 0, 0, 1]);
     let front = null;
     for (let k = 1; k <= p.layers; ++k) {
       const g = p.gbuffers[(k - 1) % 2];
       this._gbuffer(g, k, uniforms, front);
       this._scenePass(g.textures, uniforms, p.shaded);
-      gl.useProgram(layerPass.program);
       const targets = m.mesh.targets.map((t) => t.uniform);   // what passes/gltf_blend_layer reads of the layer
       const reads = m.mesh.layer_reads.map((n) => ({...g.textures[targets.indexOf(`u_gbuffer_${n}`)], uniform: `u_layer_${n}`}));
-      bindResources(gl, layerPass, [...this.textures, {...p.accum[(k - 1) % 2].textures[0], uniform: "u_accum"},
-                                    {...p.shaded.textures[0], uniform: "u_layer_colour"}, ...reads]);
-      this._fullscreen(layerPass, p.accum[k % 2]);
+      this._pass(m.programs.blend_layer, p.accum[k % 2], {
+        textures: [...this.textures, {...p.accum[(k - 1) % 2].textures[0], uniform: "u_accum"},
+                   {...p.shaded.textures[0], uniform: "u_layer_colour"}, ...reads]});
       front = g;
     }
-    gl.useProgram(resolve.program);
-    bindResources(gl, resolve, [{...p.accum[p.layers % 2].textures[0], uniform: "u_accum"},
-                                {...p.opaque.textures[0], uniform: "u_opaque"}]);
-    this._fullscreen(resolve, into);
+    this._pass(m.programs.blend_resolve, into, {textures: [{...p.accum[p.layers % 2].textures[0], uniform: "u_accum"},
+                                                           {...p.opaque.textures[0], uniform: "u_opaque"}]});
   }
 
   _fold() {   // mean of n samples = mean of n - 1 + this one, ping-pong between two targets
-    const gl = this.gl, prog = this.programs[this.manifest.programs.accumulate];
     const {network: mean, spare, sample} = this.targets;
     this.samples += 1;
     const textures = [];
     mean.textures.forEach((t, k) => {
       textures.push({...t, uniform: `u_mean${k}`}, {...sample.textures[k], uniform: `u_sample${k}`});
     });
-    gl.useProgram(prog.program);
-    bindResources(gl, prog, textures);
-    setUniform(gl, prog, "u_count", this.samples);
-    this._fullscreen(prog, spare);
+    this._pass(this.manifest.programs.accumulate, spare, {textures, uniforms: {u_count: this.samples}});
     this.targets.network = spare;
     this.targets.spare = mean;
   }
 
-  // network pass (if stale) + display pass + present to the canvas; returns the frame's milliseconds.
-  // ``preview``: every pass draws 1 / preview of the size (the lower-left corner of its targets), shown
-  // enlarged: a first picture at a fraction of a full frame's cost.
-  render({preview = 1} = {}) {
+  // network pass (if stale) + display pass + present to the canvas; resolves to the frame's
+  // milliseconds. ``preview``: every pass draws 1 / preview of the size (the lower-left corner of its
+  // targets), shown enlarged: a first picture at a fraction of a full frame's cost.
+  async render({preview = 1} = {}) {
     const [w, h] = this.canvasSize;
     this.width = Math.ceil(w / preview);
     this.height = Math.ceil(h / preview);
     try {
-      return this._render();
+      return await this._render();
     } finally {
       this.width = w;
       this.height = h;
     }
   }
 
-  _render() {
-    const gl = this.gl, m = this.manifest, d = m.display;
+  async _render() {
+    const m = this.manifest, d = m.display;
     const start = performance.now();
     this.renderNetwork();
-    const display = this.programs[m.programs.display];
-    gl.useProgram(display.program);
     const reference = this.reference ? [this.reference] : [];
-    bindResources(gl, display, [{...this.targets.network.textures[0], uniform: "u_network"}, ...reference]);
     const uniforms = {u_exposure: d.exposure, u_error_scale: d.error_scale, ...this._uniforms(), u_mode: this.mode,
                       u_split: this.split, u_has_reference: +!!this.reference,
                       u_ref_view: d.reference_space === "field" && !this.camera.is3d ? this.camera.view2d(this.width, this.height)
                                                                                       : [0, 0, 1, 1]};
-    this._apply(display, uniforms);
-    this._fullscreen(display, this.targets.output);
-    const present = this.programs[m.programs.present];
-    gl.useProgram(present.program);
-    bindResources(gl, present, [{...this.targets.output.textures[0], uniform: "u_source"}]);
+    this._pass(m.programs.display, this.targets.output,
+               {textures: [{...this.targets.network.textures[0], uniform: "u_network"}, ...reference], uniforms});
     const [cw, ch] = this.canvasSize;
-    setUniform(gl, present, "u_origin", [0, 0]);
-    setUniform(gl, present, "u_scale", [this.width / cw, this.height / ch]);   // 1: the frame is the canvas's size
+    // the frame fills the canvas's lower-left corner, enlarged by canvas / frame (1 at full size);
+    // where the canvas's rows run top down, read bottom up
+    const scale = [this.width / cw, this.height / ch];
+    const present = this.gpu.yDown ? {u_origin: [0, ch], u_scale: [scale[0], -scale[1]]} : {u_origin: [0, 0], u_scale: scale};
     const pictured = d.tonemapped_modes.includes(this.mode);   // error views and raw lanes: 0, as they are
     for (const s of m.settings) {
-      if (s.present) setUniform(gl, present, s.present, pictured ? s.indices[s.choices.indexOf(this.values[s.name])] : 0);
+      if (s.present) present[s.present] = pictured ? s.indices[s.choices.indexOf(this.values[s.name])] : 0;
     }
-    this._fullscreen(present, null, this.canvasSize);
-    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4));   // waits for the frame
+    this.gpu.draw(m.programs.present, null, {textures: [{...this.targets.output.textures[0], uniform: "u_source"}],
+                                             uniforms: present, size: this.canvasSize});
+    await this.gpu.finish();
     this.frameMs = performance.now() - start;
-    const error = gl.getError();
-    if (error !== gl.NO_ERROR) throw new WebGLError(`drawing: GL error 0x${error.toString(16)}`);
     return this.frameMs;
   }
 
   // the canvas as 8-bit sRGB RGBA, rows top to bottom, base64 (what a screenshot holds)
-  pixels() {
-    const gl = this.gl, w = this.width, h = this.height, raw = new Uint8Array(w * h * 4);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, raw);
-    const flipped = new Uint8Array(raw.length);
-    for (let y = 0; y < h; ++y) flipped.set(raw.subarray((h - 1 - y) * w * 4, (h - y) * w * 4), y * w * 4);
-    return base64(flipped);
+  async pixels() {
+    return base64(await this.gpu.pixels(this.width, this.height));
   }
 }
 
@@ -744,20 +790,29 @@ function control(setting, value, onChange) {
   return label;
 }
 
+// The GPU the page draws with, for the API loadExport chose; ``progress(text)`` says how far compiling is.
+async function backend(canvas, loaded, progress) {
+  if (loaded.api === "webgpu") {
+    const {WebGPUBackend} = await import("./webgpu_backend.js");
+    return WebGPUBackend.create(canvas, loaded, progress);
+  }
+  const gl = createContext(canvas, loaded.manifest);
+  return new GLBackend(canvas, loaded.manifest, {gl, programs: await compileAll(gl, loaded.sources, progress)});
+}
+
 // index.html: the viewer with its controls, orbit / zoom / pan and a frame-time readout
 export async function main({base = "./", canvas, panel, status} = {}) {
   const t0 = performance.now();
   const page = window.inshade = {ready: false, error: null, progress: []};
   try {
     const params = new URLSearchParams(location.search);
-    const loaded = await loadExport(base);
-    const gl = createContext(canvas, loaded.manifest);
-    const programs = await compileAll(gl, loaded.sources, (text) => {
+    const loaded = await loadExport(base, params.get("api") || "auto");
+    const gpu = await backend(canvas, loaded, (text) => {
       status.textContent = text;
       page.progress.push({ms: performance.now() - t0, text});
     });
-    const viewer = new Viewer(canvas, loaded, {width: +params.get("width") || 0, height: +params.get("height") || 0},
-                              {gl, programs});
+    page.api = gpu.api;
+    const viewer = new Viewer(canvas, loaded, {width: +params.get("width") || 0, height: +params.get("height") || 0}, gpu);
     page.viewer = viewer;
     document.title = `${loaded.manifest.title} · inshade`;
     let dirty = true;
@@ -765,21 +820,21 @@ export async function main({base = "./", canvas, panel, status} = {}) {
     buildPanel(panel, viewer, redraw);
     attachPointer(canvas, viewer, redraw);
     // the first picture at a quarter of the size, shown before the full frame is drawn
-    viewer.render({preview: PREVIEW});
+    await viewer.render({preview: PREVIEW});
     page.firstFrameMs = performance.now() - t0;
     page.previewScale = PREVIEW;
     status.textContent = `first frame at 1/${PREVIEW} size after ${page.firstFrameMs.toFixed(0)} ms; drawing the full frame`;
     page.progress.push({ms: page.firstFrameMs, text: status.textContent});
-    await settled(viewer.gl);
-    viewer.render();
+    await gpu.settled();
+    await viewer.render();
     page.fullFrameMs = performance.now() - t0;
-    await settled(viewer.gl);
+    await gpu.settled();
     page.ready = true;
-    const tick = () => {
+    const tick = async () => {
       if (dirty || (viewer.manifest.accumulate && viewer.samples < SAMPLE_CAP)) {
         dirty = false;
-        viewer.render();
-        status.textContent = `${viewer.width}x${viewer.height} · frame ${viewer.frameMs.toFixed(1)} ms` +
+        await viewer.render();
+        status.textContent = `${viewer.width}x${viewer.height} · ${gpu.api} · frame ${viewer.frameMs.toFixed(1)} ms` +
           (viewer.manifest.accumulate ? ` · ${viewer.samples} spp` : "") +
           ` · first frame ${page.firstFrameMs.toFixed(0)} ms, full ${page.fullFrameMs.toFixed(0)} ms after load`;
       }

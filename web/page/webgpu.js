@@ -6,14 +6,14 @@ import { base64 } from "./inshade.js";
 
 // texel formats by inshade dtype and channel count (runtime/compute/textures.py), with the value of
 // an alpha channel RGB data gains (WebGPU has no three-channel formats)
-const FORMATS = {
+export const FORMATS = {
   f4: {formats: {1: "r32float", 2: "rg32float", 4: "rgba32float"}, array: Float32Array, alpha: 1.0},
   f2: {formats: {1: "r16float", 2: "rg16float", 4: "rgba16float"}, array: Uint16Array, alpha: 0x3c00},
   f1: {formats: {1: "r8unorm", 2: "rg8unorm", 4: "rgba8unorm"}, array: Uint8Array, alpha: 255},
   nu2: {formats: {1: "r16unorm", 2: "rg16unorm", 4: "rgba16unorm"}, array: Uint16Array, alpha: 65535},
   u4: {formats: {1: "r32uint", 2: "rg32uint", 4: "rgba32uint"}, array: Uint32Array, alpha: 1},
 };
-const UNORM16 = "texture-formats-tier1";   // 16-bit normalised formats in WebGPU
+export const UNORM16 = "texture-formats-tier1";   // 16-bit normalised formats in WebGPU
 
 export class WebGPUError extends Error {}
 
@@ -34,7 +34,7 @@ async function device(resources) {
 
 // one level's texels as the format holds them: RGB gains an alpha; 16-bit normalised cells become
 // floats q / 65535 where the device has no such format
-function texels(rec, data, [offset, nbytes], unorm16) {
+export function texels(rec, data, [offset, nbytes], unorm16) {
   const spec = FORMATS[rec.dtype];
   let values = new spec.array(data, offset, nbytes / spec.array.BYTES_PER_ELEMENT);
   if (rec.channels === 3) {
