@@ -97,7 +97,8 @@ def test_a_mask_card_is_cut_out_where_its_alpha_is_below_the_cutoff(gl, tmp_path
 
 
 @pytest.mark.parametrize("mode", ["MASK", "BLEND"])
-def test_the_page_draws_the_card_as_inshade_render_does(gl, mode, tmp_path):
+@pytest.mark.parametrize("api", ["webgl2", "webgpu"])
+def test_the_page_draws_the_card_as_inshade_render_does(gl, mode, api, tmp_path):
     """The exported page's G-buffer pass binds the material textures and cuts (MASK) or peels (BLEND)
     the same pixels: the wall shows through where the CPU reading says so, and the page is the
     desktop render's picture (within 3 levels away from edges: along the cards' outlines and the
@@ -111,10 +112,11 @@ def test_the_page_draws_the_card_as_inshade_render_does(gl, mode, tmp_path):
     opaque_uv, _ = _draw(_file(tmp_path / "opaque.glb", "OPAQUE"))
     cut, kept = _cpu_reading(opaque_uv)
     path = _file(tmp_path / f"{mode}.glb", mode)
-    export_web(path, tmp_path / "page", width=128, height=128)
+    export_web(path, tmp_path / "page", width=128, height=128, api=api)
     with Browser() as browser, serve(tmp_path / "page") as url:
         state = browser.open(url + "index.html")
         assert state["error"] is None, state
+        assert browser.driver.execute_script("return window.inshade.api;") == api
         page = browser.canvas()
     rgb = page[::-1].astype(int)   # canvas rows (top first) -> the G-buffer's data rows
     assert (rgb[cut][:, 1] > rgb[cut][:, 0]).all() and (rgb[kept][:, 0] > rgb[kept][:, 1]).all()

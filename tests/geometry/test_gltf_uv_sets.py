@@ -103,7 +103,8 @@ def test_swapping_the_sets_and_the_texcoords_draws_the_same_pixels(gl, tmp_path,
         assert np.abs(wrong - a).max() > 0.2
 
 
-def test_the_page_reads_the_second_set(gl, tmp_path):
+@pytest.mark.parametrize("api", ["webgl2", "webgpu"])
+def test_the_page_reads_the_second_set(gl, api, tmp_path):
     """The exported page's G-buffer carries the second set (two more targets) and its BLEND layers read
     it: the page is the desktop render's picture (within 3 levels; a few pixels along the checker's
     edges, where the two texture units filter differently, up to 10)."""
@@ -113,12 +114,13 @@ def test_the_page_reads_the_second_set(gl, tmp_path):
     from inshade.web.export import export_web
 
     path = _file(tmp_path / "b.gltf", swapped=True, mode="BLEND")
-    export_web(path, tmp_path / "page", width=SIZE, height=SIZE)
+    export_web(path, tmp_path / "page", width=SIZE, height=SIZE, api=api)
     manifest = json.loads((tmp_path / "page" / "manifest.json").read_text())
     assert [t["uniform"] for t in manifest["mesh"]["targets"]][-2:] == ["u_gbuffer_uv1", "u_gbuffer_uv1_dy"]
     with Browser() as browser, serve(tmp_path / "page") as url:
         state = browser.open(url + "index.html")
         assert state["error"] is None, state
+        assert browser.driver.execute_script("return window.inshade.api;") == api
         page = browser.canvas().astype(int)
     image, info = render_scene(load_scene(path), width=SIZE, height=SIZE)
     desktop = srgb8(image, tonemap=info["view"]["settings"]["tonemap"]).astype(int)
