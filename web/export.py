@@ -1,4 +1,4 @@
-"""``inshade export-web ASSET -o DIR``: an asset as a static WebGL2 page.
+"""``inshade export-web ASSET -o DIR``: an asset as a static WebGL2 page (and WebGPU: ``--api``).
 
 The asset is set up through the GL runtime (``SceneRenderer``: programs generated and compiled, the
 environment built, shadow maps drawn) with GLSL ES 3.00 programs planned against WebGL2's limits
@@ -11,7 +11,9 @@ and ``inshade render`` run the same programs on the same data:
   importance-sampling textures, shadow maps, a linear reference) and uniform blocks as raw texels,
   the mesh's vertex attributes, the evaluation batch; uniforms the page does not compute itself;
   the settings as controls; ``reference.png``: an sRGB reference image;
-- ``index.html``, ``evaluate.html``, ``inshade.js``: the page (no framework, no build step).
+- ``index.html``, ``evaluate.html``, ``inshade.js``: the page (no framework, no build step);
+- with ``api`` webgpu or auto, ``programs/*.wgsl``: the same programs as WGSL (``webgpu.translate``),
+  drawn by ``webgpu_backend.js``.
 
 What the page computes: the camera's uniforms (orbit / zoom / pan), the uniforms a setting binds,
 the display pass's and the accumulation's. What it takes as data, fixed at the exported settings:

@@ -571,6 +571,19 @@ export class Viewer {
     return out;
   }
 
+  // every pass a frame may draw and its target (null: the canvas), for a backend that makes its
+  // pipelines before the first frame
+  passes() {
+    const m = this.manifest, p = m.programs, out = [];
+    const into = m.accumulate ? this.targets.sample : this.targets.network;
+    if (this.mesh) out.push({program: this.mesh.program, target: this.mesh.target, geometry: this.mesh.geometry});
+    out.push({program: p.scene, target: this.peel ? this.peel.opaque : into});
+    if (this.peel) out.push({program: p.blend_layer, target: this.peel.accum[0]}, {program: p.blend_resolve, target: into});
+    if (m.accumulate) out.push({program: p.accumulate, target: this.targets.spare});
+    out.push({program: p.display, target: this.targets.output}, {program: p.present, target: null});
+    return out;
+  }
+
   _pass(program, target, resources) {
     this.gpu.draw(program, target, {size: [this.width, this.height], ...resources});
   }
@@ -807,12 +820,14 @@ export async function main({base = "./", canvas, panel, status} = {}) {
   try {
     const params = new URLSearchParams(location.search);
     const loaded = await loadExport(base, params.get("api") || "auto");
-    const gpu = await backend(canvas, loaded, (text) => {
+    const progress = (text) => {
       status.textContent = text;
       page.progress.push({ms: performance.now() - t0, text});
-    });
+    };
+    const gpu = await backend(canvas, loaded, progress);
     page.api = gpu.api;
     const viewer = new Viewer(canvas, loaded, {width: +params.get("width") || 0, height: +params.get("height") || 0}, gpu);
+    if (gpu.prepare) await gpu.prepare(viewer.passes(), progress);
     page.viewer = viewer;
     document.title = `${loaded.manifest.title} · inshade`;
     let dirty = true;

@@ -90,8 +90,7 @@ export class WebGPUBackend {
       this.programs[name] = this._program(name, modules);
       progress(`compiling shaders: ${++done} of ${names.length} programs ready (${seconds()} s)`);
     }));
-    progress(`compiled ${names.length} WGSL programs in ${seconds()} s; drawing the first frame (pipelines compile at their first use)`);
-    await nextFrame();
+    progress(`compiled ${names.length} WGSL programs in ${seconds()} s`);
   }
 
   _program(name, modules) {
@@ -239,17 +238,39 @@ export class WebGPUBackend {
   }
 
   _pipeline(prog, formats, geometry) {
-    const key = formats.join() + (geometry ? "+depth" : "");
-    if (prog.pipelines[key]) return prog.pipelines[key];
+    const key = pipelineKey(formats, geometry);
+    prog.pipelines[key] ||= this.device.createRenderPipeline(this._describe(prog, formats, geometry));
+    return prog.pipelines[key];
+  }
+
+  // the pipelines of ``passes`` ([{program, target, geometry}]) made before the first frame, counted as
+  // they are ready (their compile is the long part: a software driver compiles the shader there)
+  async prepare(passes, progress = () => {}) {
+    const t0 = performance.now(), seconds = () => ((performance.now() - t0) / 1000).toFixed(0);
+    let done = 0;
+    progress(`compiling ${passes.length} pipelines`);
+    await Promise.all(passes.map(async ({program, target, geometry}) => {
+      const prog = this.programs[program], formats = target ? target.formats : [FRAME];
+      const key = pipelineKey(formats, geometry);
+      if (!prog.pipelines[key]) {
+        const pipeline = await this.device.createRenderPipelineAsync(this._describe(prog, formats, geometry));
+        prog.pipelines[key] ||= pipeline;
+      }
+      progress(`compiling pipelines: ${++done} of ${passes.length} ready (${seconds()} s)`);
+    }));
+    progress(`compiled ${passes.length} pipelines in ${seconds()} s; drawing the first frame`);
+    await nextFrame();
+  }
+
+  _describe(prog, formats, geometry) {
     const written = new Set(Object.values(prog.iface.fragment.outputs));
-    prog.pipelines[key] = this.device.createRenderPipeline({
+    return {
       label: prog.name, layout: prog.layout,
       vertex: {module: prog.modules.vertex, entryPoint: "main", buffers: geometry ? geometry.buffers.map((b) => b.layout) : []},
       fragment: {module: prog.modules.fragment, entryPoint: "main",
                  targets: formats.map((format, k) => ({format, writeMask: written.has(k) ? GPUColorWrite.ALL : 0}))},
       primitive: {topology: "triangle-list", cullMode: "none"},
-      depthStencil: geometry ? {format: DEPTH, depthWriteEnabled: true, depthCompare: "less"} : undefined});
-    return prog.pipelines[key];
+      depthStencil: geometry ? {format: DEPTH, depthWriteEnabled: true, depthCompare: "less"} : undefined};
   }
 
   // what binding ``r`` of group ``g`` takes: the last texture of that uniform name (else a blank
@@ -350,6 +371,8 @@ function canPresent() {
   const asked = new URLSearchParams(location.search).get("present");
   return asked ? asked === "webgpu" : !navigator.userAgent.includes("HeadlessChrome");
 }
+
+const pipelineKey = (formats, geometry) => formats.join() + (geometry ? "+depth" : "");
 
 function mipCount(w, h) {
   return Math.floor(Math.log2(Math.max(w, h))) + 1;
