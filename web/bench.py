@@ -1,10 +1,10 @@
 """``inshade bench web``: every shipped asset as a page in headless Chromium.
 
-Per asset: the page's bytes (native size), load time to the first frame (drawn at a quarter of the
-size) and to the full one, the frame time of the full redraw (median of 5, network pass forced) under
-the browser's WebGL2 (SwiftShader without a GPU), and the PSNR of the page against ``inshade render``
-at a quarter of the scene's size
-(8-bit sRGB), plus the evaluation page's max error against torch under the parity rule's scale.
+Per asset: the page's bytes (native size, both APIs' programs), then on each API the page has (WebGL2
+and WebGPU, SwiftShader without a GPU): load time to the first frame (drawn at a quarter of the size)
+and to the full one, the frame time of the full redraw (median of 5, network pass forced), and the
+PSNR of the page against ``inshade render`` at a quarter of the scene's size (8-bit sRGB); plus the
+evaluation page's max error against torch under the parity rule's scale.
 Writes ``web.json``, ``web.md`` and ``web.png`` (frame time per asset) into ``--out``.
 """
 from __future__ import annotations
@@ -32,41 +32,61 @@ def _quarter(size) -> tuple[int, int]:
     return max(16, size[0] // 4), max(16, size[1] // 4)
 
 
+APIS = ("webgl2", "webgpu")
+
+
 def measure(asset: Path, browser, tmp: Path) -> dict:
+    """The asset's row: the WebGL2 page's numbers at its top level (as before WebGPU), WebGPU's under "webgpu"."""
     from inshade.runtime.headless import render_scene
     from inshade.scene.description import load_scene
 
-    from .browser import page_bytes, psnr8, serve, srgb8
+    from .browser import page_bytes
     from .export import export_web
 
     scene = load_scene(asset)
     row = {"asset": asset.name, "program": scene.program, "size": list(scene.size)}
-    native = export_web(asset, tmp / f"{asset.name}_native")
-    row["page_bytes"] = page_bytes(tmp / f"{asset.name}_native")
-    row["requires"] = native.manifest["requires"]
-    with serve(tmp / f"{asset.name}_native") as url:
-        state = browser.open(url + "index.html")
-        if state["error"]:
-            return {**row, "error": state["error"]}
-        row["load_to_first_frame_ms"] = round(float(state["first_frame_ms"]), 1)   # at a quarter of the size
-        row["load_to_full_frame_ms"] = round(float(state["full_frame_ms"]), 1)
-        row["frame_ms"] = round(statistics.median(browser.frame_ms(5)), 2)
+    native, small = tmp / f"{asset.name}_native", tmp / f"{asset.name}_small"
+    row["requires"] = export_web(asset, native, api="auto").manifest["requires"]
+    row["page_bytes"] = page_bytes(native)
+    row["wgsl_bytes"] = sum(f.stat().st_size for f in (native / "programs").glob("*.wgsl"))
     w, h = _quarter(scene.size)
-    export_web(asset, tmp / f"{asset.name}_small", width=w, height=h)
-    with serve(tmp / f"{asset.name}_small") as url:
-        browser.open(url + "index.html")
-        page = browser.canvas()
-        state = browser.open(url + "evaluate.html")
-        evaluated = browser.evaluation() if state["ready"] else None
+    export_web(asset, small, width=w, height=h, api="auto")
     image, _ = render_scene(scene, width=w, height=h, settings={"labels": False})
-    row["psnr_db_vs_render"] = round(psnr8(page, srgb8(image)), 2)
+    for api in APIS:
+        numbers = _page(browser, native, small, api, image, scene)
+        if api == "webgl2":
+            row.update(numbers)
+        else:
+            row[api] = numbers
     row["psnr_size"] = [w, h]
-    if evaluated is not None:
-        row["evaluate_max_scaled_error"] = _evaluation_error(tmp / f"{asset.name}_small", scene, evaluated)
     return row
 
 
-def _evaluation_error(folder: Path, scene, out: np.ndarray) -> float | None:
+def _page(browser, native: Path, small: Path, api: str, render, scene) -> dict:
+    from .browser import psnr8, serve, srgb8
+
+    out = {}
+    with serve(native) as url:
+        state = browser.open(url + f"index.html?api={api}")
+        if state["error"]:
+            return {"error": state["error"]}
+        out["load_to_first_frame_ms"] = round(float(state["first_frame_ms"]), 1)   # at a quarter of the size
+        out["load_to_full_frame_ms"] = round(float(state["full_frame_ms"]), 1)
+        out["frame_ms"] = round(statistics.median(browser.frame_ms(5)), 2)
+        if api == "webgpu":
+            out["adapter"] = browser.driver.execute_script("return window.inshade.viewer.gpu.adapter;")
+    with serve(small) as url:
+        browser.open(url + f"index.html?api={api}")
+        out["psnr_db_vs_render"] = round(psnr8(browser.canvas(), srgb8(render)), 2)
+        page = "evaluate.html" if api == "webgl2" else "evaluate_webgpu.html"
+        state = browser.open(url + page)
+        if state["ready"]:
+            key = "evaluate" if api == "webgl2" else "evaluate_webgpu"
+            out["evaluate_max_scaled_error"] = _evaluation_error(small, scene, browser.evaluation(), key)
+    return out
+
+
+def _evaluation_error(folder: Path, scene, out: np.ndarray, key: str = "evaluate") -> float | None:
     """max |browser - torch| / max(1, |torch|) over the evaluation batch (None without torch)."""
     try:
         import torch
@@ -76,7 +96,7 @@ def _evaluation_error(folder: Path, scene, out: np.ndarray) -> float | None:
         from inshade.scene.description import NetworkSdfRef
     except ImportError:
         return None
-    e = json.loads((folder / "manifest.json").read_text())["evaluate"]
+    e = json.loads((folder / "manifest.json").read_text())[key]
     refs = [load(n.bundle) for n in scene.networks]
     if isinstance(scene.sdf, NetworkSdfRef):
         refs.append(load(scene.sdf.bundle))
@@ -99,6 +119,9 @@ def _peer_network(width: int, depth: int, encoding: str):
 def markdown(report: dict) -> str:
     lines = [f"# Exported pages in headless Chromium ({report['browser_renderer']})", "",
              machine_markdown(report["machine"])]
+    adapters = sorted({r["webgpu"]["adapter"] for r in report["assets"] if "adapter" in r.get("webgpu", {})})
+    if adapters:
+        lines.append(f"- WebGPU adapter: `{', '.join(adapters)}`")
     if report["assets"]:
         lines += _asset_rows(report)
     if report.get("peers"):
@@ -109,22 +132,31 @@ def markdown(report: dict) -> str:
 
 
 def _asset_rows(report: dict) -> list[str]:
-    lines = ["", "Exported on this renderer; `inshade render` on it is the reference. Page bytes and timings "
-             "at the scene's own size; PSNR (8-bit sRGB) at a quarter of it; the evaluation error is "
-             "max |browser - torch| / max(1, |torch|) on the exported batch (the parity rule is 1e-5).", "",
+    lines = ["", "Exported on this renderer; `inshade render` on it is the reference. Page bytes (both APIs' "
+             "programs; the WGSL's share in brackets) and timings at the scene's own size; PSNR (8-bit sRGB) at a "
+             "quarter of it; the evaluation error is max |browser - torch| / max(1, |torch|) on the exported batch "
+             "(the parity rule is 1e-5). Each cell: WebGL2 / WebGPU.", "",
              "| asset | page bytes | load → first frame, 1/4 size (ms) | load → full frame (ms) | frame (ms) | "
              "PSNR vs render (dB) | eval error |",
              "|---|---:|---:|---:|---:|---:|---:|"]
     for r in report["assets"]:
-        if "error" in r:
+        apis = [r, r.get("webgpu", {})]
+        if "error" in r and "webgpu" not in r:
             lines.append(f"| {r['asset']} | {r.get('page_bytes', '-')} | error: {r['error']} | | | | |")
             continue
-        err = r.get("evaluate_max_scaled_error")
-        full = r.get("load_to_full_frame_ms")   # reports before the quarter-size first frame have none
-        lines.append(f"| {r['asset']} | {r['page_bytes']:,} | {r['load_to_first_frame_ms']:.0f} | "
-                     f"{'-' if full is None else f'{full:.0f}'} | {r['frame_ms']:.1f} | "
-                     f"{r['psnr_db_vs_render']:.2f} | {'-' if err is None else f'{err:.2g}'} |")
+        wgsl = f" ({r['wgsl_bytes']:,})" if "wgsl_bytes" in r else ""
+        cells = [" / ".join(_cell(a, key, fmt) for a in apis if a)
+                 for key, fmt in (("load_to_first_frame_ms", ".0f"), ("load_to_full_frame_ms", ".0f"),
+                                  ("frame_ms", ".1f"), ("psnr_db_vs_render", ".2f"), ("evaluate_max_scaled_error", ".2g"))]
+        lines.append(f"| {r['asset']} | {r.get('page_bytes', 0):,}{wgsl} | " + " | ".join(cells) + " |")
     return lines
+
+
+def _cell(numbers: dict, key: str, fmt: str) -> str:
+    if "error" in numbers:
+        return "error: " + numbers["error"][:80]
+    value = numbers.get(key)   # reports before the quarter-size first frame have no full-frame time
+    return "-" if value is None else format(value, fmt)
 
 
 def plot(report: dict, path: Path) -> None:
@@ -203,12 +235,13 @@ CLAIMS = {"page_psnr": Claim("none (inshade's own bar)", "exported page's first 
 
 
 def headlines(r: dict) -> list[dict]:
-    rows = [a for a in r["assets"] if "psnr_db_vs_render" in a]
-    if not rows:
+    pages = [(a["asset"], api, n["psnr_db_vs_render"]) for a in r["assets"]
+             for api, n in (("WebGL2", a), ("WebGPU", a.get("webgpu", {}))) if "psnr_db_vs_render" in n]
+    if not pages:
         return []
-    worst = min(rows, key=lambda a: a["psnr_db_vs_render"])
-    return [claim_row(CLAIMS, "web", "page_psnr", f"worst {worst['psnr_db_vs_render']:.1f} dB ({worst['asset']}) "
-                      f"over {len(rows)} pages in {r['browser_renderer'][:40]}", worst["psnr_db_vs_render"])]
+    asset, api, worst = min(pages, key=lambda p: p[2])
+    return [claim_row(CLAIMS, "web", "page_psnr", f"worst {worst:.1f} dB ({asset}, {api}) over {len(pages)} pages "
+                      f"in {r['browser_renderer'][:40]}", worst)]
 
 
 BENCH = Bench("web", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
