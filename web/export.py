@@ -160,6 +160,7 @@ class WebExport:
             from .webgpu import translate
 
             passes = set((self.manifest["evaluate"] or {}).get("passes", []))
+            log.info("translating %d programs to WGSL", len(self.programs) - len(passes))
             self.wgsl, interfaces = translate({k: v for k, v in self.programs.items() if k not in passes})
             self.manifest["webgpu"] = {"programs": interfaces}
 

@@ -520,7 +520,6 @@ export class Viewer {
     canvas.width = this.width;
     canvas.height = this.height;
     this.gpu = gpu || new GLBackend(canvas, manifest, null, sources);
-    this.gpu.canvasSize = this.canvasSize;
     this.textures = manifest.textures.map((t) => this.gpu.texture(t, data));
     this.blocks = this.gpu.blocks(manifest.blocks, data);
     const display = manifest.display;
