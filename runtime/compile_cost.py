@@ -24,9 +24,10 @@ def inline_flops(generated) -> int:
 
 def seconds_per_flop(renderer: str) -> float:
     """This driver's JIT seconds per inlined FLOP: the median of its recorded cold first draws of
-    programs of at least MIN_FLOPS, once there are MIN_RECORDS of them; else the default."""
+    programs of at least MIN_FLOPS, once there are MIN_RECORDS of them; else the default. Only draws
+    that compiled (``compiled``: the program was new to its process) count."""
     rates = [e["first_draw_s"] / e["inline_flops"] for e in draw_history.entries(renderer)
-             if e.get("shader_cache") is False and isinstance(e.get("inline_flops"), int)
+             if e.get("shader_cache") is False and e.get("compiled") is True and isinstance(e.get("inline_flops"), int)
              and e["inline_flops"] >= MIN_FLOPS and isinstance(e.get("first_draw_s"), (int, float))]
     return statistics.median(rates) if len(rates) >= MIN_RECORDS else DEFAULT_S_PER_INLINE_FLOP
 
@@ -38,6 +39,7 @@ def first_draw_estimate(gl: dict, program_key: str, generated) -> float | None:
         return None
     renderer = gl.get("renderer", "")
     past = draw_history.lookup(renderer, program_key) if program_key else {}
-    if past.get("shader_cache") is False and isinstance(past.get("first_draw_s"), (int, float)):
+    if past.get("shader_cache") is False and past.get("compiled") is True and isinstance(past.get("first_draw_s"),
+                                                                                         (int, float)):
         return float(past["first_draw_s"])
     return inline_flops(generated) * seconds_per_flop(renderer)

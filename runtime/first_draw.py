@@ -81,6 +81,9 @@ def draw_timed(draw: Callable[[], None], ctx, *, scene, gl: dict, program_key: s
                     format_seconds(estimate))
     what = "compiling" if announce and announce.startswith("compiling") else "drawing"
     marked = first and program_key and gl.get("software")
+    # a program this process drew before (another renderer of the same scene) is the driver's already:
+    # its first draw here is no compile, and says nothing of the JIT's speed
+    compiled_here = first and program_key not in _DRAWN
     if marked:   # a software driver compiles at the first draw: a crash here is a compile's
         warning = draw_history.compile_started(renderer, program_key, f"{scene.name} ({scene.program})")
         if warning:
@@ -100,8 +103,8 @@ def draw_timed(draw: Callable[[], None], ctx, *, scene, gl: dict, program_key: s
             missed = cached and w.seconds > 3.0 * estimate
             log.info("compiled and drawn in %s%s", format_seconds(w.seconds),
                      " (Mesa's shader cache did not have it)" if missed else "")
-        if program_key and gl.get("software"):   # inline_flops: what the JIT's time is calibrated by
-            draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3),
+        if program_key and gl.get("software") and compiled_here:   # inline_flops: what the JIT is calibrated by
+            draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3), compiled=True,
                                 shader_cache=draw_history.shader_cache_on(), inline_flops=inline_flops(generated))
     elif w.enabled or w.seconds >= 1.0:   # a slow frame is remembered, to warn next time
         if program_key:

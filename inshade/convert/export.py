@@ -34,7 +34,9 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     files, unless ``force``). ``as_``: what the network is, for ``inshade render`` / ``view``
     ("image": uv -> colour; "sdf": xyz -> distance; "field": xyz + direction -> rgb + density).
     ``limits``: the GL limits the GLSL must fit (e.g. a target GPU's; default: this driver's);
-    ``check_storage``: the dense weight placement the check compiles (codegen's storage modes);
+    ``check_storage``: the dense weight placement the check compiles (codegen's storage modes; "auto"
+    on a software driver reads the weights from a texture where literals would compile for long:
+    check_storage.py);
     ``semantics``: {port name: semantic}, e.g. ``{"y": "srgb"}`` for colour fitted to sRGB pixels
     (the display decodes it to linear). ``colour`` ("srgb" | "linear", with ``as_="image"``): what the
     shown colour is; a network fitted to image pixels (PNG, PIL, skimage.data: sRGB-encoded) is "srgb".
@@ -112,6 +114,7 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, 
     from inshade.files import atomic_write
 
     from .check import check as run_check, check_inputs, finite_rows
+    from .check_storage import quick_storage
 
     check_colour(as_, colour)
     if limits is None and check:
@@ -131,6 +134,9 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, 
             raise ConvertError(f"the generated GLSL does not fit the GL limits: {exc}") from None
     flat = np.concatenate([np.asarray(e, np.float32).reshape(len(e), -1) for e in examples], 1)
     if check:
+        check_storage, generated, why = quick_storage(bundle, check_storage, limits, generated)
+        if why and not quiet:
+            print(why, file=sys.stderr)
         shapes = [np.shape(e)[1:] for e in examples]
         x = check_inputs(flat)
         left_out = len(flat) - len(finite_rows(flat))

@@ -226,3 +226,24 @@ def test_an_exported_bundle_takes_every_codegen_path_and_info(tmp_path, capsys):
     assert main(["info", str(tmp_path / "b")]) == 0
     text = capsys.readouterr().out
     assert "lookup_array" in text and "parity envelope" in text
+
+
+def test_a_check_whose_literals_would_compile_long_reads_a_texture_and_says_so(gl, tmp_path, capsys, monkeypatch):
+    """On a software driver the check draws once, so its JIT is its cost: storage auto's literals past
+    the budget are checked from a texture (the same numbers under the rule), and the record says so; a
+    storage asked for by name is checked as asked; a GPU driver's check is the plan's own."""
+    from inshade.convert import check_storage
+    from inshade.runtime.context import machine_limits
+
+    torch.manual_seed(0)
+    module = nn.Sequential(nn.Linear(2, 16), nn.ReLU(), nn.Linear(16, 3))
+    x = torch.rand(64, 2)
+    monkeypatch.setattr(check_storage, "CHECK_COMPILE_BUDGET_S", 0.0)   # every literal is past it
+    bundle = inshade.export(module, x, tmp_path / "auto")
+    err = capsys.readouterr().err
+    software = machine_limits()["software"]
+    assert bundle.meta["provenance"]["check"]["storage"] == ("texture" if software else "auto")
+    assert ("check: the weights read from a texture" in err) == software
+    bundle = inshade.export(module, x, tmp_path / "inline", check_storage="inline")
+    assert bundle.meta["provenance"]["check"]["storage"] == "inline"
+    assert "read from a texture" not in capsys.readouterr().err

@@ -38,17 +38,21 @@ def test_the_estimate_counts_the_inlined_flops(history, generated):
 
 def test_this_machines_cold_first_draws_calibrate_it(history, generated):
     r = LLVMPIPE["renderer"]
-    draw_history.record(r, "a", first_draw_s=2.0, shader_cache=False, inline_flops=10000)
-    draw_history.record(r, "b", first_draw_s=30.0, shader_cache=True, inline_flops=10000)   # a cache: no measure
-    draw_history.record(r, "c", first_draw_s=0.1, shader_cache=False, inline_flops=100)     # too small to say
+    draw_history.record(r, "a", first_draw_s=2.0, shader_cache=False, inline_flops=10000, compiled=True)
+    draw_history.record(r, "b", first_draw_s=30.0, shader_cache=True, inline_flops=10000, compiled=True)   # a cache
+    draw_history.record(r, "c", first_draw_s=0.1, shader_cache=False, inline_flops=100, compiled=True)   # too small
+    # drawn by a process that had drawn the program before: no compile, no measure of the JIT
+    draw_history.record(r, "f", first_draw_s=0.02, shader_cache=False, inline_flops=10000)
     assert compile_cost.seconds_per_flop(r) == compile_cost.DEFAULT_S_PER_INLINE_FLOP    # one record is not enough
-    draw_history.record(r, "d", first_draw_s=5.0, shader_cache=False, inline_flops=10000)
-    draw_history.record(r, "e", first_draw_s=3.0, shader_cache=False, inline_flops=10000)
+    draw_history.record(r, "d", first_draw_s=5.0, shader_cache=False, inline_flops=10000, compiled=True)
+    draw_history.record(r, "e", first_draw_s=3.0, shader_cache=False, inline_flops=10000, compiled=True)
     assert compile_cost.seconds_per_flop(r) == pytest.approx(3e-4)   # the median of 2, 3, 5 s per 10k
     assert compile_cost.seconds_per_flop("another renderer") == compile_cost.DEFAULT_S_PER_INLINE_FLOP
     # a program drawn cold before: what it took
-    draw_history.record(r, "key", first_draw_s=12.5, shader_cache=False, inline_flops=1)
+    draw_history.record(r, "key", first_draw_s=12.5, shader_cache=False, inline_flops=1, compiled=True)
     assert compile_cost.first_draw_estimate(LLVMPIPE, "key", [generated["inline"]]) == 12.5
+    draw_history.record(r, "old", first_draw_s=0.03, shader_cache=False, inline_flops=1)   # not known to compile
+    assert compile_cost.first_draw_estimate(LLVMPIPE, "old", [generated["inline"]]) != 0.03
 
 
 def test_codegen_says_it_and_warns(gl, history, tmp_path, capsys, caplog):
