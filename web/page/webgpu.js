@@ -6,7 +6,7 @@ import { base64 } from "./inshade.js";
 
 // texel formats by inshade dtype and channel count (runtime/compute/textures.py), with the value of
 // an alpha channel RGB data gains (WebGPU has no three-channel formats)
-export const FORMATS = {
+const FORMATS = {
   f4: {formats: {1: "r32float", 2: "rg32float", 4: "rgba32float"}, array: Float32Array, alpha: 1.0},
   f2: {formats: {1: "r16float", 2: "rg16float", 4: "rgba16float"}, array: Uint16Array, alpha: 0x3c00},
   f1: {formats: {1: "r8unorm", 2: "rg8unorm", 4: "rgba8unorm"}, array: Uint8Array, alpha: 255},
@@ -34,7 +34,7 @@ async function device(resources) {
 
 // one level's texels as the format holds them: RGB gains an alpha; 16-bit normalised cells become
 // floats q / 65535 where the device has no such format
-export function texels(rec, data, [offset, nbytes], unorm16) {
+function texels(rec, data, [offset, nbytes], unorm16) {
   const spec = FORMATS[rec.dtype];
   let values = new spec.array(data, offset, nbytes / spec.array.BYTES_PER_ELEMENT);
   if (rec.channels === 3) {
@@ -49,15 +49,17 @@ export function texels(rec, data, [offset, nbytes], unorm16) {
   return values;
 }
 
-function texture(dev, rec, data) {
+// a texture record's texels in a new texture: its levels (``levels`` in all: more where a mip chain is
+// made later) with ``usage`` besides sampling and uploads; {texture, format, layers}
+export function uploadTexture(dev, rec, data, {levels = rec.levels.length, usage = 0} = {}) {
   const unorm16 = dev.features.has(UNORM16);
   const dtype = rec.dtype === "nu2" && !unorm16 ? "f4" : rec.dtype;
   const channels = rec.channels === 3 ? 4 : rec.channels;
   const format = FORMATS[dtype].formats[channels];
   const depth = rec.kind === "2d" ? 1 : rec.size[2];
-  const tex = dev.createTexture({size: [rec.size[0], rec.size[1], depth], format, mipLevelCount: rec.levels.length,
+  const tex = dev.createTexture({size: [rec.size[0], rec.size[1], depth], format, mipLevelCount: levels,
                                  dimension: rec.kind === "3d" ? "3d" : "2d",
-                                 usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST});
+                                 usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST | usage});
   rec.levels.forEach((level, k) => {
     const values = texels(rec, data, level, unorm16);
     const w = Math.max(rec.size[0] >> k, 1), h = Math.max(rec.size[1] >> k, 1);
@@ -65,7 +67,11 @@ function texture(dev, rec, data) {
     dev.queue.writeTexture({texture: tex, mipLevel: k}, values,
                            {bytesPerRow: w * channels * values.BYTES_PER_ELEMENT, rowsPerImage: h}, [w, h, d]);
   });
-  return tex.createView({dimension: rec.view});
+  return {texture: tex, format, layers: depth};
+}
+
+function texture(dev, rec, data) {
+  return uploadTexture(dev, rec, data).texture.createView({dimension: rec.view});
 }
 
 function bindings(dev, e, data) {

@@ -5,7 +5,7 @@
 // Texel rows are GL's: the vertex stage's y is flipped, so row 0 of every target is GL's bottom row;
 // only the canvas runs top down (yDown), which the present pass reads bottom up.
 
-import { FORMATS, UNORM16, WebGPUError, texels } from "./webgpu.js";
+import { UNORM16, WebGPUError, uploadTexture } from "./webgpu.js";
 
 const TARGET_FORMATS = {rgba32f: "rgba32float", rg32f: "rg32float", r32f: "r32float", r32ui: "r32uint"};
 const FRAME = "rgba8unorm";       // the canvas's format: 8-bit values the present pass encoded as sRGB
@@ -110,25 +110,11 @@ export class WebGPUBackend {
   }
 
   texture(rec, data) {
-    const dev = this.device, unorm16 = dev.features.has(UNORM16);
-    const dtype = rec.dtype === "nu2" && !unorm16 ? "f4" : rec.dtype;
-    const channels = rec.channels === 3 ? 4 : rec.channels;
-    const format = FORMATS[dtype].formats[channels];
-    const depth = rec.kind === "2d" ? 1 : rec.size[2];
-    const levels = rec.generate_mipmaps ? mipCount(rec.size[0], rec.size[1]) : rec.levels.length;
-    const usage = USAGE() | (rec.generate_mipmaps ? GPUTextureUsage.RENDER_ATTACHMENT : 0);
-    const tex = dev.createTexture({size: [rec.size[0], rec.size[1], depth], format, mipLevelCount: levels,
-                                   dimension: rec.kind === "3d" ? "3d" : "2d", usage});
-    rec.levels.forEach((level, k) => {
-      const values = texels(rec, data, level, unorm16);
-      const w = Math.max(rec.size[0] >> k, 1), h = Math.max(rec.size[1] >> k, 1);
-      const d = rec.kind === "3d" ? Math.max(depth >> k, 1) : depth;
-      dev.queue.writeTexture({texture: tex, mipLevel: k}, values,
-                             {bytesPerRow: w * channels * values.BYTES_PER_ELEMENT, rowsPerImage: h}, [w, h, d]);
-    });
-    if (rec.generate_mipmaps) this._mipmaps(tex, format, depth);
+    const dev = this.device, mip = rec.generate_mipmaps;
+    const {texture: tex, format, layers} = uploadTexture(dev, rec, data, mip ? {
+      levels: mipCount(rec.size[0], rec.size[1]), usage: GPUTextureUsage.RENDER_ATTACHMENT} : {});
+    if (mip) this._mipmaps(tex, format, layers);
     const linear = rec.filter === "linear", wrap = rec.wrap === "repeat" ? "repeat" : "clamp-to-edge";
-    const mip = rec.generate_mipmaps;
     const sampler = dev.createSampler({addressModeU: wrap, addressModeV: wrap, addressModeW: "clamp-to-edge",
       magFilter: linear ? "linear" : "nearest", minFilter: linear ? "linear" : "nearest",
       mipmapFilter: mip ? "linear" : "nearest", maxAnisotropy: mip && linear ? Math.max(1, Math.floor(rec.anisotropy)) : 1});
