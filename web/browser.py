@@ -115,10 +115,10 @@ class Browser:
         return np.frombuffer(data, np.uint8).reshape(h, w, 4)[..., :3].copy()
 
     def frame_ms(self, frames: int = 5) -> list[float]:
-        """Milliseconds of ``frames`` full redraws of the current view (the network pass forced)."""
-        return self.driver.execute_script(
-            "return (async () => { const v = window.inshade.viewer; const out = [];"
-            f"for (let i = 0; i < {int(frames)}; ++i) {{ v.key = null; out.push(await v.render()); }} return out; }})();")
+        """Milliseconds of ``frames`` full redraws of the current view (the network pass forced), one call
+        each (a slow page's frames together would outlast the driver connection's read timeout)."""
+        return [self.driver.execute_script("const v = window.inshade.viewer; v.key = null; return v.render();")
+                for _ in range(int(frames))]
 
     def evaluation(self) -> np.ndarray:
         """evaluate.html's outputs [N, out_dim] float32."""
