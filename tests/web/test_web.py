@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import os
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,13 +25,9 @@ from inshade.web.browser import Browser, psnr8, serve, srgb8
 from inshade.web.export import WebLimitError, export_web
 
 from parity import TOL, assert_parity, glsl_eval, scaled_error, torch_reference
-from shipped_renders import MADE_BY, ONE_PER_TECHNIQUE, RECORD, key, size
+from shipped_renders import size
+from web_pages import ASSETS, MIN_PSNR_DB, TRAINED, check_page, errors, exported, render_record
 
-MIN_PSNR_DB = 40.0
-# Compared at the scene's own size, not the record's quarter: its bricks repeat every few pixels there,
-# so the two rasterisers' attribute interpolation (uv apart by ~1e-4) aliases differently
-# (38.1 dB at half size, 35.4 at a quarter, 41.1 at its own 256x256).
-AT_OWN_SIZE = {"di_pbr_set_bricks"}
 # The evaluation page is held to the parity rule, or where the desktop driver itself misses it on the
 # same batch, to within this factor of the desktop's error (the browser no less exact than the desktop).
 DESKTOP_MARGIN = 1.25
@@ -43,11 +38,6 @@ DESKTOP_MARGIN = 1.25
 # (Cody-Waite reduction + Cephes polynomials) brought prt_mechanical to 7.6e-6 but made the grove's
 # march compile for minutes in SwiftShader, so those networks are held to this bound instead.
 BROWSER_SIN_TOL = 1e-2
-TRAINED = Path(__file__).resolve().parents[2] / "trained"
-ASSETS = sorted(p.name for p in TRAINED.iterdir() if p.is_dir()) if os.environ.get("INSHADE_SLOW") \
-    else ONE_PER_TECHNIQUE
-
-
 @pytest.fixture(scope="module")
 def browser():
     with Browser() as b:
@@ -56,61 +46,15 @@ def browser():
 
 @pytest.fixture(scope="module")
 def record():
-    from inshade.runtime.context import shared_context
-
-    info = shared_context().info
-    made_by = json.loads(MADE_BY.read_text())
-    same = made_by["gl_renderer"] == info["GL_RENDERER"] and made_by["gl_version"] == info["GL_VERSION"]
-    return np.load(RECORD) if same else None
-
-
-def inshade_render(asset: str, record) -> np.ndarray:
-    """``inshade render`` of the asset at the record's size, as the 8-bit sRGB a PNG holds."""
-    from inshade.runtime.headless import render_scene
-
-    if record is not None and key(asset, {}) in record and asset not in AT_OWN_SIZE:
-        return srgb8(record[key(asset, {})])
-    scene = load_scene(resolve_asset(asset))
-    w, h = scene.size if asset in AT_OWN_SIZE else size(scene.size)
-    image, _ = render_scene(scene, width=w, height=h)
-    return srgb8(image)
+    return render_record()
 
 
 APIS = ("webgl2", "webgpu")
 
 
-def _exported(asset, tmp_path, api: str = "webgl2") -> tuple[Path, tuple[int, int]]:
-    scene = load_scene(resolve_asset(asset))
-    w, h = scene.size if asset in AT_OWN_SIZE else size(scene.size)
-    folder = tmp_path / "page"
-    export_web(resolve_asset(asset), folder, width=w, height=h, api=api)
-    return folder, (w, h)
-
-
-def _errors(console: list[str]) -> list[str]:
-    return [line for line in console if line.startswith("SEVERE")]
-
-
-@pytest.mark.parametrize("api", APIS)
 @pytest.mark.parametrize("asset", ASSETS)
-def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, api, tmp_path):
-    folder, (w, h) = _exported(asset, tmp_path, api)
-    with serve(folder) as url:
-        state = browser.open(url + "index.html")
-        assert state["error"] is None, f"{asset} ({api}): the page says: {state['error']}"
-        assert not _errors(state["console"]), f"{asset} ({api}): console errors: {state['console']}"
-        assert browser.driver.execute_script("return window.inshade.api;") == api
-        page = browser.canvas()
-        progress = browser.driver.execute_script("return window.inshade.progress;")
-    # the page says what it is doing before its first frame: the compile, then the draw; then that the
-    # first frame, a quarter of the size, is up while the full one is drawn
-    compiled, first = progress[-2:]
-    assert compiled["text"].startswith("compiled ") and compiled["ms"] <= state["first_frame_ms"], progress
-    assert first["text"].startswith("first frame at 1/4 size") and first["ms"] == state["first_frame_ms"], progress
-    assert state["first_frame_ms"] <= state["full_frame_ms"]
-    assert page.shape == (h, w, 3)
-    db = psnr8(page, inshade_render(asset, record))
-    assert db >= MIN_PSNR_DB, f"{asset} ({api}): the page's first frame is {db:.2f} dB from inshade render's"
+def test_page_draws_what_inshade_render_draws(gl, browser, record, asset, tmp_path):
+    check_page(browser, record, asset, "webgl2", tmp_path)   # on WebGPU: test_webgpu_page.py
 
 
 @pytest.mark.parametrize("api", APIS)
@@ -118,7 +62,7 @@ def test_the_first_frame_is_a_quarter_of_the_size_shown_enlarged(gl, browser, ap
     """The page's first frame: every pass at 1/4 of the size, each of its pixels shown as a 4 x 4 block, the
     picture inshade render draws at that size; the full frame after it as if it had been the first."""
     asset = "sdf_creature"
-    folder, (w, h) = _exported(asset, tmp_path, api)
+    folder, (w, h) = exported(asset, tmp_path, api)
     with serve(folder) as url:
         state = browser.open(url + "index.html")
         assert state["ready"], state
@@ -147,7 +91,7 @@ def test_reference_views_match_inshade_render(gl, browser, asset, mode, api, tmp
     from inshade.runtime.headless import render_scene
     from inshade.scene.display import parse_mode
 
-    folder, (w, h) = _exported(asset, tmp_path, api)
+    folder, (w, h) = exported(asset, tmp_path, api)
     with serve(folder) as url:
         state = browser.open(url + "index.html")
         assert state["error"] is None, state
@@ -174,7 +118,7 @@ EVALUATION_PAGES = {"webgl2": ("evaluate.html", "evaluate"), "webgpu": ("evaluat
 @pytest.mark.parametrize("asset", ASSETS)
 def test_evaluation_page_matches_torch(gl, browser, asset, api, tmp_path):
     page, key = EVALUATION_PAGES[api]
-    folder, _ = _exported(asset, tmp_path)
+    folder, _ = exported(asset, tmp_path)
     manifest = json.loads((folder / "manifest.json").read_text())
     e = manifest[key]
     if e is None:   # an analytic scene: there is no network to run
@@ -183,7 +127,7 @@ def test_evaluation_page_matches_torch(gl, browser, asset, api, tmp_path):
         return
     with serve(folder) as url:
         state = browser.open(url + page)
-        assert state["error"] is None and not _errors(state["console"]), f"{asset}: {state}"
+        assert state["error"] is None and not errors(state["console"]), f"{asset}: {state}"
         out = browser.evaluation()
     x = np.fromfile(folder / "data.bin", np.float32, e["count"] * e["in_dim"], offset=e["inputs"][0])
     bundle = _network_of(asset, e["bundle"])
@@ -218,7 +162,7 @@ def test_your_own_network_exports_through_the_same_path(gl, browser, tmp_path):
     export_web(tmp_path / "mine", folder, width=48, height=48)
     with serve(folder) as url:
         state = browser.open(url + "index.html")
-        assert state["error"] is None and not _errors(state["console"]), state
+        assert state["error"] is None and not errors(state["console"]), state
         page = browser.canvas()
         state = browser.open(url + "evaluate.html")
         assert state["error"] is None, state
@@ -363,7 +307,7 @@ def test_a_gltf_file_exports_as_a_page_of_its_reference_shading(gl, browser, tmp
     with serve(folder) as url:
         state = browser.open(url + "index.html")
         assert state["error"] is None, state
-        assert not _errors(state["console"]), state["console"]
+        assert not errors(state["console"]), state["console"]
         page = browser.canvas()
     image, info = render_scene(load_scene(path), width=128, height=128)
     assert info["view"]["settings"]["tonemap"] == "pbr_neutral"   # the page presents it as the PNG does

@@ -1,7 +1,7 @@
 """The page on WebGPU: export-web --api webgpu|auto translates every pass the WebGL2 page runs to WGSL
-(web/webgpu.py) and the page draws it with WebGPUBackend; what test_web checks per asset on both APIs,
-plus what only the WebGPU path has: the API choice, uniform layouts as WGSL lays them out, a lost device,
-and a toolchain that is missing."""
+(web/webgpu.py) and the page draws it with WebGPUBackend. Per asset what test_web checks of the WebGL2
+page (one asset per technique; every shipped asset with INSHADE_SLOW=1), plus what only the WebGPU path
+has: the API choice, uniform layouts as WGSL lays them out, a lost device, a toolchain that is missing."""
 from __future__ import annotations
 
 import json
@@ -18,7 +18,8 @@ from inshade.web.browser import Browser, psnr8, serve, srgb8
 from inshade.web.export import export_web
 from inshade.web.webgpu import translate
 
-MIN_PSNR_DB = 40.0
+from web_pages import ASSETS, MIN_PSNR_DB, check_page, render_record
+
 NEURAL_IMAGE = Path(__file__).resolve().parents[2] / "trained" / "neural_image"
 
 
@@ -26,6 +27,16 @@ NEURAL_IMAGE = Path(__file__).resolve().parents[2] / "trained" / "neural_image"
 def browser():
     with Browser() as b:
         yield b
+
+
+@pytest.fixture(scope="module")
+def record():
+    return render_record()
+
+
+@pytest.mark.parametrize("asset", ASSETS)
+def test_page_on_webgpu_draws_what_inshade_render_draws(gl, browser, record, asset, tmp_path):
+    check_page(browser, record, asset, "webgpu", tmp_path)
 
 
 VERTEX = """#version 300 es
