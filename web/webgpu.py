@@ -4,7 +4,7 @@ Each GLSL ES 3.00 program the WebGL2 page runs is translated as it is, so both p
 code on the same data: glslang compiles it to SPIR-V (Vulkan rules relaxed so loose uniforms form one
 default block; the vertex stage's y flipped, so a clip-space y of -1 lands on texel row 0 as in GL),
 spirv-opt splits each combined image sampler into a texture and a sampler (WGSL has no combined
-ones), the bindings are numbered afresh, the fragment stage's inputs are moved to where its vertex
+ones) and runs its -O passes, the bindings are numbered afresh, the fragment stage's inputs are moved to where its vertex
 stage writes them, and naga writes the module as WGSL. What the page needs to bind it (group and
 binding of each texture, sampler and block; vertex input locations) is read from the SPIR-V
 (``spirv.reflect``), the default block's member offsets from the WGSL (wgsl_reflect: they are not
