@@ -144,10 +144,10 @@ def network_sdf_chunk(scene: NetworkSdfScene, generated: Generated) -> str:
             *constant_lines(constants, "wgsl" if wgsl else "glsl"), ""]
     albedo = literal("vec3", scene.albedo, "wgsl" if wgsl else "glsl")
     if wgsl:
-        body = ["fn scene_sdf(p: vec3<f32>) -> f32 {",
+        body = ["fn scene_sdf(p: vec3<f32>/*net_textures*/) -> f32 {",
                 f"    var x: array<vec4<f32>, {generated.in_blocks}>;",
                 f"    x[0] = vec4<f32>((p - SDF_BOUND_CENTER) * {flt(scene.inv_radius)}, 0.0);",
-                f"    let y = {generated.function}(x);",
+                f"    let y = {generated.function}(x/*net_texture_names*/);",
                 "    return y[0].x * SDF_BOUND_RADIUS;", "}", "",
                 "fn scene_albedo(p: vec3<f32>) -> vec3<f32> {", f"    return {albedo};", "}", ""]
     else:

@@ -10,8 +10,8 @@ do (tone mapping, output colour space).
 Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag``) on a plane or any
 mesh with uvs, an SDF (a scene of ``passes/sdf_diffuse.frag``, analytic or a network) sphere traced
 inside a box around its bound, and a radiance field (``passes/imported_field.frag``) marched inside its
-box and laid over the scene behind it; on a WebGPURenderer, each of the three for networks without
-textures (SDFs: network SDFs only). Other kinds are refused in one line.
+box and laid over the scene behind it; on a WebGPURenderer, each of the three from the network's WGSL
+(SDFs: network SDFs only). Other kinds are refused in one line.
 """
 from __future__ import annotations
 
@@ -20,9 +20,10 @@ import shutil
 from pathlib import Path
 
 from inshade.codegen import generate
-from inshade.codegen.glsl import TextureResource
+from inshade.codegen.glsl import SAMPLER_SUFFIX, TextureResource
 from inshade.codegen.limits import LimitError
-from inshade.codegen.printers.base import library_source
+from inshade.codegen.printers.base import Unprintable, library_source
+from inshade.codegen.printers.wgsl import WGSLPrinter, thread_textures
 from inshade.codegen.targets import TargetError
 from inshade.runtime.scene_program import SRGB_SEMANTIC
 from inshade.scene.description import load_scene
@@ -35,8 +36,10 @@ from .limits import WEBGL2, WebLimitError
 FORMAT = "inshade-three 1"
 MODULE = "inshade-three.js"             # WebGLRenderer (imports "three")
 NODE_MODULE = "inshade-three-webgpu.js"  # WebGPURenderer (imports "three/webgpu" and "three/tsl")
+DATA_MODULE = "inshade-three-data.js"    # what both read network.json and network.bin with (imports "three")
 # three.js binds textures and plain uniforms, not uniform blocks of the shader's own
 LIMITS = {**WEBGL2, "GL_MAX_FRAGMENT_UNIFORM_BLOCKS": 0}
+_ARGUMENTS = WGSLPrinter(textures_as_arguments=True)   # a node material's textures are three's to bind
 
 
 # what a scene's program draws -> the material that draws it
@@ -86,7 +89,7 @@ def _image(scene, blob) -> dict:
             "vertexShader": flatten("passes/three_image_vertex"),
             "fragmentShader": flatten("passes/three_image", chunks={"network": g.chunk}, defines=defines),
             "textures": _textures(blob, g.resources), "uniforms": {},
-            **_wgsl(lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"), [consts]),
+            **_wgsl(blob, lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"), [consts]),
                     ["lib/colour"], "passes/three_image")}
 
 
@@ -116,10 +119,11 @@ def _sdf(scene, blob) -> dict:
             "vertexShader": flatten("passes/three_box_vertex"),
             "fragmentShader": flatten("passes/three_sdf", chunks=chunks),
             "textures": _textures(blob, [res for g in generated for res in g.resources]),
-            "uniforms": {"u_sh": sh.reshape(-1, 3).tolist()}, **_sdf_wgsl(scene, r.sdf_bundle, sh.reshape(-1, 3))}
+            "uniforms": {"u_sh": sh.reshape(-1, 3).tolist()},
+            **_sdf_wgsl(blob, scene, r.sdf_bundle, sh.reshape(-1, 3))}
 
 
-def _sdf_wgsl(scene, bundle, sh) -> dict:
+def _sdf_wgsl(blob, scene, bundle, sh) -> dict:
     """A network SDF's WGSL: lib/sdf's trace of the network, shaded under the environment ``sh`` (its
     radiance coefficients as constants)."""
     from inshade.codegen.constants import literal
@@ -137,7 +141,7 @@ def _sdf_wgsl(scene, bundle, sh) -> dict:
     def network():
         chunks, g = network_sdf_chunks(bundle, prefix=scene.sdf.prefix, target="wgsl", storage="inline")
         return g, [chunks[SDF_CHUNK], sh_chunk_wgsl(int(scene.environment["degree"])), environment]
-    return _wgsl(network, ["lib/sdf", "lib/spherical_harmonics"], "passes/three_sdf")
+    return _wgsl(blob, network, ["lib/sdf", "lib/spherical_harmonics"], "passes/three_sdf")
 
 
 def _field(scene, blob) -> dict:
@@ -155,26 +159,29 @@ def _field(scene, blob) -> dict:
             "vertexShader": flatten("passes/three_box_vertex"),
             "fragmentShader": flatten("passes/three_field", chunks={"network": g.chunk, **field_chunks(bundle)}),
             "textures": _textures(blob, g.resources), "uniforms": {},
-            **_wgsl(lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"),
-                             list(field_chunks(bundle, "wgsl").values())), ["lib/field_march"], "passes/three_field")}
+            **_wgsl(blob, lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"),
+                                   list(field_chunks(bundle, "wgsl").values())),
+                     ["lib/field_march"], "passes/three_field")}
 
 
-def _wgsl(network, libraries: list[str], function: str) -> dict:
-    """The WGSL a WebGPURenderer's node material calls (``wgslFn``): {"wgsl": {"include", "function"}},
-    or {"wgsl_unavailable": why}. Weights as literals only: the module's own bindings would not be three's.
-    ``network()`` generates the network for WGSL with its weights inline: (its Generated, the chunks it
-    needs); the include is the network, those chunks and the ``libraries``; the function ``function``'s."""
+def _wgsl(blob, network, libraries: list[str], function: str) -> dict:
+    """The WGSL a WebGPURenderer's node material calls (``wgslFn``): {"wgsl": {"include", "function",
+    "textures"}}, or {"wgsl_unavailable": why}. ``network()`` generates the network for WGSL with its
+    dense weights inline: (its Generated, the chunks it needs); the include is the network, those chunks
+    and the ``libraries``; the function ``function``'s. Lookup arrays and grids stay textures, which
+    three binds: the network takes them as arguments, threaded through every function on the way
+    (``thread_textures``); "textures" are their records, each function parameter's texture by name."""
     try:
         g, chunks = network()
-    except (TargetError, LimitError) as exc:
+        parameters = _ARGUMENTS.texture_parameters(g.module)
+    except (TargetError, LimitError, Unprintable) as exc:
         return {"wgsl_unavailable": str(exc)}
-    if g.resources:
-        return {"wgsl_unavailable": f"{g.plan.network} reads {len(g.resources)} textures; the WebGPURenderer material "
-                                    "takes networks with their weights as literals only, for now (use "
-                                    "loadNetworkMaterial with a WebGLRenderer)"}
-    include = "\n".join([g.chunk.rstrip("\n"), *(c.rstrip("\n") for c in chunks),
+    include = "\n".join([_ARGUMENTS.module(g.module).rstrip("\n"), *(c.rstrip("\n") for c in chunks),
                          *library_source(libraries, (".wgsl",))])
-    return {"wgsl": {"include": include + "\n", "function": find_chunk(function, ".wgsl").read_text()}}
+    return {"wgsl": {"include": thread_textures(include, parameters) + "\n",
+                     "function": thread_textures(find_chunk(function, ".wgsl").read_text(), parameters),
+                     "arguments": {n: n.removesuffix(SAMPLER_SUFFIX) for n, _ in parameters},
+                     "textures": _textures(blob, g.resources)}}
 
 
 def export_three(source, out, *, force: bool = False) -> dict:
@@ -187,7 +194,7 @@ def export_three(source, out, *, force: bool = False) -> dict:
         folder.mkdir()
         (folder / "network.json").write_text(json.dumps(manifest, indent=1) + "\n")
         (folder / "network.bin").write_bytes(data)
-        for module in (MODULE, NODE_MODULE):
+        for module in (MODULE, NODE_MODULE, DATA_MODULE):
             shutil.copyfile(PAGE / module, folder / module)
 
     write_folder(out, fill)

@@ -1,12 +1,21 @@
 """WGSL for WebGPU: a standalone module (library chunks pasted in), resources in @group(0) at the
 plan's bindings, textures read with textureLoad (no sampler), the eval function taking and
-returning arrays of vec4<f32> (WGSL has no out parameters)."""
+returning arrays of vec4<f32> (WGSL has no out parameters).
+
+``WGSLPrinter(textures_as_arguments=True)`` declares no textures: the eval function takes each (and a
+filtered one's sampler) as a parameter, as a host that binds its own resources (three.js's ``wgslFn``)
+passes them. WGSL has no module-level handles but its own, so every function on the way to the network
+takes them too: a library chunk marks where with the slots ``/*net_textures*/`` (in a parameter list)
+and ``/*net_texture_names*/`` (in a call), comments that ``thread_textures`` fills and that read as
+nothing where the network declares its textures itself."""
 from __future__ import annotations
 
 from .. import ir
 from .base import INDENT, SAMPLER_SUFFIX, Module, Printer, Unprintable, library_source
 
 GROUP = 0   # the group the network's resources are bound in (an evaluation or host shader uses others)
+TEXTURES_SLOT = "/*net_textures*/"              # a parameter list's: the network's textures as parameters
+TEXTURE_NAMES_SLOT = "/*net_texture_names*/"    # a call's: the same, passed on
 
 
 class WGSLPrinter(Printer):
@@ -19,6 +28,9 @@ class WGSLPrinter(Printer):
     overloads = {("inshade_softplus", 3): "inshade_softplus_bt"}
     # library functions of more than one lane (a float call passes each as a vec4)
     lane_args = {"inshade_atan2": 2}
+
+    def __init__(self, textures_as_arguments: bool = False):
+        self.textures_as_arguments = textures_as_arguments
 
     def _vec4(self, e: ir.Vec4) -> str:
         return f"vec4<f32>({', '.join(self.expr(i) for i in e.items)})"
@@ -75,7 +87,7 @@ class WGSLPrinter(Printer):
                     f"{g.instance}: {g.block};")
         if isinstance(g, ir.Texture):
             comment = f"  // {g.comment}" if g.comment else ""
-            text = f"@group({GROUP}) @binding({bindings[g.name]}) var {g.name}: texture_{g.dims}d<{'u32' if g.integer else 'f32'}>;{comment}"
+            text = f"@group({GROUP}) @binding({bindings[g.name]}) var {g.name}: {texture_type(g)};{comment}"
             if g.filtered:
                 name = g.name + SAMPLER_SUFFIX
                 text += f"\n@group({GROUP}) @binding({bindings[name]}) var {name}: sampler;"
@@ -88,15 +100,29 @@ class WGSLPrinter(Printer):
             return f"const {g.name}: {t} = {t}(\n    {items});"
         raise TypeError(f"unknown module-level declaration {g!r}")
 
+    def texture_parameters(self, m: Module) -> list[tuple[str, str]]:
+        """(name, WGSL type) of the eval function's texture parameters (each texture, then a filtered
+        one's sampler), in plan order; a network reading a uniform or storage block cannot take it so."""
+        blocks = [g.block for g in m.globals if isinstance(g, ir.UniformBlock)]
+        if blocks:
+            raise Unprintable(f"wgsl: {', '.join(blocks)}: a block is not a function argument; "
+                              "store the weights in textures")
+        out = []
+        for g in sorted((g for g in m.globals if isinstance(g, ir.Texture)), key=lambda g: m.bindings[g.name]):
+            out.append((g.name, texture_type(g)))
+            out += [(g.name + SAMPLER_SUFFIX, "sampler")] if g.filtered else []
+        return out
+
     def module(self, m: Module) -> str:
         up = m.prefix.upper()
+        textures = self.texture_parameters(m) if self.textures_as_arguments else []
         args = [*([f"xu_in: array<vec4<u32>, {up}_IN_UINT_BLOCKS>"] if m.uint_blocks else []),
-                f"x_in: array<vec4<f32>, {up}_IN_BLOCKS>"]
+                f"x_in: array<vec4<f32>, {up}_IN_BLOCKS>", *(f"{n}: {t}" for n, t in textures)]
         lines = [
             *m.comments,
             *(f"const {name}: i32 = {value};" for name, value in m.defines),
             *library_source(m.includes, (".wgsl",)),
-            *(self.global_(g, m.bindings) for g in m.globals),
+            *(self.global_(g, m.bindings) for g in m.globals if not (textures and isinstance(g, ir.Texture))),
             f"fn {m.prefix}_eval({', '.join(args)}) -> array<vec4<f32>, {up}_OUT_BLOCKS> {{",
             *([INDENT + "var xu = xu_in;"] if m.uint_blocks else []),
             INDENT + "var x = x_in;",
@@ -107,3 +133,15 @@ class WGSLPrinter(Printer):
             "}",
         ]
         return "\n".join(lines) + "\n"
+
+
+def texture_type(g: ir.Texture) -> str:
+    return f"texture_{g.dims}d<{'u32' if g.integer else 'f32'}>"
+
+
+def thread_textures(source: str, parameters: list[tuple[str, str]]) -> str:
+    """``source`` with its texture slots filled: ``/*net_textures*/`` becomes ``, name: type, ...`` and
+    ``/*net_texture_names*/`` ``, name, ...`` for the network's texture ``parameters``
+    (``WGSLPrinter.texture_parameters``)."""
+    declared = "".join(f", {n}: {t}" for n, t in parameters)
+    return source.replace(TEXTURES_SLOT, declared).replace(TEXTURE_NAMES_SLOT, "".join(f", {n}" for n, _ in parameters))

@@ -1,5 +1,6 @@
 // field_march.glsl in WGSL: the same box, steps, order and stop (float32). The network (net_eval)
-// maps (position, direction) to rgb and density; the FIELD_* constants are codegen/field.py's.
+// maps (position, direction) to rgb and density; the FIELD_* constants are codegen/field.py's. The
+// /*net_...*/ slots take a network's textures where it takes them as arguments (thread_textures).
 
 // The box's entry t0 >= 0 and exit t1 along the ray: (t0, t1), a miss where t1 < t0.
 fn field_box(ro: vec3<f32>, rd: vec3<f32>) -> vec2<f32> {
@@ -13,7 +14,7 @@ fn field_box(ro: vec3<f32>, rd: vec3<f32>) -> vec2<f32> {
 }
 
 // The radiance C gathered along the ray (rgb) and the transmittance T left (w).
-fn field_march_parts(ro: vec3<f32>, rd: vec3<f32>) -> vec4<f32> {
+fn field_march_parts(ro: vec3<f32>, rd: vec3<f32>/*net_textures*/) -> vec4<f32> {
     var colour = vec3<f32>(0.0);
     var trans = 1.0;
     let span = field_box(ro, rd);
@@ -29,7 +30,7 @@ fn field_march_parts(ro: vec3<f32>, rd: vec3<f32>) -> vec4<f32> {
         var x: array<vec4<f32>, NET_IN_BLOCKS>;
         x[0] = vec4<f32>(p, rd.x);
         x[1] = vec4<f32>(rd.yz, 0.0, 0.0);
-        let y = net_eval(x);
+        let y = net_eval(x/*net_texture_names*/);
         let sigma = max(y[0].w, 0.0);
         let alpha = 1.0 - exp(-sigma * FIELD_STEP);
         colour += (trans * alpha) * y[0].rgb;

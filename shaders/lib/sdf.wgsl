@@ -1,6 +1,8 @@
 // sdf.glsl in WGSL: the same bound span, march, hit test and normal taps (float32), with one call
 // site of scene_sdf. The scene (scene_sdf, scene_albedo and the SDF_* constants) is the generated
-// chunk sdf_scene (codegen/network_sdf.py), placed before this one.
+// chunk sdf_scene (codegen/network_sdf.py), placed before this one. /*net_textures*/ and
+// /*net_texture_names*/ are where a network that takes its textures as arguments gets them
+// (codegen/printers/wgsl.py thread_textures).
 
 // The ray's span (t, t1) inside the bound sphere; t1 < 0 when it misses the sphere.
 fn sdf_bound_span(ro: vec3<f32>, rd: vec3<f32>) -> vec2<f32> {
@@ -27,7 +29,7 @@ fn sdf_tap_offset(i: i32) -> vec3<f32> {
 
 // Sphere tracing inside the bound sphere, then the unit normal at the hit (sdf.glsl's sdf_hit):
 // true on a hit, with the distance along the ray in *t and the normal in *n.
-fn sdf_hit(ro: vec3<f32>, rd: vec3<f32>, t: ptr<function, f32>, n: ptr<function, vec3<f32>>) -> bool {
+fn sdf_hit(ro: vec3<f32>, rd: vec3<f32>, t: ptr<function, f32>, n: ptr<function, vec3<f32>>/*net_textures*/) -> bool {
     *n = vec3<f32>(0.0);
     let span = sdf_bound_span(ro, rd);
     *t = span.x;
@@ -45,7 +47,7 @@ fn sdf_hit(ro: vec3<f32>, rd: vec3<f32>, t: ptr<function, f32>, n: ptr<function,
         } else {
             q = p + sdf_tap_offset(tap);
         }
-        let d = scene_sdf(q);
+        let d = scene_sdf(q/*net_texture_names*/);
         if (tap >= 0) {
             g[tap / 2] += sdf_tap_sign(tap) * d;
             tap += 1;

@@ -8,36 +8,45 @@
 // An image is a 1 x 1 plane (its uv the network's input); an SDF is a box around its bound, drawn from
 // the inside and sphere traced per fragment; a radiance field is its box, drawn from the inside and
 // marched per fragment, its radiance laid over what is behind it (premultiplied); both in the mesh's
-// frame. Networks with their weights as literals only, and network SDFs (network.json says why another
-// is not taken).
+// frame; network SDFs only (network.json says why another is not taken). The network's lookup arrays
+// and grids are three textures, which its WGSL takes as arguments. Its data comes through
+// inshade-three-data.js, which imports "three": map it as three's WebGPU examples do (to three.webgpu.js).
 import { BackSide, BoxGeometry, CustomBlending, Mesh, MeshBasicNodeMaterial, OneFactor, OneMinusSrcAlphaFactor,
   PlaneGeometry } from "three/webgpu";
-import { cameraPosition, modelWorldMatrixInverse, positionLocal, uv, vec4, wgsl, wgslFn } from "three/tsl";
+import { cameraPosition, modelWorldMatrixInverse, positionLocal, texture, texture3D, uv, vec4, wgsl, wgslFn }
+  from "three/tsl";
+import { loadNetworkData } from "./inshade-three-data.js";
 
 // the camera's position and the fragment's, in the mesh's frame: a box's view ray
 const ray = () => ({ro: modelWorldMatrixInverse.mul(vec4(cameraPosition, 1.0)).xyz, p: positionLocal});
 // kind -> the node material's colour from the network's function, and the material's settings
 const KINDS = {
-  image: {colour: (fn) => fn({uv: uv()}), settings: (manifest) => ({transparent: manifest.alpha})},
-  sdf: {colour: (fn) => fn(ray()), settings: () => ({side: BackSide, alphaTest: 0.5})},   // a miss: alpha 0
+  image: {inputs: () => ({uv: uv()}), settings: (manifest) => ({transparent: manifest.alpha})},
+  sdf: {inputs: ray, settings: () => ({side: BackSide, alphaTest: 0.5})},   // a miss: alpha 0
   field: {
-    colour: (fn) => fn(ray()),
+    inputs: ray,
     settings: () => ({transparent: true, side: BackSide, depthWrite: false, blending: CustomBlending,
                       blendSrc: OneFactor, blendDst: OneMinusSrcAlphaFactor, blendSrcAlpha: OneFactor,
                       blendDstAlpha: OneMinusSrcAlphaFactor}),
   },
 };
 
+// each texture parameter of the network's function -> its texture node (a sampler parameter: the same
+// node, which three passes as the texture's sampler)
+function textureArguments(wgslRecord, textures) {
+  const nodes = Object.fromEntries(textures(wgslRecord.textures).map(([name, tex]) =>
+    [name, tex.isData3DTexture ? texture3D(tex) : texture(tex)]));
+  return Object.fromEntries(Object.entries(wgslRecord.arguments).map(([parameter, name]) => [parameter, nodes[name]]));
+}
+
 // The network's node material: base is the folder's URL (ending in /).
 export async function loadNetworkNodeMaterial(base) {
-  const response = await fetch(new URL("network.json", base));
-  if (!response.ok) throw new Error(`network.json: ${response.status} ${response.statusText}`);
-  const manifest = await response.json();
-  if (manifest.format !== "inshade-three 1") throw new Error(`network.json: format: unknown ${manifest.format}`);
+  const {manifest, textures} = await loadNetworkData(base, false);
   if (!manifest.wgsl) throw new Error(`${manifest.name}: ${manifest.wgsl_unavailable}`);
   const kind = KINDS[manifest.kind];
   const material = new MeshBasicNodeMaterial(kind.settings(manifest));
-  material.colorNode = kind.colour(wgslFn(manifest.wgsl.function, [wgsl(manifest.wgsl.include)]));
+  const fn = wgslFn(manifest.wgsl.function, [wgsl(manifest.wgsl.include)]);
+  material.colorNode = fn({...kind.inputs(), ...textureArguments(manifest.wgsl, textures)});
   material.name = manifest.name;
   material.userData.inshade = {kind: manifest.kind, bound: manifest.bound, box: manifest.box};
   return material;
