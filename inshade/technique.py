@@ -171,6 +171,8 @@ class ProgramSpec:
     - ``bake(scene, values, size) -> MaterialBake``: (mesh) the material the program decodes, baked
       by the GL runtime into a ``size`` x ``size`` texture over a rectangle of the mesh's uv: what
       ``inshade export-gltf`` writes as the material's textures;
+    - ``channels``: (mesh) a ``MaterialChannels``: the material it decodes, per fragment, for a host's
+      own shading;
     - ``choices``: the program's enumerations (``Choice``: a uniform or define, a GLSL prefix, the
       values in index order). The runtime generates the chunk ``<choices>`` (``#define
       PREFIX_VALUE index`` each) for the pass to include, checks that a scene setting bound to the
@@ -193,6 +195,7 @@ class ProgramSpec:
     shadows: Callable | None = None
     choices: tuple[Choice, ...] = ()
     bake: Callable | None = None
+    channels: MaterialChannels | None = None
 
     def __post_init__(self):
         if self.geometry not in GEOMETRIES:
@@ -238,6 +241,20 @@ class MaterialBake:
     extent: tuple = (1.0, 1.0)
     repeat: tuple = (True, True)
     material: int | None = None
+
+
+@dataclass(frozen=True)
+class MaterialChannels:
+    """What a mesh program's network decodes per fragment as a glTF material's channels, for a host
+    that shades them itself (``inshade export-three``: three.js's own PBR): ``chunk`` names a library
+    chunk in GLSL (.glsl) and WGSL (.wgsl) defining ``material_channels(uv)`` (lib/material_channels:
+    linear base colour, tangent-space normal, roughness, occlusion, metallic) at a fragment's TEXCOORD_0
+    from the network (prefix "net"); ``chunks(bundle, language)`` generates the chunks it needs
+    besides the network ("glsl" or "wgsl"); ``material(bundle)`` is the index of the glTF material
+    whose surfaces it decodes."""
+    chunk: str
+    chunks: Callable
+    material: Callable
 
 
 @dataclass

@@ -1,9 +1,10 @@
 """``inshade export-three``: a network as a three.js material for an app of your own. The folder holds
 ``network.json`` (the two GLSL ES 3.00 stages of a ``ShaderMaterial``, the textures' records, the
 uniforms, and for a WebGPURenderer the network's WGSL), ``network.bin`` (the texels),
-``inshade-three.js`` (imports ``three``: ``loadNetworkMaterial``, ``loadNetworkMesh``) and
+``inshade-three.js`` (imports ``three``: ``loadNetworkMaterial``, ``loadNetworkMesh``, ``applyNetworkMaterial``),
 ``inshade-three-webgpu.js`` (imports ``three/webgpu`` and ``three/tsl``: ``loadNetworkNodeMaterial``,
-``loadNetworkNodeMesh``). The network is planned against WebGL2's guaranteed limits with its weights as
+``loadNetworkNodeMesh``, ``applyNetworkNodeMaterial``) and ``inshade-three-data.js`` (what both read the
+data with). The network is planned against WebGL2's guaranteed limits with its weights as
 literals or in a texture (three.js binds no uniform blocks of ours) and ends as three's own materials
 do (tone mapping, output colour space).
 
@@ -11,7 +12,9 @@ Drawn today: an image (a uv -> colour network, a scene of ``passes/field2d.frag`
 mesh with uvs, an SDF (a scene of ``passes/sdf_diffuse.frag``, analytic or a network) sphere traced
 inside a box around its bound, and a radiance field (``passes/imported_field.frag``) marched inside its
 box and laid over the scene behind it; on a WebGPURenderer, each of the three from the network's WGSL
-(SDFs: network SDFs only). Other kinds are refused in one line.
+(SDFs: network SDFs only). A glTF material a network decodes (a program with ``MaterialChannels``) goes
+onto the user's own glTF scene (``applyNetworkMaterial``): three's PBR shades the network's channels.
+Other kinds are refused in one line.
 """
 from __future__ import annotations
 
@@ -53,15 +56,23 @@ class ThreeExportError(ValueError):
 def material(source) -> tuple[dict, bytes]:
     """(network.json, network.bin) of the scene or bundle ``source``, by what its program draws."""
     scene = load_scene(source)
-    kind = KINDS.get(scene.program)
+    kind = KINDS.get(scene.program) or ("material" if _channels(scene) else None)
     if kind is None or (kind == "image" and not scene.networks):
         raise ThreeExportError(f"{source}: export-three draws an image (a uv -> colour network, program "
-                               f"passes/field2d.frag), an SDF (passes/sdf_diffuse.frag) or a radiance field "
-                               f"(passes/imported_field.frag) for now; this scene's program is {scene.program}")
+                               f"passes/field2d.frag), an SDF (passes/sdf_diffuse.frag), a radiance field "
+                               f"(passes/imported_field.frag) or a glTF material a network decodes (a program "
+                               f"with material channels) for now; this scene's program is {scene.program}")
     blob = _Blob()
     manifest = {"format": FORMAT, "name": scene.name, "kind": kind,
-                **{"image": _image, "sdf": _sdf, "field": _field}[kind](scene, blob)}
+                **{"image": _image, "sdf": _sdf, "field": _field, "material": _material}[kind](scene, blob)}
     return manifest, blob.bytes()
+
+
+def _channels(scene):
+    """The scene's program's MaterialChannels, if it has them."""
+    from inshade.technique import program_spec
+
+    return program_spec(scene.program)[1].channels
 
 
 def _textures(blob, resources) -> list[dict]:
@@ -162,6 +173,28 @@ def _field(scene, blob) -> dict:
             **_wgsl(blob, lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"),
                                    list(field_chunks(bundle, "wgsl").values())),
                      ["lib/field_march"], "passes/three_field")}
+
+
+def _material(scene, blob) -> dict:
+    """A glTF material decoded by the network per fragment (its program's MaterialChannels): the
+    declarations three's MeshStandardMaterial / MeshPhysicalMaterial program gets before its main, and
+    the index of the file's material the network replaces."""
+    from inshade.bundle import load
+
+    channels = _channels(scene)
+    bundle = load(next(n for n in scene.networks if n.prefix == "net").bundle)
+    try:
+        g = generate(bundle, prefix="net", target="es300", limits=LIMITS)
+    except LimitError as exc:
+        raise WebLimitError(f"WebGL2: {exc}") from None
+    decoder = {"material_decoder": f"#include <{channels.chunk}>\n"}
+    return {"bundle_digest": bundle.digest(), "material": channels.material(bundle),
+            "declarations": flatten("passes/three_material", chunks={"network": g.chunk, **decoder,
+                                                                     **channels.chunks(bundle, "glsl")}),
+            "textures": _textures(blob, g.resources), "uniforms": {},
+            **_wgsl(blob, lambda: (generate(bundle, prefix="net", target="wgsl", storage="inline"),
+                                   list(channels.chunks(bundle, "wgsl").values())),
+                    [channels.chunk], "passes/three_material")}
 
 
 def _wgsl(blob, network, libraries: list[str], function: str) -> dict:

@@ -9,7 +9,7 @@ next to the file's own material shaded the same way (lib/gltf_material, the refe
 """
 
 from inshade.papers import DIFFERENTIABLE_INDIRECTION
-from inshade.technique import Choice, MaterialBake, ProgramSpec, Technique, folder_fields
+from inshade.technique import Choice, MaterialBake, MaterialChannels, ProgramSpec, Technique, folder_fields
 
 # u_pbr_view's values in index order (the pass's PBR_VIEW_* come from the program's choices)
 VIEWS = ("uncompressed", "di", "split")
@@ -19,27 +19,46 @@ GLTF_PROGRAM = "passes/mesh_pbr_set_gltf.frag"
 
 
 def _domain(bundles, networks):
-    from inshade.techniques.di_pbr_set.gltf_lanes import UvDomain
-
     b = next((b for b, n in zip(bundles, networks) if n.prefix == "net"), None)
     if b is None:
         raise ValueError(f"networks: {GLTF_PROGRAM} needs the DI set as the network with prefix \"net\"")
+    return _bundle_domain(b)
+
+
+def _bundle_domain(b):
+    from inshade.techniques.di_pbr_set.gltf_lanes import UvDomain
+
     return UvDomain.from_dict((b.meta.get("render") or {}).get("uv_domain"), f"bundle {b.name!r}")
 
 
 def _gltf_chunks(scene, bundles, networks, codegen_options) -> dict:
     """<pbr_set_gltf_domain>: the material the lanes replace and the uv rectangle they cover."""
+    return _domain_chunks(_domain(bundles, networks), "glsl")
+
+
+def _domain_chunks(d, language: str) -> dict:
+    """<pbr_set_gltf_domain> in ``language`` (glsl: defines, wgsl: constants)."""
     from inshade.codegen.glsl import flt
 
-    d = _domain(bundles, networks)
     flag = {True: "true", False: "false"}
+    values = [("PBR_GLTF_MATERIAL", "i32", str(d.material)),
+              ("PBR_GLTF_UV_ORIGIN", "vec2<f32>", f"{flt(d.origin[0])}, {flt(d.origin[1])}"),
+              ("PBR_GLTF_UV_EXTENT", "vec2<f32>", f"{flt(d.extent[0])}, {flt(d.extent[1])}"),
+              ("PBR_GLTF_REPEAT_U", "bool", flag[d.repeat[0]]), ("PBR_GLTF_REPEAT_V", "bool", flag[d.repeat[1]])]
+    if language == "wgsl":
+        lines = [f"const {n}: {t} = {f'{t}({v})' if t.startswith('vec') else v};" for n, t, v in values]
+    else:
+        lines = [f"#define {n} {f'vec2({v})' if t.startswith('vec') else v}" for n, t, v in values]
     return {"pbr_set_gltf_domain": "\n".join([
-        "// the glTF material and uv rectangle the DI lanes cover (the bundle's render.uv_domain)",
-        f"#define PBR_GLTF_MATERIAL {d.material}",
-        f"#define PBR_GLTF_UV_ORIGIN vec2({flt(d.origin[0])}, {flt(d.origin[1])})",
-        f"#define PBR_GLTF_UV_EXTENT vec2({flt(d.extent[0])}, {flt(d.extent[1])})",
-        f"#define PBR_GLTF_REPEAT_U {flag[d.repeat[0]]}",
-        f"#define PBR_GLTF_REPEAT_V {flag[d.repeat[1]]}", ""])}
+        "// the glTF material and uv rectangle the DI lanes cover (the bundle's render.uv_domain)", *lines, ""])}
+
+
+def _channels_chunks(bundle, language: str) -> dict:
+    return _domain_chunks(_bundle_domain(bundle), language)
+
+
+def _channels_material(bundle) -> int:
+    return _bundle_domain(bundle).material
 
 
 def _gltf_bake(scene, values, size):
@@ -78,6 +97,7 @@ TECHNIQUE = Technique(
                           choices=(Choice("u_pbr_view", "PBR_VIEW", VIEWS),)),
               ProgramSpec(GLTF_PROGRAM, geometry="mesh", mesh_attributes=("materials",),
                           chunks=_gltf_chunks, validate=_gltf_validate, bake=_gltf_bake,
+                          channels=MaterialChannels("lib/pbr_set_gltf_channels", _channels_chunks, _channels_material),
                           uniforms={"u_pbr_error_scale": ERROR_SCALE},
                           choices=(Choice("u_pbr_view", "PBR_VIEW", GLTF_VIEWS),))),
     **folder_fields(

@@ -79,7 +79,7 @@ const PATCHES = {
                           "float D_Charlie( float roughness, float dotNH ) { float alpha = roughness;"]],
 };
 
-function patchMaterial(material, names) {
+export function patchMaterial(material, names) {
     const edits = names.map((name) => {
         if (!(name in PATCHES)) throw new Error(`patch ${name}? (${Object.keys(PATCHES).join(", ")})`);
         return PATCHES[name];

@@ -239,8 +239,8 @@ def test_your_own_network_and_the_refusals(gl, browser, tmp_path):
     assert backend == "webgpu"
     db = psnr8(srgb8(linear), srgb8(image))
     assert db >= MIN_PSNR_DB, f"WebGPURenderer draws it {db:.2f} dB from inshade render"
-    with pytest.raises(ThreeExportError, match=r"export-three draws an image .*, an SDF .* or a radiance field "
-                                               r".* this scene's program is passes/sdf_prt.frag"):
+    with pytest.raises(ThreeExportError, match=r"export-three draws an image .*, an SDF .*, a radiance field "
+                                               r".* or a glTF material .* this scene's program is passes/sdf_prt.frag"):
         export_three(resolve_asset("prt_neural_bunny"), tmp_path / "prt")
     with pytest.raises(ValueError, match="already holds files"):
         export_three(tmp_path / "mine", tmp_path / "material")

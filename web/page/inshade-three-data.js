@@ -82,3 +82,18 @@ export async function loadNetworkData(base, webgl) {
   const data = await fetched(new URL("network.bin", base), "bytes");
   return {manifest, textures: (records) => records.map((rec) => [rec.uniform, texture(rec, data, webgl)])};
 }
+
+// Every mesh of GLTFLoader's result gltf drawn with the file's material `index` (its parser says which is
+// which) gets make(fileMaterial, tangents) instead (one per file material; tangents: the mesh has a
+// tangent attribute). Returns the meshes changed; none is an error.
+export function replaceMaterial(gltf, index, name, make) {
+  const made = new Map(), meshes = [];
+  gltf.scene.traverse((o) => {
+    if (!o.isMesh || gltf.parser.associations.get(o.material)?.materials !== index) return;
+    if (!made.has(o.material)) made.set(o.material, make(o.material, "tangent" in o.geometry.attributes));
+    o.material = made.get(o.material);
+    meshes.push(o);
+  });
+  if (!meshes.length) throw new Error(`${name}: no mesh of this glTF scene is drawn with material ${index}`);
+  return meshes;
+}

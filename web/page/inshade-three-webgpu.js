@@ -11,11 +11,11 @@
 // frame; network SDFs only (network.json says why another is not taken). The network's lookup arrays
 // and grids are three textures, which its WGSL takes as arguments. Its data comes through
 // inshade-three-data.js, which imports "three": map it as three's WebGPU examples do (to three.webgpu.js).
-import { BackSide, BoxGeometry, CustomBlending, Mesh, MeshBasicNodeMaterial, OneFactor, OneMinusSrcAlphaFactor,
-  PlaneGeometry } from "three/webgpu";
-import { cameraPosition, modelWorldMatrixInverse, positionLocal, texture, texture3D, uv, vec4, wgsl, wgslFn }
-  from "three/tsl";
-import { loadNetworkData } from "./inshade-three-data.js";
+import { BackSide, BoxGeometry, CustomBlending, MathUtils, Mesh, MeshBasicNodeMaterial, MeshPhysicalNodeMaterial,
+  MeshStandardNodeMaterial, OneFactor, OneMinusSrcAlphaFactor, PlaneGeometry, Vector2 } from "three/webgpu";
+import { cameraPosition, float, modelWorldMatrixInverse, normalMap, positionLocal, texture, texture3D, uniform, uv,
+  vec4, wgsl, wgslFn } from "three/tsl";
+import { loadNetworkData, replaceMaterial } from "./inshade-three-data.js";
 
 // the camera's position and the fragment's, in the mesh's frame: a box's view ray
 const ray = () => ({ro: modelWorldMatrixInverse.mul(vec4(cameraPosition, 1.0)).xyz, p: positionLocal});
@@ -73,4 +73,41 @@ export async function loadNetworkNodeMesh(base) {
   const mesh = new Mesh(networkGeometry(kind, where), material);
   mesh.name = material.name;
   return mesh;
+}
+
+// The file's material `file` as a node material with the network's channels (the function's columns:
+// base colour and roughness, normal and occlusion, metallic) in place of its maps; its other parts stay
+// the file's. tangents: the mesh has a tangent attribute (else three derives the frame and GLTFLoader
+// flips y).
+function decodedNodeMaterial(file, manifest, channels, tangents) {
+  const m = new (file.isMeshPhysicalMaterial ? MeshPhysicalNodeMaterial : MeshStandardNodeMaterial)();
+  for (const key in file) m[key] = file[key];   // as three's WebGPURenderer turns a material into nodes
+  m.uuid = MathUtils.generateUUID();
+  m.name = `${file.name} (${manifest.name})`;
+  const scale = file.normalMap ? [Math.sign(file.normalScale.x) || 1, Math.sign(file.normalScale.y) || 1]
+    : [1, tangents ? 1 : -1];   // the decoded normal is at full strength already
+  const alpha = file.map && (file.transparent || file.alphaTest > 0) ? texture(file.map).a : float(1.0);
+  m.map = m.normalMap = m.roughnessMap = m.metalnessMap = m.aoMap = null;
+  m.colorNode = vec4(channels.element(0).xyz, alpha);
+  m.roughnessNode = channels.element(0).w;
+  m.metalnessNode = channels.element(2).x;
+  m.normalNode = normalMap(channels.element(1).xyz.mul(0.5).add(0.5), uniform(new Vector2(...scale)));
+  m.aoNode = channels.element(1).w;
+  // the channels node, for a node graph of your own: columns (base colour, roughness), (normal, occlusion),
+  // (metallic)
+  m.userData.inshade = {kind: manifest.kind, material: manifest.material, channels};
+  return m;
+}
+
+// inshade-three.js's applyNetworkMaterial for a WebGPURenderer: every mesh of GLTFLoader's result gltf
+// drawn with the file's material manifest.material gets it, shaded by three's own PBR with the
+// network's channels per fragment, from its WGSL. Returns the meshes changed; none is an error.
+export async function applyNetworkNodeMaterial(gltf, base) {
+  const {manifest, textures} = await loadNetworkData(base, false);
+  if (manifest.kind !== "material") throw new Error(`${manifest.name}: a ${manifest.kind}, not a glTF material`);
+  if (!manifest.wgsl) throw new Error(`${manifest.name}: ${manifest.wgsl_unavailable}`);
+  const fn = wgslFn(manifest.wgsl.function, [wgsl(manifest.wgsl.include)]);
+  const channels = fn({uv: uv(), ...textureArguments(manifest.wgsl, textures)}).toVar("inshadeChannels");
+  return replaceMaterial(gltf, manifest.material, manifest.name,
+                         (file, tangents) => decodedNodeMaterial(file, manifest, channels, tangents));
 }

@@ -36,11 +36,7 @@ void main() {
                                                  || (u_pbr_view == PBR_VIEW_SPLIT && gl_FragCoord.x >= 0.5 * u_size.x));
     vec3 reference = error ? gltf_shade(s, g.p, g.v, u_sh, u_light_count) : vec3(0.0);
     if (compressed) {
-        vec4 x[NET_IN_BLOCKS];
-        x[0] = vec4(pbr_set_gltf_uv(g.uv.xy), 0.0, 0.0);
-        vec4 y[NET_OUT_BLOCKS];
-        net_eval(x, y);
-        pbr_set_gltf_decode(s, y[0], y[1], g.material, g.n, g.tangent, g.v);
+        pbr_set_gltf_decode(s, material_channels(g.uv.xy), g.material, g.n, g.tangent, g.v);
     }
     vec3 c = gltf_shade(s, g.p, g.v, u_sh, u_light_count);
     frag_color = vec4(error ? abs(c - reference) * u_pbr_error_scale : c, 1.0);
