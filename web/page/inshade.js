@@ -517,6 +517,7 @@ export class Viewer {
     this.width = width || manifest.size[0];
     this.height = height || manifest.size[1];
     this.canvasSize = [this.width, this.height];   // width, height: what a frame draws (less for a preview)
+    this.drawing = Promise.resolve();   // the frame in flight: frames are drawn one after another
     canvas.width = this.width;
     canvas.height = this.height;
     this.gpu = gpu || new GLBackend(canvas, manifest, null, sources);
@@ -662,8 +663,16 @@ export class Viewer {
 
   // network pass (if stale) + display pass + present to the canvas; resolves to the frame's
   // milliseconds. ``preview``: every pass draws 1 / preview of the size (the lower-left corner of its
-  // targets), shown enlarged: a first picture at a fraction of a full frame's cost.
-  async render({preview = 1} = {}) {
+  // targets), shown enlarged: a first picture at a fraction of a full frame's cost. A frame asked for
+  // while another is in flight (the page's loop, a caller's) is drawn after it: an asynchronous
+  // backend's frames would otherwise share the viewer's size mid-frame.
+  render({preview = 1} = {}) {
+    const frame = this.drawing.then(() => this._frame(preview));
+    this.drawing = frame.catch(() => {});
+    return frame;
+  }
+
+  async _frame(preview) {
     const [w, h] = this.canvasSize;
     this.width = Math.ceil(w / preview);
     this.height = Math.ceil(h / preview);
@@ -843,6 +852,7 @@ export async function main({base = "./", canvas, panel, status} = {}) {
     await viewer.render();
     page.fullFrameMs = performance.now() - t0;
     await gpu.settled();
+    dirty = false;   // the full frame is on the canvas
     page.ready = true;
     const tick = async () => {
       if (dirty || (viewer.manifest.accumulate && viewer.samples < SAMPLE_CAP)) {
