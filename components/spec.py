@@ -36,6 +36,9 @@ class TensorSpec:
     # values must survive a round trip through this dtype (e.g. "float16" for latents stored in
     # RGBA16F textures): the bundle then holds exactly what the GPU will see
     representable: str | None = None
+    # each row is int8 codes in [-127, 127] times that row's scale, the node's tensor of this slot
+    # (inshade/quantize.py i8_codes): the shader rebuilds the same float32 values from the codes
+    scaled_by: str | None = None
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ import numpy as np
 
 from .components import COMPONENTS, ComponentError, check_node, resolve_params
 from .port_layout import check_shape
+from .quantize import i8_codes
 
 FORMAT = "inshade.bundle"
 VERSION = 1
@@ -438,10 +439,12 @@ def _port_shape(p: dict, dim: int, where, field: str) -> tuple | None:
 
 
 def _check_tensors(bundle: Bundle, where):
-    expected = {}
+    expected, scales = {}, {}
     for n in bundle.nodes:
         for slot, spec in COMPONENTS[n.type].tensors(n.params, n.in_dim).items():
             expected[n.tensor_name(slot)] = spec
+            if spec.scaled_by is not None:
+                scales[n.tensor_name(slot)] = n.tensor_name(spec.scaled_by)
     have = set(bundle.tensors)
     missing, extra = sorted(set(expected) - have), sorted(have - set(expected))
     if missing:
@@ -464,3 +467,8 @@ def _check_tensors(bundle: Bundle, where):
                 bad = tuple(int(i) for i in np.argwhere(rt != a)[0])
                 raise BundleError(where, name, f"value {float(a[bad]):.9g} at {list(bad)} is not representable as "
                                                f"{spec.representable} (the node's precision)")
+    for name, scale in scales.items():   # after the loop above: both tensors are well-formed
+        try:
+            i8_codes(bundle.tensors[name], bundle.tensors[scale])
+        except ValueError as exc:
+            raise BundleError(where, name, f"{exc} (the node's precision i8)") from None

@@ -61,7 +61,7 @@ class DenseNetwork:
                               "or a target that has them (vulkan, wgsl, hlsl, slang)")
         ctx.storage = emit_plan.choose_storage(bundle, requested, ctx.limits)
         ctx.loop_chunks = emit_plan.loop_chunks(bundle, ctx.storage, ctx.limits, calls)
-        ctx.weight_texture = emit_plan.WeightTexture(ctx)
+        ctx.weight_textures = {}
         runs = emit_layer_loop.fold_runs(bundle, ctx.storage, ctx.loop_chunks, ctx.limits, calls)
         return {first: Fused(tuple(run.ids), run.output.id,
                              lambda ctx, src, bundle, run=run: emit_layer_loop.emit_run(ctx, run, src, bundle))
@@ -69,13 +69,15 @@ class DenseNetwork:
 
     @staticmethod
     def end(ctx) -> None:
-        texture = ctx.weight_texture.resource()
-        if texture is not None:
-            ctx.globals.insert(0, ir.Texture(texture.name, "dense layers stored as texture rows"))
-            ctx.resources.insert(0, texture)
+        for fmt, tex in reversed(ctx.weight_textures.items()):
+            texture = tex.resource()
+            if texture is not None:
+                what = "int8 codes + 128" if fmt == "i8" else "rows"
+                ctx.globals.insert(0, ir.Texture(texture.name, f"dense layers stored as texture {what}"))
+                ctx.resources.insert(0, texture)
 
 
-def _inline(ctx, node, out, wb, bb, chunk, row, src):
+def _inline(ctx, node, out, wb, bb, chunk, row, src, bundle):
     """Weights as literals: in the expressions, or a const array a big layer loops over."""
     ob, ib = wb.shape[:2]
     name = ctx.name(node.id)
@@ -92,7 +94,7 @@ def _inline(ctx, node, out, wb, bb, chunk, row, src):
                             lambda o, i: ir.Index(ir.Var(f"{name}_W"), ir.Int(f"({o.text}) * {ib} + {i.text}")), src)
 
 
-def _block(ctx, node, out, wb, bb, chunk, row, src, storage: bool = False):
+def _block(ctx, node, out, wb, bb, chunk, row, src, bundle, storage: bool = False):
     """Weights in a std140 uniform block of their own (or, ``storage``, a read-only storage buffer: the
     same bytes in std430)."""
     ob, ib = wb.shape[:2]
@@ -116,12 +118,24 @@ def _block(ctx, node, out, wb, bb, chunk, row, src, storage: bool = False):
                                 src)
 
 
-def _texture(ctx, node, out, wb, bb, chunk, row, src):
-    """Weights as rows of the network's weight texture."""
+def _texture(ctx, node, out, wb, bb, chunk, row, src, bundle):
+    """Weights as rows of the network's weight texture of the layer's format; an i8 layer's codes, with
+    its biases and row scales as literal arrays."""
     ob, ib = wb.shape[:2]
-    row0 = ctx.weight_texture.add(wb, bb, node.id)
-    emit_products.emit_loop(ctx, out, ob, ib, chunk, *emit_products.texture_exprs(ctx.weight_texture.name, str(row0)),
-                            src)
+    tex = emit_plan.weight_texture(ctx, emit_plan.weight_format(ctx, node))
+    if tex.fmt != "i8":
+        row0 = tex.add(wb, bb, node.id)
+        emit_products.emit_loop(ctx, out, ob, ib, chunk, *emit_products.texture_exprs(tex.name, str(row0)), src)
+        return
+    name = ctx.name(node.id)
+    scale = emit_plan.pack_rows(bundle.tensor(node, "weight_scale"), ob)
+    row0 = tex.add(wb, bb, node.id, scale)
+    ctx.globals += [ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, int8 codes in {tex.name}: "
+                               "biases and row scales"),
+                    ir.ConstArray("vec4", f"{name}_b", tuple(ir.Vec4.of(b) for b in bb)),
+                    ir.ConstArray("vec4", f"{name}_s", tuple(ir.Vec4.of(s) for s in scale))]
+    emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Var(f"{name}_b"), o),
+                            emit_products.i8_weight_expr(tex.name, str(row0), ir.Var(f"{name}_s")), src)
 
 
 # storage -> how a layer stored so is written
@@ -144,6 +158,6 @@ def emit_dense(ctx, node, src, bundle):
     row = emit_products.dense_row(ctx, node, weight, bias, mode, why)
     if mode not in _STORED:
         raise ValueError(f"unknown weight storage {mode!r} (choose from {', '.join(STORAGE_MODES)})")
-    _STORED[mode](ctx, node, out, wb, bb, chunk, row, src)
+    _STORED[mode](ctx, node, out, wb, bb, chunk, row, src, bundle)
     ctx.plan.append(row)
     return out

@@ -70,13 +70,14 @@ def _consumers(bundle) -> dict[str, list[str]]:
 def _layer(dense, nodes, consumers, storage):
     """(dense, its activation, the shape key layers of one run share), or None when the dense
     cannot be a layer of a run."""
-    if dense.type != "dense" or storage.get(dense.id, ("",))[0] != "texture" or dense.in_dim != dense.out_dim:
+    if (dense.type != "dense" or storage.get(dense.id, ("",))[0] != "texture" or dense.in_dim != dense.out_dim
+            or dense.params.get("precision") == "i8"):   # an i8 layer's scales are literals of its own
         return None
     users = consumers.get(dense.id, [])
     act = nodes.get(users[0]) if len(users) == 1 else None
     if act is None or act.type not in ELEMENTWISE:
         return None
-    key = (dense.in_dim, bool(dense.params["bias"]), act.type, act.params)
+    key = (dense.in_dim, bool(dense.params["bias"]), dense.params.get("precision"), act.type, act.params)
     return dense, act, key
 
 
@@ -141,7 +142,7 @@ def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     first, act0 = run.layers[0]
     ob, ib = blocks(first.out_dim), blocks(first.in_dim)
     chunk, unrolled = ctx.loop_chunks.get(first.id, (1, ""))
-    tex = ctx.weight_texture
+    tex = emit_plan.weight_texture(ctx, emit_plan.weight_format(ctx, first))
     row0 = [tex.add(*emit_plan.pack(*_weights(bundle, d)), d.id) for d, _ in run.layers][0]   # consecutive rows
     h = f"h_{first.id}"
     spare = emit_products.loop_spare(ob, ib, chunk)

@@ -47,6 +47,13 @@ def pack(weight: np.ndarray, bias: np.ndarray | None):
     return w.reshape(ob, 4, ib, 4).transpose(0, 2, 1, 3), b.reshape(ob, 4)
 
 
+def pack_rows(values: np.ndarray, ob: int) -> np.ndarray:
+    """A value per output row [out] -> [OB, 4] (padding rows 0)."""
+    v = np.zeros(ob * 4, np.float32)
+    v[:len(values)] = values
+    return v.reshape(ob, 4)
+
+
 def std140(wblocks: np.ndarray, bias: np.ndarray) -> bytes:
     """mat4 W[OB*IB] (column-major, 64 B each) followed by vec4 b[OB]."""
     cols = np.ascontiguousarray(wblocks.transpose(0, 1, 3, 2))  # [OB, IB, col, row]
@@ -185,20 +192,50 @@ def _check_blocks(dense, mode: str, limits: dict) -> None:
                          "use storage 'texture' or 'auto'")
 
 
+# the weight texture's texel format by the layer's precision (f32: the texture_format option's)
+PRECISION_FORMATS = {"f16": "f2", "i8": "i8"}
+I8_OFFSET = 128   # an i8 code q is stored as the 8-bit unorm texel q + 128
+
+
+def weight_format(ctx, node) -> str:
+    """The texture a layer stored as texture rows goes in: f4 / f2 (float rows, the bias first) or i8
+    (its codes, offset to unsigned: the bias and row scales are literals)."""
+    return PRECISION_FORMATS.get(node.params.get("precision", "f32"), ctx.option("dense", "texture_format"))
+
+
+def weight_texture(ctx, fmt: str) -> "WeightTexture":
+    """The network's weight texture of format ``fmt`` (made on first use): the texture_format option's is
+    ``weights``, another ``weights_<fmt>``."""
+    if fmt not in ctx.weight_textures:
+        own = fmt == ctx.option("dense", "texture_format")
+        ctx.weight_textures[fmt] = WeightTexture(ctx, fmt, "weights" if own else f"weights_{fmt}")
+    return ctx.weight_textures[fmt]
+
+
 class WeightTexture:
-    """One texture per network holding every texture-stored layer, a row per output block:
-    texel 0 = bias, texels 1 + 4*i .. 4 + 4*i = the columns of block (o, i)."""
+    """A texture of the network's texture-stored layers of one format, a row per output block:
+    float rows (f4, f2): texel 0 = bias, texels 1 + 4*i .. 4 + 4*i = the columns of block (o, i);
+    i8 rows: texels 4*i .. 3 + 4*i = the columns of block (o, i) as codes + 128 (8-bit unorm)."""
 
-    def __init__(self, ctx):
-        self.ctx, self.rows, self.nodes = ctx, [], []
-        self.name = ctx.name("weights")
+    def __init__(self, ctx, fmt: str = "f4", name: str = "weights"):
+        self.ctx, self.fmt, self.rows, self.nodes = ctx, fmt, [], []
+        self.name = ctx.name(name)
 
-    def add(self, wblocks, bias, node_id: str = "?") -> int:
+    @property
+    def bias_texels(self) -> int:
+        return 0 if self.fmt == "i8" else 1
+
+    def add(self, wblocks, bias, node_id: str = "?", scale=None) -> int:
+        """The layer's rows (i8: ``wblocks`` are the dequantized weights and ``scale`` their rows'
+        scales [OB, 4], of which the codes are taken); returns its first row."""
         self.nodes.append(node_id)
         row0 = len(self.rows)
         for o in range(wblocks.shape[0]):
             cols = wblocks[o].transpose(0, 2, 1).reshape(-1, 4)  # [IB*4 columns, 4 rows]
-            self.rows.append(np.concatenate([bias[o][None], cols], 0))
+            if self.fmt == "i8":
+                self.rows.append(np.rint(cols / np.where(scale[o] > 0, scale[o], 1.0)) + I8_OFFSET)
+            else:
+                self.rows.append(np.concatenate([bias[o][None], cols], 0))
         return row0
 
     def resource(self) -> TextureResource | None:
@@ -210,12 +247,10 @@ class WeightTexture:
         if width > cap or len(self.rows) > cap:
             layers = ", ".join(self.nodes)
             raise LimitError(f"node(s) {layers}: the dense weight texture needs {width}x{len(self.rows)} texels "
-                             f"(1 + 4 per input block wide, a row per output block); {name} is {cap} "
-                             f"({source(limits, name)}); use storage 'inline' or 'ubo' for some layers")
-        data = np.zeros((len(self.rows), width, 4), np.float32)
+                             f"({self.bias_texels} + 4 per input block wide, a row per output block); {name} is "
+                             f"{cap} ({source(limits, name)}); use storage 'inline' or 'ubo' for some layers")
+        dtype = {"f4": np.float32, "f2": np.float16, "i8": np.uint8}[self.fmt]
+        data = np.full((len(self.rows), width, 4), I8_OFFSET if self.fmt == "i8" else 0, dtype)
         for y, r in enumerate(self.rows):
             data[y, : len(r)] = r
-        fmt = self.ctx.option("dense", "texture_format")
-        if fmt == "f2":
-            data = data.astype(np.float16)
-        return TextureResource(self.name, data, fmt, "nearest")
+        return TextureResource(self.name, data, "f1" if self.fmt == "i8" else self.fmt, "nearest")

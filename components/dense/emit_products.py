@@ -91,13 +91,39 @@ def texture_exprs(t: str, row: str):
     return bias, weight
 
 
+def i8_weight_expr(t: str, row: str, scales: ir.Expr):
+    """Weight-block expression of an i8 layer whose code rows start at ``row`` in texture t: each column
+    (round(texel * 255) - 128) * the output rows' scales, the float32 values the bundle holds."""
+    def weight(o: ir.Int, i: ir.Int):
+        r, c, s = f"{row} + {o.text}", f"4 * {i.text}", ir.Index(scales, o)
+
+        def column(k):
+            code = ir.Call("floor", (ir.Bin("+", ir.Bin("*", ir.Fetch(t, ir.Int(f"{c} + {k}"), ir.Int(r)),
+                                                        ir.Lit(255.0)), ir.Lit(0.5)),))
+            return ir.Bin("*", ir.Paren(ir.Bin("-", code, ir.Lit(float(emit_plan.I8_OFFSET)))), s)
+        return ir.Mat4(tuple(column(k) for k in range(4)))
+    return weight
+
+
+# what a layer at a precision below f32 keeps, by storage (a texture stores the precision's bytes)
+PRECISION_NOTES = {"f16": {"texture": "float16 rows (RGBA16F)", "other": "float16 values, held as float32 here"},
+                   "i8": {"texture": "int8 codes (RGBA8) with row scales and biases as literals",
+                          "other": "int8 codes x row scales, held as float32 here"}}
+
+
 def dense_row(ctx, node, weight, bias, mode: str, why: str) -> PlanRow:
     """A dense layer's plan row; a texture layer's fetches and bytes filled in."""
+    precision = node.params.get("precision", "f32")
+    if precision in PRECISION_NOTES:
+        notes = PRECISION_NOTES[precision]
+        why += f"; precision {precision}: {notes['texture' if mode == 'texture' else 'other']}"
     row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
                   params=weight.size + (0 if bias is None else bias.size),
                   flops=2 * node.in_dim * node.out_dim + (node.out_dim if bias is not None else 0))
     if mode == "texture":
         ob, ib = blocks(node.out_dim), blocks(node.in_dim)
-        row.fetches = ob * (1 + 4 * ib)
-        row.texture_bytes = ob * (1 + 4 * ib) * 16 // (2 if ctx.option("dense", "texture_format") == "f2" else 1)
+        fmt = emit_plan.weight_format(ctx, node)
+        texels = ob * ((0 if fmt == "i8" else 1) + 4 * ib)
+        row.fetches = texels
+        row.texture_bytes = texels * {"f4": 16, "f2": 8, "i8": 4}[fmt]
     return row

@@ -4,12 +4,25 @@ from __future__ import annotations
 from inshade.components.spec import MAX_WIDTH, ComponentSpec, Param, TensorSpec, pos_int, register
 
 
+PRECISIONS = ("f32", "f16", "i8")   # inshade/quantize.py: what each stores and how it decodes
+
+
+def _tensors(p, d) -> dict:
+    """f16: weights and biases float16 values; i8: each weight row int8 codes times its weight_scale."""
+    half = "float16" if p["precision"] == "f16" else None
+    scaled = p["precision"] == "i8"
+    return {"weight": TensorSpec((p["out"], d), "float32", half, scaled_by="weight_scale" if scaled else None),
+            **({"bias": TensorSpec((p["out"],), "float32", half)} if p["bias"] else {}),
+            **({"weight_scale": TensorSpec((p["out"],), "float32")} if scaled else {})}
+
+
 register(ComponentSpec(
     "dense", "y = W x + b, W stored [out, in] like torch.nn.Linear",
-    {"out": Param(int, check=pos_int(MAX_WIDTH)), "bias": Param(bool, True)},
+    {"out": Param(int, check=pos_int(MAX_WIDTH)), "bias": Param(bool, True),
+     "precision": Param(str, "f32", lambda v: v in PRECISIONS,
+                        doc="weight storage: f32, f16 (biases too) or i8 (per output row, scale weight_scale)")},
     out_dim=lambda p, d: p["out"],
-    tensors=lambda p, d: {"weight": TensorSpec((p["out"], d), "float32"),
-                          **({"bias": TensorSpec((p["out"],), "float32")} if p["bias"] else {})},
+    tensors=_tensors,
     in_dim=lambda p, d: 1 <= d <= MAX_WIDTH,
     category="layer",
 ))

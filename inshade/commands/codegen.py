@@ -12,6 +12,7 @@ from .common import STDOUT, UserError, asset_networks, check_output, count, reso
 
 def add_parser(sub) -> None:
     from inshade.codegen import FILTERS, STORAGE_MODES, TARGETS
+    from inshade.quantize import PRECISIONS
     from inshade.engines import ENGINES
 
     p = sub.add_parser("codegen", help="bundle -> GLSL (prints the plan report)",
@@ -48,6 +49,11 @@ def add_parser(sub) -> None:
                         "max |code - source| under the 1e-5 rule (exit 1 when it fails)")
     p.add_argument("--lut-filter", choices=FILTERS, default="exact", help="lookup array filtering path")
     p.add_argument("--texture-format", choices=("f4", "f2"), default="f4", help="weight texture texel format")
+    p.add_argument("--precision", choices=PRECISIONS,
+                   help="store the dense weights at this precision (default: the bundle's own): f16 (half the "
+                        "bytes of a weight texture) or i8 (a quarter: int8 codes times a scale per output row); "
+                        "--check then holds the code to the quantized network's twin and prints the "
+                        "quantization's own error beside it")
     p.add_argument("--calls", type=count, default=1, metavar="N",
                    help="how many times your shader evaluates the function per pixel (e.g. a march's steps): on "
                         "a driver that caps a pixel's loop iterations (llvmpipe) the dense loops unroll to fit")
@@ -220,6 +226,7 @@ def _codegen_program(args, src: Path) -> int:
 
 
 def _codegen(args, b, prefix, output) -> int:
+    """The network's code for --target, its plan, --check, and with -o the files."""
     from inshade.codegen import generate
     from inshade.codegen.targets import target as find_target
     from inshade.shaders import flatten
@@ -228,6 +235,11 @@ def _codegen(args, b, prefix, output) -> int:
         return _shadertoy(args, b, output)
     if args.engine is not None:
         return _engine(args, b, output)
+    fp32 = b
+    if args.precision is not None:
+        from inshade.quantize import quantized
+
+        b = quantized(b, args.precision)
     opengl = find_target(args.target).opengl
     if args.no_gl or not opengl:   # beyond OpenGL: the target API's own limits (codegen/targets.py)
         limits = {}
@@ -249,7 +261,7 @@ def _codegen(args, b, prefix, output) -> int:
     print(gen.plan.report())
     if opengl:
         _say_compile_cost(limits, gen)
-    if args.check and not _check(b, gen, args.target):
+    if args.check and not _check(b, gen, args.target, fp32):
         return 1
     if output is None:
         return 0
@@ -289,13 +301,20 @@ def _span(b):
     return np.stack([np.full(b.in_dim, -1.0), np.full(b.in_dim, 1.0)]).astype(np.float32)
 
 
-def _check(b, gen, target: str) -> bool:
-    """--check: the generated code on its target's driver against the bundle's torch twin."""
-    from inshade.convert.check import check, check_inputs
+def _check(b, gen, target: str, fp32=None) -> bool:
+    """--check: the generated code on its target's driver against the bundle's torch twin; a bundle
+    quantized here (``fp32``: the one it came from) has its twin's distance from the fp32 one printed too."""
+    from inshade.convert.check import check, check_inputs, per_input
+    from inshade.convert.precision import quantization
     from inshade.models import GraphModule
+    from inshade.quantize import QUANTIZED_TYPES
 
-    result = check(GraphModule.from_bundle(b), b, check_inputs(_span(b)), generated=gen, target=target)
+    x = check_inputs(_span(b))
+    result = check(GraphModule.from_bundle(b), b, x, generated=gen, target=target)
     print(f"{result.line()} ({result.rows} rows, {result.gl_renderer})")
+    if fp32 is not None and fp32 is not b:
+        precision = ", ".join(sorted({n.params["precision"] for n in b.nodes if n.type in QUANTIZED_TYPES}))
+        print(quantization(GraphModule.from_bundle(fp32), b, fp32, per_input(b, x), precision, "fp32 twin").line())
     return result.ok
 
 

@@ -37,6 +37,7 @@ class CheckResult:
     source_f64: float | None = None   # max |source - f64| / max(1, |f64|): fp32's own distance
     f64_missing: str = ""             # why there is no float64 answer, when there is none
     language: str = "glsl"            # the shading language checked (its printer's name)
+    reference: str = "source"         # what it is checked against: the source, or a quantized network's twin
 
     @property
     def conditioned(self) -> bool:
@@ -50,13 +51,14 @@ class CheckResult:
 
     def line(self) -> str:
         verdict = "ok" if self.ok else f"FAILED at row {self.worst[0]}, output lane {self.worst[1]}"
-        head = f"max |{self.language} - source| = {self.max_scaled:.2g}"
+        head = f"max |{self.language} - {self.reference}| = {self.max_scaled:.2g}"
         if self.max_scaled <= self.rule:
             return f"{head} (rule {self.rule:g}): {verdict}"
         if self.glsl_f64 is None:
             why = f"; no float64 answer ({self.f64_missing})" if self.f64_missing else ""
             return f"{head} (rule {self.rule:g}{why}): {verdict}"
-        return (f"{head}; |{self.language} - f64| = {self.glsl_f64:.2g} vs |source - f64| = {self.source_f64:.2g} (rule "
+        return (f"{head}; |{self.language} - f64| = {self.glsl_f64:.2g} vs |{self.reference} - f64| = "
+                f"{self.source_f64:.2g} (rule "
                 f"{self.rule:g}, or within {CONDITIONING:g}x of the source's own fp32 error): "
                 f"{verdict + ' (conditioning)' if self.ok else verdict}")
 

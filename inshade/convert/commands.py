@@ -17,6 +17,7 @@ TCNN_PARTS = ("  encodings: Grid, HashGrid, DenseGrid (Hash and Dense storage, 2
 def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     from inshade.codegen import FILTERS, STORAGE_MODES
     from inshade.codegen.targets import TARGETS
+    from inshade.quantize import PRECISIONS
 
     compute_targets = [name for name, t in TARGETS.items() if not t.opengl]
 
@@ -65,6 +66,13 @@ def add_parsers(sub, formatter=argparse.HelpFormatter) -> None:
     p.add_argument("--target", action="append", choices=compute_targets, default=[], dest="targets",
                    help="also check the code in this shading language on its driver (wgpu on this machine's Vulkan "
                         "device), against the source; repeatable")
+    p.add_argument("--precision", choices=PRECISIONS, default="f32",
+                   help="store the dense weights at this precision: f16 (half the bytes) or i8 (a quarter: int8 "
+                        "codes times a scale per output row); the code is checked against the quantized network's "
+                        "twin and the twin's distance from the source is printed beside it")
+    p.add_argument("--max-error", type=float, metavar="E",
+                   help="instead of --precision: the cheapest precision per dense layer (i8, f16, else f32) whose "
+                        "network stays within E of the source on the check's inputs; the choice is printed")
     p.add_argument("--no-check", action="store_true", help="write without running the GLSL against the source")
     p.add_argument("--force", action="store_true", help="write into a folder that already holds files")
     p.add_argument("--ops", action="store_true", help="list the operations each source lowers, and exit")
@@ -113,7 +121,8 @@ def cmd_convert(args) -> int:
             raise ConvertError(f"--semantic {item!r}: expected PORT=SEMANTIC, e.g. rgb=srgb")
         semantics[port] = semantic
     common = dict(name=args.name, as_=args.as_, check=not args.no_check, force=args.force, quiet=args.quiet,
-                  example=example, semantics=semantics, colour=args.colour, targets=args.targets)
+                  example=example, semantics=semantics, colour=args.colour, targets=args.targets,
+                  precision=args.precision, max_error=args.max_error)
     if kind == "tiny-cuda-nn":
         if args.params is None:
             raise ConvertError(f"{source}: a tiny-cuda-nn config needs its PARAMS file too: "
@@ -154,7 +163,8 @@ def _convert_asset(module: str, source: Path, args) -> int:
 
     given = [o for o, v in (("PARAMS", args.params), ("--inputs", args.inputs), ("--outputs", args.outputs),
                             ("--params-key", args.params_key), ("--as", args.as_), ("--example", args.example),
-                            ("--semantic", args.semantic), ("--name", args.name)) if v]
+                            ("--semantic", args.semantic), ("--name", args.name),
+                            ("--precision", args.precision != "f32"), ("--max-error", args.max_error)) if v]
     if given:
         raise ConvertError(f"{source}: {given[0]} does not apply to a {source.suffix} file (it converts to a whole asset)")
     if args.output is None:

@@ -10,6 +10,7 @@ GL driver before anything is written; an ONNX file goes the same way (``convert_
 """
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -26,7 +27,7 @@ KIND = "imported"   # the kind of a user's own network (techniques/imported draw
 def export(module, example_input, folder, *, name: str | None = None, input_names=None, output_names=None,
            check: bool = True, as_: str | None = None, force: bool = False, quiet: bool = False,
            limits: dict | None = None, check_storage: str = "auto", semantics: dict | None = None,
-           colour: str | None = None, targets=()):
+           colour: str | None = None, targets=(), precision: str | dict = "f32", max_error: float | None = None):
     """Capture ``module`` on ``example_input`` (a [batch, features] tensor, or a tuple of them, one
     per input; an input of higher rank, e.g. [1, N, F] or [H, W, F], takes its leading axes as the
     batch, and `inshade eval` then takes and gives arrays of that rank), lower it onto bundle components, check its GLSL against the module through the GL
@@ -42,7 +43,11 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     shown colour is; a network fitted to image pixels (PNG, PIL, skimage.data: sRGB-encoded) is "srgb".
     Not given, it is taken as linear, with a warning. ``targets``: shading languages beside OpenGL's
     GLSL whose code is checked too, each on its own driver (``"wgsl"``, ``"vulkan"``, ``"hlsl"``,
-    ``"slang"``: codegen.targets); the bundle is written only if every check holds.
+    ``"slang"``: codegen.targets); the bundle is written only if every check holds. ``precision``: how
+    the dense weights are stored ("f32", "f16", "i8", or {node id: precision}; inshade/quantize.py): the
+    shader is checked against the quantized network's twin and the twin's distance from the module is
+    reported beside it; ``max_error``: instead, the cheapest precision per layer whose twin stays within
+    this of the module on the example (convert/precision.py).
     Returns the saved ``Bundle``. Raises ``ConvertError`` (one line) for what cannot be lowered."""
     import torch
 
@@ -96,17 +101,20 @@ def export(module, example_input, folder, *, name: str | None = None, input_name
     bundle = lowering.bundle(KIND, name or folder.name, provenance)
     source = module if lead == 1 else LeadingAxes(module, lead)
     return finish(bundle, source, [r.numpy() for r in rows], folder, check=check, quiet=quiet, limits=limits, as_=as_,
-                  check_storage=check_storage, semantics=semantics, colour=colour, targets=targets)
+                  check_storage=check_storage, semantics=semantics, colour=colour, targets=targets,
+                  precision=precision, max_error=max_error)
 
 
 def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, limits=None,
            as_: str | None = None, check_storage: str = "auto", semantics: dict | None = None,
-           colour: str | None = None, targets=()):
-    """Plan the GLSL once against ``limits`` (default: the driver's), check it (through the GL driver,
-    against ``source``) and the code of each of ``targets`` (on its driver, planned against its API's
-    limits), record the checks, make the bundle what ``as_`` (and ``colour``, for an image)
-    says, write it (and its scene.json for 3D) into ``folder``, which the caller claimed before any
-    work. Returns the written bundle."""
+           colour: str | None = None, targets=(), precision: str | dict = "f32", max_error: float | None = None):
+    """Store the dense weights at ``precision`` (or, ``max_error``, the cheapest per layer within it),
+    plan the GLSL once against ``limits`` (default: the driver's), check it (through the GL driver,
+    against ``source``, or against the quantized network's twin with the quantization reported) and
+    the code of each of ``targets`` (on its driver, planned against its API's limits), record the
+    checks, make the bundle what ``as_`` (and ``colour``, for an image) says, write it (and its
+    scene.json for 3D) into ``folder``, which the caller claimed before any work. Returns the written
+    bundle."""
     import json
 
     from inshade.codegen import generate
@@ -117,6 +125,10 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, 
     from .check_storage import quick_storage
 
     check_colour(as_, colour)
+    flat = np.concatenate([np.asarray(e, np.float32).reshape(len(e), -1) for e in examples], 1)
+    fp32_bundle, shapes, checked = bundle, [np.shape(e)[1:] for e in examples], source
+    if max_error is not None or precision != "f32":   # the shader is checked against the quantized twin
+        bundle, checked = _quantized(bundle, source, flat, shapes, precision, max_error, quiet)
     if limits is None and check:
         from inshade.runtime.context import gl_info, shared_context
 
@@ -132,29 +144,31 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, 
                 generated = generate(bundle, storage=storage, limits=limits)
         except ValueError as exc:   # LimitError: a grid or a layer past the limits
             raise ConvertError(f"the generated GLSL does not fit the GL limits: {exc}") from None
-    flat = np.concatenate([np.asarray(e, np.float32).reshape(len(e), -1) for e in examples], 1)
     if check:
         check_storage, generated, why = quick_storage(bundle, check_storage, limits, generated)
         if why and not quiet:
             print(why, file=sys.stderr)
-        shapes = [np.shape(e)[1:] for e in examples]
         x = check_inputs(flat)
         left_out = len(flat) - len(finite_rows(flat))
         if left_out and not quiet:
             print(f"example: {left_out} of {len(flat)} rows hold NaN or infinities; left out of the check (the "
                   "random rows span the finite ones)", file=sys.stderr)
         try:
-            result = run_check(source, bundle, x, shapes=shapes, limits=limits, storage=check_storage,
+            result = run_check(checked, bundle, x, shapes=shapes, limits=limits, storage=check_storage,
                                generated=generated)
         except ValueError as exc:
             raise ConvertError(f"the generated GLSL cannot run here: {exc}") from None
+        if bundle is not fp32_bundle:
+            result = dataclasses.replace(result, reference="twin")
         if not quiet:
             print(result.line(), file=sys.stderr)
         if not result.ok:
             raise ConvertError(f"{result.line()}; nothing written (check=False / --no-check writes it anyway)")
         bundle.meta["provenance"]["check"] = {**result.record(), "example_rows_left_out": left_out}
+        if bundle is not fp32_bundle:
+            _record_quantization(bundle, fp32_bundle, source, x, shapes, quiet)
         if targets:
-            bundle.meta["provenance"]["check"]["targets"] = _check_targets(source, bundle, x, shapes, targets, quiet)
+            bundle.meta["provenance"]["check"]["targets"] = _check_targets(checked, bundle, x, shapes, targets, quiet)
     scene = None
     if as_ is not None:
         bundle, scene = apply_shown_as(bundle, as_, flat, colour)
@@ -169,12 +183,53 @@ def finish(bundle, source, examples, folder: Path, *, check: bool, quiet: bool, 
     return bundle
 
 
+def _parts(bundle, x, shapes) -> list[np.ndarray]:
+    from .check import per_input
+
+    return [p.reshape(len(p), *shape) for p, shape in zip(per_input(bundle, x), shapes)]
+
+
+def _quantized(bundle, source, flat, shapes, precision, max_error, quiet: bool):
+    """(the bundle at its precision, what the shader is checked against: its twin); with
+    ``max_error`` the precision per layer is chosen on the check's inputs and the choice printed."""
+    from inshade.quantize import quantized
+
+    from .check import check_inputs
+    from .precision import choose, describe, twin
+
+    if max_error is not None:
+        try:
+            precision, lines = choose(bundle, source, _parts(bundle, check_inputs(flat), shapes), float(max_error))
+        except ValueError as exc:
+            raise ConvertError(str(exc)) from None
+        if not quiet:
+            print("\n".join(["precision per layer:", *(f"  {line}" for line in lines)]), file=sys.stderr)
+    try:
+        out = quantized(bundle, precision)
+    except ValueError as exc:
+        raise ConvertError(f"precision: {exc}") from None
+    out.meta["provenance"]["precision"] = {"requested": describe(precision),
+                                           **({"max_error": float(max_error)} if max_error is not None else {})}
+    return out, twin(out)
+
+
+def _record_quantization(bundle, fp32_bundle, source, x, shapes, quiet: bool) -> None:
+    from .precision import quantization
+
+    q = quantization(source, bundle, fp32_bundle, _parts(bundle, x, shapes),
+                     bundle.meta["provenance"]["precision"]["requested"])
+    if not quiet:
+        print(q.line(), file=sys.stderr)
+    bundle.meta["provenance"]["precision"].update(q.record())
+
+
 def convert_onnx(source, folder, *, name: str | None = None, as_: str | None = None, check: bool = True,
             force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None,
-            colour: str | None = None, targets=()):
-    """An ONNX file (or ModelProto) -> a bundle folder, its GLSL (and the code of each of ``targets``, as
-    ``export``) checked against onnxruntime on ``example`` ([N, in_dim] rows, or one input's whole
-    tensor; default uniform [-1, 1]) plus random rows in its range."""
+            colour: str | None = None, targets=(), precision: str | dict = "f32", max_error: float | None = None):
+    """An ONNX file (or ModelProto) -> a bundle folder (its dense weights at ``precision``, or within
+    ``max_error``, as ``export``), its GLSL (and the code of each of ``targets``) checked against
+    onnxruntime on ``example`` ([N, in_dim] rows, or one input's whole tensor; default uniform [-1, 1])
+    plus random rows in its range."""
     from inshade import asset_folder
     from inshade.port_layout import LayoutError, port_shape, to_rows
 
@@ -197,7 +252,7 @@ def convert_onnx(source, folder, *, name: str | None = None, as_: str | None = N
     bounds = np.cumsum([0, *(p.dim for p in bundle.inputs)])
     parts = [example[:, a:b] for a, b in zip(bounds[:-1], bounds[1:])]
     return finish(bundle, model, parts, folder, check=check, quiet=quiet, as_=as_, semantics=semantics,
-                  colour=colour, targets=targets)
+                  colour=colour, targets=targets, precision=precision, max_error=max_error)
 
 
 def _check_targets(source, bundle, x, shapes, targets, quiet: bool) -> dict:
@@ -214,6 +269,8 @@ def _check_targets(source, bundle, x, shapes, targets, quiet: bool) -> dict:
                 raise ValueError(f"{name} is OpenGL's GLSL, which is always checked; targets are the other "
                                  "shading languages")
             result = run_check(source, bundle, x, shapes=shapes, target=name)
+            if "precision" in bundle.meta["provenance"]:   # checked against the quantized network's twin
+                result = dataclasses.replace(result, reference="twin")
         except (TargetError, ValueError, RuntimeError) as exc:
             raise ConvertError(f"target {name}: {exc}") from None
         if not quiet:

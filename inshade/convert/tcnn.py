@@ -236,9 +236,10 @@ def to_bundle(config, params: np.ndarray, dtype: str, *, source: str = "config",
 def convert(config_path, params_path, folder, *, n_input_dims: int | None = None, n_output_dims: int | None = None,
             params_key: str | None = None, name: str | None = None, as_: str | None = None, check: bool = True,
             force: bool = False, quiet: bool = False, example=None, semantics: dict | None = None,
-            colour: str | None = None, targets=()):
-    """A tiny-cuda-nn config (.json) and its parameter file -> a bundle folder, its GLSL (and each of
-    ``targets``' code, as ``inshade.export``) checked
+            colour: str | None = None, targets=(), precision: str | dict = "f32", max_error: float | None = None):
+    """A tiny-cuda-nn config (.json) and its parameter file -> a bundle folder (its dense weights at
+    ``precision``, or within ``max_error``, as ``inshade.export``), its GLSL (and each of ``targets``' code)
+    checked
     against the bundle's torch twin on ``example`` ([N, inputs], default uniform [0, 1]) plus
     random rows in its range."""
     from inshade import asset_folder
@@ -274,4 +275,5 @@ def convert(config_path, params_path, folder, *, n_input_dims: int | None = None
     if check and not quiet:
         print(TWIN_NOTE, file=sys.stderr)
     return finish(bundle, GraphModule.from_bundle(bundle), [example], folder, check=check, quiet=quiet,
-                  as_=as_, semantics=semantics, colour=colour, targets=targets)
+                  as_=as_, semantics=semantics, colour=colour, targets=targets, precision=precision,
+                  max_error=max_error)

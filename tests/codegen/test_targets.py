@@ -51,6 +51,20 @@ def test_random_mlp_parity(target, storage, data):
 
 
 @pytest.mark.parametrize("target", TARGETS)
+@pytest.mark.parametrize("precision", ["f16", "i8"])
+def test_stored_precisions_on_every_target(target, precision):
+    """Dense weights at f16 and i8 (inshade/quantize.py) in every storage, against the quantized twin."""
+    from inshade.quantize import quantized
+
+    spec = MLPSpec([3, 2], [21, 13], [("relu", {}), ("tanh", {})], 6, None, 0, [True, False, True], seed=11)
+    bundle = quantized(build_mlp(spec).export("mlp"), precision)
+    x = spec_inputs(spec, 200)
+    for storage in STORAGES:
+        out = evaluate(generate(bundle, target=target, storage=storage), x, target)
+        assert_parity(out, torch_reference(bundle, x), what=f"{target} {storage} {precision}")
+
+
+@pytest.mark.parametrize("target", TARGETS)
 @parity_settings(max_examples=12)
 @given(act=activation_specs())
 def test_every_activation_on_every_target(target, act):

@@ -1,0 +1,99 @@
+"""Weight precisions: how a layer's numbers are stored where the shader reads them, and the bundle
+that holds exactly the numbers the shader will compute with.
+
+- ``f32``: as trained.
+- ``f16``: weights and biases rounded to float16 (RGBA16F texture rows): half the bytes.
+- ``i8``: each output row's weights as int8 codes in [-127, 127] times the row's float32 scale
+  (symmetric: scale = max |w| / 127), biases float32: a quarter of the bytes. The shader rebuilds
+  ``float(q) * scale``, one float32 product, as the bundle's float32 weight holds it.
+
+``quantized(bundle, precision)`` is that bundle: its float32 tensors are the dequantized values, so
+the torch twin computes what the shader computes and the parity rule holds against it; the error
+against the source is the quantization's own (``inshade.convert.check`` reports both).
+"""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+PRECISIONS = ("f32", "f16", "i8")
+I8_MAX = 127
+# the parameter kinds that take a precision (node type -> the tensors it rounds)
+QUANTIZED_TYPES = ("dense",)
+
+
+def row_scales(weight: np.ndarray) -> np.ndarray:
+    """float32 [out]: max |w| / 127 per row (1 for a row of zeros, whose codes are all 0)."""
+    peak = np.abs(np.asarray(weight, np.float32)).max(axis=1)
+    return np.where(peak > 0, peak / np.float32(I8_MAX), np.float32(1.0)).astype(np.float32)
+
+
+def i8_codes(weight: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """int8 [out, in]: the codes q with q * scale == weight (float32), or ValueError naming the first
+    weight that is not one."""
+    w, s = np.asarray(weight, np.float32), np.asarray(scale, np.float32)
+    if not (np.isfinite(s).all() and (s > 0).all()):
+        raise ValueError("every row's scale must be finite and > 0")
+    q = np.rint(w / s[:, None])
+    ok = (np.abs(q) <= I8_MAX) & ((q.astype(np.float32) * s[:, None]) == w)
+    if not ok.all():
+        o, i = (int(v) for v in np.argwhere(~ok)[0])
+        raise ValueError(f"value {float(w[o, i]):.9g} at [{o}, {i}] is not an int8 code in [-{I8_MAX}, {I8_MAX}] "
+                         f"times its row's scale {float(s[o]):.9g}")
+    return q.astype(np.int8)
+
+
+def _rounded(node_params: dict, tensors: dict, name, precision: str) -> None:
+    weight = np.asarray(tensors[name("weight")], np.float32)
+    if precision == "f16":
+        tensors[name("weight")] = weight.astype(np.float16).astype(np.float32)
+        if node_params.get("bias", True):
+            tensors[name("bias")] = np.asarray(tensors[name("bias")], np.float32).astype(np.float16).astype(np.float32)
+    elif precision == "i8":
+        scale = row_scales(weight)
+        q = np.clip(np.rint(weight / scale[:, None]), -I8_MAX, I8_MAX).astype(np.float32)
+        tensors[name("weight")] = (q * scale[:, None]).astype(np.float32)
+        tensors[name("weight_scale")] = scale
+    node_params["precision"] = precision
+
+
+def quantized(bundle, precision: str | dict, *, name: str | None = None):
+    """``bundle`` with its dense layers stored at ``precision`` (one of PRECISIONS, or {node id:
+    precision} for some layers): a new, validated Bundle whose weights are the values that precision
+    gives (a layer already at another precision is re-quantized from its current values)."""
+    from inshade.bundle import Bundle
+
+    per_node = precision if isinstance(precision, dict) else {
+        n.id: precision for n in bundle.nodes if n.type in QUANTIZED_TYPES}
+    bad = sorted(set(per_node.values()) - set(PRECISIONS))
+    if bad:
+        raise ValueError(f"precision {bad[0]!r}: choose from {', '.join(PRECISIONS)}")
+    meta = copy.deepcopy(bundle.meta)
+    tensors = dict(bundle.tensors)
+    by_id = {n["id"]: n for n in meta["nodes"]}
+    for node in bundle.nodes:
+        if node.id not in per_node:
+            continue
+        if node.type not in QUANTIZED_TYPES:
+            raise ValueError(f"node {node.id}: a {node.type} takes no precision (types that do: "
+                             f"{', '.join(QUANTIZED_TYPES)})")
+        params = by_id[node.id].setdefault("params", {})
+        tensors.pop(node.tensor_name("weight_scale"), None)
+        _rounded(params, tensors, node.tensor_name, per_node[node.id])
+    if name is not None:
+        meta["name"] = name
+    return Bundle(meta, tensors)
+
+
+def weight_bytes(bundle) -> int:
+    """Bytes of the dense layers' weights and biases at their precisions (the i8 scales counted)."""
+    total = 0
+    for n in bundle.nodes:
+        if n.type not in QUANTIZED_TYPES:
+            continue
+        p = n.params.get("precision", "f32")
+        w = bundle.tensor(n, "weight").size
+        b = bundle.tensor(n, "bias").size if n.params["bias"] else 0
+        total += {"f32": 4 * (w + b), "f16": 2 * (w + b), "i8": w + 4 * b + 4 * n.out_dim}[p]
+    return total

@@ -1,0 +1,130 @@
+"""Dense weights at f16 and i8 (inshade/quantize.py): the bundle holds the values the precision gives,
+the shader rebuilds exactly those from what it stores (float16 texture rows; int8 codes + 128 in an
+RGBA8 texture, times the row scales), so every storage stays under the parity rule against the
+quantized network's torch twin; the quantization's own error is reported beside it."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given
+from hypothesis import strategies as st
+
+import inshade
+from inshade.bundle import Bundle, BundleError
+from inshade.codegen import generate
+from inshade.convert.lowering import ConvertError
+from inshade.quantize import I8_MAX, i8_codes, quantized, weight_bytes
+
+from parity import (MLPSpec, assert_parity, build_mlp, glsl_eval, mlp_specs, parity_settings, spec_inputs,
+                    torch_reference)
+
+STORAGES = ("inline", "ubo", "texture")
+
+
+@pytest.mark.parametrize("storage", STORAGES)
+@pytest.mark.parametrize("precision", ["f16", "i8"])
+@parity_settings(max_examples=6)
+@given(data=st.data())
+def test_every_storage_holds_the_rule_against_the_quantized_twin(gl, precision, storage, data):
+    spec = data.draw(mlp_specs(max_width=48 if storage != "ubo" else 16, block_budget=120), label="spec")
+    bundle = quantized(build_mlp(spec).export("mlp"), precision)
+    x = spec_inputs(spec, 200)
+    out = glsl_eval(gl, bundle, x, storage=storage)
+    assert_parity(out, torch_reference(bundle, x), what=f"{precision} {storage} {spec}")
+
+
+def _mlp(seed: int = 0, widths=(2, 48, 48, 3)):
+    torch.manual_seed(seed)
+    layers = []
+    for a, b in zip(widths, widths[1:]):
+        layers += [torch.nn.Linear(a, b), torch.nn.ReLU()]
+    return torch.nn.Sequential(*layers[:-1], torch.nn.Sigmoid())
+
+
+def test_the_bundle_holds_what_each_precision_stores():
+    bundle = _export_bundle()
+    half, eight = quantized(bundle, "f16"), quantized(bundle, "i8")
+    for n in (n for n in half.nodes if n.type == "dense"):
+        w = half.tensor(n, "weight")
+        assert n.params["precision"] == "f16" and np.array_equal(w.astype(np.float16).astype(np.float32), w)
+    for n in (n for n in eight.nodes if n.type == "dense"):
+        w, s = eight.tensor(n, "weight"), eight.tensor(n, "weight_scale")
+        q = i8_codes(w, s)
+        assert np.abs(q).max() == I8_MAX   # symmetric: the row's largest weight takes the last code
+        assert np.array_equal(q.astype(np.float32) * s[:, None], w)
+    full = weight_bytes(bundle)
+    assert weight_bytes(half) == full // 2 and weight_bytes(eight) < full / 3   # biases and scales are float32
+
+
+def _export_bundle():
+    """An MLP bundle 2 -> 48 -> 48 -> 3 (dense nodes l0, l1, l2)."""
+    return build_mlp(MLPSpec([2], [48, 48], [("relu", {}), ("relu", {})], 3, ("sigmoid", {}), None,
+                             [True, True, True], seed=5)).export("mlp")
+
+
+def test_a_bundle_whose_numbers_are_not_its_precisions_is_refused():
+    bundle = quantized(_export_bundle(), "i8")
+    tensors = dict(bundle.tensors)
+    tensors["l0.weight"] = tensors["l0.weight"].copy()
+    tensors["l0.weight"][0, 0] *= 1.001
+    with pytest.raises(BundleError, match=r"l0.weight: value .* is not an int8 code in \[-127, 127\] times its "
+                                          r"row's scale .* \(the node's precision i8\)"):
+        Bundle(bundle.meta, tensors)
+    half = quantized(_export_bundle(), "f16")
+    tensors = dict(half.tensors)
+    tensors["l1.bias"] = tensors["l1.bias"] + np.float32(1e-6)
+    with pytest.raises(BundleError, match="l1.bias: value .* is not representable as float16"):
+        Bundle(half.meta, tensors)
+    with pytest.raises(ValueError, match="precision 'f8': choose from f32, f16, i8"):
+        quantized(bundle, "f8")
+
+
+def test_the_weight_texture_stores_the_precisions_bytes():
+    bundle = _export_bundle()
+    sizes = {p: sum(r.texture_bytes for r in generate(quantized(bundle, p), storage="texture").plan.rows)
+             for p in ("f32", "f16", "i8")}
+    assert sizes["f16"] == sizes["f32"] // 2
+    assert sizes["i8"] < sizes["f32"] // 4 + 64   # codes only: the biases and scales are literals
+    i8 = generate(quantized(bundle, "i8"), storage="texture")
+    assert [(r.name, r.dtype) for r in i8.resources] == [("net_weights_i8", "f1")]
+    assert "precision i8: int8 codes" in i8.plan.report()
+
+
+def test_export_checks_the_twin_and_reports_the_quantization(tmp_path, capsys):
+    saved = inshade.export(_mlp(), torch.rand(64, 2), tmp_path / "half", precision="f16")
+    err = capsys.readouterr().err
+    assert "max |glsl - twin| = " in err and "(rule 1e-05): ok" in err
+    assert "quantization (f16, dense weights " in err and "max |twin - source| = " in err
+    assert " dB on the example" in err
+    record = saved.meta["provenance"]["precision"]
+    assert record["requested"] == "f16" and record["bytes"] * 2 == record["fp32_bytes"] and record["psnr"] > 40
+    with pytest.raises(ConvertError, match="precision: precision 'f7': choose from f32, f16, i8"):
+        inshade.export(_mlp(), torch.rand(64, 2), tmp_path / "bad", precision="f7", quiet=True)
+
+
+def test_max_error_picks_a_precision_per_layer_and_says_why(tmp_path, capsys):
+    """A network whose middle layer has one weight far out of its rows' range: int8 codes flatten the
+    rest of that row, so that layer keeps more bits while the others go to i8."""
+    module = _mlp(3, (2, 32, 32, 32, 3))
+    with torch.no_grad():
+        module[2].weight[:, 0] = 6.0   # every row of the middle layer: one large weight, the rest small
+    x = torch.rand(256, 2)
+    bound = 2e-3
+    saved = inshade.export(module, x, tmp_path / "mixed", max_error=bound)
+    err = capsys.readouterr().err
+    chosen = {n.id: n.params["precision"] for n in saved.nodes if n.type == "dense"}
+    assert len(set(chosen.values())) > 1, (chosen, err)
+    assert "precision per layer:" in err and f"bound {bound:g}" in err
+    assert saved.meta["provenance"]["precision"]["max_abs"] <= bound
+
+
+def test_codegen_precision_checks_the_code_and_reports_the_quantization(tmp_path, capsys):
+    from inshade import cli
+
+    _export_bundle().save(tmp_path / "mlp")
+    assert cli.main(["codegen", str(tmp_path / "mlp"), "--precision", "i8", "--storage", "texture", "--check",
+                     "-o", str(tmp_path / "net.glsl")]) == 0
+    out = capsys.readouterr().out
+    assert "precision i8: int8 codes (RGBA8)" in out and "(rule 1e-05): ok" in out
+    assert "quantization (i8, dense weights " in out and "max |twin - fp32 twin| = " in out
