@@ -20,6 +20,8 @@ SHARED = {
                                  "load time, frame time, PSNR vs inshade render"),
     "startup": ("inshade.bench.startup", "every shipped asset's first picture in a fresh process, cold and warm, "
                                          "per weight storage"),
+    "precision": ("inshade.bench.precision", "every shipped asset's dense weights at f16 and i8: bytes, the twin's "
+                                             "error, the render against f32"),
     "suite": ("inshade.bench.suite", "every bench, sized by --preset cpu|device, and a one-page summary "
                                      "against the papers (docs/bench/<renderer>/)"),
 }

@@ -15,6 +15,7 @@ import numpy as np
 from . import registry
 
 MAX_WIDTH = 4096          # widest layer a bundle may declare
+I8_MAX = 127              # int8 weight codes are symmetric: [-127, 127] (inshade/quantize.py)
 
 
 class ComponentError(ValueError):
@@ -124,3 +125,18 @@ def check_node(node_type: str, params: dict, in_dim: int) -> int:
     if spec.extra_checks is not None:
         spec.extra_checks(params, in_dim)
     return spec.out_dim(params, in_dim)
+
+
+def i8_codes(weight: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """int8 [out, in]: the codes q with q * scale == weight (float32), or ValueError naming the first
+    weight that is not one."""
+    w, s = np.asarray(weight, np.float32), np.asarray(scale, np.float32)
+    if not (np.isfinite(s).all() and (s > 0).all()):
+        raise ValueError("every row's scale must be finite and > 0")
+    q = np.rint(w / s[:, None])
+    ok = (np.abs(q) <= I8_MAX) & ((q.astype(np.float32) * s[:, None]) == w)
+    if not ok.all():
+        o, i = (int(v) for v in np.argwhere(~ok)[0])
+        raise ValueError(f"value {float(w[o, i]):.9g} at [{o}, {i}] is not an int8 code in [-{I8_MAX}, {I8_MAX}] "
+                         f"times its row's scale {float(s[o]):.9g}")
+    return q.astype(np.int8)

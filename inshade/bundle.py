@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from .components import COMPONENTS, ComponentError, check_node, resolve_params
+from .components.spec import i8_codes
 from .port_layout import check_shape
-from .quantize import i8_codes
 
 FORMAT = "inshade.bundle"
 VERSION = 1

@@ -9,7 +9,9 @@ that holds exactly the numbers the shader will compute with.
 
 ``quantized(bundle, precision)`` is that bundle: its float32 tensors are the dequantized values, so
 the torch twin computes what the shader computes and the parity rule holds against it; the error
-against the source is the quantization's own (``inshade.convert.check`` reports both).
+against the source is the quantization's own (``inshade.convert.check`` reports both). The tables of
+components with a ``precision`` parameter of their own (hash and dense grids, latent pyramids, sparse
+voxels, mesh features) go to float16 under f16 and i8 alike (their 8-bit forms are their own).
 """
 from __future__ import annotations
 
@@ -17,8 +19,12 @@ import copy
 
 import numpy as np
 
+from inshade.components.spec import I8_MAX, i8_codes   # the check of an i8 bundle's codes, beside the spec
+
+__all__ = ["I8_MAX", "PRECISIONS", "QUANTIZED_TYPES", "i8_codes", "quantized", "row_scales", "table_nodes",
+           "weight_bytes"]
+
 PRECISIONS = ("f32", "f16", "i8")
-I8_MAX = 127
 # the parameter kinds that take a precision (node type -> the tensors it rounds)
 QUANTIZED_TYPES = ("dense",)
 
@@ -27,21 +33,6 @@ def row_scales(weight: np.ndarray) -> np.ndarray:
     """float32 [out]: max |w| / 127 per row (1 for a row of zeros, whose codes are all 0)."""
     peak = np.abs(np.asarray(weight, np.float32)).max(axis=1)
     return np.where(peak > 0, peak / np.float32(I8_MAX), np.float32(1.0)).astype(np.float32)
-
-
-def i8_codes(weight: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """int8 [out, in]: the codes q with q * scale == weight (float32), or ValueError naming the first
-    weight that is not one."""
-    w, s = np.asarray(weight, np.float32), np.asarray(scale, np.float32)
-    if not (np.isfinite(s).all() and (s > 0).all()):
-        raise ValueError("every row's scale must be finite and > 0")
-    q = np.rint(w / s[:, None])
-    ok = (np.abs(q) <= I8_MAX) & ((q.astype(np.float32) * s[:, None]) == w)
-    if not ok.all():
-        o, i = (int(v) for v in np.argwhere(~ok)[0])
-        raise ValueError(f"value {float(w[o, i]):.9g} at [{o}, {i}] is not an int8 code in [-{I8_MAX}, {I8_MAX}] "
-                         f"times its row's scale {float(s[o]):.9g}")
-    return q.astype(np.int8)
 
 
 def _rounded(node_params: dict, tensors: dict, name, precision: str) -> None:
@@ -58,10 +49,36 @@ def _rounded(node_params: dict, tensors: dict, name, precision: str) -> None:
     node_params["precision"] = precision
 
 
+def _half_table(node, tensors: dict, params: dict) -> None:
+    """A table component at f32 stored at f16: its precision parameter, and the tensors that precision
+    declares float16 values rounded to them."""
+    from inshade.components import COMPONENTS
+
+    params["precision"] = "f16"
+    for slot, spec in COMPONENTS[node.type].tensors(params, node.in_dim).items():
+        if spec.representable == "float16":
+            name = node.tensor_name(slot)
+            tensors[name] = np.asarray(tensors[name], np.float32).astype(np.float16).astype(np.float32)
+
+
+def table_nodes(bundle) -> list:
+    """The nodes of other types than QUANTIZED_TYPES that store a table at f32 and have an f16 form."""
+    from inshade.components import COMPONENTS
+
+    out = []
+    for n in bundle.nodes:
+        param = COMPONENTS[n.type].params.get("precision")
+        if (n.type not in QUANTIZED_TYPES and param is not None and n.params.get("precision") == "f32"
+                and param.check is not None and param.check("f16")):
+            out.append(n)
+    return out
+
+
 def quantized(bundle, precision: str | dict, *, name: str | None = None):
     """``bundle`` with its dense layers stored at ``precision`` (one of PRECISIONS, or {node id:
-    precision} for some layers): a new, validated Bundle whose weights are the values that precision
-    gives (a layer already at another precision is re-quantized from its current values)."""
+    precision} for some layers) and, below f32, its f32 tables at f16: a new, validated Bundle whose
+    numbers are the values those precisions give (a layer already at another precision is re-quantized
+    from its current values)."""
     from inshade.bundle import Bundle
 
     per_node = precision if isinstance(precision, dict) else {
@@ -81,6 +98,10 @@ def quantized(bundle, precision: str | dict, *, name: str | None = None):
         params = by_id[node.id].setdefault("params", {})
         tensors.pop(node.tensor_name("weight_scale"), None)
         _rounded(params, tensors, node.tensor_name, per_node[node.id])
+    if set(per_node.values()) - {"f32"}:
+        for node in table_nodes(bundle):
+            _half_table(node, tensors, {**node.params, **by_id[node.id].setdefault("params", {})})
+            by_id[node.id]["params"]["precision"] = "f16"
     if name is not None:
         meta["name"] = name
     return Bundle(meta, tensors)

@@ -42,6 +42,7 @@ CORE = ("inshade.asset_folder", "inshade.bundle", "inshade.command", "inshade.co
         "inshade.envelope", "inshade.envelope_base",
         "inshade.extras", "inshade.files", "inshade.grid_layout", "inshade.json_header", "inshade.lit_settings",
         "inshade.metrics", "inshade.pixels", "inshade.port_layout", "inshade.progress", "inshade.provenance",
+        "inshade.quantize",
         "inshade.random", "inshade.sh")
 LAYER_RULES.update({m: (*SHARED, *REGISTRY, *APPS, *ABOVE_SHARED) for m in CORE})
 LAYER_RULES.update({m: (*[s for s in SHARED if s != "inshade.shaders"], *APPS, *ABOVE_SHARED) for m in REGISTRY})

@@ -141,5 +141,5 @@ BENCH = Bench(STEM, __doc__, Settings, run, cold_cache=True, quick=QUICK, quick_
     "cpu": sized(600, sizes="256,512", frames=2, max_frame_s=40, di_steps=1000, heldout_views=4, count_size=96,
                  eval_side=32),
     # the DI cascade trains on the machine's CPUs (~75 s of the budget)
-    "device": sized(100, sizes="512,1024", frames=8, di_steps=1000)})
+    "device": sized(90, sizes="512,1024", frames=8, di_steps=1000)})
 add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite

@@ -128,3 +128,30 @@ def test_codegen_precision_checks_the_code_and_reports_the_quantization(tmp_path
     out = capsys.readouterr().out
     assert "precision i8: int8 codes (RGBA8)" in out and "(rule 1e-05): ok" in out
     assert "quantization (i8, dense weights " in out and "max |twin - fp32 twin| = " in out
+
+
+def test_a_table_at_f32_goes_to_its_f16_form(gl):
+    """A hash grid stored at f32 (its own precision parameter): f16 and i8 both store it at f16, whose
+    numbers the shader reads as the twin does."""
+    import copy
+
+    from inshade.bundle import load
+    from inshade.scene.description import resolve_asset
+
+    shipped = load(resolve_asset("hash_grid_image"))
+    grid = next(n for n in shipped.nodes if n.type == "hash_grid")
+    meta = copy.deepcopy(shipped.meta)
+    next(n for n in meta["nodes"] if n["id"] == grid.id)["params"]["precision"] = "f32"
+    tensors = dict(shipped.tensors)
+    table = grid.tensor_name("table")
+    tensors[table] = tensors[table] + np.random.default_rng(0).uniform(-1e-4, 1e-4, tensors[table].shape).astype(
+        np.float32)   # float32 values float16 cannot hold
+    full = Bundle(meta, tensors)
+    for precision in ("f16", "i8"):
+        q = quantized(full, precision)
+        node = q.node(grid.id)
+        assert node.params["precision"] == "f16"
+        t = q.tensors[table]
+        assert np.array_equal(t.astype(np.float16).astype(np.float32), t) and not np.array_equal(t, tensors[table])
+        x = np.random.default_rng(1).uniform(0, 1, (256, q.in_dim)).astype(np.float32)
+        assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what=precision)

@@ -1,0 +1,211 @@
+"""`inshade bench precision`: what storing a network's dense weights at f16 or i8 saves and costs.
+
+Per shipped asset whose networks hold dense layers (or the ones named), each network quantized as
+``inshade.export(..., precision=P)`` stores it (inshade/quantize.py), P in f32 / f16 / i8:
+
+- bytes: every resource the generated code binds with the weights in textures (dense rows at the
+  precision's texel size, and the lookup arrays, grids and latents as the bundle keeps them), and the
+  dense weights alone;
+- the twin's error: max |twin(P) - twin(f32)| over the networks' outputs on random rows in [-1, 1]
+  (integer lanes: ids in [0, 1000));
+- the picture: ``inshade render`` at ``--size`` with the quantized networks against the f32 render
+  (PSNR of the 8-bit sRGB pictures, the weights in textures where the scene has the setting), and the
+  render's seconds in this process (programs compiled cold for each precision);
+- the web page: ``inshade export-web`` of the asset with its networks so stored, its folder's bytes.
+
+Writes ``precision.json``, ``precision.md`` and ``precision.png`` into ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from inshade.bench.contract import Bench, option, sized
+from inshade.bench.entry import Claim, claim_row
+from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_OUT = "bench-out/precision"
+PRECISIONS = ("f32", "f16", "i8")
+ROWS = 4096
+F16_RENDER_DB = 0.1   # the bar: an f16 render within this of the f32 one (PSNR against it: at least 50 dB)
+
+
+@dataclass
+class Settings:
+    assets: list[str] = option((), "asset folders (default: every shipped asset with dense layers)",
+                               positional="ASSET", nargs="*")
+    size: int = option(64, "render side in pixels")
+    out: str = option(DEFAULT_OUT, "output folder")
+    quick: bool = option(False, "one small asset (a smoke run)")
+
+
+def _inputs(bundle, rng) -> np.ndarray:
+    cols = [rng.integers(0, 1000, (ROWS, p.dim)).astype(np.float32) if p.dtype == "uint"
+            else rng.uniform(-1.0, 1.0, (ROWS, p.dim)).astype(np.float32) for p in bundle.inputs]
+    return np.concatenate(cols, 1)
+
+
+def _twin_error(fp32, quantized, x) -> float:
+    import torch
+
+    from inshade.models import GraphModule
+
+    with torch.no_grad():
+        a = GraphModule.from_bundle(fp32)(torch.from_numpy(x)).numpy()
+        b = GraphModule.from_bundle(quantized)(torch.from_numpy(x)).numpy()
+    return float(np.abs(a - b).max())
+
+
+def _gpu_bytes(bundle) -> int:
+    from inshade.codegen import generate
+    from inshade.codegen.glsl import TextureResource
+
+    gen = generate(bundle, storage="texture")
+    return int(sum(r.data.nbytes + sum(m.nbytes for m in r.mips) if isinstance(r, TextureResource) else r.nbytes
+                   for r in gen.resources))
+
+
+def _page_bytes(asset: Path, bundles, tmp: Path) -> int:
+    """Bytes of the page ``inshade export-web`` writes for a copy of ``asset`` holding ``bundles``."""
+    import shutil
+
+    from inshade.scene.description import load_scene
+    from inshade.web.export import export_web
+
+    copy = tmp / "asset"
+    shutil.rmtree(copy, ignore_errors=True)
+    shutil.copytree(asset, copy)
+    for n, b in zip(load_scene(copy).networks, bundles):
+        b.save(n.bundle)
+    export_web(copy, tmp / "page", force=True)
+    return sum(f.stat().st_size for f in (tmp / "page").rglob("*") if f.is_file())
+
+
+def measure_asset(asset: Path, size: int) -> dict | None:
+    from inshade.bundle import load
+    from inshade.quantize import QUANTIZED_TYPES, quantized, weight_bytes
+    from inshade.runtime.headless import render_scene
+    from inshade.scene.description import load_scene
+    from inshade.web.browser import psnr8, srgb8
+
+    scene = load_scene(asset)
+    fp32 = [load(n.bundle) for n in scene.networks]
+    if not any(n.type in QUANTIZED_TYPES for b in fp32 for n in b.nodes):
+        return None
+    settings = {"labels": False, **({"storage": "texture"} if "storage" in scene.settings else {})}
+    rng = np.random.default_rng(0)
+    xs = [_inputs(b, rng) for b in fp32]
+    row = {"asset": asset.name, "networks": len(fp32), "settings": settings, "bytes": {}, "dense_bytes": {},
+           "twin_max_abs": {}, "render_psnr": {}, "render_s": {}, "page_bytes": {}}
+    pictures = {}
+    for p in PRECISIONS:
+        bundles = [quantized(b, p) for b in fp32]
+        row["bytes"][p] = sum(_gpu_bytes(b) for b in bundles)
+        row["dense_bytes"][p] = sum(weight_bytes(b) for b in bundles)
+        row["twin_max_abs"][p] = max(_twin_error(a, b, x) for a, b, x in zip(fp32, bundles, xs))
+        start = time.perf_counter()
+        image, info = render_scene(scene, width=size, height=size, settings=settings, bundles=bundles)
+        row["render_s"][p] = time.perf_counter() - start
+        row["renderer"] = info.get("gl_renderer") or row.get("renderer")
+        pictures[p] = srgb8(image[..., :3])
+        row["render_psnr"][p] = psnr8(pictures[p], pictures["f32"])
+        with tempfile.TemporaryDirectory() as tmp:
+            row["page_bytes"][p] = _page_bytes(asset, bundles, Path(tmp))
+    print(f"{asset.name}: " + ", ".join(f"{p} {row['bytes'][p]} B, {row['render_psnr'][p]:.1f} dB"
+                                        for p in PRECISIONS[1:]), file=sys.stderr, flush=True)
+    return row
+
+
+def run(settings: Settings) -> int:
+    from inshade.runtime.context import gl_info, shared_context
+
+    assets = [Path(a) for a in settings.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir())
+    missing = [str(a) for a in assets if not a.is_dir()]
+    if missing:
+        raise BenchError(f"{missing[0]}: no such asset folder")
+    rows = [r for r in (measure_asset(a, settings.size) for a in assets) if r is not None]
+    report = {"benchmark": "precision", "machine": machine(gl_info(shared_context())), "size": settings.size,
+              "precisions": list(PRECISIONS), "assets": rows}
+    write_report(settings.out, "precision", report, markdown, plot)
+    return 0
+
+
+def _db(v: float) -> str:
+    return "identical" if v == float("inf") else f"{v:.1f}"
+
+
+def markdown(r: dict) -> str:
+    lines = ["# inshade bench precision", "", machine_markdown(r["machine"]), "",
+             f"Each shipped asset's networks with their dense weights at f16 and i8 (inshade/quantize.py), against "
+             f"f32: bytes of everything the code binds with the weights in textures (dense share in brackets), "
+             f"the twin's max error on {ROWS} random rows, and `inshade render` at {r['size']}^2 against the f32 "
+             "render (PSNR of the 8-bit pictures; `identical`: not one 8-bit value moved).", "",
+             "| asset | f32 bytes | f16 bytes | i8 bytes | f16 twin error | i8 twin error | f16 render | i8 render | "
+             "page f32 / f16 / i8 |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for a in r["assets"]:
+        b, d, e, q = a["bytes"], a["dense_bytes"], a["twin_max_abs"], a["render_psnr"]
+        lines.append(f"| {a['asset']} | {b['f32']} ({d['f32']}) | {b['f16']} ({d['f16']}) | {b['i8']} ({d['i8']}) | "
+                     f"{e['f16']:.2g} | {e['i8']:.2g} | {_db(q['f16'])} dB | {_db(q['i8'])} dB | "
+                     f"{' / '.join(str(a['page_bytes'].get(p, '-')) for p in PRECISIONS)} |")
+    rows = r["assets"]
+    if rows:
+        worst16 = min(rows, key=lambda a: a["render_psnr"]["f16"])
+        worst8 = min(rows, key=lambda a: a["render_psnr"]["i8"])
+        lines += ["", f"Lowest: f16 {_db(worst16['render_psnr']['f16'])} dB ({worst16['asset']}), i8 "
+                      f"{_db(worst8['render_psnr']['i8'])} dB ({worst8['asset']}) from the f32 render. The dense "
+                      "weights are a small share of most assets' bytes: their lookup arrays, grids, latents and "
+                      "voxels are already 8- or 16-bit."]
+    return "\n".join(lines) + "\n"
+
+
+def plot(r: dict, path: Path) -> None:
+    plt = matplotlib_pyplot()
+    rows = r["assets"]
+    fig, ax = plt.subplots(figsize=(7, max(2.5, 0.25 * len(rows))))
+    y = np.arange(len(rows))
+    for k, (p, colour) in enumerate((("f16", "tab:blue"), ("i8", "tab:orange"))):
+        v = [min(a["render_psnr"][p], 100.0) for a in rows]
+        ax.barh(y + 0.4 * k, v, height=0.4, color=colour, label=p)
+    ax.set_yticks(y + 0.2, [a["asset"] for a in rows], fontsize=6)
+    ax.set_xlabel("render PSNR against f32 (dB; 100 = identical)")
+    ax.legend()
+    ax.set_title(r["machine"]["gl_renderer"], fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, format="png", dpi=120)
+    plt.close(fig)
+
+
+CLAIMS = {"f16_render": Claim("none (inshade's own bar)", "an asset's render at f16 dense weights against f32",
+                              "within 0.1 dB (>= 50 dB from the f32 picture)", 50.0, higher_better=True)}
+
+
+def headlines(r: dict) -> list[dict]:
+    rows = r["assets"]
+    if not rows:
+        return []
+    worst = min(rows, key=lambda a: a["render_psnr"]["f16"])
+    v = min(worst["render_psnr"]["f16"], 999.0)
+    return [claim_row(CLAIMS, "precision", "f16_render", f"lowest {_db(worst['render_psnr']['f16'])} dB "
+                      f"({worst['asset']}) over {len(rows)} assets", v)]
+
+
+BENCH = Bench("precision", __doc__, Settings, run, claims=CLAIMS, headlines=headlines,
+              quick={"assets": ["trained/neural_image"], "size": 32},
+              formatter=argparse.ArgumentDefaultsHelpFormatter, sizes={
+    "cpu": sized(900, assets=("trained/neural_image", "trained/hash_grid_image", "trained/prt_mesh",
+                              "trained/uvfree_material_fruit_balanced"), size=64),
+    # a GPU compiles each precision's programs in a moment: three assets of different kinds at 256^2
+    "device": sized(10, assets=("trained/neural_image", "trained/hash_grid_image", "trained/prt_mesh"), size=256),
+})
+add_arguments, main, SUITE = BENCH.add_arguments, BENCH.main, BENCH.suite
+
+
+if __name__ == "__main__":
+    sys.exit(main())
