@@ -21,7 +21,7 @@ class HLSLPrinter(Printer):
     types = {"float": "float", "vec2": "float2", "vec3": "float3", "vec4": "float4", "mat4": "float4x4", "int": "int",
              "ivec2": "int2", "ivec3": "int3", "ivec4": "int4", "uint": "uint", "uvec3": "uint3", "uvec4": "uint4",
              "bool": "bool"}
-    builtins = {"roundEven": "round", "inversesqrt": "rsqrt", "fract": "frac", "mix": "lerp"}
+    builtins = {"roundEven": "round", "inversesqrt": "rsqrt", "fract": "frac", "mix": "lerp", "uintBitsToFloat": "asfloat"}
 
     def __init__(self, textures_as_arguments: bool = False):
         self.textures_as_arguments = textures_as_arguments

@@ -23,7 +23,7 @@ class WGSLPrinter(Printer):
     types = {"float": "f32", "vec2": "vec2<f32>", "vec3": "vec3<f32>", "vec4": "vec4<f32>", "mat4": "mat4x4<f32>",
              "int": "i32", "ivec2": "vec2<i32>", "ivec3": "vec3<i32>", "ivec4": "vec4<i32>", "uint": "u32",
              "uvec3": "vec3<u32>", "uvec4": "vec4<u32>", "bool": "bool"}
-    builtins = {"roundEven": "round", "inversesqrt": "inverseSqrt"}
+    builtins = {"roundEven": "round", "inversesqrt": "inverseSqrt", "uintBitsToFloat": "bitcast<vec4<f32>>"}
     # the library's overloads by argument count (WGSL functions have one signature each)
     overloads = {("inshade_softplus", 3): "inshade_softplus_bt"}
     # library functions of more than one lane (a float call passes each as a vec4)

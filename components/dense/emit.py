@@ -43,7 +43,7 @@ from inshade.components.dense.spec import OPENGL_STORAGE_MODES, STORAGE_MODES, T
 
 # as modules: any module of this folder may be the first to import inshade.codegen, which loads this
 # module (and so the others) while that one is still loading
-from . import emit_layer_loop, emit_plan, emit_products
+from . import emit_layer_loop, emit_packed, emit_plan, emit_products
 
 
 @network_step("dense")
@@ -96,26 +96,35 @@ def _inline(ctx, node, out, wb, bb, chunk, row, src, bundle):
 
 def _block(ctx, node, out, wb, bb, chunk, row, src, bundle, storage: bool = False):
     """Weights in a std140 uniform block of their own (or, ``storage``, a read-only storage buffer: the
-    same bytes in std430)."""
+    same bytes in std430); an f16 or i8 layer's at its precision's bytes (emit_packed.py)."""
     ob, ib = wb.shape[:2]
     name = ctx.name(node.id)
-    data = emit_plan.std140(wb, bb)
-    members = (("mat4", "W", ob * ib), ("vec4", "b", ob))
+    precision = node.params.get("precision", "f32")
+    block = ir.Var(name)
+    if precision == "f32":
+        data, members = emit_plan.std140(wb, bb), (("mat4", "W", ob * ib), ("vec4", "b", ob))
+
+        def column(o, i, k):
+            return ir.Index(ir.Index(ir.Member(block, "W"), ir.Int(f"({o.text}) * {ib} + {i.text}")), k)
+    else:
+        scale = emit_plan.pack_rows(bundle.tensor(node, "weight_scale"), ob) if precision == "i8" else None
+        data, members = emit_packed.block_bytes(precision, wb, bb, scale), emit_packed.members(precision, ob, ib)
+
+        def column(o, i, k):
+            return emit_packed.columns(block, precision, o, i, ib)[k]
     what = "std430 storage buffer" if storage else "std140 block"
     ctx.globals += [ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, {what} of {len(data)} B"),
                     ir.UniformBlock(f"{name}_block", name, members, storage=storage)]
     ctx.resources.append((StorageBufferResource if storage else UniformBlockResource)(f"{name}_block", data, name,
                                                                                     members))
     row.uniform_bytes = len(data)
-    block = ir.Var(name)
     if ob * ib <= emit_plan.UBO_UNROLL_MAX_BLOCKS:
         emit_products.emit_unrolled(
             ctx, out, wb, lambda o: ir.Index(ir.Member(block, "b"), o), lambda o, i: emit_products.column_terms(
-                i, node.in_dim, src.block_ir(i), lambda k: ir.Index(ir.Index(ir.Member(block, "W"), o * ib + i), k)))
+                i, node.in_dim, src.block_ir(i), lambda k: column(ir.Int(str(o)), ir.Int(str(i)), k)))
     else:
         emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Member(block, "b"), o),
-                                lambda o, i: ir.Index(ir.Member(block, "W"), ir.Int(f"({o.text}) * {ib} + {i.text}")),
-                                src)
+                                lambda o, i: ir.Mat4(tuple(column(o, i, k) for k in range(4))), src)
 
 
 def _texture(ctx, node, out, wb, bb, chunk, row, src, bundle):

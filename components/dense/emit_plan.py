@@ -161,8 +161,11 @@ def loop_budget(cap: int, calls: int) -> int:
 
 
 def ubo_bytes(node) -> int:
-    """Size of a dense layer's std140 block: mat4 W[OB*IB] + vec4 b[OB]."""
-    return blocks(node.in_dim) * blocks(node.out_dim) * 64 + blocks(node.out_dim) * 16
+    """Size of a dense layer's std140 block: mat4 W[OB*IB] + vec4 b[OB] (f16: two uvec4 a mat4 block;
+    i8: one, and the row scales vec4 s[OB]: emit_packed.py)."""
+    precision = node.params.get("precision", "f32")
+    ob, ib = blocks(node.out_dim), blocks(node.in_dim)
+    return ob * ib * {"f32": 64, "f16": 32, "i8": 16}[precision] + ob * (32 if precision == "i8" else 16)
 
 
 # a layer in a block of its own, by storage: (the block's size limit, the blocks-per-stage limit, what

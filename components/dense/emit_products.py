@@ -105,10 +105,12 @@ def i8_weight_expr(t: str, row: str, scales: ir.Expr):
     return weight
 
 
-# what a layer at a precision below f32 keeps, by storage (a texture stores the precision's bytes)
-PRECISION_NOTES = {"f16": {"texture": "float16 rows (RGBA16F)", "other": "float16 values, held as float32 here"},
+# what a layer at a precision below f32 keeps, by storage (inline literals hold the values as float32)
+PRECISION_NOTES = {"f16": {"texture": "float16 rows (RGBA16F)", "block": "float16 pairs in uvec4s",
+                           "inline": "float16 values as float32 literals"},
                    "i8": {"texture": "int8 codes (RGBA8) with row scales and biases as literals",
-                          "other": "int8 codes x row scales, held as float32 here"}}
+                          "block": "int8 codes, four to a uint, and row scales",
+                          "inline": "int8 codes x row scales as float32 literals"}}
 
 
 def dense_row(ctx, node, weight, bias, mode: str, why: str) -> PlanRow:
@@ -116,7 +118,7 @@ def dense_row(ctx, node, weight, bias, mode: str, why: str) -> PlanRow:
     precision = node.params.get("precision", "f32")
     if precision in PRECISION_NOTES:
         notes = PRECISION_NOTES[precision]
-        why += f"; precision {precision}: {notes['texture' if mode == 'texture' else 'other']}"
+        why += f"; precision {precision}: {notes['block' if mode in ('ubo', 'ssbo') else mode]}"
     row = PlanRow(node.id, "dense", f"{node.in_dim}->{node.out_dim}", mode, why,
                   params=weight.size + (0 if bias is None else bias.size),
                   flops=2 * node.in_dim * node.out_dim + (node.out_dim if bias is not None else 0))

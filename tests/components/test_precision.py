@@ -80,12 +80,18 @@ def test_a_bundle_whose_numbers_are_not_its_precisions_is_refused():
         quantized(bundle, "f8")
 
 
-def test_the_weight_texture_stores_the_precisions_bytes():
+def test_textures_and_blocks_store_the_precisions_bytes():
     bundle = _export_bundle()
     sizes = {p: sum(r.texture_bytes for r in generate(quantized(bundle, p), storage="texture").plan.rows)
              for p in ("f32", "f16", "i8")}
     assert sizes["f16"] == sizes["f32"] // 2
     assert sizes["i8"] < sizes["f32"] // 4 + 64   # codes only: the biases and scales are literals
+    blocks = {p: sum(r.uniform_bytes for r in generate(quantized(bundle, p), storage="ubo").plan.rows)
+              for p in ("f32", "f16", "i8")}
+    # the float32 biases (and i8's scales) sit beside the weights
+    assert blocks["f16"] < 0.55 * blocks["f32"] and blocks["i8"] < 0.35 * blocks["f32"], blocks
+    ubo = generate(quantized(bundle, "f16"), storage="ubo")
+    assert "precision f16: float16 pairs in uvec4s" in ubo.plan.report()
     i8 = generate(quantized(bundle, "i8"), storage="texture")
     assert [(r.name, r.dtype) for r in i8.resources] == [("net_weights_i8", "f1")]
     assert "precision i8: int8 codes" in i8.plan.report()

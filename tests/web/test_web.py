@@ -313,3 +313,28 @@ def test_a_gltf_file_exports_as_a_page_of_its_reference_shading(gl, browser, tmp
     assert info["view"]["settings"]["tonemap"] == "pbr_neutral"   # the page presents it as the PNG does
     db = psnr8(page, srgb8(image, tonemap="pbr_neutral"))
     assert db >= MIN_PSNR_DB, f"tiles.glb: the page is {db:.2f} dB from inshade render's"
+
+
+@pytest.mark.parametrize("precision", ["f16", "i8"])
+def test_a_page_draws_a_network_stored_at_a_lower_precision(gl, browser, precision, tmp_path):
+    """A 64 x 4 image network exported at f16 / i8: the page plans its layers into uniform blocks, which
+    hold the precision's bytes (float16 pairs, int8 codes) unpacked in the shader, on both APIs."""
+    import inshade
+    from inshade.runtime.headless import render_scene
+
+    torch.manual_seed(0)
+    layers = [torch.nn.Linear(2, 64), torch.nn.SiLU()]
+    for _ in range(3):
+        layers += [torch.nn.Linear(64, 64), torch.nn.SiLU()]
+    module = torch.nn.Sequential(*layers, torch.nn.Linear(64, 3), torch.nn.Sigmoid())
+    inshade.export(module, torch.rand(64, 2), tmp_path / "net", as_="image", colour="srgb", precision=precision,
+                   quiet=True)
+    image, _ = render_scene(load_scene(tmp_path / "net"), width=64, height=64, settings={"labels": False})
+    for api in APIS:
+        page = export_web(tmp_path / "net", tmp_path / api, width=64, height=64, api=api)
+        assert "ubo" in {r.storage for g in page.renderer.generated for r in g.plan.rows}
+        with serve(tmp_path / api) as url:
+            state = browser.open(url + "index.html")
+            assert state["error"] is None and not errors(state["console"]), state
+            db = psnr8(browser.canvas(), srgb8(image))
+        assert db >= MIN_PSNR_DB, f"{precision} on {api}: {db:.2f} dB from inshade render"
