@@ -11,7 +11,8 @@ that holds exactly the numbers the shader will compute with.
 the torch twin computes what the shader computes and the parity rule holds against it; the error
 against the source is the quantization's own (``inshade.convert.check`` reports both). The tables of
 components with a ``precision`` parameter of their own (hash and dense grids, latent pyramids, sparse
-voxels, mesh features) go to float16 under f16 and i8 alike (their 8-bit forms are their own).
+voxels, mesh features) go from f32 to float16; under i8, a table with an 8-bit form (the mesh
+features' u8: per-lane offset + scale, the values not centred) takes it.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ import copy
 
 import numpy as np
 
+from inshade.components.mesh_features.spec import as_u8
 from inshade.components.spec import I8_MAX, i8_codes   # the check of an i8 bundle's codes, beside the spec
 
 __all__ = ["I8_MAX", "PRECISIONS", "QUANTIZED_TYPES", "i8_codes", "quantized", "row_scales", "table_nodes",
@@ -27,6 +29,9 @@ __all__ = ["I8_MAX", "PRECISIONS", "QUANTIZED_TYPES", "i8_codes", "quantized", "
 PRECISIONS = ("f32", "f16", "i8")
 # the parameter kinds that take a precision (node type -> the tensors it rounds)
 QUANTIZED_TYPES = ("dense",)
+# table components with an 8-bit form of their own, which i8 gives them: type -> (its precision, the
+# conversion of (params, {slot: array}) in place)
+EIGHT_BIT_FORMS = {"mesh_features": ("u8", as_u8)}
 
 
 def row_scales(weight: np.ndarray) -> np.ndarray:
@@ -102,6 +107,15 @@ def quantized(bundle, precision: str | dict, *, name: str | None = None):
         for node in table_nodes(bundle):
             _half_table(node, tensors, {**node.params, **by_id[node.id].setdefault("params", {})})
             by_id[node.id]["params"]["precision"] = "f16"
+    if precision == "i8":
+        for node in bundle.nodes:
+            form, convert = EIGHT_BIT_FORMS.get(node.type, (None, None))
+            if form is None or node.params.get("precision") == form:
+                continue
+            params = by_id[node.id].setdefault("params", {})
+            slots = {"table": np.asarray(tensors[node.tensor_name("table")], np.float32)}
+            convert(params, slots)
+            tensors.update({node.tensor_name(k): v for k, v in slots.items()})
     if name is not None:
         meta["name"] = name
     return Bundle(meta, tensors)

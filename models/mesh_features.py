@@ -41,7 +41,6 @@ export writes q with that range, so a quantisation-aware fit exports what it tra
 """
 from __future__ import annotations
 
-import numpy as np
 import torch
 
 PRIME_K, PRIME_W1, PRIME_L = 2654435761, 805459861, 1094488767
@@ -104,23 +103,3 @@ def hash_index(k: torch.Tensor, w0: torch.Tensor, w1: torch.Tensor, level: int, 
     """int64 row of the feature table: level * T + (h & (T - 1))."""
     return level * table_size + (hash_value(k, w0, w1, level) & (table_size - 1))
 
-
-U8_LEVELS = 255
-
-
-def quantize_u8(table: np.ndarray, scale: np.ndarray, offset: np.ndarray) -> np.ndarray:
-    """[rows, F] float -> uint8 q = clamp(rint((table - offset) / scale * 255), 0, 255) per lane."""
-    u = (np.asarray(table, np.float32) - offset) / scale
-    return np.clip(np.rint(u * np.float32(U8_LEVELS)), 0, U8_LEVELS).astype(np.uint8)
-
-
-def dequantize_u8(q: np.ndarray, scale: np.ndarray, offset: np.ndarray) -> np.ndarray:
-    """uint8 q [rows, F] -> float32 offset + scale * (q / 255)."""
-    return (offset + scale * (q.astype(np.float32) / np.float32(U8_LEVELS))).astype(np.float32)
-
-
-def lane_range(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-lane (scale, offset) covering the table: offset = min, scale = max - min (1 when equal)."""
-    t = np.asarray(table, np.float32).reshape(-1, np.shape(table)[-1])
-    lo, hi = t.min(0), t.max(0)
-    return np.where(hi > lo, hi - lo, 1.0).astype(np.float32), lo.astype(np.float32)

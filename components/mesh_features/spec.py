@@ -1,6 +1,8 @@
 """The UV-free hashed per-triangle feature hierarchy (Walloner 2024; models/mesh_features.py has the exact rules): the bundle-level spec."""
 from __future__ import annotations
 
+import numpy as np
+
 from inshade.components.spec import ComponentError, ComponentSpec, Param, TensorSpec, pos_int, register
 
 
@@ -52,3 +54,33 @@ register(ComponentSpec(
     category="lookup",
     extra_checks=_mesh_feature_checks,
 ))
+
+
+U8_LEVELS = 255
+
+
+def quantize_u8(table: np.ndarray, scale: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """[rows, F] float -> uint8 q = clamp(rint((table - offset) / scale * 255), 0, 255) per lane."""
+    u = (np.asarray(table, np.float32) - offset) / scale
+    return np.clip(np.rint(u * np.float32(U8_LEVELS)), 0, U8_LEVELS).astype(np.uint8)
+
+
+def dequantize_u8(q: np.ndarray, scale: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """uint8 q [rows, F] -> float32 offset + scale * (q / 255)."""
+    return (offset + scale * (q.astype(np.float32) / np.float32(U8_LEVELS))).astype(np.float32)
+
+
+def lane_range(table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-lane (scale, offset) covering the table: offset = min, scale = max - min (1 when equal)."""
+    t = np.asarray(table, np.float32).reshape(-1, np.shape(table)[-1])
+    lo, hi = t.min(0), t.max(0)
+    return np.where(hi > lo, hi - lo, 1.0).astype(np.float32), lo.astype(np.float32)
+
+
+def as_u8(params: dict, tensors: dict) -> None:
+    """A table stored at f32 or f16 turned to its u8 form in place (``params`` and {slot: array}): the
+    per-lane range covering it, and its codes (inshade/quantize.py under i8)."""
+    scale, offset = lane_range(tensors["table"])
+    tensors["table"] = quantize_u8(tensors["table"], scale, offset)
+    tensors["scale"], tensors["offset"] = scale, offset
+    params["precision"] = "u8"

@@ -8,8 +8,8 @@ import torch
 from inshade.components import ComponentError, check_node, resolve_params
 from inshade.geometry.mesh_topology import check_tables, mesh_topology
 from inshade.models.latent_pyramid import _round_fp16
-from inshade.models.mesh_features import (U8_LEVELS, canonical, dequantize_u8, hash_index, lane_range, quantize_u8,
-                                          subvertices)
+from inshade.components.mesh_features.spec import U8_LEVELS, dequantize_u8, lane_range, quantize_u8
+from inshade.models.mesh_features import canonical, hash_index, subvertices
 from inshade.models.registry import Component, register
 
 

@@ -161,3 +161,20 @@ def test_a_table_at_f32_goes_to_its_f16_form(gl):
         assert np.array_equal(t.astype(np.float16).astype(np.float32), t) and not np.array_equal(t, tensors[table])
         x = np.random.default_rng(1).uniform(0, 1, (256, q.in_dim)).astype(np.float32)
         assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what=precision)
+
+
+def test_i8_gives_mesh_features_their_u8_form(gl):
+    """A shipped UV-free material at i8: its feature table takes the component's own 8-bit form (per-lane
+    offset + scale: the values are not centred), its dense layers int8 codes; the shader reads them as
+    the twin does."""
+    from inshade.bundle import load
+    from inshade.scene.description import load_scene, resolve_asset
+
+    fp32 = load(load_scene(resolve_asset("uvfree_material_fruit_balanced")).networks[0].bundle)
+    q = quantized(fp32, "i8")
+    table = next(n for n in q.nodes if n.type == "mesh_features")
+    assert table.params["precision"] == "u8" and q.tensor(table, "table").dtype == np.uint8
+    rng = np.random.default_rng(0)
+    x = np.concatenate([rng.integers(0, table.params["faces"], (256, 1)), rng.dirichlet((1, 1, 1), 256)[:, :2],
+                        rng.uniform(-1, 1, (256, q.in_dim - 3))], 1).astype(np.float32)
+    assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what="uvfree i8")
