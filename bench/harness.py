@@ -100,6 +100,17 @@ SCRATCH = "<scratch>"
 _ABSOLUTE = re.compile(r"""(?<![^\s=])(['"])(/[^'"]*)\1|(?<![^\s='"`(])/[^\s'"`)]+""")
 
 
+def asset_folders(names) -> list[Path]:
+    """The asset folders named (default: every shipped one, under trained/), or BenchError naming the
+    first that is not a folder."""
+    root = Path(__file__).resolve().parents[1] / "trained"
+    assets = [Path(a) for a in names] or sorted(p for p in root.iterdir() if p.is_dir())
+    missing = [str(a) for a in assets if not a.is_dir()]
+    if missing:
+        raise BenchError(f"{missing[0]}: no such asset folder")
+    return assets
+
+
 def portable_path(path: str | os.PathLike) -> str:
     """A path as a report records it, the same on every machine: inside the repository as its
     repository-relative path (``trained/di_footprint``); elsewhere as its name under ``<scratch>``

@@ -28,9 +28,8 @@ import numpy as np
 
 from inshade.bench.contract import Bench, option, sized
 from inshade.bench.entry import Claim, claim_row
-from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
+from inshade.bench.harness import asset_folders, machine, machine_markdown, matplotlib_pyplot, write_report
 
-ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = "bench-out/precision"
 PRECISIONS = ("f32", "f16", "i8")
 ROWS = 4096
@@ -126,11 +125,7 @@ def measure_asset(asset: Path, size: int) -> dict | None:
 def run(settings: Settings) -> int:
     from inshade.runtime.context import gl_info, shared_context
 
-    assets = [Path(a) for a in settings.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir())
-    missing = [str(a) for a in assets if not a.is_dir()]
-    if missing:
-        raise BenchError(f"{missing[0]}: no such asset folder")
-    rows = [r for r in (measure_asset(a, settings.size) for a in assets) if r is not None]
+    rows = [r for r in (measure_asset(a, settings.size) for a in asset_folders(settings.assets)) if r is not None]
     report = {"benchmark": "precision", "machine": machine(gl_info(shared_context())), "size": settings.size,
               "precisions": list(PRECISIONS), "assets": rows}
     write_report(settings.out, "precision", report, markdown, plot)

@@ -23,10 +23,9 @@ from pathlib import Path
 
 from inshade.bench.contract import Bench, option, sized
 from inshade.bench.entry import Claim, claim_row
-from inshade.bench.harness import BenchError, machine, machine_markdown, matplotlib_pyplot, write_report
+from inshade.bench.harness import asset_folders, machine, machine_markdown, matplotlib_pyplot, write_report
 from inshade.viewer.virtual_display import start_xvfb
 
-ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = "bench-out/startup"
 STORAGES = ("auto", "inline", "ubo", "texture")
 FIRST_FRAME_S = 10.0   # the first picture a user should wait for, cold
@@ -137,10 +136,7 @@ def measure_asset(asset: Path, settings: Settings, tmp: Path, display: str | Non
 
 
 def run(settings: Settings) -> int:
-    assets = [Path(a) for a in settings.assets] or sorted(p for p in (ROOT / "trained").iterdir() if p.is_dir())
-    missing = [str(a) for a in assets if not a.is_dir()]
-    if missing:
-        raise BenchError(f"{missing[0]}: no such asset folder")
+    assets = asset_folders(settings.assets)
     report = {"benchmark": "startup", "machine": machine(), "size": settings.size,
               "storages": list(settings.storages), "warm_storages": list(settings.warm_storages), "assets": []}
     xvfb, display = (None, None) if settings.no_viewer else start_xvfb()

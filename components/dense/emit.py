@@ -111,7 +111,7 @@ def _block(ctx, node, out, wb, bb, chunk, row, src, bundle, storage: bool = Fals
         data, members = emit_packed.block_bytes(precision, wb, bb, scale), emit_packed.members(precision, ob, ib)
 
         def column(o, i, k):
-            return emit_packed.columns(block, precision, o, i, ib)[k]
+            return emit_packed.columns(ctx, block, precision, o, i, ib)[k]
     what = "std430 storage buffer" if storage else "std140 block"
     ctx.globals += [ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, {what} of {len(data)} B"),
                     ir.UniformBlock(f"{name}_block", name, members, storage=storage)]

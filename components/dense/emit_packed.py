@@ -3,9 +3,8 @@ bytes (inshade/quantize.py), unpacked with integer operations every target has (
 packing built-ins: GLSL 3.30 has neither).
 
 - f16: each mat4 block is two uvec4: lane r of the first holds column 0's row r in its low 16 bits and
-  column 1's in its high bits, the second columns 2 and 3. A half h becomes the float32 with the same
-  value: normal ones by moving the sign, exponent and mantissa into place (``((h & 0x7fff) << 13) +
-  0x38000000``, the exponent re-biased), subnormal ones (and zero) as ``(h & 0x3ff) * 2^-24``.
+  column 1's in its high bits, the second columns 2 and 3; lib/packed_weights' ``inshade_half4``
+  rebuilds the float32 of each half's value with integer operations.
 - i8: each mat4 block is one uvec4: lane r holds the codes of columns 0..3 at row r, a byte each, as
   code + 128; the row scales follow the biases (``vec4 s[OB]``).
 Biases stay float32. The values rebuilt are the bundle's float32 weights exactly.
@@ -17,9 +16,6 @@ import numpy as np
 from inshade.codegen import ir
 
 from . import emit_plan
-
-HALF_SUBNORMAL = 2.0 ** -24
-
 
 def members(precision: str, ob: int, ib: int) -> tuple:
     per_block = {"f16": 2, "i8": 1}[precision]
@@ -46,28 +42,14 @@ def _u(value: int) -> ir.Vector:
     return ir.Vector("uvec4", (ir.Int(f"{value}u"),) * 4)   # WGSL's bit operations take no scalar with a vector
 
 
-def _half(bits: ir.Expr) -> ir.Expr:
-    """vec4 of the halves in the low 16 bits of each lane of ``bits`` (a uvec4 with nothing above them)."""
-    normal = ir.Call("uintBitsToFloat", (ir.Bin("|", ir.Paren(ir.Bin("<<", ir.Paren(ir.Bin("&", bits, _u(0x8000))),
-                                                                      _u(16))),
-                                                ir.Paren(ir.Bin("+", ir.Paren(ir.Bin("<<", ir.Paren(
-                                                    ir.Bin("&", bits, _u(0x7FFF))), _u(13))), _u(0x38000000)))),))
-    sign = ir.Bin("-", ir.Lit(1.0), ir.Bin("*", ir.Lit(2.0), ir.Convert("vec4", ir.Paren(ir.Bin(
-        "&", ir.Paren(ir.Bin(">>", bits, _u(15))), _u(1))))))
-    sub = ir.Bin("*", ir.Bin("*", ir.Convert("vec4", ir.Paren(ir.Bin("&", bits, _u(0x3FF)))), ir.Lit(HALF_SUBNORMAL)),
-                 ir.Paren(sign))
-    normal_lanes = ir.Call("min", (ir.Convert("vec4", ir.Paren(ir.Bin("&", bits, _u(0x7C00)))), ir.Lit(1.0)))
-    # both are finite: the one not taken is multiplied by 0 and adds nothing
-    return ir.Paren(ir.Sum((ir.Bin("*", normal, normal_lanes),
-                            ir.Bin("*", sub, ir.Paren(ir.Bin("-", ir.Lit(1.0), normal_lanes))))))
-
-
-def columns(block: ir.Expr, precision: str, o: ir.Int, i: ir.Int, ib: int) -> list:
-    """The four columns (vec4) of weight block (o, i) of a packed layer's block."""
+def columns(ctx, block: ir.Expr, precision: str, o: ir.Int, i: ir.Int, ib: int) -> list:
+    """The four columns (vec4) of weight block (o, i) of a packed layer's block (f16: through
+    lib/packed_weights' inshade_half4)."""
     if precision == "f16":
+        ctx.include("lib/packed_weights")
         word = [ir.Index(ir.Member(block, "W"), ir.Int(f"(({o.text}) * {ib} + {i.text}) * 2 + {m}")) for m in (0, 1)]
-        return [_half(ir.Paren(ir.Bin("&", word[k // 2], _u(0xFFFF))) if k % 2 == 0
-                      else ir.Paren(ir.Bin(">>", word[k // 2], _u(16)))) for k in range(4)]
+        return [ir.Call("inshade_half4", (ir.Bin("&", word[k // 2], _u(0xFFFF)) if k % 2 == 0
+                                          else ir.Bin(">>", word[k // 2], _u(16)),)) for k in range(4)]
     word = ir.Index(ir.Member(block, "W"), ir.Int(f"({o.text}) * {ib} + {i.text}"))
     scale = ir.Index(ir.Member(block, "s"), o)
     return [ir.Bin("*", ir.Paren(ir.Bin("-", ir.Convert("vec4", ir.Paren(ir.Bin("&", ir.Paren(ir.Bin(
