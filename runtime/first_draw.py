@@ -64,11 +64,12 @@ def first_draw_note(gl: dict, program_key: str, generated, pending: bool) -> tup
 
 
 def draw_timed(draw: Callable[[], None], ctx, *, scene, gl: dict, program_key: str, values, generated,
-               first: bool, new_view: bool, pixels: int) -> float:
+               first: bool, new_view: bool, pixels: int, source: str | None = None) -> float:
     """``draw`` (the scene pass), with what to expect said first: on a software renderer the first
     draw of a program (``first``) JIT-compiles it (the message says what happened last time on this
     machine, and a watcher process shows the seconds going by); a ``new_view`` whose last draw took
-    minutes is warned about before it starts. Returns the draw's wall time."""
+    minutes is warned about before it starts. ``source``: the assembled fragment stage (the networks it
+    calls are what the JIT is calibrated by). Returns the draw's wall time."""
     renderer = gl.get("renderer", "")
     view = f"{program_key}:{hash_values(values)}"   # a frame's time depends on the settings too
     frame = draw_history.lookup(renderer, view) if program_key else {}
@@ -105,7 +106,7 @@ def draw_timed(draw: Callable[[], None], ctx, *, scene, gl: dict, program_key: s
                      " (Mesa's shader cache did not have it)" if missed else "")
         if program_key and gl.get("software") and compiled_here:   # inline_flops: what the JIT is calibrated by
             draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3), compiled=True,
-                                shader_cache=draw_history.shader_cache_on(), inline_flops=inline_flops(generated))
+                                shader_cache=draw_history.shader_cache_on(), inline_flops=inline_flops(generated, source))
     elif w.enabled or w.seconds >= 1.0:   # a slow frame is remembered, to warn next time
         if program_key:
             draw_history.record(renderer, view, frame_s=round(w.seconds, 3), pixels=pixels)

@@ -57,12 +57,15 @@ def render_bundle(bundle, *, width: int | None = None, height: int | None = None
 
 def render_scene(scene, *, width: int | None = None, height: int | None = None, camera=None, mode=None,
                  split: float | None = None, settings: dict | None = None, ctx=None,
-                 cache: ProgramCache | None = None, bundles=None, spp: int = 1, _t0: float | None = None):
+                 cache: ProgramCache | None = None, bundles=None, spp: int = 1, quick: bool = False,
+                 _t0: float | None = None):
     """Render a scene (``Scene`` or anything ``load_scene`` takes) headless, once, through the same
     ``SceneRenderer`` the window app draws with. ``camera`` (a camera object or its dict) defaults to
     the scene's; ``mode``/``split`` to the scene's display settings. ``spp``: samples per pixel
-    averaged by an accumulating program (``ProgramSpec.accumulate``; others take only 1). Returns
-    ``(image, info)`` as ``render_bundle``; ``info["spp"]`` is the sample count."""
+    averaged by an accumulating program (``ProgramSpec.accumulate``; others take only 1). ``quick``:
+    at storage ``auto``, draw with the storage that ends this one job sooner (runtime/quick_program.py;
+    ``info["storage_choice"]`` says why where it changed). Returns ``(image, info)`` as
+    ``render_bundle``; ``info["spp"]`` is the sample count."""
     t0 = time.perf_counter() if _t0 is None else _t0
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -78,7 +81,8 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
     ctx = shared_context() if ctx is None else make_current(ctx)
     check_render_size(ctx, width, height)
     t_load = time.perf_counter()
-    renderer = SceneRenderer(scene, ctx, cache=cache, settings=settings, bundles=bundles)
+    renderer = SceneRenderer(scene, ctx, cache=cache, settings=settings, bundles=bundles,
+                             quick=(width * height, spp) if quick else None)
     try:
         t_gen = time.perf_counter()
         renderer.accumulate(camera, width, height, spp)   # a deterministic program: its one draw
@@ -88,6 +92,8 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
         image = renderer.read()
         t_end = time.perf_counter()
         info = renderer.info(camera, width, height, mode=mode, split=split)
+        if renderer.storage_choice:
+            info["storage_choice"] = renderer.storage_choice
     finally:
         renderer.release()
     info["timing_s"] = {"load": round(t_load - t0, 6), "generate": round(t_gen - t_load, 6),

@@ -31,6 +31,7 @@ from .geometry import MeshGBuffer
 from .materials import MaterialTextures
 from .network import NetworkResources
 from .programs import ProgramCache
+from .quick_program import quick_storage
 from .render import FullscreenPass, check_gl_error, clear_gl_error, read_rgba, read_rgba_raw
 from .scene_inputs import (SceneEnvironment, bind_scene_resources, environment_sh, reference_texture, scene_texture,
                            scene_uniforms, sync_shadows)
@@ -74,6 +75,8 @@ class SceneRenderer:
     GL_MAX_TEXTURE_SIZE to exercise a layout that fits it.
     ``target`` is the GLSL every program is assembled and generated for ("330", "450", "es300": the
     WebGL2 export draws the ES programs here first; desktop Mesa compiles them).
+    ``quick``: (pixels, frames) of a short job: at storage ``auto`` the program is built at the storage
+    that ends the job sooner (runtime/quick_program.py; ``storage_choice`` says why when it changed).
 
     The parts: runtime/scene_program.py builds the scene program, runtime/scene_inputs.py binds
     what it reads, runtime/scene_passes.py holds the targets and the passes around it,
@@ -82,7 +85,8 @@ class SceneRenderer:
 
     def __init__(self, scene: Scene, ctx: moderngl.Context | None = None, *, cache: ProgramCache | None = None,
                  settings: dict | None = None, bundles: list[Bundle] | None = None,
-                 owns_programs: bool = False, limits: dict | None = None, target: str = "330"):
+                 owns_programs: bool = False, limits: dict | None = None, target: str = "330",
+                 quick: tuple[int, int] | None = None):
         self.ctx = shared_context() if ctx is None else make_current(ctx)
         self.scene = scene
         self.target = target
@@ -112,6 +116,11 @@ class SceneRenderer:
         self._blend_peel = None        # passes/gltf_blend_layer + gltf_blend_resolve, built on the first peel
         self.gbuffer = None            # mesh scenes: the G-buffer pass drawn before the scene pass
         self.shadow_maps = ShadowMaps(self.ctx)   # ProgramSpec.shadows: GL objects made on first use, then reused
+        self.storage_choice = None     # why a short job draws at another storage than auto (quick_program.py)
+        if quick is not None and "storage" in scene.settings:
+            self.values["storage"], self.storage_choice = quick_storage(self, *quick)
+            if self.storage_choice:
+                log.info("%s", self.storage_choice)
         self._build()
         self._init_textures()
         self._environment = SceneEnvironment(self.ctx)   # while the program samples lib/environment
@@ -348,7 +357,8 @@ class SceneRenderer:
         seconds = draw_timed(lambda: self._net_pass.render(target, uniforms=uniforms), self.ctx,
                              scene=self.scene, gl=self.gl, program_key=self.program_key, values=self.values,
                              generated=self.generated, first=self.first_draw_pending,
-                             new_view=view_key != self._net_key, pixels=pixels)
+                             new_view=view_key != self._net_key, pixels=pixels,
+                             source=self.assembled()["fragment"] if self.first_draw_pending else None)
         if self.first_draw_pending:
             self.first_draw_seconds = seconds
             self.first_draw_pending = False

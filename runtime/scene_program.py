@@ -12,11 +12,12 @@ from inshade.codegen.network import generate
 from inshade.codegen.network_sdf import network_sdf_chunks
 from inshade.codegen.sdf import sdf_chunks
 from inshade.codegen.spherical_harmonics import sh_chunks
+from inshade.shaders import assemble
 from inshade.scene.description import NetworkSdfRef, SceneError, codegen_option_path
 from inshade.technique import choice_chunks
 
 from .geometry import gbuffer_layout
-from .programs import ProgramCache
+from .programs import ProgramCache, program_key
 
 VERTEX = "common/fullscreen.vert"
 SRGB_SEMANTIC = "srgb"   # an output port whose values are sRGB-encoded (e.g. fitted to sRGB pixels)
@@ -124,12 +125,26 @@ def build_scene_program(scene, spec, bundles, *, values: dict, gl: dict, target:
                         cache: ProgramCache) -> SceneProgram:
     """Generate every network, gather the chunks and defines, check the limits, compile (the
     cache returns the program it has when the sources are the same). Raises on any failure."""
+    generated, defines, chunks = plan_scene_program(scene, spec, bundles, values=values, gl=gl, target=target,
+                                                    sdf_bundle=sdf_bundle)
+    program = cache.get(VERTEX, scene.program, version=target, defines=defines, chunks=chunks)
+    return SceneProgram(generated, program, defines, chunks)
+
+
+def plan_scene_program(scene, spec, bundles, *, values: dict, gl: dict, target: str, sdf_bundle):
+    """What build_scene_program compiles: (generated networks, defines, chunks), the limits checked."""
     generated = generate_networks(scene, bundles, values, gl, target)
     chunks = {n.chunk: g.chunk for n, g in zip(scene.networks, generated)}
     geometry, extra = geometry_chunks(scene, spec, bundles, values, gl, target, sdf_bundle)
     chunks.update(geometry)
     generated = generated + extra   # GL resources of a network SDF bind like a network's
     check_program_limits(generated, gl, scene)
-    defines = program_defines(scene, spec, bundles, values)
-    program = cache.get(VERTEX, scene.program, version=target, defines=defines, chunks=chunks)
-    return SceneProgram(generated, program, defines, chunks)
+    return generated, program_defines(scene, spec, bundles, values), chunks
+
+
+def planned_program(scene, defines: dict, chunks: dict, target: str) -> tuple[str, str]:
+    """The draw history's name of the program these sources make (ProgramCache.key_of's) and its
+    fragment stage, assembled, not compiled."""
+    fragment = assemble(scene.program, version=target, defines=defines, chunks=chunks)
+    return program_key((assemble(VERTEX, version=target, defines=defines, chunks=chunks).key, fragment.key)), \
+        fragment.source

@@ -176,9 +176,11 @@ class ViewerApp:
         self.flash(f"drawing with storage {QUICK_STORAGE} while storage {wanted['storage']} compiles behind")
 
     def _check_warm_up(self) -> None:
-        """Once the program as set has compiled behind: switch to it (its first draw finds the shader in
-        Mesa's cache)."""
+        """Once the quick program's first frame is drawn: compile the program as set behind. Once that
+        is done: switch to it (its first draw finds the shader in Mesa's cache)."""
         w = self.warm_up
+        if w is not None and w.process is None and not self.renderer.first_draw_pending:
+            w.start()
         if w is None or not w.done():
             return
         self.warm_up = None

@@ -40,7 +40,10 @@ def _add_render(sub) -> None:
                                    "(--set tonemap=none|reinhard|pbr_neutral; none unless the scene says otherwise, "
                                    "e.g. pbr_neutral for glTF files; none clips values above 1), sRGB-encoded 8-bit; "
                                    ".exr: linear float32, exposure-scaled, never tone mapped; "
-                                   "a JSON sidecar records the settings, bundle digest and GL renderer.")
+                                   "a JSON sidecar records the settings, bundle digest and GL renderer. At storage "
+                                   "auto on a software renderer (llvmpipe), a network whose literals would take long "
+                                   "to compile reads its weights from a texture where that ends the render sooner "
+                                   "(the log and the sidecar's storage_choice say so).")
     p.add_argument("bundle", nargs="?", metavar="ASSET",
                    help="asset folder (scene.json, or a bundle with a 'render' field), scene.json, bundle, "
                         "or the name of a shipped asset (e.g. prt_creature); `inshade info ASSET` lists its settings")
@@ -192,7 +195,7 @@ def _render(args, output) -> tuple:
 
         if is_scene(src):
             image, info = render_scene(src, width=args.width, height=args.height, settings=settings,
-                                       spp=args.spp or 1)
+                                       spp=args.spp or 1, quick=True)
         else:
             if set(settings) - {"storage", "lut_filter"}:
                 raise UserError("render: --set needs a scene (scene.json); a bare bundle has no settings")

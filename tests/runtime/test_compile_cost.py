@@ -69,3 +69,20 @@ def test_codegen_says_it_and_warns(gl, history, tmp_path, capsys, caplog):
     caplog.clear()
     assert main(["codegen", "prt_mechanical", "--storage", "texture", "-o", str(tmp_path / "t.glsl")]) == 0
     assert "compile: ~" not in capsys.readouterr().out and "--storage texture compiles" not in caplog.text
+
+
+@pytest.mark.parametrize("decoder", [16, 64])
+def test_only_the_networks_the_program_calls_count(gl, decoder):
+    """The neural appearance program carries three decoders and compiles the one its define picks."""
+    from inshade.runtime.renderer import SceneRenderer
+    from inshade.scene.description import load_scene, resolve_asset
+
+    r = SceneRenderer(load_scene(resolve_asset("neural_appearance_ceramic")), settings={"decoder": decoder})
+    try:
+        by_prefix = {g.prefix: compile_cost.inline_flops([g]) for g in r.generated}
+        others = {f"dec{d}" for d in (16, 32, 64) if d != decoder}
+        assert all(by_prefix[p] > 0 for p in others)
+        want = sum(f for p, f in by_prefix.items() if p not in others)
+        assert compile_cost.inline_flops(r.generated, r.assembled()["fragment"]) == want > 0
+    finally:
+        r.release()

@@ -696,9 +696,11 @@ def test_a_slow_program_compiles_behind_a_quick_one(app, tmp_path, monkeypatch):
     ends the wait."""
     import time as clock
 
+    from inshade.runtime import quick_program
     from inshade.viewer import warm_up
 
     monkeypatch.setattr(warm_up, "WARM_UP_MIN_S", 0.0)   # neural_image compiles in a second: call it slow
+    monkeypatch.setattr(quick_program, "QUICK_FIRST_DRAW_S", 0.0)   # and its texture variant quicker
     monkeypatch.setenv("MESA_SHADER_CACHE_DIR", str(tmp_path / "mesa"))
     monkeypatch.setenv("INSHADE_CACHE_DIR", str(tmp_path / "history"))
     monkeypatch.setattr(app, "overrides", {"storage": "inline"})
@@ -706,7 +708,9 @@ def test_a_slow_program_compiles_behind_a_quick_one(app, tmp_path, monkeypatch):
         assert app.open(ASSET)
         assert app.warm_up is not None and app.renderer.values["storage"] == "texture"
         assert "while storage inline compiles behind" in app.flash_shown
+        assert app.warm_up.process is None   # behind only once the quick frame is on screen
         app.step(3)
+        assert app.warm_up.process is not None
         quick = _encode(app.renderer.read())   # the scene pass's picture (the viewport also shows the message)
         deadline = clock.monotonic() + 300
         while not app.warm_up.done():
