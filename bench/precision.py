@@ -11,7 +11,11 @@ Per shipped asset whose networks hold dense layers (or the ones named), each net
 - the picture: ``inshade render`` at ``--size`` with the quantized networks against the f32 render
   (PSNR of the 8-bit sRGB pictures, the weights in textures where the scene has the setting), and the
   render's seconds in this process (programs compiled cold for each precision);
-- the web page: ``inshade export-web`` of the asset with its networks so stored, its folder's bytes.
+- the web page: ``inshade export-web`` of the asset with its networks so stored, its folder's bytes;
+- fp16 arithmetic (at f16): each network generated for Vulkan GLSL with the weights in textures and
+  computed in float32, float16 and float16 with float32 sums (``--arithmetic``) on the compute device
+  (lavapipe here), its seconds per batch of rows, max |shader - twin| and the float16 envelope's bound
+  (inshade/convert/half_envelope.py); a network a target or the envelope cannot take is listed with why.
 
 Writes ``precision.json``, ``precision.md`` and ``precision.png`` into ``--out``.
 """
@@ -33,6 +37,9 @@ from inshade.bench.harness import asset_folders, machine, machine_markdown, matp
 DEFAULT_OUT = "bench-out/precision"
 PRECISIONS = ("f32", "f16", "i8")
 ROWS = 4096
+ARITHMETIC = ("f32", "f16", "f16_acc32")
+ARITHMETIC_TARGET = "vulkan"
+REPEATS = 5   # timed runs of a batch (the median)
 F16_RENDER_DB = 0.1   # the bar: an f16 render within this of the f32 one (PSNR against it: at least 50 dB)
 
 
@@ -87,6 +94,40 @@ def _page_bytes(asset: Path, bundles, tmp: Path) -> int:
     return sum(f.stat().st_size for f in (tmp / "page").rglob("*") if f.is_file())
 
 
+def _arithmetic_row(bundle, x, arithmetic: str) -> dict:
+    from inshade.codegen import generate
+    from inshade.convert.half_envelope import half_envelope
+    from inshade.runtime.compute import prepare
+
+    run = prepare(generate(bundle, target=ARITHMETIC_TARGET, storage="texture", arithmetic=arithmetic), x,
+                  ARITHMETIC_TARGET)
+    run.run()
+    times = []
+    for _ in range(REPEATS):
+        start = time.perf_counter()
+        run.run()
+        times.append(time.perf_counter() - start)
+    twin, bound = half_envelope(bundle, x, arithmetic)
+    finite = bound[np.isfinite(bound)]
+    return {"batch_s": float(np.median(times)), "max_abs": float(np.abs(run.read() - twin).max()),
+            "max_bound": float(finite.max()) if finite.size else float("inf")}
+
+
+def measure_arithmetic(bundles, xs) -> dict:
+    """Per arithmetic, summed over the networks: seconds per batch, the largest error and bound; or why not."""
+    from inshade.codegen.targets import TargetError
+
+    out = {}
+    for a in ARITHMETIC:
+        try:
+            rows = [_arithmetic_row(b, x, a) for b, x in zip(bundles, xs)]
+        except (TargetError, ValueError) as exc:   # a component without a Vulkan lowering or a float16 rule
+            return {"skipped": str(exc)}
+        out[a] = {"batch_s": sum(r["batch_s"] for r in rows), "max_abs": max(r["max_abs"] for r in rows),
+                  "max_bound": max(r["max_bound"] for r in rows)}
+    return out
+
+
 def measure_asset(asset: Path, size: int) -> dict | None:
     from inshade.bundle import load
     from inshade.quantize import QUANTIZED_TYPES, quantized, weight_bytes
@@ -117,6 +158,8 @@ def measure_asset(asset: Path, size: int) -> dict | None:
         row["render_psnr"][p] = psnr8(pictures[p], pictures["f32"])
         with tempfile.TemporaryDirectory() as tmp:
             row["page_bytes"][p] = _page_bytes(asset, bundles, Path(tmp))
+        if p == "f16":
+            row["arithmetic"] = measure_arithmetic(bundles, xs)
     print(f"{asset.name}: " + ", ".join(f"{p} {row['bytes'][p]} B, {row['render_psnr'][p]:.1f} dB"
                                         for p in PRECISIONS[1:]), file=sys.stderr, flush=True)
     return row
@@ -126,8 +169,10 @@ def run(settings: Settings) -> int:
     from inshade.runtime.context import gl_info, shared_context
 
     rows = [r for r in (measure_asset(a, settings.size) for a in asset_folders(settings.assets)) if r is not None]
+    from inshade.runtime.compute import compute_device
+
     report = {"benchmark": "precision", "machine": machine(gl_info(shared_context())), "size": settings.size,
-              "precisions": list(PRECISIONS), "assets": rows}
+              "precisions": list(PRECISIONS), "assets": rows, "compute_device": compute_device().description}
     write_report(settings.out, "precision", report, markdown, plot)
     return 0
 
@@ -157,7 +202,27 @@ def markdown(r: dict) -> str:
                       f"{_db(worst8['render_psnr']['i8'])} dB ({worst8['asset']}) from the f32 render. The dense "
                       "weights are a small share of most assets' bytes: their lookup arrays, grids, latents and "
                       "voxels are already 8- or 16-bit."]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _arithmetic_markdown(r)) + "\n"
+
+
+def _arithmetic_markdown(r: dict) -> list[str]:
+    rows = [a for a in r["assets"] if "arithmetic" in a]
+    if not rows:
+        return []
+    lines = ["", f"fp16 arithmetic (f16 weights in textures, `--target {ARITHMETIC_TARGET} --arithmetic`) on "
+             f"`{r.get('compute_device', '?')}`, a batch of {ROWS} rows per network (seconds: median of {REPEATS}); error: max "
+             "|shader - twin| and the envelope's largest bound.", "",
+             "| asset | f32 s | f16 s | f16_acc32 s | f16 error / bound | f16_acc32 error / bound |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for a in rows:
+        m = a["arithmetic"]
+        if "skipped" in m:
+            lines.append(f"| {a['asset']} | not run: {m['skipped'][:110]} | | | | |")
+            continue
+        lines.append(f"| {a['asset']} | {m['f32']['batch_s']:.4f} | {m['f16']['batch_s']:.4f} | "
+                     f"{m['f16_acc32']['batch_s']:.4f} | {m['f16']['max_abs']:.2g} / {m['f16']['max_bound']:.2g} | "
+                     f"{m['f16_acc32']['max_abs']:.2g} / {m['f16_acc32']['max_bound']:.2g} |")
+    return lines
 
 
 def plot(r: dict, path: Path) -> None:

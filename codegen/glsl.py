@@ -158,6 +158,7 @@ class EmitContext:
     storage: dict = field(default_factory=dict)   # dense node id -> (mode, why)
     loop_chunks: dict = field(default_factory=dict)   # looped dense node id -> (blocks per iteration, why)
     periodic_args: dict = field(default_factory=dict)  # sin/cos/frequency node id -> |argument| bounds (envelope)
+    enables: set = field(default_factory=set)   # language features the code needs ("f16": float16 arithmetic)
 
     def periodic(self, fn: str, node_id: str, group: int = 0) -> str:
         """``fn`` ("sin" / "cos") as this call should spell it: the range-reduced form

@@ -79,12 +79,14 @@ class Module:
     uint_blocks: int          # 0: the function takes no uint input array
     result: str               # the array holding the outputs
     bindings: dict = field(default_factory=dict)   # resource name -> binding index
+    enables: tuple = ()      # language features the code needs ("f16"), enabled at the top of the source
 
 
 class Printer:
     """The shared walk; subclasses spell each node."""
     language = ""
     types: dict[str, str] = {}
+    half: str | None = None   # the line enabling float16 arithmetic (None: the language has none here)
     # built-ins whose name differs from GLSL's
     builtins: dict[str, str] = {}
 

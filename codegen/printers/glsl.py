@@ -81,6 +81,8 @@ class GLSLPrinter(Printer):
 
 class VulkanGLSLPrinter(GLSLPrinter):
     language = "vulkan"
+    half = "#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require"
+    types = {**GLSLPrinter.types, "f16vec4": "f16vec4", "f16mat4": "f16mat4"}
 
     def legacy(self, text: str, depth: int) -> list[str]:
         return Printer.legacy(self, text, depth)
@@ -108,4 +110,5 @@ class VulkanGLSLPrinter(GLSLPrinter):
 
     def module(self, m: Module) -> str:
         textures = any(isinstance(g, ir.Texture) for g in m.globals)
-        return (SAMPLERLESS + "\n" if textures else "") + super().module(m)
+        enabled = [self.half] if "f16" in m.enables else []
+        return "".join(line + "\n" for line in [*enabled, *([SAMPLERLESS] if textures else [])]) + super().module(m)

@@ -18,9 +18,12 @@ SPACE = 0   # the Vulkan set / D3D space of the network's resources
 
 class HLSLPrinter(Printer):
     language = "hlsl"
+    # float16 arithmetic is Slang's here: HLSL's `half` is 16-bit only under DXC's -enable-16bit-types, which
+    # this machine cannot check (glslang's HLSL front end has no mul() of half matrices)
+    half = None
     types = {"float": "float", "vec2": "float2", "vec3": "float3", "vec4": "float4", "mat4": "float4x4", "int": "int",
              "ivec2": "int2", "ivec3": "int3", "ivec4": "int4", "uint": "uint", "uvec3": "uint3", "uvec4": "uint4",
-             "bool": "bool"}
+             "bool": "bool", "f16vec4": "half4", "f16mat4": "half4x4"}
     builtins = {"roundEven": "round", "inversesqrt": "rsqrt", "fract": "frac", "mix": "lerp", "uintBitsToFloat": "asfloat"}
 
     def __init__(self, textures_as_arguments: bool = False):
@@ -116,6 +119,7 @@ class HLSLPrinter(Printer):
         arguments = self.texture_arguments(m) if self.textures_as_arguments else []
         declared = [g for g in m.globals if not (arguments and isinstance(g, ir.Texture))]
         lines = [
+            *([self.half] if "f16" in m.enables else []),
             *m.comments,
             *(f"#define {name} {value}" for name, value in m.defines),
             *library_source(m.includes, (".hlsl",), guard=True),
@@ -133,6 +137,7 @@ class SlangPrinter(HLSLPrinter):
     """Slang reads HLSL; the module is what a Slang program imports (``import net;``)."""
     language = "slang"
     visibility = "public "
+    half = "// float16 arithmetic (half): SPIR-V Float16 (Vulkan shaderFloat16), D3D Shader Model 6.2+"
 
     def constant_buffer(self, g: ir.UniformBlock, register: str) -> str:
         return f"ConstantBuffer<{g.block}_data> {g.instance} : {register};"

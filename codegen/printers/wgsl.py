@@ -20,7 +20,9 @@ TEXTURE_NAMES_SLOT = "/*net_texture_names*/"    # a call's: the same, passed on
 
 class WGSLPrinter(Printer):
     language = "wgsl"
+    half = "enable f16;"
     types = {"float": "f32", "vec2": "vec2<f32>", "vec3": "vec3<f32>", "vec4": "vec4<f32>", "mat4": "mat4x4<f32>",
+             "f16vec4": "vec4<f16>", "f16mat4": "mat4x4<f16>",
              "int": "i32", "ivec2": "vec2<i32>", "ivec3": "vec3<i32>", "ivec4": "vec4<i32>", "uint": "u32",
              "uvec3": "vec3<u32>", "uvec4": "vec4<u32>", "bool": "bool"}
     builtins = {"roundEven": "round", "inversesqrt": "inverseSqrt", "uintBitsToFloat": "bitcast<vec4<f32>>"}
@@ -119,6 +121,7 @@ class WGSLPrinter(Printer):
         args = [*([f"xu_in: array<vec4<u32>, {up}_IN_UINT_BLOCKS>"] if m.uint_blocks else []),
                 f"x_in: array<vec4<f32>, {up}_IN_BLOCKS>", *(f"{n}: {t}" for n, t in textures)]
         lines = [
+            *([self.half] if "f16" in m.enables else []),   # before every declaration
             *m.comments,
             *(f"const {name}: i32 = {value};" for name, value in m.defines),
             *library_source(m.includes, (".wgsl",)),

@@ -38,8 +38,9 @@ from inshade.codegen.glsl import StorageBufferResource, UniformBlockResource
 from inshade.codegen.registry import Fused, emitter, network_step
 from inshade.codegen.values import declare
 from inshade.codegen.targets import TargetError
+from inshade.codegen.targets import TARGETS
 from inshade.codegen.targets import target as find_target
-from inshade.components.dense.spec import OPENGL_STORAGE_MODES, STORAGE_MODES, TEXTURE_FORMATS
+from inshade.components.dense.spec import ARITHMETIC, OPENGL_STORAGE_MODES, STORAGE_MODES, TEXTURE_FORMATS
 
 # as modules: any module of this folder may be the first to import inshade.codegen, which loads this
 # module (and so the others) while that one is still loading
@@ -59,6 +60,7 @@ class DenseNetwork:
             raise TargetError(f"storage {requested!r}: OpenGL's GLSL ({ctx.target}) has no storage buffers here "
                               f"(GLSL 3.30 and ES 3.00 have none); choose from {', '.join(OPENGL_STORAGE_MODES)}, "
                               "or a target that has them (vulkan, wgsl, hlsl, slang)")
+        check_arithmetic(ctx, bundle)
         ctx.storage = emit_plan.choose_storage(bundle, requested, ctx.limits)
         ctx.loop_chunks = emit_plan.loop_chunks(bundle, ctx.storage, ctx.limits, calls)
         ctx.weight_textures = {}
@@ -69,6 +71,8 @@ class DenseNetwork:
 
     @staticmethod
     def end(ctx) -> None:
+        if ctx.option("dense", "arithmetic") != "f32":
+            ctx.enables.add("f16")
         for fmt, tex in reversed(ctx.weight_textures.items()):
             texture = tex.resource()
             if texture is not None:
@@ -81,9 +85,11 @@ def _inline(ctx, node, out, wb, bb, chunk, row, src, bundle):
     """Weights as literals: in the expressions, or a const array a big layer loops over."""
     ob, ib = wb.shape[:2]
     name = ctx.name(node.id)
+    arith = arithmetic(ctx)
     if ob * ib <= emit_plan.UNROLL_MAX_BLOCKS:
+        x = emit_products.half_inputs(ctx, out, src, ib, arith)
         emit_products.emit_unrolled(ctx, out, wb, lambda o: ir.Vec4.of(bb[o]), lambda o, i: emit_products.column_terms(
-            i, node.in_dim, src.block_ir(i), lambda k: ir.Vec4.of(wb[o, i][:, k])))
+            i, node.in_dim, x(i), lambda k: arith.value(ir.Vec4.of(wb[o, i][:, k]))), arith)
         return
     ctx.globals += [
         ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, weights as literals"),
@@ -91,7 +97,8 @@ def _inline(ctx, node, out, wb, bb, chunk, row, src, bundle):
                                                   for o in range(ob) for i in range(ib))),
         ir.ConstArray("vec4", f"{name}_b", tuple(ir.Vec4.of(b) for b in bb))]
     emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Var(f"{name}_b"), o),
-                            lambda o, i: ir.Index(ir.Var(f"{name}_W"), ir.Int(f"({o.text}) * {ib} + {i.text}")), src)
+                            lambda o, i: ir.Index(ir.Var(f"{name}_W"), ir.Int(f"({o.text}) * {ib} + {i.text}")), src,
+                            arith)
 
 
 def _block(ctx, node, out, wb, bb, chunk, row, src, bundle, storage: bool = False):
@@ -118,13 +125,15 @@ def _block(ctx, node, out, wb, bb, chunk, row, src, bundle, storage: bool = Fals
     ctx.resources.append((StorageBufferResource if storage else UniformBlockResource)(f"{name}_block", data, name,
                                                                                     members))
     row.uniform_bytes = len(data)
+    arith = arithmetic(ctx)
     if ob * ib <= emit_plan.UBO_UNROLL_MAX_BLOCKS:
+        x = emit_products.half_inputs(ctx, out, src, ib, arith)
         emit_products.emit_unrolled(
             ctx, out, wb, lambda o: ir.Index(ir.Member(block, "b"), o), lambda o, i: emit_products.column_terms(
-                i, node.in_dim, src.block_ir(i), lambda k: column(ir.Int(str(o)), ir.Int(str(i)), k)))
+                i, node.in_dim, x(i), lambda k: arith.value(column(ir.Int(str(o)), ir.Int(str(i)), k))), arith)
     else:
         emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Member(block, "b"), o),
-                                lambda o, i: ir.Mat4(tuple(column(o, i, k) for k in range(4))), src)
+                                lambda o, i: ir.Mat4(tuple(column(o, i, k) for k in range(4))), src, arith)
 
 
 def _texture(ctx, node, out, wb, bb, chunk, row, src, bundle):
@@ -134,7 +143,8 @@ def _texture(ctx, node, out, wb, bb, chunk, row, src, bundle):
     tex = emit_plan.weight_texture(ctx, emit_plan.weight_format(ctx, node))
     if tex.fmt != "i8":
         row0 = tex.add(wb, bb, node.id)
-        emit_products.emit_loop(ctx, out, ob, ib, chunk, *emit_products.texture_exprs(tex.name, str(row0)), src)
+        emit_products.emit_loop(ctx, out, ob, ib, chunk, *emit_products.texture_exprs(tex.name, str(row0)), src,
+                                arithmetic(ctx))
         return
     name = ctx.name(node.id)
     scale = emit_plan.pack_rows(bundle.tensor(node, "weight_scale"), ob)
@@ -144,7 +154,8 @@ def _texture(ctx, node, out, wb, bb, chunk, row, src, bundle):
                     ir.ConstArray("vec4", f"{name}_b", tuple(ir.Vec4.of(b) for b in bb)),
                     ir.ConstArray("vec4", f"{name}_s", tuple(ir.Vec4.of(s) for s in scale))]
     emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Var(f"{name}_b"), o),
-                            emit_products.i8_weight_expr(tex.name, str(row0), ir.Var(f"{name}_s")), src)
+                            emit_products.i8_weight_expr(tex.name, str(row0), ir.Var(f"{name}_s")), src,
+                            arithmetic(ctx))
 
 
 # storage -> how a layer stored so is written
@@ -152,7 +163,30 @@ _STORED = {"inline": _inline, "ubo": _block, "texture": _texture,
            "ssbo": lambda *args: _block(*args, storage=True)}
 
 
-@emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4")}, lowered=True)
+def arithmetic(ctx) -> emit_products.Arithmetic:
+    """The types the layers' products and sums are computed in (codegen option ``arithmetic``)."""
+    return emit_products.ARITHMETICS[ctx.option("dense", "arithmetic")]
+
+
+def check_arithmetic(ctx, bundle) -> None:
+    """fp16 arithmetic: a target that has it, and float16 weights (none rounded on the way in)."""
+    chosen = ctx.option("dense", "arithmetic")
+    if chosen == "f32":
+        return
+    printer = find_target(ctx.target).printer
+    if printer.half is None:
+        have = ", ".join(name for name, t in TARGETS.items() if t.printer.half is not None)
+        raise TargetError(f"arithmetic {chosen}: target {ctx.target} has no float16 arithmetic here; targets "
+                          f"with it: {have}")
+    for n in bundle.nodes:
+        if n.type == "dense" and n.params.get("precision", "f32") != "f16":
+            raise TargetError(f"node {n.id}: arithmetic {chosen} computes with float16 weights: store the layer at "
+                              f"precision f16 (inshade.quantize, --precision f16), not "
+                              f"{n.params.get('precision', 'f32')}")
+
+
+@emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4"),
+                           "arithmetic": (ARITHMETIC, "f32")}, lowered=True)
 def emit_dense(ctx, node, src, bundle):
     weight = bundle.tensor(node, "weight")
     bias = bundle.tensor(node, "bias") if node.params["bias"] else None

@@ -33,3 +33,7 @@ register(ComponentSpec(
 STORAGE_MODES = ("inline", "ubo", "texture", "ssbo", "auto")
 OPENGL_STORAGE_MODES = ("inline", "ubo", "texture", "auto")
 TEXTURE_FORMATS = ("f4", "f2")
+# how a layer's products are computed: float32; float16 (GL_EXT_shader_explicit_arithmetic_types_float16
+# on Vulkan, `enable f16` in WGSL) with the sums in float16 too, or with the sums in float32 (each mat4
+# block's product in float16). The weights must be float16 values (precision f16) so that none is rounded.
+ARITHMETIC = ("f32", "f16", "f16_acc32")

@@ -12,6 +12,7 @@ from .common import STDOUT, UserError, asset_networks, check_output, count, reso
 
 def add_parser(sub) -> None:
     from inshade.codegen import FILTERS, STORAGE_MODES, TARGETS
+    from inshade.components.dense.spec import ARITHMETIC
     from inshade.quantize import PRECISIONS
     from inshade.engines import ENGINES
 
@@ -54,6 +55,12 @@ def add_parser(sub) -> None:
                         "bytes of a weight texture) or i8 (a quarter: int8 codes times a scale per output row); "
                         "--check then holds the code to the quantized network's twin and prints the "
                         "quantization's own error beside it")
+    p.add_argument("--arithmetic", choices=ARITHMETIC, default="f32",
+                   help="what the dense layers compute in: f32, f16 (float16 products and sums) or f16_acc32 "
+                        "(float16 block products, float32 sums); f16 needs --target vulkan "
+                        "(GL_EXT_shader_explicit_arithmetic_types_float16) or wgsl (enable f16) and float16 weights "
+                        "(--precision f16, the default with it); --check then holds the code to the float16 "
+                        "envelope (docs/precision.md)")
     p.add_argument("--calls", type=count, default=1, metavar="N",
                    help="how many times your shader evaluates the function per pixel (e.g. a march's steps): on "
                         "a driver that caps a pixel's loop iterations (llvmpipe) the dense loops unroll to fit")
@@ -236,10 +243,14 @@ def _codegen(args, b, prefix, output) -> int:
     if args.engine is not None:
         return _engine(args, b, output)
     fp32 = b
-    if args.precision is not None:
+    precision = args.precision
+    if precision is None and args.arithmetic != "f32":
+        precision = "f16"
+        print(f"arithmetic {args.arithmetic}: the dense weights at precision f16 (float16 values)", file=sys.stderr)
+    if precision is not None:
         from inshade.quantize import quantized
 
-        b = quantized(b, args.precision)
+        b = quantized(b, precision)
     opengl = find_target(args.target).opengl
     if args.no_gl or not opengl:   # beyond OpenGL: the target API's own limits (codegen/targets.py)
         limits = {}
@@ -249,7 +260,8 @@ def _codegen(args, b, prefix, output) -> int:
         limits = machine_limits()
     limits = {**limits, **dict(args.limit)}
     gen = generate(b, storage=args.storage, target=args.target, prefix=prefix or "net",
-                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits, calls=args.calls)
+                   lut_filter=args.lut_filter, texture_format=args.texture_format, limits=limits, calls=args.calls,
+                   arithmetic=args.arithmetic)
     if output == STDOUT:   # the GLSL alone on stdout; the plan goes to stderr
         if gen.resources:
             raise UserError(f"-o -: this GLSL binds {len(gen.resources)} resources "
@@ -261,7 +273,7 @@ def _codegen(args, b, prefix, output) -> int:
     print(gen.plan.report())
     if opengl:
         _say_compile_cost(limits, gen)
-    if args.check and not _check(b, gen, args.target, fp32):
+    if args.check and not _check(b, gen, args.target, fp32, args.arithmetic):
         return 1
     if output is None:
         return 0
@@ -301,16 +313,21 @@ def _span(b):
     return np.stack([np.full(b.in_dim, -1.0), np.full(b.in_dim, 1.0)]).astype(np.float32)
 
 
-def _check(b, gen, target: str, fp32=None) -> bool:
-    """--check: the generated code on its target's driver against the bundle's torch twin; a bundle
-    quantized here (``fp32``: the one it came from) has its twin's distance from the fp32 one printed too."""
+def _check(b, gen, target: str, fp32=None, arithmetic: str = "f32") -> bool:
+    """--check: the generated code on its target's driver against the bundle's torch twin (under the
+    float16 envelope where the arithmetic is float16); a bundle quantized here (``fp32``: the one it came
+    from) has its twin's distance from the fp32 one printed too."""
     from inshade.convert.check import check, check_inputs, per_input
+    from inshade.convert.half_envelope import check_half
     from inshade.convert.precision import quantization
     from inshade.models import GraphModule
     from inshade.quantize import QUANTIZED_TYPES
 
     x = check_inputs(_span(b))
-    result = check(GraphModule.from_bundle(b), b, x, generated=gen, target=target)
+    if arithmetic != "f32":
+        result = check_half(b, gen, x, target, arithmetic)
+    else:
+        result = check(GraphModule.from_bundle(b), b, x, generated=gen, target=target)
     print(f"{result.line()} ({result.rows} rows, {result.gl_renderer})")
     if fp32 is not None and fp32 is not b:
         precision = ", ".join(sorted({n.params["precision"] for n in b.nodes if n.type in QUANTIZED_TYPES}))

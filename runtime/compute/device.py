@@ -82,7 +82,7 @@ def compute_device() -> ComputeDevice:
     if adapter is None:
         raise ComputeUnavailable(f"wgpu found no device: {INSTALL_HINT}")
     limits = {k.replace("-", "_"): v for k, v in adapter.limits.items()}
-    features = [f for f in TEXTURE_FEATURES if f in adapter.features]
+    features = [f for f in (*TEXTURE_FEATURES, "shader-f16") if f in adapter.features]   # f16: float16 arithmetic
     device = adapter.request_device_sync(required_limits=dict(adapter.limits), required_features=features)
     info = adapter.info
     return ComputeDevice(wgpu, device, str(info.get("device", "?")), str(info.get("backend_type", "?")), limits)
