@@ -85,6 +85,15 @@ def seed_setting(default=0):
     return setting(default, "random seed")
 
 
+def precision_setting():
+    return setting("f32", "dense weight storage: f32, f16 or i8; below f32 the fit ends with a quantization-aware "
+                          "fine-tune (models/quantize_aware.py)", choices=("f32", "f16", "i8"))
+
+
+def finetune_setting(default: int = 200):
+    return setting(default, "steps of the quantization-aware fine-tune (precision f16 or i8)")
+
+
 def check_fit(settings, error: type[Exception]) -> None:
     """Refuse negative ``--steps`` or an empty ``--batch`` with the technique's ``error``."""
     if settings.steps < 0 or settings.batch < 1:

@@ -41,7 +41,8 @@ from inshade.metrics import mse, psnr, psnr_from_mse, srgb_eotf, srgb_oetf
 from inshade.models.graph import GraphModule
 from inshade.pixels import pixel_uvs
 from inshade.provenance import recorded_at
-from inshade.trainer import Run, Trainer, seed_setting, setting
+from inshade.quantize import quantized
+from inshade.trainer import Run, Trainer, finetune_setting, precision_setting, seed_setting, setting
 
 IMAGES = ("astronaut", "chelsea", "coffee", "camera", "rocket")  # skimage.data names (RGB or grey)
 ARCHES = ("multires", "siren", "frequency_relu")
@@ -89,6 +90,8 @@ class Settings:
     levels: str = setting(SHIP["levels"], "multires lookup arrays, RES:CHANNELS,...")
     grid_bits: int = setting(SHIP["grid_bits"], "multires lookup-array storage bits", choices=(8, 16, 32))
     grid_lr: float = setting(1e-2, "multires lookup-array learning rate")
+    precision: str = precision_setting()
+    finetune_steps: int = finetune_setting()
 
 
 def recorded(s: Settings) -> dict:
@@ -99,7 +102,8 @@ def recorded(s: Settings) -> dict:
              output_activation=s.output_activation,
              lr=s.lr if s.lr is not None else (3e-4 if s.arch == "siren" else 2e-3), batch=s.batch,
              levels=s.levels if multires else None, grid_bits=s.grid_bits if multires else None,
-             grid_lr=s.grid_lr if multires else None)
+             grid_lr=s.grid_lr if multires else None, precision=s.precision if s.precision != "f32" else None,
+             finetune_steps=s.finetune_steps if s.precision != "f32" else None)
     return {k: v for k, v in r.items() if v is not None}
 
 
@@ -271,6 +275,19 @@ def fit(model: GraphModule, target: np.ndarray, *, steps: int, seed: int = 0, lr
     return {"seconds": time.perf_counter() - start, "losses": losses, "lr": lr}
 
 
+def finetune(model: GraphModule, target: np.ndarray, s: Settings, log: dict) -> float:
+    """The quantization-aware fine-tune (precision below f32): ``finetune_steps`` more steps at a tenth of
+    the rates with the dense weights seen at ``precision`` (models/quantize_aware.py). Returns the linear
+    PSNR the quantized network had before it, for the record."""
+    from inshade.models.quantize_aware import quantizer_in_loop
+
+    with quantizer_in_loop(model, s.precision):
+        before = metrics_of(predict(model, s.size, s.size), target)["psnr_linear"]
+        fit(model, target, steps=s.finetune_steps, seed=s.seed + 1, lr=log["lr"] / 10, batch=s.batch, arch=s.arch,
+            grid_lr=s.grid_lr / 10)
+    return before
+
+
 def train(run: Run) -> int:
     """Trains on the run's device and writes the bundle (+ preview.png, reference.png) into the run's
     folder. Metrics and the preview come from the *exported* bundle (lookup arrays quantised to
@@ -285,6 +302,7 @@ def train(run: Run) -> int:
     start_metrics = metrics_of(predict(model, s.size, s.size), target)
     log = fit(model, target, steps=s.steps, seed=s.seed, lr=s.lr, batch=s.batch, arch=s.arch, grid_lr=s.grid_lr)
     float_metrics = metrics_of(predict(model, s.size, s.size), target)
+    before = finetune(model, target, s, log) if s.precision != "f32" else None
     provenance = {
         "command": run.command,
         "preset": run.preset,
@@ -308,6 +326,8 @@ def train(run: Run) -> int:
     provenance = {k: v for k, v in provenance.items() if v is not None}
     render = {"program": RENDER_PROGRAM, "width": s.size, "height": s.size, "input": "uv", "output": "rgb"}
     bundle = model.export("neural_image", "neural_image", provenance=provenance, render=render)
+    if s.precision != "f32":   # the values the fine-tune saw
+        bundle = quantized(bundle, s.precision)
     # What the shader draws: the exported (quantised) bundle, read back through torch.
     shipped = GraphModule.from_bundle(bundle).eval()
     prediction = predict(shipped, s.size, s.size)
@@ -317,6 +337,7 @@ def train(run: Run) -> int:
         "psnr_srgb_step0": start_metrics["psnr_srgb"],
         "psnr_linear_float": float_metrics["psnr_linear"],
         "psnr_srgb_float": float_metrics["psnr_srgb"],
+        **({"psnr_linear_quantized_without_finetune": before} if before is not None else {}),
         "params": int(sum(p.numel() for p in model.parameters())),
         "weight_bytes": int(sum(np.asarray(t).nbytes for t in bundle.tensors.values())),
         "train_seconds": round(log["seconds"], 2),

@@ -175,3 +175,17 @@ def test_tiny_training_run(tmp_path):
     train_main(["--out", str(again), "--steps", "30", "--size", "32", "--seed", "1"])
     other = load(again)
     assert all(np.array_equal(bundle.tensors[k], other.tensors[k]) for k in bundle.tensors)
+
+
+def test_a_run_at_a_lower_precision_ends_with_a_quantization_aware_fine_tune(tmp_path):
+    """--precision i8: the bundle's dense layers are int8 codes times row scales, the fine-tune after the
+    fit raised the quantized network's PSNR, and metrics.json says both."""
+    out = tmp_path / "ni8"
+    assert train_main(["--out", str(out), "--steps", "30", "--size", "32", "--seed", "1", "--precision", "i8",
+                       "--finetune-steps", "30"]) == 0
+    bundle = load(out)
+    assert {n.params.get("precision") for n in bundle.nodes if n.type == "dense"} == {"i8"}
+    m = bundle.meta["metrics"]
+    assert m["psnr_linear"] > m["psnr_linear_quantized_without_finetune"]
+    recorded = json.loads((out / "metrics.json").read_text())["settings"]
+    assert recorded["precision"] == "i8" and recorded["finetune_steps"] == 30
