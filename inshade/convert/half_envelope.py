@@ -10,13 +10,14 @@ eta = 2^-25 the absolute error of a result rounded below float16's normal range:
 - the n = in + 1 products and sums in float16, in whatever order and with or without fused
   multiply-adds: |error| <= gamma_n S + 2 n eta, gamma_n = n u / (1 - n u), S = sum_j |w_j| (|x_j| + r_j) + |b|
   (the classic bound of a dot product, Higham 2002, 3.1); ``f16_acc32`` (each mat4 block's product
-  in float16, the blocks summed in float32): gamma_4 S + gamma_n(2^-24) S + n eta;
+  in float16, the blocks summed in float32): gamma_min(4,n) S + gamma_n(2^-24) S + n eta;
 - so |y' - y| <= sum_j |w_j| r_j + that; past float16's largest value (65504) S may overflow: the
   bound is infinite there.
 
 A float32 dense layer passes the error on (|W| e); an elementwise activation by its change over the
-interval [v - e, v + e] (sampled: the activations are monotone or smooth at this scale); ``add``,
-``affine`` and ``select`` as their arithmetic says. A component without a rule refuses an input that
+interval [v - e, v + e] (sampled: the activations are monotone or smooth at this scale); a lookup array
+by its steepest slope per coordinate (``_lookup_slopes``); ``add``, ``affine`` and ``select`` as their
+arithmetic says. A component without a rule refuses an input that
 carries error. The shader is held to the bound plus the float32 rule (1e-5) against the twin.
 """
 from __future__ import annotations
@@ -49,7 +50,7 @@ def _dense(bundle, node, v, e, arithmetic: str):
     s = (v.abs() + r) @ aw.T + abs(b)
     n = aw.shape[1] + 1
     rounding = (gamma(n, U16) * s + 2 * n * ETA16 if arithmetic == "f16"
-                else gamma(4, U16) * s + gamma(n, U32) * s + n * ETA16)
+                else gamma(min(4, n), U16) * s + gamma(n, U32) * s + n * ETA16)
     bound = r @ aw.T + rounding
     return torch.where(s > HALF_MAX, torch.full_like(bound, float("inf")), bound)
 
@@ -59,6 +60,20 @@ def _activation(comp, v, e):
     y = comp(v)
     moved = torch.stack([(comp(v + k * e) - y).abs() for k in t]).max(0).values
     return torch.nan_to_num(moved, nan=float("inf"))   # an argument out of the domain within e: unbounded
+
+
+def _lookup_slopes(comp, resolution) -> torch.Tensor:
+    """[dims, channels]: how fast a lookup array's output can change per unit of each coordinate lane,
+    (N_d - 1) times the largest difference of neighbouring cells along that axis (a multilinear
+    interpolation changes no faster anywhere; clamping to [0, 1] only slows it)."""
+    table = comp.table().detach().double()
+    dims, channels = len(resolution), table.shape[-1]
+    rows = []
+    for d, n in enumerate(resolution):   # lane d indexes axis dims - 1 - d (cells are [N_{d-1}, ..., N_0, C])
+        step = table.diff(dim=dims - 1 - d).abs().reshape(-1, channels) if n > 1 else torch.zeros(1, channels,
+                                                                                                   dtype=torch.float64)
+        rows.append((n - 1) * step.amax(0))
+    return torch.stack(rows)
 
 
 def _rule(bundle, node, comp, v, e, arithmetic: str):
@@ -74,6 +89,8 @@ def _rule(bundle, node, comp, v, e, arithmetic: str):
         return e * torch.as_tensor(np.abs(np.asarray(node.params["scale"], np.float64)), dtype=torch.float64)
     if node.type == "select":
         return e[..., list(node.params["lanes"])]
+    if node.type == "lookup_array":
+        return e @ _lookup_slopes(comp, node.params["resolution"])
     if COMPONENTS[node.type].category == "activation":   # lane-wise
         return _activation(comp, v, e)
     raise ValueError(f"node {node.id}: component {node.type!r} has no float16 error rule, and its input comes "

@@ -64,6 +64,20 @@ def test_random_networks_in_half_precision(target, data):
                            f"{out[bad][0]!r}, twin {twin[bad][0]!r}, bound {bound[bad][0]!r}")
 
 
+@pytest.mark.parametrize("asset", ["di_texture_chelsea", "di_footprint"])
+def test_lookup_arrays_after_a_half_layer_carry_its_error_by_their_slope(asset):
+    """Differentiable Indirection's networks: float16 dense layers feeding lookup arrays."""
+    from inshade.bundle import load
+    from inshade.scene.description import load_scene, resolve_asset
+
+    bundle = quantized(load(load_scene(resolve_asset(asset)).networks[0].bundle), "f16")
+    x = np.random.default_rng(5).uniform(0.0, 1.0, (512, bundle.in_dim)).astype(np.float32)
+    twin, bound = half_envelope(bundle, x, "f16")
+    out = run_target(generate(bundle, target="wgsl", storage="texture", arithmetic="f16"), x, "wgsl")[0]
+    assert np.isfinite(bound).all() and within(out, twin, bound).all()
+    assert np.abs(out - twin).max() > 1e-5
+
+
 def test_the_code_says_what_it_needs():
     bundle = quantized(build_mlp(FIXED).export("mlp"), "f16")
     vulkan = generate(bundle, target="vulkan", storage="inline", arithmetic="f16")
