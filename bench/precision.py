@@ -210,8 +210,8 @@ def _arithmetic_markdown(r: dict) -> list[str]:
     if not rows:
         return []
     lines = ["", f"fp16 arithmetic (f16 weights in textures, `--target {ARITHMETIC_TARGET} --arithmetic`) on "
-             f"`{r.get('compute_device', '?')}`, a batch of {ROWS} rows per network (seconds: median of {REPEATS}); error: max "
-             "|shader - twin| and the envelope's largest bound.", "",
+             f"`{r.get('compute_device', '?')}`, a batch of {ROWS} rows per network (seconds: median of {REPEATS}); "
+             "error: max |shader - twin| and the envelope's largest bound.", "",
              "| asset | f32 s | f16 s | f16_acc32 s | f16 error / bound | f16_acc32 error / bound |",
              "|---|---:|---:|---:|---:|---:|"]
     for a in rows:

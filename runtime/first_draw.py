@@ -106,7 +106,8 @@ def draw_timed(draw: Callable[[], None], ctx, *, scene, gl: dict, program_key: s
                      " (Mesa's shader cache did not have it)" if missed else "")
         if program_key and gl.get("software") and compiled_here:   # inline_flops: what the JIT is calibrated by
             draw_history.record(renderer, program_key, first_draw_s=round(w.seconds, 3), compiled=True,
-                                shader_cache=draw_history.shader_cache_on(), inline_flops=inline_flops(generated, source))
+                                shader_cache=draw_history.shader_cache_on(),
+                                inline_flops=inline_flops(generated, source))
     elif w.enabled or w.seconds >= 1.0:   # a slow frame is remembered, to warn next time
         if program_key:
             draw_history.record(renderer, view, frame_s=round(w.seconds, 3), pixels=pixels)

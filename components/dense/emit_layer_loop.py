@@ -149,8 +149,8 @@ def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=spare))
     exprs = emit_products.texture_exprs(tex.name, f"{row0} + {ob} * l")
     arith = emit_products.ARITHMETICS[ctx.option("dense", "arithmetic")]
-    body.append(emit_products.loop_statement(y.array, ob, ib, chunk, *exprs, h, emit_plan.inputs_written_max(ctx.limits),
-                                             arith))
+    written = emit_plan.inputs_written_max(ctx.limits)
+    body.append(emit_products.loop_statement(y.array, ob, ib, chunk, *exprs, h, written, arith))
     out, act_body, act_rows = _captured(ctx, lambda: EMITTERS[act0.type](ctx, act0, y, bundle))
     body += act_body + [ir.Assign(ir.Index(ir.Var(h), b), out.block_ir(b)) for b in range(ib)]
 

@@ -1,7 +1,8 @@
 """fp16 arithmetic (codegen option ``arithmetic``) on a real driver: Vulkan GLSL
 (GL_EXT_shader_explicit_arithmetic_types_float16), WGSL (``enable f16``) and Slang (``half``) on this
-machine's Vulkan device (lavapipe), every weight storage, held to the float16 envelope (inshade/convert/half_envelope.py:
-a bound per example and output, walked beside the float32 twin) plus the float32 rule. Only dense
+machine's Vulkan device (lavapipe), every weight storage, held to the float16 envelope
+(inshade/convert/half_envelope.py: a bound per example and output, walked beside the float32 twin) plus the
+float32 rule. Only dense
 layers compute in float16; the other components keep float32 and their own parity tests."""
 from __future__ import annotations
 
