@@ -10,7 +10,9 @@ Per shipped asset whose networks hold dense layers (or the ones named), each net
   (integer lanes: ids in [0, 1000));
 - the picture: ``inshade render`` at ``--size`` with the quantized networks against the f32 render
   (PSNR of the 8-bit sRGB pictures, the weights in textures where the scene has the setting), and the
-  render's seconds in this process (programs compiled cold for each precision);
+  render's seconds in this process (programs compiled cold for each precision); where the scene has a
+  reference image, a render at its size against it too (each precision's PSNR against the asset's own
+  reference, and its distance from f32's);
 - the web page: ``inshade export-web`` of the asset with its networks so stored, its folder's bytes;
 - fp16 arithmetic (at f16): each network generated for Vulkan GLSL with the weights in textures and
   computed in float32, float16 and float16 with float32 sums (``--arithmetic``) on the compute device
@@ -128,6 +130,22 @@ def measure_arithmetic(bundles, xs) -> dict:
     return out
 
 
+def _reference_psnr(scene, settings: dict, fp32) -> dict:
+    """Per precision: PSNR of the 8-bit render at the reference's size against the scene's reference."""
+    from inshade.quantize import quantized
+    from inshade.runtime.headless import render_scene
+    from inshade.runtime.scene_inputs import load_reference
+    from inshade.web.browser import psnr8, srgb8
+
+    reference = srgb8(load_reference(scene.reference.image, scene.reference.colour))
+    h, w = reference.shape[:2]
+    out = {}
+    for p in PRECISIONS:
+        image, _ = render_scene(scene, width=w, height=h, settings=settings, bundles=[quantized(b, p) for b in fp32])
+        out[p] = psnr8(srgb8(image[..., :3]), reference)
+    return out
+
+
 def measure_asset(asset: Path, size: int) -> dict | None:
     from inshade.bundle import load
     from inshade.quantize import QUANTIZED_TYPES, quantized, weight_bytes
@@ -160,6 +178,8 @@ def measure_asset(asset: Path, size: int) -> dict | None:
             row["page_bytes"][p] = _page_bytes(asset, bundles, Path(tmp))
         if p == "f16":
             row["arithmetic"] = measure_arithmetic(bundles, xs)
+    if scene.reference is not None:
+        row["reference_psnr"] = _reference_psnr(scene, settings, fp32)
     print(f"{asset.name}: " + ", ".join(f"{p} {row['bytes'][p]} B, {row['render_psnr'][p]:.1f} dB"
                                         for p in PRECISIONS[1:]), file=sys.stderr, flush=True)
     return row
@@ -202,7 +222,21 @@ def markdown(r: dict) -> str:
                       f"{_db(worst8['render_psnr']['i8'])} dB ({worst8['asset']}) from the f32 render. The dense "
                       "weights are a small share of most assets' bytes: their lookup arrays, grids, latents and "
                       "voxels are already 8- or 16-bit."]
-    return "\n".join(lines + _arithmetic_markdown(r)) + "\n"
+    return "\n".join(lines + _reference_markdown(r) + _arithmetic_markdown(r)) + "\n"
+
+
+def _reference_markdown(r: dict) -> list[str]:
+    rows = [a for a in r["assets"] if "reference_psnr" in a]
+    if not rows:
+        return []
+    lines = ["", "Against each asset's own reference (the scenes that have one; rendered at the reference's size, "
+             "PSNR of the 8-bit pictures) and each precision's change from f32 (goal: f16 within "
+             f"{F16_RENDER_DB} dB):", "", "| asset | f32 | f16 (change) | i8 (change) |", "|---|---:|---:|---:|"]
+    for a in rows:
+        q = a["reference_psnr"]
+        lines.append(f"| {a['asset']} | {q['f32']:.2f} dB | {q['f16']:.2f} dB ({q['f16'] - q['f32']:+.3f}) | "
+                     f"{q['i8']:.2f} dB ({q['i8'] - q['f32']:+.3f}) |")
+    return lines
 
 
 def _arithmetic_markdown(r: dict) -> list[str]:
