@@ -85,13 +85,13 @@ def seed_setting(default=0):
     return setting(default, "random seed")
 
 
-def precision_setting():
-    return setting("f32", "dense weight storage: f32, f16 or i8; below f32 the fit ends with a quantization-aware "
-                          "fine-tune (models/quantize_aware.py)", choices=("f32", "f16", "i8"))
+def precision_setting(default: str | None = "f32", only: Mapping[str, tuple] | None = None):
+    return setting(default, "dense weight storage: f32, f16 or i8; below f32 the fit ends with a quantization-aware "
+                            "fine-tune (models/quantize_aware.py)", choices=("f32", "f16", "i8"), only=only)
 
 
-def finetune_setting(default: int = 200):
-    return setting(default, "steps of the quantization-aware fine-tune (precision f16 or i8)")
+def finetune_setting(default: int = 200, only: Mapping[str, tuple] | None = None):
+    return setting(default, "steps of the quantization-aware fine-tune (precision f16 or i8)", only=only)
 
 
 def check_fit(settings, error: type[Exception]) -> None:

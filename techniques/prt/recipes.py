@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from inshade.trainer import GIVEN, batch_setting, lr_setting, seed_setting, setting
+from inshade.trainer import GIVEN, batch_setting, finetune_setting, lr_setting, precision_setting, seed_setting, setting
 
 BASE = "base"
 # Each shipped asset's recipe: what it changes from the base recipe (Settings' defaults; its
@@ -63,6 +63,9 @@ class Settings:
     drop_enclosed: bool = setting(False, "train without samples whose every visibility ray is blocked "
                                   "(enclosed shells)")
     seed: int = seed_setting()
+    # recorded only where given (the shipped assets are f32)
+    precision: str | None = precision_setting(None, only={"precision": GIVEN})
+    finetune_steps: int = finetune_setting(only={"precision": GIVEN})
     quality_views: int = setting(30, "orbit views of the quality measurement")
     quality_size: int = setting(96, "square size of the quality renders")
     quality_dirs: int = setting(512, "rays per pixel of the ground truth")
@@ -72,7 +75,8 @@ class Settings:
 
 
 # The base recipe: the settings' defaults (what a recipe names only where it uses them left out).
-SHIP_BASE = {f.name: f.default for f in dataclasses.fields(Settings) if f.name not in ("recipe", "near_points")}
+SHIP_BASE = {f.name: f.default for f in dataclasses.fields(Settings)
+             if f.name not in ("recipe", "near_points", "precision", "finetune_steps")}
 # a few seconds of data and training, a coarse quality check: tests and trying options out
 QUICK_CHANGES = dict(points=2000, dirs=32, steps=300, quality_views=2, quality_size=32, quality_dirs=64)
 QUICK = {**SHIP_BASE, **QUICK_CHANGES}

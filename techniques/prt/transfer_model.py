@@ -86,9 +86,14 @@ def evaluate_transfer(net: GraphModule, frame: TransferFrame, p: torch.Tensor, n
 
 
 def export_transfer(net: GraphModule, frame: TransferFrame, out_dir, metrics: dict | None = None,
-                    provenance: dict | None = None, name: str = "transfer") -> Bundle:
-    """Writes the bundle (kind "transfer", ``render.transfer`` = the frame) into ``out_dir``."""
+                    provenance: dict | None = None, name: str = "transfer", precision: str = "f32") -> Bundle:
+    """Writes the bundle (kind "transfer", ``render.transfer`` = the frame) into ``out_dir``, its dense
+    layers at ``precision`` (inshade/quantize.py)."""
     bundle = net.export(KIND, name, provenance=provenance or {}, metrics=metrics or {},
                         render={"transfer": frame.to_dict()})
+    if precision != "f32":
+        from inshade.quantize import quantized
+
+        bundle = quantized(bundle, precision)
     bundle.save(out_dir)
     return bundle

@@ -114,6 +114,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--drop-enclosed", action="store_true",
                         help="train without samples whose every visibility ray is blocked (enclosed shells)")
     parser.add_argument("--seed", type=int, default=d["seed"], help="random seed (default: %(default)s)")
+    parser.add_argument("--precision", choices=("f32", "f16", "i8"), default=None,
+                        help="dense weight storage; f16 / i8 end the fit with a quantization-aware fine-tune "
+                             "(default: f32)")
+    parser.add_argument("--finetune-steps", type=int, default=200,
+                        help="steps of the quantization-aware fine-tune (default: %(default)s)")
     add_device_argument(parser)
     return parser
 
@@ -150,7 +155,8 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed, checkpoint=args.checkpoint or (cache / f"checkpoint-{_run_hash(data, args)}.safetensors"),
         progress=None,
         pos_freqs=args.pos_freqs, normal_freqs=args.normal_freqs, output=args.output,
-        drop_enclosed=args.drop_enclosed, device=device)
+        drop_enclosed=args.drop_enclosed, device=device, precision=getattr(args, "precision", None) or "f32",
+        finetune_steps=getattr(args, "finetune_steps", 0))
     metrics.update({"data_seconds": data["seconds"], "rays_per_second": data["rays_per_second"],
                     "points": args.points, "dirs": args.dirs})
     if near:
@@ -167,7 +173,8 @@ def run(args: argparse.Namespace) -> int:
                   "device": str(device), "torch": torch.__version__,
                   **recorded_at()}
     name = getattr(getattr(geometry, "scene", None), "name", "") or "transfer"
-    export_transfer(net, frame, out, metrics, provenance, name=f"{name}_transfer")
+    export_transfer(net, frame, out, metrics, provenance, name=f"{name}_transfer",
+                    precision=getattr(args, "precision", None) or "f32")
     resumed = (f" (went on from step {metrics['resumed_from']} of a checkpoint)"
                if metrics["resumed_from"] else "")
     print(f"wrote {out}: k={args.width}, {metrics['train_seconds']:.1f} s training{resumed}; held-out L1 "

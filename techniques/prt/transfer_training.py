@@ -135,7 +135,8 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
                    checkpoint=None, progress: bool | None = True, pos_freqs: int = DEFAULTS["pos_freqs"],
                    normal_freqs: int = DEFAULTS["normal_freqs"], output: str = DEFAULTS["output"],
                    holdout: float = DEFAULTS["holdout"], checkpoint_every: int | None = None,
-                   until: int | None = None, drop_enclosed: bool = False, device="cpu"):
+                   until: int | None = None, drop_enclosed: bool = False, device="cpu", precision: str = "f32",
+                   finetune_steps: int = 0):
     """Fits ``transfer_graph`` to a dataset (techniques/prt/transfer.py ``build_dataset``).
 
     L1 loss on transfer / scale, Adam at ``lr`` with a cosine decay to 5%, ``batch`` random
@@ -151,6 +152,10 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
     initial weights and the batch indices are drawn on CPU generators and moved, so a seed starts
     and samples alike on every device; metrics are computed on the CPU and the returned network
     is on the CPU.
+
+    ``precision`` f16 / i8: once the fit is done, ``finetune_steps`` more at a tenth of the rate with the
+    dense weights seen at that precision (models/quantize_aware.py); the held-out metrics before it are
+    kept as ``heldout_*_quantized_without_finetune``.
     """
     device = torch.device(device)
     _check_dataset(dataset)
@@ -209,9 +214,22 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
         progress=progress)
     seconds = time.perf_counter() - start
     train_l1 = interval["train_l1"]
-    after = heldout()
+    quantized_before = None
+    if precision != "f32" and stop == steps:
+        from inshade.models.quantize_aware import quantizer_in_loop
+
+        with quantizer_in_loop(net, precision):
+            quantized_before = heldout()
+            fit(adam(net.parameters(), lr=lr / 10), lambda step: step_loss(steps + step), finetune_steps,
+                lr_factor=cosine(finetune_steps), desc=f"quantization-aware fine-tune ({precision})", progress=progress)
+            after = heldout()
+    else:
+        after = heldout()
     metrics = {f"heldout_{k}": round(v, 6) for k, v in after.items()}
     metrics.update({f"heldout_{k}_step0": round(v, 6) for k, v in before.items()})
+    if quantized_before is not None:
+        metrics.update({f"heldout_{k}_quantized_without_finetune": round(v, 6) for k, v in quantized_before.items()})
+        metrics["finetune_steps"] = finetune_steps
     metrics.update({"train_l1": round(train_l1, 6) if math.isfinite(train_l1) else None,
                     "train_seconds": round(seconds, 2), "steps": stop, "resumed_from": start_step,
                     "params": int(sum(p.numel() for p in net.parameters())),

@@ -217,6 +217,26 @@ def test_training_reduces_l1_and_exports_a_loadable_bundle(small_dataset, tmp_pa
         assert torch.allclose(evaluate_transfer(again, frame, p, n), evaluate_transfer(net, frame, p, n), atol=1e-6)
 
 
+def test_a_lower_precision_ends_with_a_fine_tune_and_exports_what_it_saw(small_dataset, tmp_path):
+    """precision i8: the fit ends with a quantization-aware fine-tune; the exported bundle's dense layers are
+    int8 codes times row scales and compute what the fine-tuned network computed through the quantizer."""
+    from inshade import bundle as bundle_io
+    from inshade.models.graph import GraphModule
+    from inshade.models.quantize_aware import quantizer_in_loop
+
+    net, frame, m = train_transfer(small_dataset, width=16, layers=2, steps=60, batch=256, lr=5e-3, progress=False,
+                                   pos_freqs=2, normal_freqs=2, precision="i8", finetune_steps=30)
+    assert m["finetune_steps"] == 30 and "heldout_l1_quantized_without_finetune" in m
+    export_transfer(net, frame, tmp_path / "b", m, {"command": "test"}, precision="i8")
+    loaded = bundle_io.load(tmp_path / "b")
+    assert {n.params.get("precision") for n in loaded.nodes if n.type == "dense"} == {"i8"}
+    p, n = small_dataset["position"][:50], small_dataset["normal"][:50]
+    with torch.no_grad(), quantizer_in_loop(net, "i8"):
+        seen = evaluate_transfer(net, frame, p, n)
+    with torch.no_grad():
+        assert torch.equal(evaluate_transfer(GraphModule.from_bundle(loaded), frame, p, n), seen)
+
+
 def test_checkpoint_resume_equals_uninterrupted(small_dataset, tmp_path):
     kw = dict(width=8, layers=2, steps=40, batch=128, progress=False, pos_freqs=1, normal_freqs=1)
     whole, _, _ = train_transfer(small_dataset, **kw)
