@@ -22,6 +22,7 @@ from inshade.metrics import psnr, psnr_from_mse, srgb_eotf
 from inshade.models.graph import GraphModule
 from inshade.pixels import pixel_uvs
 from inshade.provenance import recorded_at
+from inshade.quantize import quantized
 from inshade.scene.builder import (choice_setting, display_modes, exposure_setting, float_setting, network,
                                     plane2d, reference, requires, scene_json)
 
@@ -116,6 +117,20 @@ def fit(g: GraphModule, target: np.ndarray, *, steps: int, batch: int, seed: int
     return {"seconds": time.perf_counter() - start, "psnr_batches": losses}
 
 
+def finetune(g: GraphModule, target: np.ndarray, s) -> float:
+    """The quantization-aware fine-tune (precision below f32): ``finetune_steps`` more steps at a tenth of
+    the rates with the dense weights seen at ``precision`` (models/quantize_aware.py); returns the sRGB
+    PSNR the quantized network had before it."""
+    from inshade.models.quantize_aware import quantizer_in_loop
+
+    lrs = {k: v / 10 if k.endswith("_lr") else v for k, v in learning_rates(s).items()}
+    with quantizer_in_loop(g, s.precision):
+        before = quality(predict(g, s.size, s.size), target)["psnr_srgb"]
+        fit(g, target, steps=s.finetune_steps, batch=s.batch, seed=s.seed + 1, lrs=lrs,
+            desc=f"quantization-aware fine-tune ({s.precision})")
+    return before
+
+
 def train(run) -> int:
     """Fit, export, measure the exported bundle, write the asset folder."""
     s = run.settings
@@ -123,6 +138,7 @@ def train(run) -> int:
     target = load_target(s.size)
     g = build(s, s.seed).to(run.device)
     log = fit(g, target, steps=s.steps, batch=s.batch, seed=s.seed, lrs=learning_rates(s))
+    before = finetune(g, target, s) if s.precision not in (None, "f32") else None
     g = g.cpu()
     shape = image_grid_shape(s)
     provenance = {
@@ -138,6 +154,8 @@ def train(run) -> int:
     }
     render = {"program": RENDER_PROGRAM, "width": s.size, "height": s.size, "input": "uv", "output": "rgb"}
     bundle = g.export(KIND, run.out.name, provenance=provenance, render=render)
+    if before is not None:   # the values the fine-tune saw
+        bundle = quantized(bundle, s.precision)
     shipped = GraphModule.from_bundle(bundle).eval()     # what the shader draws: fp16 tables as exported
     prediction = predict(shipped, s.size, s.size)
     metrics = {**quality(prediction, target),
@@ -148,6 +166,7 @@ def train(run) -> int:
                    "base_resolution": shape.base_resolution, "per_level_scale": shape.per_level_scale,
                    "finest_resolution": shape.finest_resolution(), "table_rows": shape.rows(),
                    "table_bytes_fp16": shape.table_bytes()},
+               **({"psnr_srgb_quantized_without_finetune": before} if before is not None else {}),
                "train_seconds": round(log["seconds"], 1), "psnr_batches": log["psnr_batches"],
                "train_threads": torch.get_num_threads(), "device": str(run.device)}
     if s.arch != "mlp" and s.baseline_steps > 0:

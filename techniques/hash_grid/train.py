@@ -25,7 +25,8 @@ import importlib
 from dataclasses import dataclass
 
 from inshade.models.threads import torch_threads
-from inshade.trainer import Run, Trainer, batch_setting, seed_setting, setting
+from inshade.trainer import (GIVEN, Run, Trainer, batch_setting, finetune_setting, precision_setting, seed_setting,
+                             setting)
 
 from .network import ARCHES, HashGridError
 
@@ -76,6 +77,8 @@ class Settings:
     n_freqs: int = setting(10, "MLP-only network's frequency-encoding octaves")
     size: int = setting(2048, "target resolution (a divisor of 2048: block-averaged)", only={"app": IMAGE})
     baseline_batch: int = setting(16384, "MLP-only network's pixels per step", only={"app": IMAGE})
+    precision: str | None = precision_setting(None, only={"app": IMAGE, "precision": GIVEN})
+    finetune_steps: int = finetune_setting(only={"app": IMAGE, "precision": GIVEN})
     samples: int = setting(1_000_000, "training points (surface, near, uniform)", only={"app": SDF})
     eikonal: float = setting(0.1, "weight of the eikonal term", only={"app": SDF})
     step_safety: float = setting(1.5, "sphere-tracing step = 1 / (this x the measured slope)", only={"app": SDF})

@@ -63,6 +63,19 @@ def quick_sdf(tmp_path_factory):
     return out
 
 
+def test_an_image_at_a_lower_precision_ends_with_a_quantization_aware_fine_tune(tmp_path, capsys):
+    out = tmp_path / "i8"
+    assert hg.main(["image", "--preset", "quick", "--size", "128", "--steps", "60", "--precision", "i8",
+                    "--finetune-steps", "30", "-o", str(out)]) == 0
+    bundle = load(out)
+    assert {n.params.get("precision") for n in bundle.nodes if n.type == "dense"} == {"i8"}
+    m = _metrics(out)
+    assert m["settings"]["precision"] == "i8" and "psnr_srgb_quantized_without_finetune" in m
+    # the image's own: an SDF has no fine-tune yet, and says so
+    assert hg.main(["sdf", "--preset", "quick", "--precision", "i8", "-o", str(tmp_path / "sdf")]) == 2
+    assert "--precision: only with app image" in capsys.readouterr().err
+
+
 def test_quick_image_writes_a_drawable_asset(quick_image):
     from inshade.scene.description import load_scene
     from inshade.techniques.hash_grid.image import psnr_of_bundle
