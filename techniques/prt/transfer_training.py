@@ -130,6 +130,18 @@ def _without_enclosed(dataset: dict) -> dict:
     return out
 
 
+def _finetune(net, precision: str, steps: int, lr: float, step_loss, heldout, progress) -> tuple[dict, dict]:
+    """The quantization-aware fine-tune (models/quantize_aware.py): the held-out metrics of the network
+    seen at ``precision`` before and after ``steps`` more steps at ``lr``."""
+    from inshade.models.quantize_aware import quantizer_in_loop
+
+    with quantizer_in_loop(net, precision):
+        before = heldout()
+        fit(adam(net.parameters(), lr=lr), step_loss, steps, lr_factor=cosine(steps),
+            desc=f"quantization-aware fine-tune ({precision})", progress=progress)
+        return before, heldout()
+
+
 def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int = DEFAULTS["steps"],
                    batch: int = DEFAULTS["batch"], lr: float = DEFAULTS["lr"], seed: int = 0,
                    checkpoint=None, progress: bool | None = True, pos_freqs: int = DEFAULTS["pos_freqs"],
@@ -214,22 +226,14 @@ def train_transfer(dataset: dict, width: int = 64, layers: int = 4, steps: int =
         progress=progress)
     seconds = time.perf_counter() - start
     train_l1 = interval["train_l1"]
-    quantized_before = None
-    if precision != "f32" and stop == steps:
-        from inshade.models.quantize_aware import quantizer_in_loop
-
-        with quantizer_in_loop(net, precision):
-            quantized_before = heldout()
-            fit(adam(net.parameters(), lr=lr / 10), lambda step: step_loss(steps + step), finetune_steps,
-                lr_factor=cosine(finetune_steps), desc=f"quantization-aware fine-tune ({precision})", progress=progress)
-            after = heldout()
-    else:
-        after = heldout()
+    tuned = precision != "f32" and stop == steps   # the fine-tune follows a finished fit
+    quantized_before, after = (_finetune(net, precision, finetune_steps, lr / 10, lambda k: step_loss(steps + k),
+                                         heldout, progress) if tuned else (None, heldout()))
     metrics = {f"heldout_{k}": round(v, 6) for k, v in after.items()}
     metrics.update({f"heldout_{k}_step0": round(v, 6) for k, v in before.items()})
-    if quantized_before is not None:
-        metrics.update({f"heldout_{k}_quantized_without_finetune": round(v, 6) for k, v in quantized_before.items()})
-        metrics["finetune_steps"] = finetune_steps
+    if tuned:
+        metrics.update({f"heldout_{k}_quantized_without_finetune": round(v, 6) for k, v in quantized_before.items()},
+                       finetune_steps=finetune_steps)
     metrics.update({"train_l1": round(train_l1, 6) if math.isfinite(train_l1) else None,
                     "train_seconds": round(seconds, 2), "steps": stop, "resumed_from": start_step,
                     "params": int(sum(p.numel() for p in net.parameters())),
