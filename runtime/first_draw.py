@@ -50,6 +50,11 @@ def first_draw_message(generated, renderer: str = "", previous: float | None = N
             "it for later runs)")
 
 
+def drawn_here(program_key: str) -> bool:
+    """Whether this process drew the program already (the driver holds it compiled)."""
+    return program_key in _DRAWN
+
+
 def first_draw_note(gl: dict, program_key: str, generated, pending: bool) -> tuple[str | None, bool]:
     """(what the pending first draw will do on a software renderer, or None; whether Mesa's
     shader cache had this program last time)."""

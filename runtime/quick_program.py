@@ -12,7 +12,7 @@ from __future__ import annotations
 from inshade.progress import format_seconds
 
 from .compile_cost import first_draw_estimate, inline_flops
-from .first_draw import first_draw_note
+from .first_draw import drawn_here, first_draw_note
 from .scene_program import plan_scene_program, planned_program
 
 QUICK_STORAGE = "texture"   # weights read in loops: the quickest compile of the storages on llvmpipe
@@ -36,8 +36,9 @@ def _planned(renderer, values: dict) -> tuple[list, str, str]:
 
 
 def _first_draw(gl: dict, generated, key: str, source: str) -> tuple[float, bool]:
-    """(the first draw's estimate, whether this machine measured it): 0 when Mesa's shader cache has it."""
-    if first_draw_note(gl, key, generated, True)[1]:
+    """(the first draw's estimate, whether this machine measured it): 0 when this process drew the program
+    already or Mesa's shader cache has it."""
+    if drawn_here(key) or first_draw_note(gl, key, generated, True)[1]:
         return 0.0, True
     measured = first_draw_estimate(gl, key, [])   # what it took here before, else 0
     return (measured, True) if measured else (first_draw_estimate(gl, key, generated, source) or 0.0, False)

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from inshade.runtime import draw_history, quick_program
+from inshade.runtime import draw_history, first_draw, quick_program
 from inshade.runtime.renderer import SceneRenderer
 from inshade.scene.description import load_scene, resolve_asset
 
@@ -18,9 +18,11 @@ SIDE = 256
 
 @pytest.fixture
 def history(tmp_path, monkeypatch):
-    """An empty draw history and Mesa's shader cache off: every first draw is a compile."""
+    """An empty draw history, no program drawn in this process yet and Mesa's shader cache off: every
+    first draw is a compile."""
     monkeypatch.setenv("INSHADE_CACHE_DIR", str(tmp_path / "history"))
     monkeypatch.setenv("MESA_SHADER_CACHE_DISABLE", "true")
+    monkeypatch.setattr(first_draw, "_DRAWN", set())
     return tmp_path
 
 
@@ -51,7 +53,8 @@ def test_the_planned_program_is_the_program_built(gl, history):
         r.release()
 
 
-@pytest.mark.parametrize("case", ["many pixels", "chosen", "gpu", "in mesa's cache", "texture slow here"])
+@pytest.mark.parametrize("case", ["many pixels", "chosen", "gpu", "in mesa's cache", "texture slow here",
+                                  "drawn in this process"])
 def test_the_program_as_set_where_it_ends_the_job_sooner(gl, history, monkeypatch, case):
     kw = {"quick": (SIDE * SIDE, 1)}
     if case == "many pixels":   # the texture's gathers over 16M pixels cost more than the compile saved
@@ -60,6 +63,10 @@ def test_the_program_as_set_where_it_ends_the_job_sooner(gl, history, monkeypatc
         kw["settings"] = {"storage": "inline"}
     elif case == "gpu":
         kw["limits"] = {"software": False}
+    elif case == "drawn in this process":   # the driver holds it compiled: nothing to save
+        plain = _renderer("prt_mechanical")
+        first_draw._DRAWN.add(plain.program_key)
+        plain.release()
     else:
         plain = _renderer("prt_mechanical", settings={"storage": "auto" if case == "in mesa's cache" else "texture"})
         key, renderer_name = plain.program_key, plain.gl["renderer"]
