@@ -1,11 +1,13 @@
-"""`inshade bench precision`: what storing a network's dense weights at f16 or i8 saves and costs.
+"""`inshade bench precision`: what storing a network at f16 or i8 saves and costs.
 
 Per shipped asset whose networks hold dense layers (or the ones named), each network quantized as
-``inshade.export(..., precision=P)`` stores it (inshade/quantize.py), P in f32 / f16 / i8:
+``inshade.export(..., precision=P)`` stores it (inshade/quantize.py), P in f32 / f16 / i8: the dense
+weights at P, the float32 tables at f16 below f32, and at i8 every table in its 8-bit codes (u8, or a
+lookup array's 8 bits);
 
 - bytes: every resource the generated code binds with the weights in textures (dense rows at the
-  precision's texel size, and the lookup arrays, grids and latents as the bundle keeps them), and the
-  dense weights alone;
+  precision's texel size, the lookup arrays, grids, latents, voxels and mesh features at theirs), and
+  the dense weights alone;
 - the twin's error: max |twin(P) - twin(f32)| over the networks' outputs on random rows in [-1, 1]
   (integer lanes: ids in [0, 1000));
 - the picture: ``inshade render`` at ``--size`` with the quantized networks against the f32 render
@@ -203,7 +205,8 @@ def _db(v: float) -> str:
 
 def markdown(r: dict) -> str:
     lines = ["# inshade bench precision", "", machine_markdown(r["machine"]), "",
-             f"Each shipped asset's networks with their dense weights at f16 and i8 (inshade/quantize.py), against "
+             "Each shipped asset's networks with their dense weights at f16 and i8 and, at i8, their tables in "
+             "8-bit codes (inshade/quantize.py), against "
              f"f32: bytes of everything the code binds with the weights in textures (dense share in brackets), "
              f"the twin's max error on {ROWS} random rows, and `inshade render` at {r['size']}^2 against the f32 "
              "render (PSNR of the 8-bit pictures; `identical`: not one 8-bit value moved).", "",
@@ -219,9 +222,9 @@ def markdown(r: dict) -> str:
         worst16 = min(rows, key=lambda a: a["render_psnr"]["f16"])
         worst8 = min(rows, key=lambda a: a["render_psnr"]["i8"])
         lines += ["", f"Lowest: f16 {_db(worst16['render_psnr']['f16'])} dB ({worst16['asset']}), i8 "
-                      f"{_db(worst8['render_psnr']['i8'])} dB ({worst8['asset']}) from the f32 render. The dense "
-                      "weights are a small share of most assets' bytes: their lookup arrays, grids, latents and "
-                      "voxels are already 8- or 16-bit."]
+                      f"{_db(worst8['render_psnr']['i8'])} dB ({worst8['asset']}) from the f32 render. Most "
+                      "shipped tables are float16 or 8-bit already: f16 changes their dense weights only, i8 "
+                      "their float16 tables too."]
     return "\n".join(lines + _reference_markdown(r) + _arithmetic_markdown(r)) + "\n"
 
 

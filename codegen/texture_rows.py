@@ -56,6 +56,13 @@ def texture_formats(groups, precision: str) -> str:
     return " + ".join(f"{CHANNELS[w]}{FLOAT_FORMATS[precision][2]}" for _, w in groups)
 
 
+def unorm_decoded(fetch: ir.Expr, scale: np.ndarray, offset: np.ndarray, first: int) -> ir.Expr:
+    """A u8 table's lanes ``first``..``first + 3`` decoded from ``fetch`` (a vec4 of unit values q / 255,
+    or their convex blend): offset + scale * fetch, the bundle's float32 range as vec4 literals."""
+    lanes = lambda a: np.pad(a[first:first + 4], (0, 4 - len(a[first:first + 4])))  # noqa: E731
+    return ir.Bin("+", ir.Vec4.of(lanes(offset)), ir.Bin("*", ir.Vec4.of(lanes(scale)), fetch))
+
+
 def store_group(ctx, out, first: int, width: int, fetch: ir.Expr, scratch: str) -> None:
     """Lanes ``first``.. of ``out`` from one texture's ``fetch`` (a vec4 expression): a whole block
     where the texture is RGBA (``first`` is then a multiple of 4), else through the vec4 ``scratch``."""

@@ -15,6 +15,7 @@ import numpy as np
 
 from .bundle import Bundle, Node
 from .components import registry
+from .components.unorm import decode
 
 TOL = 1e-5
 PERIODIC_ARG_INPUT = 2.0 ** 7 * math.pi    # ~402: sin/cos of a bundle input
@@ -87,6 +88,12 @@ class Site:
     def tensor(self, slot: str) -> np.ndarray:
         """The node's tensor in float64, as the bounds are computed."""
         return self.bundle.tensor(self.node, slot).astype(np.float64)
+
+    def table(self, slot: str) -> np.ndarray:
+        """A table's values as the shader decodes them (a u8 table's codes through its range), float64."""
+        if self.params.get("precision") != "u8":
+            return self.tensor(slot)
+        return decode(self.bundle.tensor(self.node, slot), self.tensor("scale"), self.tensor("offset")).astype(np.float64)
 
     def halves(self):
         """The two operands of a binary node: its input split at out_dim."""

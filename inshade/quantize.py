@@ -11,8 +11,9 @@ that holds exactly the numbers the shader will compute with.
 the torch twin computes what the shader computes and the parity rule holds against it; the error
 against the source is the quantization's own (``inshade.convert.check`` reports both). The tables of
 components with a ``precision`` parameter of their own (hash and dense grids, latent pyramids, sparse
-voxels, mesh features) go from f32 to float16; under i8, a table with an 8-bit form (the mesh
-features' u8: per-lane offset + scale, the values not centred) takes it.
+voxels, mesh features) go from f32 to float16; under i8 every table takes its 8-bit form (u8, or a
+lookup array's 8 bits: codes with a per-lane offset + scale, components/unorm.py; the values are
+not centred, so a symmetric code would waste half its range).
 """
 from __future__ import annotations
 
@@ -20,8 +21,8 @@ import copy
 
 import numpy as np
 
-from inshade.components.mesh_features.spec import as_u8
 from inshade.components.spec import I8_MAX, i8_codes   # the check of an i8 bundle's codes, beside the spec
+from inshade.components.unorm import as_codes
 
 __all__ = ["I8_MAX", "PRECISIONS", "QUANTIZED_TYPES", "i8_codes", "quantized", "row_scales", "table_nodes",
            "weight_bytes"]
@@ -29,9 +30,13 @@ __all__ = ["I8_MAX", "PRECISIONS", "QUANTIZED_TYPES", "i8_codes", "quantized", "
 PRECISIONS = ("f32", "f16", "i8")
 # the parameter kinds that take a precision (node type -> the tensors it rounds)
 QUANTIZED_TYPES = ("dense",)
-# table components with an 8-bit form of their own, which i8 gives them: type -> (its precision, the
-# conversion of (params, {slot: array}) in place)
-EIGHT_BIT_FORMS = {"mesh_features": ("u8", as_u8)}
+_U8 = ("precision", "u8", ("f32", "f16"))
+# table components' 8-bit forms, which i8 gives them: type -> ((the parameter, its 8-bit value, the
+# values it is converted from), the slots coded)
+EIGHT_BIT_FORMS = {"mesh_features": (_U8, lambda p: ["table"]), "hash_grid": (_U8, lambda p: ["table"]),
+                   "dense_grid": (_U8, lambda p: ["table"]), "sparse_voxels": (_U8, lambda p: ["latents"]),
+                   "latent_pyramid": (_U8, lambda p: [f"level{k}" for k in range(p["levels"])]),
+                   "lookup_array": (("bits", 8, (32,)), lambda p: ["cells"])}
 
 
 def row_scales(weight: np.ndarray) -> np.ndarray:
@@ -79,9 +84,26 @@ def table_nodes(bundle) -> list:
     return out
 
 
+def _eight_bit_tables(bundle, tensors: dict, by_id: dict) -> set:
+    """The tables with an 8-bit form turned to it, from their values as they are (in place in
+    ``tensors`` and the nodes' params ``by_id``); returns the ids of the nodes converted."""
+    done = set()
+    for node in bundle.nodes:
+        (param, value, sources), slots = EIGHT_BIT_FORMS.get(node.type, ((None, None, ()), None))
+        if node.params.get(param) not in sources:
+            continue
+        coded = {s: np.asarray(tensors[node.tensor_name(s)], np.float32) for s in slots(node.params)}
+        as_codes(coded, list(coded))
+        tensors.update({node.tensor_name(k): v for k, v in coded.items()})
+        by_id[node.id].setdefault("params", {})[param] = value
+        done.add(node.id)
+    return done
+
+
 def quantized(bundle, precision: str | dict, *, name: str | None = None):
     """``bundle`` with its dense layers stored at ``precision`` (one of PRECISIONS, or {node id:
-    precision} for some layers) and, below f32, its f32 tables at f16: a new, validated Bundle whose
+    precision} for some layers) and, below f32, its f32 tables at f16 (at i8 every table in its 8-bit
+    form, from its values as they are): a new, validated Bundle whose
     numbers are the values those precisions give (a layer already at another precision is re-quantized
     from its current values)."""
     from inshade.bundle import Bundle
@@ -103,19 +125,12 @@ def quantized(bundle, precision: str | dict, *, name: str | None = None):
         params = by_id[node.id].setdefault("params", {})
         tensors.pop(node.tensor_name("weight_scale"), None)
         _rounded(params, tensors, node.tensor_name, per_node[node.id])
-    if set(per_node.values()) - {"f32"}:
+    coded = _eight_bit_tables(bundle, tensors, by_id) if precision == "i8" else set()
+    if (set(per_node.values()) if isinstance(precision, dict) else {precision}) - {"f32"}:
         for node in table_nodes(bundle):
-            _half_table(node, tensors, {**node.params, **by_id[node.id].setdefault("params", {})})
-            by_id[node.id]["params"]["precision"] = "f16"
-    if precision == "i8":
-        for node in bundle.nodes:
-            form, convert = EIGHT_BIT_FORMS.get(node.type, (None, None))
-            if form is None or node.params.get("precision") == form:
-                continue
-            params = by_id[node.id].setdefault("params", {})
-            slots = {"table": np.asarray(tensors[node.tensor_name("table")], np.float32)}
-            convert(params, slots)
-            tensors.update({node.tensor_name(k): v for k, v in slots.items()})
+            if node.id not in coded:
+                _half_table(node, tensors, {**node.params, **by_id[node.id].setdefault("params", {})})
+                by_id[node.id]["params"]["precision"] = "f16"
     if name is not None:
         meta["name"] = name
     return Bundle(meta, tensors)

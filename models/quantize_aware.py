@@ -2,7 +2,9 @@
 them (inshade/quantize.py: f16 rounds weights and biases to float16; i8 rounds each weight row to int8
 codes times max |w| / 127), so the network learns around the rounding before it is exported at that
 precision. Straight through (Bengio et al. 2013): the forward pass uses the rounded values, the
-gradient reaches the float weights unchanged.
+gradient reaches the float weights unchanged. At i8 the tables with a u8 form (grids, latent
+pyramids, sparse voxels, mesh features: models/unorm_lanes.py) take it on entry, their range
+calibrated then, and keep it: the export writes the codes the loop saw.
 
     with quantizer_in_loop(model, "i8"):
         fit(...)                                  # a few hundred steps at a low rate
@@ -16,6 +18,9 @@ import torch
 from torch.nn.utils import parametrize
 
 from inshade.components.spec import I8_MAX
+from inshade.models.unorm_lanes import UnormLanes
+
+U8_FROM = ("f32", "f16")   # the table precisions i8 codes to u8 (inshade/quantize.py)
 
 
 def rounded(w: torch.Tensor, precision: str, part: str = "weight") -> torch.Tensor:
@@ -38,6 +43,12 @@ class _StraightThrough(torch.nn.Module):
         return w + (rounded(w, self.precision, self.part) - w).detach()
 
 
+def u8_tables(module: torch.nn.Module) -> list:
+    """``module``'s table components that have a u8 form and are not in it yet."""
+    return [m for m in module.modules()
+            if isinstance(m, UnormLanes) and m.params()["precision"] in U8_FROM]
+
+
 def dense_layers(module: torch.nn.Module) -> list[torch.nn.Linear]:
     """The torch layers of ``module``'s dense components (components/dense/torch_twin.py)."""
     return [m.linear for m in module.modules() if getattr(m, "type", None) == "dense"]
@@ -46,8 +57,12 @@ def dense_layers(module: torch.nn.Module) -> list[torch.nn.Linear]:
 @contextlib.contextmanager
 def quantizer_in_loop(module: torch.nn.Module, precision: str):
     """Inside, ``module``'s dense layers compute with their weights (and f16 biases) rounded to
-    ``precision``, straight through; the float weights go on training and are left in place after."""
+    ``precision``, straight through; the float weights go on training and are left in place after.
+    At i8 the tables take their u8 form for good (see above)."""
     layers = dense_layers(module)
+    if precision == "i8":
+        for table in u8_tables(module):
+            table.to_u8()
     parts = ["weight"] + (["bias"] if precision == "f16" else [])
     done = []
     try:

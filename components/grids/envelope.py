@@ -21,7 +21,7 @@ def _grid(s: Site):
     """Per level a convex blend of the level's rows: output bounds per level, and what its position
     rounding amplifies."""
     n, lo, hi = s.node, s.lo, s.hi
-    table = s.tensor("table")
+    table = s.table("table")
     if np.any(lo < 0) or np.any(hi > 1):
         s.warn("grid coordinate", float(np.max(np.maximum(-lo, hi - 1) + 1)), 1.0,
                "coordinates outside [0, 1] wrap around the levels (the same on both sides)", NOTE)

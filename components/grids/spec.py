@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from inshade.components.spec import ComponentError, ComponentSpec, Param, TensorSpec, pos_int, register
+from inshade.components.spec import ComponentError, ComponentSpec, Param, pos_int, register
+from inshade.components.unorm import TABLE_PRECISIONS, range_tensors, table_spec
 from inshade.grid_layout import MAX_DENSE_RESOLUTION, GridLayoutError, grid_levels, table_rows
 
 
-GRID_PRECISIONS = {"f16": "float16", "f32": None}
 GRID_KINDS = {"hash_grid": "hash", "dense_grid": "dense"}
 MAX_GRID_ROWS = 1 << 26
 
@@ -22,8 +22,10 @@ def grid_node_levels(node_type: str, p: dict, d: int):
 
 
 def _grid_tensors(node_type):
-    return lambda p, d: {"table": TensorSpec((table_rows(grid_node_levels(node_type, p, d)), p["features"]),
-                                             "float32", GRID_PRECISIONS[p["precision"]])}
+    def tensors(p, d):
+        table = table_spec((table_rows(grid_node_levels(node_type, p, d)), p["features"]), p["precision"])
+        return {"table": table, **(range_tensors(p["features"]) if p["precision"] == "u8" else {})}
+    return tensors
 
 
 def _grid_checks(node_type):
@@ -44,7 +46,8 @@ _GRID_PARAMS = {
     "features": Param(int, 2, lambda v: v in (1, 2, 4, 8), doc="1, 2, 4 or 8 per level"),
     "base_resolution": Param(int, 16, pos_int(1 << 16), doc="vertices per axis of level 0"),
     "per_level_scale": Param(float, 2.0, lambda v: np.isfinite(v) and 1.0 <= v <= 16.0, doc="1..16"),
-    "precision": Param(str, "f16", lambda v: v in GRID_PRECISIONS),
+    "precision": Param(str, "f16", lambda v: v in TABLE_PRECISIONS,
+                       doc="f16, f32 or u8 (8-bit codes, value = offset + scale * q / 255 per feature)"),
 }
 register(ComponentSpec(
     "hash_grid",

@@ -8,7 +8,9 @@ llvmpipe runs it (also its fma()); tiny-cuda-nn's pos_fract uses fmaf (one round
 by at most one ulp of p (2^-11 at p ~ 2048) where they differ at all, i.e. by ulp(p) times the
 level's difference between neighbouring vertices (docs/tcnn.md). Interpolation and summation are float32 in the GLSL order: corner weights
 multiplied axis by axis, corners summed in corner order (bit d of the corner number is axis d).
-precision "f16": the table is rounded to fp16 in forward (straight-through) and at export.
+precision "f16": the table is rounded to fp16 in forward (straight-through) and at export; "u8": each
+level blends the unit values q / 255 and decodes offset + scale * blend per feature, as the shader
+does (models/unorm_lanes.py: the range is the table's at construction, or the bundle's).
 """
 from __future__ import annotations
 
@@ -16,9 +18,11 @@ import numpy as np
 import torch
 
 from inshade.components import ComponentError, GRID_KINDS, check_node, grid_node_levels, resolve_params
+from inshade.components.unorm import decode
 from inshade.grid_layout import HASH_PRIMES, MASK, table_rows
 from inshade.models.latent_pyramid import _round_fp16
 from inshade.models.registry import Component, register
+from inshade.models.unorm_lanes import UnormLanes
 
 
 def level_rows(x: torch.Tensor, level, primes, dims: int):
@@ -50,7 +54,7 @@ def level_rows(x: torch.Tensor, level, primes, dims: int):
 
 
 @register
-class HashGrid(Component):
+class HashGrid(UnormLanes, Component):
     """`table` [rows, features] (nn.Parameter, U[-init_scale, init_scale] as instant-NGP starts it).
     forward(x [..., dims] in [0, 1]) -> [..., levels * features], level-major."""
 
@@ -76,6 +80,14 @@ class HashGrid(Component):
         if tuple(table.shape) != shape:
             raise ComponentError(f"table: shape {list(table.shape)}, expected {list(shape)}")
         self.table = torch.nn.Parameter(table.clone())
+        if precision == "u8":
+            self.calibrate()
+
+    def unorm_values(self) -> torch.Tensor:
+        return self.table
+
+    def set_precision(self, precision: str) -> None:
+        self._p["precision"] = precision
 
     @staticmethod
     def _kind_params(log2_table_size, hash):
@@ -87,7 +99,8 @@ class HashGrid(Component):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         lead = x.shape[:-1]
         x = x.reshape(-1, self.dims).float()
-        table = _round_fp16(self.table) if self._p["precision"] == "f16" else self.table
+        precision = self._p["precision"]
+        table = {"f16": _round_fp16, "u8": self.unit}.get(precision, lambda t: t)(self.table)
         outs = []
         for level in self.levels:
             rows, w = level_rows(x.detach(), level, self.primes, self.dims)
@@ -95,18 +108,24 @@ class HashGrid(Component):
             acc = w[:, 0, None] * vals[:, 0]
             for corner in range(1, rows.shape[1]):
                 acc = acc + w[:, corner, None] * vals[:, corner]
-            outs.append(acc)
+            outs.append(self.decode(acc) if precision == "u8" else acc)
         return torch.cat(outs, -1).reshape(*lead, len(self.levels) * self._p["features"])
 
     def export_tensors(self):
         t = self.table.detach().cpu().float()
+        if self._p["precision"] == "u8":
+            return {"table": self.codes(t), **self.unorm_range()}
         if self._p["precision"] == "f16":
             t = t.half().float()
         return {"table": np.ascontiguousarray(t.numpy())}
 
     @classmethod
     def from_node(cls, params, in_dim, tensors):
-        return cls(in_dim, **params, table=tensors["table"])
+        if params["precision"] != "u8":
+            return cls(in_dim, **params, table=tensors["table"])
+        m = cls(in_dim, **params, table=decode(tensors["table"], tensors["scale"], tensors["offset"]))
+        m.calibrate(tensors["scale"], tensors["offset"])
+        return m
 
 
 @register

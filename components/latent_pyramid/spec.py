@@ -1,10 +1,10 @@
 """Latent texture pyramids (Real-Time Neural Appearance Models): the bundle-level spec."""
 from __future__ import annotations
 
-from inshade.components.spec import ComponentError, ComponentSpec, Param, TensorSpec, pos_int, register
+from inshade.components.spec import ComponentError, ComponentSpec, Param, pos_int, register
+from inshade.components.unorm import TABLE_PRECISIONS, range_tensors, table_spec
 
 
-LATENT_PRECISIONS = {"f16": "float16", "f32": None}
 MAX_LATENT_RES = 1 << 14
 
 
@@ -14,8 +14,8 @@ def _is_pow2(v) -> bool:
 
 def _pyramid_tensors(p, d):
     res, c = p["resolution"], p["channels"]
-    rep = LATENT_PRECISIONS[p["precision"]]
-    return {f"level{k}": TensorSpec((res >> k, res >> k, c), "float32", rep) for k in range(p["levels"])}
+    levels = {f"level{k}": table_spec((res >> k, res >> k, c), p["precision"]) for k in range(p["levels"])}
+    return {**levels, **(range_tensors(c) if p["precision"] == "u8" else {})}
 
 
 def _pyramid_checks(p, d):
@@ -34,7 +34,8 @@ register(ComponentSpec(
      "levels": Param(int, check=pos_int(15)),
      "channels": Param(int, 8, lambda v: isinstance(v, int) and 4 <= v <= 64 and v % 4 == 0,
                        doc="a multiple of 4 from 4 to 64: one RGBA texture per 4"),
-     "precision": Param(str, "f32", lambda v: v in LATENT_PRECISIONS)},
+     "precision": Param(str, "f32", lambda v: v in TABLE_PRECISIONS,
+                        doc="f32, f16 or u8 (8-bit codes, value = offset + scale * q / 255 per channel)")},
     out_dim=lambda p, d: p["channels"],
     tensors=_pyramid_tensors,
     in_dim=lambda p, d: d == 3,

@@ -28,7 +28,7 @@ from inshade.codegen import ir
 from inshade.codegen.glsl import PlanRow, TextureResource
 from inshade.codegen.registry import emitter
 from inshade.codegen.texture_rows import (feature_textures, row_layout, rows_data, store_group,
-                                          texture_formats)
+                                          texture_formats, unorm_decoded)
 from inshade.codegen.values import declare
 from inshade.geometry.mesh_topology import check_tables
 
@@ -93,9 +93,6 @@ def emit_mesh_features(ctx, node, srcs, bundle):
     groups = feature_textures(ctx, node.id, table, p["precision"], tab_log2w, tab_rows,
                               f"{levels} levels x {size} rows")
     u8 = p["precision"] == "u8"
-    if u8:
-        scale, offset = bundle.tensor(node, "scale"), bundle.tensor(node, "offset")
-        lanes4 = lambda a, g: np.pad(a[4 * g:4 * g + 4], (0, 4 - len(a[4 * g:4 * g + 4])))  # noqa: E731
 
     out = declare(ctx, f"v_{node.id}", node.out_dim)
     k, t, c, e = (ctx.name(node.id, s) for s in ("k", "t", "corners", "edges"))
@@ -113,7 +110,7 @@ def emit_mesh_features(ctx, node, srcs, bundle):
         for g, (name, width) in enumerate(groups):
             blend = ir.Call("mf_blend", (ir.TextureArg(name), ir.Int(str(tab_log2w)), ir.Var(idx), ir.Var(wt)))
             if u8:
-                blend = ir.Bin("+", ir.Vec4.of(lanes4(offset, g)), ir.Bin("*", ir.Vec4.of(lanes4(scale, g)), blend))
+                blend = unorm_decoded(blend, bundle.tensor(node, "scale"), bundle.tensor(node, "offset"), 4 * g)
             store_group(ctx, out, level * feats + 4 * g, width, blend, s)
 
     tex_bytes = sum(r.nbytes for r in ctx.resources[-1 - len(groups):])

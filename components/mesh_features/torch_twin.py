@@ -8,9 +8,10 @@ import torch
 from inshade.components import ComponentError, check_node, resolve_params
 from inshade.geometry.mesh_topology import check_tables, mesh_topology
 from inshade.models.latent_pyramid import _round_fp16
-from inshade.components.mesh_features.spec import U8_LEVELS, dequantize_u8, lane_range, quantize_u8
+from inshade.components.unorm import decode
 from inshade.models.mesh_features import canonical, hash_index, subvertices
 from inshade.models.registry import Component, register
+from inshade.models.unorm_lanes import UnormLanes
 
 
 def _uint32(name: str, a) -> np.ndarray:
@@ -21,7 +22,7 @@ def _uint32(name: str, a) -> np.ndarray:
 
 
 @register
-class MeshFeatures(Component):
+class MeshFeatures(UnormLanes, Component):
     """`table` [levels * table_size, features] (nn.Parameter, U[-init_scale, init_scale]);
     corners / edges: the owner tables (buffers). forward(x [..., 3] = (triangle id as float,
     t0, t1)) -> [..., levels * features]."""
@@ -47,22 +48,10 @@ class MeshFeatures(Component):
         if tuple(table.shape) != (rows, self.features):
             raise ComponentError(f"table: shape {list(table.shape)}, expected {[rows, self.features]}")
         self.table = torch.nn.Parameter(table.clone())
-        self.register_buffer("scale", torch.ones(self.features))
-        self.register_buffer("offset", torch.zeros(self.features))
         self.calibrate()
 
-    def calibrate(self, scale=None, offset=None) -> None:
-        """Set the u8 range per lane: given (scale, offset), else the table's min/max."""
-        if scale is None:
-            scale, offset = lane_range(self.table.detach().cpu().numpy())
-        scale, offset = np.asarray(scale, np.float32), np.asarray(offset, np.float32)
-        if scale.shape != (self.features,) or offset.shape != (self.features,):
-            raise ComponentError(f"scale, offset: shape [{self.features}] each, got {list(scale.shape)}, "
-                                 f"{list(offset.shape)}")
-        if not (np.isfinite(scale).all() and np.isfinite(offset).all() and (scale > 0).all()):
-            raise ComponentError("scale: must be finite and > 0 per lane, offset finite")
-        self.scale.copy_(torch.from_numpy(scale))
-        self.offset.copy_(torch.from_numpy(offset))
+    def unorm_values(self) -> torch.Tensor:
+        return self.table
 
     @classmethod
     def for_mesh(cls, vertices, faces, levels: int, features: int, table_size: int, **kw) -> "MeshFeatures":
@@ -87,11 +76,7 @@ class MeshFeatures(Component):
         r = self.table[index]
         if self.precision == "f16":
             return _round_fp16(r)
-        if self.precision == "u8":
-            u = (r - self.offset) / self.scale
-            q = torch.clamp(torch.round(u * U8_LEVELS), 0, U8_LEVELS) / U8_LEVELS
-            return u + (q - u).detach() if r.requires_grad else q   # q itself when nothing trains
-        return r
+        return self.unit(r) if self.precision == "u8" else r
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         lead = x.shape[:-1]
@@ -108,7 +93,7 @@ class MeshFeatures(Component):
             rows = self.rows(hash_index(kk, c0, c1, level, self.table_size))   # [M, 3, F]
             weight = weight[..., None].to(rows.dtype)
             blend = (weight[:, 0] * rows[:, 0] + weight[:, 1] * rows[:, 1]) + weight[:, 2] * rows[:, 2]
-            outs.append(self.offset + self.scale * blend if self.precision == "u8" else blend)
+            outs.append(self.decode(blend) if self.precision == "u8" else blend)
         return torch.cat(outs, -1).reshape(*lead, self.levels * self.features)
 
     def export_tensors(self):
@@ -116,28 +101,17 @@ class MeshFeatures(Component):
         owners = {"corners": self.corners.cpu().numpy().astype(np.uint32),
                   "edges": self.edges.cpu().numpy().astype(np.uint32)}
         if self.precision == "u8":
-            scale, offset = self.scale.cpu().numpy().copy(), self.offset.cpu().numpy().copy()
-            stored = getattr(self, "_stored", None)
-            if stored is not None and np.array_equal(stored[0], t.numpy()) \
-                    and np.array_equal(stored[1], scale) and np.array_equal(stored[2], offset):
-                q = stored[3]      # loaded and untouched: the same integers, bit for bit
-            else:
-                q = quantize_u8(t.numpy(), scale, offset)
-            return {"table": np.ascontiguousarray(q), "scale": scale, "offset": offset, **owners}
+            return {"table": self.codes(t), **self.unorm_range(), **owners}
         if self.precision == "f16":
             t = t.half().float()
         return {"table": np.ascontiguousarray(t.numpy()), **owners}
 
     @classmethod
     def from_node(cls, params, in_dim, tensors):
-        table = tensors["table"]
-        if params["precision"] == "u8":
-            q = np.asarray(table, np.uint8)
-            scale, offset = np.asarray(tensors["scale"], np.float32), np.asarray(tensors["offset"], np.float32)
-            table = dequantize_u8(q, scale, offset)
+        u8 = params["precision"] == "u8"
+        table = decode(tensors["table"], tensors["scale"], tensors["offset"]) if u8 else tensors["table"]
         m = cls(params["levels"], params["features"], params["table_size"], tensors["corners"],
                 tensors["edges"], params["precision"], table=table)
-        if params["precision"] == "u8":
-            m.calibrate(scale, offset)
-            m._stored = (table, scale, offset, q.copy())
+        if u8:
+            m.calibrate(tensors["scale"], tensors["offset"])
         return m

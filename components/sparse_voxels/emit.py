@@ -4,7 +4,8 @@ of sparse_voxels.glsl and its .wgsl / .hlsl versions); torch twin in torch_twin.
 Resources (P = the network prefix, e.g. "dap"; node id v):
 - ``P_v_latents``: the latent table, Z/4 RGBA texels per voxel (texel t = slot * Z/4 + g holds
   channels 4g..4g+3), RGBA16F for precision f16 (the bundle's values are fp16-representable:
-  checked at load), RGBA32F for f32; a 2D texture whose rows are 2^n texels wide (texel t at
+  checked at load), RGBA32F for f32, RGBA8 (unorm) for u8 (each texel decoded offset + scale * q / 255
+  per channel: components/unorm.py); a 2D texture whose rows are 2^n texels wide (texel t at
   (t & (W-1), t >> n): codegen/texture_rows.py row_layout, within GL_MAX_TEXTURE_SIZE);
 - ``P_v_spheres``: spheres (centre, radius), one RGBA32F texel per slot, same row layout;
 - the cell -> slot index, as param ``index`` says (codegen/voxel_index.py has the layouts):
@@ -31,13 +32,10 @@ import numpy as np
 from inshade.codegen import ir
 from inshade.codegen.glsl import PlanRow, TextureResource
 from inshade.codegen.registry import emitter
-from inshade.codegen.texture_rows import row_layout, rows_data
+from inshade.codegen.texture_rows import FLOAT_FORMATS, row_layout, rows_data, unorm_decoded
 from inshade.codegen.values import declare
 from inshade.codegen.voxel_index import EMIT as INDEX_EMIT
 from inshade.components import check_voxel_tables
-
-_FLOAT = {"f16": ("f2", np.float16, "RGBA16F"), "f32": ("f4", np.float32, "RGBA32F")}
-
 
 def _row(table: str, index: ir.Expr, log2w: int) -> ir.Call:
     return ir.Call("sv_row", (ir.TextureArg(table), index, ir.Int(str(log2w))))
@@ -62,7 +60,8 @@ def emit_sparse_voxels(ctx, node, srcs, bundle):
     cells, spheres = bundle.tensor(node, "cells"), bundle.tensor(node, "spheres")
     latents = bundle.tensor(node, "latents")
     check_voxel_tables(cells, spheres, smin, smax, latents)
-    fdtype, np_dtype, fmt = _FLOAT[p["precision"]]
+    fdtype, np_dtype, suffix = FLOAT_FORMATS[p["precision"]]
+    fmt = f"RGBA{suffix}"
     texels = z // 4
 
     lat_log2w, lat_rows = row_layout(node.id, f"latent table ({texels} texels per voxel)", n * texels, ctx.limits)
@@ -90,8 +89,11 @@ def emit_sparse_voxels(ctx, node, srcs, bundle):
     out = declare(ctx, f"v_{node.id}", z)
     ctx.body.append(ir.Declare("uint", s, init=_slot(v, i, n)))
     # channels 4g..4g+3 of the row: texel slot * Z/4 + g of the latent table
-    ctx.body += [ir.Assign(out.block_ir(g), _row(lat, ir.Int(f"{s} * {texels}u + {g}u"), lat_log2w))
-                 for g in range(texels)]
+    fetches = [_row(lat, ir.Int(f"{s} * {texels}u + {g}u"), lat_log2w) for g in range(texels)]
+    if p["precision"] == "u8":
+        scale, offset = bundle.tensor(node, "scale"), bundle.tensor(node, "offset")
+        fetches = [unorm_decoded(f, scale, offset, 4 * g) for g, f in enumerate(fetches)]
+    ctx.body += [ir.Assign(out.block_ir(g), f) for g, f in enumerate(fetches)]
     ctx.plan.append(PlanRow(node.id, "sparse_voxels",
                             f"{n} voxels x {z} ({p['precision']}), scales {smin}..{smax}", "texture/exact",
                             f"{fmt} latents ({texels} texels/voxel, rows of {1 << lat_log2w}) + RGBA32F spheres + "

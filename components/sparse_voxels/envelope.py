@@ -6,5 +6,5 @@ from inshade.envelope_base import Site, rule
 
 @rule("sparse_voxels")
 def _sparse_voxels(s: Site):   # one latent row per slot, fetched as stored
-    latents = s.tensor("latents")
+    latents = s.table("latents")
     return latents.min(0), latents.max(0)

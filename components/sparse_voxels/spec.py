@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from inshade.components.spec import ComponentError, ComponentSpec, Param, TensorSpec, pos_int, register
+from inshade.components.unorm import TABLE_PRECISIONS, range_tensors, table_spec
 
 
-VOXEL_PRECISIONS = {"f16": "float16", "f32": None}
 VOXEL_MAX_SCALE = 9                 # 512^3 cells: the finest grid a 3D index texture may hold
 VOXEL_MAX_COUNT = 1 << 24           # slots travel through torch as exact float32 integers
 VOXEL_INDEXES = ("dense", "bricks")  # cell -> slot index layouts (codegen/voxel_index.py)
@@ -78,15 +78,17 @@ register(ComponentSpec(
                        doc="a multiple of 4 from 4 to 64: Z/4 RGBA texels per voxel"),
      "scale_min": Param(int, check=lambda v: 0 <= v <= VOXEL_MAX_SCALE, doc=f"0..{VOXEL_MAX_SCALE}"),
      "scale_max": Param(int, check=lambda v: 0 <= v <= VOXEL_MAX_SCALE, doc=f"0..{VOXEL_MAX_SCALE}"),
-     "precision": Param(str, "f16", lambda v: v in VOXEL_PRECISIONS),
+     "precision": Param(str, "f16", lambda v: v in TABLE_PRECISIONS,
+                        doc="f16, f32 or u8 (8-bit codes, value = offset + scale * q / 255 per channel)"),
      "index": Param(str, "dense", lambda v: v in VOXEL_INDEXES,
                     doc="dense (one 3D grid per scale) or bricks (a brick table + B^3 bricks where voxels are)"),
      "brick": Param(int, 4, lambda v: v in VOXEL_BRICKS, doc="the bricks index's side B: 2, 4 or 8")},
     out_dim=lambda p, d: p["channels"],
     tensors=lambda p, d: {
-        "latents": TensorSpec((p["voxels"], p["channels"]), "float32", VOXEL_PRECISIONS[p["precision"]]),
+        "latents": table_spec((p["voxels"], p["channels"]), p["precision"]),
         "cells": TensorSpec((p["voxels"], 4), "uint32"),
-        "spheres": TensorSpec((p["voxels"], 4), "float32")},
+        "spheres": TensorSpec((p["voxels"], 4), "float32"),
+        **(range_tensors(p["channels"]) if p["precision"] == "u8" else {})},
     in_dim=lambda p, d: d == 1,
     category="lookup",
     extra_checks=_voxel_checks,

@@ -9,7 +9,8 @@ its latent row (an auto-decoder embedding: trained directly, no encoder).
 forward(x [..., 1] = slot as an exact float) -> latents[slot] [..., channels]. A slot outside
 0..N-1 is a ValueError here (the GLSL side clamps it to that range: a shader cannot raise).
 precision "f16": the latents are rounded to fp16 in forward (straight-through) and at export, so
-the loss sees what an RGBA16F texture holds. cells and spheres are buffers: not trained.
+the loss sees what an RGBA16F texture holds; "u8": offset + scale * q / 255 per channel, as the
+shader decodes a unorm8 texel (models/unorm_lanes.py). cells and spheres are buffers: not trained.
 """
 from __future__ import annotations
 
@@ -18,11 +19,13 @@ import torch
 
 from inshade.components import check_node, check_voxel_tables, resolve_params
 from inshade.models.latent_pyramid import _round_fp16
+from inshade.components.unorm import decode
 from inshade.models.registry import Component, register
+from inshade.models.unorm_lanes import UnormLanes
 
 
 @register
-class SparseVoxels(Component):
+class SparseVoxels(UnormLanes, Component):
     type = "sparse_voxels"
 
     def __init__(self, cells, spheres, channels: int, scale_min: int, scale_max: int, precision: str = "f16",
@@ -45,6 +48,11 @@ class SparseVoxels(Component):
         self.register_buffer("cells", torch.from_numpy(cells.astype(np.int64)))
         self.register_buffer("spheres", torch.from_numpy(spheres.copy()))
         self.latents = torch.nn.Parameter(torch.from_numpy(latents.copy()))
+        if precision == "u8":
+            self.calibrate()
+
+    def unorm_values(self) -> torch.Tensor:
+        return self.latents
 
     @property
     def voxels(self) -> int:
@@ -58,7 +66,9 @@ class SparseVoxels(Component):
         return self.params_with(self.voxels)
 
     def table(self) -> torch.Tensor:
-        """The latents as the lookup sees them (fp16-rounded for precision f16)."""
+        """The latents as the lookup sees them (fp16-rounded for precision f16, decoded codes for u8)."""
+        if self.precision == "u8":
+            return self.decode(self.unit(self.latents))
         return _round_fp16(self.latents) if self.precision == "f16" else self.latents
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -74,12 +84,19 @@ class SparseVoxels(Component):
         lat = self.latents.detach().cpu().float()
         if self.precision == "f16":
             lat = lat.half().float()
-        return {"latents": np.ascontiguousarray(lat.numpy()),
+        stored = {"latents": self.codes(lat), **self.unorm_range()} if self.precision == "u8" else {
+            "latents": np.ascontiguousarray(lat.numpy())}
+        return {**stored,
                 "cells": self.cells.cpu().numpy().astype(np.uint32),
                 "spheres": np.ascontiguousarray(self.spheres.cpu().numpy().astype(np.float32))}
 
     @classmethod
     def from_node(cls, params, in_dim, tensors):
-        return cls(tensors["cells"], tensors["spheres"], params["channels"], params["scale_min"],
-                   params["scale_max"], params["precision"], latents=tensors["latents"],
-                   index=params.get("index", "dense"), brick=params.get("brick", 4))
+        u8 = params["precision"] == "u8"
+        latents = decode(tensors["latents"], tensors["scale"], tensors["offset"]) if u8 else tensors["latents"]
+        m = cls(tensors["cells"], tensors["spheres"], params["channels"], params["scale_min"],
+                params["scale_max"], params["precision"], latents=latents,
+                index=params.get("index", "dense"), brick=params.get("brick", 4))
+        if u8:
+            m.calibrate(tensors["scale"], tensors["offset"])
+        return m

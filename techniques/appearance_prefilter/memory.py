@@ -22,6 +22,9 @@ SPHERE_BYTES = 16
 INDEX_TEXEL_BYTES = 4
 
 
+LATENT_VALUE_BYTES = {"f32": 4, "f16": 2, "u8": 1}   # the u8 form's per-channel range aside
+
+
 def grid_texels(scale_min: int, scale_max: int) -> int:
     """Texels of the dense index grid's mip chain: (2^s)^3 for each scale s_min..s_max."""
     return sum(1 << (3 * s) for s in range(scale_min, scale_max + 1))
@@ -31,7 +34,7 @@ def memory_report(bundle) -> dict:
     node = next(n for n in bundle.nodes if n.type == "sparse_voxels")
     p = node.params
     n, z = p["voxels"], p["channels"]
-    latent_bytes = z * (2 if p["precision"] == "f16" else 4)
+    latent_bytes = z * LATENT_VALUE_BYTES[p["precision"]]
     kind = p.get("index", "dense")
     grid = index_bytes(np.asarray(bundle.tensor(node, "cells")), p)
     dense = dense_bytes(p["scale_min"], p["scale_max"])

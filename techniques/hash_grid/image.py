@@ -119,7 +119,8 @@ def fit(g: GraphModule, target: np.ndarray, *, steps: int, batch: int, seed: int
 
 def finetune(g: GraphModule, target: np.ndarray, s) -> float:
     """The quantization-aware fine-tune (precision below f32): ``finetune_steps`` more steps at a tenth of
-    the rates with the dense weights seen at ``precision`` (models/quantize_aware.py); returns the sRGB
+    the rates with the dense weights (and, at i8, the grid's u8 codes) seen at ``precision``
+    (models/quantize_aware.py); returns the sRGB
     PSNR the quantized network had before it."""
     from inshade.models.quantize_aware import quantizer_in_loop
 
@@ -211,9 +212,11 @@ def baseline(s, target: np.ndarray, budget_bytes: int, device) -> dict:
 
 
 def save_fp16(bundle, out) -> None:
-    """The bundle with its fp16 tables stored as F16 (half the file; widened exactly at load)."""
+    """The bundle with its fp16 tables stored as F16 (half the file; widened exactly at load; u8 codes as
+    they are)."""
     tensors = bundle.tensors
-    bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") else v) for k, v in tensors.items()}
+    bundle.tensors = {k: (v.astype(np.float16) if k.endswith(".table") and v.dtype.kind == "f" else v)
+                      for k, v in tensors.items()}
     try:
         bundle.save(out)
     finally:

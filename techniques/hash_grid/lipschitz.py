@@ -24,6 +24,7 @@ import numpy as np
 import torch
 
 from inshade.components import grid_node_levels
+from inshade.components.unorm import decode
 from inshade.models.graph import GraphModule
 
 
@@ -32,6 +33,9 @@ def encoding_jacobian_bound(grid) -> np.ndarray:
     table = grid.table.detach().double().cpu().numpy()
     if grid.params()["precision"] == "f16":
         table = table.astype(np.float16).astype(np.float64)
+    if grid.params()["precision"] == "u8":   # the decoded codes
+        r = grid.unorm_range()
+        table = decode(grid.codes(grid.table), r["scale"], r["offset"]).astype(np.float64)
     dims, feats = grid.dims, grid.params()["features"]
     rows = []
     levels = grid_node_levels(grid.type, grid.params(), dims)

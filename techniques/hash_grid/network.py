@@ -114,10 +114,13 @@ def add_frequency_mlp(g: GraphModule, src: str, n_freqs: int, depth: int, out_di
 
 
 def network_bytes(g: GraphModule) -> int:
-    """What the bundle's tensors take as the shader reads them: grid tables at fp16, the rest fp32."""
+    """What the bundle's tensors take as the shader reads them: grid tables at fp16 (u8 codes: 1 byte),
+    the rest fp32."""
     total = 0
     for name, p in g.named_parameters():
-        total += p.numel() * (FP16_BYTES if name.endswith(".table") else FP32_BYTES)
+        table = name.endswith(".table")
+        u8 = table and g.nodes[name.split(".")[-2]].params()["precision"] == "u8"
+        total += p.numel() * (1 if u8 else FP16_BYTES if table else FP32_BYTES)
     return total
 
 

@@ -151,7 +151,10 @@ def test_voxel_parity(target, case):
     q = grid_queries(smin, smax)
     x = np.random.default_rng(case["seed"]).integers(0, len(cells), (len(q), 1)).astype(np.float32)
     out, slot, consts, sphere = run_host(bundle, x, q, target, limits=small_limits(case, cells))
-    np.testing.assert_array_equal(out, torch_reference(bundle, x), err_msg=f"{target} {case}")
+    if case["precision"] == "u8":   # the decode's product and sum may round differently (e.g. fused)
+        assert_parity(out, torch_reference(bundle, x), what=f"{target} {case}")
+    else:
+        np.testing.assert_array_equal(out, torch_reference(bundle, x), err_msg=f"{target} {case}")
     assert_voxel_functions(slot, consts, sphere, cells, spheres, q, smin, smax, f"{target} {case}")
 
 

@@ -246,7 +246,7 @@ def grid_cases(draw, max_rows: int = 1 << 14):
     base = draw(st.integers(2, 16))
     pls = draw(st.sampled_from([1.0, 1.26, 1.3819, 1.5, 2.0, 3.0]))
     case = dict(kind=kind, dims=dims, levels=levels, features=features, base_resolution=base,
-                per_level_scale=pls, precision=draw(st.sampled_from(["f16", "f32"])), mixed=False,
+                per_level_scale=pls, precision=draw(st.sampled_from(["f16", "f32", "u8"])), mixed=False,
                 seed=draw(st.integers(0, 2 ** 31 - 1)))
     if kind == "dense":      # keep the table small: drop fine levels
         while case["levels"] > 1 and table_rows(grid_levels(dims, case["levels"], base, pls, 24, "dense")) > max_rows:
@@ -312,16 +312,21 @@ def grid_inputs(case, seed: int, n: int = 256) -> np.ndarray:
 @given(case=grid_cases(), seed=st.integers(0, 2 ** 31 - 1))
 def test_twin_follows_tiny_cuda_nns_rules(case, seed):
     """The torch twin equals the transcription bit for bit (rows, weights, corner order); f16 tables
-    are rounded to fp16 as the texture holds them."""
+    are rounded to fp16 as the texture holds them, u8 ones blend their codes' unit values."""
     m = build_grid(case)
     table = m.table.detach().numpy()
     if case["precision"] == "f16":
         table = table.astype(np.float16).astype(np.float32)
+    if case["precision"] == "u8":   # the unit values q / 255 blended, decoded after
+        table = m.codes(m.table).astype(np.float32) / np.float32(255)
     x = grid_inputs(case, seed, 128)
     with torch.no_grad():
         got = m(torch.from_numpy(x)).numpy()
     want = tcnn_forward(x, table, case["dims"], case["levels"], case["base_resolution"], case["per_level_scale"],
                         case.get("log2_table_size", 24), case["kind"], case.get("hash", "coherent_prime"))
+    if case["precision"] == "u8":
+        r = m.unorm_range()
+        want = np.tile(r["offset"], case["levels"]) + np.tile(r["scale"], case["levels"]) * want
     np.testing.assert_array_equal(got, want)
     if case["mixed"]:
         assert m.levels[0].dense and not m.levels[-1].dense

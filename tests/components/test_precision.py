@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 import inshade
 from inshade.bundle import Bundle, BundleError
 from inshade.codegen import generate
+from inshade.components.unorm import decode
 from inshade.convert.lowering import ConvertError
 from inshade.quantize import I8_MAX, i8_codes, quantized, weight_bytes
 
@@ -137,8 +138,8 @@ def test_codegen_precision_checks_the_code_and_reports_the_quantization(tmp_path
 
 
 def test_a_table_at_f32_goes_to_its_f16_form(gl):
-    """A hash grid stored at f32 (its own precision parameter): f16 and i8 both store it at f16, whose
-    numbers the shader reads as the twin does."""
+    """A hash grid stored at f32 (its own precision parameter): f16 stores it at f16, whose numbers the
+    shader reads as the twin does."""
     import copy
 
     from inshade.bundle import load
@@ -152,15 +153,64 @@ def test_a_table_at_f32_goes_to_its_f16_form(gl):
     table = grid.tensor_name("table")
     tensors[table] = tensors[table] + np.random.default_rng(0).uniform(-1e-4, 1e-4, tensors[table].shape).astype(
         np.float32)   # float32 values float16 cannot hold
-    full = Bundle(meta, tensors)
-    for precision in ("f16", "i8"):
-        q = quantized(full, precision)
-        node = q.node(grid.id)
-        assert node.params["precision"] == "f16"
-        t = q.tensors[table]
-        assert np.array_equal(t.astype(np.float16).astype(np.float32), t) and not np.array_equal(t, tensors[table])
-        x = np.random.default_rng(1).uniform(0, 1, (256, q.in_dim)).astype(np.float32)
-        assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what=precision)
+    q = quantized(Bundle(meta, tensors), "f16")
+    assert q.node(grid.id).params["precision"] == "f16"
+    t = q.tensors[table]
+    assert np.array_equal(t.astype(np.float16).astype(np.float32), t) and not np.array_equal(t, tensors[table])
+    x = np.random.default_rng(1).uniform(0, 1, (256, q.in_dim)).astype(np.float32)
+    assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what="f16")
+
+
+def _table_networks():
+    """One small network per table component at f32 (the table feeding a dense layer), and inputs."""
+    from test_hash_grid import build_grid
+    from test_latent_pyramid import pyramid_graph, pyramid_inputs
+    from test_lookup_array import lut_graph, lut_inputs
+    from test_sparse_voxels import voxel_graph
+
+    from inshade.models import GraphModule
+
+    def fed(kind, module, dims, node):
+        g = GraphModule([("x", dims)])
+        g.add(node, module, "x")
+        g.dense("l0", node, 5)
+        g.output("y", "l0")
+        return g.export(kind)
+
+    rng = np.random.default_rng(0)
+    grid = dict(kind="hash", dims=3, levels=4, features=4, base_resolution=4, per_level_scale=2.0, precision="f32",
+                log2_table_size=8, hash="coherent_prime", seed=3, mixed=True)
+    dense = dict(grid, kind="dense", dims=2, features=2, levels=3)
+    yield "hash_grid", fed("grid", build_grid(grid, 1.0), 3, "grid"), rng.uniform(0, 1, (256, 3))
+    yield "dense_grid", fed("grid", build_grid(dense, 1.0), 2, "grid"), rng.uniform(0, 1, (256, 2))
+    pyramid = dict(res=16, levels=3, channels=8, precision="f32", seed=1)
+    yield "latent_pyramid", pyramid_graph(pyramid).export("latent"), pyramid_inputs(1, 256, 16, 3)
+    voxels = dict(scale_min=1, scale_max=2, density=0.3, channels=8, precision="f32", uint=False, small=False, seed=2)
+    bundle = voxel_graph(voxels).export("voxels")
+    yield "sparse_voxels", bundle, rng.integers(0, bundle.node("vox").params["voxels"], (256, 1))
+    lut = dict(res=[9, 7], channels=3, bits=32, nonlinearity="none", seed=4)
+    yield "lookup_array", lut_graph(lut).export("lut"), lut_inputs(4, 256, 2, [9, 7])
+
+
+@pytest.mark.parametrize("kind", ["hash_grid", "dense_grid", "latent_pyramid", "sparse_voxels", "lookup_array"])
+def test_i8_gives_every_table_its_8_bit_form(gl, kind):
+    """Under i8 a table takes its 8-bit codes with a range per lane (the values are not centred): the
+    bundle holds uint8 codes, a quarter of the float32 bytes, each within half a step of the value it
+    codes, which the shader decodes as the twin does (parity rule)."""
+    name, bundle, x = next(t for t in _table_networks() if t[0] == kind)
+    x = np.asarray(x, np.float32)
+    q = quantized(bundle, "i8")
+    node = next(n for n in q.nodes if n.type == kind)
+    param, value = ("bits", 8) if kind == "lookup_array" else ("precision", "u8")
+    assert node.params[param] == value
+    slots = [s for s in q.tensors if s.startswith(node.id + ".") and q.tensors[s].dtype == np.uint8]
+    assert slots and q.tensors[node.tensor_name("scale")].dtype == np.float32
+    assert sum(q.tensors[s].nbytes for s in slots) * 4 == sum(bundle.tensors[s].nbytes for s in slots)
+    scale, offset = q.tensors[node.tensor_name("scale")], q.tensors[node.tensor_name("offset")]
+    for s in slots:   # every value within half a step of its lane's range
+        error = np.abs(decode(q.tensors[s], scale, offset) - bundle.tensors[s])
+        assert np.all(error <= scale / 510 * (1 + 1e-5) + 1e-7)
+    assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what=f"{kind} i8")
 
 
 def test_i8_gives_mesh_features_their_u8_form(gl):

@@ -50,3 +50,24 @@ def test_the_float_weights_train_straight_through_and_nothing_is_left():
                for a, n in zip(after, [n for n in net.export("mlp").nodes if n.type == "dense"]))
     assert set(net.state_dict()) == keys and all(isinstance(layer.weight, torch.nn.Parameter)
                                                    for layer in dense_layers(net))
+
+
+def test_at_i8_a_table_takes_its_u8_form_and_the_export_writes_the_codes_the_loop_saw():
+    from inshade.components.grids.torch_twin import HashGrid
+
+    torch.manual_seed(0)
+    g = GraphModule([("x", 2)])
+    g.add("grid", HashGrid(2, 3, 2, log2_table_size=8, base_resolution=4, precision="f16", init_scale=0.5), "x")
+    g.output("y", g.dense("l0", "grid", 3))
+    x, y = torch.rand(256, 2), torch.rand(256, 3)
+    with quantizer_in_loop(g, "i8"):
+        assert g.nodes["grid"].params()["precision"] == "u8"
+        opt = adam(g.parameters(), lr=1e-2)
+        fit(opt, lambda step: torch.mean((g(x) - y) ** 2), 20, progress=False)
+        with torch.no_grad():
+            inside = g(x)
+    bundle = quantized(g.export("grid"), "i8")
+    assert bundle.node("grid").params["precision"] == "u8"
+    # the range the loop calibrated on entry, not one refitted to the trained values
+    assert np.array_equal(bundle.tensors["grid.scale"], g.nodes["grid"].scale.numpy())
+    assert torch.equal(GraphModule.from_bundle(bundle)(x).detach(), inside)
