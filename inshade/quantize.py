@@ -24,8 +24,8 @@ import numpy as np
 from inshade.components.spec import I8_MAX, i8_codes   # the check of an i8 bundle's codes, beside the spec
 from inshade.components.unorm import as_codes
 
-__all__ = ["I8_MAX", "PRECISIONS", "QUANTIZED_TYPES", "i8_codes", "quantized", "row_scales", "table_nodes",
-           "weight_bytes"]
+__all__ = ["I8_MAX", "PRECISIONS", "QUANTIZED_TYPES", "i8_codes", "lower_tables", "quantized", "row_scales",
+           "table_nodes", "weight_bytes"]
 
 PRECISIONS = ("f32", "f16", "i8")
 # the parameter kinds that take a precision (node type -> the tensors it rounds)
@@ -84,28 +84,43 @@ def table_nodes(bundle) -> list:
     return out
 
 
-def _eight_bit_tables(bundle, tensors: dict, by_id: dict) -> set:
-    """The tables with an 8-bit form turned to it, from their values as they are (in place in
-    ``tensors`` and the nodes' params ``by_id``); returns the ids of the nodes converted."""
-    done = set()
-    for node in bundle.nodes:
-        (param, value, sources), slots = EIGHT_BIT_FORMS.get(node.type, ((None, None, ()), None))
-        if node.params.get(param) not in sources:
-            continue
-        coded = {s: np.asarray(tensors[node.tensor_name(s)], np.float32) for s in slots(node.params)}
-        as_codes(coded, list(coded))
-        tensors.update({node.tensor_name(k): v for k, v in coded.items()})
-        by_id[node.id].setdefault("params", {})[param] = value
-        done.add(node.id)
-    return done
+def _eight_bit_form(node):
+    """(parameter, its 8-bit value, coded slots) where ``node``'s table can take its 8-bit form, else None."""
+    (param, value, sources), slots = EIGHT_BIT_FORMS.get(node.type, ((None, None, ()), None))
+    return (param, value, slots(node.params)) if node.params.get(param) in sources else None
+
+
+def _to_eight_bit(node, tensors: dict, params: dict) -> None:
+    """A table turned to its 8-bit form from its values as they are (in place)."""
+    param, value, slots = _eight_bit_form(node)
+    coded = {s: np.asarray(tensors[node.tensor_name(s)], np.float32) for s in slots}
+    as_codes(coded, slots)
+    tensors.update({node.tensor_name(k): v for k, v in coded.items()})
+    params[param] = value
+
+
+def lower_tables(bundle) -> list:
+    """The table nodes a precision below f32 can store smaller: an 8-bit form, or f32 -> f16."""
+    halves = {n.id for n in table_nodes(bundle)}
+    return [n for n in bundle.nodes if n.id in halves or _eight_bit_form(n) is not None]
+
+
+def _table_choices(bundle, precision) -> dict:
+    """{table node id: precision} as ``quantized`` takes them: a precision for all, or a dict's own
+    entries (a table a dict leaves out goes to f16 where any dense layer goes below f32)."""
+    tables = lower_tables(bundle)
+    if isinstance(precision, str):
+        return {n.id: precision for n in tables}
+    dense_below = {v for k, v in precision.items() if bundle.node(k).type in QUANTIZED_TYPES} - {"f32"}
+    return {n.id: precision.get(n.id, "f16" if dense_below else "f32") for n in tables}
 
 
 def quantized(bundle, precision: str | dict, *, name: str | None = None):
     """``bundle`` with its dense layers stored at ``precision`` (one of PRECISIONS, or {node id:
-    precision} for some layers) and, below f32, its f32 tables at f16 (at i8 every table in its 8-bit
-    form, from its values as they are): a new, validated Bundle whose
-    numbers are the values those precisions give (a layer already at another precision is re-quantized
-    from its current values)."""
+    precision} for some layers and tables) and, below f32, its f32 tables at f16 (at i8 every table in
+    its 8-bit form, from its values as they are): a new, validated Bundle whose numbers are the values
+    those precisions give (a layer already at another precision is re-quantized from its current
+    values)."""
     from inshade.bundle import Bundle
 
     per_node = precision if isinstance(precision, dict) else {
@@ -113,24 +128,30 @@ def quantized(bundle, precision: str | dict, *, name: str | None = None):
     bad = sorted(set(per_node.values()) - set(PRECISIONS))
     if bad:
         raise ValueError(f"precision {bad[0]!r}: choose from {', '.join(PRECISIONS)}")
+    unknown = sorted(set(per_node) - {n.id for n in bundle.nodes})
+    if unknown:
+        raise ValueError(f"node {unknown[0]}: no such node in the bundle")
+    tables = _table_choices(bundle, precision)
     meta = copy.deepcopy(bundle.meta)
     tensors = dict(bundle.tensors)
     by_id = {n["id"]: n for n in meta["nodes"]}
+    halves = {n.id for n in table_nodes(bundle)}
     for node in bundle.nodes:
+        params = by_id[node.id].setdefault("params", {})
+        if node.id in tables:
+            if tables[node.id] == "i8" and _eight_bit_form(node) is not None:
+                _to_eight_bit(node, tensors, params)
+            elif tables[node.id] != "f32" and node.id in halves:
+                _half_table(node, tensors, {**node.params, **params})
+                params["precision"] = "f16"
+            continue
         if node.id not in per_node:
             continue
         if node.type not in QUANTIZED_TYPES:
             raise ValueError(f"node {node.id}: a {node.type} takes no precision (types that do: "
-                             f"{', '.join(QUANTIZED_TYPES)})")
-        params = by_id[node.id].setdefault("params", {})
+                             f"{', '.join(QUANTIZED_TYPES)} and the tables)")
         tensors.pop(node.tensor_name("weight_scale"), None)
         _rounded(params, tensors, node.tensor_name, per_node[node.id])
-    coded = _eight_bit_tables(bundle, tensors, by_id) if precision == "i8" else set()
-    if (set(per_node.values()) if isinstance(precision, dict) else {precision}) - {"f32"}:
-        for node in table_nodes(bundle):
-            if node.id not in coded:
-                _half_table(node, tensors, {**node.params, **by_id[node.id].setdefault("params", {})})
-                by_id[node.id]["params"]["precision"] = "f16"
     if name is not None:
         meta["name"] = name
     return Bundle(meta, tensors)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from inshade.quantize import PRECISIONS, QUANTIZED_TYPES, quantized, weight_bytes
+from inshade.quantize import EIGHT_BIT_FORMS, PRECISIONS, QUANTIZED_TYPES, lower_tables, quantized, weight_bytes
 
 
 def twin(bundle):
@@ -72,15 +72,28 @@ def describe(precision) -> str:
     return ", ".join(f"{k} {v}" for k, v in precision.items())
 
 
+def _size(bundle, node) -> int:
+    """The values a dense layer's weights or a table hold."""
+    slots = ["weight"] if node.type in QUANTIZED_TYPES else EIGHT_BIT_FORMS[node.type][1](node.params)
+    return int(sum(bundle.tensor(node, slot).size for slot in slots))
+
+
+def _what(bundle, node) -> str:
+    if node.type in QUANTIZED_TYPES:
+        return f"{node.id} ({bundle.tensor(node, 'weight').shape[1]} -> {node.out_dim})"
+    return f"{node.id} ({node.type}, {_size(bundle, node)} values)"
+
+
 def choose(bundle, source, parts, max_error: float) -> tuple[dict, list[str]]:
-    """The cheapest precision per dense layer (i8, then f16, else f32) whose network keeps
-    max |twin - source| within ``max_error`` on ``parts``: layers are tried largest first, each with the
-    others at what was chosen so far. Returns ({node id: precision}, one line per layer saying why)."""
+    """The cheapest precision per dense layer and per table (i8, then f16, else as stored; a table's i8
+    is its 8-bit form) whose network keeps max |twin - source| within ``max_error`` on ``parts``: the
+    largest are tried first, each with the others at what was chosen so far. Returns ({node id:
+    precision}, one line per layer or table saying why)."""
     from .check import source_outputs
 
     ref = source_outputs(source, parts, bundle)
-    layers = sorted((n for n in bundle.nodes if n.type in QUANTIZED_TYPES),
-                    key=lambda n: -bundle.tensor(n, "weight").size)
+    layers = sorted([n for n in bundle.nodes if n.type in QUANTIZED_TYPES] + lower_tables(bundle),
+                    key=lambda n: -_size(bundle, n))
     chosen = {n.id: "f32" for n in layers}
     fp32_error = float(np.abs(source_outputs(twin(bundle), parts, bundle) - ref).max())
     if fp32_error > max_error:
@@ -96,7 +109,6 @@ def choose(bundle, source, parts, max_error: float) -> tuple[dict, list[str]]:
             if error <= max_error:
                 chosen[n.id] = p
                 break
-        why[n.id] = (f"{n.id} ({bundle.tensor(n, 'weight').shape[1]} -> {n.out_dim}): {chosen[n.id]} "
-                     f"(max error with {', '.join(tried)}; bound {max_error:g})")
+        why[n.id] = f"{_what(bundle, n)}: {chosen[n.id]} (max error with {', '.join(tried)}; bound {max_error:g})"
     order = [n.id for n in bundle.nodes if n.id in chosen]
     return {k: chosen[k] for k in order}, [why[k] for k in order]

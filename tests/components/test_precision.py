@@ -228,3 +228,30 @@ def test_i8_gives_mesh_features_their_u8_form(gl):
     x = np.concatenate([rng.integers(0, table.params["faces"], (256, 1)), rng.dirichlet((1, 1, 1), 256)[:, :2],
                         rng.uniform(-1, 1, (256, q.in_dim - 3))], 1).astype(np.float32)
     assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what="uvfree i8")
+
+
+def test_max_error_chooses_for_the_tables_too(gl):
+    """A hash grid (values in [-1, 1]) feeding a small layer: under a bound of 3e-3 the grid's u8 codes
+    fit while the layer's int8 rows do not, so the table goes to 8 bits and the layer keeps float16; the
+    plan names both, and the mixed bundle keeps the parity rule."""
+    from inshade.components.grids.torch_twin import HashGrid
+    from inshade.convert.precision import choose, twin
+    from inshade.models import GraphModule
+
+    torch.manual_seed(0)
+    g = GraphModule([("x", 2)])
+    g.add("grid", HashGrid(2, 4, 2, log2_table_size=10, base_resolution=4, precision="f32", init_scale=1.0,
+                           seed=1), "x")
+    g.output("y", g.dense("l0", "grid", 3))
+    bundle = g.export("grid")
+    x = np.random.default_rng(0).uniform(0, 1, (512, 2)).astype(np.float32)
+    chosen, why = choose(bundle, twin(bundle), [x], 3e-3)
+    assert chosen == {"grid": "i8", "l0": "f16"}, why
+    assert why[0].startswith("grid (hash_grid, 2720 values): i8 (max error with i8 ")
+    assert why[1].startswith("l0 (8 -> 3): f16 (max error with i8 ")
+    q = quantized(bundle, chosen)
+    assert q.node("grid").params["precision"] == "u8" and q.node("l0").params["precision"] == "f16"
+    assert np.abs(torch_reference(q, x) - torch_reference(bundle, x)).max() <= 3e-3
+    assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what="mixed")
+    with pytest.raises(ValueError, match="node nope: no such node in the bundle"):
+        quantized(bundle, {"nope": "i8"})
