@@ -58,13 +58,14 @@ def render_bundle(bundle, *, width: int | None = None, height: int | None = None
 def render_scene(scene, *, width: int | None = None, height: int | None = None, camera=None, mode=None,
                  split: float | None = None, settings: dict | None = None, ctx=None,
                  cache: ProgramCache | None = None, bundles=None, spp: int = 1, quick: bool = False,
-                 _t0: float | None = None):
+                 sdf_bundle=None, _t0: float | None = None):
     """Render a scene (``Scene`` or anything ``load_scene`` takes) headless, once, through the same
     ``SceneRenderer`` the window app draws with. ``camera`` (a camera object or its dict) defaults to
     the scene's; ``mode``/``split`` to the scene's display settings. ``spp``: samples per pixel
     averaged by an accumulating program (``ProgramSpec.accumulate``; others take only 1). ``quick``:
     at storage ``auto``, draw with the storage that ends this one job sooner (runtime/quick_program.py;
-    ``info["storage_choice"]`` says why where it changed). Returns ``(image, info)`` as
+    ``info["storage_choice"]`` says why where it changed). ``bundles`` / ``sdf_bundle``: the networks
+    (and a network SDF) to draw instead of the scene's files. Returns ``(image, info)`` as
     ``render_bundle``; ``info["spp"]`` is the sample count."""
     t0 = time.perf_counter() if _t0 is None else _t0
     if not isinstance(scene, Scene):
@@ -81,7 +82,7 @@ def render_scene(scene, *, width: int | None = None, height: int | None = None, 
     ctx = shared_context() if ctx is None else make_current(ctx)
     check_render_size(ctx, width, height)
     t_load = time.perf_counter()
-    renderer = SceneRenderer(scene, ctx, cache=cache, settings=settings, bundles=bundles,
+    renderer = SceneRenderer(scene, ctx, cache=cache, settings=settings, bundles=bundles, sdf_bundle=sdf_bundle,
                              quick=(width * height, spp) if quick else None)
     try:
         t_gen = time.perf_counter()

@@ -86,7 +86,7 @@ class SceneRenderer:
     def __init__(self, scene: Scene, ctx: moderngl.Context | None = None, *, cache: ProgramCache | None = None,
                  settings: dict | None = None, bundles: list[Bundle] | None = None,
                  owns_programs: bool = False, limits: dict | None = None, target: str = "330",
-                 quick: tuple[int, int] | None = None):
+                 quick: tuple[int, int] | None = None, sdf_bundle: Bundle | None = None):
         self.ctx = shared_context() if ctx is None else make_current(ctx)
         self.scene = scene
         self.target = target
@@ -97,7 +97,7 @@ class SceneRenderer:
         self.owns_programs = owns_programs
         self.values = scene.check_settings(settings or {})
         self.bundles = bundles or [load(n.bundle) for n in scene.networks]
-        self.sdf_bundle = load(scene.sdf.bundle) if isinstance(scene.sdf, NetworkSdfRef) else None
+        self.sdf_bundle = sdf_bundle or (load(scene.sdf.bundle) if isinstance(scene.sdf, NetworkSdfRef) else None)
         self.error = None              # the last failed rebuild (ShaderCompileError ...), cleared on success
         self.weights_version = 0
         self.compile_seconds = 0.0
