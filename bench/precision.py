@@ -1,6 +1,7 @@
 """`inshade bench precision`: what storing a network at f16 or i8 saves and costs.
 
-Per shipped asset whose networks hold dense layers (or the ones named), each network quantized as
+Per shipped asset whose networks hold dense layers or float tables (or the ones named), each network
+(and network SDF) quantized as
 ``inshade.export(..., precision=P)`` stores it (inshade/quantize.py), P in f32 / f16 / i8: the dense
 weights at P, the float32 tables at f16 below f32, and at i8 every table in its 8-bit codes (u8, or a
 lookup array's 8 bits);
@@ -50,7 +51,7 @@ I8_RENDER_DB = 0.5    # an i8 render's PSNR against the asset's reference within
 
 @dataclass
 class Settings:
-    assets: list[str] = option((), "asset folders (default: every shipped asset with dense layers)",
+    assets: list[str] = option((), "asset folders (default: every shipped asset a precision changes)",
                                positional="ASSET", nargs="*")
     size: int = option(64, "render side in pixels")
     out: str = option(DEFAULT_OUT, "output folder")
@@ -175,7 +176,7 @@ def _at(precision: str, fp32, sdf):
 
 def measure_asset(asset: Path, size: int) -> dict | None:
     from inshade.bundle import load
-    from inshade.quantize import QUANTIZED_TYPES, weight_bytes
+    from inshade.quantize import QUANTIZED_TYPES, lower_tables, weight_bytes
     from inshade.runtime.headless import render_scene
     from inshade.scene.description import NetworkSdfRef, load_scene
     from inshade.web.browser import psnr8, srgb8
@@ -184,8 +185,8 @@ def measure_asset(asset: Path, size: int) -> dict | None:
     fp32 = [load(n.bundle) for n in scene.networks]
     sdf = load(scene.sdf.bundle) if isinstance(scene.sdf, NetworkSdfRef) else None
     every = fp32 + ([sdf] if sdf is not None else [])
-    if not any(n.type in QUANTIZED_TYPES for b in every for n in b.nodes):
-        return None
+    if not any(n.type in QUANTIZED_TYPES for b in every for n in b.nodes) and not any(map(lower_tables, every)):
+        return None   # nothing a precision changes
     settings = {"labels": False, **({"storage": "texture"} if "storage" in scene.settings else {})}
     rng = np.random.default_rng(0)
     xs = [_inputs(b, rng) for b in every]
