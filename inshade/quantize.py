@@ -145,7 +145,7 @@ def quantized(bundle, precision: str | dict, *, name: str | None = None):
                 _half_table(node, tensors, {**node.params, **params})
                 params["precision"] = "f16"
             continue
-        if node.id not in per_node:
+        if node.id not in per_node or node.type in EIGHT_BIT_FORMS:   # a table stored at its lowest already
             continue
         if node.type not in QUANTIZED_TYPES:
             raise ValueError(f"node {node.id}: a {node.type} takes no precision (types that do: "
