@@ -219,14 +219,20 @@ def measure_asset(asset: Path, size: int) -> dict | None:
 
 
 def run(settings: Settings) -> int:
+    """Measure each asset and write the report after each one (a run stopped half way keeps what it
+    measured: compiles of minutes per precision add up on a software driver)."""
+    from inshade.runtime.compute import compute_device
     from inshade.runtime.context import gl_info, shared_context
 
-    rows = [r for r in (measure_asset(a, settings.size) for a in asset_folders(settings.assets)) if r is not None]
-    from inshade.runtime.compute import compute_device
-
     report = {"benchmark": "precision", "machine": machine(gl_info(shared_context())), "size": settings.size,
-              "precisions": list(PRECISIONS), "assets": rows, "compute_device": compute_device().description}
-    write_report(settings.out, "precision", report, markdown, plot)
+              "precisions": list(PRECISIONS), "assets": [], "compute_device": compute_device().description}
+    folders = asset_folders(settings.assets)
+    for i, folder in enumerate(folders):
+        row = measure_asset(folder, settings.size)
+        if row is not None:
+            report["assets"].append(row)
+        report["measured"] = f"{i + 1} of {len(folders)} assets"
+        write_report(settings.out, "precision", report, markdown, plot, echo=i + 1 == len(folders))
     return 0
 
 
@@ -240,7 +246,8 @@ def markdown(r: dict) -> str:
              "8-bit codes (inshade/quantize.py), against "
              f"f32: bytes of everything the code binds with the weights in textures (dense share in brackets), "
              f"the twin's max error on {ROWS} random rows, and `inshade render` at {r['size']}^2 against the f32 "
-             "render (PSNR of the 8-bit pictures; `identical`: not one 8-bit value moved).", "",
+             "render (PSNR of the 8-bit pictures; `identical`: not one 8-bit value moved)."
+             + (f" Measured: {r['measured']}." if "measured" in r else ""), "",
              "| asset | f32 bytes | f16 bytes | i8 bytes | f16 twin error | i8 twin error | f16 render | i8 render | "
              "page f32 / f16 / i8 |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for a in r["assets"]:

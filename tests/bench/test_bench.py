@@ -76,3 +76,23 @@ def test_bench_startup_quick(tmp_path):
     assert 0 < row["view"]["first_frame_s"] <= row["view"]["full_frame_s"], row["view"]   # the window, too
     assert "| neural_image |" in (out / "startup.md").read_text() and (out / "startup.png").stat().st_size
     assert startup.main(["trained/no_such_asset", "--out", str(out)]) == 2
+
+
+def test_bench_precision_on_a_network_sdf(tmp_path):
+    """`inshade bench precision` on a scene traced through a network SDF (a hash grid and a small layer):
+    the SDF quantized beside the networks, the grid's u8 codes shrinking the bytes and the page, each
+    precision rendered; the report written after each asset."""
+    import json
+
+    from inshade.bench import precision
+
+    out = tmp_path / "precision"
+    assert precision.main(["trained/hash_grid_sdf", "--size", "16", "--out", str(out)]) == 0
+    report = json.loads((out / "precision.json").read_text())
+    (row,) = report["assets"]
+    assert row["asset"] == "hash_grid_sdf" and row["networks"] == 1 and report["measured"] == "1 of 1 assets"
+    assert row["bytes"]["i8"] < 0.6 * row["bytes"]["f16"] < row["bytes"]["f32"]
+    assert row["page_bytes"]["i8"] < row["page_bytes"]["f16"] <= row["page_bytes"]["f32"]
+    assert row["render_psnr"]["f32"] == float("inf") and row["render_psnr"]["f16"] > 50, row["render_psnr"]
+    assert "reference_psnr" not in row   # no reference image, no reference view
+    assert "| hash_grid_sdf |" in (out / "precision.md").read_text()
