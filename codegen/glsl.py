@@ -36,12 +36,15 @@ def lane(array: str, index: int) -> str:
     return f"{array}[{index // 4}].{'xyzw'[index % 4]}"
 
 
+INTEGER_DTYPES = ("u4", "u1")   # texture dtypes whose texels are uints
+
+
 @dataclass
 class TextureResource:
     """A texture the generated code samples: data [H, W, C] (2D) or [D, H, W, C] (3D), C = 1..4
     (R, RG, RGB, RGBA), moderngl dtype ('f4', 'f2' = half float, 'f1' = unorm8, 'nu2' = unorm16,
-    'u4' = unsigned integer R32UI..RGBA32UI, declared ``usampler*``, read with texelFetch, always
-    nearest), filter 'nearest'|'linear' (within a level), ``wrap`` 'clamp'|'repeat'.
+    'u4' / 'u1' = unsigned integer R32UI..RGBA32UI / R8UI..RGBA8UI, declared ``usampler*``, read with
+    texelFetch, always nearest), filter 'nearest'|'linear' (within a level), ``wrap`` 'clamp'|'repeat'.
 
     ``mips``: levels 1.. of a mip chain (level k is [H >> k, W >> k, C] in 2D, [D >> k, H >> k,
     W >> k, C] in 3D, floor, at least 1; same dtype), uploaded as given (never GL-built, so torch
@@ -60,8 +63,9 @@ class TextureResource:
     array: bool = False
 
     def __post_init__(self):
-        if self.dtype == "u4" and self.filter != "nearest":
-            raise ValueError(f"texture {self.name}: integer (u4) textures are read unfiltered: filter must be 'nearest'")
+        if self.dtype in INTEGER_DTYPES and self.filter != "nearest":
+            raise ValueError(f"texture {self.name}: integer ({self.dtype}) textures are read unfiltered: filter must be "
+                             "'nearest'")
         if self.array and np.ndim(self.data) != 4:
             raise ValueError(f"texture {self.name}: a texture array's data is [L, H, W, C], got {list(np.shape(self.data))}")
 
@@ -81,7 +85,7 @@ class TextureResource:
 
     @property
     def nbytes(self) -> int:
-        size = {"f4": 4, "f2": 2, "f1": 1, "nu2": 2, "u4": 4}[self.dtype]
+        size = {"f4": 4, "f2": 2, "f1": 1, "nu2": 2, "u4": 4, "u1": 1}[self.dtype]
         return sum(int(np.prod(a.shape)) * size for a in (self.data, *self.mips))
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from inshade.bundle import UINT_INPUT_RANGE
 from inshade.codegen import generate
-from inshade.codegen.glsl import TextureResource, UniformBlockResource
+from inshade.codegen.glsl import INTEGER_DTYPES, TextureResource, UniformBlockResource
 from inshade.codegen.limits import LimitError
 from inshade.pixels import pixel_uvs
 
@@ -126,7 +126,7 @@ class NetworkResources:
         self.buffers.clear()
 
 
-_NUMPY_DTYPE = {"f4": np.float32, "f2": np.float16, "u4": np.uint32}   # the bytes GL reads are these
+_NUMPY_DTYPE = {"f4": np.float32, "f2": np.float16, "u4": np.uint32, "u1": np.uint8}   # the bytes GL reads are these
 
 
 def texture_levels(res: TextureResource) -> list[np.ndarray]:
@@ -173,7 +173,7 @@ def _make_texture(ctx, res: TextureResource):
         tex = ctx.texture3d((w, h, dpt), comps, data.tobytes(), dtype=res.dtype, alignment=1)
         tex.repeat_z = False
     f = moderngl.LINEAR if res.filter == "linear" else moderngl.NEAREST
-    if len(levels) > 1 and res.dims == 2 and not res.array and res.dtype != "u4":
+    if len(levels) > 1 and res.dims == 2 and not res.array and res.dtype not in INTEGER_DTYPES:
         # moderngl has no GL_TEXTURE_MAX_LEVEL setter: build_mipmaps sets base/max level (a chain
         # may stop before 1x1) and allocates the levels, which are then overwritten with ours
         tex.build_mipmaps(0, len(levels) - 1)
@@ -193,7 +193,7 @@ def _make_texture(ctx, res: TextureResource):
 
 
 # GL enums for _upload_levels: pixel type per dtype, client format per channel count
-_GL_TYPE = {"f4": 0x1406, "f2": 0x140B, "f1": 0x1401, "nu2": 0x1403, "u4": 0x1405}
+_GL_TYPE = {"f4": 0x1406, "f2": 0x140B, "f1": 0x1401, "nu2": 0x1403, "u4": 0x1405, "u1": 0x1401}
 _GL_FORMAT = {1: 0x1903, 2: 0x8227, 3: 0x1907, 4: 0x1908}            # GL_RED, GL_RG, GL_RGB, GL_RGBA
 _GL_FORMAT_INT = {1: 0x8D94, 2: 0x8228, 3: 0x8D98, 4: 0x8D99}        # GL_RED_INTEGER ... GL_RGBA_INTEGER
 
@@ -238,7 +238,7 @@ def _upload_levels(ctx, tex, target: int, levels: list[np.ndarray], dtype: str) 
     level_parameter(target, 0, 0x1003, ctypes.byref(internal))   # GL_TEXTURE_INTERNAL_FORMAT
     bind_buffer(0x88EC, 0)                                       # no GL_PIXEL_UNPACK_BUFFER: read client memory
     store(0x0CF5, 1)                                             # GL_UNPACK_ALIGNMENT
-    fmt = (_GL_FORMAT_INT if dtype == "u4" else _GL_FORMAT)[levels[0].shape[-1]]
+    fmt = (_GL_FORMAT_INT if dtype in INTEGER_DTYPES else _GL_FORMAT)[levels[0].shape[-1]]
     for k, a in enumerate(levels[1:], 1):
         d, h, w = (1, *a.shape[:2]) if a.ndim == 3 else a.shape[:3]
         tex_image(target, k, internal.value, w, h, d, 0, fmt, _GL_TYPE[dtype], a.ctypes.data)

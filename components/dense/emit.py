@@ -34,13 +34,13 @@ layer's products emit_products.py, the loops over layers emit_layer_loop.py.
 from __future__ import annotations
 
 from inshade.codegen import ir
-from inshade.codegen.glsl import StorageBufferResource, UniformBlockResource
+from inshade.codegen.glsl import INTEGER_DTYPES, StorageBufferResource, UniformBlockResource
 from inshade.codegen.registry import Fused, emitter, network_step
 from inshade.codegen.values import declare
 from inshade.codegen.targets import TargetError
 from inshade.codegen.targets import TARGETS
 from inshade.codegen.targets import target as find_target
-from inshade.components.dense.spec import ARITHMETIC, OPENGL_STORAGE_MODES, STORAGE_MODES, TEXTURE_FORMATS
+from inshade.components.dense.spec import ARITHMETIC, I8_TEXELS, OPENGL_STORAGE_MODES, STORAGE_MODES, TEXTURE_FORMATS
 
 # as modules: any module of this folder may be the first to import inshade.codegen, which loads this
 # module (and so the others) while that one is still loading
@@ -74,10 +74,14 @@ class DenseNetwork:
         if ctx.option("dense", "arithmetic") != "f32":
             ctx.enables.add("f16")
         for fmt, tex in reversed(ctx.weight_textures.items()):
-            texture = tex.resource()
+            texture, side = tex.resource(), tex.side_resource()
+            if side is not None:
+                ctx.globals.insert(0, ir.Texture(side.name, "the int8 rows' biases (texel 0) and scales (texel 1)"))
+                ctx.resources.insert(0, side)
             if texture is not None:
                 what = "int8 codes + 128" if fmt == "i8" else "rows"
-                ctx.globals.insert(0, ir.Texture(texture.name, f"dense layers stored as texture {what}"))
+                ctx.globals.insert(0, ir.Texture(texture.name, f"dense layers stored as texture {what}",
+                                                 integer=texture.dtype in INTEGER_DTYPES))
                 ctx.resources.insert(0, texture)
 
 
@@ -138,7 +142,7 @@ def _block(ctx, node, out, wb, bb, chunk, row, src, bundle, storage: bool = Fals
 
 def _texture(ctx, node, out, wb, bb, chunk, row, src, bundle):
     """Weights as rows of the network's weight texture of the layer's format; an i8 layer's codes, with
-    its biases and row scales as literal arrays."""
+    its biases and row scales in a float texture beside them."""
     ob, ib = wb.shape[:2]
     tex = emit_plan.weight_texture(ctx, emit_plan.weight_format(ctx, node))
     if tex.fmt != "i8":
@@ -146,16 +150,9 @@ def _texture(ctx, node, out, wb, bb, chunk, row, src, bundle):
         emit_products.emit_loop(ctx, out, ob, ib, chunk, *emit_products.texture_exprs(tex.name, str(row0)), src,
                                 arithmetic(ctx))
         return
-    name = ctx.name(node.id)
-    scale = emit_plan.pack_rows(bundle.tensor(node, "weight_scale"), ob)
-    row0 = tex.add(wb, bb, node.id, scale)
-    ctx.globals += [ir.Comment(f"{node.id}: dense {node.in_dim} -> {node.out_dim}, int8 codes in {tex.name}: "
-                               "biases and row scales"),
-                    ir.ConstArray("vec4", f"{name}_b", tuple(ir.Vec4.of(b) for b in bb)),
-                    ir.ConstArray("vec4", f"{name}_s", tuple(ir.Vec4.of(s) for s in scale))]
-    emit_products.emit_loop(ctx, out, ob, ib, chunk, lambda o: ir.Index(ir.Var(f"{name}_b"), o),
-                            emit_products.i8_weight_expr(tex.name, str(row0), ir.Var(f"{name}_s")), src,
-                            arithmetic(ctx))
+    row0 = tex.add(wb, bb, node.id, emit_plan.pack_rows(bundle.tensor(node, "weight_scale"), ob))
+    emit_products.emit_loop(ctx, out, ob, ib, chunk, *emit_products.i8_texture_exprs(
+        tex.name, str(row0), tex.side_name, ctx.option("dense", "i8_texels")), src, arithmetic(ctx))
 
 
 # storage -> how a layer stored so is written
@@ -186,7 +183,8 @@ def check_arithmetic(ctx, bundle) -> None:
 
 
 @emitter("dense", options={"storage": (STORAGE_MODES, "auto"), "texture_format": (TEXTURE_FORMATS, "f4"),
-                           "arithmetic": (ARITHMETIC, "f32")}, lowered=True)
+                           "arithmetic": (ARITHMETIC, "f32"), "i8_texels": (tuple(I8_TEXELS), "uint")},
+         lowered=True)
 def emit_dense(ctx, node, src, bundle):
     weight = bundle.tensor(node, "weight")
     bias = bundle.tensor(node, "bias") if node.params["bias"] else None

@@ -70,8 +70,7 @@ def _consumers(bundle) -> dict[str, list[str]]:
 def _layer(dense, nodes, consumers, storage):
     """(dense, its activation, the shape key layers of one run share), or None when the dense
     cannot be a layer of a run."""
-    if (dense.type != "dense" or storage.get(dense.id, ("",))[0] != "texture" or dense.in_dim != dense.out_dim
-            or dense.params.get("precision") == "i8"):   # an i8 layer's scales are literals of its own
+    if dense.type != "dense" or storage.get(dense.id, ("",))[0] != "texture" or dense.in_dim != dense.out_dim:
         return None
     users = consumers.get(dense.id, [])
     act = nodes.get(users[0]) if len(users) == 1 else None
@@ -136,6 +135,13 @@ def _weights(bundle, dense):
     return bundle.tensor(dense, "weight"), bundle.tensor(dense, "bias") if dense.params["bias"] else None
 
 
+def _rows(tex, bundle, dense) -> int:
+    """The layer's rows added to its weight texture (an i8 layer's with its row scales); its first row."""
+    wb, bb = emit_plan.pack(*_weights(bundle, dense))
+    scale = emit_plan.pack_rows(bundle.tensor(dense, "weight_scale"), wb.shape[0]) if tex.fmt == "i8" else None
+    return tex.add(wb, bb, dense.id, scale)
+
+
 def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     """The run as one loop over its layers, reading h and writing it back; the plan keeps a row
     per node, saying which loop it is in."""
@@ -143,11 +149,13 @@ def emit_run(ctx, run: Run, src: Value, bundle) -> Value:
     ob, ib = blocks(first.out_dim), blocks(first.in_dim)
     chunk, unrolled = ctx.loop_chunks.get(first.id, (1, ""))
     tex = emit_plan.weight_texture(ctx, emit_plan.weight_format(ctx, first))
-    row0 = [tex.add(*emit_plan.pack(*_weights(bundle, d)), d.id) for d, _ in run.layers][0]   # consecutive rows
+    row0 = [_rows(tex, bundle, d) for d, _ in run.layers][0]   # consecutive rows
     h = f"h_{first.id}"
     spare = emit_products.loop_spare(ob, ib, chunk)
     y, body, _ = _captured(ctx, lambda: declare(ctx, f"v_{first.id}", first.out_dim, spare=spare))
-    exprs = emit_products.texture_exprs(tex.name, f"{row0} + {ob} * l")
+    rows = f"{row0} + {ob} * l"
+    exprs = (emit_products.i8_texture_exprs(tex.name, rows, tex.side_name, ctx.option("dense", "i8_texels"))
+             if tex.fmt == "i8" else emit_products.texture_exprs(tex.name, rows))
     arith = emit_products.ARITHMETICS[ctx.option("dense", "arithmetic")]
     written = emit_plan.inputs_written_max(ctx.limits)
     body.append(emit_products.loop_statement(y.array, ob, ib, chunk, *exprs, h, written, arith))

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from inshade.codegen.glsl import TextureResource, blocks
+from inshade.components.dense.spec import I8_TEXELS
 from inshade.codegen.limits import STORAGE_BUFFERS_RESERVED, LimitError, limit, loop_iteration_cap, source
 
 UBO_UNROLL_MAX_BLOCKS = 32   # ubo layers with more mat4 blocks loop (llvmpipe JIT time explodes
@@ -197,7 +198,7 @@ def _check_blocks(dense, mode: str, limits: dict) -> None:
 
 # the weight texture's texel format by the layer's precision (f32: the texture_format option's)
 PRECISION_FORMATS = {"f16": "f2", "i8": "i8"}
-I8_OFFSET = 128   # an i8 code q is stored as the 8-bit unorm texel q + 128
+I8_OFFSET = 128   # an i8 code q is stored as the byte q + 128 (spec.I8_TEXELS says in which texels)
 
 
 def weight_format(ctx, node) -> str:
@@ -218,11 +219,15 @@ def weight_texture(ctx, fmt: str) -> "WeightTexture":
 class WeightTexture:
     """A texture of the network's texture-stored layers of one format, a row per output block:
     float rows (f4, f2): texel 0 = bias, texels 1 + 4*i .. 4 + 4*i = the columns of block (o, i);
-    i8 rows: texels 4*i .. 3 + 4*i = the columns of block (o, i) as codes + 128 (8-bit unorm)."""
+    i8 rows: texels 4*i .. 3 + 4*i = the columns of block (o, i) as codes + 128 (bytes: RGBA8UI or
+    RGBA8 unorm, the dense option i8_texels), and in a float texture beside it (``<name>_rows``,
+    RGBA32F) the row's bias (texel 0) and scales (texel 1): read from a texture, not literal arrays,
+    whose indexing in a loop llvmpipe compiles many times slower."""
 
     def __init__(self, ctx, fmt: str = "f4", name: str = "weights"):
-        self.ctx, self.fmt, self.rows, self.nodes = ctx, fmt, [], []
+        self.ctx, self.fmt, self.rows, self.nodes, self.side = ctx, fmt, [], [], []
         self.name = ctx.name(name)
+        self.side_name = f"{self.name}_rows"
 
     @property
     def bias_texels(self) -> int:
@@ -237,6 +242,7 @@ class WeightTexture:
             cols = wblocks[o].transpose(0, 2, 1).reshape(-1, 4)  # [IB*4 columns, 4 rows]
             if self.fmt == "i8":
                 self.rows.append(np.rint(cols / np.where(scale[o] > 0, scale[o], 1.0)) + I8_OFFSET)
+                self.side.append(np.stack([bias[o], scale[o]]))
             else:
                 self.rows.append(np.concatenate([bias[o][None], cols], 0))
         return row0
@@ -256,4 +262,11 @@ class WeightTexture:
         data = np.full((len(self.rows), width, 4), I8_OFFSET if self.fmt == "i8" else 0, dtype)
         for y, r in enumerate(self.rows):
             data[y, : len(r)] = r
-        return TextureResource(self.name, data, "f1" if self.fmt == "i8" else self.fmt, "nearest")
+        dtype = I8_TEXELS[self.ctx.option("dense", "i8_texels")] if self.fmt == "i8" else self.fmt
+        return TextureResource(self.name, data, dtype, "nearest")
+
+    def side_resource(self) -> TextureResource | None:
+        """The i8 rows' biases and scales (RGBA32F, [rows, 2]); None for float rows."""
+        if not self.side:
+            return None
+        return TextureResource(self.side_name, np.asarray(self.side, np.float32), "f4", "nearest")

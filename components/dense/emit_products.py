@@ -138,24 +138,35 @@ def texture_exprs(t: str, row: str):
     return bias, weight
 
 
-def i8_weight_expr(t: str, row: str, scales: ir.Expr):
-    """Weight-block expression of an i8 layer whose code rows start at ``row`` in texture t: each column
-    (round(texel * 255) - 128) * the output rows' scales, the float32 values the bundle holds."""
+# a fetched i8 texel (codes + 128) -> the codes + 128 as a vec4 of integral floats, by the texels
+# (spec.I8_TEXELS): an integer texel converted, or a unorm one times 255 rounded
+I8_CODES = {"uint": lambda texel: ir.Convert("vec4", texel),
+            "unorm": lambda texel: ir.Call("floor", (ir.Bin("+", ir.Bin("*", texel, ir.Lit(255.0)), ir.Lit(0.5)),))}
+
+
+def i8_texture_exprs(t: str, row: str, side: str, texels: str = "uint"):
+    """(bias, weight-block) expressions of an i8 layer whose rows start at ``row`` in texture t: the bias
+    texel 0 of the row in the float texture ``side``; each weight column (its codes + 128, minus 128)
+    * the output rows' scales (texel 1 there), the float32 values the bundle holds."""
+    def bias(o: ir.Int):
+        return ir.Fetch(side, ir.Int("0"), ir.Int(f"{row} + {o.text}"))
+
     def weight(o: ir.Int, i: ir.Int):
-        r, c, s = f"{row} + {o.text}", f"4 * {i.text}", ir.Index(scales, o)
+        r, c = f"{row} + {o.text}", f"4 * {i.text}"
+        s = ir.Fetch(side, ir.Int("1"), ir.Int(r))
 
         def column(k):
-            code = ir.Call("floor", (ir.Bin("+", ir.Bin("*", ir.Fetch(t, ir.Int(f"{c} + {k}"), ir.Int(r)),
-                                                        ir.Lit(255.0)), ir.Lit(0.5)),))
+            code = I8_CODES[texels](ir.Fetch(t, ir.Int(f"{c} + {k}"), ir.Int(r)))
             return ir.Bin("*", ir.Paren(ir.Bin("-", code, ir.Lit(float(emit_plan.I8_OFFSET)))), s)
         return ir.Mat4(tuple(column(k) for k in range(4)))
-    return weight
+    return bias, weight
 
 
 # what a layer at a precision below f32 keeps, by storage (inline literals hold the values as float32)
 PRECISION_NOTES = {"f16": {"texture": "float16 rows (RGBA16F)", "block": "float16 pairs in uvec4s",
                            "inline": "float16 values as float32 literals"},
-                   "i8": {"texture": "int8 codes (RGBA8) with row scales and biases as literals",
+                   "i8": {"texture": "int8 codes (RGBA8UI, or RGBA8 with i8_texels unorm), row scales and biases "
+                                      "in RGBA32F",
                           "block": "int8 codes, four to a uint, and row scales",
                           "inline": "int8 codes x row scales as float32 literals"}}
 
@@ -178,7 +189,7 @@ def dense_row(ctx, node, weight, bias, mode: str, why: str) -> PlanRow:
     if mode == "texture":
         ob, ib = blocks(node.out_dim), blocks(node.in_dim)
         fmt = emit_plan.weight_format(ctx, node)
-        texels = ob * ((0 if fmt == "i8" else 1) + 4 * ib)
-        row.fetches = texels
-        row.texture_bytes = texels * {"f4": 16, "f2": 8, "i8": 4}[fmt]
+        texels = ob * (1 + 4 * ib)   # i8: the bias and the scales in a texture of their own, both read
+        row.fetches = texels + (ob if fmt == "i8" else 0)
+        row.texture_bytes = ob * 4 * ib * {"f4": 16, "f2": 8, "i8": 4}[fmt] + ob * {"f4": 16, "f2": 8, "i8": 32}[fmt]
     return row

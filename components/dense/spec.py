@@ -37,3 +37,7 @@ TEXTURE_FORMATS = ("f4", "f2")
 # on Vulkan, `enable f16` in WGSL) with the sums in float16 too, or with the sums in float32 (each mat4
 # block's product in float16). The weights must be float16 values (precision f16) so that none is rounded.
 ARITHMETIC = ("f32", "f16", "f16_acc32")
+# the texels an i8 layer's codes (+ 128) sit in with storage texture: RGBA8UI, read as integers (llvmpipe
+# compiles those fetches in a fraction of an unorm8 fetch's time), or RGBA8 unorm (an image file's
+# texels: what an engine imports)
+I8_TEXELS = {"uint": "u1", "unorm": "f1"}

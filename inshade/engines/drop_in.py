@@ -70,7 +70,9 @@ def drop_in(bundle, engine: str, prefix: str | None = None, storage: str = "inli
     if storage not in ("inline", "texture"):
         raise ValueError(f"storage {storage!r}: a drop-in's weights are literals (inline) or a texture (texture); "
                          "a block is not a node's input")
-    gen = generate(bundle, target="hlsl", storage=storage, lut_filter=lut_filter, prefix=prefix)
+    # an i8 layer's codes as unorm texels: an engine imports image files, not integer textures
+    gen = generate(bundle, target="hlsl", storage=storage, lut_filter=lut_filter, prefix=prefix,
+                   options={"dense": {"i8_texels": "unorm"}})
     images = texture_files(gen.resources, engine, prefix)
     ins = pins(bundle.inputs)
     outs = pins(bundle.outputs, taken={p.name for p in ins} | {r.name for r in gen.resources})

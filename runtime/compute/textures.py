@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from inshade.codegen.glsl import SAMPLER_SUFFIX, TextureResource
+from inshade.codegen.glsl import INTEGER_DTYPES, SAMPLER_SUFFIX, TextureResource
 
 # texels as wgpu names their formats: moderngl dtype -> (format by channel count, the value of a
 # missing alpha: RGB data gains an alpha channel, as GL reads RGB textures)
@@ -15,6 +15,7 @@ FORMATS = {
     "f1": ({1: "r8unorm", 2: "rg8unorm", 4: "rgba8unorm"}, 255),
     "nu2": ({1: "r16unorm", 2: "rg16unorm", 4: "rgba16unorm"}, 65535),
     "u4": ({1: "r32uint", 2: "rg32uint", 4: "rgba32uint"}, 1),
+    "u1": ({1: "r8uint", 2: "rg8uint", 4: "rgba8uint"}, 1),
 }
 # what a device without 16-bit normalised textures (a WebGPU extension) reads instead: the same values as floats
 UNORM16_FEATURE = "texture-format16bit-norm"
@@ -59,7 +60,7 @@ def view_dimension(r: TextureResource) -> str:
 def texture_layout(r: TextureResource) -> dict:
     """How a bind-group layout declares the texture: uint texels, float ones a sampler filters, or float
     ones read texel by texel (any float format)."""
-    kind = "uint" if r.dtype == "u4" else ("float" if r.filter == "linear" else "unfilterable-float")
+    kind = "uint" if r.dtype in INTEGER_DTYPES else ("float" if r.filter == "linear" else "unfilterable-float")
     return {"texture": {"sample_type": kind, "view_dimension": view_dimension(r)}}
 
 

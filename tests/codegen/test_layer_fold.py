@@ -51,15 +51,19 @@ def run_specs(draw):
 
 
 @parity_settings(max_examples=6)
-@given(spec=run_specs())
-def test_folded_runs_match_torch(gl, spec):
-    bundle = build_mlp(spec).export("mlp")
+@given(spec=run_specs(), precision=st.sampled_from(["f32", "f16", "i8"]))
+def test_folded_runs_match_torch(gl, spec, precision):
+    """At every precision: an i8 run's codes and its rows' biases and scales are read from textures by
+    the loop's layer index as a float run's rows are."""
+    from inshade.quantize import quantized
+
+    bundle = quantized(build_mlp(spec).export("mlp"), precision)
     gen = generate(bundle, options=TEXTURE)
     folded = _folded(gen)
     if spec.tap is None:   # else a hidden output may split the run
         assert {"l1", "l2", "l3"} <= folded, f"{spec}: the run was not folded ({sorted(folded)})"
     assert sum(_layer_loops(gen.chunk)) == len(folded)
-    check_parity(gl, bundle, spec_inputs(spec, 64), options=TEXTURE, what=f"folded {spec}")
+    check_parity(gl, bundle, spec_inputs(spec, 64), options=TEXTURE, what=f"folded {precision} {spec}")
 
 
 def _run_spec(width: int, depth: int = 3) -> MLPSpec:
@@ -115,9 +119,12 @@ def test_a_run_unrolled_for_the_budget_still_folds_and_matches_torch(gl):
 
 
 @pytest.mark.parametrize("version", ["330", "es300"])
-def test_a_folded_run_compiles_for_every_target(gl, version):
+@pytest.mark.parametrize("precision", ["f32", "i8"])
+def test_a_folded_run_compiles_for_every_target(gl, version, precision):
+    from inshade.quantize import quantized
+
     spec = _run_spec(24)
-    bundle = build_mlp(spec).export("mlp")
+    bundle = quantized(build_mlp(spec).export("mlp"), precision)
     x = spec_inputs(spec, 64)
     assert_parity(glsl_eval(gl, bundle, x, version=version, options=TEXTURE), torch_reference(bundle, x),
-                  what=f"folded run, GLSL {version}")
+                  what=f"folded {precision} run, GLSL {version}")

@@ -57,11 +57,13 @@ def test_stored_precisions_on_every_target(target, precision):
     from inshade.quantize import quantized
 
     spec = MLPSpec([3, 2], [21, 13], [("relu", {}), ("tanh", {})], 6, None, 0, [True, False, True], seed=11)
-    bundle = quantized(build_mlp(spec).export("mlp"), precision)
-    x = spec_inputs(spec, 200)
-    for storage in STORAGES:
-        out = evaluate(generate(bundle, target=target, storage=storage), x, target)
-        assert_parity(out, torch_reference(bundle, x), what=f"{target} {storage} {precision}")
+    run = MLPSpec([3], [24] * 4, [("relu", {})] * 4, 2, None, None, [True] * 5, seed=11)   # a folded texture run
+    for spec, storages in ((spec, STORAGES), (run, ("texture",))):
+        bundle = quantized(build_mlp(spec).export("mlp"), precision)
+        x = spec_inputs(spec, 200)
+        for storage in storages:
+            out = evaluate(generate(bundle, target=target, storage=storage), x, target)
+            assert_parity(out, torch_reference(bundle, x), what=f"{target} {storage} {precision} {spec}")
 
 
 @pytest.mark.parametrize("target", TARGETS)

@@ -86,7 +86,7 @@ def test_textures_and_blocks_store_the_precisions_bytes():
     sizes = {p: sum(r.texture_bytes for r in generate(quantized(bundle, p), storage="texture").plan.rows)
              for p in ("f32", "f16", "i8")}
     assert sizes["f16"] == sizes["f32"] // 2
-    assert sizes["i8"] < sizes["f32"] // 4 + 64   # codes only: the biases and scales are literals
+    assert sizes["i8"] < sizes["f32"] // 3   # a byte a weight, and float32 biases and row scales
     blocks = {p: sum(r.uniform_bytes for r in generate(quantized(bundle, p), storage="ubo").plan.rows)
               for p in ("f32", "f16", "i8")}
     # the float32 biases (and i8's scales) sit beside the weights
@@ -94,7 +94,9 @@ def test_textures_and_blocks_store_the_precisions_bytes():
     ubo = generate(quantized(bundle, "f16"), storage="ubo")
     assert "precision f16: float16 pairs in uvec4s" in ubo.plan.report()
     i8 = generate(quantized(bundle, "i8"), storage="texture")
-    assert [(r.name, r.dtype) for r in i8.resources] == [("net_weights_i8", "f1")]
+    assert [(r.name, r.dtype) for r in i8.resources] == [("net_weights_i8", "u1"), ("net_weights_i8_rows", "f4")]
+    unorm = generate(quantized(bundle, "i8"), storage="texture", options={"dense": {"i8_texels": "unorm"}})
+    assert [r.dtype for r in unorm.resources] == ["f1", "f4"]   # an engine's image file
     assert "precision i8: int8 codes" in i8.plan.report()
 
 
@@ -133,7 +135,7 @@ def test_codegen_precision_checks_the_code_and_reports_the_quantization(tmp_path
     assert cli.main(["codegen", str(tmp_path / "mlp"), "--precision", "i8", "--storage", "texture", "--check",
                      "-o", str(tmp_path / "net.glsl")]) == 0
     out = capsys.readouterr().out
-    assert "precision i8: int8 codes (RGBA8)" in out and "(rule 1e-05): ok" in out
+    assert "precision i8: int8 codes (RGBA8UI" in out and "(rule 1e-05): ok" in out
     assert "quantization (i8, dense weights " in out and "max |twin - fp32 twin| = " in out
 
 

@@ -113,6 +113,21 @@ def test_weights_as_image_files(shipped, engine):
         assert result.ok, (name, result.line())
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+def test_int8_weights_as_an_image_file(shipped, engine):
+    """An i8 network's codes as an 8-bit PNG (unorm texels: an engine imports image files, not integer
+    textures), its rows' biases and scales as a float EXR, and its hash table's u8 codes as a PNG."""
+    from inshade.quantize import quantized
+
+    bundle = quantized(shipped["hash_grid_image"], "i8")
+    d = drop_in(bundle, engine, storage="texture")
+    formats = {f.name[len(d.generated.prefix) + 1:]: f.format for f, _ in d.images}
+    assert formats == {"weights_i8": "png 8-bit", "weights_i8_rows": "exr float", "grid_table0": "png 8-bit"}, formats
+    x = np.random.default_rng(3).random((1024, 2)).astype(np.float32)
+    result = check_drop_in(d, GraphModule.from_bundle(bundle), bundle, x)
+    assert result.ok, result.line()
+
+
 def test_each_engine_lays_the_rows_its_own_way(shipped, monkeypatch):
     """Unity's files hold the rows bottom-up, Unreal's top-down; read with the other engine's convention,
     the check fails: it reads what the engine would."""

@@ -10,6 +10,8 @@ const TYPES = {
   f1: {type: THREE.UnsignedByteType, array: Uint8Array, internal: {1: "R8", 2: "RG8", 4: "RGBA8"}, alpha: 255},
   u4: {type: THREE.UnsignedIntType, array: Uint32Array, internal: {1: "R32UI", 2: "RG32UI", 4: "RGBA32UI"}, alpha: 1,
        integer: true},
+  u1: {type: THREE.UnsignedByteType, array: Uint8Array, internal: {1: "R8UI", 2: "RG8UI", 4: "RGBA8UI"}, alpha: 1,
+       integer: true},
 };
 const FORMATS = {1: THREE.RedFormat, 2: THREE.RGFormat, 4: THREE.RGBAFormat};
 const INTEGER_FORMATS = {1: THREE.RedIntegerFormat, 2: THREE.RGIntegerFormat, 4: THREE.RGBAIntegerFormat};

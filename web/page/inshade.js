@@ -15,6 +15,8 @@ const DTYPES = {
   f1: {internal: [gl2.R8, gl2.RG8, gl2.RGB8, gl2.RGBA8], type: gl2.UNSIGNED_BYTE, array: Uint8Array},
   u4: {internal: [gl2.R32UI, gl2.RG32UI, gl2.RGB32UI, gl2.RGBA32UI], type: gl2.UNSIGNED_INT, array: Uint32Array,
        integer: true},
+  u1: {internal: [gl2.R8UI, gl2.RG8UI, gl2.RGB8UI, gl2.RGBA8UI], type: gl2.UNSIGNED_BYTE, array: Uint8Array,
+       integer: true},
   nu2: {internal: [0x822A, 0x822C, 0x8054, 0x805B], type: gl2.UNSIGNED_SHORT, array: Uint16Array},  // EXT_texture_norm16
 };
 const FORMATS = [gl2.RED, gl2.RG, gl2.RGB, gl2.RGBA];

@@ -12,6 +12,7 @@ const FORMATS = {
   f1: {formats: {1: "r8unorm", 2: "rg8unorm", 4: "rgba8unorm"}, array: Uint8Array, alpha: 255},
   nu2: {formats: {1: "r16unorm", 2: "rg16unorm", 4: "rgba16unorm"}, array: Uint16Array, alpha: 65535},
   u4: {formats: {1: "r32uint", 2: "rg32uint", 4: "rgba32uint"}, array: Uint32Array, alpha: 1},
+  u1: {formats: {1: "r8uint", 2: "rg8uint", 4: "rgba8uint"}, array: Uint8Array, alpha: 1},
 };
 export const UNORM16 = "texture-formats-tier1";   // 16-bit normalised formats in WebGPU
 
