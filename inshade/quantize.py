@@ -13,7 +13,8 @@ against the source is the quantization's own (``inshade.convert.check`` reports 
 components with a ``precision`` parameter of their own (hash and dense grids, latent pyramids, sparse
 voxels, mesh features) go from f32 to float16; under i8 every table takes its 8-bit form (u8, or a
 lookup array's 8 bits: codes with a per-lane offset + scale, components/unorm.py; the values are
-not centred, so a symmetric code would waste half its range).
+not centred, so a symmetric code would waste half its range), but for unbounded lookup arrays
+(KEPT_UNDER_I8).
 """
 from __future__ import annotations
 
@@ -37,6 +38,11 @@ EIGHT_BIT_FORMS = {"mesh_features": (_U8, lambda p: ["table"]), "hash_grid": (_U
                    "dense_grid": (_U8, lambda p: ["table"]), "sparse_voxels": (_U8, lambda p: ["latents"]),
                    "latent_pyramid": (_U8, lambda p: [f"level{k}" for k in range(p["levels"])]),
                    "lookup_array": (("bits", 8, (32,)), lambda p: ["cells"])}
+# the tables a precision of the whole network (``quantized(b, "i8")``) leaves as they are: a lookup
+# array whose values no periodic function bounds (Differentiable Indirection's cascaded arrays, which
+# its authors keep in float: quantising them is "cumbersome and ineffective"); a per-node precision
+# or --max-error can still code them
+KEPT_UNDER_I8 = {"lookup_array": lambda p: p.get("baked", "none") == "none"}
 
 
 def row_scales(weight: np.ndarray) -> np.ndarray:
@@ -110,7 +116,8 @@ def _table_choices(bundle, precision) -> dict:
     entries (a table a dict leaves out goes to f16 where any dense layer goes below f32)."""
     tables = lower_tables(bundle)
     if isinstance(precision, str):
-        return {n.id: precision for n in tables}
+        return {n.id: "f32" if precision == "i8" and KEPT_UNDER_I8.get(n.type, lambda p: False)(n.params)
+                else precision for n in tables}
     dense_below = {v for k, v in precision.items() if bundle.node(k).type in QUANTIZED_TYPES} - {"f32"}
     return {n.id: precision.get(n.id, "f16" if dense_below else "f32") for n in tables}
 

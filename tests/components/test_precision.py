@@ -190,7 +190,7 @@ def _table_networks():
     voxels = dict(scale_min=1, scale_max=2, density=0.3, channels=8, precision="f32", uint=False, small=False, seed=2)
     bundle = voxel_graph(voxels).export("voxels")
     yield "sparse_voxels", bundle, rng.integers(0, bundle.node("vox").params["voxels"], (256, 1))
-    lut = dict(res=[9, 7], channels=3, bits=32, nonlinearity="none", seed=4)
+    lut = dict(res=[9, 7], channels=3, bits=32, nonlinearity="triangle", seed=4)   # values bounded by F
     yield "lookup_array", lut_graph(lut).export("lut"), lut_inputs(4, 256, 2, [9, 7])
 
 
@@ -230,6 +230,16 @@ def test_i8_gives_mesh_features_their_u8_form(gl):
     x = np.concatenate([rng.integers(0, table.params["faces"], (256, 1)), rng.dirichlet((1, 1, 1), 256)[:, :2],
                         rng.uniform(-1, 1, (256, q.in_dim - 3))], 1).astype(np.float32)
     assert_parity(glsl_eval(gl, q, x, storage="texture"), torch_reference(q, x), what="uvfree i8")
+
+
+def test_an_unbounded_lookup_array_keeps_float_under_i8_unless_chosen():
+    """Differentiable Indirection's cascaded arrays (no periodic function bounds them) stay float32 under
+    a whole-network i8, as its authors keep them; a per-node precision codes one all the same."""
+    from test_lookup_array import lut_graph
+
+    bundle = lut_graph(dict(res=[9, 7], channels=3, bits=32, nonlinearity="none", seed=4)).export("lut")
+    assert quantized(bundle, "i8").node("lut").params["bits"] == 32
+    assert quantized(bundle, {"lut": "i8"}).node("lut").params["bits"] == 8
 
 
 def test_max_error_chooses_for_the_tables_too(gl):
