@@ -56,7 +56,7 @@ from inshade.models.checkpoint import read_checkpoint, write_checkpoint
 from inshade.models.fit_loop import adam, cosine, fit, learning_rates
 from inshade.components.latent_pyramid.torch_twin import LatentPyramid
 from inshade.provenance import recorded_at
-from inshade.trainer import GIVEN, Run, Trainer, seed_setting, setting
+from inshade.trainer import GIVEN, Run, Trainer, finetune_setting, precision_setting, seed_setting, setting
 
 from . import KIND, NETWORKS
 
@@ -90,6 +90,8 @@ class Settings:
     latent_lr: float = setting(1e-3, "phase 2 latent learning rate (Adam)")
     level_scale: float = setting(1.5, "scale of the exponential level distribution (favouring fine levels)")
     mollify_degrees: float = setting(12.0, "light cone of the phase 1 targets, shrinking to 0")
+    precision: str | None = precision_setting(None, only={"precision": GIVEN})
+    finetune_steps: int = finetune_setting(only={"precision": GIVEN})
 
 
 # "ship" (the defaults) built trained/neural_appearance_*; "quick" is the same pipeline at 32x32
@@ -184,7 +186,8 @@ def encode_pyramid(model: NeuralMaterial, encoder_levels: list[torch.Tensor]) ->
 
 def train(*, material=None, gltf=None, preset="ship", out=None, resolution=None, steps1=None, steps2=None,
           batch=None, sampler_batch=None, sampler_samples=None, footprint_samples=None, seed=None, device="cpu",
-          lr=None, latent_lr=None, level_scale=None, mollify_degrees=None, checkpoint_every=250,
+          lr=None, latent_lr=None, level_scale=None, mollify_degrees=None, precision=None, finetune_steps=None,
+          checkpoint_every=250,
           restart=False, progress=None, command_line=None, write_preview=True, render_spp=16,
           render_decoders=(32,)) -> Path:
     """Train and write the asset folder; returns it. The keyword form of ``inshade train
@@ -194,7 +197,8 @@ def train(*, material=None, gltf=None, preset="ship", out=None, resolution=None,
     given = dict(material=None if material is None else str(material), gltf=None if gltf is None else str(gltf),
                  resolution=resolution, steps1=steps1, steps2=steps2, batch=batch,
                  sampler_batch=sampler_batch, sampler_samples=sampler_samples, footprint_samples=footprint_samples,
-                 seed=seed, lr=lr, latent_lr=latent_lr, level_scale=level_scale, mollify_degrees=mollify_degrees)
+                 seed=seed, lr=lr, latent_lr=latent_lr, level_scale=level_scale, mollify_degrees=mollify_degrees,
+                 precision=precision, finetune_steps=finetune_steps)
     settings = Settings(**{**TRAINER.defaults(preset), **{k: v for k, v in given.items() if v is not None}})
     check(settings)
     source = open_source(settings.material, settings.gltf)
@@ -265,11 +269,15 @@ def fit_material(run: Run, progress=None) -> dict:
             lr_factor=cosine(steps), base_lrs=base, after_step=after, checkpoint_every=checkpoint_every,
             checkpoint=lambda done, phase=phase, opt=opt: _save_checkpoint(ckpt, model, opt, phase, done, config),
             checkpoint_last=False, desc=f"neural_appearance {source.name} phase {phase}", progress=progress)
-    seconds = time.perf_counter() - started
     if model.pyramid is None:     # steps2 == 0: latents straight from the encoder
         model.make_pyramid(encode_pyramid(model, enc_levels))
-    history["holdout"] = holdout(model, targets, levels, device, seed)
-    sizes = write_asset(out, model, source, raw, config, run.command, run.preset, device)
+    if s.precision not in (None, "f32"):
+        history["holdout_quantized_without_finetune"], history["holdout"] = finetune(
+            model, s, targets, encoder_inputs, levels, device, progress)
+    else:
+        history["holdout"] = holdout(model, targets, levels, device, seed)
+    seconds = time.perf_counter() - started
+    sizes = write_asset(out, model, source, raw, config, run.command, run.preset, device, s.precision)
     metrics = {"train_seconds": round(seconds, 1), "train_threads": torch.get_num_threads(), "device": str(device),
                "bundle_bytes": sizes, "history": history}
     spp = getattr(run.args, "render_spp", 16)
@@ -279,6 +287,24 @@ def fit_material(run: Run, progress=None) -> dict:
     if not run.args.no_preview:
         render_preview(out, spp=spp if run.settings.gltf is not None else 4)
     return metrics
+
+
+def finetune(model: NeuralMaterial, s: Settings, targets: Targets, encoder_inputs, levels: int, device,
+             progress=None) -> tuple[dict, dict]:
+    """The quantization-aware fine-tune (precision below f32): ``finetune_steps`` more phase-2 steps at a
+    tenth of the rates, the networks' dense weights (and at i8 the latents' u8 codes) seen as
+    ``precision`` stores them (models/quantize_aware.py). Returns the holdout before and after it, both
+    of the quantized networks."""
+    from inshade.models.quantize_aware import quantizer_in_loop
+
+    steps = s.finetune_steps
+    with quantizer_in_loop(model, s.precision):
+        before = holdout(model, targets, levels, device, s.seed)
+        opt = _optimizer(model, 2, s.lr / 10, s.latent_lr / 10)
+        fit(opt, _phase_loss(model, s, targets, encoder_inputs, levels, 3, steps, device), steps,
+            lr_factor=cosine(steps), desc=f"quantization-aware fine-tune ({s.precision})", progress=progress)
+        after = holdout(model, targets, levels, device, s.seed)
+    return before, after
 
 
 def holdout(model: NeuralMaterial, targets: Targets, levels: int, device, seed: int, n: int = 8192) -> dict:
@@ -300,9 +326,12 @@ def holdout(model: NeuralMaterial, targets: Targets, levels: int, device, seed: 
 # ---------------------------------------------------------------------------------------------
 # the asset
 
-def write_asset(out: Path, model: NeuralMaterial, source, raw, config, command_line, preset, device) -> dict:
-    """The bundles, what the reference shader reads (sources.py ``write_files``), scene.json; returns
-    each bundle's bytes."""
+def write_asset(out: Path, model: NeuralMaterial, source, raw, config, command_line, preset, device,
+                precision: str | None = None) -> dict:
+    """The bundles (stored at ``precision`` where given: inshade/quantize.py), what the reference shader
+    reads (sources.py ``write_files``), scene.json; returns each bundle's bytes."""
+    from inshade.quantize import quantized
+
     out.mkdir(parents=True, exist_ok=True)
     provenance = {"command": command_line, "preset": preset, "material": source.name, **config,
                   "torch": torch.__version__, "device": str(device),
@@ -311,8 +340,11 @@ def write_asset(out: Path, model: NeuralMaterial, source, raw, config, command_l
     sizes = {}
     for folder, _prefix in NETWORKS:
         bundle = graphs[folder].export(KIND, folder, provenance=provenance)
+        if precision not in (None, "f32"):   # the values the fine-tune saw
+            bundle = quantized(bundle, precision)
         if folder == "latents":   # fp16 texels (what RGBA16F holds) stored as F16: half the file, widened exactly at load
-            bundle.tensors = {k: v.astype(np.float16) for k, v in bundle.tensors.items()}
+            bundle.tensors = {k: v.astype(np.float16) if v.dtype == np.float32 and ".level" in k else v
+                              for k, v in bundle.tensors.items()}
         bundle.save(out / folder)
         sizes[folder] = int(sum(np.asarray(t).nbytes for t in bundle.tensors.values()))
     source.write_files(out, raw)
@@ -385,7 +417,7 @@ def _decoders(text: str) -> tuple[int, ...]:
 
 
 def check(s: Settings) -> None:
-    for name in ("steps1", "steps2", "batch"):
+    for name in ("steps1", "steps2", "batch", "finetune_steps"):
         if getattr(s, name) < 0:
             raise ValueError(f"--{name}: must be >= 0, got {getattr(s, name)}")
     if s.resolution < 4 or s.resolution & (s.resolution - 1):

@@ -177,3 +177,31 @@ def test_trained_networks_match_torch_under_the_rule(gl, asset, network):
         dirs = [np.where(d[:, 2:] < 0, d * [1, 1, -1], d) for d in dirs]   # the upper hemisphere, as drawn
         x = np.concatenate([z, *dirs] if network.startswith("decoder") else [z, dirs[1]], 1)
     check_parity(gl, bundle, x.astype(np.float32), what=network)
+
+
+def test_a_lower_precision_ends_with_a_quantization_aware_fine_tune(tmp_path, gl):
+    """--precision i8: the fit ends with --finetune-steps seen through the quantizer; the asset's decoders
+    are int8 rows, its latents u8 codes (the very values the fine-tune saw: the twin of the bundle is
+    what the holdout measured), the holdout before the fine-tune recorded beside the one after, and
+    the networks hold the parity rule."""
+    from parity import check_parity, unit_directions
+
+    from inshade.bundle import load
+    from inshade.techniques.neural_appearance.train import train
+
+    out = tmp_path / "neural_appearance_i8"
+    train(material="ceramic", preset="quick", out=out, steps1=10, steps2=10, precision="i8", finetune_steps=10,
+          write_preview=False, progress=False)
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["settings"]["precision"] == "i8" and metrics["settings"]["finetune_steps"] == 10
+    history = metrics["history"]
+    assert set(history["holdout_quantized_without_finetune"]) == set(history["holdout"]) == {"level0", "level1",
+                                                                                              "level2"}
+    latents, decoder = load(out / "latents"), load(out / "decoder_2x16")
+    assert latents.node("pyramid").params["precision"] == "u8"
+    assert {n.params["precision"] for n in decoder.nodes if n.type == "dense"} == {"i8"}
+    z = np.asarray(latents.tensors["pyramid.level0"]).reshape(-1, 8)[:256].astype(np.float32)
+    z = latents.tensors["pyramid.offset"] + latents.tensors["pyramid.scale"] * (z / 255)   # the decoded codes
+    dirs = [unit_directions(7 + k, 256) for k in range(2)]
+    dirs = [np.where(d[:, 2:] < 0, d * [1, 1, -1], d) for d in dirs]
+    check_parity(gl, decoder, np.concatenate([z, *dirs], 1).astype(np.float32), what="i8 decoder")
