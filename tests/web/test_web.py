@@ -315,10 +315,11 @@ def test_a_gltf_file_exports_as_a_page_of_its_reference_shading(gl, browser, tmp
     assert db >= MIN_PSNR_DB, f"tiles.glb: the page is {db:.2f} dB from inshade render's"
 
 
-@pytest.mark.parametrize("precision", ["f16", "i8"])
-def test_a_page_draws_a_network_stored_at_a_lower_precision(gl, browser, precision, tmp_path):
+@pytest.mark.parametrize("precision,storage", [("f16", "auto"), ("i8", "auto"), ("i8", "texture")])
+def test_a_page_draws_a_network_stored_at_a_lower_precision(gl, browser, precision, storage, tmp_path):
     """A 64 x 4 image network exported at f16 / i8: the page plans its layers into uniform blocks, which
-    hold the precision's bytes (float16 pairs, int8 codes) unpacked in the shader, on both APIs."""
+    hold the precision's bytes (float16 pairs, int8 codes) unpacked in the shader, or at storage texture
+    an i8 network's codes in an RGBA8UI texture and its rows' biases and scales beside it, on both APIs."""
     import inshade
     from inshade.runtime.headless import render_scene
 
@@ -329,10 +330,13 @@ def test_a_page_draws_a_network_stored_at_a_lower_precision(gl, browser, precisi
     module = torch.nn.Sequential(*layers, torch.nn.Linear(64, 3), torch.nn.Sigmoid())
     inshade.export(module, torch.rand(64, 2), tmp_path / "net", as_="image", colour="srgb", precision=precision,
                    quiet=True)
-    image, _ = render_scene(load_scene(tmp_path / "net"), width=64, height=64, settings={"labels": False})
+    settings = {"labels": False, **({"storage": storage} if storage != "auto" else {})}
+    image, _ = render_scene(load_scene(tmp_path / "net"), width=64, height=64, settings=settings)
     for api in APIS:
-        page = export_web(tmp_path / "net", tmp_path / api, width=64, height=64, api=api)
-        assert "ubo" in {r.storage for g in page.renderer.generated for r in g.plan.rows}
+        page = export_web(tmp_path / "net", tmp_path / api, width=64, height=64, api=api,
+                          settings={"storage": storage} if storage != "auto" else None)
+        assert ("ubo" if storage == "auto" else storage) in {r.storage for g in page.renderer.generated
+                                                              for r in g.plan.rows}
         with serve(tmp_path / api) as url:
             state = browser.open(url + "index.html")
             assert state["error"] is None and not errors(state["console"]), state
